@@ -1,0 +1,1 @@
+"""The ``ftrac-design`` command line (SPEC §5). One module per command."""

@@ -1,0 +1,88 @@
+"""Read a design file and turn every problem into one :class:`InputError` line."""
+
+from __future__ import annotations
+
+import hashlib
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from ..errors import InputError
+from .schema import Design
+from .validate import geometry_errors
+
+
+def _loc(loc: tuple[Any, ...]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out
+
+
+_EXPECT = {
+    "float_type": "a number",
+    "int_type": "an integer",
+    "string_type": "a string",
+    "list_type": "a list",
+    "tuple_type": "a list of 3 numbers",
+    "missing": "a value (the key is required)",
+    "extra_forbidden": "no such key (unknown key; check its spelling)",
+    "greater_than": "a value greater than {gt}",
+    "greater_than_equal": "a value of at least {ge}",
+    "less_than": "a value less than {lt}",
+    "string_pattern_mismatch": "an identifier (letters, digits, _; starting with a letter)",
+    "model_type": "a table",
+}
+
+
+def parse_design(data: dict[str, Any], file: str | Path | None = None) -> Design:
+    """Validate an already-parsed design mapping; raise :class:`InputError` on the first problem."""
+    try:
+        design = Design.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors(include_url=False)[0]
+        key = _loc(err["loc"]) or None
+        template = _EXPECT.get(err["type"])
+        if template:
+            expected = template.format(**(err.get("ctx") or {}))
+            if err["type"] not in ("missing", "extra_forbidden"):
+                expected += f", got {err.get('input')!r}"
+        else:
+            expected = err["msg"].removeprefix("Value error, ")
+        raise InputError(file, key, expected) from None
+    problems = geometry_errors(design)
+    if problems:
+        key, expected = problems[0]
+        raise InputError(file, key, expected)
+    return design
+
+
+def load_design(path: str | Path) -> Design:
+    """Load and validate a design file (TOML).
+
+    Raises :class:`InputError` naming the file, the key and what was expected.
+    """
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except IsADirectoryError:
+        raise InputError(path, None, "a design file, not a directory") from None
+    except OSError as exc:
+        raise InputError(path, None, f"a readable file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise InputError(path, None, "UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(path, None, f"valid TOML ({exc})") from None
+    design = parse_design(data, path)
+    design._source = str(path)
+    design._sha256 = hashlib.sha256(raw).hexdigest()
+    return design

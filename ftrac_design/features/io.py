@@ -1,0 +1,205 @@
+"""``features.json`` (SPEC §2): write from :class:`Features`, read back with validation.
+
+Readers ignore keys they do not know (SPEC §2); anything malformed raises
+:class:`~ftrac_design.errors.InputError` naming the file, the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..fileio import write_json_atomic
+from .model import EllipseFeature, Features, LineFeature, PointFeature
+
+FORMAT = "ftrac-features"
+VERSION = 1
+
+#: tolerance on |axis| = 1 and major·minor = 0 when reading (files carry 17 digits)
+_ORTHO_TOL = 1e-6
+
+
+def _vec(v: np.ndarray) -> list[float]:
+    return [float(x) for x in v]
+
+
+def features_to_dict(f: Features) -> dict[str, Any]:
+    """The SPEC §2 JSON object for ``f``."""
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "units": "mm",
+        "design": {"name": f.name, "source": f.source, "sha256": f.sha256},
+        "nominal_beam_direction": _vec(f.nominal_beam_direction),
+        "points": [
+            {"id": p.id, "center": _vec(p.center), "diameter": p.diameter,
+             **({"line": p.line} if p.line else {})}
+            for p in f.points
+        ],
+        "lines": [
+            {"id": ln.id, "start": _vec(ln.start), "end": _vec(ln.end), "wire_diameter": ln.wire_diameter}
+            for ln in f.lines
+        ],
+        "ellipses": [
+            {"id": e.id, "center": _vec(e.center), "major_axis": _vec(e.major_axis),
+             "minor_axis": _vec(e.minor_axis), "semi_major": e.semi_major,
+             "semi_minor": e.semi_minor, "wire_diameter": e.wire_diameter}
+            for e in f.ellipses
+        ],
+        "frames": {k: [_vec(row) for row in T] for k, T in f.frames.items()},
+    }
+
+
+def write_features(path: str | Path, f: Features) -> Path:
+    """Write ``features.json`` atomically."""
+    return write_json_atomic(path, features_to_dict(f))
+
+
+class _Reader:
+    """Typed access to a parsed JSON object that reports the failing key path."""
+
+    def __init__(self, file: str | Path | None):
+        self.file = file
+
+    def fail(self, key: str, expected: str) -> InputError:
+        return InputError(self.file, key, expected)
+
+    def get(self, obj: dict, key: str, where: str, default: Any = ...) -> Any:
+        if not isinstance(obj, dict):
+            raise self.fail(where or "(top level)", "a JSON object")
+        if key not in obj:
+            if default is not ...:
+                return default
+            raise self.fail(f"{where}.{key}" if where else key, "a value (the key is required)")
+        return obj[key]
+
+    def number(self, v: Any, key: str, positive: bool = False) -> float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise self.fail(key, f"a finite number, got {v!r}")
+        if positive and not v > 0:
+            raise self.fail(key, f"a positive number, got {v!r}")
+        return float(v)
+
+    def vector(self, v: Any, key: str, n: int = 3) -> np.ndarray:
+        if not isinstance(v, list) or len(v) != n:
+            raise self.fail(key, f"a list of {n} numbers, got {v!r}")
+        return np.array([self.number(x, f"{key}[{i}]") for i, x in enumerate(v)])
+
+    def string(self, v: Any, key: str) -> str:
+        if not isinstance(v, str) or not v:
+            raise self.fail(key, f"a non-empty string, got {v!r}")
+        return v
+
+    def items(self, obj: dict, key: str) -> list:
+        v = self.get(obj, key, "", [])
+        if not isinstance(v, list):
+            raise self.fail(key, "a list")
+        return v
+
+
+def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
+    """Validate a parsed ``features.json`` object and build :class:`Features`."""
+    r = _Reader(file)
+    if not isinstance(d, dict):
+        raise r.fail("(top level)", "a JSON object")
+    if r.get(d, "format", "") != FORMAT:
+        raise r.fail("format", f'"{FORMAT}"')
+    version = r.get(d, "version", "")
+    if version != VERSION:
+        raise r.fail("version", f"{VERSION} (this reader's format version), got {version!r}")
+    units = r.get(d, "units", "", "mm")
+    if units != "mm":
+        raise r.fail("units", f'"mm", got {units!r}')
+    design = r.get(d, "design", "", {})
+    if not isinstance(design, dict):
+        raise r.fail("design", "a JSON object")
+    name = design.get("name") or "unnamed"
+    beam = r.vector(r.get(d, "nominal_beam_direction", ""), "nominal_beam_direction")
+    if np.linalg.norm(beam) < 1e-9:
+        raise r.fail("nominal_beam_direction", "a non-zero vector")
+
+    ids: set[str] = set()
+
+    def new_id(obj: dict, where: str) -> str:
+        ident = r.string(r.get(obj, "id", where), f"{where}.id")
+        if ident in ids:
+            raise r.fail(f"{where}.id", f'a unique id ("{ident}" is used twice)')
+        ids.add(ident)
+        return ident
+
+    lines = []
+    for i, o in enumerate(r.items(d, "lines")):
+        w = f"lines[{i}]"
+        ident = new_id(o, w)
+        s = r.vector(r.get(o, "start", w), f"{w}.start")
+        e = r.vector(r.get(o, "end", w), f"{w}.end")
+        if np.linalg.norm(e - s) < 1e-9:
+            raise r.fail(f"{w}.end", "an end-point distinct from start")
+        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter")))
+    line_ids = {ln.id for ln in lines}
+
+    points = []
+    for i, o in enumerate(r.items(d, "points")):
+        w = f"points[{i}]"
+        ident = new_id(o, w)
+        line = r.get(o, "line", w, None)
+        if line is not None and line not in line_ids:
+            raise r.fail(f"{w}.line", f"the id of a line in this file, got {line!r}")
+        points.append(PointFeature(ident, r.vector(r.get(o, "center", w), f"{w}.center"),
+                                   r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter"), line))
+
+    ellipses = []
+    for i, o in enumerate(r.items(d, "ellipses")):
+        w = f"ellipses[{i}]"
+        ident = new_id(o, w)
+        c = r.vector(r.get(o, "center", w), f"{w}.center")
+        u = r.vector(r.get(o, "major_axis", w), f"{w}.major_axis")
+        v = r.vector(r.get(o, "minor_axis", w), f"{w}.minor_axis")
+        for key, ax in (("major_axis", u), ("minor_axis", v)):
+            if abs(np.linalg.norm(ax) - 1.0) > _ORTHO_TOL:
+                raise r.fail(f"{w}.{key}", f"a unit vector, |{key}| = {np.linalg.norm(ax):.9g}")
+        if abs(float(u @ v)) > _ORTHO_TOL:
+            raise r.fail(f"{w}.minor_axis", f"a vector orthogonal to major_axis (dot = {float(u @ v):.3g})")
+        a = r.number(r.get(o, "semi_major", w), f"{w}.semi_major", positive=True)
+        b = r.number(r.get(o, "semi_minor", w), f"{w}.semi_minor", positive=True)
+        if b > a * (1 + 1e-12):
+            raise r.fail(f"{w}.semi_minor", f"a value not above semi_major ({a}), got {b}")
+        ellipses.append(EllipseFeature(ident, c, u, v, a, b,
+                                       r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter")))
+
+    frames = {}
+    fr = r.get(d, "frames", "", {})
+    if not isinstance(fr, dict):
+        raise r.fail("frames", "a JSON object of 4x4 matrices")
+    for k, m in fr.items():
+        if not (isinstance(m, list) and len(m) == 4):
+            raise r.fail(f"frames.{k}", "a 4x4 matrix (list of 4 rows)")
+        T = np.array([r.vector(row, f"frames.{k}[{i}]", 4) for i, row in enumerate(m)])
+        frames[k] = T
+
+    if not (points or lines or ellipses):
+        raise r.fail("points", "at least one point, line or ellipse")
+    return Features(name=str(name), source=design.get("source"), sha256=design.get("sha256"),
+                    nominal_beam_direction=beam / np.linalg.norm(beam), points=tuple(points),
+                    lines=tuple(lines), ellipses=tuple(ellipses), frames=frames)
+
+
+def load_features(path: str | Path) -> Features:
+    """Read and validate ``features.json``; bad input raises :class:`InputError`."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
+    return features_from_dict(d, path)

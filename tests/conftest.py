@@ -1,0 +1,34 @@
+"""Shared fixtures: the preset designs and their features."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from ftrac_design.design import load_design
+from ftrac_design.features import compute_features
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / "models"
+PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
+
+
+@pytest.fixture(scope="session")
+def models_dir() -> Path:
+    return MODELS
+
+
+@pytest.fixture(scope="session", params=PRESETS)
+def preset(request) -> str:
+    return request.param
+
+
+@pytest.fixture(scope="session")
+def design_2005():
+    return load_design(MODELS / "ftrac_2005.toml")
+
+
+@pytest.fixture(scope="session")
+def features_2005(design_2005):
+    return compute_features(design_2005)
