@@ -8,6 +8,7 @@ fiducial frame F (SPEC §1), millimetres.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -42,6 +43,16 @@ class LineFeature:
         """Centre-line length between the end-points, mm."""
         return float(np.linalg.norm(self.end - self.start))
 
+    def sample(self, t: np.ndarray) -> np.ndarray:
+        """Points (n, 3) on the centre-line at fractions ``t`` (0 = start, 1 = end), mm in F."""
+        t = np.asarray(t, float)[..., None]
+        return self.start + t * (self.end - self.start)
+
+    def parameter(self, p: np.ndarray) -> np.ndarray:
+        """Fraction ``t`` of the orthogonal projection of point(s) ``p`` onto the line."""
+        d = self.end - self.start
+        return (np.asarray(p, float) - self.start) @ d / float(d @ d)
+
 
 @dataclass(frozen=True)
 class EllipseFeature:
@@ -65,6 +76,12 @@ class EllipseFeature:
         s = np.asarray(s, float)[..., None]
         return (self.center + self.semi_major * np.cos(s) * self.major_axis
                 + self.semi_minor * np.sin(s) * self.minor_axis)
+
+    def tangent(self, s: np.ndarray) -> np.ndarray:
+        """Unit tangents (n, 3) of the centre-line at parameters ``s`` (rad), direction of increasing s."""
+        s = np.asarray(s, float)[..., None]
+        t = -self.semi_major * np.sin(s) * self.major_axis + self.semi_minor * np.cos(s) * self.minor_axis
+        return t / np.linalg.norm(t, axis=-1, keepdims=True)
 
     @property
     def circumference(self) -> float:
@@ -100,6 +117,7 @@ class Features:
         """Bead centres (n, 3), mm in F."""
         return np.array([p.center for p in self.points], float).reshape(-1, 3)
 
+    @cached_property
     def characteristic_radius(self) -> float:
         """RMS distance of all feature geometry from the F origin, mm.
 
@@ -114,6 +132,48 @@ class Features:
         if not pts:
             return 1.0
         return float(np.sqrt(np.mean(np.sum(np.asarray(pts) ** 2, axis=1))))
+
+    def beads_on(self, line_id: str) -> tuple[PointFeature, ...]:
+        """The beads threaded on line ``line_id``, ordered from its start to its end."""
+        ln = self.line(line_id)
+        on = [p for p in self.points if p.line == line_id]
+        return tuple(sorted(on, key=lambda p: float(ln.parameter(p.center))))
+
+    def line(self, line_id: str) -> LineFeature:
+        """The line feature with id ``line_id`` (KeyError if there is none)."""
+        for ln in self.lines:
+            if ln.id == line_id:
+                return ln
+        raise KeyError(line_id)
+
+    def wire_segments(self, line_id: str) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Pieces of straight wire on line ``line_id`` as (start, end) centre-line points, mm in F.
+
+        A line's wire runs from its start to its end but is interrupted by every bead
+        threaded on it: a piece ends where it butts against a ball, one ball radius from the
+        bead centre along the line. Pieces of zero length (beads touching, or a bead at an
+        end-point) are dropped.
+        """
+        ln = self.line(line_id)
+        L = ln.length
+        cuts = [(float(ln.parameter(p.center)) * L - p.diameter / 2, float(ln.parameter(p.center)) * L + p.diameter / 2)
+                for p in self.beads_on(line_id)]
+        pieces, pos = [], 0.0
+        for lo, hi in cuts:
+            if lo > pos + 1e-9:
+                pieces.append((pos, min(lo, L)))
+            pos = max(pos, hi)
+        if L > pos + 1e-9:
+            pieces.append((pos, L))
+        return [(ln.sample(a / L), ln.sample(b / L)) for a, b in pieces]
+
+    def wire_length(self, feature_id: str) -> float:
+        """Length of wire (mm) that feature ``feature_id`` takes: an ellipse's whole
+        circumference, or the sum of a line's pieces between its beads."""
+        for e in self.ellipses:
+            if e.id == feature_id:
+                return e.circumference
+        return float(sum(np.linalg.norm(b - a) for a, b in self.wire_segments(feature_id)))
 
     def subset(self, keep: set[str] | list[str]) -> "Features":
         """A copy holding only the features whose id is in ``keep`` (frames kept)."""

@@ -1,0 +1,195 @@
+"""``observation.json`` (SPEC §3): what was segmented in one image.
+
+Parsing validates everything a solver relies on and raises
+:class:`~ftrac_design.errors.InputError` naming the file (and line, for JSON Lines), the
+key and what was expected. Keys are feature ids; checking them against ``features.json``
+is the solver's job (:func:`ftrac_design.pose.problem.compile_problem`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+
+from ..errors import InputError
+from .camera import Camera
+
+FORMAT = "ftrac-observation"
+VERSION = 1
+
+
+@dataclass
+class CurveObservation:
+    """A segmented line or ellipse: contour ``points`` (n, 2) px, or fitted coefficients
+    (line ``A u + B v + C = 0``; conic ``A u² + B uv + C v² + D u + E v + F = 0``)."""
+
+    points: np.ndarray | None = None
+    coefficients: np.ndarray | None = None
+
+
+@dataclass
+class Observation:
+    """One image: its camera and the features found in it, keyed by feature id."""
+
+    camera: Camera
+    points: dict[str, np.ndarray] = field(default_factory=dict)
+    lines: dict[str, CurveObservation] = field(default_factory=dict)
+    ellipses: dict[str, CurveObservation] = field(default_factory=dict)
+    #: where it came from, for error messages: "obs.json" or "batch.jsonl:17"
+    origin: str = "<observation>"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The SPEC §3 JSON object."""
+        def curve(c: CurveObservation, coef_key: str) -> dict[str, Any]:
+            if c.points is not None:
+                return {"points": np.asarray(c.points).tolist()}
+            return {coef_key: np.asarray(c.coefficients).tolist()}
+        return {
+            "format": FORMAT, "version": VERSION, "camera": self.camera.to_dict(),
+            "points": {k: [float(v[0]), float(v[1])] for k, v in self.points.items()},
+            "lines": {k: curve(c, "coefficients") for k, c in self.lines.items()},
+            "ellipses": {k: curve(c, "conic") for k, c in self.ellipses.items()},
+        }
+
+    @property
+    def structure(self) -> tuple:
+        """What was observed and how — observations with equal structure solve as one batch."""
+        def kind(c: CurveObservation) -> str:
+            return "p" if c.points is not None else "c"
+        return (tuple(sorted(self.points)), tuple(sorted((k, kind(c)) for k, c in self.lines.items())),
+                tuple(sorted((k, kind(c)) for k, c in self.ellipses.items())))
+
+
+def _num(v: Any, origin: str, key: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InputError(origin, key, f"a number, got {v!r}")
+    if not math.isfinite(v):
+        raise InputError(origin, key, f"a finite number, got {v!r}")
+    return float(v)
+
+
+def _vec(v: Any, n: int, origin: str, key: str) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != n:
+        raise InputError(origin, key, f"a list of {n} numbers, got {_short(v)}")
+    return np.array([_num(x, origin, f"{key}[{i}]") for i, x in enumerate(v)])
+
+
+def _short(v: Any) -> str:
+    s = json.dumps(v) if not isinstance(v, float) else repr(v)
+    return s if len(s) <= 40 else s[:37] + "..."
+
+
+def _pts(v: Any, origin: str, key: str, minimum: int) -> np.ndarray:
+    if not isinstance(v, list):
+        raise InputError(origin, key, f"a list of [u, v] pixel pairs, got {_short(v)}")
+    if len(v) < minimum:
+        raise InputError(origin, key, f"at least {minimum} contour points to fit, got {len(v)}")
+    return np.array([_vec(p, 2, origin, f"{key}[{i}]") for i, p in enumerate(v)])
+
+
+def _curve(v: Any, origin: str, key: str, coef_key: str, ncoef: int, minimum: int) -> CurveObservation:
+    if not isinstance(v, dict):
+        raise InputError(origin, key, f'an object with "points" or "{coef_key}"')
+    has_p, has_c = "points" in v, coef_key in v
+    if has_p == has_c:
+        raise InputError(origin, key, f'exactly one of "points" or "{coef_key}"')
+    if has_p:
+        pts = _pts(v["points"], origin, f"{key}.points", minimum)
+        spread = np.ptp(pts, axis=0).max() if len(pts) else 0.0
+        if spread <= 0:
+            raise InputError(origin, f"{key}.points", "contour points that are not all the same pixel")
+        return CurveObservation(points=pts)
+    c = _vec(v[coef_key], ncoef, origin, f"{key}.{coef_key}")
+    if coef_key == "coefficients" and np.hypot(c[0], c[1]) == 0:
+        raise InputError(origin, f"{key}.{coef_key}", "A and B not both zero")
+    if coef_key == "conic":
+        A, B, C = c[0], c[1], c[2]
+        if not 4 * A * C - B * B > 0:
+            raise InputError(origin, f"{key}.{coef_key}", "the coefficients of an ellipse (4AC − B² > 0)")
+    return CurveObservation(coefficients=c)
+
+
+def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
+    """Validate a parsed SPEC §3 object. ``origin`` names the file (and line) in errors."""
+    if not isinstance(d, dict):
+        raise InputError(origin, None, "a JSON object (an ftrac-observation)")
+    fmt = d.get("format", FORMAT)
+    if fmt != FORMAT:
+        raise InputError(origin, "format", f'"{FORMAT}", got {_short(fmt)}')
+    ver = d.get("version", VERSION)
+    if ver != VERSION:
+        raise InputError(origin, "version", f"{VERSION}, got {_short(ver)}")
+    cam = d.get("camera")
+    if not isinstance(cam, dict):
+        raise InputError(origin, "camera", "an object with focal_length_mm, pixel_size_mm, principal_point_px")
+    for k in ("focal_length_mm", "pixel_size_mm", "principal_point_px"):
+        if k not in cam:
+            raise InputError(origin, f"camera.{k}", "a value (the key is required)")
+    f = _num(cam["focal_length_mm"], origin, "camera.focal_length_mm")
+    px = _vec(cam["pixel_size_mm"], 2, origin, "camera.pixel_size_mm")
+    pp = _vec(cam["principal_point_px"], 2, origin, "camera.principal_point_px")
+    if f <= 0:
+        raise InputError(origin, "camera.focal_length_mm", f"a positive number, got {f}")
+    if px.min() <= 0:
+        raise InputError(origin, "camera.pixel_size_mm", f"positive numbers, got {px.tolist()}")
+    camera = Camera(f, (float(px[0]), float(px[1])), (float(pp[0]), float(pp[1])))
+
+    def section(name: str) -> dict:
+        v = d.get(name, {})
+        if not isinstance(v, dict):
+            raise InputError(origin, name, "an object keyed by feature id")
+        return v
+
+    points = {k: _vec(v, 2, origin, f"points.{k}") for k, v in section("points").items()}
+    lines = {k: _curve(v, origin, f"lines.{k}", "coefficients", 3, 2) for k, v in section("lines").items()}
+    ellipses = {k: _curve(v, origin, f"ellipses.{k}", "conic", 6, 5) for k, v in section("ellipses").items()}
+    dup = (set(points) & set(lines)) | (set(points) & set(ellipses)) | (set(lines) & set(ellipses))
+    if dup:
+        raise InputError(origin, sorted(dup)[0], "an id used in only one of points, lines, ellipses")
+    if not (points or lines or ellipses):
+        raise InputError(origin, "points", "at least one observed point, line or ellipse")
+    return Observation(camera, points, lines, ellipses, origin)
+
+
+def read_observations(path: str | Path) -> Iterator[Observation]:
+    """Observations from a ``.json`` file (one) or ``.jsonl`` file (one per non-blank line)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
+    if path.suffix.lower() == ".jsonl":
+        found = False
+        for i, line in enumerate(text.splitlines(), 1):
+            if not line.strip():
+                continue
+            origin = f"{path}:{i}"
+            try:
+                d = json.loads(line, parse_constant=_reject_constant)
+            except json.JSONDecodeError as exc:
+                raise InputError(origin, None, f"one JSON object per line ({exc.msg})") from None
+            except ValueError as exc:
+                raise InputError(origin, None, str(exc)) from None
+            found = True
+            yield observation_from_dict(d, origin)
+        if not found:
+            raise InputError(path, None, "at least one observation (the file is empty)")
+    else:
+        try:
+            d = json.loads(text, parse_constant=_reject_constant)
+        except json.JSONDecodeError as exc:
+            raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
+        except ValueError as exc:
+            raise InputError(path, None, str(exc)) from None
+        yield observation_from_dict(d, str(path))
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"finite numbers (JSON has no {name})")

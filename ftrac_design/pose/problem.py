@@ -1,0 +1,508 @@
+"""Residuals and their closed-form Jacobian for a batch of images (paper §II.B.2–5).
+
+A :class:`Problem` holds B images that observed the same features in the same way (points
+as pixels, curves as contour points or as coefficients), compiled into arrays. For poses
+``R`` (B, 3, 3), ``t`` (B, 3) — ``P_X = R P_F + t`` — :func:`evaluate` returns
+
+- the raw residuals in pixels, as in the paper: point reprojection errors (Eqs. 3–4);
+  signed distances of the projected line end-points to the observed line (Eq. 5); signed
+  distances of K projected model points of each ellipse to the observed conic — Sampson's
+  first-order distance ``Q / |∇Q|`` by default, or the paper's ``K · PᵀMP`` (Eq. 8);
+- the whitened residual ρ = G r and its Jacobian ∂ρ/∂(δ, t), where δ is a rotation vector
+  applied on the left (``R ← exp([δ]ₓ) R``, rotation about the fiducial origin, camera axes).
+
+Task-variable scaling G (paper Eq. 17) is the Gauss–Markov whitening: points are divided by
+their σ; for a curve, the distances r are mapped to the curve-parameter change they imply,
+``D⁺ r`` with ``D = ∂r/∂(curve parameters)``, and whitened by the observed curve's own
+information Λ (from its contour fit): ``ρ = chol(Λ)ᵀ D⁺ r``. Then ``|ρ|²`` is the
+Mahalanobis distance between the projected model curve and the observed one, to first
+order, and the least-squares pose is the maximum-likelihood one. When a curve is given only
+by coefficients its information is unknown; then ``Λ = DᵀD / σ²``, which is the paper's
+fallback of a diagonal G with 1/σ per distance, restricted to what the curve can tell.
+
+Parameter scaling H (paper Eq. 17) is applied by the solver and the analysis, not here.
+All arrays are float64; lengths in mm (F and X frames), image quantities in pixels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+import numpy as np
+
+from ..errors import InputError
+from ..features.model import Features
+from .fitting import ConicFit, LineFit, conic_center_and_axes, conic_from_coefficients, conic_matrix, fit_conic, \
+    fit_line, line_from_coefficients, tangent_basis
+from .observation import Observation
+from .smallmat import spd_solve
+
+#: the paper's 12 model points per ellipse (§II.B.2); with Gauss–Markov whitening any
+#: number ≥ 5 spread around the ellipse gives the same answer to first order
+ELLIPSE_MODEL_POINTS = 12
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Segmentation noise: standard deviation per image axis at the detector, mm.
+
+    The paper's simulations add an error of uniformly distributed magnitude up to e in a
+    uniformly random direction, whose per-axis standard deviation is ``e / √6``: the default
+    0.102 mm is its 0.25 mm. Contour points carry the same σ along the curve normal.
+    Only the ratios between feature types change the pose estimate; the absolute scale is
+    re-estimated from the residuals for the covariance.
+    """
+
+    point_mm: float = 0.25 / 6 ** 0.5
+    line_mm: float = 0.25 / 6 ** 0.5
+    ellipse_mm: float = 0.25 / 6 ** 0.5
+
+    @classmethod
+    def from_segmentation_error(cls, e_mm: float) -> "NoiseModel":
+        """σ for the paper's uniform error of maximum magnitude ``e_mm`` on every feature."""
+        s = max(e_mm, 1e-6) / 6 ** 0.5
+        return cls(s, s, s)
+
+
+@dataclass
+class Problem:
+    """B images with one observation structure, as arrays (see module docstring)."""
+
+    intr: np.ndarray                      # (B, 4) fx, fy, ox, oy
+    X: np.ndarray                         # (M, 3) model points: beads, line ends, ellipse samples
+    point_ids: list[str]
+    line_ids: list[str]
+    ellipse_ids: list[str]
+    K: int                                # model points per ellipse
+    p_obs: np.ndarray                     # (B, P, 2)
+    p_w: np.ndarray                       # (B, P) 1/σ
+    l_n: np.ndarray                       # (B, L, 2)
+    l_m: np.ndarray                       # (B, L, 2)
+    l_c: np.ndarray                       # (B, L)
+    l_info: np.ndarray                    # (B, L, 2, 2) already divided by σ²
+    l_from_model: np.ndarray              # (L,) bool: Λ = DᵀD/σ²
+    l_sig: np.ndarray                     # (B, L) σ px
+    e_theta: np.ndarray                   # (B, E, 6)
+    e_m: np.ndarray                       # (B, E, 2)
+    e_s: np.ndarray                       # (B, E)
+    e_basis: np.ndarray                   # (B, E, 6, 5)
+    e_info: np.ndarray                    # (B, E, 5, 5) already divided by σ²
+    e_from_model: np.ndarray              # (E,) bool
+    e_sig: np.ndarray                     # (B, E) σ px
+    e_kpaper: np.ndarray                  # (B, E) the paper's K (Eq. 8), normalised units
+    distance: str = "sampson"
+    fit_chi2: np.ndarray = field(default_factory=lambda: np.zeros(1))   # (B,) Σ rss/σ² of the fits
+    fit_dof: np.ndarray = field(default_factory=lambda: np.zeros(1))    # (B,)
+    origins: list[str] = field(default_factory=list)
+    pix: np.ndarray = field(default_factory=lambda: np.full(1, 0.44))   # (B,) mm per pixel
+    # Cholesky factors Lᵀ of the fitted curves' information (NaN where it comes from the
+    # model): constant per image, so factored once here rather than in every evaluation
+    l_Lt: np.ndarray = field(init=False, repr=False)
+    e_Lt: np.ndarray = field(init=False, repr=False)
+    p_w2: np.ndarray = field(init=False, repr=False)
+    points_coplanar: bool = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.l_Lt = _factor(self.l_info, self.l_from_model)
+        self.e_Lt = _factor(self.e_info, self.e_from_model)
+        self.p_w2 = np.repeat(self.p_w, 2, 1)[..., None]
+        Xp = self.X[: len(self.point_ids)]
+        # a DLT start needs beads that span 3-D
+        sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False) if len(Xp) >= 4 else np.zeros(3)
+        self.points_coplanar = bool(sv[2] < 1e-3 * sv[0]) if len(Xp) >= 4 else True
+
+    @property
+    def B(self) -> int:
+        return self.intr.shape[0]
+
+    @property
+    def n_rows(self) -> int:
+        """Whitened residuals per image: 2 per point, 2 per line, 5 per ellipse."""
+        return 2 * len(self.point_ids) + 2 * len(self.line_ids) + 5 * len(self.ellipse_ids)
+
+    @property
+    def n_constraints(self) -> int:
+        return self.n_rows
+
+    def row_groups(self) -> list[tuple[str, slice]]:
+        """(feature id, slice of whitened rows) in row order."""
+        out, i = [], 0
+        for ids, k in ((self.point_ids, 2), (self.line_ids, 2), (self.ellipse_ids, 5)):
+            for fid in ids:
+                out.append((fid, slice(i, i + k)))
+                i += k
+        return out
+
+    def raw_groups(self) -> list[tuple[str, slice]]:
+        """(feature id, slice of raw pixel residuals) in raw order."""
+        out, i = [], 0
+        for ids, k in ((self.point_ids, 2), (self.line_ids, 2), (self.ellipse_ids, self.K)):
+            for fid in ids:
+                out.append((fid, slice(i, i + k)))
+                i += k
+        return out
+
+    def _init_kwargs(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.init}
+
+    def points_only(self) -> "Problem":
+        """The same images with only the beads kept (the paper's first phase, §II.B.7)."""
+        P = len(self.point_ids)
+        kw = self._init_kwargs()
+        kw.update(X=self.X[:P], line_ids=[], ellipse_ids=[],
+                  l_n=self.l_n[:, :0], l_m=self.l_m[:, :0], l_c=self.l_c[:, :0], l_info=self.l_info[:, :0],
+                  l_from_model=self.l_from_model[:0], l_sig=self.l_sig[:, :0], e_theta=self.e_theta[:, :0],
+                  e_m=self.e_m[:, :0], e_s=self.e_s[:, :0], e_basis=self.e_basis[:, :0],
+                  e_info=self.e_info[:, :0], e_from_model=self.e_from_model[:0], e_sig=self.e_sig[:, :0],
+                  e_kpaper=self.e_kpaper[:, :0])
+        return Problem(**kw)
+
+    def take(self, idx: np.ndarray) -> "Problem":
+        """Rows ``idx`` of the batch (e.g. one image repeated once per start)."""
+        idx = np.asarray(idx)
+        kw = {}
+        for name, val in self._init_kwargs().items():
+            if isinstance(val, np.ndarray) and name not in ("X", "l_from_model", "e_from_model") \
+                    and val.ndim >= 1 and val.shape[0] == self.B:
+                kw[name] = val[idx]
+            else:
+                kw[name] = val
+        kw["origins"] = [self.origins[i] for i in idx] if self.origins else []
+        return Problem(**kw)
+
+
+def _factor(info: np.ndarray, from_model: np.ndarray) -> np.ndarray:
+    """Lᵀ with Λ = L Lᵀ for the feature columns whose Λ is known, NaN elsewhere."""
+    out = np.full(info.shape, np.nan)
+    known = ~from_model
+    if info.shape[0] and known.any():
+        out[:, known] = np.swapaxes(np.linalg.cholesky(info[:, known]), -1, -2)
+    return out
+
+
+# --------------------------------------------------------------------------- compilation
+def _model_points(features: Features, point_ids, line_ids, ellipse_ids, K: int) -> np.ndarray:
+    pts = {p.id: p.center for p in features.points}
+    lns = {ln.id: ln for ln in features.lines}
+    els = {e.id: e for e in features.ellipses}
+    s = np.linspace(0.0, 2 * np.pi, K, endpoint=False)
+    X = [pts[i] for i in point_ids]
+    for i in line_ids:
+        X += [lns[i].start, lns[i].end]
+    for i in ellipse_ids:
+        X += list(els[i].sample(s))
+    return np.asarray(X, float).reshape(-1, 3)
+
+
+def _check_ids(features: Features, obs: Observation) -> None:
+    kinds = {"points": {p.id for p in features.points}, "lines": {ln.id for ln in features.lines},
+             "ellipses": {e.id for e in features.ellipses}}
+    for sec in ("points", "lines", "ellipses"):
+        for k in getattr(obs, sec):
+            if k not in kinds[sec]:
+                known = ", ".join(sorted(kinds[sec])) or "none"
+                raise InputError(obs.origin, f"{sec}.{k}",
+                                 f"the id of a {sec[:-1]} in features.json ({features.name} has: {known})")
+
+
+def _pad(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    n = max(len(a) for a in arrays)
+    out = np.zeros((len(arrays), n, 2))
+    w = np.zeros((len(arrays), n))
+    for i, a in enumerate(arrays):
+        out[i, : len(a)] = a
+        w[i, : len(a)] = 1.0
+        out[i, len(a):] = a[0]  # padding repeats a real point so normalisation stays finite
+    return out, w
+
+
+def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: list[str], what: str):
+    pts, w = _pad(contours)
+    with np.errstate(all="ignore"):
+        try:
+            fit = fitter(pts, w)
+            bad = ~np.all(np.isfinite(fit.info.reshape(len(contours), -1)), axis=1)
+        except np.linalg.LinAlgError:
+            bad = np.ones(len(contours), bool)
+            fit = None
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(origins[i], keys[i], f"contour points that determine {what} (collinear or repeated points?)")
+    return fit
+
+
+def paper_k(theta: np.ndarray) -> np.ndarray:
+    """The paper's scale K = ab(AC − B²/4) / (2 √(a² + b²) det M) (Eq. 8), in θ's units."""
+    M = conic_matrix(theta)
+    _, a, b = conic_center_and_axes(theta)
+    A, B, C = theta[..., 0], theta[..., 1], theta[..., 2]
+    return a * b * (A * C - B * B / 4) / (2 * np.sqrt(a * a + b * b) * np.linalg.det(M))
+
+
+def compile_problem(features: Features, observations: list[Observation], noise: NoiseModel | None = None,
+                    ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson") -> Problem:
+    """Arrays for a batch of observations sharing one :attr:`Observation.structure`.
+
+    Fits every contour (batched), checks ids against ``features`` and raises
+    :class:`InputError` (file, key, expected) on anything the solver cannot use.
+    """
+    if distance not in ("sampson", "paper"):
+        raise ValueError(f"distance must be 'sampson' or 'paper', not {distance!r}")
+    noise = noise or NoiseModel()
+    obs0 = observations[0]
+    for o in observations:
+        _check_ids(features, o)
+        if o.structure != obs0.structure:
+            raise ValueError("compile_problem needs observations of one structure; group them first")
+    B = len(observations)
+    origins = [o.origin for o in observations]
+    point_ids = sorted(obs0.points)
+    line_ids = sorted(obs0.lines)
+    ellipse_ids = sorted(obs0.ellipses)
+    K = int(ellipse_model_points)
+    X = _model_points(features, point_ids, line_ids, ellipse_ids, K)
+    intr = np.array([o.camera.intrinsics for o in observations])
+    pix = np.array([(o.camera.pixel_size_mm[0] + o.camera.pixel_size_mm[1]) / 2 for o in observations])
+
+    P, L, E = len(point_ids), len(line_ids), len(ellipse_ids)
+    p_obs = np.array([[o.points[i] for i in point_ids] for o in observations]).reshape(B, P, 2)
+    p_w = np.repeat((pix / noise.point_mm)[:, None], P, 1)
+    fit_chi2 = np.zeros(B)
+    fit_dof = np.zeros(B)
+
+    def fit_all(section: str, ids: list[str], fitter, what: str):
+        """Fit every contour-given curve of ``section`` in one batched call: (B, n) results."""
+        cols = [j for j, fid in enumerate(ids) if getattr(obs0, section)[fid].points is not None]
+        if not cols:
+            return cols, None
+        contours = [getattr(o, section)[ids[j]].points for o in observations for j in cols]
+        keys = [f"{section}.{ids[j]}.points" for _ in observations for j in cols]
+        org = [o.origin for o in observations for _ in cols]
+        return cols, _fit_batch(fitter, contours, org, keys, what)
+
+    l_n = np.zeros((B, L, 2)); l_m = np.zeros((B, L, 2)); l_c = np.zeros((B, L))
+    l_info = np.full((B, L, 2, 2), np.nan); l_from_model = np.ones(L, bool)
+    l_sig = np.repeat((noise.line_mm / pix)[:, None], L, 1)
+    cols, fit = fit_all("lines", line_ids, fit_line, "a line")
+    if cols:
+        n = len(cols)
+        l_n[:, cols] = fit.normal.reshape(B, n, 2)
+        l_m[:, cols] = fit.anchor.reshape(B, n, 2)
+        l_info[:, cols] = fit.info.reshape(B, n, 2, 2) / l_sig[:, cols, None, None] ** 2
+        fit_chi2 += (fit.rss.reshape(B, n) / l_sig[:, cols] ** 2).sum(1)
+        fit_dof += fit.dof.reshape(B, n).sum(1)
+        l_from_model[cols] = False
+    for j in np.flatnonzero(l_from_model):
+        lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]),
+                                    intr[:, 2:4])
+        l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
+
+    e_theta = np.zeros((B, E, 6)); e_m = np.zeros((B, E, 2)); e_s = np.ones((B, E))
+    e_basis = np.zeros((B, E, 6, 5)); e_info = np.full((B, E, 5, 5), np.nan)
+    e_from_model = np.ones(E, bool)
+    e_sig = np.repeat((noise.ellipse_mm / pix)[:, None], E, 1)
+    cols, cf = fit_all("ellipses", ellipse_ids, fit_conic, "an ellipse")
+    if cols:
+        n = len(cols)
+        e_theta[:, cols] = cf.theta.reshape(B, n, 6)
+        e_m[:, cols] = cf.center.reshape(B, n, 2)
+        e_s[:, cols] = cf.scale.reshape(B, n)
+        e_basis[:, cols] = cf.basis.reshape(B, n, 6, 5)
+        e_info[:, cols] = cf.info.reshape(B, n, 5, 5) / e_sig[:, cols, None, None] ** 2
+        fit_chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
+        fit_dof += cf.dof.reshape(B, n).sum(1)
+        e_from_model[cols] = False
+    for j in np.flatnonzero(e_from_model):
+        cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
+        e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
+    e_kpaper = paper_k(e_theta) if E and distance == "paper" else np.zeros((B, E))
+    return Problem(intr, X, point_ids, line_ids, ellipse_ids, K, p_obs, p_w, l_n, l_m, l_c, l_info,
+                   l_from_model, l_sig, e_theta, e_m, e_s, e_basis, e_info, e_from_model, e_sig, e_kpaper,
+                   distance, fit_chi2, fit_dof, origins, pix)
+
+
+# --------------------------------------------------------------------------- evaluation
+@dataclass
+class Evaluation:
+    """Everything :func:`evaluate` computes at poses (B, 3, 3), (B, 3).
+
+    ``raw`` (B, n_raw) px are the paper's residuals and ``raw_jac`` (B, n_raw, 6) their exact
+    closed-form derivatives w.r.t. (δ, t); ``W`` maps them to the whitened residuals
+    ``rho = W raw`` (B, m) with ``J = W raw_jac`` (B, m, 6) (for ellipses ``W`` is kept as the
+    factors ``(Lᵀ, DᵀD, Dᵀ)`` of ``Lᵀ (DᵀD)⁻¹ Dᵀ``). ``W`` depends on the pose (the
+    whitening is evaluated where the model points project) and is held fixed within a
+    solver iteration, like the paper's constant G; ``J`` is the exact Jacobian of
+    ``W_fixed · raw``. ``Z`` (B, M) are the model points' depths, mm.
+    """
+
+    rho: np.ndarray
+    J: np.ndarray | None
+    raw: np.ndarray
+    raw_jac: np.ndarray | None
+    W: list[np.ndarray]
+    Z: np.ndarray
+
+
+def project(prob: Problem, R: np.ndarray, t: np.ndarray):
+    """Pixels (B, M, 2) of every model point and what their Jacobians need: the rotated
+    model points Q = R P_F (B, M, 3), normalised coordinates x, y and f/Z (B, M)."""
+    Q = prob.X @ np.swapaxes(R, 1, 2)
+    Pc = Q + t[:, None, :]
+    Z = Pc[..., 2]
+    iz = 1.0 / Z
+    x = Pc[..., 0] * iz
+    y = Pc[..., 1] * iz
+    fx = prob.intr[:, 0, None]
+    fy = prob.intr[:, 1, None]
+    uv = np.empty(x.shape + (2,))
+    uv[..., 0] = fx * x + prob.intr[:, 2, None]
+    uv[..., 1] = fy * y + prob.intr[:, 3, None]
+    return uv, Z, (Q, x, y, fx * iz, fy * iz)
+
+
+def _jac_rows(pr, sl: slice, cu: np.ndarray | float, cv: np.ndarray | float, shape: tuple) -> np.ndarray:
+    """∂r/∂(δ, t) (shape + (6,)) for residuals r with ∂r/∂(u, v) = (cu, cv) at model points ``sl``.
+
+    With a = ∂r/∂P = (cu f_x/Z, cv f_y/Z, −(cu f_x x + cv f_y y)/Z) in the camera frame, the
+    translation part is a and, for the left rotation increment (∂P/∂δ = −[Q]ₓ), the
+    rotation part is Q × a — the paper's Eqs. 10–13 in vector form.
+    """
+    Q, x, y, fxz, fyz = (v[:, sl].reshape(shape + v.shape[2:]) for v in pr)
+    ax = cu * fxz
+    ay = cv * fyz
+    az = -(ax * x + ay * y)
+    Qx, Qy, Qz = Q[..., 0], Q[..., 1], Q[..., 2]
+    J = np.empty(shape + (6,))
+    J[..., 0] = Qy * az - Qz * ay
+    J[..., 1] = Qz * ax - Qx * az
+    J[..., 2] = Qx * ay - Qy * ax
+    J[..., 3] = ax
+    J[..., 4] = ay
+    J[..., 5] = az
+    return J
+
+
+def _chol_t(info: np.ndarray) -> np.ndarray:
+    """Lᵀ for Λ = L Lᵀ (batched)."""
+    return np.swapaxes(np.linalg.cholesky(info), -1, -2)
+
+
+def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
+             whitening: list[np.ndarray] | None = None, raw_jacobian: bool = False) -> Evaluation:
+    """Residuals and Jacobians at poses (B, 3, 3), (B, 3); see :class:`Evaluation`.
+
+    ``whitening`` — the ``W`` of an earlier evaluation — freezes G instead of recomputing it.
+    """
+    uv, Z, pr = project(prob, R, t)
+    B = prob.B
+    P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
+    rho, Js, raw, rawJ, Ws = [], [], [], [], []
+    if P:
+        d = uv[:, :P] - prob.p_obs
+        rho.append((d * prob.p_w[..., None]).reshape(B, 2 * P))
+        raw.append(d.reshape(B, 2 * P))
+        Ws.append(prob.p_w)
+        if jac:
+            Jr = np.empty((B, P, 2, 6))
+            Jr[:, :, 0] = _jac_rows(pr, slice(0, P), 1.0, 0.0, (B, P))
+            Jr[:, :, 1] = _jac_rows(pr, slice(0, P), 0.0, 1.0, (B, P))
+            Jr = Jr.reshape(B, 2 * P, 6)
+            Js.append(Jr * prob.p_w2)
+            rawJ.append(Jr)
+    if L:
+        sl = slice(P, P + 2 * L)
+        q = uv[:, sl].reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
+        nx, ny = prob.l_n[..., 0, None], prob.l_n[..., 1, None]
+        r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]                      # (B, L, 2)
+        if whitening is None:
+            # D = ∂r/∂(ψ, c) has rows (n⊥·(p − m), 1); W = chol(Λ)ᵀ D⁻¹
+            d0 = q[..., 1] * nx - q[..., 0] * ny
+            det = d0[..., 0] - d0[..., 1]
+            Dinv = np.empty((B, L, 2, 2))
+            Dinv[..., 0, 0] = 1.0
+            Dinv[..., 0, 1] = -1.0
+            Dinv[..., 1, 0] = -d0[..., 1]
+            Dinv[..., 1, 1] = d0[..., 0]
+            Dinv /= det[..., None, None]
+            Lt = prob.l_Lt
+            if prob.l_from_model.any():
+                D = np.stack([d0, np.ones_like(d0)], -1)
+                dm = np.swapaxes(D, -1, -2) @ D / prob.l_sig[..., None, None] ** 2
+                Lt = np.where(prob.l_from_model[None, :, None, None], _chol_t(dm), Lt)
+            W = Lt @ Dinv
+        else:
+            W = whitening[len(Ws)]
+        Ws.append(W)
+        rho.append((W @ r[..., None]).reshape(B, 2 * L))
+        raw.append(r.reshape(B, 2 * L))
+        if jac:
+            dr = _jac_rows(pr, sl, nx, ny, (B, L, 2))                                      # (B, L, 2, 6)
+            Js.append((W @ dr).reshape(B, 2 * L, 6))
+            rawJ.append(dr.reshape(B, 2 * L, 6))
+    if E:
+        sl = slice(P + 2 * L, P + 2 * L + E * K)
+        s = prob.e_s[..., None]
+        pn = (uv[:, sl].reshape(B, E, K, 2) - prob.e_m[:, :, None, :]) / s[..., None]
+        x, y = pn[..., 0], pn[..., 1]
+        th = prob.e_theta[:, :, None, :]
+        A, Bc, C, D_, E_ = th[..., 0], th[..., 1], th[..., 2], th[..., 3], th[..., 4]
+        xi = np.empty((B, E, K, 6))
+        xi[..., 0] = x * x
+        xi[..., 1] = x * y
+        xi[..., 2] = y * y
+        xi[..., 3] = x
+        xi[..., 4] = y
+        xi[..., 5] = 1.0
+        Qv = (xi @ prob.e_theta[..., None])[..., 0]
+        gx = 2 * A * x + Bc * y + D_
+        gy = Bc * x + 2 * C * y + E_
+        if prob.distance == "sampson":
+            gn2 = gx * gx + gy * gy
+            gn = np.sqrt(gn2)
+            r = s * Qv / gn
+            c3 = Qv / (gn2 * gn)
+            if whitening is None:
+                # ∂(Q/|∇Q|)/∂θ = ξ/|∇Q| − Q (∂∇Q/∂θ)ᵀ∇Q / |∇Q|³, in pixels (× s)
+                dth = xi / gn[..., None]
+                dth[..., 0] -= c3 * 2 * x * gx
+                dth[..., 1] -= c3 * (y * gx + x * gy)
+                dth[..., 2] -= c3 * 2 * y * gy
+                dth[..., 3] -= c3 * gx
+                dth[..., 4] -= c3 * gy
+                dth *= s[..., None]
+            if jac:
+                # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³, H = ∇²Q
+                du = gx / gn - c3 * (2 * A * gx + Bc * gy)
+                dv = gy / gn - c3 * (Bc * gx + 2 * C * gy)
+        else:
+            k = prob.e_kpaper[..., None]
+            r = s * k * Qv
+            if whitening is None:
+                dth = (s * k)[..., None] * xi
+            if jac:
+                du, dv = k * gx, k * gy
+        dr = _jac_rows(pr, sl, du, dv, (B, E, K)) if jac else None                        # (B, E, K, 6)
+        rhs = r[..., None] if dr is None else np.concatenate([r[..., None], dr], -1)
+        if whitening is None:
+            D = dth @ prob.e_basis                                                        # (B, E, K, 5)
+            Dt = np.swapaxes(D, -1, -2)
+            DtD = Dt @ D
+            Lt = prob.e_Lt
+            if prob.e_from_model.any():
+                Lt = np.where(prob.e_from_model[None, :, None, None],
+                              _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt)
+            # W = chol(Λ)ᵀ (DᵀD)⁻¹ Dᵀ, applied to [r | ∂r] without forming it for the rows
+            Ws.append((Lt, DtD, Dt))
+            sol = Lt @ spd_solve(DtD, Dt @ rhs)                                           # (B, E, 5, 1 + 6)
+        else:
+            Lt, DtD, Dt = whitening[len(Ws)]
+            Ws.append((Lt, DtD, Dt))
+            sol = Lt @ spd_solve(DtD, Dt @ rhs)
+        rho.append(sol[..., 0].reshape(B, 5 * E))
+        raw.append(r.reshape(B, E * K))
+        if jac:
+            Js.append(sol[..., 1:].reshape(B, 5 * E, 6))
+            rawJ.append(dr.reshape(B, E * K, 6))
+    cat = (lambda xs: xs[0]) if len(rho) == 1 else (lambda xs: np.concatenate(xs, 1))
+    return Evaluation(cat(rho), cat(Js) if jac else None, cat(raw),
+                      cat(rawJ) if jac and raw_jacobian else None, Ws, Z)

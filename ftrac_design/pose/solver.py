@@ -1,0 +1,474 @@
+"""Single-image pose: closed-form start, Levenberg–Marquardt, multi-start, checks (paper §II.B.4–7).
+
+Strategy, fastest first:
+
+1. **Closed-form start.** With ≥ 6 non-coplanar beads, a normalised DLT gives a pose that
+   is already inside the basin of the true minimum; one local solve finishes it. This is
+   what makes a robust solve take milliseconds instead of the paper's 50 runs.
+2. **Local solve.** Levenberg–Marquardt on all features with the closed-form Jacobian, the
+   rotation as a left so(3) increment (no Euler-angle singularity), parameter scaling H
+   (rotation measured as the displacement it causes at the fiducial's characteristic
+   radius, so one unit of either parameter moves features by ~1 mm) and the Gauss–Markov
+   task scaling G of :mod:`.problem`.
+3. **Multi-start** when there is no closed-form start (fewer than 6 beads, beads coplanar)
+   or the local solve fails its checks: starts from rotations spread evenly over SO(3)
+   with depth and position matched to the image, all solved together in one batch; the
+   best few are polished. Distinct poses that fit equally well make the answer ambiguous
+   (e.g. the mirror solutions of too few features) and are reported, not guessed between.
+4. **Checks.** Converged steps, every model point in front of the source, residuals
+   consistent with the noise model (noise scale κ ≤ ``max_noise_scale``), and a
+   well-conditioned final Jacobian; otherwise ``converged = False`` with the reason.
+
+The covariance is ``κ² (JᵀJ)⁻¹`` at the solution (whitened J), κ² the residual-based noise
+estimate pooled over the pose residuals and the contour fits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+import numpy as np
+
+from ..features.model import Features
+from . import so3
+from .observation import Observation
+from .problem import ELLIPSE_MODEL_POINTS, NoiseModel, Problem, compile_problem, evaluate
+
+FORMAT = "ftrac-pose"
+VERSION = 1
+COVARIANCE_ORDER = ["rx", "ry", "rz", "tx", "ty", "tz"]
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Tuning of the solver; the defaults are what the benchmarks measured."""
+
+    noise: NoiseModel = field(default_factory=NoiseModel)
+    ellipse_model_points: int = ELLIPSE_MODEL_POINTS
+    #: "sampson" (first-order geometric distance) or "paper" (K·PᵀMP, Eq. 8)
+    distance: str = "sampson"
+    max_iterations: int = 60
+    #: multi-start seeds when there is no closed-form start
+    starts: int = 96
+    #: iterations each seed gets before the best are polished
+    explore_iterations: int = 12
+    #: reject a pose whose residuals are this many times the noise model's
+    max_noise_scale: float = 10.0
+    #: reject a pose whose scaled Jacobian has a larger condition number
+    max_condition: float = 1e8
+    #: a second minimum within this χ² of the best, far enough away, makes the answer ambiguous
+    ambiguity_chi2: float = 9.0
+    ambiguity_rotation_deg: float = 2.0
+    ambiguity_translation_mm: float = 5.0
+    #: use the closed-form (DLT) start when ≥ 6 non-coplanar beads are observed
+    closed_form_start: bool = True
+
+
+@dataclass
+class Pose:
+    """A solved pose (SPEC §4): ``P_X = rotation @ P_F + translation_mm``."""
+
+    rotation: np.ndarray
+    translation_mm: np.ndarray
+    converged: bool
+    rms_residual_px: float
+    covariance: np.ndarray | None
+    per_feature_residuals_px: dict[str, float]
+    iterations: int
+    error: str | None = None
+    noise_scale: float = float("nan")
+    condition_number: float = float("nan")
+    starts: int = 1
+    origin: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The SPEC §4 object, plus diagnostics (readers ignore unknown keys)."""
+        def fin(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+        def mat(a: np.ndarray) -> list | None:
+            a = np.asarray(a, float)
+            return a.tolist() if np.all(np.isfinite(a)) else None
+        d: dict[str, Any] = {
+            "format": FORMAT, "version": VERSION,
+            "rotation": mat(self.rotation),
+            "translation_mm": mat(self.translation_mm),
+            "converged": bool(self.converged),
+            "rms_residual_px": fin(self.rms_residual_px),
+            "covariance": None if self.covariance is None else mat(self.covariance),
+            "covariance_order": COVARIANCE_ORDER,
+        }
+        if self.error:
+            d["error"] = self.error
+        d.update({
+            "per_feature_residuals_px": {k: fin(v) for k, v in self.per_feature_residuals_px.items()},
+            "iterations": int(self.iterations),
+            "starts": int(self.starts),
+            "noise_scale": fin(self.noise_scale),
+            "condition_number": fin(self.condition_number),
+        })
+        if self.origin:
+            d["observation"] = self.origin
+        return d
+
+    @property
+    def std_mm(self) -> np.ndarray:
+        """Predicted standard deviation of the translation (3,), mm, camera axes."""
+        return np.sqrt(np.diag(self.covariance)[3:]) if self.covariance is not None else np.full(3, np.nan)
+
+
+# ----------------------------------------------------------------------------- local solve
+def parameter_scale(features: Features) -> np.ndarray:
+    """H (6,): rotation in units of 1/ρ_F rad (ρ_F the characteristic radius), translation in mm."""
+    return np.array([1.0 / features.characteristic_radius] * 3 + [1.0] * 3)
+
+
+@dataclass
+class _State:
+    R: np.ndarray
+    t: np.ndarray
+    rho: np.ndarray
+    J: np.ndarray
+    raw: np.ndarray
+    Z: np.ndarray
+    cost: np.ndarray
+    W: list[np.ndarray]
+    iters: np.ndarray
+    converged: np.ndarray
+
+    def rows(self, idx: np.ndarray) -> "_State":
+        """A copy of rows ``idx``."""
+        return _State(self.R[idx], self.t[idx], self.rho[idx], self.J[idx], self.raw[idx], self.Z[idx],
+                      self.cost[idx], [tuple(a[idx] for a in w) if isinstance(w, tuple) else w[idx]
+                                       for w in self.W], self.iters[idx].copy(),
+                      self.converged[idx].copy())
+
+
+def _evaluate_state(prob: Problem, R: np.ndarray, t: np.ndarray, whitening: list[np.ndarray] | None = None) -> _State:
+    with np.errstate(all="ignore"):
+        ev = evaluate(prob, R, t, whitening=whitening)
+    cost = (ev.rho * ev.rho).sum(1)
+    bad = ~np.isfinite(cost) | (ev.Z <= 0).any(1)
+    cost[bad] = np.inf
+    B = R.shape[0]
+    return _State(R, t, ev.rho, ev.J, ev.raw, ev.Z, cost, ev.W, np.zeros(B, int), np.zeros(B, bool))
+
+
+def _select(mask: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.where(mask.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
+
+
+def levenberg_marquardt(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarray, max_iterations: int,
+                        state: _State | None = None) -> _State:
+    """Batched LM from poses (B, 3, 3), (B, 3); rows converge independently.
+
+    The whitening G is re-evaluated at every trial pose and held fixed for the step, so
+    the iteration converges to the pose where the whitened gradient vanishes with G taken
+    at that pose — the Gauss–Markov (iteratively reweighted) least-squares solution.
+    """
+    st = state if state is not None else _evaluate_state(prob, R, t)
+    B = st.R.shape[0]
+    # start almost undamped: the depth direction is ~10⁶ times weaker than the lateral
+    # ones in JᵀJ, so damping scaled to the strong directions would stall it
+    lam = np.full(B, 1e-9)
+    for _ in range(max_iterations):
+        act = ~st.converged & (st.cost < np.inf)
+        if not act.any():
+            break
+        Js = st.J * h
+        JsT = np.swapaxes(Js, 1, 2)
+        A = JsT @ Js
+        g = (JsT @ st.rho[..., None])[..., 0]
+        M = A + _EYE6 * (A * _EYE6) * lam[:, None, None]  # Marquardt: damp each parameter on its own scale
+        with np.errstate(all="ignore"):
+            try:
+                step = -np.linalg.solve(M, g[..., None])[..., 0]
+            except np.linalg.LinAlgError:
+                step = -(np.linalg.pinv(M) @ g[..., None])[..., 0]
+        # predicted decrease of the local model; at rounding level there is nothing to gain
+        # (the whitening moves slightly with the pose, so a rejected step there is noise)
+        pred = -(g * step).sum(1)
+        flat = (pred <= 1e-10 * (1.0 + st.cost)) | (np.abs(step).max(1) < 1e-10)
+        d = step * h
+        Rn = so3.exp(d[:, :3]) @ st.R
+        tn = st.t + d[:, 3:]
+        new = _evaluate_state(prob, Rn, tn)
+        ok = act & (new.cost < st.cost) & ~flat
+        st.iters += act
+        if ok.all():
+            st.R, st.t, st.rho, st.J, st.raw, st.Z, st.cost, st.W = \
+                Rn, tn, new.rho, new.J, new.raw, new.Z, new.cost, new.W
+        elif ok.any():
+            st.R, st.t = _select(ok, Rn, st.R), _select(ok, tn, st.t)
+            st.rho, st.J = _select(ok, new.rho, st.rho), _select(ok, new.J, st.J)
+            st.raw, st.Z = _select(ok, new.raw, st.raw), _select(ok, new.Z, st.Z)
+            st.cost = np.where(ok, new.cost, st.cost)
+            st.W = [tuple(_select(ok, a, b) for a, b in zip(wn, wo)) if isinstance(wn, tuple)
+                    else _select(ok, wn, wo) for wn, wo in zip(new.W, st.W)]
+        lam = np.where(ok, np.maximum(lam * 0.1, 1e-15), np.where(act, lam * 10.0, lam))
+        st.converged |= act & (flat | (lam > 1e6))
+    return st
+
+
+_EYE6 = np.eye(6)
+
+
+# ----------------------------------------------------------------------------- starts
+def _coplanar(X: np.ndarray) -> bool:
+    if len(X) < 4:
+        return True
+    sv = np.linalg.svd(X - X.mean(0), compute_uv=False)
+    return sv[2] < 1e-3 * sv[0]
+
+
+def dlt_start(prob: Problem) -> tuple[np.ndarray, np.ndarray] | None:
+    """Poses (B, 3, 3), (B, 3) from the observed beads by a normalised DLT, or None when
+    fewer than 6 beads are observed or they are (nearly) coplanar."""
+    P = len(prob.point_ids)
+    X = prob.X[:P]
+    if P < 6 or prob.points_coplanar:
+        return None
+    B = prob.B
+    fx, fy, ox, oy = (prob.intr[:, i, None] for i in range(4))
+    x = (prob.p_obs[..., 0] - ox) / fx
+    y = (prob.p_obs[..., 1] - oy) / fy
+    c = X.mean(0)
+    sX = np.sqrt(np.mean(np.sum((X - c) ** 2, 1)) / 3.0)
+    Xn = np.concatenate([(X - c) / sX, np.ones((P, 1))], 1)                 # (P, 4)
+    A = np.zeros((B, 2 * P, 12))
+    A[:, 0::2, 0:4] = Xn
+    A[:, 0::2, 8:12] = -x[..., None] * Xn
+    A[:, 1::2, 4:8] = Xn
+    A[:, 1::2, 8:12] = -y[..., None] * Xn
+    _, _, Vt = np.linalg.svd(A, full_matrices=False)
+    Pm = Vt[:, -1].reshape(B, 3, 4)
+    T = np.eye(4)
+    T[:3, :3] /= sX
+    T[:3, 3] = -c / sX
+    Pm = Pm @ T
+    M = Pm[:, :, :3]
+    # choose the sign that puts the beads in front of the source
+    depth = np.einsum("bj,pj->bp", Pm[:, 2, :3], X) + Pm[:, 2, 3, None]
+    sign = np.where(depth.sum(1) < 0, -1.0, 1.0)
+    Pm *= sign[:, None, None]
+    M = Pm[:, :, :3]
+    U, sv, Vt = np.linalg.svd(M)
+    scale = sv.mean(1)
+    R = U @ Vt
+    neg = np.linalg.det(R) < 0
+    if neg.any():  # noise made M improper: take the nearest proper rotation
+        R[neg] = so3.project_to_so3(M[neg])
+    t = Pm[:, :, 3] / scale[:, None]
+    return R, t
+
+
+def _image_anchors(prob: Problem):
+    """Per image: centroid (B, 2) px and RMS spread (B,) of what was observed, and the
+    matching 3-D reference points (n, 3) and extra radii, for placing multi-start seeds."""
+    P, L, E = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids)
+    pts2, pts3 = [], []
+    if P:
+        pts2.append(prob.p_obs)
+        pts3.append(prob.X[:P])
+    if L:
+        ends = prob.X[P:P + 2 * L].reshape(L, 2, 3)
+        use = ~prob.l_from_model
+        if use.any():
+            pts2.append(prob.l_m[:, use])
+            pts3.append(ends.mean(1)[use])
+    radii2, radii3 = [], []
+    if E:
+        pts2.append(prob.e_m)
+        ell = prob.X[P + 2 * L:].reshape(E, prob.K, 3)
+        pts3.append(ell.mean(1))
+        radii2.append(prob.e_s * np.sqrt(2.0))
+        radii3.append(np.sqrt(np.mean(np.sum((ell - ell.mean(1, keepdims=True)) ** 2, -1), -1)))
+    return pts2, pts3, radii2, radii3
+
+
+def multistart_seeds(prob: Problem, rotations: np.ndarray, depth_prior_mm: float):
+    """Seeds for every (image, rotation) pair: rotations (B·S, 3, 3), translations (B·S, 3)
+    placing the rotated model so its projection has the image's centroid and spread."""
+    B, S = prob.B, rotations.shape[0]
+    pts2, pts3, radii2, radii3 = _image_anchors(prob)
+    fx, fy, ox, oy = (prob.intr[:, i] for i in range(4))
+    if pts2:
+        a2 = np.concatenate(pts2, 1)                                  # (B, n, 2)
+        a3 = np.concatenate(pts3, 0)                                  # (n, 3)
+        c2 = a2.mean(1)
+        c3 = a3.mean(0)
+        spread2 = np.sum((a2 - c2[:, None]) ** 2, (1, 2))             # (B,)
+        q = np.einsum("sij,nj->sni", rotations, a3 - c3)              # (S, n, 3)
+        spread3 = np.sum(q[..., :2] ** 2, (1, 2))                     # (S,)
+        f = 0.5 * (fx + fy)
+        s2 = spread2[:, None] / f[:, None] ** 2
+        s3 = np.broadcast_to(spread3[None], (B, S)).copy()
+        for r2, r3 in zip(radii2, radii3):
+            s2 = s2 + np.sum(r2 ** 2, 1)[:, None] / f[:, None] ** 2
+            s3 = s3 + np.sum(r3 ** 2)
+        with np.errstate(all="ignore"):
+            Z0 = np.sqrt(s3 / s2)
+        Z0 = np.where(np.isfinite(Z0) & (Z0 > 0), Z0, depth_prior_mm)
+        ray = np.stack([(c2[:, 0] - ox) / fx, (c2[:, 1] - oy) / fy, np.ones(B)], -1)
+        t = Z0[..., None] * ray[:, None, :] - np.einsum("sij,j->si", rotations, c3)[None]
+    else:
+        t = np.broadcast_to(np.array([0.0, 0.0, depth_prior_mm]), (B, S, 3))
+    R = np.broadcast_to(rotations[None], (B, S, 3, 3))
+    return R.reshape(B * S, 3, 3).copy(), np.asarray(t).reshape(B * S, 3).copy()
+
+
+# ----------------------------------------------------------------------------- results
+def _finish(prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOptions, starts: int,
+            error: str | None = None) -> Pose:
+    """Checks and covariance for one row of a solved batch."""
+    J = st.J[row]
+    raw = st.raw[row]
+    m = prob.n_rows
+    dof = m - 6 + prob.fit_dof[row]
+    chi2 = st.cost[row] + prob.fit_chi2[row]
+    kappa2 = chi2 / dof if dof > 0 else 1.0
+    sq = (raw * raw).tolist()
+    per = {fid: math.sqrt(sum(sq[sl]) / (sl.stop - sl.start)) for fid, sl in prob.raw_groups()}
+    rms = math.sqrt(sum(sq) / len(sq)) if sq else float("nan")
+    cov = None
+    cond = float("nan")
+    if np.all(np.isfinite(J)):
+        sv = np.linalg.svd(J * h, compute_uv=False)
+        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
+        if math.isfinite(cond) and cond < 1e15:
+            cov = np.linalg.inv(J.T @ J) * kappa2
+    if error is None:
+        if not st.converged[row]:
+            error = f"did not converge in {int(st.iters[row])} iterations"
+        elif not math.isfinite(st.cost[row]):
+            error = "no pose puts every feature in front of the source"
+        elif not cond < opts.max_condition:
+            error = (f"degenerate view: the observed features do not determine all six pose parameters "
+                     f"(condition number {cond:.3g})")
+        elif math.sqrt(kappa2) > opts.max_noise_scale:
+            error = (f"residuals too large for the noise model (noise scale {math.sqrt(kappa2):.3g} > "
+                     f"{opts.max_noise_scale}): wrong correspondences or calibration?")
+    return Pose(st.R[row].copy(), st.t[row].copy(), error is None, rms, cov, per, int(st.iters[row]), error,
+                float(math.sqrt(kappa2)), cond, starts, prob.origins[row] if prob.origins else "")
+
+
+def _underdetermined(prob: Problem) -> str | None:
+    if prob.n_rows < 6:
+        return (f"observations do not constrain the pose: {prob.n_rows} independent constraints "
+                f"(2 per bead and line, 5 per ellipse) for 6 unknowns")
+    return None
+
+
+def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State | None = None) -> Pose:
+    """Multi-start solve of the single image in ``prob`` (B = 1)."""
+    S = opts.starts
+    # SPEC §1: the fiducial sits about 2/3 of the source-detector distance from the source
+    depth_prior = 2.0 / 3.0 * float(prob.intr[0, 0] * prob.pix[0])
+    R0, t0 = multistart_seeds(prob, so3.spread_rotations(S), depth_prior)
+    if extra is not None:
+        R0 = np.concatenate([R0, extra.R], 0)
+        t0 = np.concatenate([t0, extra.t], 0)
+    rep = prob.take(np.zeros(len(R0), int))
+    st = levenberg_marquardt(rep, R0, t0, h, opts.explore_iterations)
+    order = np.argsort(st.cost)
+    finite = order[np.isfinite(st.cost[order])]
+    if finite.size == 0:
+        return _finish(prob, _evaluate_state(prob, R0[:1], t0[:1]), 0, h, opts, len(R0),
+                       "no start led to a pose with every feature in front of the source")
+    # polish the best few distinct candidates to full convergence
+    keep: list[int] = []
+    for i in finite:
+        if len(keep) >= 6:
+            break
+        if all(so3.angle(st.R[i], st.R[j]) > 1e-3 or np.linalg.norm(st.t[i] - st.t[j]) > 1e-2 for j in keep):
+            keep.append(int(i))
+    k = np.array(keep)
+    sub = rep.take(np.zeros(len(k), int))
+    st2 = st.rows(k)
+    st2.converged[:] = False
+    st2 = levenberg_marquardt(sub, st2.R, st2.t, h, opts.max_iterations, st2)
+    best = int(np.argmin(st2.cost))
+    pose = _finish(sub, st2, best, h, opts, len(R0))
+    pose.iterations = int(st2.iters[best]) + opts.explore_iterations
+    if pose.converged:
+        # another converged minimum, far away, that fits as well: the image cannot tell them apart
+        kappa2 = max(pose.noise_scale ** 2, 1e-30) if math.isfinite(pose.noise_scale) else 1.0
+        for j in range(len(k)):
+            if j == best or not st2.converged[j] or not math.isfinite(st2.cost[j]):
+                continue
+            dchi2 = (st2.cost[j] - st2.cost[best]) / max(kappa2, 1.0)
+            dang = math.degrees(float(so3.angle(st2.R[j], st2.R[best])))
+            dt = float(np.linalg.norm(st2.t[j] - st2.t[best]))
+            if dchi2 < opts.ambiguity_chi2 and (dang > opts.ambiguity_rotation_deg or dt > opts.ambiguity_translation_mm):
+                pose.converged = False
+                pose.error = (f"ambiguous: another pose {dang:.1f}° and {dt:.1f} mm away fits the image "
+                              f"equally well (Δχ² = {dchi2:.2g}); observe more features")
+                break
+    return pose
+
+
+def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None = None) -> list[Pose]:
+    """Solve every image of a compiled batch; see the module docstring for the strategy."""
+    opts = opts or SolverOptions()
+    h = parameter_scale(features)
+    why = _underdetermined(prob)
+    if why:
+        nan = np.full(3, np.nan)
+        return [Pose(np.full((3, 3), np.nan), nan, False, float("nan"), None, {}, 0, why,
+                     origin=prob.origins[i] if prob.origins else "") for i in range(prob.B)]
+    results: list[Pose | None] = [None] * prob.B
+    start = dlt_start(prob) if opts.closed_form_start else None
+    st = None
+    if start is not None:
+        # the paper's two phases (§II.B.7) on the closed-form start: beads first, whose
+        # residuals are smooth everywhere, then every feature from there
+        pts = levenberg_marquardt(prob.points_only(), start[0], start[1], h, 2)
+        st = levenberg_marquardt(prob, pts.R, pts.t, h, opts.max_iterations)
+        for i in range(prob.B):
+            p = _finish(prob, st, i, h, opts, 1)
+            if p.converged:
+                results[i] = p
+    for i in range(prob.B):
+        if results[i] is None:
+            one = prob.take(np.array([i]))
+            extra = None
+            if st is not None and np.isfinite(st.cost[i]):
+                extra = st.rows(np.array([i]))
+            results[i] = _robust_one(one, h, opts, extra)
+    return results  # type: ignore[return-value]
+
+
+def solve_batch(features: Features, observations: Iterable[Observation],
+                options: SolverOptions | None = None) -> list[Pose]:
+    """Poses for many images, in input order; images that observed the same features the
+    same way are compiled and solved together (vectorised)."""
+    opts = options or SolverOptions()
+    obs = list(observations)
+    groups: dict[tuple, list[int]] = {}
+    for i, o in enumerate(obs):
+        groups.setdefault(o.structure, []).append(i)
+    out: list[Pose | None] = [None] * len(obs)
+    for idx in groups.values():
+        prob = compile_problem(features, [obs[i] for i in idx], opts.noise, opts.ellipse_model_points,
+                               opts.distance)
+        for i, p in zip(idx, solve_problem(prob, features, opts)):
+            out[i] = p
+    return out  # type: ignore[return-value]
+
+
+def solve_pose(features: Features, observation: Observation, options: SolverOptions | None = None) -> Pose:
+    """The pose of the fiducial in one image: ``P_X = R P_F + t`` (SPEC §1), no initial guess."""
+    return solve_batch(features, [observation], options)[0]
+
+
+def refine_pose(features: Features, observation: Observation, R: np.ndarray, t: np.ndarray,
+                options: SolverOptions | None = None, max_iterations: int | None = None) -> Pose:
+    """The paper's *basic* algorithm (Fig. 5): one local solve from a given initial pose."""
+    opts = options or SolverOptions()
+    prob = compile_problem(features, [observation], opts.noise, opts.ellipse_model_points, opts.distance)
+    why = _underdetermined(prob)
+    h = parameter_scale(features)
+    st = levenberg_marquardt(prob, np.asarray(R, float)[None].copy(), np.asarray(t, float)[None].copy(), h,
+                             max_iterations or opts.max_iterations)
+    return _finish(prob, st, 0, h, opts, 1, why)
