@@ -148,9 +148,10 @@ def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
     points = {k: _vec(v, 2, origin, f"points.{k}") for k, v in section("points").items()}
     lines = {k: _curve(v, origin, f"lines.{k}", "coefficients", 3, 2) for k, v in section("lines").items()}
     ellipses = {k: _curve(v, origin, f"ellipses.{k}", "conic", 6, 5) for k, v in section("ellipses").items()}
-    dup = (set(points) & set(lines)) | (set(points) & set(ellipses)) | (set(lines) & set(ellipses))
-    if dup:
-        raise InputError(origin, sorted(dup)[0], "an id used in only one of points, lines, ellipses")
+    for sec, keys, earlier in (("lines", lines, set(points)), ("ellipses", ellipses, set(points) | set(lines))):
+        dup = sorted(set(keys) & earlier)
+        if dup:
+            raise InputError(origin, f"{sec}.{dup[0]}", "an id used in only one of points, lines, ellipses")
     if not (points or lines or ellipses):
         raise InputError(origin, "points", "at least one observed point, line or ellipse")
     return Observation(camera, points, lines, ellipses, origin)

@@ -221,7 +221,12 @@ def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: lis
     with np.errstate(all="ignore"):
         try:
             fit = fitter(pts, w)
-            bad = ~np.all(np.isfinite(fit.info.reshape(len(contours), -1)), axis=1)
+            info = fit.info.reshape((len(contours),) + fit.info.shape[-2:])
+            bad = ~np.all(np.isfinite(info.reshape(len(contours), -1)), axis=1)
+            if not bad.any():
+                # the curve must be pinned down in every direction (points spread along it)
+                ev = np.linalg.eigvalsh(info)
+                bad = ~(ev[:, 0] > 1e-12 * np.abs(ev[:, -1]))
         except np.linalg.LinAlgError:
             bad = np.ones(len(contours), bool)
             fit = None
