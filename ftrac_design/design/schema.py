@@ -20,7 +20,7 @@ import math
 from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator
 
 Pos = Annotated[float, Field(gt=0.0)]
 NonNeg = Annotated[float, Field(ge=0.0)]
@@ -30,8 +30,9 @@ Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 
 
 class _Strict(BaseModel):
-    # strict: a string where a number belongs is an error, not a silent conversion.
-    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+    # strict: a string where a number belongs is an error, not a silent conversion;
+    # TOML's inf and nan are refused too (no geometry is infinite).
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
 class Body(_Strict):
@@ -42,14 +43,14 @@ class Body(_Strict):
     bore_diameter: NonNeg = Field(description="diameter of the axial through-bore (0 = solid), mm")
     material: str = Field(default="acetal (POM-C)", description="body material")
 
-    @model_validator(mode="after")
-    def _bore_inside(self) -> "Body":
-        if self.bore_diameter >= self.outer_diameter:
-            raise ValueError(
-                f"bore_diameter ({self.bore_diameter}) must be smaller than "
-                f"outer_diameter ({self.outer_diameter})"
-            )
-        return self
+    # a field validator (not a model validator) so that the error names body.bore_diameter
+    @field_validator("bore_diameter")
+    @classmethod
+    def _bore_inside(cls, v: float, info: ValidationInfo) -> float:
+        outer = info.data.get("outer_diameter")
+        if outer is not None and v >= outer:
+            raise ValueError(f"a bore smaller than outer_diameter ({outer}), got {v!r}")
+        return v
 
 
 class Wire(_Strict):
@@ -121,11 +122,13 @@ class Line(_Strict):
     def azimuth_rad(self) -> float:
         return math.radians(self.azimuth_deg)
 
-    @model_validator(mode="after")
-    def _ordered(self) -> "Line":
-        if not self.z_end > self.z_start:
-            raise ValueError(f"z_end ({self.z_end}) must be greater than z_start ({self.z_start})")
-        return self
+    @field_validator("z_end")
+    @classmethod
+    def _ordered(cls, v: float, info: ValidationInfo) -> float:
+        start = info.data.get("z_start")
+        if start is not None and not v > start:
+            raise ValueError(f"a value greater than z_start ({start}), got {v!r}")
+        return v
 
 
 class FreeBead(_Strict):
@@ -140,29 +143,120 @@ class FreeBead(_Strict):
         return math.radians(self.azimuth_deg)
 
 
-class Mount(_Strict):
-    """The acetal mount that holds one end of the cylinder.
+GridNode = Annotated[list[int], Field(min_length=2, max_length=2)]
 
-    Mount frame M: origin at the centre of the socket floor (where the cylinder's ``z = −L/2``
-    end face rests), axes parallel to F.
+
+class HoleSet(_Strict):
+    """One set of parallel through holes for socket-head cap screws, counterbored on the
+    set's ``+`` face (the screw heads' side; the table or plate it bolts to is on the ``−`` face).
+
+    Defaults are for M4: clearance hole Ø4.5 (ISO 273, medium series), counterbore Ø8 × 4.4
+    for the ISO 4762 head (Ø7.0 × 4.0 max; DIN 974-1 counterbore, head height + 0.4).
+
+    Patterns, in the mount frame M (see :class:`Mount`): the set along ``x`` spreads along
+    ``y``, the set along ``y`` along ``z`` and the set along ``z`` along ``x`` (``pair``: two
+    holes ``pitch`` apart; ``square``: four holes on a ``pitch`` square, which spreads along
+    the third axis as well; ``single``: one hole). With ``pair`` the three sets miss each other
+    by construction; other patterns are checked by the ``mount.hole_clearance`` rule.
+    """
+
+    pattern: Literal["single", "pair", "square"] = "pair"
+    pitch: Pos | None = Field(
+        default=None,
+        description="hole spacing, mm; default: the mount's grid_pitch, and for the z set the "
+                    "smallest multiple of it whose holes clear the socket")
+    diameter: Pos = Field(default=4.5, description="clearance hole, mm (ISO 273 medium, M4)")
+    counterbore_diameter: NonNeg = Field(default=8.0, description="0 = no counterbore, mm")
+    counterbore_depth: NonNeg = Field(default=4.4, description="mm")
+    screw: str = Field(default="M4", description="thread of the screws, for the bill of materials")
+
+    @field_validator("counterbore_diameter")
+    @classmethod
+    def _cb_wider(cls, v: float, info: ValidationInfo) -> float:
+        d = info.data.get("diameter")
+        if v and d is not None and v <= d:
+            raise ValueError(f"0 (none) or a counterbore wider than the hole (diameter {d}), got {v!r}")
+        return v
+
+
+class Mount(_Strict):
+    """The acetal mount that holds one end of the cylinder (paper §II.A.3): a square block
+    with a press-fit socket for the cylinder's ``z = −L/2`` end and three mutually orthogonal
+    sets of through holes to bolt it to a rotary table in three orientations.
+
+    Mount frame M: origin at the centre of the socket floor, where the cylinder's
+    ``z = −L/2`` end face rests; axes parallel to F (``+z`` out of the socket along the
+    cylinder axis). The block spans ``x, y ∈ ±width/2`` and ``z ∈ [−base_height,
+    socket_depth]``. A key (tongue) across the socket floor along azimuth ``key_azimuth_deg``
+    engages a slot across the cylinder's end face, so the cylinder's azimuth in the socket is
+    fixed positively, not by friction.
+
+    Default hole grid 25 mm: the grid of metric optical breadboards and many rotary-stage
+    tops. The screws are M4; a table tapped M6 on that grid needs ``diameter = 6.6``,
+    ``counterbore_diameter = 11``, ``counterbore_depth = 6.4`` in each set.
     """
 
     socket_depth: Pos = Field(default=3.0, description="how far the cylinder end sits in the socket, mm")
+    grid_pitch: Pos = Field(default=25.0, description="hole grid of the table the mount bolts to, mm")
+    width: Pos | None = Field(
+        default=None, description="block side along x and y, mm; default: the smallest whole mm "
+                                  "that keeps every hole 1.5 diameters from an edge")
+    base_height: Pos | None = Field(
+        default=None, description="block below the socket floor, mm; default: the smallest whole "
+                                  "mm that holds the x and y hole sets")
+    holes_x: HoleSet = Field(default_factory=HoleSet)
+    holes_y: HoleSet = Field(default_factory=HoleSet)
+    holes_z: HoleSet = Field(default_factory=HoleSet)
+    key_width: Pos = Field(default=2.0, description="width of the anti-rotation key, mm")
+    key_height: NonNeg = Field(default=1.0, description="height of the key above the socket floor (0 = no key), mm")
+    key_azimuth_deg: float = Field(default=0.0, description="direction of the key across the socket, about +z from +x")
+    material: str = "acetal (POM-C)"
+
+    @property
+    def key_azimuth_rad(self) -> float:
+        return math.radians(self.key_azimuth_deg)
 
 
 class Connector(_Strict):
-    """The extender that fixes the fiducial on a brachytherapy template.
+    """The extender that fixes the fiducial on a brachytherapy template (paper §IV, Fig. 10a).
 
-    Template frame T: origin at the template's reference grid hole on its front face, ``+x``
-    along the grid rows, ``+y`` along the grid columns (away from the patient's posterior),
-    ``+z`` along needle insertion. The fiducial axis is parallel to ``+z`` and F is not
-    rotated relative to T.
+    Template frame T: origin at the centre of the template's reference grid hole on its front
+    (operator-side) face; ``+x`` along the grid rows, ``+y`` along the grid columns toward the
+    patient's anterior (up, for a patient in lithotomy), ``+z`` along needle insertion, into
+    the template and toward the patient. Grid holes sit at ``(i, j) · grid_pitch``.
+
+    The connector is a plate on the template's front face (``z ∈ [−thickness, 0]``). Two dowel
+    pins pressed into it enter the grid holes ``pins`` (column i, row j); the plate reaches up
+    past the template's top edge, and there a pocket in its ``+z`` face takes the mount's
+    block (a positive location in x, y and rotation; the pocket floor locates z), held by
+    screws through the mount's z hole set into the plate. The cylinder then points along
+    ``+z`` over the template's top edge. With ``source_side = "posterior"`` (X-ray tube under
+    the table, the usual C-arm set-up) the AP beam travels along ``+y`` of T, so F (whose
+    ``+y`` points toward the source) is turned 180° about z: ``x_F = −x_T``, ``y_F = −y_T``;
+    with ``"anterior"`` F is parallel to T.
+
+    Default pin: Ø1.2 mm ISO 2338 m6, the largest ISO dowel size that enters a grid hole made
+    for an 18G needle (Ø1.27 mm), so the play is under 0.1 mm.
     """
 
     grid_pitch: Pos = Field(default=5.0, description="template hole pitch, mm")
-    fiducial_offset: Vec3 = Field(
-        default=[30.0, 80.0, -60.0], description="F origin in T, mm"
-    )
+    pin_diameter: Pos = Field(default=1.2, description="dowel pins into the template's grid holes, mm")
+    pin_length: Pos = Field(default=10.0, description="mm")
+    pin_engagement: Pos = Field(default=4.0, description="how far the pins enter the template, mm")
+    pins: list[GridNode] = Field(
+        default_factory=lambda: [[0, 0], [10, 0]], min_length=2, max_length=2,
+        description="grid nodes [column, row] of the two pins, counted from the reference hole")
+    axis_x: float = Field(default=25.0, description="x of the fiducial axis in T, mm")
+    axis_height: float = Field(default=50.0, description="height (y in T) of the fiducial axis above the reference hole, mm")
+    template_edge: float = Field(default=10.0, description="height of the template's top edge above the reference hole, mm")
+    source_side: Literal["posterior", "anterior"] = Field(
+        default="posterior", description="side of the patient the X-ray source is on in the AP view")
+    thickness: Pos = Field(default=15.0, description="plate thickness along z, mm")
+    pocket_depth: Pos = Field(default=3.0, description="depth of the pocket that locates the mount, mm")
+    pocket_wall: Pos = Field(default=5.0, description="plate material around the pocket, mm")
+    edge_margin: Pos = Field(default=4.0, description="pin hole centre to plate edge, mm")
+    tap_drill: Pos = Field(default=3.3, description="drill for the tapped holes of the mount screws (M4: 3.3), mm")
+    material: str = "acetal (POM-C)"
 
 
 class CncProfile(_Strict):
@@ -171,6 +265,9 @@ class CncProfile(_Strict):
     tool_diameter: Pos = Field(default=0.4, description="smallest end mill available for grooves, mm")
     wire_interference: NonNeg = Field(default=0.02, description="wire diameter minus groove width, mm")
     bead_interference: NonNeg = Field(default=0.02, description="ball diameter minus pocket diameter, mm")
+    socket_interference: NonNeg = Field(default=0.05, description="cylinder diameter minus mount socket diameter, mm")
+    pin_interference: NonNeg = Field(default=0.02, description="dowel pin diameter minus its hole in the connector, mm")
+    slide_clearance: NonNeg = Field(default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
 
 
 class FdmProfile(_Strict):
@@ -180,6 +277,8 @@ class FdmProfile(_Strict):
     wire_clearance: NonNeg = Field(default=0.15, description="gap per side between wire and groove wall, mm")
     bead_clearance: NonNeg = Field(default=0.15, description="gap per side between ball and pocket wall, mm")
     hole_allowance: NonNeg = Field(default=0.2, description="added to round holes' diameters (they print small), mm")
+    press_allowance: NonNeg = Field(default=0.1, description="added to press-fit holes (socket, dowel pins), mm")
+    slide_clearance: NonNeg = Field(default=0.2, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
 
 
 class Manufacturing(_Strict):
@@ -187,6 +286,7 @@ class Manufacturing(_Strict):
 
     cnc: CncProfile = Field(default_factory=CncProfile)
     fdm: FdmProfile = Field(default_factory=FdmProfile)
+    wire_cut_allowance: NonNeg = Field(default=5.0, description="extra length per wire piece in the bill of materials, mm")
 
 
 class Design(_Strict):

@@ -48,6 +48,50 @@ def bead_centers(design: Design) -> list[tuple[str, str | None, np.ndarray]]:
 
 def geometry_errors(design: Design) -> list[tuple[str, str]]:
     """All geometric problems as (key, what was expected); empty when the design is valid."""
+    return _feature_errors(design) + mounting_errors(design)
+
+
+def mounting_errors(design: Design) -> list[tuple[str, str]]:
+    """Mount and connector parameters that cannot be built at all.
+
+    Margins (hole-to-edge distances, holes running into each other, the mount covering a
+    feature, the mount reaching the template) are design rules, not errors.
+    """
+    from ..features.mounting import KEY_GAP
+
+    errs: list[tuple[str, str]] = []
+    m, c = design.mount, design.connector
+    od = design.body.outer_diameter
+    if m.width is not None and m.width <= od:
+        errs.append(("mount.width", f"a block wider than the socket (Ø{od} mm), got {m.width!r}"))
+    if m.key_height > 0:
+        if m.key_height + KEY_GAP > m.socket_depth:
+            errs.append(("mount.key_height",
+                         f"a key that stays inside the socket: key_height + {KEY_GAP} mm (the slot's end gap) "
+                         f"at most socket_depth ({m.socket_depth} mm), got {m.key_height!r}"))
+        if m.key_width >= od:
+            errs.append(("mount.key_width", f"a key narrower than the cylinder (Ø{od} mm), got {m.key_width!r}"))
+    if not c.pin_engagement < c.pin_length:
+        errs.append(("connector.pin_engagement",
+                     f"less than pin_length ({c.pin_length} mm), got {c.pin_engagement!r}"))
+    elif c.pin_length - c.pin_engagement > c.thickness:
+        errs.append(("connector.pin_length",
+                     f"a pin that fits the plate: pin_length - pin_engagement at most thickness "
+                     f"({c.thickness} mm), got {c.pin_length!r}"))
+    if not c.pocket_depth < c.thickness:
+        errs.append(("connector.pocket_depth", f"less than thickness ({c.thickness} mm), got {c.pocket_depth!r}"))
+    if c.pins[0] == c.pins[1]:
+        errs.append(("connector.pins", f"two different grid nodes, got {c.pins!r}"))
+    for i, (col, row) in enumerate(c.pins):
+        y = row * c.grid_pitch
+        if y + c.pin_diameter / 2 > c.template_edge:
+            errs.append((f"connector.pins[{i}]",
+                         f"a grid node on the template: row {row} is at y = {y} mm, above its top edge "
+                         f"(template_edge = {c.template_edge} mm)"))
+    return errs
+
+
+def _feature_errors(design: Design) -> list[tuple[str, str]]:
     errs: list[tuple[str, str]] = []
     R, L2, rb = design.outer_radius, design.half_length, design.bore_radius
 

@@ -15,6 +15,7 @@ import math
 import numpy as np
 
 from ..design.schema import Design
+from . import mounting
 from .model import EllipseFeature, Features, LineFeature, PointFeature
 
 
@@ -79,26 +80,24 @@ def point_features(design: Design) -> list[PointFeature]:
 
 
 def mount_from_fiducial(design: Design) -> np.ndarray:
-    """4×4 transform F → mount frame M.
+    """4×4 transform F → mount frame M (computed in :mod:`.mounting`).
 
     M has its origin at the centre of the socket floor, where the cylinder's ``z = −L/2``
     end face rests, and axes parallel to F: ``P_M = P_F + (0, 0, L/2)``.
     """
-    T = np.eye(4)
-    T[2, 3] = design.half_length
-    return T
+    return mounting.mount_from_fiducial(design)
 
 
 def template_from_fiducial(design: Design) -> np.ndarray:
-    """4×4 transform F → brachytherapy template frame T (``P_T = F_FT · P_F``, paper §IV).
+    """4×4 transform F → brachytherapy template frame T (``F_FT`` of paper §IV), computed in
+    :mod:`.mounting` from the same mount and connector layout that the CAD builds:
+    ``template_from_mount · mount_from_fiducial``.
 
     T: origin at the template's reference grid hole on its front face, ``+x`` along the grid
-    rows, ``+y`` along the columns, ``+z`` along needle insertion; F is not rotated
-    relative to T, so the transform is the fiducial origin's offset in T.
+    rows, ``+y`` up the columns (anterior), ``+z`` along needle insertion. For a posterior
+    X-ray source (``connector.source_side``, the default) F is turned 180° about z in T.
     """
-    T = np.eye(4)
-    T[:3, 3] = design.connector.fiducial_offset
-    return T
+    return mounting.template_from_fiducial(design)
 
 
 def compute_features(design: Design) -> Features:

@@ -1,0 +1,44 @@
+"""``ftrac-design check DESIGN.toml [--profile cnc|fdm] [--json]`` (SPEC §5): the design-rule
+report. Exit 0 when no rule is violated (warnings allowed), 1 on any violation, 2 on bad input.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from ..cad.profiles import PROFILES
+from ..errors import GoalError
+
+
+@click.command("check")
+@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
+@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
+              help="manufacturing profile whose cut sizes and limits apply")
+@click.option("--json", "as_json", is_flag=True, default=False,
+              help="print the report as one JSON object instead of a table")
+def command(design: Path, profile: str, as_json: bool) -> int:
+    """Check DESIGN.toml against the manufacturing design rules.
+
+    Prints one row per rule: the measured value (the worst case over the design), the
+    limit, and the verdict — ok, warn (within the limit, short of the recommended value),
+    FAIL (a violation) or n/a. Exits 1 if any rule fails.
+    """
+    from ..cad.rules import check_design
+    from ..design import load_design
+
+    d = load_design(design)
+    report = check_design(d, profile)
+    if as_json:
+        click.echo(json.dumps(report.as_dict(), indent=2, allow_nan=False))
+    else:
+        click.echo(f"check {report.summary}")
+        click.echo(report.table())
+    if not report.ok:
+        names = ", ".join(r.rule for r in report.violations)
+        if as_json:
+            raise GoalError(f"{len(report.violations)} design rule(s) violated: {names}")
+        raise GoalError("; ".join(r.message for r in report.violations))
+    return 0
