@@ -236,6 +236,25 @@ def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: lis
     return fit
 
 
+#: an ellipse whose projected semi-minor axis is below this many σ is down-weighted
+THIN_ELLIPSE_SIGMAS = 3.0
+
+
+def thin_ellipse_weight(fit: ConicFit, sigma_px: np.ndarray) -> np.ndarray:
+    """Weight ≤ 1 for fitted ellipses seen nearly edge-on (paper §II.A.2's blind spot).
+
+    When the semi-minor axis b of the projected ellipse is not large against the contour
+    noise σ, the ends of the ellipse curve more tightly (radius b²/a) than the noise, the
+    first-order (Sampson) fit and its information matrix stop being valid, and the fit
+    claims an accuracy it does not have. Its information is scaled by (b / 3σ)² below
+    b = 3σ, so a nearly edge-on ellipse informs the pose only as far as it can.
+    """
+    _, _, b = conic_center_and_axes(fit.theta)
+    b_px = np.abs(b) * fit.scale
+    w = (b_px / (THIN_ELLIPSE_SIGMAS * sigma_px)) ** 2
+    return np.where(np.isfinite(w), np.minimum(w, 1.0), 1.0)
+
+
 def paper_k(theta: np.ndarray) -> np.ndarray:
     """The paper's scale K = ab(AC − B²/4) / (2 √(a² + b²) det M) (Eq. 8), in θ's units."""
     M = conic_matrix(theta)
@@ -313,7 +332,8 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         e_m[:, cols] = cf.center.reshape(B, n, 2)
         e_s[:, cols] = cf.scale.reshape(B, n)
         e_basis[:, cols] = cf.basis.reshape(B, n, 6, 5)
-        e_info[:, cols] = cf.info.reshape(B, n, 5, 5) / e_sig[:, cols, None, None] ** 2
+        e_info[:, cols] = (cf.info.reshape(B, n, 5, 5) / e_sig[:, cols, None, None] ** 2
+                           * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1))
         fit_chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
         fit_dof += cf.dof.reshape(B, n).sum(1)
         e_from_model[cols] = False
@@ -333,8 +353,7 @@ class Evaluation:
 
     ``raw`` (B, n_raw) px are the paper's residuals and ``raw_jac`` (B, n_raw, 6) their exact
     closed-form derivatives w.r.t. (δ, t); ``W`` maps them to the whitened residuals
-    ``rho = W raw`` (B, m) with ``J = W raw_jac`` (B, m, 6) (for ellipses ``W`` is kept as the
-    factors ``(Lᵀ, DᵀD, Dᵀ)`` of ``Lᵀ (DᵀD)⁻¹ Dᵀ``). ``W`` depends on the pose (the
+    ``rho = W raw`` (B, m) with ``J = W raw_jac`` (B, m, 6). ``W`` depends on the pose (the
     whitening is evaluated where the model points project) and is held fixed within a
     solver iteration, like the paper's constant G; ``J`` is the exact Jacobian of
     ``W_fixed · raw``. ``Z`` (B, M) are the model points' depths, mm.
@@ -346,6 +365,8 @@ class Evaluation:
     raw_jac: np.ndarray | None
     W: list[np.ndarray]
     Z: np.ndarray
+    #: the residuals whitened with a reference ``W`` (see :func:`evaluate`), else None
+    rho_ref: np.ndarray | None = None
 
 
 def project(prob: Problem, R: np.ndarray, t: np.ndarray):
@@ -393,18 +414,22 @@ def _chol_t(info: np.ndarray) -> np.ndarray:
 
 
 def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
-             whitening: list[np.ndarray] | None = None, raw_jacobian: bool = False) -> Evaluation:
+             whitening: list[np.ndarray] | None = None, raw_jacobian: bool = False,
+             reference: list[np.ndarray] | None = None) -> Evaluation:
     """Residuals and Jacobians at poses (B, 3, 3), (B, 3); see :class:`Evaluation`.
 
     ``whitening`` — the ``W`` of an earlier evaluation — freezes G instead of recomputing it.
+    ``reference`` — another ``W`` — also returns the residuals whitened with it
+    (``rho_ref``), so a solver can judge a trial step on the objective it was computed for.
     """
     uv, Z, pr = project(prob, R, t)
     B = prob.B
     P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
-    rho, Js, raw, rawJ, Ws = [], [], [], [], []
+    rho, Js, raw, rawJ, Ws, ref = [], [], [], [], [], []
     if P:
         d = uv[:, :P] - prob.p_obs
         rho.append((d * prob.p_w[..., None]).reshape(B, 2 * P))
+        ref.append(rho[-1])
         raw.append(d.reshape(B, 2 * P))
         Ws.append(prob.p_w)
         if jac:
@@ -437,6 +462,8 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
             W = Lt @ Dinv
         else:
             W = whitening[len(Ws)]
+        if reference is not None:
+            ref.append((reference[len(Ws)] @ r[..., None]).reshape(B, 2 * L))
         Ws.append(W)
         rho.append((W @ r[..., None]).reshape(B, 2 * L))
         raw.append(r.reshape(B, 2 * L))
@@ -467,14 +494,24 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
             r = s * Qv / gn
             c3 = Qv / (gn2 * gn)
             if whitening is None:
-                # ∂(Q/|∇Q|)/∂θ = ξ/|∇Q| − Q (∂∇Q/∂θ)ᵀ∇Q / |∇Q|³, in pixels (× s)
-                dth = xi / gn[..., None]
-                dth[..., 0] -= c3 * 2 * x * gx
-                dth[..., 1] -= c3 * (y * gx + x * gy)
-                dth[..., 2] -= c3 * 2 * y * gy
-                dth[..., 3] -= c3 * gx
-                dth[..., 4] -= c3 * gy
-                dth *= s[..., None]
+                # D = ∂d/∂θ, taken where each model point's distance is measured: at its foot
+                # on the observed conic (one Newton step), where ∂(Q/|∇Q|)/∂θ = ξ/|∇Q|. Taken
+                # at the model points themselves it equals this to first order near the
+                # solution, but far from it (model points off a thin ellipse) DᵀD can become
+                # singular and the whitening explode into false minima.
+                step = (Qv / gn2)[..., None]
+                fx_ = x - step[..., 0] * gx
+                fy_ = y - step[..., 0] * gy
+                fxi = np.empty((B, E, K, 6))
+                fxi[..., 0] = fx_ * fx_
+                fxi[..., 1] = fx_ * fy_
+                fxi[..., 2] = fy_ * fy_
+                fxi[..., 3] = fx_
+                fxi[..., 4] = fy_
+                fxi[..., 5] = 1.0
+                fgx = 2 * A * fx_ + Bc * fy_ + D_
+                fgy = Bc * fx_ + 2 * C * fy_ + E_
+                dth = fxi * (s / np.sqrt(fgx * fgx + fgy * fgy))[..., None]
             if jac:
                 # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³, H = ∇²Q
                 du = gx / gn - c3 * (2 * A * gx + Bc * gy)
@@ -486,8 +523,6 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
                 dth = (s * k)[..., None] * xi
             if jac:
                 du, dv = k * gx, k * gy
-        dr = _jac_rows(pr, sl, du, dv, (B, E, K)) if jac else None                        # (B, E, K, 6)
-        rhs = r[..., None] if dr is None else np.concatenate([r[..., None], dr], -1)
         if whitening is None:
             D = dth @ prob.e_basis                                                        # (B, E, K, 5)
             Dt = np.swapaxes(D, -1, -2)
@@ -496,18 +531,19 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
             if prob.e_from_model.any():
                 Lt = np.where(prob.e_from_model[None, :, None, None],
                               _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt)
-            # W = chol(Λ)ᵀ (DᵀD)⁻¹ Dᵀ, applied to [r | ∂r] without forming it for the rows
-            Ws.append((Lt, DtD, Dt))
-            sol = Lt @ spd_solve(DtD, Dt @ rhs)                                           # (B, E, 5, 1 + 6)
+            W = Lt @ spd_solve(DtD, Dt)                                                   # (B, E, 5, K)
         else:
-            Lt, DtD, Dt = whitening[len(Ws)]
-            Ws.append((Lt, DtD, Dt))
-            sol = Lt @ spd_solve(DtD, Dt @ rhs)
-        rho.append(sol[..., 0].reshape(B, 5 * E))
+            W = whitening[len(Ws)]
+        if reference is not None:
+            ref.append((reference[len(Ws)] @ r[..., None]).reshape(B, 5 * E))
+        Ws.append(W)
+        rho.append((W @ r[..., None]).reshape(B, 5 * E))
         raw.append(r.reshape(B, E * K))
         if jac:
-            Js.append(sol[..., 1:].reshape(B, 5 * E, 6))
+            dr = _jac_rows(pr, sl, du, dv, (B, E, K))                                     # (B, E, K, 6)
+            Js.append((W @ dr).reshape(B, 5 * E, 6))
             rawJ.append(dr.reshape(B, E * K, 6))
     cat = (lambda xs: xs[0]) if len(rho) == 1 else (lambda xs: np.concatenate(xs, 1))
     return Evaluation(cat(rho), cat(Js) if jac else None, cat(raw),
-                      cat(rawJ) if jac and raw_jacobian else None, Ws, Z)
+                      cat(rawJ) if jac and raw_jacobian else None, Ws, Z,
+                      cat(ref) if reference is not None else None)

@@ -19,7 +19,12 @@ def spd_solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     n = A.shape[-1]
     count = int(np.prod(A.shape[:-2])) if A.ndim > 2 else 1
     if count < UNROLL_FROM:
-        return np.linalg.solve(A, B)
+        try:
+            return np.linalg.solve(A, B)
+        except np.linalg.LinAlgError:
+            # a degenerate system (e.g. a trial pose far off): least-squares answer instead
+            # of an exception; the caller sees large or non-finite residuals and rejects it
+            return np.linalg.pinv(A) @ B
     # matrix axes first, so every row operation runs over one contiguous stack
     At = np.ascontiguousarray(np.moveaxis(A, (-2, -1), (0, 1)))
     Bt = np.ascontiguousarray(np.moveaxis(B, (-2, -1), (0, 1)))

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import numpy as np
+from scipy.special import chdtrc, fdtrc
 
 from ..features.model import Features
 from . import so3
@@ -54,10 +55,20 @@ class SolverOptions:
     starts: int = 96
     #: iterations each seed gets before the best are polished
     explore_iterations: int = 12
+    #: a local solve whose pose residuals are this improbable is re-solved the careful way
+    #: (beads first, then multi-start) in case it found a false minimum; the test compares
+    #: the pose residuals with the contour fits' own residuals (an F test), so it does not
+    #: depend on the noise model being right, and falls back to χ² against the model for
+    #: bead-only images
+    retry_p_value: float = 1e-4
     #: reject a pose whose residuals are this many times the noise model's
-    max_noise_scale: float = 10.0
+    max_noise_scale: float = 5.0
+    #: a local solve ending this ill-conditioned is re-solved as above: far from the true
+    #: pose the whitening of a nearly edge-on ellipse can blow up and hold the solver in a
+    #: false minimum (ftrac_2005's workspace stays below ~100)
+    retry_condition: float = 1e4
     #: reject a pose whose scaled Jacobian has a larger condition number
-    max_condition: float = 1e8
+    max_condition: float = 1e6
     #: a second minimum within this χ² of the best, far enough away, makes the answer ambiguous
     ambiguity_chi2: float = 9.0
     ambiguity_rotation_deg: float = 2.0
@@ -80,6 +91,8 @@ class Pose:
     error: str | None = None
     noise_scale: float = float("nan")
     condition_number: float = float("nan")
+    #: probability of pose residuals at least this large if the pose were right (see SolverOptions)
+    residual_p_value: float = float("nan")
     starts: int = 1
     origin: str = ""
 
@@ -106,6 +119,7 @@ class Pose:
             "iterations": int(self.iterations),
             "starts": int(self.starts),
             "noise_scale": fin(self.noise_scale),
+            "residual_p_value": fin(self.residual_p_value),
             "condition_number": fin(self.condition_number),
         })
         if self.origin:
@@ -140,19 +154,24 @@ class _State:
     def rows(self, idx: np.ndarray) -> "_State":
         """A copy of rows ``idx``."""
         return _State(self.R[idx], self.t[idx], self.rho[idx], self.J[idx], self.raw[idx], self.Z[idx],
-                      self.cost[idx], [tuple(a[idx] for a in w) if isinstance(w, tuple) else w[idx]
-                                       for w in self.W], self.iters[idx].copy(),
+                      self.cost[idx], [w[idx] for w in self.W], self.iters[idx].copy(),
                       self.converged[idx].copy())
 
 
-def _evaluate_state(prob: Problem, R: np.ndarray, t: np.ndarray, whitening: list[np.ndarray] | None = None) -> _State:
+def _evaluate_state(prob: Problem, R: np.ndarray, t: np.ndarray,
+                    reference: list[np.ndarray] | None = None) -> tuple[_State, np.ndarray | None]:
+    """State at poses (R, t) with fresh whitening, and the cost under ``reference`` whitening."""
     with np.errstate(all="ignore"):
-        ev = evaluate(prob, R, t, whitening=whitening)
+        ev = evaluate(prob, R, t, reference=reference)
+    bad = ~np.isfinite(ev.rho).all(1) | (ev.Z <= 0).any(1)
     cost = (ev.rho * ev.rho).sum(1)
-    bad = ~np.isfinite(cost) | (ev.Z <= 0).any(1)
     cost[bad] = np.inf
+    ref_cost = None
+    if ev.rho_ref is not None:
+        ref_cost = (ev.rho_ref * ev.rho_ref).sum(1)
+        ref_cost[bad | ~np.isfinite(ref_cost)] = np.inf
     B = R.shape[0]
-    return _State(R, t, ev.rho, ev.J, ev.raw, ev.Z, cost, ev.W, np.zeros(B, int), np.zeros(B, bool))
+    return _State(R, t, ev.rho, ev.J, ev.raw, ev.Z, cost, ev.W, np.zeros(B, int), np.zeros(B, bool)), ref_cost
 
 
 def _select(mask: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -163,11 +182,12 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarr
                         state: _State | None = None) -> _State:
     """Batched LM from poses (B, 3, 3), (B, 3); rows converge independently.
 
-    The whitening G is re-evaluated at every trial pose and held fixed for the step, so
-    the iteration converges to the pose where the whitened gradient vanishes with G taken
-    at that pose — the Gauss–Markov (iteratively reweighted) least-squares solution.
+    Each step is computed with the whitening G of the current pose and judged on that same
+    objective; G is then refreshed at the accepted pose. The iteration converges to the
+    pose where the gradient vanishes with G taken at that pose — the Gauss–Markov
+    (iteratively reweighted) least-squares solution.
     """
-    st = state if state is not None else _evaluate_state(prob, R, t)
+    st = state if state is not None else _evaluate_state(prob, R, t)[0]
     B = st.R.shape[0]
     # start almost undamped: the depth direction is ~10⁶ times weaker than the lateral
     # ones in JᵀJ, so damping scaled to the strong directions would stall it
@@ -193,8 +213,8 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarr
         d = step * h
         Rn = so3.exp(d[:, :3]) @ st.R
         tn = st.t + d[:, 3:]
-        new = _evaluate_state(prob, Rn, tn)
-        ok = act & (new.cost < st.cost) & ~flat
+        new, trial_cost = _evaluate_state(prob, Rn, tn, reference=st.W)
+        ok = act & (trial_cost < st.cost) & ~flat
         st.iters += act
         if ok.all():
             st.R, st.t, st.rho, st.J, st.raw, st.Z, st.cost, st.W = \
@@ -204,8 +224,7 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarr
             st.rho, st.J = _select(ok, new.rho, st.rho), _select(ok, new.J, st.J)
             st.raw, st.Z = _select(ok, new.raw, st.raw), _select(ok, new.Z, st.Z)
             st.cost = np.where(ok, new.cost, st.cost)
-            st.W = [tuple(_select(ok, a, b) for a, b in zip(wn, wo)) if isinstance(wn, tuple)
-                    else _select(ok, wn, wo) for wn, wo in zip(new.W, st.W)]
+            st.W = [_select(ok, wn, wo) for wn, wo in zip(new.W, st.W)]
         lam = np.where(ok, np.maximum(lam * 0.1, 1e-15), np.where(act, lam * 10.0, lam))
         st.converged |= act & (flat | (lam > 1e6))
     return st
@@ -328,6 +347,14 @@ def _finish(prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOpti
     dof = m - 6 + prob.fit_dof[row]
     chi2 = st.cost[row] + prob.fit_chi2[row]
     kappa2 = chi2 / dof if dof > 0 else 1.0
+    pose_dof = m - 6
+    if pose_dof <= 0:
+        pval = 1.0
+    elif prob.fit_dof[row] > 0 and prob.fit_chi2[row] > 0:
+        ratio = (st.cost[row] / pose_dof) / (prob.fit_chi2[row] / prob.fit_dof[row])
+        pval = float(fdtrc(pose_dof, prob.fit_dof[row], ratio)) if math.isfinite(ratio) else 0.0
+    else:
+        pval = float(chdtrc(pose_dof, st.cost[row])) if math.isfinite(st.cost[row]) else 0.0
     sq = (raw * raw).tolist()
     per = {fid: math.sqrt(sum(sq[sl]) / (sl.stop - sl.start)) for fid, sl in prob.raw_groups()}
     rms = math.sqrt(sum(sq) / len(sq)) if sq else float("nan")
@@ -350,7 +377,8 @@ def _finish(prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOpti
             error = (f"residuals too large for the noise model (noise scale {math.sqrt(kappa2):.3g} > "
                      f"{opts.max_noise_scale}): wrong correspondences or calibration?")
     return Pose(st.R[row].copy(), st.t[row].copy(), error is None, rms, cov, per, int(st.iters[row]), error,
-                float(math.sqrt(kappa2)), cond, starts, prob.origins[row] if prob.origins else "")
+                noise_scale=float(math.sqrt(kappa2)), condition_number=cond, residual_p_value=pval,
+                starts=starts, origin=prob.origins[row] if prob.origins else "")
 
 
 def _underdetermined(prob: Problem) -> str | None:
@@ -374,7 +402,7 @@ def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State
     order = np.argsort(st.cost)
     finite = order[np.isfinite(st.cost[order])]
     if finite.size == 0:
-        return _finish(prob, _evaluate_state(prob, R0[:1], t0[:1]), 0, h, opts, len(R0),
+        return _finish(prob, _evaluate_state(prob, R0[:1], t0[:1])[0], 0, h, opts, len(R0),
                        "no start led to a pose with every feature in front of the source")
     # polish the best few distinct candidates to full convergence
     keep: list[int] = []
@@ -420,23 +448,54 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
     results: list[Pose | None] = [None] * prob.B
     start = dlt_start(prob) if opts.closed_form_start else None
     st = None
+    retry: list[int] = list(range(prob.B))
     if start is not None:
-        # the paper's two phases (§II.B.7) on the closed-form start: beads first, whose
-        # residuals are smooth everywhere, then every feature from there
-        pts = levenberg_marquardt(prob.points_only(), start[0], start[1], h, 2)
-        st = levenberg_marquardt(prob, pts.R, pts.t, h, opts.max_iterations)
+        st = levenberg_marquardt(prob, start[0], start[1], h, opts.max_iterations)
+        retry = []
         for i in range(prob.B):
             p = _finish(prob, st, i, h, opts, 1)
-            if p.converged:
-                results[i] = p
-    for i in range(prob.B):
-        if results[i] is None:
-            one = prob.take(np.array([i]))
-            extra = None
-            if st is not None and np.isfinite(st.cost[i]):
-                extra = st.rows(np.array([i]))
-            results[i] = _robust_one(one, h, opts, extra)
+            results[i] = p
+            if _suspect(p, opts):
+                retry.append(i)
+        if retry:
+            # the paper's two phases (§II.B.7) from the closed-form start: beads first, whose
+            # residuals are smooth everywhere, then every feature from there
+            idx = np.array(retry)
+            sub = prob.take(idx)
+            pts = levenberg_marquardt(sub.points_only(), start[0][idx], start[1][idx], h, 10)
+            st2 = levenberg_marquardt(sub, pts.R, pts.t, h, opts.max_iterations)
+            still = []
+            for k, i in enumerate(retry):
+                p = _finish(sub, st2, k, h, opts, 1)
+                p.iterations += int(pts.iters[k]) + int(st.iters[i])
+                if _better(p, results[i]):
+                    results[i] = p
+                    st.R[i], st.t[i], st.cost[i] = st2.R[k], st2.t[k], st2.cost[k]
+                if _suspect(results[i], opts):
+                    still.append(i)
+            retry = still
+    for i in retry:
+        one = prob.take(np.array([i]))
+        extra = st.rows(np.array([i])) if st is not None and np.isfinite(st.cost[i]) else None
+        p = _robust_one(one, h, opts, extra)
+        if results[i] is None or _better(p, results[i]) or (p.error or "").startswith("ambiguous"):
+            results[i] = p
     return results  # type: ignore[return-value]
+
+
+def _suspect(p: Pose, opts: SolverOptions) -> bool:
+    """Whether a local solve's answer needs the careful path before it is believed."""
+    return (not p.converged or not p.residual_p_value >= opts.retry_p_value
+            or not p.condition_number <= opts.retry_condition)
+
+
+def _better(a: Pose, b: Pose | None) -> bool:
+    """Whether solution ``a`` fits its image better than ``b``."""
+    if b is None:
+        return True
+    ka = a.noise_scale if math.isfinite(a.noise_scale) else math.inf
+    kb = b.noise_scale if math.isfinite(b.noise_scale) else math.inf
+    return ka < kb
 
 
 def solve_batch(features: Features, observations: Iterable[Observation],
