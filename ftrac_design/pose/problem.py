@@ -100,12 +100,21 @@ class Problem:
     l_Lt: np.ndarray = field(init=False, repr=False)
     e_Lt: np.ndarray = field(init=False, repr=False)
     p_w2: np.ndarray = field(init=False, repr=False)
+    row_points: np.ndarray = field(init=False, repr=False)
+    point_cu: np.ndarray = field(init=False, repr=False)
+    point_cv: np.ndarray = field(init=False, repr=False)
     points_coplanar: bool = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.l_Lt = _factor(self.l_info, self.l_from_model)
         self.e_Lt = _factor(self.e_info, self.e_from_model)
         self.p_w2 = np.repeat(self.p_w, 2, 1)[..., None]
+        P, L, E = len(self.point_ids), len(self.line_ids), len(self.ellipse_ids)
+        # the model point each raw residual is measured at: beads twice (u, v), then the
+        # line end-points, then the ellipse model points
+        self.row_points = np.concatenate([np.repeat(np.arange(P), 2), np.arange(P, P + 2 * L + E * self.K)])
+        self.point_cu = np.tile([1.0, 0.0], P)
+        self.point_cv = np.tile([0.0, 1.0], P)
         Xp = self.X[: len(self.point_ids)]
         # a DLT start needs beads that span 3-D
         sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False) if len(Xp) >= 4 else np.zeros(3)
@@ -207,6 +216,8 @@ def _check_ids(features: Features, obs: Observation) -> None:
 
 def _pad(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     n = max(len(a) for a in arrays)
+    if all(len(a) == n for a in arrays):
+        return np.array(arrays, float), np.ones((len(arrays), n))
     out = np.zeros((len(arrays), n, 2))
     w = np.zeros((len(arrays), n))
     for i, a in enumerate(arrays):
@@ -264,7 +275,8 @@ def paper_k(theta: np.ndarray) -> np.ndarray:
 
 
 def compile_problem(features: Features, observations: list[Observation], noise: NoiseModel | None = None,
-                    ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson") -> Problem:
+                    ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson",
+                    same_structure: bool = False) -> Problem:
     """Arrays for a batch of observations sharing one :attr:`Observation.structure`.
 
     Fits every contour (batched), checks ids against ``features`` and raises
@@ -274,10 +286,12 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         raise ValueError(f"distance must be 'sampson' or 'paper', not {distance!r}")
     noise = noise or NoiseModel()
     obs0 = observations[0]
-    for o in observations:
-        _check_ids(features, o)
-        if o.structure != obs0.structure:
-            raise ValueError("compile_problem needs observations of one structure; group them first")
+    _check_ids(features, obs0)
+    if not same_structure:  # the caller may vouch for it (solve_batch groups by structure)
+        s0 = obs0.structure
+        for o in observations[1:]:
+            if o.structure != s0:
+                raise ValueError("compile_problem needs observations of one structure; group them first")
     B = len(observations)
     origins = [o.origin for o in observations]
     point_ids = sorted(obs0.points)
@@ -386,19 +400,21 @@ def project(prob: Problem, R: np.ndarray, t: np.ndarray):
     return uv, Z, (Q, x, y, fx * iz, fy * iz)
 
 
-def _jac_rows(pr, sl: slice, cu: np.ndarray | float, cv: np.ndarray | float, shape: tuple) -> np.ndarray:
-    """∂r/∂(δ, t) (shape + (6,)) for residuals r with ∂r/∂(u, v) = (cu, cv) at model points ``sl``.
+def _jac_rows(pr, idx: np.ndarray, cu: np.ndarray, cv: np.ndarray) -> np.ndarray:
+    """∂r/∂(δ, t) (B, n, 6) for residuals r with ∂r/∂(u, v) = (cu, cv) (B, n), each measured
+    at model point ``idx[i]``.
 
     With a = ∂r/∂P = (cu f_x/Z, cv f_y/Z, −(cu f_x x + cv f_y y)/Z) in the camera frame, the
     translation part is a and, for the left rotation increment (∂P/∂δ = −[Q]ₓ), the
     rotation part is Q × a — the paper's Eqs. 10–13 in vector form.
     """
-    Q, x, y, fxz, fyz = (v[:, sl].reshape(shape + v.shape[2:]) for v in pr)
-    ax = cu * fxz
-    ay = cv * fyz
-    az = -(ax * x + ay * y)
+    Q, x, y, fxz, fyz = pr
+    Q = Q[:, idx]
+    ax = cu * fxz[:, idx]
+    ay = cv * fyz[:, idx]
+    az = -(ax * x[:, idx] + ay * y[:, idx])
     Qx, Qy, Qz = Q[..., 0], Q[..., 1], Q[..., 2]
-    J = np.empty(shape + (6,))
+    J = np.empty(ax.shape + (6,))
     J[..., 0] = Qy * az - Qz * ay
     J[..., 1] = Qz * ax - Qx * az
     J[..., 2] = Qx * ay - Qy * ax
@@ -425,20 +441,17 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
     uv, Z, pr = project(prob, R, t)
     B = prob.B
     P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
-    rho, Js, raw, rawJ, Ws, ref = [], [], [], [], [], []
+    rho, Js, raw, Ws, ref, cus, cvs = [], [], [], [], [], [], []
     if P:
         d = uv[:, :P] - prob.p_obs
         rho.append((d * prob.p_w[..., None]).reshape(B, 2 * P))
         ref.append(rho[-1])
+        if jac:
+            cus.append(np.broadcast_to(prob.point_cu, (B, 2 * P)))
+            cvs.append(np.broadcast_to(prob.point_cv, (B, 2 * P)))
         raw.append(d.reshape(B, 2 * P))
         Ws.append(prob.p_w)
-        if jac:
-            Jr = np.empty((B, P, 2, 6))
-            Jr[:, :, 0] = _jac_rows(pr, slice(0, P), 1.0, 0.0, (B, P))
-            Jr[:, :, 1] = _jac_rows(pr, slice(0, P), 0.0, 1.0, (B, P))
-            Jr = Jr.reshape(B, 2 * P, 6)
-            Js.append(Jr * prob.p_w2)
-            rawJ.append(Jr)
+
     if L:
         sl = slice(P, P + 2 * L)
         q = uv[:, sl].reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
@@ -468,9 +481,8 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         rho.append((W @ r[..., None]).reshape(B, 2 * L))
         raw.append(r.reshape(B, 2 * L))
         if jac:
-            dr = _jac_rows(pr, sl, nx, ny, (B, L, 2))                                      # (B, L, 2, 6)
-            Js.append((W @ dr).reshape(B, 2 * L, 6))
-            rawJ.append(dr.reshape(B, 2 * L, 6))
+            cus.append(np.repeat(prob.l_n[..., 0], 2, 1))
+            cvs.append(np.repeat(prob.l_n[..., 1], 2, 1))
     if E:
         sl = slice(P + 2 * L, P + 2 * L + E * K)
         s = prob.e_s[..., None]
@@ -540,10 +552,19 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         rho.append((W @ r[..., None]).reshape(B, 5 * E))
         raw.append(r.reshape(B, E * K))
         if jac:
-            dr = _jac_rows(pr, sl, du, dv, (B, E, K))                                     # (B, E, K, 6)
-            Js.append((W @ dr).reshape(B, 5 * E, 6))
-            rawJ.append(dr.reshape(B, E * K, 6))
+            cus.append(du.reshape(B, E * K))
+            cvs.append(dv.reshape(B, E * K))
     cat = (lambda xs: xs[0]) if len(rho) == 1 else (lambda xs: np.concatenate(xs, 1))
-    return Evaluation(cat(rho), cat(Js) if jac else None, cat(raw),
-                      cat(rawJ) if jac and raw_jacobian else None, Ws, Z,
+    J = dr = None
+    if jac:
+        # one pass over every raw residual row: ∂r/∂(δ, t), then each group's whitening
+        dr = _jac_rows(pr, prob.row_points, cat(cus), cat(cvs))                          # (B, n_raw, 6)
+        if P:
+            Js.append(dr[:, :2 * P] * prob.p_w2)
+        if L:
+            Js.append((Ws[1 if P else 0] @ dr[:, 2 * P:2 * P + 2 * L].reshape(B, L, 2, 6)).reshape(B, 2 * L, 6))
+        if E:
+            Js.append((Ws[-1] @ dr[:, 2 * P + 2 * L:].reshape(B, E, K, 6)).reshape(B, 5 * E, 6))
+        J = cat(Js)
+    return Evaluation(cat(rho), J, cat(raw), dr if raw_jacobian else None, Ws, Z,
                       cat(ref) if reference is not None else None)

@@ -154,7 +154,7 @@ class _State:
     def rows(self, idx: np.ndarray) -> "_State":
         """A copy of rows ``idx``."""
         return _State(self.R[idx], self.t[idx], self.rho[idx], self.J[idx], self.raw[idx], self.Z[idx],
-                      self.cost[idx], [w[idx] for w in self.W], self.iters[idx].copy(),
+                      self.cost[idx], [np.asarray(w)[idx] for w in self.W], self.iters[idx].copy(),
                       self.converged[idx].copy())
 
 
@@ -192,9 +192,21 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarr
     # start almost undamped: the depth direction is ~10⁶ times weaker than the lateral
     # ones in JᵀJ, so damping scaled to the strong directions would stall it
     lam = np.full(B, 1e-9)
-    for _ in range(max_iterations):
+    for it in range(max_iterations):
         act = ~st.converged & (st.cost < np.inf)
-        if not act.any():
+        n_act = int(act.sum())
+        if n_act == 0:
+            break
+        if B >= 8 and n_act <= B // 4:
+            # most rows are done: finish the stragglers on a compacted batch instead of
+            # recomputing every converged row at every iteration
+            idx = np.flatnonzero(act)
+            sub = levenberg_marquardt(prob.take(idx), None, None, h, max_iterations - it, st.rows(idx))
+            st.R[idx], st.t[idx], st.rho[idx], st.J[idx] = sub.R, sub.t, sub.rho, sub.J
+            st.raw[idx], st.Z[idx], st.cost[idx] = sub.raw, sub.Z, sub.cost
+            st.iters[idx], st.converged[idx] = sub.iters, sub.converged
+            for w, ws in zip(st.W, sub.W):
+                w[idx] = ws
             break
         Js = st.J * h
         JsT = np.swapaxes(Js, 1, 2)
@@ -338,47 +350,64 @@ def multistart_seeds(prob: Problem, rotations: np.ndarray, depth_prior_mm: float
 
 
 # ----------------------------------------------------------------------------- results
+def _finish_all(prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, starts: int,
+                error: str | None = None) -> list[Pose]:
+    """Checks and covariances for every row of a solved batch, vectorised."""
+    B = st.R.shape[0]
+    m = prob.n_rows
+    pose_dof = m - 6
+    dof = pose_dof + prob.fit_dof
+    with np.errstate(all="ignore"):
+        kappa2 = np.where(dof > 0, (st.cost + prob.fit_chi2) / np.maximum(dof, 1), 1.0)
+        if pose_dof <= 0:
+            pval = np.ones(B)
+        else:
+            ratio = (st.cost / pose_dof) / (prob.fit_chi2 / np.maximum(prob.fit_dof, 1))
+            pval = np.where((prob.fit_dof > 0) & (prob.fit_chi2 > 0),
+                            fdtrc(pose_dof, np.maximum(prob.fit_dof, 1), np.nan_to_num(ratio, nan=np.inf)),
+                            chdtrc(pose_dof, np.nan_to_num(st.cost, nan=np.inf)))
+        sq = st.raw * st.raw
+        groups = prob.raw_groups()
+        starts_ = np.array([sl.start for _, sl in groups], int)
+        counts = np.array([sl.stop - sl.start for _, sl in groups], float)
+        per = np.sqrt(np.add.reduceat(sq, starts_, axis=1) / counts) if groups else np.zeros((B, 0))
+        rms = np.sqrt(sq.mean(1)) if sq.shape[1] else np.full(B, np.nan)
+        finite = np.isfinite(st.J).all((1, 2))
+        Jf = np.where(finite[:, None, None], st.J, 0.0)
+        JtJ = np.swapaxes(Jf, 1, 2) @ Jf
+        ev = np.linalg.eigvalsh(JtJ * np.outer(h, h))   # σ² of the scaled Jacobian
+        cond = np.where(finite & (ev[:, 0] > 0), np.sqrt(ev[:, -1] / np.where(ev[:, 0] > 0, ev[:, 0], 1.0)), np.inf)
+        good = np.isfinite(cond) & (cond < 1e7)
+        JtJ[~good] = np.eye(6)
+        cov = np.linalg.inv(JtJ) * kappa2[:, None, None]
+    ids = [fid for fid, _ in groups]
+    per_l, rms_l, k_l, c_l, p_l = per.tolist(), rms.tolist(), np.sqrt(kappa2).tolist(), cond.tolist(), pval.tolist()
+    out = []
+    for row in range(B):
+        err = error
+        kappa = k_l[row]
+        if err is None:
+            if not st.converged[row]:
+                err = f"did not converge in {int(st.iters[row])} iterations"
+            elif not math.isfinite(st.cost[row]):
+                err = "no pose puts every feature in front of the source"
+            elif not c_l[row] < opts.max_condition:
+                err = (f"degenerate view: the observed features do not determine all six pose parameters "
+                       f"(condition number {c_l[row]:.3g})")
+            elif kappa > opts.max_noise_scale:
+                err = (f"residuals too large for the noise model (noise scale {kappa:.3g} > "
+                       f"{opts.max_noise_scale}): wrong correspondences or calibration?")
+        out.append(Pose(st.R[row].copy(), st.t[row].copy(), err is None, rms_l[row],
+                        cov[row] if good[row] else None, dict(zip(ids, per_l[row])), int(st.iters[row]), err,
+                        noise_scale=kappa, condition_number=c_l[row], residual_p_value=p_l[row],
+                        starts=starts, origin=prob.origins[row] if prob.origins else ""))
+    return out
+
+
 def _finish(prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOptions, starts: int,
             error: str | None = None) -> Pose:
     """Checks and covariance for one row of a solved batch."""
-    J = st.J[row]
-    raw = st.raw[row]
-    m = prob.n_rows
-    dof = m - 6 + prob.fit_dof[row]
-    chi2 = st.cost[row] + prob.fit_chi2[row]
-    kappa2 = chi2 / dof if dof > 0 else 1.0
-    pose_dof = m - 6
-    if pose_dof <= 0:
-        pval = 1.0
-    elif prob.fit_dof[row] > 0 and prob.fit_chi2[row] > 0:
-        ratio = (st.cost[row] / pose_dof) / (prob.fit_chi2[row] / prob.fit_dof[row])
-        pval = float(fdtrc(pose_dof, prob.fit_dof[row], ratio)) if math.isfinite(ratio) else 0.0
-    else:
-        pval = float(chdtrc(pose_dof, st.cost[row])) if math.isfinite(st.cost[row]) else 0.0
-    sq = (raw * raw).tolist()
-    per = {fid: math.sqrt(sum(sq[sl]) / (sl.stop - sl.start)) for fid, sl in prob.raw_groups()}
-    rms = math.sqrt(sum(sq) / len(sq)) if sq else float("nan")
-    cov = None
-    cond = float("nan")
-    if np.all(np.isfinite(J)):
-        sv = np.linalg.svd(J * h, compute_uv=False)
-        cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else float("inf")
-        if math.isfinite(cond) and cond < 1e15:
-            cov = np.linalg.inv(J.T @ J) * kappa2
-    if error is None:
-        if not st.converged[row]:
-            error = f"did not converge in {int(st.iters[row])} iterations"
-        elif not math.isfinite(st.cost[row]):
-            error = "no pose puts every feature in front of the source"
-        elif not cond < opts.max_condition:
-            error = (f"degenerate view: the observed features do not determine all six pose parameters "
-                     f"(condition number {cond:.3g})")
-        elif math.sqrt(kappa2) > opts.max_noise_scale:
-            error = (f"residuals too large for the noise model (noise scale {math.sqrt(kappa2):.3g} > "
-                     f"{opts.max_noise_scale}): wrong correspondences or calibration?")
-    return Pose(st.R[row].copy(), st.t[row].copy(), error is None, rms, cov, per, int(st.iters[row]), error,
-                noise_scale=float(math.sqrt(kappa2)), condition_number=cond, residual_p_value=pval,
-                starts=starts, origin=prob.origins[row] if prob.origins else "")
+    return _finish_all(prob.take(np.array([row])), st.rows(np.array([row])), h, opts, starts, error)[0]
 
 
 def _underdetermined(prob: Problem) -> str | None:
@@ -452,8 +481,7 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
     if start is not None:
         st = levenberg_marquardt(prob, start[0], start[1], h, opts.max_iterations)
         retry = []
-        for i in range(prob.B):
-            p = _finish(prob, st, i, h, opts, 1)
+        for i, p in enumerate(_finish_all(prob, st, h, opts, 1)):
             results[i] = p
             if _suspect(p, opts):
                 retry.append(i)
@@ -465,8 +493,7 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
             pts = levenberg_marquardt(sub.points_only(), start[0][idx], start[1][idx], h, 10)
             st2 = levenberg_marquardt(sub, pts.R, pts.t, h, opts.max_iterations)
             still = []
-            for k, i in enumerate(retry):
-                p = _finish(sub, st2, k, h, opts, 1)
+            for k, (i, p) in enumerate(zip(retry, _finish_all(sub, st2, h, opts, 1))):
                 p.iterations += int(pts.iters[k]) + int(st.iters[i])
                 if _better(p, results[i]):
                     results[i] = p
@@ -510,7 +537,7 @@ def solve_batch(features: Features, observations: Iterable[Observation],
     out: list[Pose | None] = [None] * len(obs)
     for idx in groups.values():
         prob = compile_problem(features, [obs[i] for i in idx], opts.noise, opts.ellipse_model_points,
-                               opts.distance)
+                               opts.distance, same_structure=True)
         for i, p in zip(idx, solve_problem(prob, features, opts)):
             out[i] = p
     return out  # type: ignore[return-value]
