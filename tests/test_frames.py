@@ -77,32 +77,44 @@ def test_template_frame_arithmetic(preset):
     assert np.allclose(con.pocket_center, transform_points(T, bottom_F))
 
 
-@pytest.fixture(scope="module", params=PRESETS)
+@pytest.fixture(scope="module", params=[*PRESETS, "ftrac_2005+key", "ftrac_mini+anterior"])
 def assembly(request):
-    """An assembly STEP of a stand-in body (blank cylinder with its key slot), mount,
-    connector and pins, built only through fixture_parts / add_to_assembly, re-imported."""
+    """An assembly STEP of a stand-in body (blank cylinder, with its key slot if keyed),
+    mount, connector and pins, built only through fixture_parts / add_to_assembly, re-imported."""
     import cadquery as cq
 
     from ftrac_design.cad.fixture import add_to_assembly, fixture_parts
     from ftrac_design.cad.mount import key_slot_tool
+    from test_rules import with_param
 
-    d = design_of(request.param)
+    name, _, variant = request.param.partition("+")
+    if variant == "key":
+        d = with_param(name, "mount.key_height", 1.0)
+    elif variant == "anterior":
+        d = with_param(name, "connector.source_side", "anterior")
+    else:
+        d = design_of(name)
     f = compute_features(d)
     L = d.body.length
     body = cq.Solid.makeCylinder(d.outer_radius, L, cq.Vector(0, 0, -L / 2)).cut(
-        cq.Solid.makeCylinder(d.bore_radius, L + 2, cq.Vector(0, 0, -L / 2 - 1))).cut(key_slot_tool(d))
+        cq.Solid.makeCylinder(d.bore_radius, L + 2, cq.Vector(0, 0, -L / 2 - 1)))
+    slot = key_slot_tool(d)
+    if slot is not None:
+        body = body.cut(slot)
     assy = cq.Assembly(name=d.name)
     assy.add(body, name="body", color=cq.Color(0.9, 0.9, 0.85, 1))
-    add_to_assembly(assy, fixture_parts(d, f))
-    path = TMP / f"frames-{d.name}.step"
+    parts = fixture_parts(d, f)
+    add_to_assembly(assy, parts)
+    path = TMP / f"frames-{request.param}.step"
     assy.export(str(path), exportType="STEP")
-    return d, f, assembly_parts(path)
+    own = {p.name: p.local for p in parts}  # each part in its own frame (M or T)
+    return d, f, assembly_parts(path), own
 
 
 def test_assembly_names_and_colours(assembly):
     from ftrac_design.cad.fixture import CONNECTOR_COLOR, MOUNT_COLOR
 
-    d, f, parts = assembly
+    d, f, parts, own = assembly
     assert {"body", "mount", "connector", "pin_1", "pin_2"} <= set(parts)
     assert parts["mount"][1] == pytest.approx(MOUNT_COLOR, abs=1e-6)
     assert parts["connector"][1] == pytest.approx(CONNECTOR_COLOR, abs=1e-6)
@@ -110,19 +122,17 @@ def test_assembly_names_and_colours(assembly):
 
 def test_mount_from_fiducial_matches_assembly(assembly):
     """The cylinder's end face rests on the socket floor where mount_from_fiducial puts it."""
-    d, f, parts = assembly
+    d, f, parts, own = assembly
     body, mount = parts["body"][0], parts["mount"][0]
     lay = mount_layout(d)
-    side = np.cross([0, 0, 1.0], lay.key.direction)  # away from the key
+    side = np.cross([0, 0, 1.0], lay.key.direction)  # away from the key (if there is one)
     r_mid = (d.bore_radius + d.outer_radius) / 2
     P_F = side * r_mid + [0, 0, -d.half_length]  # on the cylinder's end face, in the wall
     up = np.array([0, 0, EPS])
     assert inside(mount, P_F - up) and not inside(mount, P_F + up)
     assert inside(body, P_F + up) and not inside(body, P_F - up)
     # the mount's own STEP frame M: that point is on its socket floor
-    from fixture_support import mount_part
-
-    _, mount_M = mount_part(d.name, "cnc")
+    mount_M = own["mount"]
     P_M = transform_points(f.frames["mount_from_fiducial"], P_F)
     assert abs(P_M[2]) < 1e-12
     assert inside(mount_M, P_M - up) and not inside(mount_M, P_M + up)
@@ -135,7 +145,7 @@ def test_mount_from_fiducial_matches_assembly(assembly):
 def test_template_from_fiducial_matches_assembly(assembly):
     """A point on the cylinder axis, mapped by template_from_fiducial, lands on the connector's
     pocket floor in the connector's own frame and in the assembly; the pins sit on the grid."""
-    d, f, parts = assembly
+    d, f, parts, own = assembly
     T = f.frames["template_from_fiducial"]
     lay = mount_layout(d)
     A_F = np.array([0.0, 0.0, -d.half_length - lay.base_height])  # axis point: the mount's bottom face
@@ -144,9 +154,7 @@ def test_template_from_fiducial_matches_assembly(assembly):
     conn, mount = parts["connector"][0], parts["mount"][0]
     assert inside(conn, A_F - up) and not inside(conn, A_F + up)
     assert inside(mount, A_F + up) and not inside(mount, A_F - up)
-    from fixture_support import connector_part
-
-    _, conn_T = connector_part(d.name, "cnc")
+    conn_T = own["connector"]
     assert inside(conn_T, A_T - up) and not inside(conn_T, A_T + up)
     assert np.allclose(A_T[:2], [d.connector.axis_x, d.connector.axis_height])
     # pins in the assembly, mapped into T, stand on grid nodes along +z

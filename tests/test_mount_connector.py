@@ -145,10 +145,14 @@ def test_profiles_change_hole_sizes_exactly_as_stated(preset):
 def test_mount_key_and_body_slot(preset):
     import cadquery as cq
 
-    from ftrac_design.cad.mount import key_slot_tool
+    from ftrac_design.cad.mount import MountPart, key_slot_tool
+    from test_rules import with_param
 
-    d = design_of(preset)
-    part, solid = mount_part(preset, "cnc")
+    assert design_of(preset).mount.key_height == 0 and key_slot_tool(design_of(preset)) is None
+    d = with_param(preset, "mount.key_height", 1.0)
+    part = MountPart.of(d, "cnc")
+    solid = part.build()
+    assert solid.isValid() and solid.Volume() == pytest.approx(part.nominal_volume(), rel=1e-9)
     k = part.layout.key
     # the key stands on the socket floor, across the socket, along its azimuth
     assert inside(solid, [0.0, 0.0, k.height / 2])
@@ -175,3 +179,42 @@ def test_derived_mount_sizes():
         assert all(math.isclose(h.diameter, 4.5) and h.counterbore_diameter == 8.0 for h in lay.holes)
     c = connector_layout(design_of("ftrac_2005"))
     assert [p.node for p in c.pins] == [(0, 0), (10, 0)]
+
+
+@pytest.mark.parametrize("preset", PRESETS)
+@pytest.mark.parametrize("profile", PROFILES)
+def test_bill_of_materials(preset, profile):
+    from ftrac_design.cad.bom import ISO4762_LENGTHS, bill_of_materials
+    from ftrac_design.features import compute_features
+
+    d = design_of(preset)
+    f = compute_features(d)
+    bom = bill_of_materials(d, f, profile)
+    assert bom["profile"] == profile
+    allowance = d.manufacturing.wire_cut_allowance
+    if f.ellipses or f.lines:
+        for feat in (*f.ellipses, *f.lines):
+            pieces = [p for p in bom["wires"]["pieces"] if p["feature"] == feat.id]
+            assert sum(p["length"] for p in pieces) == pytest.approx(f.wire_length(feat.id), abs=1e-3 * len(pieces))
+            for p in pieces:
+                assert p["cut_length"] == pytest.approx(p["length"] + allowance, abs=0.06)
+    else:
+        assert bom["wires"] is None
+    assert bom["beads"]["count"] == len(f.points) and bom["beads"]["diameter"] == d.bead.diameter
+    stock = {s["part"]: s for s in bom["stock"]}
+    lay = mount_layout(d)
+    if profile == "cnc":
+        assert stock["body"]["diameter"] >= d.body.outer_diameter + 2
+        assert stock["body"]["length"] > d.body.length
+        assert all(s >= fin + 2 for s, fin in zip(stock["mount"]["size"], stock["mount"]["finished"]))
+    else:
+        assert stock["mount"]["size"] == stock["mount"]["finished"] == [lay.width, lay.width, lay.height]
+    fix = bom["screws"][0]
+    n = int(fix["item"].split(" x ")[1])
+    assert n in ISO4762_LENGTHS and fix["qty"] == len(lay.set("z"))
+    clamp = lay.height - d.mount.holes_z.counterbore_depth
+    assert n <= clamp + d.connector.thickness - d.connector.pocket_depth  # never out of the plate's back
+    assert fix["thread_engagement"] >= fix["recommended_engagement"]
+    (pins,) = bom["dowel_pins"]
+    assert pins["qty"] == 2 and pins["grid_nodes"] == d.connector.pins
+    assert pins["item"].startswith("ISO 2338 1.2 m6")

@@ -188,6 +188,7 @@ def test_check_default_profile_is_cnc(capsys):
     ("[connector]\nsource_side = \"left\"", "connector.source_side", "posterior"),
     ("[connector]\npocket_depth = 20.0", "connector.pocket_depth", "less than thickness"),
     ("[mount]\nsocket_depth = 3.0\nkey_height = 2.9", "mount.key_height", "inside the socket"),
+    ("[mount]\nsocket_depth = 3.0\nkey_height = 1.0\nkey_width = 30.0", "mount.key_width", "narrower than the cylinder"),
     ("[mount]\nsocket_depth = 3.0\nwidth = 25.0", "mount.width", "wider than the socket"),
 ])
 def test_bad_mount_and_connector_keys(tmp_path, capsys, extra, key, expected):

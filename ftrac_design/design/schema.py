@@ -187,9 +187,12 @@ class Mount(_Strict):
     Mount frame M: origin at the centre of the socket floor, where the cylinder's
     ``z = −L/2`` end face rests; axes parallel to F (``+z`` out of the socket along the
     cylinder axis). The block spans ``x, y ∈ ±width/2`` and ``z ∈ [−base_height,
-    socket_depth]``. A key (tongue) across the socket floor along azimuth ``key_azimuth_deg``
-    engages a slot across the cylinder's end face, so the cylinder's azimuth in the socket is
-    fixed positively, not by friction.
+    socket_depth]``. With ``key_height > 0`` a key (tongue) across the socket floor along
+    azimuth ``key_azimuth_deg`` engages a slot that ``build`` cuts across the cylinder's end
+    face, so the cylinder's azimuth in the socket is fixed positively, not by friction alone.
+    Off by default (the paper's cylinder is a plain press fit, aligned when pressed in);
+    recommended for the template connector, where ``template_from_fiducial`` must hold
+    without re-calibration.
 
     Default hole grid 25 mm: the grid of metric optical breadboards and many rotary-stage
     tops. The screws are M4; a table tapped M6 on that grid needs ``diameter = 6.6``,
@@ -208,7 +211,7 @@ class Mount(_Strict):
     holes_y: HoleSet = Field(default_factory=HoleSet)
     holes_z: HoleSet = Field(default_factory=HoleSet)
     key_width: Pos = Field(default=2.0, description="width of the anti-rotation key, mm")
-    key_height: NonNeg = Field(default=1.0, description="height of the key above the socket floor (0 = no key), mm")
+    key_height: NonNeg = Field(default=0.0, description="height of the key above the socket floor (0 = no key), mm")
     key_azimuth_deg: float = Field(default=0.0, description="direction of the key across the socket, about +z from +x")
     material: str = "acetal (POM-C)"
 
