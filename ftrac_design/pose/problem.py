@@ -276,14 +276,18 @@ def paper_k(theta: np.ndarray) -> np.ndarray:
 
 def compile_problem(features: Features, observations: list[Observation], noise: NoiseModel | None = None,
                     ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson",
-                    same_structure: bool = False) -> Problem:
+                    same_structure: bool = False, task_scaling: str = "gauss-markov") -> Problem:
     """Arrays for a batch of observations sharing one :attr:`Observation.structure`.
 
     Fits every contour (batched), checks ids against ``features`` and raises
     :class:`InputError` (file, key, expected) on anything the solver cannot use.
+    ``task_scaling="diagonal"`` ignores the fitted curves' covariances and weights every
+    distance by 1/σ, the paper's fallback G (kept for comparison).
     """
     if distance not in ("sampson", "paper"):
         raise ValueError(f"distance must be 'sampson' or 'paper', not {distance!r}")
+    if task_scaling not in ("gauss-markov", "diagonal"):
+        raise ValueError(f"task_scaling must be 'gauss-markov' or 'diagonal', not {task_scaling!r}")
     noise = noise or NoiseModel()
     obs0 = observations[0]
     _check_ids(features, obs0)
@@ -329,8 +333,10 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         l_info[:, cols] = fit.info.reshape(B, n, 2, 2) / l_sig[:, cols, None, None] ** 2
         fit_chi2 += (fit.rss.reshape(B, n) / l_sig[:, cols] ** 2).sum(1)
         fit_dof += fit.dof.reshape(B, n).sum(1)
-        l_from_model[cols] = False
+        l_from_model[cols] = task_scaling == "diagonal"
     for j in np.flatnonzero(l_from_model):
+        if obs0.lines[line_ids[j]].points is not None:
+            continue
         lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]),
                                     intr[:, 2:4])
         l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
@@ -350,8 +356,10 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
                            * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1))
         fit_chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
         fit_dof += cf.dof.reshape(B, n).sum(1)
-        e_from_model[cols] = False
+        e_from_model[cols] = task_scaling == "diagonal"
     for j in np.flatnonzero(e_from_model):
+        if obs0.ellipses[ellipse_ids[j]].points is not None:
+            continue
         cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
         e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
     e_kpaper = paper_k(e_theta) if E and distance == "paper" else np.zeros((B, E))

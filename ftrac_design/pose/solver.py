@@ -50,6 +50,9 @@ class SolverOptions:
     ellipse_model_points: int = ELLIPSE_MODEL_POINTS
     #: "sampson" (first-order geometric distance) or "paper" (K·PᵀMP, Eq. 8)
     distance: str = "sampson"
+    #: "gauss-markov" (whiten by each fitted curve's covariance) or "diagonal" (1/σ per
+    #: distance, the paper's fallback G), see :mod:`.problem`
+    task_scaling: str = "gauss-markov"
     max_iterations: int = 60
     #: multi-start seeds when there is no closed-form start
     starts: int = 96
@@ -558,7 +561,7 @@ def solve_batch(features: Features, observations: Iterable[Observation],
     out: list[Pose | None] = [None] * len(obs)
     for idx in groups.values():
         prob = compile_problem(features, [obs[i] for i in idx], opts.noise, opts.ellipse_model_points,
-                               opts.distance, same_structure=True)
+                               opts.distance, same_structure=True, task_scaling=opts.task_scaling)
         for i, p in zip(idx, solve_problem(prob, features, opts)):
             out[i] = p
     return out  # type: ignore[return-value]
@@ -573,7 +576,8 @@ def refine_pose(features: Features, observation: Observation, R: np.ndarray, t: 
                 options: SolverOptions | None = None, max_iterations: int | None = None) -> Pose:
     """The paper's *basic* algorithm (Fig. 5): one local solve from a given initial pose."""
     opts = options or SolverOptions()
-    prob = compile_problem(features, [observation], opts.noise, opts.ellipse_model_points, opts.distance)
+    prob = compile_problem(features, [observation], opts.noise, opts.ellipse_model_points, opts.distance,
+                           task_scaling=opts.task_scaling)
     why = _underdetermined(prob)
     h = parameter_scale(features)
     st = levenberg_marquardt(prob, np.asarray(R, float)[None].copy(), np.asarray(t, float)[None].copy(), h,
