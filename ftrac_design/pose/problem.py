@@ -103,7 +103,6 @@ class Problem:
     row_points: np.ndarray = field(init=False, repr=False)
     point_cu: np.ndarray = field(init=False, repr=False)
     point_cv: np.ndarray = field(init=False, repr=False)
-    points_coplanar: bool = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.l_Lt = _factor(self.l_info, self.l_from_model)
@@ -115,10 +114,18 @@ class Problem:
         self.row_points = np.concatenate([np.repeat(np.arange(P), 2), np.arange(P, P + 2 * L + E * self.K)])
         self.point_cu = np.tile([1.0, 0.0], P)
         self.point_cv = np.tile([0.0, 1.0], P)
-        Xp = self.X[: len(self.point_ids)]
-        # a DLT start needs beads that span 3-D
-        sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False) if len(Xp) >= 4 else np.zeros(3)
-        self.points_coplanar = bool(sv[2] < 1e-3 * sv[0]) if len(Xp) >= 4 else True
+        self._coplanar: bool | None = None
+
+    @property
+    def points_coplanar(self) -> bool:
+        """Whether the observed beads are (nearly) coplanar — then a DLT cannot start the solve."""
+        if self._coplanar is None:
+            Xp = self.X[: len(self.point_ids)]
+            self._coplanar = True
+            if len(Xp) >= 4:
+                sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False)
+                self._coplanar = bool(sv[2] < 1e-3 * sv[0])
+        return self._coplanar
 
     @property
     def B(self) -> int:
@@ -190,6 +197,30 @@ def _factor(info: np.ndarray, from_model: np.ndarray) -> np.ndarray:
 
 
 # --------------------------------------------------------------------------- compilation
+#: model-point layouts already built, per (features object, observed ids, K): the same
+#: fiducial is solved image after image, so the layout is made once
+_LAYOUTS: dict[tuple, tuple[Features, np.ndarray, bool]] = {}
+
+
+def model_layout(features: Features, point_ids, line_ids, ellipse_ids, K: int) -> tuple[np.ndarray, bool]:
+    """Model points (M, 3) in the solver's order, and whether the beads are (nearly)
+    coplanar — then a DLT cannot start the solve."""
+    key = (id(features), tuple(point_ids), tuple(line_ids), tuple(ellipse_ids), K)
+    hit = _LAYOUTS.get(key)
+    if hit is not None and hit[0] is features:
+        return hit[1], hit[2]
+    X = _model_points(features, point_ids, line_ids, ellipse_ids, K)
+    Xp = X[: len(point_ids)]
+    coplanar = True
+    if len(Xp) >= 4:
+        sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False)
+        coplanar = bool(sv[2] < 1e-3 * sv[0])
+    if len(_LAYOUTS) > 256:
+        _LAYOUTS.clear()
+    _LAYOUTS[key] = (features, X, coplanar)
+    return X, coplanar
+
+
 def _model_points(features: Features, point_ids, line_ids, ellipse_ids, K: int) -> np.ndarray:
     pts = {p.id: p.center for p in features.points}
     lns = {ln.id: ln for ln in features.lines}
@@ -235,9 +266,15 @@ def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: lis
             info = fit.info.reshape((len(contours),) + fit.info.shape[-2:])
             bad = ~np.all(np.isfinite(info.reshape(len(contours), -1)), axis=1)
             if not bad.any():
-                # the curve must be pinned down in every direction (points spread along it)
-                ev = np.linalg.eigvalsh(info)
-                bad = ~(ev[:, 0] > 1e-12 * np.abs(ev[:, -1]))
+                # the curve must be pinned down in every direction (points spread along it):
+                # a Cholesky factor exists with a diagonal well above rounding
+                try:
+                    Lc = np.linalg.cholesky(info)
+                    dg = np.diagonal(Lc, axis1=-2, axis2=-1)
+                    bad = ~(dg.min(-1) > 1e-6 * dg.max(-1))
+                except np.linalg.LinAlgError:
+                    ev = np.linalg.eigvalsh(info)
+                    bad = ~(ev[:, 0] > 1e-12 * np.abs(ev[:, -1]))
         except np.linalg.LinAlgError:
             bad = np.ones(len(contours), bool)
             fit = None
@@ -260,10 +297,21 @@ def thin_ellipse_weight(fit: ConicFit, sigma_px: np.ndarray) -> np.ndarray:
     claims an accuracy it does not have. Its information is scaled by (b / 3σ)² below
     b = 3σ, so a nearly edge-on ellipse informs the pose only as far as it can.
     """
-    _, _, b = conic_center_and_axes(fit.theta)
-    b_px = np.abs(b) * fit.scale
+    b_px = semi_minor(fit.theta) * fit.scale
     w = (b_px / (THIN_ELLIPSE_SIGMAS * sigma_px)) ** 2
     return np.where(np.isfinite(w), np.minimum(w, 1.0), 1.0)
+
+
+def semi_minor(theta: np.ndarray) -> np.ndarray:
+    """Semi-minor axis of ellipses θ (...), in θ's coordinates (closed form, no solves)."""
+    A, B, C, D, E, F = np.moveaxis(theta, -1, 0)
+    det2 = 4 * A * C - B * B                      # > 0 for an ellipse
+    # value of the conic at its centre: F0 = F − (A E² − B D E + C D²) / det2
+    F0 = F - (A * E * E - B * D * E + C * D * D) / det2
+    root = np.sqrt((A - C) ** 2 + B * B)
+    lam_big = np.maximum(np.abs((A + C + root) / 2), np.abs((A + C - root) / 2))
+    with np.errstate(all="ignore"):
+        return np.sqrt(np.abs(F0 / lam_big))
 
 
 def paper_k(theta: np.ndarray) -> np.ndarray:
@@ -302,7 +350,7 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
     line_ids = sorted(obs0.lines)
     ellipse_ids = sorted(obs0.ellipses)
     K = int(ellipse_model_points)
-    X = _model_points(features, point_ids, line_ids, ellipse_ids, K)
+    X, _ = model_layout(features, point_ids, line_ids, ellipse_ids, K)
     intr = np.array([o.camera.intrinsics for o in observations])
     pix = np.array([(o.camera.pixel_size_mm[0] + o.camera.pixel_size_mm[1]) / 2 for o in observations])
 

@@ -211,7 +211,7 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
     ``camera`` is a :class:`Camera` or intrinsics (B, 4) ``fx, fy, ox, oy``; then
     ``pixel_size_mm`` converts the noise model to pixels.
     """
-    from .problem import _model_points  # shared with compile_problem: one model-point layout
+    from .problem import model_layout  # shared with compile_problem: one model-point layout
 
     noise = noise or NoiseModel()
     R = np.asarray(R, float).reshape(-1, 3, 3)
@@ -231,7 +231,7 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
     # the solver sorts ids; do the same so rows line up
     point_ids, line_ids, ellipse_ids = sorted(point_ids), sorted(line_ids), sorted(ellipse_ids)
     K = ellipse_model_points
-    X = _model_points(features, point_ids, line_ids, ellipse_ids, K)
+    X, _ = model_layout(features, point_ids, line_ids, ellipse_ids, K)
 
     def project(P: np.ndarray) -> np.ndarray:
         Pc = np.einsum("bij,...j->b...i", R, P) + t.reshape((Bn,) + (1,) * (P.ndim - 1) + (3,))
