@@ -448,12 +448,29 @@ def _underdetermined(prob: Problem) -> str | None:
     return None
 
 
-def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State | None = None) -> Pose:
+def view_seeds(nominal_beam: np.ndarray, cone_deg: float = 30.0, rolls: int = 12) -> np.ndarray:
+    """Rotations looking along the design's nominal beam and along 12 directions tilted
+    cone/2 and cone from it, each at ``rolls`` evenly spaced rolls: multi-start seeds that
+    cover the workspace densely (SPEC §1), where a far-off global spread is thin."""
+    from .simulate import cone_directions, rotations_from_beams
+
+    polar = np.concatenate([[0.0], np.full(6, np.radians(cone_deg) / 2), np.full(6, np.radians(cone_deg))])
+    az = np.concatenate([[0.0], np.arange(6) * np.pi / 3, np.arange(6) * np.pi / 3 + np.pi / 6])
+    beams = cone_directions(nominal_beam, polar, az)
+    roll = np.arange(rolls) * 2 * np.pi / rolls
+    return rotations_from_beams(np.repeat(beams, rolls, 0), np.tile(roll, len(beams)))
+
+
+def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State | None = None,
+                nominal_beam: np.ndarray | None = None) -> Pose:
     """Multi-start solve of the single image in ``prob`` (B = 1)."""
     S = opts.starts
     # SPEC §1: the fiducial sits about 2/3 of the source-detector distance from the source
     depth_prior = 2.0 / 3.0 * float(prob.intr[0, 0] * prob.pix[0])
-    R0, t0 = multistart_seeds(prob, so3.spread_rotations(S), depth_prior)
+    rots = so3.spread_rotations(S)
+    if nominal_beam is not None:
+        rots = np.concatenate([rots, view_seeds(nominal_beam)], 0)
+    R0, t0 = multistart_seeds(prob, rots, depth_prior)
     if extra is not None:
         R0 = np.concatenate([R0, extra.R], 0)
         t0 = np.concatenate([t0, extra.t], 0)
@@ -535,7 +552,7 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
     for i in retry:
         one = prob.take(np.array([i]))
         extra = st.rows(np.array([i])) if st is not None and np.isfinite(st.cost[i]) else None
-        p = _robust_one(one, h, opts, extra)
+        p = _robust_one(one, h, opts, extra, features.nominal_beam_direction)
         if results[i] is None or _better(p, results[i]) or (p.error or "").startswith("ambiguous"):
             results[i] = p
     return results  # type: ignore[return-value]
