@@ -129,8 +129,8 @@ def test_profile_changes_cut_sizes_exactly_as_stated(profile):
 PRESET_VERDICTS = {
     ("ftrac_2005", "cnc"): (set(), {"groove.depth"}),
     ("ftrac_2005", "fdm"): (set(), set()),
-    ("ftrac_mini", "cnc"): ({"pockets.spacing"}, {"body.bore_wall", "groove.depth"}),
-    ("ftrac_mini", "fdm"): ({"pockets.spacing"}, {"wires.crossing_clearance"}),
+    ("ftrac_mini", "cnc"): (set(), {"body.bore_wall", "groove.depth", "pockets.spacing"}),
+    ("ftrac_mini", "fdm"): (set(), {"wires.crossing_clearance", "pockets.spacing"}),
     ("nine_bead", "cnc"): (set(), set()),
     ("nine_bead", "fdm"): (set(), set()),
 }
@@ -160,8 +160,12 @@ def test_check_cli_exit_codes(preset, profile, capsys):
         assert err == ""
 
 
-def test_check_json(capsys):
-    rc = main(["check", str(MODELS / "ftrac_mini.toml"), "--profile", "fdm", "--json"])
+def test_check_json(tmp_path, capsys):
+    # ftrac_mini with the end balls of L2 back at the paper's +-6.4 mm: 0.9 mm from the ellipse wires
+    bad = tmp_path / "mini_long_l2.toml"
+    bad.write_text((MODELS / "ftrac_mini.toml").read_text().replace(
+        "z_start = -5.0\nz_end = 5.0\nbeads_z = [-5.0, -0.8, 5.0]", "z_start = -6.4\nz_end = 6.4\nbeads_z = [-6.4, -0.8, 6.4]"))
+    rc = main(["check", str(bad), "--profile", "fdm", "--json"])
     out, _ = capsys.readouterr()
     assert rc == 1
     doc = json.loads(out)
@@ -214,14 +218,3 @@ def test_rules_do_not_import_cadquery():
             f"r.check_design(load_design({str(MODELS / 'ftrac_2005.toml')!r}));"
             "assert 'cadquery' not in sys.modules and 'OCP' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
-
-
-def test_check_is_fast():
-    import time
-
-    d = load_design(MODELS / "ftrac_2005.toml")
-    check_design(d)  # warm imports
-    t = time.perf_counter()
-    for p in PROFILES:
-        check_design(d, p)
-    assert time.perf_counter() - t < 2.0

@@ -37,6 +37,11 @@ _EXPECT = {
     "less_than": "a value less than {lt}",
     "string_pattern_mismatch": "an identifier (letters, digits, _; starting with a letter)",
     "model_type": "a table",
+    "too_short": "at least {min_length} items",
+    "too_long": "at most {max_length} items",
+    "finite_number": "a finite number",
+    "bool_type": "true or false",
+    "literal_error": "one of {expected}",
 }
 
 

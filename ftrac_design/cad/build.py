@@ -1,0 +1,229 @@
+"""``ftrac-design build``: design → body, parts, exports, features, manifest and render.
+
+Everything is written into a temporary sibling of the output directory that replaces it
+only when the whole build succeeded (:func:`ftrac_design.fileio.atomic_directory`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import platform
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterator
+
+from .. import __version__
+from ..design.schema import Design
+from ..errors import InputError
+from ..features import Features, compute_features, write_features
+from ..fileio import atomic_directory, sha256_file, write_json_atomic
+from .plan import BodyPlan, plan_body, stl_tolerances
+from .profiles import CutSizes, Profile, cut_sizes
+
+MANIFEST_FORMAT = "ftrac-build-manifest"
+MANIFEST_VERSION = 1
+
+#: files every build writes (manifest.json last, it lists the others' hashes)
+OUTPUT_FILES = ("features.json", "fiducial.step", "fiducial.stl", "mount.step", "mount.stl", "connector.step",
+                "connector.stl", "grooves.csv", "grooves.dxf", "assembly.step", "render.png", "manifest.json")
+
+#: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
+STL_VOLUME_TOLERANCE = 0.005
+
+
+@dataclass
+class BuildResult:
+    """What a build wrote and how long each stage took."""
+
+    out_dir: Path
+    manifest: dict[str, Any]
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def default_output_dir(design: Design) -> Path:
+    """``outputs/<design name>/`` under the current directory."""
+    return Path("outputs") / design.name
+
+
+def _check_output_dir(out_dir: Path) -> None:
+    """Refuse to replace anything but an empty directory or an earlier build's output."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "--output", "a directory (a file of that name exists)")
+    if out_dir.is_dir() and any(out_dir.iterdir()):
+        manifest = out_dir / "manifest.json"
+        try:
+            ok = json.loads(manifest.read_text(encoding="utf-8")).get("format") == MANIFEST_FORMAT
+        except (OSError, ValueError, AttributeError):
+            ok = False
+        if not ok:
+            raise InputError(out_dir, "--output", "a new or empty directory, or an earlier build's "
+                             "output (this one holds other files; it would be replaced whole)")
+
+
+@contextlib.contextmanager
+def _occ_errors(name: str) -> Iterator[None]:
+    """Turn an exception raised inside OpenCASCADE into :class:`CadError` (exit 1)."""
+    from OCP.Standard import Standard_Failure
+
+    from .body import CadError
+
+    try:
+        yield
+    except Standard_Failure as exc:
+        raise CadError(f"{name}: OpenCASCADE failed ({type(exc).__name__}: {exc})") from exc
+
+
+def _umask_mode(path: Path, mode: int = 0o777) -> None:
+    """Give a mkdtemp/mkstemp path (0700/0600) the mode a plain mkdir/open would give it."""
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(path, mode & ~umask)
+
+
+class _Clock:
+    def __init__(self) -> None:
+        self.t0 = time.perf_counter()
+        self.last = self.t0
+        self.laps: dict[str, float] = {}
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.laps[name] = round(now - self.last, 3)
+        self.last = now
+
+    @property
+    def total(self) -> float:
+        return time.perf_counter() - self.t0
+
+
+def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: Profile = "cnc",
+                   force: bool = False, render: bool = True) -> BuildResult:
+    """Build ``design`` into ``out_dir`` (default :func:`default_output_dir`).
+
+    ``render=False`` skips ``render.png`` (benchmarks only; the command always renders).
+    The design rules of ``profile`` are checked first: a violation raises
+    :class:`~ftrac_design.errors.GoalError` (exit 1) before anything is written, unless
+    ``force``. Raises :class:`~ftrac_design.errors.InputError` for a bad output directory and
+    :class:`~ftrac_design.cad.body.CadError` (exit 1) when OCC cannot build a part.
+    """
+    import cadquery as cq
+
+    from .body import CadError, build_body, single_solid, volume
+    from .export import build_assembly, export_assembly, export_step, export_stl
+    from .fixture import add_to_assembly, fixture_parts
+    from .manufacture import enforce_rules, manufacturing_manifest, write_manufacturing_files
+    from .mount import key_slot_tool
+    from .parts import bead_parts, wire_parts
+
+    out_dir = Path(out_dir) if out_dir is not None else default_output_dir(design)
+    _check_output_dir(out_dir)
+    clock = _Clock()
+    features = compute_features(design)
+    cuts = cut_sizes(design, profile)
+    plan = plan_body(design, features, cuts)
+    report = enforce_rules(design, features, profile, force)
+    clock.lap("features")
+    with atomic_directory(out_dir) as tmp, _occ_errors(design.name):
+        _umask_mode(tmp)
+        write_features(tmp / "features.json", features)
+        body = build_body(plan)
+        slot = key_slot_tool(design, profile)
+        if slot is not None:  # the mount's key engages a slot across the z = -L/2 end face
+            body = single_solid(body.cut(slot), f"{design.name} key slot")
+        clock.lap("body")
+        parts = wire_parts(features, design.half_length + design.outer_radius) + bead_parts(features)
+        clock.lap("parts")
+        export_step(body, tmp / "fiducial.step")
+        stl_tol, stl_ang = stl_tolerances(cuts, design)
+        stl = export_stl(body, tmp / "fiducial.stl", stl_tol, stl_ang)
+        body_volume = volume(body)
+        stl_rel = stl.volume / body_volume - 1.0
+        if not stl.watertight or abs(stl_rel) > STL_VOLUME_TOLERANCE:
+            raise CadError(f"fiducial.stl: watertight={stl.watertight}, volume off by {stl_rel:+.3%} from the B-rep")
+        clock.lap("export_body")
+        fixture = fixture_parts(design, features, profile)
+        made = write_manufacturing_files(design, features, profile, tmp, parts=fixture)
+        clock.lap("mount_connector")
+        export_assembly(add_to_assembly(build_assembly(design.name, body, parts), fixture), tmp / "assembly.step")
+        clock.lap("export_assembly")
+        if render:
+            from .render import render_png
+
+            sizes = [x.diameter for x in (design.wire, design.bead) if x is not None]
+            render_png(body, parts, tmp / "render.png", title=f"{design.name}  ({profile})",
+                       part_size=min(sizes) if sizes else None)
+        clock.lap("render")
+        manifest = _manifest(design, features, cuts, plan, body_volume, parts, stl, (stl_tol, stl_ang),
+                             stl_rel, tmp, force, profile, cq.__version__)
+        manifest["manufacturing"] = manufacturing_manifest(design, features, profile, report, made)
+        manifest["bom"] = manifest["manufacturing"].pop("bom")
+        manifest["build_time_s"] = round(clock.total, 3)
+        manifest["timings_s"] = dict(clock.laps)
+        write_json_atomic(tmp / "manifest.json", manifest)
+        for f in tmp.iterdir():  # mkstemp files are 0600; give them a plain file's mode
+            _umask_mode(f, 0o666)
+    clock.lap("finish")
+    return BuildResult(out_dir, manifest, dict(clock.laps))
+
+
+def _ocp_version() -> str:
+    try:
+        from OCP import __version__ as v
+    except ImportError:  # pragma: no cover
+        return "unknown"
+    return str(v)
+
+
+def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan, body_volume: float,
+              parts: list, stl, stl_tols: tuple[float, float], stl_rel: float, tmp: Path, force: bool,
+              profile: str, cq_version: str) -> dict[str, Any]:
+    import math
+
+    blank = math.pi * (plan.outer_radius ** 2 - plan.bore_radius ** 2) * 2 * plan.half_length
+    wires = [p for p in parts if p.kind == "wire"]
+    beads = [p for p in parts if p.kind == "bead"]
+    lengths = {f.id: round(features.wire_length(f.id), 4) for f in (*features.ellipses, *features.lines)}
+    pieces = []
+    for ln in features.lines:
+        for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
+            pieces.append({"name": f"wire_{ln.id}_{k}", "feature": ln.id,
+                           "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4)})
+    files = {}
+    for name in OUTPUT_FILES:
+        p = tmp / name
+        if p.exists() and name != "manifest.json":
+            files[name] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
+    return {
+        "format": MANIFEST_FORMAT,
+        "version": MANIFEST_VERSION,
+        "design": {"name": design.name, "source": design.source, "sha256": design.sha256,
+                   "parameters": design.model_dump(mode="json")},
+        "profile": profile,
+        "cut_sizes": cuts.as_dict(),
+        "force": force,
+        "files": files,
+        "features": {"points": len(features.points), "lines": len(features.lines),
+                     "ellipses": len(features.ellipses)},
+        "wires": {
+            "diameter_mm": design.wire.diameter if design.wire else None,
+            "material": design.wire.material if design.wire else None,
+            "length_mm": lengths,
+            "total_length_mm": round(sum(lengths.values()), 4),
+            "line_pieces": pieces,
+        },
+        "beads": {"count": len(features.points),
+                  "diameter_mm": design.bead.diameter if design.bead else None,
+                  "material": design.bead.material if design.bead else None},
+        "volumes_mm3": {"body": round(body_volume, 4), "blank": round(blank, 4),
+                        "removed": round(blank - body_volume, 4),
+                        "wires": round(sum(p.volume for p in wires), 4),
+                        "beads": round(sum(p.volume for p in beads), 4)},
+        "stl": {"chord_tolerance_mm": stl_tols[0], "angular_tolerance_rad": stl_tols[1],
+                "triangles": stl.triangles, "watertight": stl.watertight, "repaired": stl.repaired,
+                "volume_mm3": round(stl.volume, 4), "volume_vs_brep": stl_rel},
+        "versions": {"ftrac_design": __version__, "cadquery": cq_version, "ocp": _ocp_version(),
+                     "python": platform.python_version()},
+    }

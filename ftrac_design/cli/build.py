@@ -1,0 +1,40 @@
+"""``ftrac-design build DESIGN.toml [-o DIR] [--profile cnc|fdm] [--force]`` (SPEC §5)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..cad.profiles import PROFILES
+
+
+@click.command("build")
+@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
+              help="output directory [default: outputs/<design name>/]")
+@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
+              help="manufacturing profile: sets groove widths and pocket diameters")
+@click.option("--force", is_flag=True, default=False,
+              help="build even if the design breaks a manufacturing rule")
+def command(design: Path, output: Path | None, profile: str, force: bool) -> int:
+    """Build the fiducial body, wires and beads of DESIGN.toml.
+
+    Writes fiducial.step, fiducial.stl, assembly.step (body, wires, beads as named,
+    coloured parts), features.json, manifest.json and render.png into the output
+    directory, atomically: a failed build leaves nothing behind.
+    """
+    from ..cad.build import build_fiducial
+    from ..design import load_design
+
+    d = load_design(design)
+    result = build_fiducial(d, output, profile=profile, force=force)
+    m = result.manifest
+    vol = m["volumes_mm3"]
+    click.echo(f"built {d.name} ({profile}) in {m['build_time_s']:.1f} s -> {result.out_dir}")
+    for name, info in m["files"].items():
+        click.echo(f"  {name:<15} {info['bytes']:>10,d} bytes")
+    click.echo(f"  {'manifest.json':<15}")
+    click.echo(f"  body {vol['body']:.1f} mm3, wires {vol['wires']:.2f} mm3, beads {vol['beads']:.2f} mm3; "
+               f"wire {m['wires']['total_length_mm']:.1f} mm, {m['beads']['count']} beads")
+    return 0
