@@ -21,6 +21,9 @@ def demo_build(design_path: str | Path = DEFAULT_DESIGN, out_dir: str | Path | N
     from .cad.build import build_fiducial
     from .design import load_design
 
+    design_path = Path(design_path)
+    if design_path.is_absolute() and design_path.is_relative_to(Path.cwd()):
+        design_path = design_path.relative_to(Path.cwd())  # features.json records it as given
     design = load_design(design_path)
     result = build_fiducial(design, out_dir, profile=profile)
     m = result.manifest
