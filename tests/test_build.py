@@ -113,3 +113,41 @@ def test_refuses_to_replace_a_foreign_directory(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--output" in err and len(err.strip().splitlines()) == 1
     assert (out / "thesis.tex").read_text() == "precious"
+
+
+def test_assembly_step_holds_every_part_named_coloured_and_placed():
+    """The build's assembly.step re-imports with body, every wire piece and bead, the mount,
+    the connector and its pins, named and coloured; the body is the fiducial.step solid, every
+    bead centre lies inside its bead, and the mount sits where features.json's frame puts it."""
+    import numpy as np
+    from fixture_support import assembly_parts, inside
+
+    from ftrac_design.cad.export import BEAD_COLOR, BODY_COLOR, WIRE_COLOR
+    from ftrac_design.cad.fixture import MOUNT_COLOR
+    from ftrac_design.features import load_features
+
+    res = S.build("ftrac_2005")
+    parts = assembly_parts(res.out_dir / "assembly.step")
+    f = load_features(res.out_dir / "features.json")
+    m = json.loads((res.out_dir / "manifest.json").read_text())
+    beads = {f"bead_{p.id}" for p in f.points}
+    wires = {piece["name"] for piece in m["wires"]["line_pieces"]} | {f"wire_{e.id}" for e in f.ellipses}
+    assert set(parts) == {"body", "mount", "connector", "pin_1", "pin_2"} | beads | wires
+    assert parts["body"][1] == pytest.approx(BODY_COLOR, abs=1e-6)
+    assert parts["mount"][1] == pytest.approx(MOUNT_COLOR, abs=1e-6)
+    for name in beads:
+        assert parts[name][1] == pytest.approx(BEAD_COLOR, abs=1e-6)
+    for name in wires:
+        assert parts[name][1] == pytest.approx(WIRE_COLOR, abs=1e-6)
+    from ftrac_design.cad.body import volume
+
+    assert volume(parts["body"][0]) == pytest.approx(m["volumes_mm3"]["body"], rel=1e-6)
+    for p in f.points:
+        assert inside(parts[f"bead_{p.id}"][0], p.center)
+        assert not inside(parts["body"][0], p.center)  # the pocket holds the bead
+    # the centre of the socket floor (M origin) is the cylinder's z = -L/2 end on its axis
+    F_from_M = np.linalg.inv(np.asarray(f.frames["mount_from_fiducial"]))
+    floor = (F_from_M @ [0.0, 0.0, 0.0, 1.0])[:3]
+    assert floor == pytest.approx([0.0, 0.0, -S.design_of("ftrac_2005").half_length], abs=1e-9)
+    assert inside(parts["mount"][0], floor - [0.0, 0.0, 0.5])       # acetal below the floor
+    assert not inside(parts["mount"][0], floor + [0.0, 0.0, 0.5])   # the socket above it
