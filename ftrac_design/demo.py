@@ -15,16 +15,20 @@ MODELS = Path(__file__).resolve().parents[1] / "models"
 DEFAULT_DESIGN = MODELS / "ftrac_2005.toml"
 
 
+def _relative(path: str | Path) -> Path:
+    path = Path(path)
+    if path.is_absolute() and path.is_relative_to(Path.cwd()):
+        return path.relative_to(Path.cwd())
+    return path
+
+
 def demo_build(design_path: str | Path = DEFAULT_DESIGN, out_dir: str | Path | None = None,
                profile: str = "cnc") -> dict[str, Any]:
     """Build ``design_path`` into ``out_dir`` (default ``outputs/<name>/``); return a summary."""
     from .cad.build import build_fiducial
     from .design import load_design
 
-    design_path = Path(design_path)
-    if design_path.is_absolute() and design_path.is_relative_to(Path.cwd()):
-        design_path = design_path.relative_to(Path.cwd())  # features.json records it as given
-    design = load_design(design_path)
+    design = load_design(_relative(design_path))  # features.json records the path as given
     result = build_fiducial(design, out_dir, profile=profile)
     m = result.manifest
     return {
@@ -61,6 +65,25 @@ def format_build(summary: dict[str, Any]) -> str:
     lines.append("  time: " + ", ".join(f"{k} {t[k]:.1f} s" for k in ("body", "export_body", "export_assembly", "render")
                                         if k in t))
     return "\n".join(lines)
+
+
+def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
+    """Score the design over its workspace (``ftrac-design analyze``) into ``out_dir``;
+    returns the analysis.json object."""
+    from .analysis.report import load_subject, run_analysis, settings_for
+
+    subject = load_subject(design_path)
+    settings, thresholds = settings_for(subject)
+    doc, _ = run_analysis(subject, settings, thresholds, Path(out_dir))
+    return doc
+
+
+def format_score(doc: dict[str, Any], out_dir: str | Path) -> str:
+    """The analysis summary, headed for the demo."""
+    from .analysis.report import format_summary
+
+    return (f"Scored over the workspace in {doc['time_s']:.1f} s -> {out_dir}/analysis.json, "
+            + ", ".join(doc["files"]) + "\n" + format_summary(doc))
 
 
 def demo_solve(features_path: str | Path, out_dir: str | Path, segmentation_error_mm: float = 0.25,
@@ -129,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         built = demo_build()
         print(format_build(built))
+        print()
+        score_dir = Path(built["out_dir"]) / "analysis"
+        print(format_score(demo_score(_relative(DEFAULT_DESIGN), score_dir), score_dir))
         print()
         print(format_solve(demo_solve(Path(built["out_dir"]) / "features.json",
                                       Path(built["out_dir"]) / "synthetic")))

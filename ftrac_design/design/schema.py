@@ -292,6 +292,27 @@ class Manufacturing(_Strict):
     wire_cut_allowance: NonNeg = Field(default=5.0, description="extra length per wire piece in the bill of materials, mm")
 
 
+class Analysis(_Strict):
+    """Workspace and pass/fail thresholds of the conditioning analysis (``ftrac-design
+    analyze``; see :mod:`ftrac_design.analysis.score`). Command-line options override these.
+
+    The workspace (SPEC §1) is every beam within ``cone_deg`` of the nominal beam, any roll,
+    the fiducial origin ``depth`` ± ``depth_range`` from the source and within ``lateral`` of
+    the principal ray. Thresholds bound the worst predicted 1σ 3-D RMS error over it at the
+    stated segmentation error (the paper's uniform error magnitude, mm at the detector).
+    """
+
+    cone_deg: Annotated[float, Field(gt=0.0, le=180.0)] = 25.0
+    depth: Pos = Field(default=667.0, description="source to fiducial origin, mm")
+    depth_range: NonNeg = Field(default=25.0, description="mm")
+    lateral: NonNeg = Field(default=25.0, description="offset from the principal ray, mm")
+    segmentation_error: Pos = Field(default=0.25, description="mm at the detector")
+    poses: Annotated[int, Field(ge=100, le=10_000_000)] = 20_000
+    max_translation: Pos = Field(default=1.0, description="worst predicted translation error, mm")
+    max_rotation_deg: Pos = 0.5
+    max_condition: Annotated[float, Field(ge=1.0)] = 1000.0
+
+
 class Design(_Strict):
     """A complete, validated fiducial design."""
 
@@ -308,6 +329,7 @@ class Design(_Strict):
     mount: Mount = Field(default_factory=Mount)
     connector: Connector = Field(default_factory=Connector)
     manufacturing: Manufacturing = Field(default_factory=Manufacturing)
+    analysis: Analysis = Field(default_factory=Analysis)
     units: Literal["mm"] = "mm"
 
     # where the design was read from; set by ftrac_design.design.load_design

@@ -186,3 +186,20 @@ class Features:
             ellipses=tuple(e for e in self.ellipses if e.id in keep),
             frames=dict(self.frames),
         )
+
+    def scaled(self, factor: float) -> "Features":
+        """A copy with every position, semi-axis, wire and bead diameter multiplied by
+        ``factor`` about the F origin (the paper's Fig. 7e size study: same configuration,
+        different size). Frames are dropped: the mount does not scale with it."""
+        k = float(factor)
+        if not k > 0:
+            raise ValueError("scale factor must be positive")
+        return Features(
+            name=f"{self.name}_x{k:g}", source=self.source, sha256=self.sha256,
+            nominal_beam_direction=self.nominal_beam_direction,
+            points=tuple(PointFeature(p.id, p.center * k, p.diameter * k, p.line) for p in self.points),
+            lines=tuple(LineFeature(ln.id, ln.start * k, ln.end * k, ln.wire_diameter * k) for ln in self.lines),
+            ellipses=tuple(EllipseFeature(e.id, e.center * k, e.major_axis, e.minor_axis, e.semi_major * k,
+                                          e.semi_minor * k, e.wire_diameter * k) for e in self.ellipses),
+            frames={},
+        )

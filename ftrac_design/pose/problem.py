@@ -442,23 +442,34 @@ class Evaluation:
 def project(prob: Problem, R: np.ndarray, t: np.ndarray):
     """Pixels (B, M, 2) of every model point and what their Jacobians need: the rotated
     model points Q = R P_F (B, M, 3), normalised coordinates x, y and f/Z (B, M)."""
-    Q = prob.X @ np.swapaxes(R, 1, 2)
-    Pc = Q + t[:, None, :]
-    Z = Pc[..., 2]
+    return project_points(prob.X, prob.intr, R, t)
+
+
+def project_points(X: np.ndarray, intr: np.ndarray, R: np.ndarray, t: np.ndarray):
+    """Pixels (B, M, 2) of points X (M, 3) mm in F at poses (B, 3, 3), (B, 3) seen with
+    intrinsics (B, 4) ``fx, fy, ox, oy``; depths Z (B, M) mm; and the projection terms
+    :func:`jacobian_rows` needs (Q = R X, x, y, f_x/Z, f_y/Z)."""
+    B = R.shape[0]
+    # one (3B × 3)(3 × M) product instead of B small ones; component-major, so each
+    # coordinate below is a contiguous (B, M) block and Q is a (B, M, 3) view
+    Qc = (R.reshape(3 * B, 3) @ np.asarray(X, float).T).reshape(B, 3, -1)
+    Q = np.swapaxes(Qc, 1, 2)
+    Z = Qc[:, 2] + t[:, 2, None]
     iz = 1.0 / Z
-    x = Pc[..., 0] * iz
-    y = Pc[..., 1] * iz
-    fx = prob.intr[:, 0, None]
-    fy = prob.intr[:, 1, None]
+    x = (Qc[:, 0] + t[:, 0, None]) * iz
+    y = (Qc[:, 1] + t[:, 1, None]) * iz
+    fx = intr[:, 0, None]
+    fy = intr[:, 1, None]
     uv = np.empty(x.shape + (2,))
-    uv[..., 0] = fx * x + prob.intr[:, 2, None]
-    uv[..., 1] = fy * y + prob.intr[:, 3, None]
+    uv[..., 0] = fx * x + intr[:, 2, None]
+    uv[..., 1] = fy * y + intr[:, 3, None]
     return uv, Z, (Q, x, y, fx * iz, fy * iz)
 
 
-def _jac_rows(pr, idx: np.ndarray, cu: np.ndarray, cv: np.ndarray) -> np.ndarray:
+def jacobian_rows(pr, idx: np.ndarray | slice, cu: np.ndarray, cv: np.ndarray, columns: bool = False) -> np.ndarray:
     """∂r/∂(δ, t) (B, n, 6) for residuals r with ∂r/∂(u, v) = (cu, cv) (B, n), each measured
-    at model point ``idx[i]``.
+    at model point ``idx[i]`` (a slice selects without copying). ``columns=True`` returns
+    the transpose (B, 6, n), contiguous per parameter, for forming JᵀJ.
 
     With a = ∂r/∂P = (cu f_x/Z, cv f_y/Z, −(cu f_x x + cv f_y y)/Z) in the camera frame, the
     translation part is a and, for the left rotation increment (∂P/∂δ = −[Q]ₓ), the
@@ -470,6 +481,13 @@ def _jac_rows(pr, idx: np.ndarray, cu: np.ndarray, cv: np.ndarray) -> np.ndarray
     ay = cv * fyz[:, idx]
     az = -(ax * x[:, idx] + ay * y[:, idx])
     Qx, Qy, Qz = Q[..., 0], Q[..., 1], Q[..., 2]
+    if columns:
+        Jt = np.empty(ax.shape[:1] + (6,) + ax.shape[1:])
+        np.multiply(Qy, az, out=Jt[:, 0]); Jt[:, 0] -= Qz * ay
+        np.multiply(Qz, ax, out=Jt[:, 1]); Jt[:, 1] -= Qx * az
+        np.multiply(Qx, ay, out=Jt[:, 2]); Jt[:, 2] -= Qy * ax
+        Jt[:, 3], Jt[:, 4], Jt[:, 5] = ax, ay, az
+        return Jt
     J = np.empty(ax.shape + (6,))
     J[..., 0] = Qy * az - Qz * ay
     J[..., 1] = Qz * ax - Qx * az
@@ -614,7 +632,7 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
     J = dr = None
     if jac:
         # one pass over every raw residual row: ∂r/∂(δ, t), then each group's whitening
-        dr = _jac_rows(pr, prob.row_points, cat(cus), cat(cvs))                          # (B, n_raw, 6)
+        dr = jacobian_rows(pr, prob.row_points, cat(cus), cat(cvs))                          # (B, n_raw, 6)
         if P:
             Js.append(dr[:, :2 * P] * prob.p_w2)
         if L:

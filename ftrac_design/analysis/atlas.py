@@ -1,0 +1,125 @@
+"""The blind-spot atlas: conditioning and predicted error over every view direction.
+
+Each direction is a pose with the fiducial origin on the principal ray at the workspace
+depth (roll 0 — the figures mapped here do not depend on the roll there, see
+:mod:`.sampling`). Two grids: the whole sphere (longitude about the fiducial axis, latitude
+toward ``+z``; drawn in a Mollweide projection) and the workspace cone around the nominal
+beam (drawn as a polar map). The worst directions are the highest predicted translation
+errors on the sphere, at least ``separation_deg`` apart; for each the features that have
+gone blind there are named — those whose own rank ratio (σ_rank/σ₁ of the feature alone)
+has fallen below a quarter of its median over the sphere, with their view angle: an ellipse
+seen edge-on (the paper's §II.A.2 singularity) or a line seen end-on.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..features.model import Features
+from .poses import PoseAnalysis, analyse_poses
+from .sampling import angle_from, cone_grid, isocentre_poses, sphere_grid
+from .score import AnalysisSettings
+
+#: relative rank ratio below which a feature counts as blind in a direction
+BLIND_FACTOR = 0.25
+
+
+@dataclass
+class Atlas:
+    """Metrics on the sphere grid (``lon``, ``lat`` deg, shape (nlat, nlon)) and on the
+    workspace cone grid (``polar``, ``azimuth`` deg, shape (npolar, naz))."""
+
+    name: str
+    lon: np.ndarray
+    lat: np.ndarray
+    sphere: PoseAnalysis
+    polar: np.ndarray
+    azimuth: np.ndarray
+    cone: PoseAnalysis
+    cone_deg: float
+    nominal_beam: np.ndarray
+    worst: list[dict]
+    blind_fraction: dict[str, float]
+
+    def grid(self, values: np.ndarray) -> np.ndarray:
+        """Per-direction values of the sphere analysis reshaped to the (nlat, nlon) grid."""
+        return np.asarray(values).reshape(self.lon.shape)
+
+    def cone_grid(self, values: np.ndarray) -> np.ndarray:
+        """Per-direction values of the cone analysis reshaped to the (npolar, naz) grid."""
+        return np.asarray(values).reshape(self.polar.shape)
+
+    def relative_rank_ratio(self) -> np.ndarray:
+        """(nlat, nlon, F) each feature's rank ratio over its median on the sphere."""
+        rr = self.sphere.rank_ratio
+        return (rr / np.median(rr, 0)).reshape(self.lon.shape + (rr.shape[1],))
+
+    def to_dict(self) -> dict:
+        """The atlas part of analysis.json (None where a figure is infinite: singular)."""
+        m, c = self.sphere.overall, self.cone.overall
+        inside = angle_from(self.nominal_beam, self.sphere.beam_directions())[0] <= self.cone_deg
+        return {"sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])),
+                "directions": int(m.condition.size),
+                "condition": {"median": _finite(np.median(m.condition)), "worst": _finite(np.max(m.condition)),
+                              "worst_in_cone": _finite(np.max(c.condition))},
+                "translation_mm": {"median": _finite(np.median(m.translation_rms_mm)),
+                                   "worst": _finite(np.max(m.translation_rms_mm)),
+                                   "worst_in_cone": _finite(np.max(c.translation_rms_mm))},
+                "rotation_deg": {"median": _finite(np.median(m.rotation_rms_deg)),
+                                 "worst": _finite(np.max(m.rotation_rms_deg)),
+                                 "worst_in_cone": _finite(np.max(c.rotation_rms_deg))},
+                "singular_fraction_of_sphere": float(np.mean(~np.isfinite(m.condition))),
+                "fraction_of_sphere_within_cone": float(np.mean(inside)),
+                "blind_fraction_of_sphere": self.blind_fraction,
+                "worst_directions": self.worst}
+
+
+def _finite(x) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def blind_spot_atlas(features: Features, settings: AnalysisSettings = AnalysisSettings(),
+                     step_deg: float = 2.0, n_worst: int = 6, separation_deg: float = 15.0,
+                     progress: Callable[[int], None] | None = None) -> Atlas:
+    """Map ``features`` over the whole sphere (``step_deg`` grid) and the workspace cone."""
+    lon, lat, d = sphere_grid(step_deg)
+    depth = settings.workspace.depth_mm
+    R, t = isocentre_poses(d.reshape(-1, 3), depth)
+    sph = analyse_poses(features, R, t, settings.camera, settings.noise, settings.contour,
+                        detail=True, leave_one_out=False, progress=progress)
+    pol, az, dc = cone_grid(features.nominal_beam_direction, settings.workspace.cone_deg)
+    Rc, tc = isocentre_poses(dc.reshape(-1, 3), depth)
+    cone = analyse_poses(features, Rc, tc, settings.camera, settings.noise, settings.contour,
+                         detail=True, leave_one_out=False, progress=progress)
+    ref = np.median(sph.rank_ratio, 0)
+    blind = {fid: float(np.mean(sph.rank_ratio[:, f] < BLIND_FACTOR * ref[f]))
+             for f, fid in enumerate(sph.layout.ids)}
+    # worst: rank by predicted error; a singular direction (infinite error) ranks first by
+    # its condition number
+    m = sph.overall
+    key = np.where(np.isfinite(m.translation_rms_mm), m.translation_rms_mm, np.inf)
+    order = np.lexsort((-np.nan_to_num(m.condition, posinf=1e300), -key))
+    beams = sph.beam_directions()
+    cos_sep = np.cos(np.radians(separation_deg))
+    chosen: list[int] = []
+    for i in order:
+        if all(beams[i] @ beams[j] < cos_sep for j in chosen):
+            chosen.append(int(i))
+            if len(chosen) == n_worst:
+                break
+    polar, azim = angle_from(features.nominal_beam_direction, beams[chosen])
+    worst = []
+    for k, i in enumerate(chosen):
+        worst.append({"beam_direction": [float(v) for v in beams[i]],
+                      "lon_deg": float(lon.flat[i]), "lat_deg": float(lat.flat[i]),
+                      "angle_from_nominal_deg": float(polar[k]), "azimuth_deg": float(azim[k]),
+                      "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
+                      "condition": _finite(m.condition[i]),
+                      "translation_error_mm": _finite(m.translation_rms_mm[i]),
+                      "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
+                      "responsible": sph.responsible(i, ref, BLIND_FACTOR)})
+    return Atlas(features.name, lon, lat, sph, pol, az, cone, settings.workspace.cone_deg,
+                 np.asarray(features.nominal_beam_direction, float), worst, blind)

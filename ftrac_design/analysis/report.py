@@ -1,0 +1,182 @@
+"""``analysis.json`` and the run behind ``ftrac-design analyze`` / ``compare``.
+
+``analysis.json`` (format ``ftrac-analysis``, version 1) holds: the design it scores
+(name, source, sha256), the settings (workspace, segmentation error, camera, poses, seed),
+the thresholds, the score figures and checks with the verdict, per-group figures (points,
+lines, ellipses alone), per-feature figures (own rank ratio, fraction of the workspace where
+it is blind, smallest view angle, the score without it), the worst workspace poses, the
+atlas summary with the worst view directions and the features responsible, and the PNG files
+written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from ..errors import InputError
+from ..features.model import Features
+from ..fileio import atomic_directory, write_json_atomic
+from ..pose.simulate import Workspace
+from .atlas import Atlas, blind_spot_atlas
+from .score import AnalysisSettings, DesignScore, Thresholds, score_design
+
+FORMAT = "ftrac-analysis"
+VERSION = 1
+PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png"}
+
+
+@dataclass
+class Subject:
+    """What is analysed: the features, and the design's own [analysis] table if it came
+    from a design file (None for features.json)."""
+
+    features: Features
+    spec: Any | None
+    path: Path
+
+
+def load_subject(path: str | Path) -> Subject:
+    """Features from ``DESIGN.toml`` (computed, with its [analysis] table) or ``FEATURES.json``."""
+    path = Path(path)
+    if path.suffix.lower() == ".toml":
+        from ..design import load_design
+        from ..features import compute_features
+
+        design = load_design(path)
+        return Subject(compute_features(design), design.analysis, path)
+    if path.suffix.lower() == ".json":
+        from ..features import load_features
+
+        return Subject(load_features(path), None, path)
+    raise InputError(path, None, "a design file (.toml) or a features file (.json)")
+
+
+def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, Thresholds]:
+    """Settings and thresholds: the defaults, then the design's [analysis] table, then the
+    command line's ``overrides`` (None = not given). Keys as :class:`~ftrac_design.design.schema.Analysis`."""
+    vals: dict[str, Any] = {}
+    if subject.spec is not None:
+        vals.update(subject.spec.model_dump())
+    vals.update({k: v for k, v in overrides.items() if v is not None})
+    s, th = AnalysisSettings(), Thresholds()
+    ws = replace(Workspace(), **{k: vals[k2] for k, k2 in (("cone_deg", "cone_deg"), ("depth_mm", "depth"),
+                                                           ("depth_range_mm", "depth_range"),
+                                                           ("lateral_mm", "lateral")) if k2 in vals})
+    s = replace(s, workspace=ws, **{k: vals[k2] for k, k2 in (("segmentation_error_mm", "segmentation_error"),
+                                                              ("poses", "poses"), ("seed", "seed")) if k2 in vals})
+    th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),
+                                                 ("max_rotation_deg", "max_rotation_deg"),
+                                                 ("max_condition", "max_condition")) if k2 in vals})
+    return s, th
+
+
+def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None, seconds: float,
+                      files: list[str]) -> dict:
+    """The analysis.json object (see module doc)."""
+    from .. import __version__
+
+    f = subject.features
+    doc = {"format": FORMAT, "version": VERSION, "units": {"length": "mm", "angle": "deg"},
+           "design": {"name": f.name, "source": f.source, "sha256": f.sha256, "input": str(subject.path)},
+           "settings": score.settings.to_dict(), "passed": score.passed}
+    doc.update(score.to_dict())
+    doc["atlas"] = atlas.to_dict() if atlas is not None else None
+    doc["files"] = files
+    doc["time_s"] = round(seconds, 3)
+    doc["package_version"] = __version__
+    return doc
+
+
+def _check_output_dir(out_dir: Path) -> None:
+    """Refuse to replace anything but an empty directory or an earlier analysis."""
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, "--output", "a directory (a file of that name exists)")
+    if out_dir.is_dir() and any(out_dir.iterdir()):
+        try:
+            ok = json.loads((out_dir / "analysis.json").read_text(encoding="utf-8")).get("format") == FORMAT
+        except (OSError, ValueError, AttributeError):
+            ok = False
+        if not ok:
+            raise InputError(out_dir, "--output", "a new or empty directory, or an earlier analysis "
+                             "(this one holds other files; it would be replaced whole)")
+
+
+def default_output_dir(features: Features) -> Path:
+    """``outputs/<design name>/analysis``."""
+    return Path("outputs") / features.name / "analysis"
+
+
+def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thresholds, out_dir: Path | None,
+                 atlas_step_deg: float = 2.0, plots: bool = True,
+                 progress: Callable[[int], None] | None = None) -> tuple[dict, Path]:
+    """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically."""
+    out_dir = Path(out_dir) if out_dir is not None else default_output_dir(subject.features)
+    _check_output_dir(out_dir)
+    t0 = time.perf_counter()
+    score = score_design(subject.features, settings, thresholds, progress=progress)
+    atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
+    seconds = time.perf_counter() - t0
+    with atomic_directory(out_dir) as tmp:
+        files = []
+        if plots:
+            from .plots import plot_atlas_cone, plot_atlas_sphere, plot_score
+
+            plot_score(score, tmp / PLOTS["score"])
+            plot_atlas_sphere(atlas, tmp / PLOTS["sphere"])
+            plot_atlas_cone(atlas, tmp / PLOTS["cone"])
+            files = list(PLOTS.values())
+        doc = analysis_document(subject, score, atlas, seconds, files)
+        write_json_atomic(tmp / "analysis.json", doc)
+    return doc, out_dir
+
+
+def atlas_directions(step_deg: float, cone_deg: float) -> int:
+    """How many poses :func:`blind_spot_atlas` analyses (for progress bars)."""
+    from .sampling import cone_grid, sphere_grid
+
+    return sphere_grid(step_deg)[0].size + cone_grid([0.0, 0.0, 1.0], cone_deg)[0].size
+
+
+def _fmt(v) -> str:
+    return "inf" if v is None else f"{v:.3g}"
+
+
+def format_summary(doc: dict) -> str:
+    """The score, groups, features and worst directions of an analysis.json object as a few
+    readable lines."""
+    lines: list[str] = []
+    echo = lines.append
+    f = doc["figures"]
+    s = doc["settings"]
+    echo(f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
+         f"segmentation error {s['segmentation_error_mm']:g} mm (predicted 1σ, 3-D RMS)")
+    tz = f["translation_p95_per_axis_mm"][2]
+    echo(f"  translation  p95 {_fmt(f['translation_mm']['p95'])} mm  worst {_fmt(f['translation_mm']['worst'])} mm"
+         f"  (depth p95 {_fmt(tz)} mm)")
+    echo(f"  rotation     p95 {_fmt(f['rotation_deg']['p95'])}°  worst {_fmt(f['rotation_deg']['worst'])}°")
+    echo(f"  condition    median {_fmt(f['condition']['median'])}  worst {_fmt(f['condition']['worst'])}")
+    for c in doc["checks"]:
+        echo(f"  {'ok  ' if c['passed'] else 'FAIL'} {c['figure']:<18} {_fmt(c['value']):>8} {c['unit']:<3} "
+             f"limit {c['limit']:g}")
+    for g, v in doc["groups"].items():
+        echo(f"  {g:<9} alone: translation p95 {_fmt(v['translation_mm']['p95'])} mm, condition median "
+             f"{_fmt(v['condition']['median'])}"
+             + (f", singular at {v['singular_fraction']:.0%} of poses" if v["singular_fraction"] else ""))
+    worst = max(doc["features"], key=lambda x: x["without"]["translation_loss"] or float("inf"))
+    echo(f"  most needed feature: {worst['id']} (without it p95 translation x"
+         f"{_fmt(worst['without']['translation_loss'])})")
+    at = doc.get("atlas")
+    if at:
+        echo(f"  atlas: {at['directions']} directions; worst view directions:")
+        for i, w in enumerate(at["worst_directions"][:3]):
+            who = ", ".join(f"{r['id']} {r['reason']} ({_fmt(r['view_angle_deg'])}°)" for r in w["responsible"]) \
+                or "no single feature blind"
+            echo(f"    {i + 1}. lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° "
+                 f"({w['angle_from_nominal_deg']:.0f}° from nominal{', in workspace' if w['in_workspace'] else ''}):"
+                 f" {_fmt(w['translation_error_mm'])} mm, condition {_fmt(w['condition'])} — {who}")
+    return "\n".join(lines)

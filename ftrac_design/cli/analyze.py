@@ -1,0 +1,85 @@
+"""``ftrac-design analyze DESIGN.toml|FEATURES.json [-o DIR]``: score a design over the
+workspace and map its blind spots (SPEC §5; format in :mod:`ftrac_design.analysis.report`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+_POS = click.FloatRange(min=0.0, min_open=True)
+
+
+def workspace_options(fn):
+    """Options shared with ``compare``: workspace, noise and sampling."""
+    for opt in reversed([
+        click.option("--poses", type=click.IntRange(min=100), default=None,
+                     help="random workspace poses scored [default: the design's, else 20000]"),
+        click.option("--seed", type=int, default=None, help="random seed of the workspace poses [default: 0]"),
+        click.option("--cone-deg", type=click.FloatRange(min=0.0, max=180.0, min_open=True), default=None,
+                     help="workspace: beams within this angle of the nominal beam [default: 25]"),
+        click.option("--depth-mm", type=_POS, default=None,
+                     help="workspace: source to fiducial origin [default: 667]"),
+        click.option("--depth-range-mm", type=click.FloatRange(min=0.0), default=None,
+                     help="workspace: ± this about the depth [default: 25]"),
+        click.option("--lateral-mm", type=click.FloatRange(min=0.0), default=None,
+                     help="workspace: origin within this of the principal ray [default: 25]"),
+        click.option("--segmentation-error-mm", type=_POS, default=None,
+                     help="the paper's uniform segmentation error magnitude, mm at the detector [default: 0.25]"),
+    ]):
+        fn = opt(fn)
+    return fn
+
+
+def overrides(poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm, **extra) -> dict:
+    """Command-line values under the design file's [analysis] key names."""
+    out = {"poses": poses, "seed": seed, "cone_deg": cone_deg, "depth": depth_mm, "depth_range": depth_range_mm,
+           "lateral": lateral_mm, "segmentation_error": segmentation_error_mm}
+    out.update(extra)
+    return out
+
+
+@click.command("analyze")
+@click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="output directory [default: outputs/<design name>/analysis/]")
+@workspace_options
+@click.option("--max-translation-mm", type=_POS, default=None,
+              help="pass only if the worst predicted translation error is within this [default: design's, else 1.0]")
+@click.option("--max-rotation-deg", type=_POS, default=None,
+              help="pass only if the worst predicted rotation error is within this [default: design's, else 0.5]")
+@click.option("--max-condition", type=click.FloatRange(min=1.0), default=None,
+              help="pass only if the worst condition number is within this [default: design's, else 1000]")
+@click.option("--atlas-step-deg", type=click.FloatRange(min=0.5, max=15.0), default=2.0, show_default=True,
+              help="grid step of the whole-sphere atlas")
+@click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
+def command(source: Path, output: Path | None, poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm,
+            segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
+            no_plots) -> int:
+    """Score SOURCE (a design or a features.json) over the C-arm workspace.
+
+    Predicted 1σ pose errors (the Cramér–Rao bound of the solver's Jacobian) and the
+    condition number at every workspace pose, per feature group and feature, and a
+    whole-sphere atlas of blind spots. Writes analysis.json and score.png,
+    atlas_sphere.png, atlas_cone.png; exits 1 if a threshold is exceeded.
+    """
+    from tqdm import tqdm
+
+    from ..analysis.report import atlas_directions, format_summary, load_subject, run_analysis, settings_for
+
+    subject = load_subject(source)
+    settings, thresholds = settings_for(subject, **overrides(
+        poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm,
+        max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition))
+    total = settings.poses + atlas_directions(atlas_step_deg, settings.workspace.cone_deg)
+    with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:
+        doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update)
+    click.echo(format_summary(doc))
+    click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
+    if not doc["passed"]:
+        failed = [c for c in doc["checks"] if not c["passed"]]
+        click.echo("failed: " + "; ".join(
+            f"{c['figure']} {'inf' if c['value'] is None else format(c['value'], '.3g')} {c['unit']} > {c['limit']:g}"
+            for c in failed), err=True)
+        return 1
+    return 0

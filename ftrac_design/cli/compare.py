@@ -1,0 +1,80 @@
+"""``ftrac-design compare A B …``: designs side by side over one workspace."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from .analyze import overrides, workspace_options
+
+
+@click.command("compare")
+@click.argument("sources", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="overlay plot to write [default: outputs/compare.png]; compare.json beside it")
+@workspace_options
+def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_deg, depth_mm, depth_range_mm,
+            lateral_mm, segmentation_error_mm) -> int:
+    """Score each design (DESIGN.toml or FEATURES.json) over the same workspace and noise.
+
+    Prints a side-by-side table of predicted 1σ errors and conditioning and draws their
+    distributions overlaid. Each design is judged by its own thresholds; the workspace
+    is the command line's (or the defaults), the same for all.
+    """
+    from tqdm import tqdm
+
+    from ..analysis.report import load_subject, settings_for
+    from ..analysis.score import AnalysisSettings, score_design
+    from ..errors import InputError
+    from ..fileio import write_json_atomic
+
+    subjects = [load_subject(s) for s in sources]
+    common = overrides(poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm)
+    base, _ = settings_for(type(subjects[0])(subjects[0].features, None, subjects[0].path), **common)
+    scores = []
+    with tqdm(total=base.poses * len(subjects), unit="pose", desc="scoring", leave=False, disable=None) as bar:
+        for sub in subjects:
+            _, th = settings_for(sub, **common)
+            scores.append(score_design(sub.features, base, th, progress=bar.update))
+    rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "verdict")]
+    table = []
+    for s in scores:
+        f = s.figures
+
+        def g(v):
+            return "inf" if v is None else f"{v:.3f}"
+
+        rows.append((s.name, g(f["translation_mm"]["p95"]), g(f["translation_mm"]["worst"]),
+                     g(f["translation_p95_per_axis_mm"][2]), g(f["rotation_deg"]["p95"]), g(f["rotation_deg"]["worst"]),
+                     "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
+                     "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
+                     "PASS" if s.passed else "FAIL"))
+        table.append({"design": s.name, "figures": f, "thresholds": s.to_dict()["thresholds"], "passed": s.passed})
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    ws = base.workspace
+    click.echo(f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
+               f"{ws.depth_range_mm:g} mm, segmentation error {base.segmentation_error_mm:g} mm (predicted 1σ, 3-D RMS)")
+    for r in rows:
+        click.echo("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
+    out = Path(output) if output is not None else Path("outputs") / "compare.png"
+    if out.suffix.lower() != ".png":
+        raise InputError(out, "--output", "a .png file name")
+    from ..analysis.plots import plot_compare
+    from ..fileio import write_text_atomic  # noqa: F401  (same atomic discipline as every output)
+    import os
+    import tempfile
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
+    os.close(fd)
+    try:
+        plot_compare(scores, tmp)
+        os.replace(tmp, out)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    write_json_atomic(out.with_suffix(".json"), {"format": "ftrac-compare", "version": 1,
+                                                 "settings": base.to_dict(), "designs": table})
+    click.echo(f"wrote {out} and {out.with_suffix('.json')}")
+    return 0
