@@ -4,11 +4,13 @@ Each direction is a pose with the fiducial origin on the principal ray at the wo
 depth (roll 0 — the figures mapped here do not depend on the roll there, see
 :mod:`.sampling`). Two grids: the whole sphere (longitude about the fiducial axis, latitude
 toward ``+z``; drawn in a Mollweide projection) and the workspace cone around the nominal
-beam (drawn as a polar map). The worst directions are the highest predicted translation
-errors on the sphere, at least ``separation_deg`` apart; for each the features that have
-gone blind there are named — those whose own rank ratio (σ_rank/σ₁ of the feature alone)
+beam (drawn as a polar map). The worst directions are where the design's scaled Jacobian
+comes closest to losing rank (the largest condition number; for a design that cannot fix
+all six DOF, such as a lone ellipse, the smallest σ_r/σ₁ with r its attainable rank), at
+least ``separation_deg`` apart; for each the features that have gone blind there are named — those whose own rank ratio (σ_rank/σ₁ of the feature alone)
 has fallen below a quarter of its median over the sphere, with their view angle: an ellipse
-seen edge-on (the paper's §II.A.2 singularity) or a line seen end-on.
+seen edge-on (the paper's §II.A.2 singularity) or face-on and centred (a tilt then changes
+its image only to second order), or a line seen end-on.
 """
 
 from __future__ import annotations
@@ -61,8 +63,11 @@ class Atlas:
         """The atlas part of analysis.json (None where a figure is infinite: singular)."""
         m, c = self.sphere.overall, self.cone.overall
         inside = angle_from(self.nominal_beam, self.sphere.beam_directions())[0] <= self.cone_deg
+        rd = self.sphere.rank_deficiency()
         return {"sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])),
                 "directions": int(m.condition.size),
+                "attainable_rank": self.sphere.attainable_rank(),
+                "rank_ratio": {"median": float(np.median(rd)), "worst": float(np.min(rd))},
                 "condition": {"median": _finite(np.median(m.condition)), "worst": _finite(np.max(m.condition)),
                               "worst_in_cone": _finite(np.max(c.condition))},
                 "translation_mm": {"median": _finite(np.median(m.translation_rms_mm)),
@@ -97,11 +102,10 @@ def blind_spot_atlas(features: Features, settings: AnalysisSettings = AnalysisSe
     ref = np.median(sph.rank_ratio, 0)
     blind = {fid: float(np.mean(sph.rank_ratio[:, f] < BLIND_FACTOR * ref[f]))
              for f, fid in enumerate(sph.layout.ids)}
-    # worst: rank by predicted error; a singular direction (infinite error) ranks first by
-    # its condition number
+    # worst: closest to losing rank (largest condition number, or for a design that cannot
+    # fix all six DOF the smallest σ_r/σ₁), ties by predicted error
     m = sph.overall
-    key = np.where(np.isfinite(m.translation_rms_mm), m.translation_rms_mm, np.inf)
-    order = np.lexsort((-np.nan_to_num(m.condition, posinf=1e300), -key))
+    order = np.lexsort((-np.nan_to_num(m.translation_rms_mm, posinf=1e300), sph.rank_deficiency()))
     beams = sph.beam_directions()
     cos_sep = np.cos(np.radians(separation_deg))
     chosen: list[int] = []
@@ -118,6 +122,7 @@ def blind_spot_atlas(features: Features, settings: AnalysisSettings = AnalysisSe
                       "angle_from_nominal_deg": float(polar[k]), "azimuth_deg": float(azim[k]),
                       "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
                       "condition": _finite(m.condition[i]),
+                      "rank_ratio": float(sph.rank_deficiency()[i]),
                       "translation_error_mm": _finite(m.translation_rms_mm[i]),
                       "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
                       "responsible": sph.responsible(i, ref, BLIND_FACTOR)})

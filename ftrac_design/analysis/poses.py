@@ -70,12 +70,35 @@ class PoseAnalysis:
                 break
             kind = self.layout.kinds[f]
             ang = self.view_angle_deg[i, f] if self.view_angle_deg is not None else np.nan
-            what = {"ellipse": "seen edge-on" if ang < 10 else "foreshortened",
-                    "line": "seen end-on" if ang < 10 else "foreshortened",
-                    "point": "weak"}[kind]
             out.append({"id": self.layout.ids[f], "kind": kind, "relative_rank_ratio": float(rel[f]),
-                        "view_angle_deg": None if not np.isfinite(ang) else float(ang), "reason": what})
+                        "view_angle_deg": None if not np.isfinite(ang) else float(ang),
+                        "reason": _reason(kind, ang)})
         return out
+
+    def attainable_rank(self) -> int:
+        """How many pose directions the features can pin down at best: Σ of their ranks, ≤ 6."""
+        return min(6, sum(FEATURE_RANK[k] for k in self.layout.kinds))
+
+    def rank_deficiency(self) -> np.ndarray:
+        """(B,) σ_r/σ₁ of the whole design's scaled Jacobian, r = :meth:`attainable_rank`:
+        1/condition for a design that determines the pose; for one that cannot (a single
+        ellipse: r = 5) it still says where the design loses what it can see."""
+        r = self.attainable_rank()
+        s = self.overall.sigma
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(s[:, 0] > 0, s[:, r - 1] / s[:, 0], 0.0)
+
+
+def _reason(kind: str, angle_deg: float) -> str:
+    """Why a feature is blind, from its view angle (see :attr:`PoseAnalysis.view_angle_deg`)."""
+    if kind == "ellipse":
+        if angle_deg < 10:
+            return "seen edge-on"   # projects to a segment: its shape says nothing of its tilt
+        if angle_deg > 80:
+            return "seen face-on"   # a tilt changes the image only to second order
+    if kind == "line" and angle_deg < 10:
+        return "seen end-on"        # projects to a point
+    return "weakly seen"
 
 
 def _workers() -> int:

@@ -61,19 +61,10 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     if out.suffix.lower() != ".png":
         raise InputError(out, "--output", "a .png file name")
     from ..analysis.plots import plot_compare
-    from ..fileio import write_text_atomic  # noqa: F401  (same atomic discipline as every output)
-    import os
-    import tempfile
+    from ..fileio import atomic_file
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.stem}.", suffix=".png", dir=out.parent)
-    os.close(fd)
-    try:
+    with atomic_file(out) as tmp:
         plot_compare(scores, tmp)
-        os.replace(tmp, out)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
     write_json_atomic(out.with_suffix(".json"), {"format": "ftrac-compare", "version": 1,
                                                  "settings": base.to_dict(), "designs": table})
     click.echo(f"wrote {out} and {out.with_suffix('.json')}")
