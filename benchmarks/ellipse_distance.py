@@ -42,7 +42,7 @@ def main(n: int = 2000) -> None:
         bound = crlb(features, cam, R, t) * (e / 0.25) ** 2  # crlb() uses the default 0.25 mm model
         print(f"\n{n} images, segmentation error {e} mm; RMS error and efficiency (CRLB var / MSE)")
         print(f"{'variant':42s} {'tz mm':>7s} {'rx deg':>7s} | {'eff tx':>6s} {'ty':>5s} {'tz':>5s} "
-              f"{'rx':>5s} {'ry':>5s} {'rz':>5s} | flagged")
+              f"{'rx':>5s} {'ry':>5s} {'rz':>5s} | not converged")
         print(f"{'Cramér–Rao bound':42s} {np.sqrt(bound[5]):7.3f} {np.degrees(np.sqrt(bound[0])):7.3f} |")
         for name, distance, scaling in VARIANTS:
             poses = solve_batch(features, obs, SolverOptions(noise=noise, distance=distance, task_scaling=scaling))
