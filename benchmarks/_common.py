@@ -33,3 +33,60 @@ def load(name: str):
     from ftrac_design.features import compute_features
 
     return compute_features(load_design(ROOT / "models" / f"{name}.toml"))
+
+
+def monte_carlo(features, n: int, e_mm: float, seed: int = 0, calibration=None, noise=None, workspace=None):
+    """Solve ``n`` simulated workspace images of ``features`` (robust solver, no initial
+    guess) at segmentation error ``e_mm``; with ``calibration`` (a ``CalibrationError``) each
+    image is solved with a miscalibrated camera. Returns (errors (k, 6): tx ty tz mm, rx ry rz
+    deg for the k solved images, number not solved)."""
+    import numpy as np
+
+    from ftrac_design.pose import Camera, NoiseModel, SolverOptions, solve_batch
+    from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
+
+    rng = np.random.default_rng(seed)
+    cam = Camera()
+    R, t = (workspace or Workspace()).sample(n, features.nominal_beam_direction, rng)
+    obs = []
+    for i in range(n):
+        solve_cam = calibration.draw(cam, rng) if calibration is not None else None
+        obs.append(simulate_observation(features, cam, R[i], t[i], e_mm, rng, solve_camera=solve_cam))
+    opts = SolverOptions(noise=noise or NoiseModel.from_segmentation_error(max(e_mm, 0.1)))
+    poses = solve_batch(features, obs, opts)
+    ok = np.array([p.converged for p in poses])
+    Re = np.array([p.rotation if p.converged else np.eye(3) for p in poses])
+    te = np.array([p.translation_mm if p.converged else np.zeros(3) for p in poses])
+    dr, dt = pose_errors(Re, te, R, t)
+    return np.concatenate([dt, np.degrees(dr)], 1)[ok], int((~ok).sum())
+
+
+def rms3(errors):
+    """3-D RMS translation (mm) and rotation (deg) of Monte-Carlo errors (k, 6)."""
+    import numpy as np
+
+    return (float(np.sqrt(np.mean(np.sum(errors[:, :3] ** 2, 1)))),
+            float(np.sqrt(np.mean(np.sum(errors[:, 3:] ** 2, 1)))))
+
+
+def predicted(features, n: int, e_mm: float, seed: int = 0, noise=None, workspace=None):
+    """Analysis metrics (PoseMetrics) of ``features`` at ``n`` workspace poses."""
+    from ftrac_design.analysis import analyse_poses
+    from ftrac_design.analysis.sampling import workspace_poses
+    from ftrac_design.pose import Camera, NoiseModel
+    from ftrac_design.pose.simulate import Workspace
+
+    R, t = workspace_poses(workspace or Workspace(), features.nominal_beam_direction, n, seed)
+    return analyse_poses(features, R, t, Camera(), noise or NoiseModel.from_segmentation_error(e_mm),
+                         detail=False).overall
+
+
+def save_plot(fig, name: str) -> str:
+    """Write ``docs/img/<name>.png`` (the README shows it) and return its path."""
+    import matplotlib.pyplot as plt
+
+    path = ROOT / "docs" / "img" / f"{name}.png"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    plt.close(fig)
+    return str(path.relative_to(ROOT))

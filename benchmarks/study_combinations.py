@@ -1,0 +1,83 @@
+"""Paper Table I's feature combinations, scored by conditioning instead of by trial.
+
+The combinations of ftrac_2005 the paper solved with its basic algorithm — 6P+3L+2E,
+6P+2E, 6P+3L, 3L+2E, 6P, where 6P are the six beads at the lines' end-points (as in
+``paper_table1.py``) — analysed over N workspace poses (default 20,000) at 0.25 mm
+segmentation error: median and worst condition number of the scaled Jacobian, median
+D-optimality, the share of singular poses, and the 95th-percentile predicted 3-D RMS
+translation and rotation errors; printed beside the paper's Table I (mean errors and the
+basic algorithm's failure rate from far guesses, which include the paper's C-arm errors).
+
+Conditioning measures how well a combination *determines* the pose near the truth; the
+paper's failures measure whether a local solve from far away *finds* it. The two need not
+agree, and the comparison says which of the paper's numbers conditioning explains.
+Plot: docs/img/study_combinations.png.
+
+Run: ``.venv/bin/python benchmarks/study_combinations.py [N]``
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+from _common import load, machine, save_plot
+from paper_table1 import COMBOS, PAPER
+
+from ftrac_design.analysis import AnalysisSettings, score_design
+
+
+def main(n: int = 20_000) -> None:
+    f = load("ftrac_2005")
+    settings = AnalysisSettings(poses=n)
+    print(f"machine: {machine()}")
+    print(f"\n{n} workspace poses, segmentation error {settings.segmentation_error_mm} mm, predicted 1σ (3-D RMS)")
+    print(f"{'features':9s} | {'paper: t mm':>11s} {'rot °':>6s} {'fail %':>7s} | {'cond median':>11s} {'worst':>7s} "
+          f"{'D-opt':>6s} {'singular':>9s} {'t p95 mm':>9s} {'r p95 °':>8s}")
+    out = {}
+    for name, ids in COMBOS.items():
+        s = score_design(f.subset(ids), settings)
+        fig = s.figures
+        sing = float(np.mean(~np.isfinite(s.analysis.overall.condition)))
+        out[name] = (fig["condition"]["median"], fig["condition"]["worst"], fig["d_optimality"]["median"], sing,
+                     fig["translation_mm"]["p95"], fig["rotation_deg"]["p95"])
+        p = PAPER[name]
+        c = out[name]
+        print(f"{name:9s} | {p[0]:11.2f} {p[1]:6.2f} {p[2]:7.1f} | {c[0]:11.0f} {c[1]:7.0f} {c[2]:6.2f} {c[3]:9.1%} "
+              f"{c[4]:9.3f} {c[5]:8.3f}")
+    print("\nreading: no combination is singular anywhere in the workspace, so conditioning does not explain "
+          "the paper's 90.6 % failures for 3L+2E: those are convergence failures of a local solve from far "
+          "guesses (paper_table1.py: our robust solver fails none). The predicted accuracy ranks the "
+          "combinations as the paper's errors do — 6P+3L+2E best, 6P worst, the ellipses making most of the "
+          "difference — except 3L+2E, which the bound puts third where the paper measured it fourth. The "
+          "condition number alone does not rank accuracy: 6P is well conditioned but weak (lowest "
+          "D-optimality), and adding the lines to it sharpens some directions far more than others (6P+3L "
+          "has the largest condition number).")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = list(COMBOS)
+    x = np.arange(len(names))
+    fig, axs = plt.subplots(1, 2, figsize=(11, 4))
+    axs[0].bar(x - 0.2, [out[k][4] for k in names], 0.4, label="predicted p95 translation, mm")
+    axs[0].bar(x + 0.2, [out[k][5] for k in names], 0.4, label="predicted p95 rotation, deg")
+    axs[0].set_xticks(x, names)
+    axs[0].legend(fontsize=8)
+    axs[0].grid(True, axis="y", alpha=0.3)
+    axs[1].bar(x - 0.2, [out[k][0] for k in names], 0.4, label="median condition number")
+    ax2 = axs[1].twinx()
+    ax2.bar(x + 0.2, [PAPER[k][2] for k in names], 0.4, color="tab:red", label="paper: basic-algorithm failures, %")
+    axs[1].set_xticks(x, names)
+    axs[1].set_ylabel("condition number")
+    ax2.set_ylabel("paper failures, %")
+    axs[1].legend(loc="upper left", fontsize=8)
+    ax2.legend(loc="upper right", fontsize=8)
+    fig.suptitle(f"Table I's feature combinations scored by conditioning ({n} workspace poses, 0.25 mm)", fontsize=10)
+    print(f"\nplot: {save_plot(fig, 'study_combinations')}")
+
+
+if __name__ == "__main__":
+    main(int(sys.argv[1]) if len(sys.argv) > 1 else 20_000)
