@@ -61,6 +61,16 @@ def monte_carlo(features, n: int, e_mm: float, seed: int = 0, calibration=None, 
     return np.concatenate([dt, np.degrees(dr)], 1)[ok], int((~ok).sum())
 
 
+def monte_carlo_pair(features, n: int, e_mm: float, seed: int, workspace=None):
+    """3-D RMS (translation mm, rotation deg) of ``n`` solved images with segmentation error
+    only and with the paper's C-arm errors added, and how many images were not solved."""
+    from ftrac_design.pose.simulate import PAPER_CALIBRATION_ERROR
+
+    seg, bad1 = monte_carlo(features, n, e_mm, seed=seed, workspace=workspace)
+    cal, bad2 = monte_carlo(features, n, e_mm, seed=seed, workspace=workspace, calibration=PAPER_CALIBRATION_ERROR)
+    return rms3(seg), rms3(cal), bad1 + bad2
+
+
 def rms3(errors):
     """3-D RMS translation (mm) and rotation (deg) of Monte-Carlo errors (k, 6)."""
     import numpy as np

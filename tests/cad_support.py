@@ -25,9 +25,8 @@ from ftrac_design.design.schema import Design
 from ftrac_design.features import compute_features
 from ftrac_design.features.model import Features
 
-ROOT = Path(__file__).resolve().parents[1]
-MODELS = ROOT / "models"
-PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
+from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of presets for every test)
+
 PROFILES = ("cnc", "fdm")
 
 _TMP = Path(tempfile.mkdtemp(prefix="ftrac-cad-tests-"))

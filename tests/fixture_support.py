@@ -12,21 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ftrac_design.design import load_design
-from ftrac_design.design.schema import Design
-
-ROOT = Path(__file__).resolve().parents[1]
-MODELS = ROOT / "models"
-PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
-PROFILES = ("cnc", "fdm")
+from cad_support import MODELS, PRESETS, PROFILES, ROOT, design_of  # noqa: F401  (re-exported to the tests)
 
 TMP = Path(tempfile.mkdtemp(prefix="ftrac-fixture-tests-"))
 atexit.register(shutil.rmtree, TMP, ignore_errors=True)
-
-
-@functools.cache
-def design_of(preset: str) -> Design:
-    return load_design(MODELS / f"{preset}.toml")
 
 
 @functools.cache
