@@ -197,3 +197,25 @@ def test_scaling_matches_the_solver(presets):
     h = parameter_scale(f)
     sv = np.sqrt(np.linalg.eigvalsh(info[0] * np.outer(h, h)))[::-1]
     np.testing.assert_allclose(m.sigma[0], sv, rtol=1e-9)
+
+
+def test_workspace_sampler_cone_whole_sphere_and_ranges(presets):
+    from ftrac_design.analysis.sampling import angle_from
+
+    f = presets["ftrac_2005"]
+    nb = f.nominal_beam_direction
+    R, t = workspace_poses(Workspace(), nb, 4000, seed=2)
+    polar, _ = angle_from(nb, R[:, 2])
+    assert polar.max() <= 25.0 + 1e-9 and polar.max() > 24.0
+    # uniform over the cap: the share within 12.5° is the cap-area ratio
+    share = (1 - np.cos(np.radians(12.5))) / (1 - np.cos(np.radians(25.0)))
+    assert np.mean(polar <= 12.5) == pytest.approx(share, abs=0.03)
+    assert np.all(np.abs(t[:, :2]) <= 25.0) and np.all(np.abs(t[:, 2] - 667.0) <= 25.0)
+    Rs, _ = workspace_poses(Workspace(cone_deg=180.0), nb, 4000, seed=2)
+    ps, _ = angle_from(nb, Rs[:, 2])
+    assert ps.max() > 170.0 and np.mean(ps > 90.0) == pytest.approx(0.5, abs=0.03)   # whole sphere
+    # roll range: the camera x axis stays within the allowed roll of the reference frame
+    Rr, _ = workspace_poses(Workspace(roll_deg=(0.0, 90.0)), nb, 500, seed=3)
+    R0 = rotations_from_beams(Rr[:, 2], np.zeros(len(Rr)))
+    roll = np.degrees(np.arctan2(np.einsum("bi,bi->b", Rr[:, 0], R0[:, 1]), np.einsum("bi,bi->b", Rr[:, 0], R0[:, 0])))
+    assert roll.min() >= -1e-9 and roll.max() <= 90.0 + 1e-9 and roll.max() > 85.0

@@ -67,6 +67,8 @@ def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, 
     ws = replace(Workspace(), **{k: vals[k2] for k, k2 in (("cone_deg", "cone_deg"), ("depth_mm", "depth"),
                                                            ("depth_range_mm", "depth_range"),
                                                            ("lateral_mm", "lateral")) if k2 in vals})
+    if "roll_range_deg" in vals:
+        ws = replace(ws, roll_deg=tuple(float(v) for v in vals["roll_range_deg"]))
     s = replace(s, workspace=ws, **{k: vals[k2] for k, k2 in (("segmentation_error_mm", "segmentation_error"),
                                                               ("poses", "poses"), ("seed", "seed")) if k2 in vals})
     th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),

@@ -17,7 +17,10 @@ def workspace_options(fn):
                      help="random workspace poses scored [default: the design's, else 20000]"),
         click.option("--seed", type=int, default=None, help="random seed of the workspace poses [default: 0]"),
         click.option("--cone-deg", type=click.FloatRange(min=0.0, max=180.0, min_open=True), default=None,
-                     help="workspace: beams within this angle of the nominal beam [default: 25]"),
+                     help="workspace: beams within this angle of the nominal beam; 180 = the whole sphere "
+                          "[default: 25]"),
+        click.option("--roll-range-deg", type=(float, float), default=None, metavar="FROM TO",
+                     help="workspace: roll about the beam drawn from this range [default: 0 360]"),
         click.option("--depth-mm", type=_POS, default=None,
                      help="workspace: source to fiducial origin [default: 667]"),
         click.option("--depth-range-mm", type=click.FloatRange(min=0.0), default=None,
@@ -31,10 +34,11 @@ def workspace_options(fn):
     return fn
 
 
-def overrides(poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm, **extra) -> dict:
+def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm,
+              **extra) -> dict:
     """Command-line values under the design file's [analysis] key names."""
-    out = {"poses": poses, "seed": seed, "cone_deg": cone_deg, "depth": depth_mm, "depth_range": depth_range_mm,
-           "lateral": lateral_mm, "segmentation_error": segmentation_error_mm}
+    out = {"poses": poses, "seed": seed, "cone_deg": cone_deg, "roll_range_deg": roll_range_deg, "depth": depth_mm,
+           "depth_range": depth_range_mm, "lateral": lateral_mm, "segmentation_error": segmentation_error_mm}
     out.update(extra)
     return out
 
@@ -53,8 +57,8 @@ def overrides(poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segme
 @click.option("--atlas-step-deg", type=click.FloatRange(min=0.5, max=15.0), default=2.0, show_default=True,
               help="grid step of the whole-sphere atlas")
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
-def command(source: Path, output: Path | None, poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm,
-            segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
+def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm,
+            lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
             no_plots) -> int:
     """Score SOURCE (a design or a features.json) over the C-arm workspace.
 
@@ -69,7 +73,7 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, depth_mm, 
 
     subject = load_subject(source)
     settings, thresholds = settings_for(subject, **overrides(
-        poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm,
+        poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm,
         max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition))
     total = settings.poses + atlas_directions(atlas_step_deg, settings.workspace.cone_deg)
     with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:

@@ -14,8 +14,8 @@ from .analyze import overrides, workspace_options
 @click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="overlay plot to write [default: outputs/compare.png]; compare.json beside it")
 @workspace_options
-def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_deg, depth_mm, depth_range_mm,
-            lateral_mm, segmentation_error_mm) -> int:
+def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm,
+            depth_range_mm, lateral_mm, segmentation_error_mm) -> int:
     """Score each design (DESIGN.toml or FEATURES.json) over the same workspace and noise.
 
     Prints a side-by-side table of predicted 1σ errors and conditioning and draws their
@@ -30,7 +30,8 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     from ..fileio import write_json_atomic
 
     subjects = [load_subject(s) for s in sources]
-    common = overrides(poses, seed, cone_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm)
+    common = overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm,
+                       segmentation_error_mm)
     base, _ = settings_for(type(subjects[0])(subjects[0].features, None, subjects[0].path), **common)
     scores = []
     with tqdm(total=base.poses * len(subjects), unit="pose", desc="scoring", leave=False, disable=None) as bar:

@@ -296,7 +296,8 @@ class Analysis(_Strict):
     """Workspace and pass/fail thresholds of the conditioning analysis (``ftrac-design
     analyze``; see :mod:`ftrac_design.analysis.score`). Command-line options override these.
 
-    The workspace (SPEC §1) is every beam within ``cone_deg`` of the nominal beam, any roll,
+    The workspace (SPEC §1) is every beam within ``cone_deg`` of the nominal beam (180: the
+    whole sphere), every roll in ``roll_range_deg``,
     the fiducial origin ``depth`` ± ``depth_range`` from the source and within ``lateral`` of
     the principal ray. Thresholds bound the worst predicted 1σ 3-D RMS error over it at the
     stated segmentation error (the paper's uniform error magnitude, mm at the detector).
@@ -306,6 +307,8 @@ class Analysis(_Strict):
     depth: Pos = Field(default=667.0, description="source to fiducial origin, mm")
     depth_range: NonNeg = Field(default=25.0, description="mm")
     lateral: NonNeg = Field(default=25.0, description="offset from the principal ray, mm")
+    roll_range_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
+        default_factory=lambda: [0.0, 360.0], description="roll about the beam, [from, to] degrees")
     segmentation_error: Pos = Field(default=0.25, description="mm at the detector")
     poses: Annotated[int, Field(ge=100, le=10_000_000)] = 20_000
     max_translation: Pos = Field(default=1.0, description="worst predicted translation error, mm")
