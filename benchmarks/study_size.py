@@ -109,9 +109,9 @@ def main(n: int = 8000) -> None:
           f"plateau, and 1 × 1 × 2 cm is about × {mini[0] / rows[30][0]:.1f} worse than Ø30. The paper's C-arm "
           f"errors add a size-independent translation floor ({floor:.2f} mm in quadrature at Ø50, of which the "
           f"focal-length error alone gives {focal:.2f} mm), which flattens the translation curve above 30 mm; "
-          f"rotation keeps improving with size even with them (Ø30 → Ø50: × {c[30][1] / c[50][1]:.2f}), and the small "
-          f"fiducial still costs × {c['mini'][0] / c[30][0]:.1f} in translation and × {c['mini'][1] / c[30][1]:.1f} "
-          f"in rotation.")
+          f"rotation keeps improving with size even with them (Ø30 → Ø50: × {c[30][1] / c[50][1]:.2f}), and the "
+          f"small fiducial still costs × {c['mini'][0] / c[30][0]:.1f} in translation and "
+          f"× {c['mini'][1] / c[30][1]:.1f} in rotation.")
 
     import matplotlib
 
@@ -121,7 +121,8 @@ def main(n: int = 8000) -> None:
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
     d = np.array(DIAMETERS)
     for ax, col, k, label in ((axs[0], 0, 0, "translation, mm"), (axs[1], 4, 1, "rotation, deg")):
-        ax.plot(d, [rows[x][col] for x in DIAMETERS], "o-", color="tab:blue", label="predicted median (segmentation only)")
+        ax.plot(d, [rows[x][col] for x in DIAMETERS], "o-", color="tab:blue",
+                label="predicted median (segmentation only)")
         ax.plot(d, [rows[x][col + 1] for x in DIAMETERS], "o--", color="tab:blue", mfc="none", label="predicted p95")
         ax.plot(MC_DIAMETERS, [mc[x]["seg"][k] for x in MC_DIAMETERS], "ks", label="solver, segmentation only")
         ax.plot(MC_DIAMETERS, [mc[x]["carm"][k] for x in MC_DIAMETERS], "r^-", label="solver, + paper C-arm errors")
