@@ -171,15 +171,24 @@ def analyse_poses(features: Features, R: np.ndarray, t: np.ndarray, camera: Came
 
     parts: dict[str, list[PoseMetrics]] = {}
     ratios = []
-    # numpy's array loops release the GIL: chunks on threads use every core
-    with ThreadPoolExecutor(max_workers=_workers()) as ex:
-        for a, (res, rr) in zip(range(0, R.shape[0], chunk), ex.map(one, range(0, R.shape[0], chunk))):
+    starts = range(0, R.shape[0], chunk)
+    if len(starts) == 1:  # one chunk: a thread pool would only add its start-up cost
+        results = map(one, starts)
+        pool = None
+    else:  # numpy's array loops release the GIL: chunks on threads use every core
+        pool = ThreadPoolExecutor(max_workers=_workers())
+        results = pool.map(one, starts)
+    try:
+        for a, (res, rr) in zip(starts, results):
             for k, v in res.items():
                 parts.setdefault(k, []).append(v)
             if rr is not None:
                 ratios.append(rr)
             if progress is not None:
                 progress(min(R.shape[0], a + chunk) - a)
+    finally:
+        if pool is not None:
+            pool.shutdown()
 
     def cat(ms: list[PoseMetrics]) -> PoseMetrics:
         return PoseMetrics(*(np.concatenate([getattr(x, f) for x in ms]) for f in PoseMetrics.__dataclass_fields__))
