@@ -50,10 +50,6 @@ class PoseMetrics:
         """3-D RMS translation error (root of the translation covariance's trace), mm."""
         return np.sqrt(np.sum(self.translation_std_mm ** 2, -1))
 
-    def take(self, idx) -> "PoseMetrics":
-        """The metrics of poses ``idx``."""
-        return PoseMetrics(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
-
 
 def pose_metrics(info: np.ndarray, h: np.ndarray, m: int) -> PoseMetrics:
     """Metrics of information matrices ``info`` (B, 6, 6) with parameter scaling ``h`` (6,)

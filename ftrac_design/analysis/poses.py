@@ -48,10 +48,6 @@ class PoseAnalysis:
     #: feature id → metrics of the design without that feature
     without: dict[str, PoseMetrics] = field(default_factory=dict)
 
-    @property
-    def B(self) -> int:
-        return self.R.shape[0]
-
     def beam_directions(self) -> np.ndarray:
         """Beam directions (camera ``+z``) in F, (B, 3)."""
         return self.R[:, 2, :]

@@ -12,23 +12,16 @@ rotation about the principal point; tested), so one pose per direction maps a di
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..pose.simulate import Workspace, beam_azimuth_basis, cone_directions, rotations_from_beams
 
-__all__ = ["Workspace", "workspace_poses", "sphere_grid", "cone_grid", "isocentre_poses", "beam_directions"]
+__all__ = ["Workspace", "workspace_poses", "sphere_grid", "cone_grid", "isocentre_poses", "angle_from"]
 
 
 def workspace_poses(workspace: Workspace, nominal_beam: np.ndarray, n: int, seed: int = 0):
     """``n`` random workspace poses, reproducible from ``seed``: R (n, 3, 3), t (n, 3) mm, F → X."""
     return workspace.sample(n, np.asarray(nominal_beam, float), np.random.default_rng(seed))
-
-
-def beam_directions(R: np.ndarray) -> np.ndarray:
-    """Beam directions (camera ``+z``) in F of rotations F → X (n, 3, 3): the third rows."""
-    return np.asarray(R)[:, 2, :]
 
 
 def sphere_grid(step_deg: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -84,15 +77,3 @@ def angle_from(nominal_beam: np.ndarray, directions: np.ndarray) -> tuple[np.nda
     polar = np.degrees(np.arccos(np.clip(d @ a, -1.0, 1.0)))
     az = np.degrees(np.arctan2(d @ e2, d @ e1)) % 360.0
     return polar, az
-
-
-def lon_lat(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Longitude and latitude (deg) of directions (n, 3) in F, as in :func:`sphere_grid`."""
-    d = np.asarray(directions, float).reshape(-1, 3)
-    return (np.degrees(np.arctan2(d[:, 1], d[:, 0])),
-            np.degrees(np.arcsin(np.clip(d[:, 2], -1.0, 1.0))))
-
-
-def cap_fraction(cone_deg: float) -> float:
-    """Fraction of the sphere's directions within ``cone_deg`` of an axis."""
-    return (1.0 - math.cos(math.radians(cone_deg))) / 2.0

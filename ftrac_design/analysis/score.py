@@ -115,14 +115,6 @@ class DesignScore:
     def passed(self) -> bool:
         return all(c["passed"] for c in self.checks)
 
-    def line(self) -> str:
-        """One-line summary for terminals."""
-        f = self.figures
-        return (f"{self.name}: translation {f['translation_mm']['p95']:.3f} mm p95 / "
-                f"{f['translation_mm']['worst']:.3f} worst, rotation {f['rotation_deg']['p95']:.3f}° p95 / "
-                f"{f['rotation_deg']['worst']:.3f}° worst, condition ≤ {f['condition']['worst']:.0f} "
-                f"→ {'PASS' if self.passed else 'FAIL'}")
-
     def to_dict(self) -> dict:
         """The score part of analysis.json."""
         return {"figures": self.figures, "thresholds": asdict(self.thresholds), "checks": self.checks,

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..design.schema import Design
 from ..features.mounting import ConnectorLayout, Pin, connector_layout
-from .placement import one_solid
+from .body import single_solid
 from .profiles import CutSizes, Profile, cut_sizes
 
 OVERSHOOT = 0.5
@@ -97,7 +97,7 @@ class ConnectorPart:
         k = self.layout
         sx, sy, t = (float(x) for x in k.size)
         plate = cq.Solid.makeBox(sx, sy, t, _v(k.lo))
-        return one_solid(plate.cut(self.pocket_tool(), *self.hole_tools()), "connector")
+        return single_solid(plate.cut(self.pocket_tool(), *self.hole_tools()), "connector")
 
 
 def pin_solid(pin: Pin) -> cq.Solid:

@@ -28,7 +28,8 @@ import numpy as np
 
 from ..design.schema import Design
 from ..features.mounting import Hole, MountLayout, mount_from_fiducial, mount_layout
-from .placement import one_solid, placed, rigid_inverse
+from .body import single_solid
+from .placement import placed, rigid_inverse
 from .profiles import CutSizes, Profile, cut_sizes
 
 #: how far a cutting tool reaches past the faces it opens (only keeps the booleans off
@@ -128,7 +129,7 @@ class MountPart:
         if key is not None:
             solid = solid.fuse(key).clean()
         solid = solid.cut(*self.hole_tools())
-        return one_solid(solid, "mount")
+        return single_solid(solid, "mount")
 
 
 def key_slot_tool(design: Design, profile: Profile = "cnc", layout: MountLayout | None = None) -> cq.Solid | None:

@@ -40,18 +40,3 @@ def location(T: np.ndarray) -> cq.Location:
 def placed(shape: cq.Shape, T: np.ndarray) -> cq.Shape:
     """A copy of ``shape`` moved by the 4×4 transform ``T`` (a rigid move: geometry exact)."""
     return shape.moved(location(T))
-
-
-def one_solid(shape: cq.Shape, what: str) -> cq.Solid:
-    """``shape`` as exactly one valid solid, or :class:`~ftrac_design.errors.GoalError` (exit 1)."""
-    from ..errors import GoalError
-
-    solids = shape.Solids()
-    if len(solids) != 1:
-        raise GoalError(f"{what}: expected one solid, got {len(solids)}")
-    solid = solids[0]
-    if not solid.isValid():
-        solid = solid.fix()
-        if not solid.isValid():
-            raise GoalError(f"{what}: the result is not a valid solid")
-    return solid

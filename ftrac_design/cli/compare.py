@@ -24,15 +24,16 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     """
     from tqdm import tqdm
 
-    from ..analysis.report import load_subject, settings_for
-    from ..analysis.score import AnalysisSettings, score_design
+    from ..analysis.report import Subject, load_subject, settings_for
+    from ..analysis.score import score_design
     from ..errors import InputError
     from ..fileio import write_json_atomic
 
     subjects = [load_subject(s) for s in sources]
     common = overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm,
                        segmentation_error_mm)
-    base, _ = settings_for(type(subjects[0])(subjects[0].features, None, subjects[0].path), **common)
+    # the workspace is the same for every design: the defaults and the command line only
+    base, _ = settings_for(Subject(subjects[0].features, None, subjects[0].path), **common)
     scores = []
     with tqdm(total=base.poses * len(subjects), unit="pose", desc="scoring", leave=False, disable=None) as bar:
         for sub in subjects:
