@@ -88,6 +88,9 @@ def test_so3_round_trip_and_spread():
     R = so3.exp(v)
     assert np.allclose(R @ np.swapaxes(R, 1, 2), np.eye(3), atol=1e-13)
     assert np.allclose(so3.log(R), v, atol=1e-9)
+    # the scalar one-rotation path agrees with the batched one, down to the Taylor branch
+    for vi in np.concatenate([v[:20], v[:5] * 1e-4, v[:5] * 1e-8, np.zeros((1, 3))]):
+        assert np.allclose(so3.exp(vi[None]), so3.exp(np.stack([vi, vi]))[:1], atol=1e-15, rtol=0)
     S = so3.spread_rotations(96)
     assert np.allclose(np.linalg.det(S), 1.0)
     # evenly spread: no two seeds closer than 15°, every random rotation within 60° of one

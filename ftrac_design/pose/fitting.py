@@ -105,15 +105,24 @@ def line_from_coefficients(coef: np.ndarray, principal_point: np.ndarray) -> Lin
     return LineFit(n, m, np.zeros(shape), np.full(shape + (2, 2), np.nan), np.zeros(shape), np.zeros(shape))
 
 
-def _xi(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    xi = np.empty(x.shape + (6,))
-    xi[..., 0] = x * x
-    xi[..., 1] = x * y
-    xi[..., 2] = y * y
-    xi[..., 3] = x
-    xi[..., 4] = y
-    xi[..., 5] = 1.0
-    return xi
+def conic_rows(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Rows (..., n, 3, 6) that turn conic coefficients θ into, per point, the conic's value
+    ``Q = ξ·θ`` with ``ξ = (x², xy, y², x, y, 1)`` and its gradient ``∂Q/∂x, ∂Q/∂y`` —
+    linear in θ, and fixed while a fit iterates on θ."""
+    X3 = np.zeros(x.shape + (3, 6))
+    X3[..., 0, 0] = x * x
+    X3[..., 0, 1] = x * y
+    X3[..., 0, 2] = y * y
+    X3[..., 0, 3] = x
+    X3[..., 0, 4] = y
+    X3[..., 0, 5] = 1.0
+    X3[..., 1, 0] = 2 * x
+    X3[..., 1, 1] = y
+    X3[..., 1, 3] = 1.0
+    X3[..., 2, 1] = x
+    X3[..., 2, 2] = 2 * y
+    X3[..., 2, 4] = 1.0
+    return X3
 
 
 def tangent_basis(theta: np.ndarray) -> np.ndarray:
@@ -130,49 +139,45 @@ def tangent_basis(theta: np.ndarray) -> np.ndarray:
 _E_TAIL = np.eye(6)[:, 1:]
 
 
-def sampson_theta_jacobian(theta: np.ndarray, x: np.ndarray, y: np.ndarray):
-    """Sampson distances d = Q/|g| (..., n) and ∂d/∂θ (..., n, 6), in normalised units."""
-    A, B, C, D, E = (theta[..., i, None] for i in range(5))
-    xi = _xi(x, y)
-    Q = (xi @ theta[..., None])[..., 0]
-    gx = 2 * A * x + B * y + D
-    gy = B * x + 2 * C * y + E
-    gn2 = gx * gx + gy * gy
+def sampson_theta_jacobian(theta: np.ndarray, x: np.ndarray, y: np.ndarray, rows: np.ndarray | None = None):
+    """Sampson distances d = Q/|g| (..., n) and ∂d/∂θ (..., n, 6), in normalised units;
+    ``rows`` is :func:`conic_rows` of (x, y) when the caller already has it."""
+    X3 = conic_rows(x, y) if rows is None else rows
+    q = (X3 @ theta[..., None, :, None])[..., 0]                  # (..., n, 3): Q, gx, gy
+    g = q[..., 1:]
+    gn2 = (g * g).sum(-1)
     gn = np.sqrt(gn2)
-    c3 = Q / (gn2 * gn)
-    # ∂|g|/∂θ = (Gᵀ g)/|g| with G = ∂g/∂θ
-    dd = xi / gn[..., None]
-    dd[..., 0] -= c3 * 2 * x * gx
-    dd[..., 1] -= c3 * (y * gx + x * gy)
-    dd[..., 2] -= c3 * 2 * y * gy
-    dd[..., 3] -= c3 * gx
-    dd[..., 4] -= c3 * gy
-    return Q / gn, dd
+    # ∂d/∂θ = (ξ − (Q/|g|²) Gᵀg) / |g|, G = ∂g/∂θ the gradient rows
+    gtg = (g[..., None, :] @ X3[..., 1:, :])[..., 0, :]
+    dd = X3[..., 0, :] - (q[..., 0] / gn2)[..., None] * gtg
+    dd /= gn[..., None]
+    return q[..., 0] / gn, dd
 
 
-def _direct_ellipse(x: np.ndarray, y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Halir & Flusser (1998) direct least-squares ellipse, batched; unit-norm θ."""
-    Dall = _xi(x, y)
-    S = np.swapaxes(Dall * w[..., None], -1, -2) @ Dall
+def _direct_ellipse(xi: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Halir & Flusser (1998) direct least-squares ellipse from design rows ξ (..., n, 6),
+    batched; unit-norm θ."""
+    S = np.swapaxes(xi * w[..., None], -1, -2) @ xi
     S1, S2, S3 = S[..., :3, :3], S[..., :3, 3:], S[..., 3:, 3:]
     T = -np.linalg.solve(S3, np.swapaxes(S2, -1, -2))
-    M = S1 + S2 @ T
-    Cinv = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
-    M = Cinv @ M
+    M = _CINV @ (S1 + S2 @ T)
     _, vec = np.linalg.eig(M)
     vec = vec.real
     cond = 4 * vec[..., 0, :] * vec[..., 2, :] - vec[..., 1, :] ** 2
     # the ellipse eigenvector is the one with 4ac − b² > 0; take the most elliptic if noise
     # leaves several (it cannot leave none for points spread around a closed curve)
-    a1 = (vec * (cond == cond.max(-1, keepdims=True))[..., None, :]).sum(-1)
-    th = np.concatenate([a1, (T @ a1[..., None])[..., 0]], -1)
+    a1 = np.take_along_axis(vec, cond.argmax(-1)[..., None, None], -1)       # (..., 3, 1)
+    th = np.concatenate([a1, T @ a1], -2)[..., 0]
     return th / np.sqrt((th * th).sum(-1))[..., None]
+
+
+_CINV = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
 
 
 def normalisation(points: np.ndarray, w: np.ndarray):
     """Hartley normalisation: centroid m (..., 2) and scale s (...) with RMS radius √2·s."""
     sw = w.sum(-1)
-    m = (points * w[..., None]).sum(-2) / sw[..., None]
+    m = (w[..., None, :] @ points)[..., 0, :] / sw[..., None]
     q = points - m[..., None, :]
     s = np.sqrt((w * (q * q).sum(-1)).sum(-1) / (2 * sw))
     return m, s
@@ -187,10 +192,11 @@ def fit_conic(points: np.ndarray, weights: np.ndarray | None = None,
     m, s = normalisation(p, w)
     q = (p - m[..., None, :]) / s[..., None, None]
     x, y = q[..., 0], q[..., 1]
-    theta = _direct_ellipse(x, y, w)
+    rows = conic_rows(x, y)
+    theta = _direct_ellipse(rows[..., 0, :], w)
     for it in range(iterations + 1):
         basis = tangent_basis(theta)
-        d, dd = sampson_theta_jacobian(theta, x, y)
+        d, dd = sampson_theta_jacobian(theta, x, y, rows)
         G = dd @ basis                              # (..., n, 5)
         Gw = np.swapaxes(G * w[..., None], -1, -2)
         info = Gw @ G

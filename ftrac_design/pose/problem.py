@@ -101,8 +101,14 @@ class Problem:
     e_Lt: np.ndarray = field(init=False, repr=False)
     p_w2: np.ndarray = field(init=False, repr=False)
     row_points: np.ndarray = field(init=False, repr=False)
-    point_cu: np.ndarray = field(init=False, repr=False)
-    point_cv: np.ndarray = field(init=False, repr=False)
+    # the observed conics as ∇²Q, (D, E), F and their tangent basis against (x, y, 1)⊗(x, y, 1)
+    e_hess: np.ndarray = field(init=False, repr=False)
+    e_lin: np.ndarray = field(init=False, repr=False)
+    e_F: np.ndarray = field(init=False, repr=False)
+    e_basis9: np.ndarray = field(init=False, repr=False)
+    # ∂r/∂(u, v) of the bead and line residuals, which do not depend on the pose
+    fixed_cu: np.ndarray = field(init=False, repr=False)
+    fixed_cv: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.l_Lt = _factor(self.l_info, self.l_from_model)
@@ -112,19 +118,25 @@ class Problem:
         # the model point each raw residual is measured at: beads twice (u, v), then the
         # line end-points, then the ellipse model points
         self.row_points = np.concatenate([np.repeat(np.arange(P), 2), np.arange(P, P + 2 * L + E * self.K)])
-        self.point_cu = np.tile([1.0, 0.0], P)
-        self.point_cv = np.tile([0.0, 1.0], P)
+        B = self.intr.shape[0]
+        th = self.e_theta
+        self.e_hess = np.stack([np.stack([2 * th[..., 0], th[..., 1]], -1),
+                                np.stack([th[..., 1], 2 * th[..., 2]], -1)], -2)           # (B, E, 2, 2)
+        self.e_lin = th[..., None, 3:5].copy()                                            # (B, E, 1, 2)
+        self.e_F = th[..., 5:6].copy()                                                    # (B, E, 1)
+        self.e_basis9 = np.zeros(self.e_basis.shape[:-2] + (9, 5))
+        self.e_basis9[..., _XI_IN_OUTER, :] = self.e_basis
+        self.fixed_cu = np.concatenate([np.broadcast_to(np.tile([1.0, 0.0], P), (B, 2 * P)),
+                                        np.repeat(self.l_n[..., 0], 2, 1)], 1)
+        self.fixed_cv = np.concatenate([np.broadcast_to(np.tile([0.0, 1.0], P), (B, 2 * P)),
+                                        np.repeat(self.l_n[..., 1], 2, 1)], 1)
         self._coplanar: bool | None = None
 
     @property
     def points_coplanar(self) -> bool:
         """Whether the observed beads are (nearly) coplanar — then a DLT cannot start the solve."""
         if self._coplanar is None:
-            Xp = self.X[: len(self.point_ids)]
-            self._coplanar = True
-            if len(Xp) >= 4:
-                sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False)
-                self._coplanar = bool(sv[2] < 1e-3 * sv[0])
+            self._coplanar = _coplanar(self.X[: len(self.point_ids)])
         return self._coplanar
 
     @property
@@ -187,6 +199,10 @@ class Problem:
         return Problem(**kw)
 
 
+#: where ξ = (x², xy, y², x, y, 1) sits in the flattened (x, y, 1)⊗(x, y, 1)
+_XI_IN_OUTER = [0, 1, 4, 2, 5, 8]
+
+
 def _factor(info: np.ndarray, from_model: np.ndarray) -> np.ndarray:
     """Lᵀ with Λ = L Lᵀ for the feature columns whose Λ is known, NaN elsewhere."""
     out = np.full(info.shape, np.nan)
@@ -210,15 +226,19 @@ def model_layout(features: Features, point_ids, line_ids, ellipse_ids, K: int) -
     if hit is not None and hit[0] is features:
         return hit[1], hit[2]
     X = _model_points(features, point_ids, line_ids, ellipse_ids, K)
-    Xp = X[: len(point_ids)]
-    coplanar = True
-    if len(Xp) >= 4:
-        sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False)
-        coplanar = bool(sv[2] < 1e-3 * sv[0])
+    coplanar = _coplanar(X[: len(point_ids)])
     if len(_LAYOUTS) > 256:
         _LAYOUTS.clear()
     _LAYOUTS[key] = (features, X, coplanar)
     return X, coplanar
+
+
+def _coplanar(Xp: np.ndarray) -> bool:
+    """Whether bead centres (P, 3) are fewer than 4 or (nearly) on one plane."""
+    if len(Xp) < 4:
+        return True
+    sv = np.linalg.svd(Xp - Xp.mean(0), compute_uv=False)
+    return bool(sv[2] < 1e-3 * sv[0])
 
 
 def _model_points(features: Features, point_ids, line_ids, ellipse_ids, K: int) -> np.ndarray:
@@ -278,6 +298,19 @@ def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: lis
         except np.linalg.LinAlgError:
             bad = np.ones(len(contours), bool)
             fit = None
+    if isinstance(fit, ConicFit):
+        # collinear points fit a double line that can pass the information test by rounding
+        # alone (whether it does depends on the LAPACK build), so ask for it directly: the
+        # points must spread across their line, and the conic must be an ellipse
+        sw = w.sum(-1)
+        q = pts - ((pts * w[..., None]).sum(-2) / sw[..., None])[..., None, :]
+        cxx = (w * q[..., 0] ** 2).sum(-1)
+        cyy = (w * q[..., 1] ** 2).sum(-1)
+        cxy = (w * q[..., 0] * q[..., 1]).sum(-1)
+        th = fit.theta
+        with np.errstate(all="ignore"):
+            bad |= ~(cxx * cyy - cxy * cxy > 1e-12 * (cxx + cyy) ** 2)
+            bad |= ~(4 * th[..., 0] * th[..., 2] - th[..., 1] ** 2 > 0)
     if np.any(bad):
         i = int(np.flatnonzero(bad)[0])
         raise InputError(origins[i], keys[i], f"contour points that determine {what} (collinear or repeated points?)")
@@ -350,7 +383,7 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
     line_ids = sorted(obs0.lines)
     ellipse_ids = sorted(obs0.ellipses)
     K = int(ellipse_model_points)
-    X, _ = model_layout(features, point_ids, line_ids, ellipse_ids, K)
+    X, coplanar = model_layout(features, point_ids, line_ids, ellipse_ids, K)
     intr = np.array([o.camera.intrinsics for o in observations])
     pix = np.array([(o.camera.pixel_size_mm[0] + o.camera.pixel_size_mm[1]) / 2 for o in observations])
 
@@ -411,9 +444,11 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
         e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
     e_kpaper = paper_k(e_theta) if E and distance == "paper" else np.zeros((B, E))
-    return Problem(intr, X, point_ids, line_ids, ellipse_ids, K, p_obs, p_w, l_n, l_m, l_c, l_info,
+    prob = Problem(intr, X, point_ids, line_ids, ellipse_ids, K, p_obs, p_w, l_n, l_m, l_c, l_info,
                    l_from_model, l_sig, e_theta, e_m, e_s, e_basis, e_info, e_from_model, e_sig, e_kpaper,
                    distance, fit_chi2, fit_dof, origins, pix)
+    prob._coplanar = coplanar
+    return prob
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -498,6 +533,20 @@ def jacobian_rows(pr, idx: np.ndarray | slice, cu: np.ndarray, cv: np.ndarray, c
     return J
 
 
+def _xi_basis(p: np.ndarray, basis9: np.ndarray) -> np.ndarray:
+    """ξ(p) · basis (..., K, 5) for points p (..., K, 2), ξ = (x², xy, y², x, y, 1), as the
+    outer product of (x, y, 1) with itself against the basis rows spread over its 9 terms."""
+    h = np.ones(p.shape[:-1] + (3,))
+    h[..., :2] = p
+    hh = (h[..., :, None] * h[..., None, :]).reshape(p.shape[:-1] + (9,))
+    return hh @ basis9
+
+
+def rows_where(mask: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Rows of ``a`` where ``mask`` (B,), else of ``b``."""
+    return np.where(mask.reshape((-1,) + (1,) * (a.ndim - 1)), a, b)
+
+
 def _chol_t(info: np.ndarray) -> np.ndarray:
     """Lᵀ for Λ = L Lᵀ (batched)."""
     return np.swapaxes(np.linalg.cholesky(info), -1, -2)
@@ -505,24 +554,24 @@ def _chol_t(info: np.ndarray) -> np.ndarray:
 
 def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
              whitening: list[np.ndarray] | None = None, raw_jacobian: bool = False,
-             reference: list[np.ndarray] | None = None) -> Evaluation:
+             reference: list[np.ndarray] | None = None, freeze: np.ndarray | None = None) -> Evaluation:
     """Residuals and Jacobians at poses (B, 3, 3), (B, 3); see :class:`Evaluation`.
 
-    ``whitening`` — the ``W`` of an earlier evaluation — freezes G instead of recomputing it.
+    ``whitening`` — the ``W`` of an earlier evaluation — freezes G instead of recomputing it;
+    with ``freeze`` (B,) bool only those rows keep it and the others get a fresh G.
     ``reference`` — another ``W`` — also returns the residuals whitened with it
     (``rho_ref``), so a solver can judge a trial step on the objective it was computed for.
     """
     uv, Z, pr = project(prob, R, t)
     B = prob.B
+    refresh = whitening is None or freeze is not None
     P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
-    rho, Js, raw, Ws, ref, cus, cvs = [], [], [], [], [], [], []
+    rho, Js, raw, Ws, ref = [], [], [], [], []
+    cus, cvs = ([prob.fixed_cu], [prob.fixed_cv]) if P or L else ([], [])
     if P:
         d = uv[:, :P] - prob.p_obs
         rho.append((d * prob.p_w[..., None]).reshape(B, 2 * P))
         ref.append(rho[-1])
-        if jac:
-            cus.append(np.broadcast_to(prob.point_cu, (B, 2 * P)))
-            cvs.append(np.broadcast_to(prob.point_cv, (B, 2 * P)))
         raw.append(d.reshape(B, 2 * P))
         Ws.append(prob.p_w)
 
@@ -531,7 +580,7 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         q = uv[:, sl].reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
         nx, ny = prob.l_n[..., 0, None], prob.l_n[..., 1, None]
         r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]                      # (B, L, 2)
-        if whitening is None:
+        if refresh:
             # D = ∂r/∂(ψ, c) has rows (n⊥·(p − m), 1); W = chol(Λ)ᵀ D⁻¹
             d0 = q[..., 1] * nx - q[..., 0] * ny
             det = d0[..., 0] - d0[..., 1]
@@ -547,6 +596,8 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
                 dm = np.swapaxes(D, -1, -2) @ D / prob.l_sig[..., None, None] ** 2
                 Lt = np.where(prob.l_from_model[None, :, None, None], _chol_t(dm), Lt)
             W = Lt @ Dinv
+            if freeze is not None:
+                W = rows_where(freeze, whitening[len(Ws)], W)
         else:
             W = whitening[len(Ws)]
         if reference is not None:
@@ -554,70 +605,47 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         Ws.append(W)
         rho.append((W @ r[..., None]).reshape(B, 2 * L))
         raw.append(r.reshape(B, 2 * L))
-        if jac:
-            cus.append(np.repeat(prob.l_n[..., 0], 2, 1))
-            cvs.append(np.repeat(prob.l_n[..., 1], 2, 1))
     if E:
         sl = slice(P + 2 * L, P + 2 * L + E * K)
         s = prob.e_s[..., None]
         pn = (uv[:, sl].reshape(B, E, K, 2) - prob.e_m[:, :, None, :]) / s[..., None]
-        x, y = pn[..., 0], pn[..., 1]
-        th = prob.e_theta[:, :, None, :]
-        A, Bc, C, D_, E_ = th[..., 0], th[..., 1], th[..., 2], th[..., 3], th[..., 4]
-        xi = np.empty((B, E, K, 6))
-        xi[..., 0] = x * x
-        xi[..., 1] = x * y
-        xi[..., 2] = y * y
-        xi[..., 3] = x
-        xi[..., 4] = y
-        xi[..., 5] = 1.0
-        Qv = (xi @ prob.e_theta[..., None])[..., 0]
-        gx = 2 * A * x + Bc * y + D_
-        gy = Bc * x + 2 * C * y + E_
+        # with H = ∇²Q and ℓ = (D, E): ∇Q = H p + ℓ and Q = ½ p·(∇Q + ℓ) + F
+        H = prob.e_hess
+        g = pn @ H + prob.e_lin                                                           # (B, E, K, 2)
+        Qv = 0.5 * (pn * (g + prob.e_lin)).sum(-1) + prob.e_F
         if prob.distance == "sampson":
-            gn2 = gx * gx + gy * gy
+            gn2 = (g * g).sum(-1)
             gn = np.sqrt(gn2)
             r = s * Qv / gn
-            c3 = Qv / (gn2 * gn)
-            if whitening is None:
+            if refresh:
                 # D = ∂d/∂θ, taken where each model point's distance is measured: at its foot
                 # on the observed conic (one Newton step), where ∂(Q/|∇Q|)/∂θ = ξ/|∇Q|. Taken
                 # at the model points themselves it equals this to first order near the
                 # solution, but far from it (model points off a thin ellipse) DᵀD can become
                 # singular and the whitening explode into false minima.
-                step = (Qv / gn2)[..., None]
-                fx_ = x - step[..., 0] * gx
-                fy_ = y - step[..., 0] * gy
-                fxi = np.empty((B, E, K, 6))
-                fxi[..., 0] = fx_ * fx_
-                fxi[..., 1] = fx_ * fy_
-                fxi[..., 2] = fy_ * fy_
-                fxi[..., 3] = fx_
-                fxi[..., 4] = fy_
-                fxi[..., 5] = 1.0
-                fgx = 2 * A * fx_ + Bc * fy_ + D_
-                fgy = Bc * fx_ + 2 * C * fy_ + E_
-                dth = fxi * (s / np.sqrt(fgx * fgx + fgy * fgy))[..., None]
+                foot = pn - (Qv / gn2)[..., None] * g
+                fg = foot @ H + prob.e_lin
+                D = _xi_basis(foot, prob.e_basis9) * (s / np.sqrt((fg * fg).sum(-1)))[..., None]
             if jac:
-                # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³, H = ∇²Q
-                du = gx / gn - c3 * (2 * A * gx + Bc * gy)
-                dv = gy / gn - c3 * (Bc * gx + 2 * C * gy)
+                # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³
+                duv = g / gn[..., None] - (Qv / (gn2 * gn))[..., None] * (g @ H)
         else:
             k = prob.e_kpaper[..., None]
             r = s * k * Qv
-            if whitening is None:
-                dth = (s * k)[..., None] * xi
+            if refresh:
+                D = _xi_basis(pn, prob.e_basis9) * (s * k)[..., None]
             if jac:
-                du, dv = k * gx, k * gy
-        if whitening is None:
-            D = dth @ prob.e_basis                                                        # (B, E, K, 5)
-            Dt = np.swapaxes(D, -1, -2)
+                duv = k[..., None] * g
+        if refresh:
+            Dt = np.swapaxes(D, -1, -2)                                                   # (B, E, 5, K)
             DtD = Dt @ D
             Lt = prob.e_Lt
             if prob.e_from_model.any():
                 Lt = np.where(prob.e_from_model[None, :, None, None],
                               _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt)
             W = Lt @ spd_solve(DtD, Dt)                                                   # (B, E, 5, K)
+            if freeze is not None:
+                W = rows_where(freeze, whitening[len(Ws)], W)
         else:
             W = whitening[len(Ws)]
         if reference is not None:
@@ -626,13 +654,14 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         rho.append((W @ r[..., None]).reshape(B, 5 * E))
         raw.append(r.reshape(B, E * K))
         if jac:
-            cus.append(du.reshape(B, E * K))
-            cvs.append(dv.reshape(B, E * K))
+            cus.append(duv[..., 0].reshape(B, E * K))
+            cvs.append(duv[..., 1].reshape(B, E * K))
     cat = (lambda xs: xs[0]) if len(rho) == 1 else (lambda xs: np.concatenate(xs, 1))
     J = dr = None
     if jac:
         # one pass over every raw residual row: ∂r/∂(δ, t), then each group's whitening
-        dr = jacobian_rows(pr, prob.row_points, cat(cus), cat(cvs))                          # (B, n_raw, 6)
+        cu, cv = (cus[0], cvs[0]) if len(cus) == 1 else (np.concatenate(cus, 1), np.concatenate(cvs, 1))
+        dr = jacobian_rows(pr, prob.row_points, cu, cv)                                    # (B, n_raw, 6)
         if P:
             Js.append(dr[:, :2 * P] * prob.p_w2)
         if L:
