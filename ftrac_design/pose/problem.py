@@ -26,6 +26,7 @@ All arrays are float64; lengths in mm (F and X frames), image quantities in pixe
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -115,9 +116,7 @@ class Problem:
         self.e_Lt = _factor(self.e_info, self.e_from_model)
         self.p_w2 = np.repeat(self.p_w, 2, 1)[..., None]
         P, L, E = len(self.point_ids), len(self.line_ids), len(self.ellipse_ids)
-        # the model point each raw residual is measured at: beads twice (u, v), then the
-        # line end-points, then the ellipse model points
-        self.row_points = np.concatenate([np.repeat(np.arange(P), 2), np.arange(P, P + 2 * L + E * self.K)])
+        self.row_points, bead_cu, bead_cv = _row_layout(P, L, E, self.K)
         B = self.intr.shape[0]
         th = self.e_theta
         self.e_hess = np.stack([np.stack([2 * th[..., 0], th[..., 1]], -1),
@@ -126,10 +125,8 @@ class Problem:
         self.e_F = th[..., 5:6].copy()                                                    # (B, E, 1)
         self.e_basis9 = np.zeros(self.e_basis.shape[:-2] + (9, 5))
         self.e_basis9[..., _XI_IN_OUTER, :] = self.e_basis
-        self.fixed_cu = np.concatenate([np.broadcast_to(np.tile([1.0, 0.0], P), (B, 2 * P)),
-                                        np.repeat(self.l_n[..., 0], 2, 1)], 1)
-        self.fixed_cv = np.concatenate([np.broadcast_to(np.tile([0.0, 1.0], P), (B, 2 * P)),
-                                        np.repeat(self.l_n[..., 1], 2, 1)], 1)
+        self.fixed_cu = np.concatenate([np.broadcast_to(bead_cu, (B, 2 * P)), np.repeat(self.l_n[..., 0], 2, 1)], 1)
+        self.fixed_cv = np.concatenate([np.broadcast_to(bead_cv, (B, 2 * P)), np.repeat(self.l_n[..., 1], 2, 1)], 1)
         self._coplanar: bool | None = None
 
     @property
@@ -199,14 +196,30 @@ class Problem:
         return Problem(**kw)
 
 
+@functools.lru_cache(maxsize=64)
+def bead_rows(P: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For P beads' residuals (u₀, v₀, u₁, …): the bead each is measured at and ∂r/∂u, ∂r/∂v."""
+    return np.repeat(np.arange(P), 2), np.tile([1.0, 0.0], P), np.tile([0.0, 1.0], P)
+
+
+@functools.lru_cache(maxsize=64)
+def _row_layout(P: int, L: int, E: int, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The model point each raw residual is measured at — beads twice (u, v), then the line
+    end-points, then the ellipse model points — and ∂r/∂u, ∂r/∂v of the bead rows."""
+    rows, cu, cv = bead_rows(P)
+    return np.concatenate([rows, np.arange(P, P + 2 * L + E * K)]), cu, cv
+
+
 #: where ξ = (x², xy, y², x, y, 1) sits in the flattened (x, y, 1)⊗(x, y, 1)
 _XI_IN_OUTER = [0, 1, 4, 2, 5, 8]
 
 
 def _factor(info: np.ndarray, from_model: np.ndarray) -> np.ndarray:
     """Lᵀ with Λ = L Lᵀ for the feature columns whose Λ is known, NaN elsewhere."""
-    out = np.full(info.shape, np.nan)
     known = ~from_model
+    if info.shape[0] and info.shape[1] and known.all():
+        return np.swapaxes(np.linalg.cholesky(info), -1, -2)
+    out = np.full(info.shape, np.nan)
     if info.shape[0] and known.any():
         out[:, known] = np.swapaxes(np.linalg.cholesky(info[:, known]), -1, -2)
     return out

@@ -35,7 +35,8 @@ from scipy.special import chdtrc, fdtrc
 from ..features.model import Features
 from . import so3
 from .observation import Observation
-from .problem import ELLIPSE_MODEL_POINTS, NoiseModel, Problem, compile_problem, evaluate, rows_where
+from .problem import ELLIPSE_MODEL_POINTS, NoiseModel, Problem, bead_rows, compile_problem, evaluate, \
+    jacobian_rows, project_points, rows_where
 
 FORMAT = "ftrac-pose"
 VERSION = 1
@@ -359,6 +360,51 @@ def dlt_start(prob: Problem) -> tuple[np.ndarray, np.ndarray] | None:
     return R, t
 
 
+#: Gauss–Newton steps on the beads that polish the DLT start; measured on 300 images of
+#: ftrac_2005 at 0.25 mm, from the polished start the local solve on all features needs a
+#: single step in 98 % of images (after one bead step: 56 %; from the raw DLT start: none)
+BEAD_REFINE_STEPS = 2
+
+
+def refine_on_beads(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarray,
+                    steps: int = BEAD_REFINE_STEPS) -> tuple[np.ndarray, np.ndarray]:
+    """Poses (B, 3, 3), (B, 3) moved to the beads' own reprojection minimum by Gauss–Newton.
+
+    The DLT minimises an algebraic error, not the reprojection error, so its pose is a few
+    standard deviations off in χ²; the full solve from there spends its first evaluations
+    (the costly ones, with ellipse whitening) on what the beads alone can settle. Bead
+    residuals need no whitening and are smooth everywhere, so a few plain Gauss–Newton
+    steps — each a projection of P points — are cheap and safe. A row keeps its DLT pose
+    where the steps did not lower the bead residuals.
+    """
+    P = len(prob.point_ids)
+    X, obs = prob.X[:P], prob.p_obs
+    rows, cu, cv = bead_rows(P)
+
+    def residual(R, t):
+        uv, _, pr = project_points(X, prob.intr, R, t)
+        return (uv - obs).reshape(len(R), 2 * P), pr
+
+    r, pr = residual(R, t)
+    cost0 = (r * r).sum(1)
+    R1, t1 = R, t
+    with np.errstate(all="ignore"):
+        for _ in range(steps):
+            Js = jacobian_rows(pr, rows, cu, cv) * h
+            JsT = np.swapaxes(Js, 1, 2)
+            try:
+                d = -np.linalg.solve(JsT @ Js, JsT @ r[..., None])[..., 0] * h
+            except np.linalg.LinAlgError:
+                return R, t
+            R1 = so3.exp(d[:, :3]) @ R1
+            t1 = t1 + d[:, 3:]
+            r, pr = residual(R1, t1)
+        better = (r * r).sum(1) < cost0
+    if better.all():
+        return R1, t1
+    return rows_where(better, R1, R), rows_where(better, t1, t)
+
+
 def _image_anchors(prob: Problem):
     """Per image: centroid (B, 2) px and RMS spread (B,) of what was observed, and the
     matching 3-D reference points (n, 3) and extra radii, for placing multi-start seeds."""
@@ -558,6 +604,8 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
                      origin=prob.origins[i] if prob.origins else "") for i in range(prob.B)]
     results: list[Pose | None] = [None] * prob.B
     start = dlt_start(prob) if opts.closed_form_start else None
+    if start is not None:
+        start = refine_on_beads(prob, *start, h)
     st = None
     retry: list[int] = list(range(prob.B))
     if start is not None:
