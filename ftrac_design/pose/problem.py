@@ -160,12 +160,13 @@ class Problem:
 
     def raw_groups(self) -> list[tuple[str, slice]]:
         """(feature id, slice of raw pixel residuals) in raw order."""
-        out, i = [], 0
-        for ids, k in ((self.point_ids, 2), (self.line_ids, 2), (self.ellipse_ids, self.K)):
-            for fid in ids:
-                out.append((fid, slice(i, i + k)))
-                i += k
-        return out
+        ids, first, count = self.raw_index
+        return [(fid, slice(int(a), int(a + n))) for fid, a, n in zip(ids, first, count)]
+
+    @property
+    def raw_index(self) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """Feature ids in raw-residual order, with each one's first raw row and row count."""
+        return _raw_index(tuple(self.point_ids), tuple(self.line_ids), tuple(self.ellipse_ids), self.K)
 
     def _init_kwargs(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self) if f.init}
@@ -194,6 +195,14 @@ class Problem:
                 kw[name] = val
         kw["origins"] = [self.origins[i] for i in idx] if self.origins else []
         return Problem(**kw)
+
+
+@functools.lru_cache(maxsize=64)
+def _raw_index(point_ids: tuple, line_ids: tuple, ellipse_ids: tuple, K: int):
+    ids = [*point_ids, *line_ids, *ellipse_ids]
+    count = np.array([2] * (len(point_ids) + len(line_ids)) + [K] * len(ellipse_ids), float)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(int) if ids else np.zeros(0, int)
+    return ids, first, count
 
 
 @functools.lru_cache(maxsize=64)
