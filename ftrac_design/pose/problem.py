@@ -423,14 +423,16 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         contours = [getattr(o, section)[ids[j]].points for o in observations for j in cols]
         keys = [f"{section}.{ids[j]}.points" for _ in observations for j in cols]
         org = [o.origin for o in observations for _ in cols]
-        return cols, _fit_batch(fitter, contours, org, keys, what)
+        fit = _fit_batch(fitter, contours, org, keys, what)
+        # a slice when every curve is contour-given (the usual case) indexes without copying
+        return (slice(None) if len(cols) == len(ids) else cols), fit
 
     l_n = np.zeros((B, L, 2)); l_m = np.zeros((B, L, 2)); l_c = np.zeros((B, L))
     l_info = np.full((B, L, 2, 2), np.nan); l_from_model = np.ones(L, bool)
     l_sig = np.repeat((noise.line_mm / pix)[:, None], L, 1)
     cols, fit = fit_all("lines", line_ids, fit_line, "a line")
-    if cols:
-        n = len(cols)
+    if fit is not None:
+        n = fit.normal.size // (2 * B)
         l_n[:, cols] = fit.normal.reshape(B, n, 2)
         l_m[:, cols] = fit.anchor.reshape(B, n, 2)
         l_info[:, cols] = fit.info.reshape(B, n, 2, 2) / l_sig[:, cols, None, None] ** 2
@@ -449,8 +451,8 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
     e_from_model = np.ones(E, bool)
     e_sig = np.repeat((noise.ellipse_mm / pix)[:, None], E, 1)
     cols, cf = fit_all("ellipses", ellipse_ids, fit_conic, "an ellipse")
-    if cols:
-        n = len(cols)
+    if cf is not None:
+        n = cf.scale.size // B
         e_theta[:, cols] = cf.theta.reshape(B, n, 6)
         e_m[:, cols] = cf.center.reshape(B, n, 2)
         e_s[:, cols] = cf.scale.reshape(B, n)
