@@ -302,38 +302,36 @@ def _pad(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
 
 def _fit_batch(fitter, contours: list[np.ndarray], origins: list[str], keys: list[str], what: str):
     pts, w = _pad(contours)
+    n = len(contours)
     with np.errstate(all="ignore"):
         try:
             fit = fitter(pts, w)
-            info = fit.info.reshape((len(contours),) + fit.info.shape[-2:])
-            bad = ~np.all(np.isfinite(info.reshape(len(contours), -1)), axis=1)
-            if not bad.any():
-                # the curve must be pinned down in every direction (points spread along it):
-                # a Cholesky factor exists with a diagonal well above rounding
-                try:
-                    Lc = np.linalg.cholesky(info)
-                    dg = np.diagonal(Lc, axis1=-2, axis2=-1)
-                    bad = ~(dg.min(-1) > 1e-6 * dg.max(-1))
-                except np.linalg.LinAlgError:
+            info = fit.info.reshape((n,) + fit.info.shape[-2:])
+            # the curve must be pinned down in every direction (points spread along it): a
+            # Cholesky factor exists with a diagonal well above rounding (NaN fails the test)
+            try:
+                dg = np.diagonal(np.linalg.cholesky(info), axis1=-2, axis2=-1)
+                bad = ~(dg.min(-1) > 1e-6 * dg.max(-1))
+            except np.linalg.LinAlgError:
+                bad = ~np.isfinite(info).all((-2, -1))
+                if not bad.any():
                     ev = np.linalg.eigvalsh(info)
                     bad = ~(ev[:, 0] > 1e-12 * np.abs(ev[:, -1]))
         except np.linalg.LinAlgError:
-            bad = np.ones(len(contours), bool)
+            bad = np.ones(n, bool)
             fit = None
-    if isinstance(fit, ConicFit):
-        # collinear points fit a double line that can pass the information test by rounding
-        # alone (whether it does depends on the LAPACK build), so ask for it directly: the
-        # points must spread across their line, and the conic must be an ellipse
-        sw = w.sum(-1)
-        q = pts - ((pts * w[..., None]).sum(-2) / sw[..., None])[..., None, :]
-        cxx = (w * q[..., 0] ** 2).sum(-1)
-        cyy = (w * q[..., 1] ** 2).sum(-1)
-        cxy = (w * q[..., 0] * q[..., 1]).sum(-1)
-        th = fit.theta
-        with np.errstate(all="ignore"):
-            bad |= ~(cxx * cyy - cxy * cxy > 1e-12 * (cxx + cyy) ** 2)
+        if isinstance(fit, ConicFit):
+            # collinear points fit a double line that can pass the information test by
+            # rounding alone (whether it does depends on the LAPACK build), so ask for it
+            # directly: the points must spread across their line, and the conic must be an
+            # ellipse
+            q = pts - fit.center[..., None, :]
+            S = np.swapaxes(q * w[..., None], -1, -2) @ q
+            tr = S[..., 0, 0] + S[..., 1, 1]
+            th = fit.theta
+            bad |= ~(S[..., 0, 0] * S[..., 1, 1] - S[..., 0, 1] ** 2 > 1e-12 * tr * tr)
             bad |= ~(4 * th[..., 0] * th[..., 2] - th[..., 1] ** 2 > 0)
-    if np.any(bad):
+    if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise InputError(origins[i], keys[i], f"contour points that determine {what} (collinear or repeated points?)")
     return fit
