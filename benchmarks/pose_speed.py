@@ -19,7 +19,8 @@ from scipy.optimize import least_squares
 
 from ftrac_design.pose import Camera, compile_problem, evaluate, solve_batch, solve_pose, so3
 from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
-from ftrac_design.pose.solver import dlt_start
+from ftrac_design.pose.solver import SolverOptions, _finish_all, dlt_start, levenberg_marquardt, parameter_scale, \
+    refine_on_beads
 
 N_SINGLE = 300
 N_BATCH = 1000
@@ -42,6 +43,20 @@ def main() -> None:
         single.append(time.perf_counter() - t0)
         assert p.converged, p.error
     single = np.array(single) * 1e3
+
+    # where a single solve spends its time: the phases of the closed-form path, one image at a time
+    h, opts = parameter_scale(features), SolverOptions()
+    phases = {"compile (contour fits)": [], "DLT start": [], "bead polish": [], "local solve (LM)": [],
+              "checks + covariance": []}
+    for o in obs[:N_SINGLE]:
+        marks = [time.perf_counter()]
+        prob = compile_problem(features, [o]); marks.append(time.perf_counter())
+        R0, t0_ = dlt_start(prob); marks.append(time.perf_counter())
+        R0, t0_ = refine_on_beads(prob, R0, t0_, h); marks.append(time.perf_counter())
+        st = levenberg_marquardt(prob, R0, t0_, h, opts.max_iterations, eager=True); marks.append(time.perf_counter())
+        _finish_all(prob, st, h, opts, 1); marks.append(time.perf_counter())
+        for k, a, b in zip(phases, marks[:-1], marks[1:]):
+            phases[k].append((b - a) * 1e3)
 
     t0 = time.perf_counter()
     poses = solve_batch(features, obs)
@@ -78,6 +93,7 @@ def main() -> None:
     print(f"{'scipy least_squares, numeric Jacobian, same start':52s} {np.median(base):10.3f} "
           f"{np.percentile(base, 90):8.3f}")
     print(f"{'paper (MATLAB 6.5, P4 2.4 GHz)':52s} {3500.0:10.1f}")
+    print("phases of one solve (median ms): " + ", ".join(f"{k} {np.median(v):.3f}" for k, v in phases.items()))
     print(f"speed-up over the scipy baseline: single {np.median(base) / np.median(single):.1f}x, "
           f"batch {np.median(base) / batch_ms:.1f}x; over the paper: {3500 / np.median(single):.0f}x")
     print(f"baseline reaches the same pose: max difference {np.degrees(agree[:, 0].max()):.1e} deg, "

@@ -156,3 +156,20 @@ def test_empty_jsonl_is_bad_input(tmp_path):
     (tmp_path / "e.jsonl").write_text("\n\n")
     with pytest.raises(InputError, match="e.jsonl"):
         list(read_observations(tmp_path / "e.jsonl"))
+
+
+def test_a_noisy_thin_ellipse_is_not_an_input_error(features_2005):
+    """A nearly edge-on ellipse under heavy noise can fit as a thin hyperbola; that is the
+    solver's to weigh (thin-ellipse down-weighting), not a malformed observation."""
+    from ftrac_design.pose import compile_problem
+    from ftrac_design.pose.fitting import fit_conic
+
+    R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(5))
+    obs = simulate_observation(features_2005, Camera(), R[0], t[0], 0.25, np.random.default_rng(6))
+    s = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    pts = np.stack([300 + 80 * np.cos(s), 200 + 1.0 * np.sin(s)], -1) + np.random.default_rng(0).normal(0, 2, (24, 2))
+    th = fit_conic(pts[None]).theta[0]
+    assert 4 * th[0] * th[2] - th[1] ** 2 <= 0          # the premise: it fits as a hyperbola
+    obs.ellipses["E1"].points = pts
+    prob = compile_problem(features_2005, [obs])
+    assert prob.e_info.shape[1] == 2

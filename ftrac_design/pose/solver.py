@@ -3,13 +3,16 @@
 Strategy, fastest first:
 
 1. **Closed-form start.** With ≥ 6 non-coplanar beads, a normalised DLT gives a pose that
-   is already inside the basin of the true minimum; one local solve finishes it. This is
-   what makes a robust solve take milliseconds instead of the paper's 50 runs.
+   is already inside the basin of the true minimum, and two Gauss–Newton steps on the bead
+   reprojection errors move it to the beads' own minimum; one local solve finishes it —
+   usually in a single step. This is what makes a robust solve take about a millisecond
+   instead of the paper's 50 runs.
 2. **Local solve.** Levenberg–Marquardt on all features with the closed-form Jacobian, the
    rotation as a left so(3) increment (no Euler-angle singularity), parameter scaling H
    (rotation measured as the displacement it causes at the fiducial's characteristic
    radius, so one unit of either parameter moves features by ~1 mm) and the Gauss–Markov
-   task scaling G of :mod:`.problem`.
+   task scaling G of :mod:`.problem`, refreshed at every accepted step from the closed-form
+   start and held fixed within inner solves elsewhere (see :func:`levenberg_marquardt`).
 3. **Multi-start** when there is no closed-form start (fewer than 6 beads, beads coplanar)
    or the local solve fails its checks: starts from rotations spread evenly over SO(3)
    with depth and position matched to the image, all solved together in one batch; the
