@@ -217,3 +217,18 @@ def test_bead_polish_lowers_the_bead_residuals(features_2005):
     far[1][0, 2] *= -1.0
     Rk, tk = refine_on_beads(prob, *far, h)
     assert np.all(bead_cost(Rk, tk) <= bead_cost(*far))
+
+
+def test_a_converged_pose_is_never_replaced_by_an_unconverged_one():
+    """The careful path's candidates can stop at a lower cost without converging (on their way
+    elsewhere); they must not displace a converged answer."""
+    from ftrac_design.pose.solver import Pose, _better
+
+    def pose(converged, kappa):
+        return Pose(np.eye(3), np.zeros(3), converged, 1.0, None, {}, 5, None if converged else "x",
+                    noise_scale=kappa)
+
+    assert not _better(pose(False, 0.3), pose(True, 0.4))
+    assert _better(pose(True, 0.4), pose(False, 0.3))
+    assert _better(pose(True, 0.3), pose(True, 0.4))
+    assert not _better(pose(False, 0.5), pose(False, 0.4))

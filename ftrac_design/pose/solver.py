@@ -660,9 +660,13 @@ def _suspect(p: Pose, opts: SolverOptions) -> bool:
 
 
 def _better(a: Pose, b: Pose | None) -> bool:
-    """Whether solution ``a`` fits its image better than ``b``."""
+    """Whether solution ``a`` is better than ``b``: a converged one beats one that is not
+    (an unconverged iterate can sit at a lower cost on its way somewhere else); otherwise
+    the one that fits its image better."""
     if b is None:
         return True
+    if a.converged != b.converged:
+        return a.converged
     ka = a.noise_scale if math.isfinite(a.noise_scale) else math.inf
     kb = b.noise_scale if math.isfinite(b.noise_scale) else math.inf
     return ka < kb
