@@ -107,26 +107,22 @@ class Problem:
     e_lin: np.ndarray = field(init=False, repr=False)
     e_F: np.ndarray = field(init=False, repr=False)
     e_basis9: np.ndarray = field(init=False, repr=False)
-    # ∂r/∂(u, v) of the bead and line residuals, which do not depend on the pose
-    fixed_cu: np.ndarray = field(init=False, repr=False)
-    fixed_cv: np.ndarray = field(init=False, repr=False)
+    # ∂r/∂(u, v) (B, 2P + 2L, 2) of the bead and line residuals, which do not depend on the pose
+    fixed_cuv: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.l_Lt = _factor(self.l_info, self.l_from_model)
         self.e_Lt = _factor(self.e_info, self.e_from_model)
         self.p_w2 = np.repeat(self.p_w, 2, 1)[..., None]
         P, L, E = len(self.point_ids), len(self.line_ids), len(self.ellipse_ids)
-        self.row_points, bead_cu, bead_cv = _row_layout(P, L, E, self.K)
+        self.row_points, bead_cuv = _row_layout(P, L, E, self.K)
         B = self.intr.shape[0]
         th = self.e_theta
-        self.e_hess = np.stack([np.stack([2 * th[..., 0], th[..., 1]], -1),
-                                np.stack([th[..., 1], 2 * th[..., 2]], -1)], -2)           # (B, E, 2, 2)
-        self.e_lin = th[..., None, 3:5].copy()                                            # (B, E, 1, 2)
-        self.e_F = th[..., 5:6].copy()                                                    # (B, E, 1)
-        self.e_basis9 = np.zeros(self.e_basis.shape[:-2] + (9, 5))
-        self.e_basis9[..., _XI_IN_OUTER, :] = self.e_basis
-        self.fixed_cu = np.concatenate([np.broadcast_to(bead_cu, (B, 2 * P)), np.repeat(self.l_n[..., 0], 2, 1)], 1)
-        self.fixed_cv = np.concatenate([np.broadcast_to(bead_cv, (B, 2 * P)), np.repeat(self.l_n[..., 1], 2, 1)], 1)
+        self.e_hess = th[..., _HESS_TERMS] * _HESS_SCALE                                  # (B, E, 2, 2)
+        self.e_lin = th[..., None, 3:5]                                                   # (B, E, 1, 2)
+        self.e_F = th[..., 5:6]                                                           # (B, E, 1)
+        self.e_basis9 = self.e_basis[..., _XI_FROM_OUTER, :] * _XI_OUTER_MASK
+        self.fixed_cuv = np.concatenate([np.broadcast_to(bead_cuv, (B, 2 * P, 2)), np.repeat(self.l_n, 2, 1)], 1)
         self._coplanar: bool | None = None
 
     @property
@@ -206,21 +202,27 @@ def _raw_index(point_ids: tuple, line_ids: tuple, ellipse_ids: tuple, K: int):
 
 
 @functools.lru_cache(maxsize=64)
-def bead_rows(P: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For P beads' residuals (u₀, v₀, u₁, …): the bead each is measured at and ∂r/∂u, ∂r/∂v."""
-    return np.repeat(np.arange(P), 2), np.tile([1.0, 0.0], P), np.tile([0.0, 1.0], P)
+def bead_rows(P: int) -> tuple[np.ndarray, np.ndarray]:
+    """For P beads' residuals (u₀, v₀, u₁, …): the bead each is measured at, and
+    ∂r/∂(u, v) (2P, 2)."""
+    return np.repeat(np.arange(P), 2), np.tile(np.eye(2), (P, 1))
 
 
 @functools.lru_cache(maxsize=64)
-def _row_layout(P: int, L: int, E: int, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _row_layout(P: int, L: int, E: int, K: int) -> tuple[np.ndarray, np.ndarray]:
     """The model point each raw residual is measured at — beads twice (u, v), then the line
-    end-points, then the ellipse model points — and ∂r/∂u, ∂r/∂v of the bead rows."""
-    rows, cu, cv = bead_rows(P)
-    return np.concatenate([rows, np.arange(P, P + 2 * L + E * K)]), cu, cv
+    end-points, then the ellipse model points — and ∂r/∂(u, v) of the bead rows."""
+    rows, cuv = bead_rows(P)
+    return np.concatenate([rows, np.arange(P, P + 2 * L + E * K)]), cuv
 
 
-#: where ξ = (x², xy, y², x, y, 1) sits in the flattened (x, y, 1)⊗(x, y, 1)
-_XI_IN_OUTER = [0, 1, 4, 2, 5, 8]
+#: the flattened (x, y, 1)⊗(x, y, 1) term each of ξ = (x², xy, y², x, y, 1) takes (the
+#: other three terms repeat xy, x, y and get zero rows)
+_XI_FROM_OUTER = [0, 1, 3, 0, 2, 4, 0, 0, 5]
+_XI_OUTER_MASK = np.array([1.0, 1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0])[:, None]
+#: ∇²Q = [[2A, B], [B, 2C]] from θ = (A, B, C, D, E, F)
+_HESS_TERMS = np.array([[0, 1], [1, 2]])
+_HESS_SCALE = np.array([[2.0, 1.0], [1.0, 2.0]])
 
 
 def _factor(info: np.ndarray, from_model: np.ndarray) -> np.ndarray:
@@ -588,7 +590,7 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
     refresh = whitening is None or freeze is not None
     P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
     rho, Js, raw, Ws, ref = [], [], [], [], []
-    cus, cvs = ([prob.fixed_cu], [prob.fixed_cv]) if P or L else ([], [])
+    cuvs = [prob.fixed_cuv] if P or L else []
     if P:
         d = uv[:, :P] - prob.p_obs
         rho.append((d * prob.p_w[..., None]).reshape(B, 2 * P))
@@ -675,14 +677,13 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         rho.append((W @ r[..., None]).reshape(B, 5 * E))
         raw.append(r.reshape(B, E * K))
         if jac:
-            cus.append(duv[..., 0].reshape(B, E * K))
-            cvs.append(duv[..., 1].reshape(B, E * K))
+            cuvs.append(duv.reshape(B, E * K, 2))
     cat = (lambda xs: xs[0]) if len(rho) == 1 else (lambda xs: np.concatenate(xs, 1))
     J = dr = None
     if jac:
         # one pass over every raw residual row: ∂r/∂(δ, t), then each group's whitening
-        cu, cv = (cus[0], cvs[0]) if len(cus) == 1 else (np.concatenate(cus, 1), np.concatenate(cvs, 1))
-        dr = jacobian_rows(pr, prob.row_points, cu, cv)                                    # (B, n_raw, 6)
+        cuv = cuvs[0] if len(cuvs) == 1 else np.concatenate(cuvs, 1)
+        dr = jacobian_rows(pr, prob.row_points, cuv[..., 0], cuv[..., 1])                  # (B, n_raw, 6)
         if P:
             Js.append(dr[:, :2 * P] * prob.p_w2)
         if L:

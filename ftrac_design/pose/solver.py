@@ -238,10 +238,9 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
     eager = np.broadcast_to(np.asarray(eager, bool), (B,)).copy()
     for it in range(max_iterations):
         act = ~st.converged & (st.cost < np.inf)
-        n_act = int(act.sum())
-        if n_act == 0:
+        if not act.any():
             break
-        if B >= 8 and n_act <= B // 4:
+        if B >= 8 and act.sum() <= B // 4:
             # most rows are done: finish the stragglers on a compacted batch instead of
             # recomputing every converged row at every iteration
             idx = np.flatnonzero(act)
@@ -257,27 +256,28 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
         JsT = np.swapaxes(Js, 1, 2)
         A = JsT @ Js
         g = (JsT @ st.rho[..., None])[..., 0]
-        M = A + _EYE6 * A * st.lam[:, None, None]  # Marquardt: damp each parameter on its own scale
+        # Marquardt: damp each parameter on its own scale (A is not needed undamped again)
+        A.reshape(B, 36)[:, ::7] *= 1.0 + st.lam[:, None]
         with np.errstate(all="ignore"):
             try:
-                step = -np.linalg.solve(M, g[..., None])[..., 0]
+                step = -np.linalg.solve(A, g[..., None])[..., 0]
             except np.linalg.LinAlgError:
-                step = -(np.linalg.pinv(M) @ g[..., None])[..., 0]
-        # predicted decrease of the local model, in χ² units: a step that would gain δ moves
-        # the pose by about √δ standard deviations. The inner solve stops at δ ≤ 1e-7 of the
-        # cost; with fresh whitening a row is done at δ ≤ 1e-4 of the cost (≤ 5 % of a
-        # standard deviation for this fiducial's ~30 residuals, a < 0.3 % loss of
-        # efficiency at worst, measured none). On noise-free images the cost goes to ~0
-        # and the absolute floor takes over.
-        pred = -(g * step).sum(1)
-        tiny = np.abs(step).max(1) < 1e-10
-        flat = (pred <= 1e-14 + 1e-7 * st.cost) | tiny
-        settled = st.fresh & ((pred <= 1e-14 + 1e-4 * st.cost) | tiny)
+                step = -(np.linalg.pinv(A) @ g[..., None])[..., 0]
+            # predicted decrease of the local model, in χ² units: a step that would gain δ
+            # moves the pose by about √δ standard deviations. The inner solve stops at
+            # δ ≤ 1e-7 of the cost; with fresh whitening a row is done at δ ≤ 1e-4 of the
+            # cost (≤ 5 % of a standard deviation for this fiducial's ~30 residuals, a
+            # < 0.3 % loss of efficiency at worst, measured none). On noise-free images the
+            # cost goes to ~0 and the absolute floor takes over.
+            pred = -(g * step).sum(1) - 1e-14
+            tiny = np.abs(step).max(1) < 1e-10
+        flat = (pred <= 1e-7 * st.cost) | tiny
+        settled = st.fresh & ((pred <= 1e-4 * st.cost) | tiny)
         st.converged |= act & settled
         act &= ~settled
         move = act & ~flat
         st.iters += act
-        stalled = np.zeros(B, bool)
+        stalled = False
         if move.any():
             d = step * h
             Rn = so3.exp(d[:, :3]) @ st.R
@@ -295,13 +295,22 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
             # (a gain of 1e-6 of the cost, ~3e-5 in χ² for ~30 rows, is a step of ~0.005 σ)
             with np.errstate(invalid="ignore"):
                 stalled = ok & (st.cost - trial <= 1e-14 + 1e-6 * st.cost)
-            if ok.any():
-                worse = ok & eager & ~(new.cost <= st.cost)
+            if ok.all():
+                worse = eager & ~(new.cost <= st.cost)
                 st.put(ok, new)
-                st.fresh = np.where(ok, eager, st.fresh)
+                st.fresh = eager.copy()
                 eager &= ~worse
-            st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
+                st.lam = np.maximum(st.lam * 0.1, 1e-15)
+            else:
+                if ok.any():
+                    worse = ok & eager & ~(new.cost <= st.cost)
+                    st.put(ok, new)
+                    st.fresh = np.where(ok, eager, st.fresh)
+                    eager &= ~worse
+                st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
         done = act & (flat | stalled | (st.lam > 1e6))
+        if not done.any():
+            continue
         st.converged |= done & st.fresh
         stale = done & ~st.fresh
         # at large segmentation errors the whitening can keep moving with the pose so that
@@ -317,9 +326,6 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
             st.fresh |= stale
             st.lam = np.where(stale, _LAMBDA0, st.lam)
     return st
-
-
-_EYE6 = np.eye(6)
 
 
 # ----------------------------------------------------------------------------- starts
@@ -393,7 +399,8 @@ def refine_on_beads(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarray,
     """
     P = len(prob.point_ids)
     X, obs = prob.X[:P], prob.p_obs
-    rows, cu, cv = bead_rows(P)
+    rows, cuv = bead_rows(P)
+    cu, cv = cuv[:, 0], cuv[:, 1]
 
     def residual(R, t):
         uv, _, pr = project_points(X, prob.intr, R, t)
@@ -489,13 +496,14 @@ def _finish_all(prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, s
         else:
             ratio = (st.cost / pose_dof) / (prob.fit_chi2 / np.maximum(prob.fit_dof, 1))
             by_fits = (prob.fit_dof > 0) & (prob.fit_chi2 > 0)
-            pval = fdtrc(pose_dof, np.maximum(prob.fit_dof, 1), np.nan_to_num(ratio, nan=np.inf))
+            # NaN (a non-finite cost) counts as an infinitely improbable residual
+            pval = fdtrc(pose_dof, np.maximum(prob.fit_dof, 1), np.where(ratio == ratio, ratio, np.inf))
             if not by_fits.all():
-                pval = np.where(by_fits, pval, chdtrc(pose_dof, np.nan_to_num(st.cost, nan=np.inf)))
+                pval = np.where(by_fits, pval, chdtrc(pose_dof, np.where(st.cost == st.cost, st.cost, np.inf)))
         sq = st.raw * st.raw
         ids, starts_, counts = prob.raw_index
         per = np.sqrt(np.add.reduceat(sq, starts_, axis=1) / counts) if ids else np.zeros((B, 0))
-        rms = np.sqrt(sq.mean(1)) if sq.shape[1] else np.full(B, np.nan)
+        rms = np.sqrt(sq.sum(1) / sq.shape[1]) if sq.shape[1] else np.full(B, np.nan)
         finite = np.isfinite(st.J).all((1, 2))
         Jf = np.where(finite[:, None, None], st.J, 0.0)
         hh = np.outer(h, h)
