@@ -85,6 +85,10 @@ class SolverOptions:
     closed_form_start: bool = True
 
 
+#: shared, since the options are immutable
+_DEFAULTS = SolverOptions()
+
+
 @dataclass
 class Pose:
     """A solved pose (SPEC §4): ``P_X = rotation @ P_F + translation_mm``."""
@@ -616,7 +620,7 @@ def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State
 
 def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None = None) -> list[Pose]:
     """Solve every image of a compiled batch; see the module docstring for the strategy."""
-    opts = opts or SolverOptions()
+    opts = opts or _DEFAULTS
     h = parameter_scale(features)
     why = _underdetermined(prob)
     if why:
@@ -684,11 +688,14 @@ def solve_batch(features: Features, observations: Iterable[Observation],
                 options: SolverOptions | None = None) -> list[Pose]:
     """Poses for many images, in input order; images that observed the same features the
     same way are compiled and solved together (vectorised)."""
-    opts = options or SolverOptions()
+    opts = options or _DEFAULTS
     obs = list(observations)
     groups: dict[tuple, list[int]] = {}
-    for i, o in enumerate(obs):
-        groups.setdefault(o.structure, []).append(i)
+    if len(obs) == 1:
+        groups[()] = [0]
+    else:
+        for i, o in enumerate(obs):
+            groups.setdefault(o.structure, []).append(i)
     out: list[Pose | None] = [None] * len(obs)
     for idx in groups.values():
         prob = compile_problem(features, [obs[i] for i in idx], opts.noise, opts.ellipse_model_points,
@@ -706,7 +713,7 @@ def solve_pose(features: Features, observation: Observation, options: SolverOpti
 def refine_pose(features: Features, observation: Observation, R: np.ndarray, t: np.ndarray,
                 options: SolverOptions | None = None, max_iterations: int | None = None) -> Pose:
     """The paper's *basic* algorithm (Fig. 5): one local solve from a given initial pose."""
-    opts = options or SolverOptions()
+    opts = options or _DEFAULTS
     prob = compile_problem(features, [observation], opts.noise, opts.ellipse_model_points, opts.distance,
                            task_scaling=opts.task_scaling)
     why = _underdetermined(prob)
