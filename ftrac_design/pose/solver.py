@@ -67,7 +67,7 @@ class SolverOptions:
     #: (beads first, then multi-start) in case it found a false minimum; the test compares
     #: the pose residuals with the contour fits' own residuals (an F test), so it does not
     #: depend on the noise model being right, and falls back to χ² against the model for
-    #: bead-only images
+    #: bead-only images and for contours fitted to far below the modelled noise
     retry_p_value: float = 1e-4
     #: reject a pose whose residuals are this many times the noise model's
     max_noise_scale: float = 5.0
@@ -186,6 +186,10 @@ class _State:
         self.cost = np.where(mask, other.cost, self.cost)
         self.W = [rows_where(mask, a, b) for a, b in zip(other.W, self.W)]
 
+
+#: contour fits whose residual variance is below this fraction of the modelled noise
+#: variance say nothing about the noise (see :func:`_finish_all`)
+FIT_NOISE_FLOOR = 0.01
 
 #: iterations after which a row whose inner solve has converged is accepted without a
 #: further whitening refresh (see :func:`levenberg_marquardt`); solves at the paper's
@@ -499,7 +503,10 @@ def _finish_all(prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, s
             pval = np.ones(B)
         else:
             ratio = (st.cost / pose_dof) / (prob.fit_chi2 / np.maximum(prob.fit_dof, 1))
-            by_fits = (prob.fit_dof > 0) & (prob.fit_chi2 > 0)
+            # the fits' residuals are the reference unless they are ~0 (contours exact to far
+            # below the modelled noise, as in noise-free simulation): then any miscalibration
+            # would look infinitely improbable against them, and the model is the reference
+            by_fits = (prob.fit_dof > 0) & (prob.fit_chi2 > FIT_NOISE_FLOOR * prob.fit_dof)
             # NaN (a non-finite cost) counts as an infinitely improbable residual
             pval = fdtrc(pose_dof, np.maximum(prob.fit_dof, 1), np.where(ratio == ratio, ratio, np.inf))
             if not by_fits.all():
