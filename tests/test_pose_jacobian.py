@@ -65,3 +65,26 @@ def test_paper_distance_scale_matches_sampson_on_a_circle():
     eps = 1e-4
     q = ((1 + eps) ** 2 - 1) / np.sqrt(3.0)
     assert abs(abs(k * q) / eps - 1 / np.sqrt(2)) < 1e-3  # the paper's K is 1/√2 of the true scale here
+
+
+def test_per_row_frozen_whitening_and_reference(features_2005):
+    """``freeze`` keeps an earlier whitening in chosen rows only; ``reference`` re-whitens the
+    same raw residuals with another one — what the solver's mixed eager/fixed batches use."""
+    rng = np.random.default_rng(11)
+    R, t = Workspace().sample(3, features_2005.nominal_beam_direction, rng)
+    obs = [simulate_observation(features_2005, Camera(), R[i], t[i], 0.25, rng) for i in range(3)]
+    prob = compile_problem(features_2005, obs)
+    old = evaluate(prob, R, t)
+    R1 = so3.exp(rng.normal(0, 0.02, (3, 3))) @ R
+    t1 = t + rng.normal(0, 1.0, (3, 3))
+    fresh = evaluate(prob, R1, t1)
+    frozen = evaluate(prob, R1, t1, whitening=old.W)
+    freeze = np.array([True, False, True])
+    mixed = evaluate(prob, R1, t1, whitening=old.W, reference=old.W, freeze=freeze)
+    for i, f in enumerate(freeze):
+        want = frozen if f else fresh
+        assert np.allclose(mixed.rho[i], want.rho[i], rtol=1e-12, atol=1e-12)
+        assert np.allclose(mixed.J[i], want.J[i], rtol=1e-12, atol=1e-9)
+    # the reference residuals are the raw ones whitened with the old G, row by row
+    assert np.allclose(mixed.rho_ref, frozen.rho, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(fresh.rho, frozen.rho)

@@ -160,7 +160,7 @@ class Problem:
         return [(fid, slice(int(a), int(a + n))) for fid, a, n in zip(ids, first, count)]
 
     @property
-    def raw_index(self) -> tuple[list[str], np.ndarray, np.ndarray]:
+    def raw_index(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray]:
         """Feature ids in raw-residual order, with each one's first raw row and row count."""
         return _raw_index(tuple(self.point_ids), tuple(self.line_ids), tuple(self.ellipse_ids), self.K)
 
@@ -195,7 +195,7 @@ class Problem:
 
 @functools.lru_cache(maxsize=64)
 def _raw_index(point_ids: tuple, line_ids: tuple, ellipse_ids: tuple, K: int):
-    ids = [*point_ids, *line_ids, *ellipse_ids]
+    ids = (*point_ids, *line_ids, *ellipse_ids)          # a tuple: the cached value is shared
     count = np.array([2] * (len(point_ids) + len(line_ids)) + [K] * len(ellipse_ids), float)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(int) if ids else np.zeros(0, int)
     return ids, first, count

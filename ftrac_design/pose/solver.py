@@ -303,19 +303,12 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
             # (a gain of 1e-6 of the cost, ~3e-5 in χ² for ~30 rows, is a step of ~0.005 σ)
             with np.errstate(invalid="ignore"):
                 stalled = ok & (st.cost - trial <= 1e-14 + 1e-6 * st.cost)
-            if ok.all():
-                worse = eager & ~(new.cost <= st.cost)
+            if ok.any():
+                worse = ok & eager & ~(new.cost <= st.cost)
                 st.put(ok, new)
-                st.fresh = eager.copy()
+                st.fresh = np.where(ok, eager, st.fresh)
                 eager &= ~worse
-                st.lam = np.maximum(st.lam * 0.1, 1e-15)
-            else:
-                if ok.any():
-                    worse = ok & eager & ~(new.cost <= st.cost)
-                    st.put(ok, new)
-                    st.fresh = np.where(ok, eager, st.fresh)
-                    eager &= ~worse
-                st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
+            st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
         done = act & (flat | stalled | (st.lam > 1e6))
         if not done.any():
             continue
