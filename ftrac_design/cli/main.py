@@ -22,6 +22,11 @@ COMMANDS = {
     "solve": "solve",
     "analyze": "analyze",
     "compare": "compare",
+    "radiograph": "radiograph",
+    "track": "track",
+    "optimize": "optimize",
+    "reconstruct": "reconstruct",
+    "report": "report",
 }
 
 
