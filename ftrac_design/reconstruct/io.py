@@ -1,0 +1,244 @@
+"""Files of ``ftrac-design reconstruct``: poses, image points, camera, transform in; result out.
+
+Inputs (every problem raises :class:`~ftrac_design.errors.InputError` naming the file, the
+line for JSON Lines, the key and what was expected):
+
+- poses: JSON Lines of SPEC §4 pose objects, one per image. A pose with ``"converged":
+  false`` or no rotation leaves its image unused; a ``null`` covariance counts as an exact pose.
+- points: JSON Lines, one ``{id: [u, v]}`` object per image, in the order of the poses
+  (SPEC §5). Ids are any strings (seeds, beads, …).
+- camera: a SPEC §3 ``camera`` object (or an object holding one under ``"camera"``), for
+  every image. *Extension:* a pose line or a points line may carry its own ``"camera"``
+  object (then ``camera`` is not a point id); ``--camera`` overrides both (SPEC §5).
+- transform: a rigid 4×4 ``target_from_source``, bare (a list of 4 rows) or as an object
+  ``{"matrix": 4x4, "name": "ultrasound", "covariance": 6x6}`` (the covariance optional;
+  rotation vector rad on the left then translation mm, as SPEC §4's).
+
+Output (format ``ftrac-reconstruction``, version 1): see :func:`result_dict`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ..errors import InputError
+from ..pose.camera import Camera
+from .frames import RigidTransform, is_rigid
+
+FORMAT = "ftrac-reconstruction"
+VERSION = 1
+
+
+def _short(v: Any) -> str:
+    s = json.dumps(v) if not isinstance(v, float) else repr(v)
+    return s if len(s) <= 40 else s[:37] + "..."
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"finite numbers (JSON has no {name})")
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
+
+
+def _json_lines(path: Path, what: str) -> list[tuple[str, Any]]:
+    """(origin "file:line", parsed object) per non-blank line."""
+    out = []
+    for i, line in enumerate(_read_text(path).splitlines(), 1):
+        if not line.strip():
+            continue
+        origin = f"{path}:{i}"
+        try:
+            d = json.loads(line, parse_constant=_reject_constant)
+        except json.JSONDecodeError as exc:
+            raise InputError(origin, None, f"one JSON object per line ({exc.msg})") from None
+        except ValueError as exc:
+            raise InputError(origin, None, str(exc)) from None
+        if not isinstance(d, dict):
+            raise InputError(origin, None, f"a JSON object ({what}), got {_short(d)}")
+        out.append((origin, d))
+    if not out:
+        raise InputError(path, None, f"at least one line ({what}); the file is empty")
+    return out
+
+
+def _num(v: Any, origin: str, key: str) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise InputError(origin, key, f"a finite number, got {_short(v)}")
+    return float(v)
+
+
+def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
+    if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
+        raise InputError(origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), "
+                                      f"got {_short(v)}")
+    return np.array([[_num(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
+
+
+def camera_from_dict(cam: Any, origin: str, key: str = "camera") -> Camera:
+    """A SPEC §3 camera object."""
+    if not isinstance(cam, dict):
+        raise InputError(origin, key, "an object with focal_length_mm, pixel_size_mm, principal_point_px")
+    for k in ("focal_length_mm", "pixel_size_mm", "principal_point_px"):
+        if k not in cam:
+            raise InputError(origin, f"{key}.{k}", "a value (the key is required)")
+    f = _num(cam["focal_length_mm"], origin, f"{key}.focal_length_mm")
+    px, pp = cam["pixel_size_mm"], cam["principal_point_px"]
+    for k, v in (("pixel_size_mm", px), ("principal_point_px", pp)):
+        if not isinstance(v, list) or len(v) != 2:
+            raise InputError(origin, f"{key}.{k}", f"a list of 2 numbers, got {_short(v)}")
+    px = [_num(x, origin, f"{key}.pixel_size_mm[{i}]") for i, x in enumerate(px)]
+    pp = [_num(x, origin, f"{key}.principal_point_px[{i}]") for i, x in enumerate(pp)]
+    if f <= 0:
+        raise InputError(origin, f"{key}.focal_length_mm", f"a positive number, got {f}")
+    if min(px) <= 0:
+        raise InputError(origin, f"{key}.pixel_size_mm", f"positive numbers, got {px}")
+    return Camera(f, (px[0], px[1]), (pp[0], pp[1]))
+
+
+def read_camera(path: Path) -> Camera:
+    """``--camera C.json``: a SPEC §3 camera object, bare or under ``"camera"``."""
+    try:
+        d = json.loads(_read_text(path), parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except ValueError as exc:
+        raise InputError(path, None, str(exc)) from None
+    if isinstance(d, dict) and "camera" in d:
+        return camera_from_dict(d["camera"], str(path))
+    return camera_from_dict(d, str(path), "camera")
+
+
+def read_poses(path: Path) -> list[dict[str, Any]]:
+    """One dict per line: ``R``, ``t``, ``cov`` (6×6 or None), ``camera`` (or None),
+    ``usable`` and ``why`` (when not), ``origin``."""
+    out = []
+    for origin, d in _json_lines(path, "an ftrac-pose"):
+        fmt = d.get("format", "ftrac-pose")
+        if fmt != "ftrac-pose":
+            raise InputError(origin, "format", f'"ftrac-pose", got {_short(fmt)}')
+        item: dict[str, Any] = {"origin": origin, "usable": True, "why": None, "cov": None,
+                                "camera": camera_from_dict(d["camera"], origin) if "camera" in d else None}
+        conv = d.get("converged", True)
+        if not isinstance(conv, bool):
+            raise InputError(origin, "converged", f"true or false, got {_short(conv)}")
+        if not conv:
+            item.update(usable=False, why=f"pose not solved ({d.get('error', 'converged: false')})",
+                        R=np.full((3, 3), np.nan), t=np.full(3, np.nan))
+            out.append(item)
+            continue
+        for k in ("rotation", "translation_mm"):
+            if k not in d:
+                raise InputError(origin, k, "a value (the key is required)")
+        R = _matrix(d["rotation"], 3, 3, origin, "rotation")
+        if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
+            raise InputError(origin, "rotation", "a rotation matrix (orthonormal, determinant +1)")
+        tv = d["translation_mm"]
+        if not isinstance(tv, list) or len(tv) != 3:
+            raise InputError(origin, "translation_mm", f"a list of 3 numbers, got {_short(tv)}")
+        t = np.array([_num(x, origin, f"translation_mm[{i}]") for i, x in enumerate(tv)])
+        cov = d.get("covariance")
+        if cov is not None:
+            cov = _matrix(cov, 6, 6, origin, "covariance")
+            order = d.get("covariance_order", ["rx", "ry", "rz", "tx", "ty", "tz"])
+            if order != ["rx", "ry", "rz", "tx", "ty", "tz"]:
+                raise InputError(origin, "covariance_order", '["rx", "ry", "rz", "tx", "ty", "tz"]')
+            if not (np.allclose(cov, cov.T, atol=1e-9 * max(1.0, np.abs(cov).max()))
+                    and np.linalg.eigvalsh((cov + cov.T) / 2).min() >= -1e-12 * max(1.0, np.abs(cov).max())):
+                raise InputError(origin, "covariance", "a symmetric positive semi-definite 6x6 matrix")
+            cov = (cov + cov.T) / 2
+        item.update(R=R, t=t, cov=cov)
+        out.append(item)
+    return out
+
+
+def read_points(path: Path) -> list[dict[str, Any]]:
+    """One dict per line: ``points`` {id: (2,) px}, ``camera`` (or None), ``origin``."""
+    out = []
+    for origin, d in _json_lines(path, "{id: [u, v]} for one image"):
+        cam = camera_from_dict(d["camera"], origin) if "camera" in d else None
+        pts = {}
+        for k, v in d.items():
+            if k == "camera":
+                continue
+            if not isinstance(v, list) or len(v) != 2:
+                raise InputError(origin, k, f"[u, v] pixel coordinates, got {_short(v)}")
+            pts[k] = np.array([_num(x, origin, f"{k}[{i}]") for i, x in enumerate(v)])
+        out.append({"origin": origin, "points": pts, "camera": cam})
+    return out
+
+
+def read_transform(path: Path, source: str) -> RigidTransform:
+    """``--transform T.json``: a rigid 4×4 from ``source`` to the frame it names (default "user")."""
+    try:
+        d = json.loads(_read_text(path), parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
+    except ValueError as exc:
+        raise InputError(path, None, str(exc)) from None
+    origin = str(path)
+    name, cov = "user", None
+    if isinstance(d, dict):
+        if "matrix" not in d:
+            raise InputError(origin, "matrix", "a 4x4 rigid transform (the key is required)")
+        name = d.get("name", name)
+        if not isinstance(name, str) or not name:
+            raise InputError(origin, "name", f"a frame name (string), got {_short(name)}")
+        if d.get("covariance") is not None:
+            cov = _matrix(d["covariance"], 6, 6, origin, "covariance")
+            if not (np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() >= -1e-12):
+                raise InputError(origin, "covariance", "a symmetric positive semi-definite 6x6 matrix")
+        M = _matrix(d["matrix"], 4, 4, origin, "matrix")
+        key = "matrix"
+    else:
+        M = _matrix(d, 4, 4, origin, "matrix")
+        key = "matrix"
+    if not is_rigid(M):
+        raise InputError(origin, key, "a rigid 4x4 transform (orthonormal rotation, det +1, last row 0 0 0 1), mm")
+    return RigidTransform(M, source, name, cov)
+
+
+def _fin(a: np.ndarray, nd: int = 6) -> Any:
+    a = np.asarray(a, float)
+    return np.round(a, nd).tolist() if np.isfinite(a).all() else None
+
+
+def result_dict(ids: list[str], tri, P: np.ndarray, cov: np.ndarray, frame: str, chain: list[str],
+                views_index: list[int], skipped: list[dict[str, Any]], noise_px: list[float],
+                P_F: np.ndarray, cov_F: np.ndarray) -> dict[str, Any]:
+    """The ``ftrac-reconstruction`` object.
+
+    ``points`` maps each id to either ``{"position_mm", "covariance_mm2", "std_mm", "frame",
+    "views", "rms_reprojection_px", "parallax_deg"}`` (plus ``position_fiducial_mm`` and
+    ``covariance_fiducial_mm2`` when ``frame`` is not the fiducial) or ``{"refused": reason,
+    "views"}``; ``views`` are 0-based image indices (line order of the input files).
+    """
+    points: dict[str, Any] = {}
+    for k, pid in enumerate(ids):
+        views = [views_index[i] for i in np.flatnonzero(tri.used[:, k])]
+        if tri.refused[k] is not None:
+            points[pid] = {"refused": tri.refused[k], "views": views}
+            continue
+        e: dict[str, Any] = {"frame": frame, "position_mm": _fin(P[k]), "covariance_mm2": _fin(cov[k], 9),
+                             "std_mm": _fin(np.sqrt(np.diag(cov[k]))), "views": views,
+                             "rms_reprojection_px": round(float(tri.rms_px[k]), 6),
+                             "parallax_deg": round(float(tri.parallax_deg[k]), 4)}
+        if frame != "fiducial":
+            e["position_fiducial_mm"] = _fin(P_F[k])
+            e["covariance_fiducial_mm2"] = _fin(cov_F[k], 9)
+        points[pid] = e
+    return {"format": FORMAT, "version": VERSION, "units": "mm", "frame": frame, "frame_chain": chain,
+            "images": len(views_index) + len(skipped), "images_used": views_index, "images_skipped": skipped,
+            "noise_px": noise_px,
+            "reconstructed": int(tri.ok.sum()), "refused": int((~tri.ok).sum()), "points": points}
