@@ -1,0 +1,35 @@
+"""Radiograph simulator and image files: a fiducial at a pose → X-ray image (+ truth).
+
+- :func:`render` — Beer–Lambert image of a :class:`~ftrac_design.features.Features` at a
+  pose, with blur, quantum noise, background and occluders (:mod:`.render`).
+- :class:`ImagingModel`, :class:`Body`, :class:`Occluder`, :class:`Radiograph` (:mod:`.model`).
+- :func:`read_image` / :func:`write_image` — PNG, TIFF, NumPy, DICOM (:mod:`.imagefiles`).
+- :func:`anatomy` — a synthetic anatomy-like background (:mod:`.background`).
+- truth.json (:mod:`.truth`); attenuation coefficients (:mod:`.materials`).
+"""
+
+from .model import Body, ImagingModel, Occluder, Radiograph
+from .render import blur_sigma_px, expected_transmission, line_integral_box, render
+from .scene import body_from_design_file, body_from_features_file, body_from_source
+from .truth import projected_features, read_truth, truth_dict, write_truth
+
+__all__ = [
+    "Body", "ImagingModel", "Occluder", "Radiograph", "render", "expected_transmission", "line_integral_box",
+    "blur_sigma_px", "body_from_design_file", "body_from_features_file", "body_from_source",
+    "projected_features", "read_truth", "truth_dict", "write_truth", "read_image", "write_image", "anatomy",
+    "demo_step",
+]
+
+
+def __getattr__(name):
+    # image-file and background modules import imaging libraries: load them on first use
+    if name in ("read_image", "write_image"):
+        from . import imagefiles
+        return getattr(imagefiles, name)
+    if name == "anatomy":
+        from .background import anatomy
+        return anatomy
+    if name == "demo_step":
+        from .demo import demo_step
+        return demo_step
+    raise AttributeError(name)

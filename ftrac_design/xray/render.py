@@ -1,0 +1,325 @@
+"""The radiograph simulator: Beer–Lambert line integrals of the fiducial at a pose.
+
+Image formation, in order:
+
+1. **Line integral** ``p(u, v) = Σ μ_m × chord_m`` through the beads (spheres), the wires
+   (tube pieces, :mod:`.geometry`), the body (hollow cylinder) and any occluders, evaluated
+   only inside the fiducial's bounding box. Wherever ``p`` is not smooth (every pixel a
+   wire or bead touches, and body pixels whose centre value departs from the mean of their
+   four corners by more than ``_BODY_ROUGHNESS``) the pixel value is the mean of
+   ``supersample²`` sub-samples — pixel integration, so feature centres carry no aliasing
+   bias; elsewhere the pixel centre (midpoint rule, error ∝ the profile's curvature).
+   Steel that fills a groove is not reduced by the acetal it displaces (0.3 % of its
+   contrast), and grooves/pockets are not cut from the body.
+2. **Blur**, applied to the intensity ``exp(−p)`` (both blurs act on photons): a Gaussian of
+   σ² = σ_detector² + σ_focal², σ_focal = (M − 1) × focal spot / 2.355 / pixel pitch with
+   M = f / Z of the fiducial origin (the ±2 % change of M across the fiducial is neglected).
+3. **Background**: an anatomy line-integral image added in the log domain (multiplies the
+   intensity); it is taken as already blurred.
+4. **Quantum noise**: counts ``N = N0 exp(−p)``; Gaussian with variance N (the Poisson
+   variance) when every expected count is ≥ 100, where Poisson's skewness 1/√N ≤ 0.1 is
+   invisible and drawing Gaussians costs a third; exact Poisson draws otherwise.
+5. **Raw** = round(gain × N) clipped to the bit depth (flat field at 80 % of full scale,
+   dense = dark); the **log image** is ``−ln(raw / (gain N0))`` (dense = bright), or the
+   noise-free line integral when noise is off.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from typing import Sequence
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from ..features.model import Features
+from ..pose.camera import Camera
+from .geometry import Pieces, cylinder_z_chord, ellipse_pieces, sphere_chord, straight_pieces, tube_chord
+from .model import Body, ImagingModel, Occluder, Radiograph
+
+#: body pixels whose centre differs from their corners' mean by more than this (line
+#: integral units) are supersampled, with their neighbours
+_BODY_ROUGHNESS = 2e-4
+#: Gaussian counts are used when every expected count is at least this
+_GAUSSIAN_MIN_COUNTS = 100.0
+
+AUTO = "auto"
+
+_scene_cache: dict[int, tuple] = {}
+
+
+def _feature_pieces(features: Features, mu_steel: float) -> tuple[np.ndarray, np.ndarray, Pieces]:
+    """Beads (centres, radii) and wire pieces of ``features`` (pose-independent, cached)."""
+    key = id(features)
+    hit = _scene_cache.get(key)
+    if hit is not None and hit[0]() is features and hit[1] == mu_steel:
+        return hit[2]
+    parts = []
+    for k, ln in enumerate(features.lines):
+        for a, b in features.wire_segments(ln.id):
+            parts.append(straight_pieces(a, b, ln.wire_diameter / 2, mu_steel, k))
+    for k, el in enumerate(features.ellipses):
+        parts.append(ellipse_pieces(el, mu_steel, len(features.lines) + k))
+    centers = features.point_centers()
+    radii = np.array([p.diameter / 2 for p in features.points], float)
+    out = (centers, radii, Pieces.concat(parts))
+    if len(_scene_cache) > 64:
+        _scene_cache.clear()
+    _scene_cache[key] = (weakref.ref(features), mu_steel, out)
+    return out
+
+
+def _occluder_pieces(occluders: Sequence[Occluder], imaging: ImagingModel, R: np.ndarray, t: np.ndarray) -> Pieces:
+    parts = []
+    for k, oc in enumerate(occluders):
+        a, b = np.asarray(oc.start, float), np.asarray(oc.end, float)
+        if oc.frame == "X":
+            a, b = R.T @ (a - t), R.T @ (b - t)
+        parts.append(straight_pieces(a, b, oc.diameter / 2, imaging.mu(oc.material), -1 - k))
+    return Pieces.concat(parts)
+
+
+class _Rays:
+    """Ray directions in F for image points: d = g0 + u gu + v gv; source at c."""
+
+    def __init__(self, camera: Camera, R: np.ndarray, t: np.ndarray):
+        Rt = np.asarray(R, float).T
+        sx, sy = camera.pixel_size_mm
+        ox, oy = camera.principal_point_px
+        self.gu = Rt[:, 0] * sx
+        self.gv = Rt[:, 1] * sy
+        self.g0 = Rt[:, 2] * camera.focal_length_mm - ox * self.gu - oy * self.gv
+        self.c = -Rt @ np.asarray(t, float)
+
+    def __call__(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return self.g0 + u[:, None] * self.gu + v[:, None] * self.gv
+
+
+def _capsule_pairs(u0, v0, u1, v1, rad):
+    """(primitive index, row, col) of every pixel whose centre lies within ``rad`` px of the
+    segment (u0, v0)–(u1, v1) of each primitive."""
+    lo_u = np.floor(np.minimum(u0, u1) - rad).astype(int)
+    lo_v = np.floor(np.minimum(v0, v1) - rad).astype(int)
+    hi_u = np.ceil(np.maximum(u0, u1) + rad).astype(int)
+    hi_v = np.ceil(np.maximum(v0, v1) + rad).astype(int)
+    Ku, Kv = int((hi_u - lo_u).max()) + 1, int((hi_v - lo_v).max()) + 1
+    iu = lo_u[:, None, None] + np.arange(Ku)[None, None, :]
+    iv = lo_v[:, None, None] + np.arange(Kv)[None, :, None]
+    du, dv = (u1 - u0)[:, None, None], (v1 - v0)[:, None, None]
+    qu, qv = iu - u0[:, None, None], iv - v0[:, None, None]
+    ll = du * du + dv * dv
+    s = np.clip((qu * du + qv * dv) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
+    eu, ev = qu - s * du, qv - s * dv
+    mask = (eu * eu + ev * ev <= (rad * rad)[:, None, None]) & (iu <= hi_u[:, None, None]) & (iv <= hi_v[:, None, None])
+    k, jv, ju = np.nonzero(mask)
+    return k, lo_v[k] + jv, lo_u[k] + ju
+
+
+def _subsamples(s: int) -> tuple[np.ndarray, np.ndarray]:
+    o = (np.arange(s) + 0.5) / s - 0.5
+    ou, ov = np.meshgrid(o, o)
+    return ou.ravel(), ov.ravel()
+
+
+def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    X = P @ np.asarray(R, float).T + t
+    if np.any(X[:, 2] <= 1.0):
+        raise ValueError("the pose puts part of the fiducial behind the source")
+    uv = camera.project(X)
+    return uv, X[:, 2]
+
+
+def resolve_body(features: Features, body) -> Body | None:
+    """The body to render: ``body`` itself, None, or for ``"auto"`` the body of the design
+    named in ``features.source`` when that file can be found (else None)."""
+    if body is None or isinstance(body, Body):
+        return body
+    if body != AUTO:
+        raise TypeError("body: a Body, None or 'auto'")
+    from .scene import body_from_source
+    return body_from_source(features.source)
+
+
+def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
+                      body: Body | None, occluders: Sequence[Occluder] = (), margin_px: int = 0):
+    """Un-blurred, pixel-integrated line integral over the fiducial's bounding box.
+
+    Returns ``(p, (v0, u0))``: ``p`` (h, w) float64 whose pixel ``p[j, i]`` is image pixel
+    (row v0 + j, column u0 + i); the box is not clipped to the image. ``margin_px`` widens it.
+    """
+    R, t = np.asarray(R, float), np.asarray(t, float)
+    mu_steel = imaging.mu("steel")
+    centers, radii, pieces = _feature_pieces(features, mu_steel)
+    if occluders:
+        pieces = Pieces.concat([pieces, _occluder_pieces(occluders, imaging, R, t)])
+    rays = _Rays(camera, R, t)
+    pix = min(camera.pixel_size_mm)
+    s = int(imaging.supersample)
+    ou, ov = _subsamples(s)
+
+    groups = []          # (rows, cols, values) of supersampled primitives
+    lo, hi = [], []
+    if len(pieces.L):
+        ends = np.concatenate([pieces.a, pieces.a + pieces.L[:, None] * pieces.e])
+        uv, Z = _project(camera, R, t, ends)
+        M = len(pieces.L)
+        zmin = np.minimum(Z[:M], Z[M:]) - pieces.r
+        rad = pieces.r * camera.focal_length_mm / np.maximum(zmin, 1.0) / pix * 1.05 + 1.0
+        k, rows, cols = _capsule_pairs(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
+        if len(k):
+            kk = np.repeat(k, s * s)
+            u = np.repeat(cols, s * s) + np.tile(ou, len(k))
+            v = np.repeat(rows, s * s) + np.tile(ov, len(k))
+            ch = tube_chord(rays.c, rays(u, v), pieces.a[kk], pieces.e[kk], pieces.L[kk], pieces.r[kk],
+                            pieces.n0[kk], pieces.n1[kk])
+            val = (ch.reshape(-1, s * s).mean(1)) * pieces.mu[k]
+            groups.append((rows, cols, val))
+            lo.append([rows.min(), cols.min()])
+            hi.append([rows.max(), cols.max()])
+    if len(radii):
+        uv, Z = _project(camera, R, t, centers)
+        rad = radii * camera.focal_length_mm / np.maximum(Z - radii, 1.0) / pix * 1.05 + 1.0
+        k, rows, cols = _capsule_pairs(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
+        kk = np.repeat(k, s * s)
+        u = np.repeat(cols, s * s) + np.tile(ou, len(k))
+        v = np.repeat(rows, s * s) + np.tile(ov, len(k))
+        ch = sphere_chord(rays.c, rays(u, v), centers[kk], radii[kk])
+        groups.append((rows, cols, ch.reshape(-1, s * s).mean(1) * mu_steel))
+        lo.append([rows.min(), cols.min()])
+        hi.append([rows.max(), cols.max()])
+    body_box = None
+    if body is not None:
+        ro, h = body.outer_diameter / 2, body.length / 2
+        corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
+        uv, _ = _project(camera, R, t, corners)
+        b_lo = np.floor(uv.min(0)).astype(int) - 1
+        b_hi = np.ceil(uv.max(0)).astype(int) + 1
+        body_box = (b_lo, b_hi)
+        lo.append([b_lo[1], b_lo[0]])
+        hi.append([b_hi[1], b_hi[0]])
+    if not lo:
+        return np.zeros((0, 0)), (0, 0)
+    v0, u0 = np.min(lo, 0) - margin_px
+    v1, u1 = np.max(hi, 0) + margin_px
+    hgt, wid = int(v1 - v0 + 1), int(u1 - u0 + 1)
+    acc = np.zeros(hgt * wid)
+    for rows, cols, val in groups:
+        acc += np.bincount((rows - v0) * wid + (cols - u0), weights=val, minlength=hgt * wid)
+    p = acc.reshape(hgt, wid)
+    if body_box is not None:
+        _add_body(p, (v0, u0), body_box, body, imaging.mu(body.material), rays, s)
+    return p, (int(v0), int(u0))
+
+
+def _body_values(rays: _Rays, u: np.ndarray, v: np.ndarray, body: Body, mu: float) -> np.ndarray:
+    d = rays(u, v)
+    h = body.length / 2
+    ch = cylinder_z_chord(rays.c, d, body.outer_diameter / 2, h)
+    if body.bore_diameter > 0:
+        ch -= cylinder_z_chord(rays.c, d, body.bore_diameter / 2, h)
+    return mu * ch
+
+
+def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: _Rays, s: int) -> None:
+    (bu0, bv0), (bu1, bv1) = box
+    v0, u0 = origin
+    cu = np.arange(bu0, bu1 + 1, dtype=float)
+    cv = np.arange(bv0, bv1 + 1, dtype=float)
+    UU, VV = np.meshgrid(cu, cv)
+    centre = _body_values(rays, UU.ravel(), VV.ravel(), body, mu).reshape(UU.shape)
+    ku = np.arange(bu0, bu1 + 2, dtype=float) - 0.5
+    kv = np.arange(bv0, bv1 + 2, dtype=float) - 0.5
+    KU, KV = np.meshgrid(ku, kv)
+    corner = _body_values(rays, KU.ravel(), KV.ravel(), body, mu).reshape(KU.shape)
+    mean4 = 0.25 * (corner[:-1, :-1] + corner[1:, :-1] + corner[:-1, 1:] + corner[1:, 1:])
+    rough = np.abs(centre - mean4) > _BODY_ROUGHNESS
+    flag = rough.copy()
+    flag[1:, :] |= rough[:-1, :]
+    flag[:-1, :] |= rough[1:, :]
+    flag[:, 1:] |= rough[:, :-1]
+    flag[:, :-1] |= rough[:, 1:]
+    jj, ii = np.nonzero(flag)
+    if len(jj):
+        ou, ov = _subsamples(s)
+        u = np.repeat(cu[ii], s * s) + np.tile(ou, len(ii))
+        v = np.repeat(cv[jj], s * s) + np.tile(ov, len(jj))
+        centre[jj, ii] = _body_values(rays, u, v, body, mu).reshape(-1, s * s).mean(1)
+    p[bv0 - v0:bv1 - v0 + 1, bu0 - u0:bu1 - u0 + 1] += centre
+
+
+def blur_sigma_px(camera: Camera, imaging: ImagingModel, depth_mm: float) -> tuple[float, float]:
+    """Total Gaussian σ (σ_u, σ_v) in pixels: detector line-spread and focal spot at magnification f / depth."""
+    M = camera.focal_length_mm / depth_mm
+    fs = max(M - 1.0, 0.0) * imaging.focal_spot_mm / (2.0 * math.sqrt(2.0 * math.log(2.0)))
+    su = math.hypot(imaging.detector_blur_px, fs / camera.pixel_size_mm[0])
+    sv = math.hypot(imaging.detector_blur_px, fs / camera.pixel_size_mm[1])
+    return su, sv
+
+
+def expected_transmission(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
+                          imaging: ImagingModel = ImagingModel(), body: Body | None | str = AUTO,
+                          occluders: Sequence[Occluder] = ()) -> np.ndarray:
+    """Noise-free blurred transmission I/I0 (H, W) float32 of the fiducial alone (1 = no object)."""
+    body = resolve_body(features, body)
+    H, W = imaging.image_shape
+    su, sv = blur_sigma_px(camera, imaging, float(np.asarray(t, float)[2]))
+    margin = int(math.ceil(4 * max(su, sv))) + 2
+    p, (v0, u0) = line_integral_box(features, R, t, camera, imaging, body, occluders, margin)
+    out = np.ones((H, W), np.float32)
+    if p.size == 0:
+        return out
+    I = np.exp(-p).astype(np.float32)
+    if sv > 0:
+        I = gaussian_filter1d(I, sv, axis=0, mode="nearest", truncate=4.0)
+    if su > 0:
+        I = gaussian_filter1d(I, su, axis=1, mode="nearest", truncate=4.0)
+    r0, r1 = max(v0, 0), min(v0 + p.shape[0], H)
+    c0, c1 = max(u0, 0), min(u0 + p.shape[1], W)
+    if r0 < r1 and c0 < c1:
+        out[r0:r1, c0:c1] = I[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
+    return out
+
+
+def render(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
+           imaging: ImagingModel = ImagingModel(), rng: np.random.Generator | None = None,
+           background: np.ndarray | None = None, occluders: Sequence[Occluder] = (),
+           body: Body | None | str = AUTO, image_name: str = "") -> Radiograph:
+    """A simulated radiograph of ``features`` at pose (R, t) (F → X, mm) — see the module.
+
+    ``background`` (H, W) is a line-integral image (e.g. :func:`.background.anatomy`) added
+    in the log domain; ``occluders`` are extra steel (or other) cylinders; ``body`` is the
+    fiducial's body (``"auto"``: from the design named in ``features.source`` if found,
+    ``None``: wires and beads only). ``rng`` draws the noise (default: a fresh generator).
+    """
+    from .truth import truth_dict
+
+    R, t = np.asarray(R, float), np.asarray(t, float)
+    H, W = imaging.image_shape
+    body = resolve_body(features, body)
+    I = expected_transmission(features, R, t, camera, imaging, body, occluders)
+    if background is not None:
+        bg = np.asarray(background, np.float32)
+        if bg.shape != (H, W):
+            raise ValueError(f"background: an image of shape {(H, W)}, got {bg.shape}")
+        I = I * np.exp(-bg)
+    line_integral = -np.log(I.astype(np.float64))
+    gain = imaging.raw_gain
+    if imaging.noisy:
+        rng = rng if rng is not None else np.random.default_rng()
+        N0 = float(imaging.photons_per_px)
+        N = I * np.float32(N0)
+        if float(N.min()) >= _GAUSSIAN_MIN_COUNTS:
+            N += np.sqrt(N) * rng.standard_normal((H, W), dtype=np.float32)
+        else:
+            N = rng.poisson(N).astype(np.float32)
+        raw_f = np.rint(N * np.float32(gain))
+        raw = np.clip(raw_f, 0, imaging.full_scale)
+        log_image = -np.log(np.maximum(raw, 0.5) / np.float32(gain * N0)).astype(np.float64)
+    else:
+        raw = np.clip(np.rint(I * np.float32(gain * 1.0e4)), 0, imaging.full_scale)
+        log_image = line_integral.copy()
+    raw = raw.astype(np.uint8 if imaging.bit_depth <= 8 else np.uint16)
+    truth = truth_dict(features, R, t, camera, imaging, image_name=image_name, body=body, occluders=occluders,
+                       background=None if background is None else "given")
+    return Radiograph(line_integral, log_image, raw, camera, R, t, truth)
