@@ -25,8 +25,13 @@ from ..errors import InputError
               help="Ellipse residual: first-order geometric (Sampson) or the paper's K·PᵀMP (Eq. 8).")
 @click.option("--starts", type=click.IntRange(min=1), default=96, show_default=True,
               help="Multi-start seeds used when no closed-form start is possible.")
+@click.option("--estimate-intrinsics", type=click.Choice(["f", "f,o", "all"]), default=None,
+              help="Estimate the C-arm intrinsics shared by all images with their poses (f: focal length at "
+                   "the given pixel pitch; f,o: and the principal point; all: fx, fy, ox, oy); refused (exit 1, "
+                   "poses solved with the given camera) where the images do not determine them. See "
+                   "ftrac_design.reconstruct.intrinsics.")
 def command(features_path: Path, observations: tuple[Path, ...], output: Path | None,
-            segmentation_error_mm: float, distance: str, starts: int) -> int:
+            segmentation_error_mm: float, distance: str, starts: int, estimate_intrinsics: str | None = None) -> int:
     """Solve the 6-DOF pose for each observation (.json, or .jsonl with one per line).
 
     Writes SPEC §4 pose objects; exits 1 if any image could not be solved (its object says
@@ -40,6 +45,9 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
     obs = [o for path in observations for o in read_observations(path)]
     opts = SolverOptions(noise=NoiseModel.from_segmentation_error(segmentation_error_mm), distance=distance,
                          starts=starts)
+    if estimate_intrinsics is not None:
+        from ..reconstruct.intrinsics import solve_command
+        return solve_command(features, obs, opts, estimate_intrinsics, output)
     poses = solve_batch(features, obs, opts)
     several = len(obs) > 1 or any(p.suffix.lower() == ".jsonl" for p in observations)
     if output is None:
