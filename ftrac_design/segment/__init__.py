@@ -1,0 +1,23 @@
+"""X-ray image → SPEC §3 observation → pose, for any design, with no initial guess.
+
+- :func:`track_image` (:mod:`.pipeline`): segment, identify and solve one image; returns a
+  :class:`TrackResult` with the SPEC §4 pose (or ``converged = False`` and the reason), the
+  segmented observation and its per-feature quality.
+- :mod:`.image` polarity, density, background (top-hat), noise; :mod:`.beads` bead
+  centres by a blurred-sphere model fit; :mod:`.ridges` Steger wire centre-line points;
+  :mod:`.identify` labelling hypotheses (P3P over bead triplets) and contours gathered by
+  prediction; :mod:`.overlay` the picture; :mod:`.demo` ``demo_step``.
+
+numpy/scipy/OpenCV only (OpenCV for fast morphology, filtering and P3P); never CadQuery.
+"""
+
+from .pipeline import TrackOptions, TrackResult, track_image
+
+__all__ = ["TrackOptions", "TrackResult", "track_image", "demo_step"]
+
+
+def __getattr__(name):
+    if name == "demo_step":
+        from .demo import demo_step
+        return demo_step
+    raise AttributeError(name)

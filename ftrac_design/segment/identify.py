@@ -1,0 +1,275 @@
+"""Which detected blob is which bead, which ridge points belong to which wire.
+
+Identification is hypothesis testing with the fiducial's own geometry, the same for every
+design: each labelling hypothesis is a pose, and a pose predicts the whole image.
+
+1. **Bead hypotheses** (RANSAC over triplets, exhaustive over the model): three detected
+   blobs spread over the image are matched with every ordered, non-collinear triplet of
+   model beads; P3P (OpenCV's Gao et al. solver) gives up to four poses for each; every
+   pose projects all the model beads, and a hypothesis scores the number of beads that
+   land on a distinct detected blob. Line designs need no special case (their 4/3/2 beads
+   per line make the labelling unique), and free-bead designs such as ``nine_bead`` work
+   the same way. A few image triplets are tried, strongest blobs first.
+2. **Contours by prediction**: a pose projects each wire piece and each ellipse; ridge
+   points within a tolerance of exactly one projected curve, with a normal that agrees,
+   away from every bead and from every other curve, are that curve's contour points.
+   Where two features project onto one another (two lines on one image line, a bead on
+   another wire, two beads merged into one blob) the points cannot be told apart, so they
+   are left out and the pose is solved from the rest.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ..features.model import Features
+from ..pose import Camera
+from .ridges import RidgePoints
+
+
+@dataclass
+class BeadHypothesis:
+    """A pose F → X from a bead labelling: ``match`` maps model bead index → detected blob
+    index; ``count`` beads matched; ``rms_px`` their reprojection RMS."""
+
+    R: np.ndarray
+    t: np.ndarray
+    match: dict[int, int]
+    count: int
+    rms_px: float
+
+
+def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (..., n, 2) and depths (..., n) of model points P (n, 3) at poses R (..., 3, 3), t (..., 3)."""
+    X = np.einsum("...ij,nj->...ni", R, P) + t[..., None, :]
+    Z = X[..., 2]
+    with np.errstate(all="ignore"):
+        uv = np.stack([camera.fx * X[..., 0] / Z + camera.principal_point_px[0],
+                       camera.fy * X[..., 1] / Z + camera.principal_point_px[1]], -1)
+    return uv, Z
+
+
+def _image_triplets(uv: np.ndarray, limit: int) -> list[tuple[int, int, int]]:
+    """Up to ``limit`` triplets of the first (strongest) blobs, largest triangle first."""
+    k = min(len(uv), 8)
+    tri = []
+    for a, b, c in itertools.combinations(range(k), 3):
+        e1, e2 = uv[b] - uv[a], uv[c] - uv[a]
+        area = abs(e1[0] * e2[1] - e1[1] * e2[0]) / 2
+        tri.append((area, (a, b, c)))
+    tri.sort(key=lambda x: -x[0])
+    out, used = [], set()
+    for area, abc in tri:
+        if area <= 0:
+            continue
+        # prefer triplets that do not reuse the same three blobs in another order and that
+        # differ in at least one blob from those already taken
+        if abc in used:
+            continue
+        out.append(abc)
+        used.add(abc)
+        if len(out) >= limit:
+            break
+    return out
+
+
+def _model_triplets(P: np.ndarray) -> np.ndarray:
+    """Ordered triplets (m, 3) of model beads that are not (nearly) collinear."""
+    n = len(P)
+    trip = np.array(list(itertools.permutations(range(n), 3)), int).reshape(-1, 3)
+    if len(trip) == 0:
+        return trip
+    a, b, c = P[trip[:, 0]], P[trip[:, 1]], P[trip[:, 2]]
+    area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    scale = max(float(np.ptp(P, axis=0).max()), 1e-9)
+    return trip[area > 0.02 * scale * scale]
+
+
+def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: float,
+                    image_triplets: int = 6, keep: int = 8) -> list[BeadHypothesis]:
+    """Distinct bead labellings ranked by matched count, then RMS (best first).
+
+    ``model`` (P, 3) bead centres in F (mm); ``uv`` (n, 2) detected blob centres, strongest
+    first; a projected bead matches a blob within ``tol_px``.
+    """
+    P, n = len(model), len(uv)
+    if P < 3 or n < 3:
+        return []
+    K = camera.K
+    mtri = _model_triplets(model)
+    tree = cKDTree(uv)
+    best: dict[tuple, BeadHypothesis] = {}
+    for itri in _image_triplets(uv, image_triplets):
+        img = np.ascontiguousarray(uv[list(itri)], dtype=np.float64)
+        Rs, ts = [], []
+        for m in mtri:
+            obj = np.ascontiguousarray(model[m], dtype=np.float64)
+            try:
+                nsol, rvecs, tvecs = cv2.solveP3P(obj, img, K, None, flags=cv2.SOLVEPNP_P3P)
+            except cv2.error:
+                continue
+            for rv, tv in zip(rvecs[:nsol], tvecs[:nsol]):
+                Rs.append(cv2.Rodrigues(rv)[0])
+                ts.append(np.asarray(tv, float).ravel())
+        if not Rs:
+            continue
+        R = np.array(Rs)
+        t = np.array(ts)
+        proj, Z = _project(camera, R, t, model)
+        front = (Z > 0).all(1)
+        d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
+        d, j = d.reshape(len(R), P), j.reshape(len(R), P)
+        hit = np.isfinite(d) & front[:, None]
+        count = hit.sum(1)
+        order = np.argsort(-count, kind="stable")[: 64]
+        for r in order:
+            if count[r] < 4:
+                break
+            match: dict[int, int] = {}
+            taken: dict[int, float] = {}
+            # one blob per bead: the nearer bead keeps a shared blob
+            for b in np.argsort(d[r]):
+                if not hit[r, b]:
+                    continue
+                blob = int(j[r, b])
+                if blob in taken:
+                    continue
+                taken[blob] = d[r, b]
+                match[int(b)] = blob
+            key = tuple(sorted(match.items()))
+            if not key:
+                continue
+            rms = float(np.sqrt(np.mean([taken[v] ** 2 for v in match.values()])))
+            h = BeadHypothesis(R[r], t[r], match, len(match), rms)
+            old = best.get(key)
+            if old is None or h.rms_px < old.rms_px:
+                best[key] = h
+        top = max((h.count for h in best.values()), default=0)
+        if top >= min(P, n):
+            break
+    ranked = sorted(best.values(), key=lambda h: (-h.count, h.rms_px))
+    return ranked[:keep]
+
+
+@dataclass
+class Contours:
+    """Contour points gathered for each curve feature by a pose's prediction."""
+
+    lines: dict[str, np.ndarray] = field(default_factory=dict)
+    ellipses: dict[str, np.ndarray] = field(default_factory=dict)
+    snr: dict[str, np.ndarray] = field(default_factory=dict)
+    #: curves whose projection is covered by another feature too much to use
+    dropped: dict[str, str] = field(default_factory=dict)
+
+
+def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                   step_px: float = 0.5) -> dict[str, tuple[str, np.ndarray]]:
+    """Densely projected centre-lines: id → (kind, (n, 2) px), wire pieces of lines only."""
+    out = {}
+    for ln in features.lines:
+        pieces = features.wire_segments(ln.id) or [(ln.start, ln.end)]
+        pts = []
+        for a, b in pieces:
+            ab = _project(camera, R, t, np.array([a, b]))[0]
+            n = max(int(np.linalg.norm(ab[1] - ab[0]) / step_px), 2)
+            s = np.linspace(0, 1, n)[:, None]
+            pts.append(_project(camera, R, t, a + s * (b - a))[0])
+        out[ln.id] = ("line", np.concatenate(pts))
+    for el in features.ellipses:
+        uv = _project(camera, R, t, el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)))[0]
+        per = float(np.linalg.norm(np.diff(np.vstack([uv, uv[:1]]), axis=0), axis=1).sum())
+        n = max(int(per / step_px), 64)
+        out[el.id] = ("ellipse", _project(camera, R, t, el.sample(np.linspace(0, 2 * np.pi, n, endpoint=False)))[0])
+    return out
+
+
+def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, ridges: RidgePoints,
+                    bead_radius_px: np.ndarray, tol_px: float, separation_px: float,
+                    min_points: int = 8, max_angle_deg: float = 25.0, ridge_var_px2: float = 0.0) -> Contours:
+    """Ridge points of each projected line and ellipse at pose (R, t).
+
+    A ridge point belongs to a curve when it lies within ``tol_px`` of it, its normal is
+    within ``max_angle_deg`` of the curve's, no other curve passes within
+    ``separation_px`` and no projected bead covers it (``bead_radius_px`` per model bead,
+    the exclusion radius). Curves left with fewer than ``min_points`` are dropped.
+
+    ``ridge_var_px2`` is the variance σ² of the smoothed wire profile that the ridge
+    detector sees (detector scale² + blur² + the wire's own profile variance): a curved
+    wire's ridge lies σ²κ/2 inside its centre-line (the peak of a ring of radius 1/κ
+    blurred by σ), so each ellipse point is moved outward by that much, κ taken from the
+    predicted curve.
+    """
+    out = Contours()
+    if len(ridges) == 0:
+        return out
+    curves = _curve_samples(features, camera, R, t)
+    ids = list(curves)
+    if not ids:
+        return out
+    uvr = ridges.uv
+    # beads cover the wire ends they butt against and anything under them
+    if len(features.points):
+        bu = _project(camera, R, t, features.point_centers())[0]
+        db = np.linalg.norm(uvr[:, None] - bu[None], axis=-1)
+        free = (db > np.asarray(bead_radius_px)[None]).all(1)
+    else:
+        free = np.ones(len(uvr), bool)
+    dist = np.full((len(ids), len(uvr)), np.inf)
+    tang = np.zeros((len(ids), len(uvr), 2))
+    corr = np.zeros((len(ids), len(uvr), 2))
+    for k, fid in enumerate(ids):
+        kind, pts = curves[fid]
+        tree = cKDTree(pts)
+        d, j = tree.query(uvr, distance_upper_bound=max(separation_px, tol_px) + 2)
+        ok = np.isfinite(d)
+        jj = np.clip(j, 0, len(pts) - 1)
+        # tangent from neighbouring samples; perpendicular distance to the local chord
+        a = pts[np.clip(jj - 1, 0, len(pts) - 1)]
+        b = pts[np.clip(jj + 1, 0, len(pts) - 1)]
+        if kind == "ellipse":
+            a = pts[(jj - 1) % len(pts)]
+            b = pts[(jj + 1) % len(pts)]
+        tv = b - a
+        tv /= np.maximum(np.linalg.norm(tv, axis=1, keepdims=True), 1e-12)
+        perp = np.abs((uvr - pts[jj])[:, 0] * tv[:, 1] - (uvr - pts[jj])[:, 1] * tv[:, 0])
+        # at a line piece's ends the nearest sample is the end: use the plain distance there
+        dd = np.where(ok, np.minimum(np.maximum(perp, 0), d) if kind == "ellipse" else d, np.inf)
+        if kind == "line":
+            inner = (jj > 0) & (jj < len(pts) - 1)
+            dd = np.where(ok & inner, perp, dd)
+        dist[k] = dd
+        tang[k] = tv
+        if kind == "ellipse":
+            # signed curvature from three neighbouring samples; its centre side is where the
+            # chord's midpoint bends
+            a2, b2 = pts[(jj - 4) % len(pts)], pts[(jj + 4) % len(pts)]
+            c2 = pts[jj]
+            mid = 0.5 * (a2 + b2)
+            sag = c2 - mid                                   # points away from the centre of curvature
+            half = 0.5 * np.linalg.norm(b2 - a2, axis=1)
+            sl = np.linalg.norm(sag, axis=1)
+            with np.errstate(all="ignore"):
+                kappa = 2 * sl / (sl * sl + half * half)
+                outward = sag / sl[:, None]
+            shift = np.where(np.isfinite(kappa), 0.5 * ridge_var_px2 * kappa, 0.0)
+            corr[k] = np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+    near = dist <= tol_px
+    crowded = (dist <= separation_px).sum(0) > 1
+    cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))   # normal ⟂ tangent → ~0
+    aligned = cosang <= np.sin(np.radians(max_angle_deg))
+    for k, fid in enumerate(ids):
+        sel = near[k] & ~crowded & free & aligned[k]
+        kind = curves[fid][0]
+        if sel.sum() < min_points:
+            cover = near[k].sum()
+            out.dropped[fid] = (f"{int(sel.sum())} usable contour points ({int(cover)} near it; the rest lie on "
+                                f"beads or other wires)")
+            continue
+        (out.lines if kind == "line" else out.ellipses)[fid] = uvr[sel] + corr[k][sel]
+        out.snr[fid] = ridges.snr[sel]
+    return out

@@ -1,0 +1,502 @@
+"""Image → observation → pose, with no initial guess: :func:`track_image`.
+
+Steps (each in its own module): density image and background (:mod:`.image`), bead
+candidates fitted with the blurred-sphere model (:mod:`.beads`), Steger ridge points at
+the wire's scale (:mod:`.ridges`), bead-labelling hypotheses and contours gathered by each
+hypothesis's predicted image (:mod:`.identify`), then the pose solver.
+
+Safety: the solver's noise model is not the fixed default but the segmentation's own
+measured accuracy — each bead's centre uncertainty from its model fit and each curve's
+residual scatter about its own fit, pooled per feature type, with floors measured on
+rendered images (``TrackOptions.floor_*``). Every feature's whitened residual is then
+tested on its own (χ², p < ``feature_p_value``); a feature that fails is dropped and the
+pose re-solved (at most ``max_dropped`` times). Two labellings that explain the image
+equally well, or a pose that fails the solver's checks, give ``converged = False`` with
+the reason — never a confident wrong pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from scipy.stats import chi2
+
+from ..features.model import Features
+from ..pose import Camera, NoiseModel, Observation, Pose, SolverOptions, refine_pose, solve_pose
+from ..pose.observation import CurveObservation
+from ..pose import so3
+from ..pose.fitting import fit_conic, fit_line
+from ..pose.problem import compile_problem, evaluate
+from . import identify
+from .beads import Beads, blob_candidates, fit_beads
+from .image import detect_polarity, noise_sigma, to_density, top_hat
+from .ridges import RidgePoints, ridge_points
+
+
+@dataclass(frozen=True)
+class TrackOptions:
+    """Settings of the image path; lengths in pixels unless named ``_mm``."""
+
+    #: "auto", "dense-dark" (raw detector counts) or "dense-bright" (log/display image)
+    polarity: str = "auto"
+    #: source-to-fiducial over source-to-detector distance assumed to size the filters
+    #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)
+    magnification: float = 1.5
+    #: starting value of the Gaussian blur σ (fitted on the beads)
+    blur_px: float = 0.8
+    ridge_min_snr: float = 5.0
+    bead_min_snr: float = 8.0
+    #: first bead-matching tolerance (× the bead radius), then the refined one (px)
+    hypothesis_tol_radii: float = 1.0
+    match_tol_px: float = 2.0
+    #: contour points within this of a predicted curve belong to it (px); a second curve
+    #: within ``separation_px`` makes a point ambiguous
+    contour_tol_px: float = 2.0
+    final_contour_tol_px: float = 1.0
+    separation_px: float = 3.0
+    #: floors of the measured segmentation σ per axis (mm at the detector), from rendered
+    #: images at the default imaging model (benchmarks/track_accuracy.py)
+    floor_point_mm: float = 0.02
+    floor_line_mm: float = 0.01
+    floor_ellipse_mm: float = 0.01
+    #: a feature whose own residual is this improbable under the noise model is dropped
+    feature_p_value: float = 1e-6
+    max_dropped: int = 2
+    #: a second labelling this close in χ² (per κ²) and far enough away makes it ambiguous
+    ambiguity_chi2: float = 9.0
+    #: the solver's maximum noise scale κ for an image pose (the model is measured here)
+    max_noise_scale: float = 3.0
+
+
+@dataclass
+class TrackResult:
+    """What :func:`track_image` found: the pose (SPEC §4, converged or not, with the
+    reason), the observation it segmented (SPEC §3), per-feature quality, the raw
+    detections (for the overlay) and diagnostics."""
+
+    pose: Pose
+    observation: Observation | None
+    quality: dict[str, Any]
+    beads: Beads | None
+    ridges: RidgePoints | None
+    polarity: str
+    noise: NoiseModel | None
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def pose_dict(self) -> dict[str, Any]:
+        """SPEC §4 object plus diagnostics (readers ignore unknown keys)."""
+        d = self.pose.to_dict()
+        d["segmentation"] = {
+            "polarity": self.polarity,
+            "noise_model_mm": None if self.noise is None else
+            {"point": self.noise.point_mm, "line": self.noise.line_mm, "ellipse": self.noise.ellipse_mm},
+            **self.diagnostics,
+        }
+        return d
+
+    def observation_dict(self) -> dict[str, Any] | None:
+        """SPEC §3 object plus ``quality`` (per feature; readers ignore unknown keys)."""
+        if self.observation is None:
+            return None
+        d = self.observation.to_dict()
+        d["quality"] = self.quality
+        return d
+
+
+def _failed(reason: str, **diag) -> Pose:
+    nan = np.full(3, np.nan)
+    return Pose(np.full((3, 3), np.nan), nan, False, float("nan"), None, {}, 0, reason)
+
+
+def scales(features: Features, camera: Camera, opts: TrackOptions) -> dict[str, float]:
+    """Expected sizes in pixels at the assumed magnification: bead radius, wire width."""
+    pix = float(np.mean(camera.pixel_size_mm))
+    m = opts.magnification
+    bead = max((p.diameter for p in features.points), default=0.0) / 2 * m / pix
+    wires = [ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses]
+    wire = (max(wires) if wires else 0.0) * m / pix
+    return {"bead_radius_px": bead, "wire_px": wire, "pixel_mm": pix, "ridge_sigma_px": max(1.0, 0.5 * wire + 0.5)}
+
+
+def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions):
+    """Background-free image, noise σ, fitted bead candidates and ridge points."""
+    sc = scales(features, camera, opts)
+    rb, wpx = sc["bead_radius_px"], sc["wire_px"]
+    disc = int(math.ceil(max(rb, wpx) + 3 * opts.blur_px + 2))
+    T = top_hat(g, disc)
+    noise = max(noise_sigma(T), 1e-9)
+    beads = None
+    if features.points:
+        P = len(features.points)
+        cand, resp = blob_candidates(T, rb, noise, 3 * P + 6, opts.bead_min_snr)
+        if len(cand):
+            # the beads are the strongest blobs; anything far weaker is a wire crossing or clutter
+            ref = np.sort(resp)[::-1][: P]
+            keep = resp >= 0.25 * float(np.median(ref))
+            cand, resp = cand[keep], resp[keep]
+        b = fit_beads(T, cand, rb, opts.blur_px, noise, resp)
+        H, W = g.shape
+        edge = rb + 2 * opts.blur_px + 1
+        ok = ((b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0) & (b.amplitude > 0)
+              & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
+              & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
+        beads = b.take(ok)
+    ridges = None
+    if features.lines or features.ellipses:
+        ridges = ridge_points(T, sc["ridge_sigma_px"], noise, opts.ridge_min_snr)
+    return T, noise, beads, ridges, sc
+
+
+def _observation(camera: Camera, beads_uv: dict[str, np.ndarray], contours: identify.Contours) -> Observation:
+    return Observation(camera, dict(beads_uv),
+                       {k: CurveObservation(points=v) for k, v in contours.lines.items()},
+                       {k: CurveObservation(points=v) for k, v in contours.ellipses.items()}, origin="<image>")
+
+
+def _match_beads(features: Features, camera: Camera, R, t, beads: Beads, tol: float, sep: float):
+    """Model bead id → blob index at pose (R, t): the nearest blob within ``tol``, one blob
+    per bead; beads projected within ``sep`` of another bead are left out (merged blobs)."""
+    out: dict[str, int] = {}
+    if not features.points or beads is None or len(beads) == 0:
+        return out, {}
+    uv, _ = identify._project(camera, R, t, features.point_centers())
+    dropped = {}
+    dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9
+    for k, p in enumerate(features.points):
+        if dd[k].min() < sep:
+            dropped[p.id] = f"projects within {dd[k].min():.1f} px of another bead"
+            continue
+        d = np.linalg.norm(beads.uv - uv[k], axis=1)
+        j = int(np.argmin(d))
+        if d[j] <= tol:
+            out[p.id] = j
+    # one blob per bead
+    used: dict[int, str] = {}
+    for fid, j in list(out.items()):
+        if j in used:
+            dropped[fid] = "shares its blob with another bead"
+            dropped[used[j]] = "shares its blob with another bead"
+            out.pop(fid, None)
+            out.pop(used[j], None)
+        else:
+            used[j] = fid
+    return out, dropped
+
+
+def _noise_model(obs: Observation, beads: Beads, match: dict[str, int], pix: float, opts: TrackOptions):
+    """Per-feature-type σ (mm at the detector) measured on this image, with floors."""
+    sig_p = [float(beads.sigma_px[j]) for j in match.values()] if match else []
+    point = max(float(np.sqrt(np.mean(np.square(sig_p)))) * pix if sig_p else 0.0, opts.floor_point_mm)
+    rss, dof = 0.0, 0
+    for c in obs.lines.values():
+        f = fit_line(c.points)
+        rss += float(f.rss)
+        dof += int(f.dof)
+    line = max(math.sqrt(rss / dof) * pix if dof > 0 else 0.0, opts.floor_line_mm)
+    rss, dof = 0.0, 0
+    for c in obs.ellipses.values():
+        f = fit_conic(c.points)
+        rss += float(f.rss)
+        dof += int(f.dof)
+    ell = max(math.sqrt(rss / dof) * pix if dof > 0 else 0.0, opts.floor_ellipse_mm)
+    return NoiseModel(point, line, ell)
+
+
+def _clean_contours(contours: identify.Contours, k: float = 4.0) -> None:
+    """Drop contour points farther than k robust σ from their own curve fit (in place)."""
+    for store in (contours.lines, contours.ellipses):
+        for fid, pts in list(store.items()):
+            for _ in range(2):
+                if store is contours.lines:
+                    f = fit_line(pts)
+                    r = (pts - f.anchor) @ f.normal + f.offset
+                else:
+                    f = fit_conic(pts)
+                    from ..pose.fitting import conic_rows, sampson_theta_jacobian
+                    pn = (pts - f.center) / f.scale
+                    r, _ = sampson_theta_jacobian(f.theta, pn[:, 0], pn[:, 1])
+                    r = np.asarray(r) * f.scale
+                s = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+                keep = np.abs(r) <= max(k * s, 0.05)
+                if keep.all() or keep.sum() < 6:
+                    break
+                pts = pts[keep]
+                contours.snr[fid] = contours.snr[fid][keep[: len(contours.snr[fid])]] if len(contours.snr[fid]) == len(keep) else contours.snr[fid]
+            store[fid] = pts
+
+
+def _feature_chi2(features: Features, obs: Observation, pose: Pose, noise: NoiseModel) -> dict[str, float]:
+    """Each feature's whitened χ² at the pose, with its degrees of freedom's p-value."""
+    prob = compile_problem(features, [obs], noise)
+    ev = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=False)
+    out = {}
+    for fid, sl in prob.row_groups():
+        c2 = float(np.sum(ev.rho[0, sl] ** 2))
+        out[fid] = float(chi2.sf(c2, sl.stop - sl.start))
+    return out
+
+
+def _solve(features: Features, obs: Observation, noise: NoiseModel, R0, t0, opts: TrackOptions) -> Pose:
+    sopts = SolverOptions(noise=noise, max_noise_scale=opts.max_noise_scale)
+    p = refine_pose(features, obs, R0, t0, sopts)
+    if not p.converged:
+        # the identification's pose was not close enough: the full robust solve
+        q = solve_pose(features, obs, sopts)
+        if q.converged or not math.isfinite(p.noise_scale):
+            p = q
+    return p
+
+
+def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHypothesis, beads: Beads,
+                         ridges: RidgePoints | None, sc: dict, opts: TrackOptions) -> dict[str, Any]:
+    """Refine one labelling into a pose with every feature it can see."""
+    R, t = h.R, h.t
+    rb = sc["bead_radius_px"]
+    blur = float(np.median(beads.blur)) if len(beads) else opts.blur_px
+    pix = sc["pixel_mm"]
+    sep = 2 * rb + 2 * opts.blur_px
+    excl = np.full(len(features.points), rb + 3 * opts.blur_px + 1.5)
+    result: dict[str, Any] = {}
+    pose = None
+    for stage in range(3):
+        match, dropped_beads = _match_beads(features, camera, R, t, beads,
+                                            opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep)
+        tol = opts.contour_tol_px if stage == 0 else opts.final_contour_tol_px
+        if ridges is not None and (features.lines or features.ellipses):
+            mag = camera.focal_length_mm / float(t[2]) if t[2] > 0 else opts.magnification
+            wr = max([ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses]) \
+                / 2 * mag / pix
+            var = sc["ridge_sigma_px"] ** 2 + blur ** 2 + wr * wr / 4
+            cont = identify.gather_contours(features, camera, R, t, ridges, excl, tol, opts.separation_px,
+                                            ridge_var_px2=var)
+            _clean_contours(cont)
+        else:
+            cont = identify.Contours()
+        obs = _observation(camera, {fid: beads.uv[j] for fid, j in match.items()}, cont)
+        if not (obs.points or obs.lines or obs.ellipses):
+            break
+        noise = _noise_model(obs, beads, match, pix, opts)
+        try:
+            pose = _solve(features, obs, noise, R, t, opts)
+        except Exception as exc:  # an unusable observation (e.g. collinear contour): stop here
+            result["error"] = f"segmented features unusable: {exc}"
+            pose = None
+            break
+        if not np.all(np.isfinite(pose.rotation)):
+            break
+        R, t = pose.rotation, pose.translation_mm
+        result.update(pose=pose, obs=obs, noise=noise, match=match, contours=cont,
+                      dropped={**dropped_beads, **cont.dropped})
+    if pose is None or "obs" not in result:
+        result.setdefault("error", "no usable features for this labelling")
+        return result
+    # per-feature test: drop the worst inconsistent feature and re-solve
+    removed: dict[str, str] = {}
+    obs, noise = result["obs"], result["noise"]
+    for _ in range(opts.max_dropped + 1):
+        pv = _feature_chi2(features, obs, pose, noise)
+        worst = min(pv, key=pv.get) if pv else None
+        if worst is None or pv[worst] >= opts.feature_p_value:
+            break
+        if len(removed) >= opts.max_dropped:
+            pose.converged = False
+            pose.error = (f"features inconsistent with the pose: {worst} (p = {pv[worst]:.1e}) after dropping "
+                          f"{', '.join(removed)}; wrong identification or segmentation")
+            break
+        removed[worst] = f"residual improbable under the measured noise (p = {pv[worst]:.1e})"
+        if len(obs.points) + len(obs.lines) + len(obs.ellipses) <= 1:
+            pose.converged = False
+            pose.error = f"no feature consistent with the pose ({worst}: p = {pv[worst]:.1e})"
+            break
+        obs = Observation(obs.camera, {k: v for k, v in obs.points.items() if k != worst},
+                          {k: v for k, v in obs.lines.items() if k != worst},
+                          {k: v for k, v in obs.ellipses.items() if k != worst}, obs.origin)
+        pose = _solve(features, obs, noise, pose.rotation, pose.translation_mm, opts)
+    result.update(pose=pose, obs=obs, removed=removed)
+    result["chi2"] = float(pose.noise_scale ** 2) * max(1, 1)
+    return result
+
+
+def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
+                 margin_px: int = 8):
+    """The acetal body's modelled density (−ln of its blurred transmission) over its
+    bounding box at pose (R, t): ``(box image, (row0, col0))``; uses the simulator's exact
+    hollow-cylinder chords (:func:`ftrac_design.xray.line_integral_box`)."""
+    from scipy.ndimage import gaussian_filter
+    from ..xray import ImagingModel, line_integral_box
+
+    p, (v0, u0) = line_integral_box(features.subset(set()), R, t, camera, ImagingModel(supersample=2), body,
+                                    margin_px=margin_px)
+    # the bead fit's blur includes the pixel's own width (variance 1/12), which the
+    # pixel-integrated line integral already has
+    s = math.sqrt(max(blur_px ** 2 - 1.0 / 12.0, 0.0))
+    I = gaussian_filter(np.exp(-p), s, mode="nearest") if s > 0 else np.exp(-p)
+    return -np.log(np.maximum(I, 1e-12)), (v0, u0)
+
+
+def _ridges_without_body(g: np.ndarray, T: np.ndarray, noise: float, features: Features, camera: Camera,
+                         R: np.ndarray, t: np.ndarray, body, blur: float, sc: dict, opts: TrackOptions):
+    """Ridge points over the body's box after subtracting its modelled projection.
+
+    The body's silhouette is a √-shaped ramp under the ellipse wires (they sit 0.3 mm
+    inside the surface); a top-hat keeps part of that ramp under a wire whose profile it
+    cannot separate from it, and the ridges shift inward — ellipses shrink (~0.3 px at σ =
+    0.8 px) and the depth comes out 1–2 mm short. With the body subtracted first (its
+    density scale fitted to the image, so display images work too) the wire sits on a flat
+    background again."""
+    B, (v0, u0) = body_density(features, camera, R, t, body, blur)
+    H, W = g.shape
+    r0, r1 = max(v0, 0), min(v0 + B.shape[0], H)
+    c0, c1 = max(u0, 0), min(u0 + B.shape[1], W)
+    if r1 - r0 < 8 or c1 - c0 < 8:
+        return None
+    gb = g[r0:r1, c0:c1].astype(np.float64)
+    Bb = B[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
+    quiet = T[r0:r1, c0:c1] < 3 * noise                 # not a wire or a bead
+    if quiet.sum() < 50 or np.ptp(Bb[quiet]) <= 0:
+        return None
+    A = np.stack([Bb[quiet], np.ones(int(quiet.sum()))], -1)
+    (scale, off), *_ = np.linalg.lstsq(A, gb[quiet], rcond=None)
+    if not scale > 0:
+        return None
+    g2 = (gb - scale * Bb).astype(np.float32)
+    disc = int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2))
+    T2 = top_hat(g2, disc)
+    rp = ridge_points(T2, sc["ridge_sigma_px"], noise, opts.ridge_min_snr)
+    rp.uv = rp.uv + np.array([c0, r0], float)
+    return rp
+
+
+def track_image(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None = None,
+                polarity_hint: str | None = None, body="auto") -> TrackResult:
+    """Segment, identify and solve one image with no initial guess.
+
+    ``image`` (H, W) as stored (raw counts or a log/display image; see
+    ``TrackOptions.polarity``); ``camera`` its intrinsics (SPEC §1). Never raises for an
+    image in which the fiducial cannot be found: the pose then has ``converged = False``
+    and the reason. ``body`` (an :class:`ftrac_design.xray.Body`, None, or "auto": from the
+    design file named in ``features.source``) lets the ridges be found on the image with the
+    body's modelled projection subtracted (see :func:`_ridges_without_body`).
+    """
+    if isinstance(body, str):
+        from ..xray.scene import body_from_source
+        body = body_from_source(features.source)
+    opts = options or TrackOptions()
+    img = np.asarray(image, dtype=np.float64)
+    sc = scales(features, camera, opts)
+    pol = opts.polarity
+    if pol == "auto":
+        pol = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(polarity_hint or "", "")
+        if not pol:
+            pol = detect_polarity(img, int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2)))
+    g = to_density(img, pol)
+    T, noise_px, beads, ridges, sc = detect(g, features, camera, opts)
+    diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
+                            "ridge_points": 0 if ridges is None else len(ridges)}
+    if not features.points:
+        return TrackResult(_failed("identification needs beads; this design has none"), None, {}, beads, ridges,
+                           pol, None, diag)
+    if beads is None or len(beads) < 3:
+        return TrackResult(_failed(f"no fiducial found: {0 if beads is None else len(beads)} bead-like blobs "
+                                   f"(need at least 3 of {len(features.points)})"), None, {}, beads, ridges, pol,
+                           None, diag)
+    hyps = identify.bead_hypotheses(features.point_centers(), beads.uv, camera,
+                                    opts.hypothesis_tol_radii * max(sc["bead_radius_px"], 2.0))
+    if not hyps:
+        return TrackResult(_failed(f"no fiducial found: {len(beads)} blobs, none matching the bead layout"), None,
+                           {}, beads, ridges, pol, None, diag)
+    # refine the best distinct labellings; the winner must beat the others clearly
+    evaluated = []
+    seen_poses: list[tuple[np.ndarray, np.ndarray]] = []
+    for h in hyps[:4]:
+        if h.count < max(4, hyps[0].count - 2):
+            continue
+        r = _evaluate_hypothesis(features, camera, h, beads, ridges, sc, opts)
+        if "pose" not in r:
+            continue
+        p = r["pose"]
+        if any(so3.angle(p.rotation, R0) < math.radians(0.5) and np.linalg.norm(p.translation_mm - t0) < 2.0
+               for R0, t0 in seen_poses):
+            continue
+        seen_poses.append((p.rotation, p.translation_mm))
+        evaluated.append(r)
+    if not evaluated:
+        return TrackResult(_failed("no bead labelling led to a pose"), None, {}, beads, ridges, pol, None, diag)
+
+    def key(r):
+        p = r["pose"]
+        nfeat = len(r["obs"].points) + len(r["obs"].lines) + len(r["obs"].ellipses)
+        return (not p.converged, -nfeat, p.noise_scale if math.isfinite(p.noise_scale) else math.inf)
+
+    evaluated.sort(key=key)
+    best = evaluated[0]
+    if body is not None and ridges is not None and np.all(np.isfinite(best["pose"].rotation)):
+        blur = float(np.median(beads.blur))
+        p0 = best["pose"]
+        rp2 = _ridges_without_body(g, T, noise_px, features, camera, p0.rotation, p0.translation_mm, body, blur, sc,
+                                   opts)
+        if rp2 is not None and len(rp2):
+            # ridge points outside the body's box stay as they were
+            H, W = g.shape
+            h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
+            lo, hi = rp2.uv.min(0) - 1, rp2.uv.max(0) + 1
+            outside = ~((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)
+            merged = RidgePoints(np.concatenate([ridges.uv[outside], rp2.uv]),
+                                 np.concatenate([ridges.normal[outside], rp2.normal]),
+                                 np.concatenate([ridges.strength[outside], rp2.strength]),
+                                 np.concatenate([ridges.snr[outside], rp2.snr]))
+            r2 = _evaluate_hypothesis(features, camera, h2, beads, merged, sc, opts)
+            if "pose" in r2 and (r2["pose"].converged or not best["pose"].converged):
+                others = [e for e in evaluated[1:]]
+                best = r2
+                ridges = merged
+                evaluated = [best] + others
+                diag["body_subtracted"] = True
+    pose = best["pose"]
+    if pose.converged and len(evaluated) > 1:
+        for other in evaluated[1:]:
+            q = other["pose"]
+            if not q.converged:
+                continue
+            nb = len(best["obs"].points) + len(best["obs"].lines) + len(best["obs"].ellipses)
+            no = len(other["obs"].points) + len(other["obs"].lines) + len(other["obs"].ellipses)
+            if no < nb:
+                continue
+            dang = math.degrees(float(so3.angle(q.rotation, pose.rotation)))
+            dt = float(np.linalg.norm(q.translation_mm - pose.translation_mm))
+            if dang > 1.0 or dt > 3.0:
+                # both answers go out, so a user with a prior (e.g. the C-arm's own angles)
+                # can choose; a design with a symmetry (nine_bead's helix has a two-fold
+                # axis) is ambiguous by construction
+                diag["alternatives"] = [
+                    {"rotation": x["pose"].rotation.tolist(), "translation_mm": x["pose"].translation_mm.tolist(),
+                     "noise_scale": float(x["pose"].noise_scale)} for x in (best, other)]
+                pose.converged = False
+                pose.error = (f"ambiguous identification: another labelling {dang:.1f}° and {dt:.1f} mm away "
+                              f"explains the image as well (noise scale {q.noise_scale:.2f} vs "
+                              f"{pose.noise_scale:.2f})")
+                break
+    obs = best["obs"]
+    match = best.get("match", {})
+    quality: dict[str, Any] = {"points": {}, "lines": {}, "ellipses": {}}
+    pix = sc["pixel_mm"]
+    for fid, j in match.items():
+        if fid in obs.points:
+            quality["points"][fid] = {"sigma_px": float(beads.sigma_px[j]), "radius_px": float(beads.radius[j]),
+                                      "blur_px": float(beads.blur[j]), "snr": float(beads.response[j])}
+    cont = best["contours"]
+    for store, name in ((obs.lines, "lines"), (obs.ellipses, "ellipses")):
+        for fid, c in store.items():
+            quality[name][fid] = {"snr": [round(float(x), 1) for x in cont.snr.get(fid, [])][: len(c.points)]}
+    diag.update({
+        "hypotheses": len(hyps),
+        "labellings_tested": len(evaluated),
+        "beads_matched": len(obs.points),
+        "dropped": best.get("dropped", {}),
+        "rejected": best.get("removed", {}),
+        "pixel_noise": float(noise_px),
+    })
+    return TrackResult(pose, obs, quality, beads, ridges, pol, best["noise"], diag)

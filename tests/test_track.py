@@ -1,0 +1,188 @@
+"""`ftrac-design track` end to end on rendered images, and its failure modes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ftrac_design.cli.main import main
+from ftrac_design.design import load_design
+from ftrac_design.features import compute_features, write_features
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.segment.pipeline import track_image
+from ftrac_design.xray import Body, render, write_image
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _preset(name):
+    d = load_design(ROOT / "models" / f"{name}.toml")
+    return compute_features(d), Body.from_design(d)
+
+
+@pytest.fixture(scope="module")
+def f2005():
+    return _preset("ftrac_2005")
+
+
+@pytest.fixture(scope="module")
+def features_json(tmp_path_factory, f2005):
+    p = tmp_path_factory.mktemp("feat") / "features.json"
+    write_features(p, f2005[0])
+    return p
+
+
+def _pose(features, seed):
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(seed))
+    return R[0], t[0]
+
+
+@pytest.mark.parametrize("seed", [1, 5])
+def test_track_recovers_ftrac_2005_pose_no_initial_guess(f2005, seed):
+    features, body = f2005
+    R, t = _pose(features, seed)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed), body=body)
+    res = track_image(rad.raw, features, Camera(), body=body)
+    assert res.pose.converged, res.pose.error
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    assert np.degrees(np.linalg.norm(dr)) < 0.1
+    assert np.all(np.abs(dt[:2]) < 0.1) and abs(dt[2]) < 1.0
+    # the covariance is honest to within a few σ (the image-path noise model is measured)
+    assert abs(dt[2]) < 5 * res.pose.std_mm[2] + 0.05
+
+
+def test_nine_bead_symmetry_is_reported_not_guessed():
+    """nine_bead's helix has a two-fold axis: B1…B9 and B9…B1 give the same image, so the
+    pose is ambiguous by construction. track must say so, and offer the true pose among
+    its alternatives."""
+    features, body = _preset("nine_bead")
+    R, t = _pose(features, 2)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(2), body=body)
+    res = track_image(rad.raw, features, Camera(), body=body)
+    assert not res.pose.converged and "ambiguous" in res.pose.error
+    alts = res.diagnostics["alternatives"]
+    errs = [np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R, t)[0]))
+            for a in alts]
+    assert min(errs) < 0.2
+
+
+def test_scrambled_image_is_not_a_confident_pose(f2005):
+    """Beads moved off their wires (a different, wrong fiducial) must not give a converged pose."""
+    features, body = f2005
+    from ftrac_design.features.model import PointFeature
+    from dataclasses import replace
+    rng = np.random.default_rng(4)
+    moved = tuple(PointFeature(p.id, p.center + np.r_[rng.uniform(-3, 3, 2), 0.0], p.diameter, p.line)
+                  for p in features.points)
+    wrong = replace(features, points=moved)
+    R, t = _pose(features, 4)
+    rad = render(wrong, R, t, Camera(), rng=np.random.default_rng(4), body=body)
+    res = track_image(rad.raw, features, Camera(), body=body)
+    if res.pose.converged:
+        # the only acceptable confident answer is one that is right
+        dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+        assert np.degrees(np.linalg.norm(dr)) < 0.5 and np.linalg.norm(dt) < 2.0
+
+
+def _run(args, capsys):
+    rc = main(args)
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+def test_cli_png_with_overlay_and_jsonl(tmp_path, f2005, features_json, capsys):
+    features, body = f2005
+    imgs = []
+    for seed in (1, 3):
+        R, t = _pose(features, seed)
+        rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed), body=body)
+        p = tmp_path / f"img{seed}.png"
+        write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
+        imgs.append((p, R, t))
+    out = tmp_path / "out" / "poses.jsonl"
+    rc, so, se = _run(["track", "--features", str(features_json), *[str(p) for p, _, _ in imgs], "-o", str(out),
+                       "--overlay"], capsys)
+    assert rc == 0, se
+    lines = [json.loads(x) for x in out.read_text().splitlines()]
+    assert len(lines) == 2 and all(d["converged"] for d in lines)
+    for d, (_, R, t) in zip(lines, imgs):
+        assert d["format"] == "ftrac-pose"
+        assert np.allclose(d["translation_mm"][:2], t[:2], atol=0.1)
+    obs = (tmp_path / "out" / "poses.observations.jsonl").read_text().splitlines()
+    assert len(obs) == 2 and json.loads(obs[0])["format"] == "ftrac-observation"
+    assert (tmp_path / "out" / "poses_img1_overlay.png").stat().st_size > 10_000
+    # the observation it wrote solves to the same pose with `solve`
+    one = tmp_path / "one.json"
+    one.write_text(obs[0])
+    rc2, _, se2 = _run(["solve", "--features", str(features_json), str(one), "-o", str(tmp_path / "p.json")], capsys)
+    assert rc2 == 0, se2
+
+
+def test_cli_no_fiducial_exits_1_with_one_line_and_a_pose_object(tmp_path, features_json, capsys):
+    rng = np.random.default_rng(0)
+    img = rng.poisson(8000, (256, 256)).astype(np.uint16)
+    p = tmp_path / "blank.npy"
+    np.save(p, img)
+    cam = tmp_path / "cam.json"
+    cam.write_text(json.dumps(Camera(principal_point_px=(128.0, 128.0)).to_dict()))
+    out = tmp_path / "pose.json"
+    rc, so, se = _run(["track", "--features", str(features_json), str(p), "--camera", str(cam), "-o", str(out)],
+                      capsys)
+    assert rc == 1
+    assert len(se.strip().splitlines()) == 1 and "not found" in se
+    d = json.loads(out.read_text())
+    assert d["converged"] is False and d["rotation"] is None and d["error"]
+
+
+def test_cli_truncated_fiducial_exits_1(tmp_path, f2005, features_json, capsys):
+    """The fiducial at the image's edge with most of it outside (≤ 2 beads in view): not
+    found (exit 1)."""
+    features, body = f2005
+    R, t = _pose(features, 6)
+    t = t.copy()
+    # put the origin 60 px beyond the left edge: the beads fall outside the image
+    t[0] = (-60 - 512) * 0.44 / 1000 * t[2]
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(6), body=body)
+    p = tmp_path / "trunc.png"
+    write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
+    out = tmp_path / "pose.json"
+    rc, so, se = _run(["track", "--features", str(features_json), str(p), "-o", str(out)], capsys)
+    assert rc == 1, se
+    assert len(se.strip().splitlines()) == 1
+    assert json.loads(out.read_text())["converged"] is False
+
+
+def test_cli_bad_inputs_exit_2_and_write_nothing(tmp_path, f2005, features_json, capsys):
+    features, body = f2005
+    bad = tmp_path / "bad.png"
+    bad.write_bytes(b"not a png at all")
+    out = tmp_path / "o" / "pose.json"
+    rc, so, se = _run(["track", "--features", str(features_json), str(bad), "-o", str(out)], capsys)
+    assert rc == 2 and len(se.strip().splitlines()) == 1 and "bad.png" in se
+    assert not out.parent.exists() or not any(out.parent.iterdir())
+    # a PNG with no camera and no --camera
+    R, t = _pose(features, 1)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1), body=body)
+    nocam = tmp_path / "nocam.png"
+    write_image(nocam, rad.raw)
+    rc, so, se = _run(["track", "--features", str(features_json), str(nocam), "-o", str(out)], capsys)
+    assert rc == 2 and "camera" in se and len(se.strip().splitlines()) == 1
+    assert not out.exists()
+    # a DICOM without ImagerPixelSpacing
+    import pydicom
+    dcm = tmp_path / "img.dcm"
+    write_image(dcm, rad.raw, camera=Camera())
+    ds = pydicom.dcmread(dcm)
+    del ds.ImagerPixelSpacing
+    ds.save_as(dcm)
+    # a good image first and the bad DICOM second: still nothing written
+    good = tmp_path / "good.png"
+    write_image(good, rad.raw, camera=Camera(), polarity="dense_dark")
+    rc, so, se = _run(["track", "--features", str(features_json), str(good), str(dcm), "-o", str(out), "--overlay"],
+                      capsys)
+    assert rc == 2 and "ImagerPixelSpacing" in se and len(se.strip().splitlines()) == 1
+    assert not out.exists() and not any(p.name.endswith(".png") for p in out.parent.glob("*"))
