@@ -165,6 +165,8 @@ class Contours:
     snr: dict[str, np.ndarray] = field(default_factory=dict)
     #: curves whose projection is covered by another feature too much to use
     dropped: dict[str, str] = field(default_factory=dict)
+    #: curves with hardly any ridge point near their prediction at all: evidence against the pose
+    missing: list[str] = field(default_factory=list)
 
 
 def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
@@ -267,6 +269,8 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         kind = curves[fid][0]
         if sel.sum() < min_points:
             cover = near[k].sum()
+            if cover < min_points:
+                out.missing.append(fid)
             out.dropped[fid] = (f"{int(sel.sum())} usable contour points ({int(cover)} near it; the rest lie on "
                                 f"beads or other wires)")
             continue

@@ -480,6 +480,17 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                               f"{pose.noise_scale:.2f})")
                 break
     obs = best["obs"]
+    cont = best["contours"]
+    n_curves = len(features.lines) + len(features.ellipses)
+    if pose.converged and n_curves and len(cont.missing) >= max(2, (n_curves + 1) // 2):
+        # the labelling predicts wires where the image has none: the beads were misread
+        pose.converged = False
+        pose.error = (f"identification not confirmed: no wire found where the pose puts "
+                      f"{', '.join(cont.missing)}")
+    if pose.converged and len(obs.points) < 6 and not (obs.lines or obs.ellipses):
+        pose.converged = False
+        pose.error = (f"too little evidence: {len(obs.points)} beads and no wires cannot verify a labelling "
+                      f"(need ≥ 6 beads, or wires)")
     match = best.get("match", {})
     quality: dict[str, Any] = {"points": {}, "lines": {}, "ellipses": {}}
     pix = sc["pixel_mm"]
@@ -487,7 +498,6 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
         if fid in obs.points:
             quality["points"][fid] = {"sigma_px": float(beads.sigma_px[j]), "radius_px": float(beads.radius[j]),
                                       "blur_px": float(beads.blur[j]), "snr": float(beads.response[j])}
-    cont = best["contours"]
     for store, name in ((obs.lines, "lines"), (obs.ellipses, "ellipses")):
         for fid, c in store.items():
             quality[name][fid] = {"snr": [round(float(x), 1) for x in cont.snr.get(fid, [])][: len(c.points)]}

@@ -1,0 +1,80 @@
+"""Time per 1024 × 1024 image: render, and segment + identify + solve (`track_image`).
+
+Baseline in the same run: scikit-image's Hough line transform on the same image's
+edges, and its Hough ellipse detector on a 96 × 96 crop around one ellipse (on the whole
+1024² image it does not finish in minutes: its cost grows with the square of the edge
+pixels), and the paper's figures (semi-automatic segmentation 10–15 s, solve 3.5 s).
+Best of three rounds per phase; the machine is shared, so every round is printed.
+
+    .venv/bin/python benchmarks/track_speed.py --n 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ftrac_design.design import load_design
+from ftrac_design.features import compute_features
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace
+from ftrac_design.segment.pipeline import track_image
+from ftrac_design.xray import Body, render
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=10)
+    ap.add_argument("--rounds", type=int, default=3)
+    a = ap.parse_args()
+    design = load_design(ROOT / "models" / "ftrac_2005.toml")
+    features = compute_features(design)
+    body = Body.from_design(design)
+    R, t = Workspace().sample(a.n, features.nominal_beam_direction, np.random.default_rng(0))
+    cam = Camera()
+    rads = [render(features, R[k], t[k], cam, rng=np.random.default_rng(k), body=body) for k in range(a.n)]
+    track_image(rads[0].raw, features, cam, body=body)  # warm-up (imports, caches)
+    rr, tr = [], []
+    for r in range(a.rounds):
+        t0 = time.perf_counter()
+        for k in range(a.n):
+            render(features, R[k], t[k], cam, rng=np.random.default_rng(k), body=body)
+        t1 = time.perf_counter()
+        for k in range(a.n):
+            track_image(rads[k].raw, features, cam, body=body)
+        t2 = time.perf_counter()
+        rr.append((t1 - t0) / a.n)
+        tr.append((t2 - t1) / a.n)
+        print(f"round {r + 1}: render {1000 * rr[-1]:.0f} ms, image → pose {1000 * tr[-1]:.0f} ms per image")
+    # baselines on the first image
+    from skimage.feature import canny
+    from skimage.transform import hough_ellipse, hough_line, hough_line_peaks
+    img = rads[0].log_image
+    t0 = time.perf_counter()
+    edges = canny(img, sigma=1.5)
+    h, ang, dist = hough_line(edges)
+    hough_line_peaks(h, ang, dist, num_peaks=3)
+    t_line = time.perf_counter() - t0
+    c = np.array(rads[0].truth["projected"]["ellipses"]["E1"]["center"]).round().astype(int)
+    crop = img[c[1] - 48:c[1] + 48, c[0] - 48:c[0] + 48]
+    t0 = time.perf_counter()
+    ce = canny(crop, sigma=1.5)
+    hough_ellipse(ce, accuracy=20, threshold=50, min_size=20, max_size=60)
+    t_ell = time.perf_counter() - t0
+    print(f"\nbest of {a.rounds} rounds, {a.n} images of ftrac_2005 (1024²), shared 2-core machine:")
+    print(f"  render             {1000 * min(rr):7.0f} ms per image (target ≤ 50 ms)")
+    print(f"  image → pose       {1000 * min(tr):7.0f} ms per image (target ≤ 100 ms)")
+    print(f"  baseline: skimage canny + hough_line on the 1024² image {1000 * t_line:.0f} ms (lines only, no sub-pixel, "
+          f"no identification)")
+    print(f"  baseline: skimage canny + hough_ellipse on a 96² crop around E1: {1000 * t_ell:.0f} ms "
+          f"({int(ce.sum())} edge pixels; one ellipse, no identification)")
+    print("  paper: semi-automatic segmentation 10–15 s, solve 3.5 s per image")
+
+
+if __name__ == "__main__":
+    main()
