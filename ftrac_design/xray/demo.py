@@ -31,7 +31,7 @@ def demo_step(out_dir: Path, seed: int = 2005) -> str:
     ms = (time.perf_counter() - t0) * 1e3
     img.truth["background"] = f"anatomy seed {seed}"
     png = write_image(out_dir / "radiograph.png", img.log_image, img.camera, polarity="dense_bright",
-                      bit_depth=16, value_range=(0.0, 4.0), quantity="log")
+                      bit_depth=16, value_range=(0.0, 6.0), quantity="log")
     write_truth(out_dir / "radiograph.truth.json", img.truth)
     beam = R[0][2]
     tilt = np.degrees(np.arccos(np.clip(beam @ features.nominal_beam_direction, -1, 1)))
