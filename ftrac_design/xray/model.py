@@ -85,11 +85,14 @@ class ImagingModel:
         return 0.8 * self.full_scale / n0
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (truth.json ``imaging``); ``photons_per_px`` None when noise-free."""
+        """JSON-ready dict (truth.json ``imaging``); ``photons_per_px`` None when noise-free; adds the
+        derived ``mu_per_mm`` (coefficients in effect) and ``raw_gain`` (raw units per quantum)."""
         d = asdict(self)
         d["image_shape"] = list(self.image_shape)
         d["photons_per_px"] = self.photons_per_px if self.noisy else None
-        d["attenuation_per_mm"] = {m: self.mu(m) for m in ("steel", "acetal")} | dict(self.attenuation_per_mm or {})
+        d["attenuation_per_mm"] = None if self.attenuation_per_mm is None else dict(self.attenuation_per_mm)
+        # the coefficients in effect (derived; from_dict ignores them)
+        d["mu_per_mm"] = {m: self.mu(m) for m in ("steel", "acetal")} | dict(self.attenuation_per_mm or {})
         d["raw_gain"] = self.raw_gain
         return d
 

@@ -293,7 +293,7 @@ def render(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Ca
         if bg.shape != (H, W):
             raise ValueError(f"background: an image of shape {(H, W)}, got {bg.shape}")
         I = I * np.exp(-bg)
-    line_integral = -np.log(I.astype(np.float64))
+    line_integral = 0.0 - np.log(I.astype(np.float64))      # 0.0 − keeps +0 where nothing is
     gain = imaging.raw_gain
     if imaging.noisy:
         rng = rng if rng is not None else np.random.default_rng()
