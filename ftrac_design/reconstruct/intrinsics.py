@@ -202,7 +202,8 @@ def _camera_from(camera: Camera, intr: np.ndarray) -> Camera:
 
 def estimate(features: Features, observations: list[Observation], camera: Camera | None = None,
              params: tuple[str, ...] = ("f", "ox", "oy"), options: SolverOptions | None = None,
-             max_iterations: int = 50, min_images: int = 2) -> IntrinsicsEstimate:
+             max_iterations: int = 50, min_images: int = 2,
+             max_relative_std: float = MAX_RELATIVE_STD) -> IntrinsicsEstimate:
     """Joint ML estimate of N poses and shared intrinsics ``params`` from N images.
 
     ``camera`` (default: the first observation's) is the starting calibration; each image is
@@ -212,7 +213,7 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
     fewer than ``min_images`` images were solved, when the normal matrix is rank-deficient
     (scaled condition number > :data:`MAX_CONDITION`), when the residuals stay above the
     solver's ``max_noise_scale`` (the model does not fit: other intrinsics off, distortion),
-    or when the data bound an intrinsic no better than :data:`MAX_RELATIVE_STD` of fx.
+    or when the data bound an intrinsic no better than ``max_relative_std`` of fx.
     """
     opts = options or SolverOptions()
     obs = list(observations)
@@ -322,10 +323,10 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
         return refuse(f"residuals stay {kappa:.3g} times the noise model with {', '.join(params)} estimated: "
                       f"other intrinsics (or distortion) are off, or the segmentation is worse than modelled", std,
                       cond, corr)
-    if not np.all(std < MAX_RELATIVE_STD * intr[0]):
+    if not np.all(std < max_relative_std * intr[0]):
         worst = int(np.argmax(std / intr[0]))
         return refuse(f"the images bound {params[worst]} only to ±{std[worst]:.3g} px "
-                      f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * MAX_RELATIVE_STD:g} %; correlation with "
+                      f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * max_relative_std:g} %; correlation with "
                       f"depth {np.abs(corr[:, worst]).max():.3f}): add images from other directions or keep the "
                       f"nominal calibration", std, cond, corr)
     return IntrinsicsEstimate(True, None, tuple(params), _camera_from(cam0, intr), intr, std, R, t, pose_cov,
