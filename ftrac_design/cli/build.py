@@ -17,7 +17,9 @@ from ..cad.profiles import PROFILES
               help="manufacturing profile: sets groove widths and pocket diameters")
 @click.option("--force", is_flag=True, default=False,
               help="build even if the design breaks a manufacturing rule")
-def command(design: Path, output: Path | None, profile: str, force: bool) -> int:
+@click.option("--report", is_flag=True, default=False,
+              help="also write report.html (one self-contained page; runs the analysis at the design's settings)")
+def command(design: Path, output: Path | None, profile: str, force: bool, report: bool) -> int:
     """Build the fiducial body, wires and beads of DESIGN.toml.
 
     Writes fiducial.step, fiducial.stl, assembly.step (body, wires, beads as named,
@@ -37,4 +39,8 @@ def command(design: Path, output: Path | None, profile: str, force: bool) -> int
     click.echo(f"  {'manifest.json':<15}")
     click.echo(f"  body {vol['body']:.1f} mm3, wires {vol['wires']:.2f} mm3, beads {vol['beads']:.2f} mm3; "
                f"wire {m['wires']['total_length_mm']:.1f} mm, {m['beads']['count']} beads")
+    if report:
+        from ..report import report_for_build
+
+        click.echo(f"  wrote {report_for_build(result.out_dir, design=d)}")
     return 0

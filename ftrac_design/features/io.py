@@ -22,6 +22,11 @@ VERSION = 1
 
 #: tolerance on |axis| = 1 and major·minor = 0 when reading (files carry 17 digits)
 _ORTHO_TOL = 1e-6
+#: largest |coordinate| or size accepted, mm: a fiducial is centimetres across and its
+#: frames reach across an operating table; 1e300 would overflow every product downstream
+LIMIT_MM = 1e4
+#: smallest semi-axis or line length accepted, mm (a feature below a micron is no feature)
+MIN_SIZE_MM = 1e-3
 
 
 def _vec(v: np.ndarray) -> list[float]:
@@ -78,11 +83,15 @@ class _Reader:
             raise self.fail(f"{where}.{key}" if where else key, "a value (the key is required)")
         return obj[key]
 
-    def number(self, v: Any, key: str, positive: bool = False) -> float:
+    def number(self, v: Any, key: str, positive: bool = False, minimum: float | None = None) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise self.fail(key, f"a finite number, got {v!r}")
         if positive and not v > 0:
             raise self.fail(key, f"a positive number, got {v!r}")
+        if abs(v) > LIMIT_MM:
+            raise self.fail(key, f"a number within ±{LIMIT_MM:g} (mm), got {v!r}")
+        if minimum is not None and not v >= minimum:
+            raise self.fail(key, f"a value of at least {minimum:g} (mm), got {v!r}")
         return float(v)
 
     def vector(self, v: Any, key: str, n: int = 3) -> np.ndarray:
@@ -118,6 +127,9 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
     design = r.get(d, "design", "", {})
     if not isinstance(design, dict):
         raise r.fail("design", "a JSON object")
+    for key in ("name", "source", "sha256"):
+        if design.get(key) is not None and not isinstance(design[key], str):
+            raise r.fail(f"design.{key}", f"a string, got {design[key]!r}")
     name = design.get("name") or "unnamed"
     beam = r.vector(r.get(d, "nominal_beam_direction", ""), "nominal_beam_direction")
     if np.linalg.norm(beam) < 1e-9:
@@ -138,9 +150,9 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         ident = new_id(o, w)
         s = r.vector(r.get(o, "start", w), f"{w}.start")
         e = r.vector(r.get(o, "end", w), f"{w}.end")
-        if np.linalg.norm(e - s) < 1e-9:
-            raise r.fail(f"{w}.end", "an end-point distinct from start")
-        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter")))
+        if np.linalg.norm(e - s) < MIN_SIZE_MM:
+            raise r.fail(f"{w}.end", f"an end-point at least {MIN_SIZE_MM:g} mm from start")
+        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)))
     line_ids = {ln.id for ln in lines}
 
     points = []
@@ -148,10 +160,10 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         w = f"points[{i}]"
         ident = new_id(o, w)
         line = r.get(o, "line", w, None)
-        if line is not None and line not in line_ids:
+        if line is not None and (not isinstance(line, str) or line not in line_ids):
             raise r.fail(f"{w}.line", f"the id of a line in this file, got {line!r}")
         points.append(PointFeature(ident, r.vector(r.get(o, "center", w), f"{w}.center"),
-                                   r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter"), line))
+                                   r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter", minimum=0.0), line))
 
     ellipses = []
     for i, o in enumerate(r.items(d, "ellipses")):
@@ -165,12 +177,12 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
                 raise r.fail(f"{w}.{key}", f"a unit vector, |{key}| = {np.linalg.norm(ax):.9g}")
         if abs(float(u @ v)) > _ORTHO_TOL:
             raise r.fail(f"{w}.minor_axis", f"a vector orthogonal to major_axis (dot = {float(u @ v):.3g})")
-        a = r.number(r.get(o, "semi_major", w), f"{w}.semi_major", positive=True)
-        b = r.number(r.get(o, "semi_minor", w), f"{w}.semi_minor", positive=True)
+        a = r.number(r.get(o, "semi_major", w), f"{w}.semi_major", minimum=MIN_SIZE_MM)
+        b = r.number(r.get(o, "semi_minor", w), f"{w}.semi_minor", minimum=MIN_SIZE_MM)
         if b > a * (1 + 1e-12):
             raise r.fail(f"{w}.semi_minor", f"a value not above semi_major ({a}), got {b}")
         ellipses.append(EllipseFeature(ident, c, u, v, a, b,
-                                       r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter")))
+                                       r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)))
 
     frames = {}
     fr = r.get(d, "frames", "", {})

@@ -22,6 +22,13 @@ from .camera import Camera
 FORMAT = "ftrac-observation"
 VERSION = 1
 
+#: largest |pixel coordinate| accepted (points, contours, principal point, curve positions).
+#: Detectors are ~10^3–10^4 px across; a coordinate beyond this is a unit or export error,
+#: and squaring it (conic fits use u⁴) would overflow double precision long before 1e300.
+PIXEL_LIMIT = 1e6
+#: accepted focal length in pixels, f / s (a C-arm has ~2,000–5,000)
+FOCAL_PX_RANGE = (1.0, 1e8)
+
 
 @dataclass
 class CurveObservation:
@@ -79,6 +86,22 @@ def _vec(v: Any, n: int, origin: str, key: str) -> np.ndarray:
     return np.array([_num(x, origin, f"{key}[{i}]") for i, x in enumerate(v)])
 
 
+def _pixel(v: Any, origin: str, key: str) -> np.ndarray:
+    """A [u, v] pixel position within ±PIXEL_LIMIT."""
+    uv = _vec(v, 2, origin, key)
+    if np.abs(uv).max() > PIXEL_LIMIT:
+        raise InputError(origin, key, f"pixel coordinates within ±{PIXEL_LIMIT:.0e} px, got {_short(v)}")
+    return uv
+
+
+def _scaled(c: np.ndarray, origin: str, key: str) -> np.ndarray:
+    """Homogeneous coefficients scaled to max |c| = 1 (the same curve; no overflow later)."""
+    m = np.abs(c).max()
+    if not m > 0:
+        raise InputError(origin, key, "coefficients that are not all zero")
+    return c / m
+
+
 def _short(v: Any) -> str:
     s = json.dumps(v) if not isinstance(v, float) else repr(v)
     return s if len(s) <= 40 else s[:37] + "..."
@@ -89,7 +112,7 @@ def _pts(v: Any, origin: str, key: str, minimum: int) -> np.ndarray:
         raise InputError(origin, key, f"a list of [u, v] pixel pairs, got {_short(v)}")
     if len(v) < minimum:
         raise InputError(origin, key, f"at least {minimum} contour points to fit, got {len(v)}")
-    return np.array([_vec(p, 2, origin, f"{key}[{i}]") for i, p in enumerate(v)])
+    return np.array([_pixel(p, origin, f"{key}[{i}]") for i, p in enumerate(v)])
 
 
 def _curve(v: Any, origin: str, key: str, coef_key: str, ncoef: int, minimum: int) -> CurveObservation:
@@ -104,14 +127,38 @@ def _curve(v: Any, origin: str, key: str, coef_key: str, ncoef: int, minimum: in
         if spread <= 0:
             raise InputError(origin, f"{key}.points", "contour points that are not all the same pixel")
         return CurveObservation(points=pts)
-    c = _vec(v[coef_key], ncoef, origin, f"{key}.{coef_key}")
-    if coef_key == "coefficients" and np.hypot(c[0], c[1]) == 0:
-        raise InputError(origin, f"{key}.{coef_key}", "A and B not both zero")
+    where = f"{key}.{coef_key}"
+    c = _scaled(_vec(v[coef_key], ncoef, origin, where), origin, where)
+    if coef_key == "coefficients":
+        # |C| / |(A, B)| is the line's distance from pixel (0, 0); scaled, |(A, B)| ≤ 1e-12
+        # means a line beyond 1e12 px or no line at all
+        ab = math.hypot(c[0], c[1])
+        if not ab > 1e-12 or abs(c[2]) / ab > 2 * PIXEL_LIMIT:
+            raise InputError(origin, where, f"a line (A, B not both zero) passing within "
+                                            f"{2 * PIXEL_LIMIT:.0e} px of pixel (0, 0)")
+        c = c / ab
     if coef_key == "conic":
-        A, B, C = c[0], c[1], c[2]
-        if not 4 * A * C - B * B > 0:
-            raise InputError(origin, f"{key}.{coef_key}", "the coefficients of an ellipse (4AC − B² > 0)")
+        _check_ellipse(c, origin, where)
     return CurveObservation(coefficients=c)
+
+
+def _check_ellipse(c: np.ndarray, origin: str, key: str) -> None:
+    """A real, non-degenerate ellipse whose centre and size are pixel-sized (c scaled)."""
+    A, B, C, D, E, F = c
+    det2 = 4 * A * C - B * B
+    if not det2 > 0:
+        raise InputError(origin, key, "the coefficients of an ellipse (4AC − B² > 0)")
+    # centre: the gradient vanishes; value there F0; real points iff F0 has A's opposite sign
+    u0 = (B * E - 2 * C * D) / det2
+    v0 = (B * D - 2 * A * E) / det2
+    F0 = F + (D * u0 + E * v0) / 2
+    if not (F0 * A < 0):
+        raise InputError(origin, key, "the coefficients of an ellipse with real points (it is empty or one point)")
+    ev = np.linalg.eigvalsh(np.array([[A, B / 2], [B / 2, C]]))
+    semi = np.sqrt(-F0 / ev) if A > 0 else np.sqrt(F0 / -ev)
+    if max(abs(u0), abs(v0), semi.max()) > PIXEL_LIMIT or not semi.min() > 0:
+        raise InputError(origin, key, f"an ellipse within ±{PIXEL_LIMIT:.0e} px (centre ({u0:.3g}, {v0:.3g}), "
+                                      f"semi-axes {semi.max():.3g}, {semi.min():.3g} px)")
 
 
 def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
@@ -132,11 +179,15 @@ def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
             raise InputError(origin, f"camera.{k}", "a value (the key is required)")
     f = _num(cam["focal_length_mm"], origin, "camera.focal_length_mm")
     px = _vec(cam["pixel_size_mm"], 2, origin, "camera.pixel_size_mm")
-    pp = _vec(cam["principal_point_px"], 2, origin, "camera.principal_point_px")
+    pp = _pixel(cam["principal_point_px"], origin, "camera.principal_point_px")
     if f <= 0:
         raise InputError(origin, "camera.focal_length_mm", f"a positive number, got {f}")
     if px.min() <= 0:
         raise InputError(origin, "camera.pixel_size_mm", f"positive numbers, got {px.tolist()}")
+    lo, hi = FOCAL_PX_RANGE
+    if not lo <= f / px.max() <= f / px.min() <= hi:
+        raise InputError(origin, "camera", f"focal_length_mm / pixel_size_mm (the focal length in pixels) "
+                                           f"between {lo:g} and {hi:g}, got {f / px.max():.3g}–{f / px.min():.3g}")
     camera = Camera(f, (float(px[0]), float(px[1])), (float(pp[0]), float(pp[1])))
 
     def section(name: str) -> dict:
@@ -145,7 +196,7 @@ def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
             raise InputError(origin, name, "an object keyed by feature id")
         return v
 
-    points = {k: _vec(v, 2, origin, f"points.{k}") for k, v in section("points").items()}
+    points = {k: _pixel(v, origin, f"points.{k}") for k, v in section("points").items()}
     lines = {k: _curve(v, origin, f"lines.{k}", "coefficients", 3, 2) for k, v in section("lines").items()}
     ellipses = {k: _curve(v, origin, f"ellipses.{k}", "conic", 6, 5) for k, v in section("ellipses").items()}
     for sec, keys, earlier in (("lines", lines, set(points)), ("ellipses", ellipses, set(points) | set(lines))):

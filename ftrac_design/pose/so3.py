@@ -55,6 +55,8 @@ def _exp_one(x: float, y: float, z: float) -> np.ndarray:
         a, b = 1.0 - th2 / 6.0, 0.5 - th2 / 24.0
     else:
         th = math.sqrt(th2)
+        if th == math.inf:  # math.sin raises here; NaN out, as the batched path gives
+            return np.full((3, 3), math.nan)
         a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th2
     d = 1.0 - b * th2
     return np.array([[d + b * x * x, b * x * y - a * z, b * x * z + a * y],
