@@ -105,7 +105,7 @@ def test_concentric_circles_and_a_bead_at_their_centre():
     R, t = _facing()
     pc = pair_clearances(f, CAM, R, t)
     sag = pc.sampling_error_px
-    assert 0 < sag < 0.05 and np.isclose(sag, 14 * K * (1 - np.cos(np.pi / 96)))
+    assert 0 < sag < 0.1 and np.isclose(sag, 14 * K * (1 - np.cos(np.pi / ClearanceSettings().ellipse_samples)))
     np.testing.assert_allclose(_get(pc, "P", "E1"), (10 - 1 - 0.25) * K, atol=sag)
     np.testing.assert_allclose(_get(pc, "E1", "E2"), (4 - 0.5) * K, atol=sag)
     assert set(pc.kinds) == {"bead-ellipse", "ellipse-ellipse"}
@@ -176,3 +176,84 @@ def test_nominal_view_of_the_published_design_is_clear(features_2005):
     assert pc.clearance_px.min() > 0
     c, flag = image_clearance(features_2005, CAM, R, t)
     assert not flag[0] and c[0] == pc.minimum()[0]
+
+
+# ---- the analysis: analysis.json, thresholds, compare --------------------------------------
+
+FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots"]
+
+
+@pytest.fixture(scope="module")
+def features_json(tmp_path_factory, features_2005):
+    from ftrac_design.features.io import write_features
+
+    path = tmp_path_factory.mktemp("seg") / "features.json"
+    write_features(path, features_2005)
+    return path
+
+
+def test_analyze_reports_segmentability_and_its_threshold_fails_the_design(tmp_path, capsys, features_json):
+    import json
+
+    from ftrac_design.cli.main import main
+
+    out = tmp_path / "an"
+    assert main(["analyze", str(features_json), "-o", str(out), *FAST, "--max-overlap-share", "0.01"]) == 1
+    doc = json.loads((out / "analysis.json").read_text())
+    sg = doc["segmentability"]
+    assert set(sg) >= {"settings", "sampling_error_px", "clearance_px", "overlap_share", "kinds",
+                       "pairs_overlap_share", "worst_poses", "atlas"}
+    assert sg["settings"]["poses"] == 300 and set(sg["clearance_px"]) == {"min", "p5", "median"}
+    assert sg["kinds"]["bead-ellipse"]["counted"] is False and sg["kinds"]["line-line"]["counted"] is True
+    # the overlap share is the mean of the per-pose verdicts and at least every kind's share
+    assert 0.01 < sg["overlap_share"] <= 1 and all(sg["overlap_share"] >= v["overlap_share"]
+                                                    for v in sg["kinds"].values() if v["counted"])
+    w = sg["worst_poses"][0]
+    assert w["clearance_px"] == sg["clearance_px"]["min"] and "-" in w["pair"]
+    assert {"overlap_share_of_sphere", "overlap_share_of_cone"} <= set(sg["atlas"])
+    assert doc["thresholds"]["max_overlap_share"] == 0.01 and doc["thresholds"]["min_clearance_px"] is None
+    check = [c for c in doc["checks"] if c["figure"] == "overlap share"]
+    assert check and check[0]["passed"] is False and doc["passed"] is False
+    # the existing figures are untouched
+    assert {"figures", "groups", "features", "worst_poses", "atlas"} <= set(doc)
+    captured = capsys.readouterr()
+    assert "segmentability" in captured.out
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "overlap share" in err[0]
+
+
+def test_min_clearance_threshold_and_the_design_file_table(tmp_path, capsys):
+    import json
+
+    from ftrac_design.cli.main import main
+
+    from conftest import MODELS
+
+    design = tmp_path / "mini.toml"
+    design.write_text((MODELS / "ftrac_mini.toml").read_text() + "max_overlap_share = 0.9\nmin_clearance_px = -10.0\n")
+    out = tmp_path / "a"
+    assert main(["analyze", str(design), "-o", str(out), *FAST]) == 0
+    doc = json.loads((out / "analysis.json").read_text())
+    assert {c["figure"] for c in doc["checks"]} >= {"overlap share", "clearance p5"} and doc["passed"]
+    # the command line wins over the design file
+    assert main(["analyze", str(design), "-o", str(out), *FAST, "--min-clearance-px", "50"]) == 1
+    err = capsys.readouterr().err
+    assert "clearance p5" in err and "< 50" in err
+    design.write_text((MODELS / "ftrac_mini.toml").read_text() + "max_overlap_share = 1.5\n")
+    assert main(["analyze", str(design), "-o", str(tmp_path / "b"), *FAST]) == 2
+
+
+def test_compare_shows_segmentability(tmp_path, capsys):
+    import json
+
+    from ftrac_design.cli.main import main
+
+    from conftest import MODELS
+
+    out = tmp_path / "c.png"
+    assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "200",
+                 "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "overlap" in text and "clear p5" in text
+    doc = json.loads(out.with_suffix(".json").read_text())
+    assert all(d["segmentability"]["overlap_share"] is not None for d in doc["designs"])

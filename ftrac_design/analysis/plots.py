@@ -159,9 +159,11 @@ def plot_atlas_cone(atlas: Atlas, path: str | Path) -> Path:
 
 
 def plot_compare(scores: list[DesignScore], path: str | Path) -> Path:
-    """Overlaid distributions of predicted translation and rotation errors of several designs."""
+    """Overlaid distributions of predicted translation and rotation errors of several designs,
+    and of their smallest image clearance between features where it was measured."""
     plt = _plt()
-    fig, axs = plt.subplots(1, 2, figsize=(11, 4))
+    seg = [s for s in scores if s.segmentability is not None]
+    fig, axs = plt.subplots(1, 3 if seg else 2, figsize=(16.5 if seg else 11, 4))
     for s in scores:
         m = s.analysis.overall
         _cdf(axs[0], m.translation_rms_mm, s.name)
@@ -169,8 +171,88 @@ def plot_compare(scores: list[DesignScore], path: str | Path) -> Path:
     axs[0].set_xlabel("predicted 1σ translation error (3-D RMS), mm")
     axs[1].set_xlabel("predicted 1σ rotation error (3-D RMS), deg")
     axs[0].set_ylabel("fraction of workspace poses")
-    for ax in axs:
+    for ax in axs[:2]:
         _log_x(ax)
         ax.legend(fontsize=8)
+    if seg:
+        ax = axs[2]
+        for s in seg:
+            _cdf(ax, s.segmentability.clearance_px, f"{s.name} ({100 * s.segmentability.overlap_share:.1f} % overlap)")
+        ax.axvline(0.0, color="k", lw=0.8)
+        ax.set_xlabel("smallest image clearance between features, px (< 0: overlap)")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8)
     fig.suptitle("predicted accuracy over each design's workspace", fontsize=11)
+    return _save(fig, path)
+
+
+def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Path:
+    """Image clearance between features (px beyond their widths; negative = overlap): its
+    distribution over the workspace poses, overall and per pair kind, and the smallest
+    clearance over every view direction (Mollweide) and over the workspace cone (polar),
+    with the overlap boundary. ``seg`` is a :class:`~.segmentability.Segmentability`,
+    ``seg_atlas`` a :class:`~.segmentability.SegmentabilityAtlas`."""
+    from matplotlib.colors import TwoSlopeNorm
+
+    from ..pose.simulate import cone_directions
+    from .segmentability import PAIR_KINDS
+
+    plt = _plt()
+    fig = plt.figure(figsize=(16, 4.8))
+    ax = fig.add_subplot(1, 3, 1)
+    pc = seg.pairs
+    m = seg.clearance_px
+    colours = dict(zip(PAIR_KINDS, ("tab:red", "tab:orange", "tab:gray", "tab:blue", "tab:green", "tab:purple")))
+    finite = m[np.isfinite(m)]
+    if finite.size:
+        _cdf(ax, m, "smallest counted", color="k", lw=2)
+    for k in PAIR_KINDS:
+        if k in pc.kinds:
+            _cdf(ax, pc.kind_minimum(k), k + ("" if k in pc.counted else " (not counted)"), color=colours[k], lw=1,
+                 ls="-" if k in pc.counted else ":")
+    ax.axvline(0.0, color="k", lw=0.8)
+    if thresholds is not None and thresholds.min_clearance_px is not None:
+        ax.axvline(thresholds.min_clearance_px, color="r", ls="--", label="threshold (p5)")
+    allv = pc.clearance_px[np.isfinite(pc.clearance_px)]
+    lo = allv.min() if allv.size else -1.0
+    ax.set_xlim(min(lo, -1.0) - 0.5, 25.0)
+    ax.set_xlabel("image clearance beyond the features' widths, px (< 0: overlap)")
+    ax.set_ylabel("fraction of workspace poses")
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(f"overlap at {100 * seg.overlap_share:.1f} % of {m.size} workspace poses", fontsize=10)
+    sph, cone = seg_atlas.sphere_grid(), seg_atlas.cone_grid()
+    vals = np.concatenate([sph[np.isfinite(sph)], cone[np.isfinite(cone)]])
+    vmin = min(-1.0, float(vals.min())) if vals.size else -1.0
+    vmax = max(1.0, min(20.0, float(np.percentile(vals, 95)))) if vals.size else 1.0
+    norm = TwoSlopeNorm(vcenter=0.0, vmin=vmin, vmax=vmax)
+    ax = fig.add_subplot(1, 3, 2, projection="mollweide")
+    lon, lat = np.radians(seg_atlas.lon), np.radians(seg_atlas.lat)
+    pcm = ax.pcolormesh(lon, lat, np.clip(sph, vmin, vmax), cmap="RdYlBu", norm=norm, shading="nearest")
+    if (sph < 0).any() and (sph > 0).any():
+        ax.contour(lon, lat, sph, levels=[0.0], colors="k", linewidths=0.6)
+    nb = seg_atlas.nominal_beam / np.linalg.norm(seg_atlas.nominal_beam)
+    ring = cone_directions(nb, np.radians(seg_atlas.cone_deg), np.linspace(0, 2 * np.pi, 181))
+    rlon = np.arctan2(ring[:, 1], ring[:, 0])
+    rlat = np.arcsin(np.clip(ring[:, 2], -1, 1))
+    cut = np.flatnonzero(np.abs(np.diff(rlon)) > np.pi) + 1
+    for seg_lon, seg_lat in zip(np.split(rlon, cut), np.split(rlat, cut)):
+        ax.plot(seg_lon, seg_lat, color="m", lw=1.2)
+    ax.plot(np.arctan2(nb[1], nb[0]), np.arcsin(nb[2]), "m+", ms=10)
+    ax.grid(True, alpha=0.3)
+    ax.tick_params(labelsize=7)
+    _colorbar(fig, pcm, ax, "smallest clearance, px (black: 0)", 0.08)
+    ax.set_title("every view direction (magenta: the workspace cone)", fontsize=10)
+    ax = fig.add_subplot(1, 3, 3, projection="polar")
+    pcm = ax.pcolormesh(np.radians(seg_atlas.azimuth), seg_atlas.polar, np.clip(cone, vmin, vmax), cmap="RdYlBu",
+                        norm=norm, shading="nearest")
+    if (cone < 0).any() and (cone > 0).any():
+        ax.contour(np.radians(seg_atlas.azimuth), seg_atlas.polar, cone, levels=[0.0], colors="k", linewidths=0.6)
+    ax.set_theta_zero_location("N")
+    ax.set_rlim(0, seg_atlas.cone_deg)
+    ax.tick_params(labelsize=7)
+    _colorbar(fig, pcm, ax, "smallest clearance, px", 0.1)
+    ax.set_title("the workspace cone (radius: ° from nominal; up: toward +z)", fontsize=10, pad=18)
+    fig.suptitle(f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
+                 f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs", fontsize=11, y=1.03)
     return _save(fig, path)

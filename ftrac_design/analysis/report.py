@@ -5,7 +5,9 @@
 the thresholds, the score figures and checks with the verdict, per-group figures (points,
 lines, ellipses alone), per-feature figures (own rank ratio, fraction of the workspace where
 it is blind, smallest view angle, the score without it), the worst workspace poses, the
-atlas summary with the worst view directions and the features responsible, and the PNG files
+atlas summary with the worst view directions and the features responsible, the
+segmentability block (image clearances between features over the workspace and the sphere,
+overlap shares per kind and pair, worst poses; :mod:`.segmentability`), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
 """
 
@@ -24,10 +26,14 @@ from ..fileio import atomic_directory, write_json_atomic
 from ..pose.simulate import Workspace
 from .atlas import Atlas, blind_spot_atlas
 from .score import AnalysisSettings, DesignScore, Thresholds, score_design
+from .segmentability import SegmentabilityAtlas, segmentability_atlas
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
-PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png"}
+PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png",
+         "segmentability": "segmentability.png"}
+#: the segmentability sphere map's grid is no finer than this (~0.1 ms a direction)
+SEGMENTABILITY_ATLAS_STEP_DEG = 3.0
 
 
 @dataclass
@@ -73,12 +79,14 @@ def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, 
                                                               ("poses", "poses"), ("seed", "seed")) if k2 in vals})
     th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),
                                                  ("max_rotation_deg", "max_rotation_deg"),
-                                                 ("max_condition", "max_condition")) if k2 in vals})
+                                                 ("max_condition", "max_condition"),
+                                                 ("max_overlap_share", "max_overlap_share"),
+                                                 ("min_clearance_px", "min_clearance_px")) if k2 in vals})
     return s, th
 
 
 def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None, seconds: float,
-                      files: list[str]) -> dict:
+                      files: list[str], seg_atlas: SegmentabilityAtlas | None = None) -> dict:
     """The analysis.json object (see module doc)."""
     from .. import __version__
 
@@ -88,6 +96,8 @@ def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None,
            "settings": score.settings.to_dict(), "passed": score.passed}
     doc.update(score.to_dict())
     doc["atlas"] = atlas.to_dict() if atlas is not None else None
+    if doc.get("segmentability") is not None:
+        doc["segmentability"]["atlas"] = seg_atlas.to_dict() if seg_atlas is not None else None
     doc["files"] = files
     doc["time_s"] = round(seconds, 3)
     doc["package_version"] = __version__
@@ -122,17 +132,21 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
     t0 = time.perf_counter()
     score = score_design(subject.features, settings, thresholds, progress=progress)
     atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
+    seg_atlas = segmentability_atlas(subject.features, settings.camera, settings.workspace.depth_mm,
+                                     settings.workspace.cone_deg, max(atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
+                                     settings.clearance)
     seconds = time.perf_counter() - t0
     with atomic_directory(out_dir) as tmp:
         files = []
         if plots:
-            from .plots import plot_atlas_cone, plot_atlas_sphere, plot_score
+            from .plots import plot_atlas_cone, plot_atlas_sphere, plot_score, plot_segmentability
 
             plot_score(score, tmp / PLOTS["score"])
             plot_atlas_sphere(atlas, tmp / PLOTS["sphere"])
             plot_atlas_cone(atlas, tmp / PLOTS["cone"])
+            plot_segmentability(score.segmentability, seg_atlas, tmp / PLOTS["segmentability"], thresholds)
             files = list(PLOTS.values())
-        doc = analysis_document(subject, score, atlas, seconds, files)
+        doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
         write_json_atomic(tmp / "analysis.json", doc)
     return doc, out_dir
 
@@ -172,6 +186,9 @@ def format_summary(doc: dict) -> str:
     worst = max(doc["features"], key=lambda x: x["without"]["translation_loss"] or float("inf"))
     echo(f"  most needed feature: {worst['id']} (without it p95 translation x"
          f"{_fmt(worst['without']['translation_loss'])})")
+    sg = doc.get("segmentability")
+    if sg:
+        echo(format_segmentability(sg))
     at = doc.get("atlas")
     if at:
         echo(f"  atlas: {at['directions']} directions; worst view directions:")
@@ -182,3 +199,25 @@ def format_summary(doc: dict) -> str:
                  f"({w['angle_from_nominal_deg']:.0f}° from nominal{', in workspace' if w['in_workspace'] else ''}):"
                  f" {_fmt(w['translation_error_mm'])} mm, condition {_fmt(w['condition'])} — {who}")
     return "\n".join(lines)
+
+
+def _pct(v) -> str:
+    return "n/a" if v is None else f"{100 * v:.1f} %"
+
+
+def format_segmentability(sg: dict) -> str:
+    """Two or three lines on image clearances from an analysis.json ``segmentability`` block."""
+    c = sg["clearance_px"]
+    kinds = ", ".join(f"{k} {_pct(v['overlap_share'])}" for k, v in sg["kinds"].items()
+                      if v["counted"] and v["overlap_share"] > 0) or "none"
+    out = [f"  segmentability ({sg['settings']['poses']} poses): features overlap at {_pct(sg['overlap_share'])} "
+           f"of poses ({kinds}); smallest clearance p5 {_fmt(c['p5'])} px, min {_fmt(c['min'])} px"]
+    if sg["worst_poses"]:
+        w = sg["worst_poses"][0]
+        out.append(f"    worst: {w['pair']} ({w['kind']}) {w['clearance_px']:.2g} px at "
+                   f"{w['angle_from_nominal_deg']:.0f}° from nominal")
+    at = sg.get("atlas")
+    if at:
+        out.append(f"    overlap over {_pct(at['overlap_share_of_sphere'])} of the sphere of view directions, "
+                   f"{_pct(at['overlap_share_of_cone'])} of the workspace cone (fiducial at the isocentre)")
+    return "\n".join(out)

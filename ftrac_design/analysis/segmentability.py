@@ -71,8 +71,8 @@ PAIR_KINDS = ("bead-bead", "bead-line", "bead-ellipse", "line-line", "line-ellip
 #: ellipse's wire (see the module doc)
 COUNTED = ("bead-bead", "bead-line", "line-line", "line-ellipse", "ellipse-ellipse")
 
-#: poses per chunk of the wire–wire distances ((chunk, n, n) arrays stay a few MB)
-CHUNK = 512
+#: poses per chunk ((chunk, n, n) arrays of the ellipse distances stay a few MB)
+CHUNK = 256
 
 
 @dataclass(frozen=True)
@@ -80,8 +80,8 @@ class ClearanceSettings:
     """How clearances are measured (see module doc)."""
 
     stretch_px: float = 10.0
-    ellipse_samples: int = 96
-    line_samples: int = 48
+    ellipse_samples: int = 64
+    line_samples: int = 32
     #: pair kinds that count toward a pose's clearance and overlap (the others are reported)
     counted: tuple[str, ...] = COUNTED
 
@@ -239,14 +239,22 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
         starts = ends = np.arange(m)
     L = f.shape[1]
     rows = np.arange(B)[:, None]
-    # sparse table: level p holds the largest f over 2^p vertices from each one
+    # where the windows starting at a vertex end (inside segment j−1 … j) and where those
+    # ending at a vertex start (inside segment i … i+1)
+    end = s[:, starts] + stretch
+    j = _batched_search(s, end, "left")
+    beg = s[:, ends] - stretch
+    i = _batched_search(s, beg, "right") - 1
+    # sparse table: level p holds the largest f over 2^p vertices from each one, up to the
+    # longest window
+    longest = max(int((j - starts).max()), int((ends - i).max()), 1)
     levels = [f]
-    while (2 << (len(levels) - 1)) <= L:
+    while (2 << (len(levels) - 1)) <= min(longest, L):
         h = 1 << (len(levels) - 1)
         prev = levels[-1]
         levels.append(np.concatenate([np.maximum(prev[:, :-h], prev[:, h:]), prev[:, -h:]], 1))
     table = np.stack(levels)
-    log2 = np.floor(np.log2(np.arange(1, L + 1))).astype(int)
+    log2 = np.minimum(np.floor(np.log2(np.arange(1, L + 1))).astype(int), len(levels) - 1)
 
     def range_max(lo, hi):                       # inclusive vertex ranges (B, n)
         p = log2[hi - lo]
@@ -257,16 +265,10 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
         lam = np.clip((x - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0, 1.0)
         return f[rows, i] + lam * (f[rows, i + 1] - f[rows, i])
 
-    # windows starting at a vertex: end inside segment j−1 … j
-    end = s[:, starts] + stretch
-    j = _batched_search(s, end, "left")
     ok = j < L                                   # an open curve's windows may run off its end
     j = np.clip(j, 1, L - 1)
     best = np.where(ok, np.maximum(range_max(np.broadcast_to(starts, j.shape), j - 1), lerp(j - 1, end)),
                     np.inf).min(1)
-    # windows ending at a vertex: start inside segment i … i+1
-    beg = s[:, ends] - stretch
-    i = _batched_search(s, beg, "right") - 1
     ok = i >= 0
     i = np.clip(i, 0, L - 2)
     jj = np.broadcast_to(ends, i.shape)
@@ -275,28 +277,18 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
     return np.where(total < stretch, f[:, :m].max(1), best)
 
 
-def _wire_pair(a: _Curve, b: _Curve, stretch: float, chunk: int) -> np.ndarray:
+def _wire_pair(a: _Curve, b: _Curve, stretch: float) -> np.ndarray:
     """(B,) stretch clearance of two curves (see module doc)."""
     if a.kind == "line" and b.kind == "ellipse":
         a, b = b, a                               # measure along the ellipse, to the exact segment
-    out = np.empty(a.vertices.shape[0])
-    for s in range(0, out.size, chunk):
-        sl = slice(s, s + chunk)
-        d = stretch_distance(distance_to_polyline(a.vertices[sl], b.target[sl], b.closed), a.vertices[sl],
-                             stretch, a.closed)
-        if a.kind == "line" and b.kind == "line":
-            d = np.minimum(d, stretch_distance(distance_to_polyline(b.vertices[sl], a.target[sl]), b.vertices[sl],
-                                               stretch))
-        out[sl] = d
-    return out - a.half_width - b.half_width
+    d = stretch_distance(distance_to_polyline(a.vertices, b.target, b.closed), a.vertices, stretch, a.closed)
+    if a.kind == "line" and b.kind == "line":
+        d = np.minimum(d, stretch_distance(distance_to_polyline(b.vertices, a.target), b.vertices, stretch))
+    return d - a.half_width - b.half_width
 
 
-def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                    settings: ClearanceSettings = ClearanceSettings(), chunk: int = CHUNK) -> PairClearance:
-    """Clearance (px, beyond both widths) of every pair of distinct ``features`` at poses
-    R (B, 3, 3), t (B, 3) mm (F → X), seen by ``camera``. See the module doc."""
-    R = np.asarray(R, float).reshape(-1, 3, 3)
-    t = np.asarray(t, float).reshape(-1, 3)
+def _pair_chunk(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, settings: ClearanceSettings):
+    """Pairs, kinds, clearances (B, P) and the largest sag at one chunk of poses."""
     intr = camera.intrinsics
     f_px = float(np.sqrt(intr[0] * intr[1]))
     pairs: list[tuple[str, str]] = []
@@ -323,11 +315,39 @@ def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     for ia in range(len(curves)):
         for ib in range(ia + 1, len(curves)):
             a, b = curves[ia], curves[ib]
-            cols.append(_wire_pair(a, b, settings.stretch_px, chunk)[:, None])
+            cols.append(_wire_pair(a, b, settings.stretch_px)[:, None])
             pairs.append((a.id, b.id))
             kinds.append("-".join(sorted((a.kind, b.kind), key=("line", "ellipse").index)))
     C = np.concatenate(cols, 1) if cols else np.zeros((R.shape[0], 0))
-    return PairClearance(pairs, kinds, C, max((cv.sag for cv in curves), default=0.0), tuple(settings.counted))
+    return pairs, kinds, C, max((cv.sag for cv in curves), default=0.0)
+
+
+def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                    settings: ClearanceSettings = ClearanceSettings(), chunk: int = CHUNK) -> PairClearance:
+    """Clearance (px, beyond both widths) of every pair of distinct ``features`` at poses
+    R (B, 3, 3), t (B, 3) mm (F → X), seen by ``camera``. See the module doc.
+
+    Works ``chunk`` poses at a time (on threads when there are several: numpy's loops
+    release the GIL)."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    t = np.asarray(t, float).reshape(-1, 3)
+    starts = list(range(0, R.shape[0], chunk)) or [0]
+
+    def one(a: int):
+        return _pair_chunk(features, camera, R[a:a + chunk], t[a:a + chunk], settings)
+
+    if len(starts) == 1:
+        parts = [one(starts[0])]
+    else:
+        from concurrent.futures import ThreadPoolExecutor
+
+        from .poses import _workers
+
+        with ThreadPoolExecutor(max_workers=_workers()) as pool:
+            parts = list(pool.map(one, starts))
+    pairs, kinds = parts[0][0], parts[0][1]
+    return PairClearance(pairs, kinds, np.concatenate([p[2] for p in parts]), max(p[3] for p in parts),
+                         tuple(settings.counted))
 
 
 def image_clearance(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
@@ -346,3 +366,141 @@ def image_clearance(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     pc = pair_clearances(features, camera, R, t, settings)
     m = pc.minimum()
     return m, m < 0.0
+
+
+# ---- summaries for the analysis (analysis.json, plots) ---------------------------------------
+
+def _stats(a: np.ndarray) -> dict:
+    """min / 5th percentile / median (None where infinite: no pair of that kind)."""
+    a = np.asarray(a, float)
+    if a.size == 0 or not np.isfinite(a).any():
+        return {"min": None, "p5": None, "median": None}
+    return {"min": float(np.min(a)), "p5": float(np.percentile(a, 5)), "median": float(np.median(a))}
+
+
+@dataclass
+class Segmentability:
+    """Clearances of a design at workspace poses, with what analysis.json reports of them."""
+
+    name: str
+    settings: ClearanceSettings
+    R: np.ndarray
+    t: np.ndarray
+    pairs: PairClearance
+    nominal_beam: np.ndarray
+
+    @property
+    def clearance_px(self) -> np.ndarray:
+        """(B,) each pose's smallest counted clearance, px."""
+        return self.pairs.minimum()
+
+    @property
+    def overlap_share(self) -> float:
+        """Share of the poses where counted features overlap."""
+        return float(np.mean(self.clearance_px < 0.0))
+
+    @property
+    def clearance_p5_px(self) -> float | None:
+        """5th percentile over the poses of the smallest clearance (None: nothing to clear)."""
+        return _stats(self.clearance_px)["p5"]
+
+    def to_dict(self, n_worst: int = 5) -> dict:
+        """The ``segmentability`` block of analysis.json (px, shares of poses)."""
+        from .sampling import angle_from
+
+        pc = self.pairs
+        kinds = {}
+        for k in PAIR_KINDS:
+            if k not in pc.kinds:
+                continue
+            km = pc.kind_minimum(k)
+            kinds[k] = {"counted": k in pc.counted, "overlap_share": float(np.mean(km < 0)),
+                        "clearance_px": _stats(km)}
+        share = pc.overlap().mean(0) if pc.clearance_px.size else np.zeros(0)
+        pairs = {pc.pair_name(i): float(share[i]) for i in np.argsort(-share, kind="stable") if share[i] > 0}
+        m = self.clearance_px
+        worst = []
+        if np.isfinite(m).any():
+            order = np.argsort(m, kind="stable")[:n_worst]
+            wp = pc.worst_pair()
+            beams = self.R[order, 2, :]
+            polar, az = angle_from(self.nominal_beam, beams)
+            for k, i in enumerate(order):
+                worst.append({"beam_direction": [float(v) for v in beams[k]],
+                              "angle_from_nominal_deg": float(polar[k]), "azimuth_deg": float(az[k]),
+                              "translation_mm": [float(v) for v in self.t[i]], "clearance_px": float(m[i]),
+                              "pair": pc.pair_name(int(wp[i])), "kind": pc.kinds[int(wp[i])]})
+        s = self.settings
+        return {"settings": {"stretch_px": s.stretch_px, "ellipse_samples": s.ellipse_samples,
+                             "line_samples": s.line_samples, "counted": list(s.counted), "poses": int(m.size)},
+                "sampling_error_px": pc.sampling_error_px,
+                "clearance_px": _stats(m), "overlap_share": self.overlap_share,
+                "kinds": kinds, "pairs_overlap_share": pairs, "worst_poses": worst}
+
+
+def segmentability(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                   settings: ClearanceSettings = ClearanceSettings()) -> Segmentability:
+    """Clearances of ``features`` at workspace poses R (B, 3, 3), t (B, 3) mm (F → X)."""
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    t = np.asarray(t, float).reshape(-1, 3)
+    return Segmentability(features.name, settings, R, t, pair_clearances(features, camera, R, t, settings),
+                          np.asarray(features.nominal_beam_direction, float))
+
+
+@dataclass
+class SegmentabilityAtlas:
+    """The smallest counted clearance over every view direction (fiducial origin on the
+    principal ray at the workspace depth — there clearances do not depend on the roll, an
+    image rotation about the principal point): on the sphere grid ``lon``, ``lat`` (deg,
+    (nlat, nlon)) and on the workspace cone grid ``polar``, ``azimuth`` (deg)."""
+
+    lon: np.ndarray
+    lat: np.ndarray
+    sphere: PairClearance
+    polar: np.ndarray
+    azimuth: np.ndarray
+    cone: PairClearance
+    cone_deg: float
+    nominal_beam: np.ndarray
+
+    def sphere_grid(self) -> np.ndarray:
+        """(nlat, nlon) smallest counted clearance, px."""
+        return self.sphere.minimum().reshape(self.lon.shape)
+
+    def cone_grid(self) -> np.ndarray:
+        """(npolar, naz) smallest counted clearance, px."""
+        return self.cone.minimum().reshape(self.polar.shape)
+
+    def to_dict(self) -> dict:
+        """The atlas part of the ``segmentability`` block (shares of grid directions; the
+        sphere's cells are equal-angle, so its share is weighted by cos latitude)."""
+        ms, mc = self.sphere.minimum(), self.cone.minimum()
+        w = np.cos(np.radians(self.lat)).ravel()
+        wp = self.sphere.worst_pair()
+        kinds = {}
+        for k in sorted(set(self.sphere.kinds[i] for i in wp[ms < 0])) if (ms < 0).any() else []:
+            kinds[k] = float(np.sum(w * ((ms < 0) & (np.array(self.sphere.kinds)[wp] == k))) / w.sum())
+        # the cone grid's cells are equal in polar angle: weight by sin(polar) for area
+        wc = np.sin(np.radians(self.polar)).ravel()
+        return {"sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])) if self.lon.shape[1] > 1 else None,
+                "directions": int(ms.size),
+                "overlap_share_of_sphere": float(np.sum(w * (ms < 0)) / w.sum()),
+                "overlap_share_of_sphere_by_worst_kind": kinds,
+                "overlap_share_of_cone": float(np.sum(wc * (mc < 0)) / wc.sum()),
+                "clearance_px_in_cone": _stats(mc)}
+
+
+def segmentability_atlas(features: Features, camera: Camera, depth_mm: float, cone_deg: float,
+                         step_deg: float = 3.0, settings: ClearanceSettings = ClearanceSettings()) -> SegmentabilityAtlas:
+    """Clearances over the whole sphere of view directions (``step_deg`` grid) and the
+    workspace cone (1° × 5° polar grid), fiducial origin at ``depth_mm`` on the principal ray."""
+    from .sampling import cone_grid, isocentre_poses, sphere_grid
+
+    lon, lat, d = sphere_grid(step_deg)
+    R, t = isocentre_poses(d.reshape(-1, 3), depth_mm)
+    sph = pair_clearances(features, camera, R, t, settings)
+    nb = np.asarray(features.nominal_beam_direction, float)
+    pol, az, dc = cone_grid(nb, cone_deg)
+    Rc, tc = isocentre_poses(dc.reshape(-1, 3), depth_mm)
+    cone = pair_clearances(features, camera, Rc, tc, settings)
+    return SegmentabilityAtlas(lon, lat, sph, pol, az, cone, cone_deg, nb)

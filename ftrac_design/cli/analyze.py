@@ -54,6 +54,12 @@ def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, l
               help="pass only if the worst predicted rotation error is within this [default: design's, else 0.5]")
 @click.option("--max-condition", type=click.FloatRange(min=1.0), default=None,
               help="pass only if the worst condition number is within this [default: design's, else 1000]")
+@click.option("--max-overlap-share", type=click.FloatRange(min=0.0, max=1.0), default=None,
+              help="pass only if features' images overlap at no larger share of workspace poses than this "
+                   "[default: design's, else not judged]")
+@click.option("--min-clearance-px", type=float, default=None,
+              help="pass only if the 5th-percentile smallest image clearance between features is at least this, "
+                   "px beyond their widths [default: design's, else not judged]")
 @click.option("--atlas-step-deg", type=click.FloatRange(min=0.5, max=15.0), default=2.0, show_default=True,
               help="grid step of the whole-sphere atlas")
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
@@ -61,13 +67,14 @@ def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, l
               help="also write report.html into the output directory (with the build, for a build's features.json)")
 def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm,
             lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
-            no_plots, report=False) -> int:
+            no_plots, report=False, max_overlap_share=None, min_clearance_px=None) -> int:
     """Score SOURCE (a design or a features.json) over the C-arm workspace.
 
     Predicted 1σ pose errors (the Cramér–Rao bound of the solver's Jacobian) and the
     condition number at every workspace pose, per feature group and feature, and a
-    whole-sphere atlas of blind spots. Writes analysis.json and score.png,
-    atlas_sphere.png, atlas_cone.png; exits 1 if a threshold is exceeded.
+    whole-sphere atlas of blind spots; the image clearance between features (segmentability).
+    Writes analysis.json and score.png, atlas_sphere.png, atlas_cone.png, segmentability.png;
+    exits 1 if a threshold is exceeded.
     """
     from tqdm import tqdm
 
@@ -76,7 +83,8 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
     subject = load_subject(source)
     settings, thresholds = settings_for(subject, **overrides(
         poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm,
-        max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition))
+        max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition,
+        max_overlap_share=max_overlap_share, min_clearance_px=min_clearance_px))
     total = settings.poses + atlas_directions(atlas_step_deg, settings.workspace.cone_deg)
     with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:
         doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update)
@@ -89,7 +97,8 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
     if not doc["passed"]:
         failed = [c for c in doc["checks"] if not c["passed"]]
         click.echo("failed: " + "; ".join(
-            f"{c['figure']} {'inf' if c['value'] is None else format(c['value'], '.3g')} {c['unit']} > {c['limit']:g}"
+            f"{c['figure']} {'inf' if c['value'] is None else format(c['value'], '.3g')} {c['unit']} "
+            f"{'<' if c.get('at_least') else '>'} {c['limit']:g}"
             for c in failed), err=True)
         return 1
     return 0

@@ -18,8 +18,9 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
             depth_range_mm, lateral_mm, segmentation_error_mm) -> int:
     """Score each design (DESIGN.toml or FEATURES.json) over the same workspace and noise.
 
-    Prints a side-by-side table of predicted 1σ errors and conditioning and draws their
-    distributions overlaid. Each design is judged by its own thresholds; the workspace
+    Prints a side-by-side table of predicted 1σ errors, conditioning and image clearance
+    between features (share of poses where they overlap, 5th-percentile clearance) and draws
+    their distributions overlaid. Each design is judged by its own thresholds; the workspace
     is the command line's (or the defaults), the same for all.
     """
     from tqdm import tqdm
@@ -39,7 +40,8 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
         for sub in subjects:
             _, th = settings_for(sub, **common)
             scores.append(score_design(sub.features, base, th, progress=bar.update))
-    rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "verdict")]
+    rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "overlap",
+             "clear p5 px", "verdict")]
     table = []
     for s in scores:
         f = s.figures
@@ -51,8 +53,11 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
                      g(f["translation_p95_per_axis_mm"][2]), g(f["rotation_deg"]["p95"]), g(f["rotation_deg"]["worst"]),
                      "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
                      "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
+                     f"{100 * s.segmentability.overlap_share:.1f} %", g(s.segmentability.clearance_p5_px),
                      "PASS" if s.passed else "FAIL"))
-        table.append({"design": s.name, "figures": f, "thresholds": s.to_dict()["thresholds"], "passed": s.passed})
+        d = s.to_dict()
+        table.append({"design": s.name, "figures": f, "thresholds": d["thresholds"], "passed": s.passed,
+                      "segmentability": {k: d["segmentability"][k] for k in ("overlap_share", "clearance_px", "kinds")}})
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     ws = base.workspace
     click.echo(f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "

@@ -314,6 +314,11 @@ class Analysis(_Strict):
     max_translation: Pos = Field(default=1.0, description="worst predicted translation error, mm")
     max_rotation_deg: Pos = 0.5
     max_condition: Annotated[float, Field(ge=1.0)] = 1000.0
+    # segmentability (ftrac_design.analysis.segmentability): judged only where set
+    max_overlap_share: Annotated[float, Field(ge=0.0, le=1.0)] | None = Field(
+        default=None, description="largest share of workspace poses where features' images overlap")
+    min_clearance_px: float | None = Field(
+        default=None, description="smallest 5th-percentile image clearance between features, px beyond their widths")
 
 
 class Design(_Strict):
