@@ -208,6 +208,29 @@ def body_cuts(design: Design, features: Features, cuts: CutSizes) -> list[_BodyC
 def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
     if len(a) * len(b) <= 200_000:
         return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))
+    # Coarse to fine, exact on these samples: every s-th sample stands for its neighbours,
+    # each within da (db) of it, so the closest pair's representatives are within
+    # dmin + da + db ≤ coarse_min + da + db; only those neighbourhoods are searched finely.
+    # (A k-d tree is slow here: two parallel curves put every point near the same distance.)
+    s = int(math.ceil(math.sqrt(len(a) * len(b) / 200_000)))
+    ra = np.minimum(np.round(np.arange(len(a)) / s).astype(int), (len(a) - 1) // s)
+    rb = np.minimum(np.round(np.arange(len(b)) / s).astype(int), (len(b) - 1) // s)
+    da = float(np.max(np.linalg.norm(a - a[ra * s], axis=1)))
+    db = float(np.max(np.linalg.norm(b - b[rb * s], axis=1)))
+    ca, cb = a[::s], b[::s]
+    # |p − q|² by one matrix product (rounding ~1e-12 mm², covered by the 1e-9 slack)
+    sq = np.maximum((ca * ca).sum(1)[:, None] + (cb * cb).sum(1)[None, :] - 2.0 * ca @ cb.T, 0.0)
+    coarse = np.sqrt(sq)
+    ci, cj = np.nonzero(coarse <= coarse.min() + da + db + 1e-9)
+    if len(ci) <= 20_000:
+        off = np.arange(-s, s + 1)  # covers every sample represented by a coarse one
+        wa = np.clip(ci[:, None] * s + off, 0, len(a) - 1)
+        wb = np.clip(cj[:, None] * s + off, 0, len(b) - 1)
+        best = np.inf
+        for k in range(0, len(ci), 1000):
+            d = np.linalg.norm(a[wa[k:k + 1000]][:, :, None, :] - b[wb[k:k + 1000]][:, None, :, :], axis=3)
+            best = min(best, float(d.min()))
+        return best
     from scipy.spatial import cKDTree
 
     d, _ = cKDTree(b).query(a)

@@ -1,0 +1,84 @@
+"""``ftrac-design optimize DESIGN.toml [-o DIR]``: search a design's layout under the design
+rules for the best predicted accuracy (see :mod:`ftrac_design.optimize`)."""
+
+from __future__ import annotations
+
+import shlex
+import sys
+from pathlib import Path
+
+import click
+
+from ..cad.profiles import PROFILES
+
+OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotation", "accuracy-diameter")
+
+
+@click.command("optimize")
+@click.argument("design", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("--space", "space", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="search space (TOML: [parameters], optional [search]) [default: the design's layout "
+                   "within its envelope; see --print-space]")
+@click.option("--objective", type=click.Choice(OBJECTIVE_CHOICES), default="max", show_default=True,
+              help="max/sum/translation/rotation: p95 errors over the start's, CMA-ES; "
+                   "translation-rotation, accuracy-diameter: Pareto front, NSGA-II")
+@click.option("--evaluations", type=click.IntRange(min=1), default=400, show_default=True,
+              help="candidates to evaluate (rounded up to whole generations)")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="seeds the optimiser and the search's pose sample")
+@click.option("--profile", "profiles", type=click.Choice(PROFILES), multiple=True,
+              help="design rules that constrain the search; repeat for both [default: cnc]")
+@click.option("--scheduler", default=None, metavar="ADDR",
+              help="Dask scheduler, e.g. tcp://host:8786 [default: $DASK_SCHEDULER_ADDRESS, else local processes]")
+@click.option("--workers", type=click.IntRange(min=0), default=None,
+              help="local worker processes; 0 = in this process [default: one per core]")
+@click.option("--resume", is_flag=True, default=False, help="continue the interrupted run whose log is in DIR.partial/")
+@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
+              help="output directory [default: outputs/<design name>/optimize/]")
+@click.option("--poses", type=click.IntRange(min=100), default=None,
+              help="workspace poses of the (fixed) search sample [default: space's, else 2000]")
+@click.option("--verify-poses", type=click.IntRange(min=100), default=None,
+              help="fresh poses that re-score start and best [default: 20000]")
+@click.option("--solver-images", type=click.IntRange(min=0), default=None,
+              help="simulated images solved for start and best (0 = skip) [default: 300]")
+@click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
+@click.option("--print-space", is_flag=True, default=False,
+              help="print the search space (the default one, or --space's) as a file to edit, and exit")
+def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
+            scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
+            verify_poses: int | None, solver_images: int | None, no_build: bool, print_space: bool) -> int:
+    """Optimise DESIGN.toml's layout under the design rules.
+
+    Every candidate is checked against the rules of the profile(s) first (graded margins);
+    feasible ones are scored by their predicted p95 translation and rotation errors over a
+    fixed, seeded sample of workspace poses. The winner is re-scored on fresh poses,
+    checked by solving simulated images, written as best.toml and built. The same seed
+    gives the same result with any number of workers; an interrupted run continues with
+    --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
+    convergence.png, evaluations.jsonl and build/ into the output directory.
+    """
+    from ..optimize.run import optimize, prepare, read_design
+    from ..optimize.report import format_summary
+
+    profiles = profiles or ("cnc",)
+    if print_space:
+        sp, _ = prepare(design, space, poses, seed, profiles)
+        click.echo(sp.to_toml(), nl=False)
+        return 0
+    _, d = read_design(design)
+    out = output if output is not None else Path("outputs") / d.name / "optimize"
+    cmd = "ftrac-design optimize " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
+        if len(sys.argv) > 2 and sys.argv[1] == "optimize" else None
+    try:
+        doc = optimize(design, out, space, objective, evaluations, seed, profiles, scheduler, workers,
+                       resume=resume, poses=poses, verify_poses=verify_poses, solver_images=solver_images,
+                       build=not no_build, command_line=cmd)
+    except KeyboardInterrupt:
+        click.echo(f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
+                   "run the same command with --resume to continue", err=True)
+        raise click.exceptions.Exit(130) from None
+    click.echo(format_summary(doc))
+    click.echo(f"wrote {out}/ (best.toml, summary.json, comparison.txt, pareto.*, convergence.png"
+               f"{', build/' if not no_build else ''})")
+    return 0
+

@@ -1,0 +1,388 @@
+"""What ``optimize`` writes: the winner checked on fresh poses and by the solver, the best
+design as TOML, the Pareto front, the convergence plot and start vs best side by side.
+
+Output directory (written atomically: a temporary sibling renamed into place):
+
+| file | content |
+| --- | --- |
+| ``best.toml`` | the winner as a design file ``build`` accepts (header: how it was found) |
+| ``summary.json`` | format ``ftrac-optimize`` v1: run, space, start and best (parameters, figures on the search sample and on fresh poses, Monte-Carlo solver errors, rules), front |
+| ``comparison.txt`` | start vs best: score (as ``compare`` prints it), rules (as ``check``), atlas |
+| ``pareto.json`` / ``pareto.csv`` / ``pareto.png`` | the non-dominated feasible candidates |
+| ``convergence.png`` | best objective so far and feasible share per generation |
+| ``evaluations.jsonl`` | the evaluation log |
+| ``build/`` | ``ftrac-design build`` of ``best.toml`` (unless ``--no-build``) |
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import shutil
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..analysis.score import AnalysisSettings
+from ..fileio import atomic_file, write_json_atomic, write_text_atomic
+from .search import SearchResult, _ok, objective_names
+
+FORMAT = "ftrac-optimize"
+VERSION = 1
+
+
+def _round(v):
+    if isinstance(v, float):
+        return round(v, 4) + 0.0
+    if isinstance(v, list):
+        return [_round(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _round(x) for k, x in v.items()}
+    return v
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)  # a JSON string is a TOML basic string
+    if isinstance(v, list):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {type(v).__name__}")
+
+
+def _toml_table(data: dict, path: str, out: list[str]) -> None:
+    scalars = {k: v for k, v in data.items()
+               if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))}
+    if path and (scalars or not data):
+        out.append(f"\n[{path}]")
+    out += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
+    for k, v in data.items():
+        sub = f"{path}.{k}" if path else k
+        if isinstance(v, dict):
+            _toml_table(v, sub, out)
+        elif isinstance(v, list) and v and isinstance(v[0], dict):
+            for item in v:
+                out.append(f"\n[[{sub}]]")
+                out += [f"{kk} = {_toml_value(vv)}" for kk, vv in item.items()]
+
+
+def to_toml(data: dict) -> str:
+    """Design data as TOML in the design files' own layout (``[table]``s, ``[[ellipses]]``,
+    one-line arrays), which a generic writer such as tomli-w does not keep."""
+    out: list[str] = []
+    _toml_table(data, "", out)
+    return "\n".join(out).lstrip("\n") + "\n"
+
+
+def design_toml(data: dict, header: str) -> str:
+    """The design ``data`` as a TOML file with a comment header; values rounded to 0.1 µm /
+    0.0001° (far below any tolerance) when the rounded design stays valid, else exact."""
+    from ..design.loader import parse_design
+    from ..errors import InputError
+
+    rounded = _round(data)
+    try:
+        parse_design(rounded)
+        body = to_toml(rounded)
+    except InputError:
+        body = to_toml(data)
+    comment = "".join(f"# {line}".rstrip() + "\n" for line in header.splitlines())
+    return comment + "\n" + body
+
+
+def verify(data: dict, settings: AnalysisSettings, poses: int, images: int, seed: int) -> dict:
+    """Re-score ``data`` on ``poses`` fresh workspace poses (seed ``seed``) and solve
+    ``images`` simulated images (seed ``seed + 1``) with the robust solver, no initial guess.
+
+    Returns the predicted p95/worst 1σ errors on the fresh poses and the Monte-Carlo
+    errors: RMS and p95 of the 3-D translation (mm) and rotation (°) errors, how many solved.
+    """
+    from ..analysis.sampling import workspace_poses
+    from ..design.loader import parse_design
+    from ..features import compute_features
+    from ..pose import SolverOptions, solve_batch
+    from ..pose.simulate import pose_errors, simulate_observation
+    from .evaluate import score_figures
+
+    f = compute_features(parse_design(data))
+    fresh = score_figures(f, replace(settings, poses=poses, seed=seed))
+    out = {"poses": poses, "pose_seed": seed, "predicted": fresh}
+    if images:
+        R, t = workspace_poses(settings.workspace, f.nominal_beam_direction, images, seed + 1)
+        rng = np.random.default_rng(seed + 2)
+        obs = [simulate_observation(f, settings.camera, R[i], t[i], settings.segmentation_error_mm, rng)
+               for i in range(images)]
+        sol = solve_batch(f, obs, SolverOptions(noise=settings.noise))
+        ok = np.array([p.converged for p in sol])
+        Re = np.array([p.rotation if p.converged else np.eye(3) for p in sol])
+        te = np.array([p.translation_mm if p.converged else np.zeros(3) for p in sol])
+        dr, dt = pose_errors(Re, te, R, t)
+        et = np.linalg.norm(dt, axis=1)[ok]
+        er = np.degrees(np.linalg.norm(dr, axis=1))[ok]
+        out["solver"] = {"images": images, "solved": int(ok.sum()), "image_seed": seed + 1,
+                         "translation_rms_mm": float(np.sqrt(np.mean(et ** 2))),
+                         "translation_p95_mm": float(np.percentile(et, 95)),
+                         "rotation_rms_deg": float(np.sqrt(np.mean(er ** 2))),
+                         "rotation_p95_deg": float(np.percentile(er, 95))}
+    return out
+
+
+def _score_rows(named: list[tuple[str, object]]) -> str:
+    """Start vs best as ``compare`` prints designs (predicted 1σ, 3-D RMS)."""
+    rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "verdict")]
+    for name, s in named:
+        f = s.figures
+
+        def g(v):
+            return "inf" if v is None else f"{v:.3f}"
+
+        rows.append((name, g(f["translation_mm"]["p95"]), g(f["translation_mm"]["worst"]),
+                     g(f["translation_p95_per_axis_mm"][2]), g(f["rotation_deg"]["p95"]),
+                     g(f["rotation_deg"]["worst"]),
+                     "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
+                     "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
+                     "PASS" if s.passed else "FAIL"))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
+                     for r in rows)
+
+
+def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tuple[str, ...], poses: int,
+               seed: int, atlas_step_deg: float = 4.0) -> tuple[str, dict]:
+    """Start vs best side by side: score, rules of each profile, whole-sphere atlas."""
+    from ..analysis.atlas import blind_spot_atlas
+    from ..analysis.score import Thresholds, score_design
+    from ..cad.rules import check_design
+    from ..design.loader import parse_design
+    from ..features import compute_features
+
+    designs = {"start": parse_design(start), "best": parse_design(best)}
+    feats = {k: compute_features(d) for k, d in designs.items()}
+    s = replace(settings, poses=poses, seed=seed)
+    scores = {}
+    for k, d in designs.items():
+        a = d.analysis
+        th = Thresholds(a.max_translation, a.max_rotation_deg, a.max_condition)
+        scores[k] = score_design(feats[k], s, th)
+    ws = s.workspace
+    lines = [f"{s.poses} fresh poses within {ws.cone_deg:g}° of the nominal beam, depth {ws.depth_mm:g} ± "
+             f"{ws.depth_range_mm:g} mm, segmentation error {s.segmentation_error_mm:g} mm (predicted 1σ, 3-D RMS)",
+             _score_rows([(f"{k}: {designs[k].name}", scores[k]) for k in designs]), ""]
+    doc: dict = {"score": {k: v.figures for k, v in scores.items()}, "rules": {}, "atlas": {}}
+    for prof in profiles:
+        reps = {k: check_design(d, prof, feats[k]) for k, d in designs.items()}
+        lines.append(f"rules ({prof}): start {reps['start'].summary}; best {reps['best'].summary}")
+        rows = [("rule", "start", "", "best", "", "limit")]
+        for a, b in zip(reps["start"].results, reps["best"].results):
+            def m(r):
+                return "-" if r.measured is None else f"{r.measured:.3f}"
+            lim = "-" if a.measured is None else f"{a.comparison} {a.limit:g}"
+            rows.append((a.rule, m(a), a.verdict, m(b), b.verdict, lim))
+        widths = [max(len(r[i]) for r in rows) for i in range(6)]
+        lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+        lines.append("")
+        doc["rules"][prof] = {k: r.as_dict() for k, r in reps.items()}
+    lines.append(f"atlas (whole sphere, {atlas_step_deg:g}° grid; fiducial at the isocentre)")
+    rows = [("design", "cond median", "cond worst", "cond worst in cone", "t worst mm", "r worst °", "worst direction")]
+    for k, f in feats.items():
+        at = blind_spot_atlas(f, s, step_deg=atlas_step_deg, n_worst=1).to_dict()
+        doc["atlas"][k] = at
+        w = at["worst_directions"][0] if at["worst_directions"] else {}
+
+        def g(v, fmt="{:.0f}"):
+            return "inf" if v is None else fmt.format(v)
+
+        where = (f"{w.get('angle_from_nominal_deg', 0):.0f}° from nominal, az {w.get('azimuth_deg', 0):.0f}°"
+                 + (" (" + ", ".join(f"{r['id']} {r['reason']}" for r in w.get("responsible", [])) + ")"
+                    if w.get("responsible") else ""))
+        rows.append((k, g(at["condition"]["median"]), g(at["condition"]["worst"]),
+                     g(at["condition"]["worst_in_cone"]), g(at["translation_mm"]["worst"], "{:.3f}"),
+                     g(at["rotation_deg"]["worst"], "{:.3f}"), where))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    return "\n".join(lines) + "\n", doc
+
+
+def _plot_convergence(res: SearchResult, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = objective_names(res.config.objective)
+    fig, ax = plt.subplots(1, 2, figsize=(10, 3.8))
+    idx = np.arange(1, len(res.entries) + 1)
+    vals = np.array([e["objectives"][names[0]] if _ok(e) else np.nan for e in res.entries])
+    ax[0].plot(idx, vals, ".", ms=3, color="0.6", label="feasible candidate")
+    best = np.fmin.accumulate(np.where(np.isnan(vals), np.inf, vals))
+    ax[0].plot(idx, np.where(np.isfinite(best), best, np.nan), "C0-", label="best so far")
+    ax[0].axhline(1.0 if names[0].endswith("ratio") else np.nan, color="k", lw=0.8, ls=":", label="start")
+    ax[0].set_xlabel("evaluation")
+    ax[0].set_ylabel(names[0].replace("_", " "))
+    lo, hi = np.nanpercentile(vals, [0, 90]) if np.isfinite(vals).any() else (0, 1)
+    ax[0].set_ylim(min(lo, 1.0) * 0.97, max(hi, 1.0) * 1.03)
+    ax[0].legend(fontsize=8)
+    gens = np.array([e["generation"] for e in res.entries])
+    feas = np.array([e["feasible"] for e in res.entries], float)
+    ug = np.unique(gens)
+    ax[1].plot(ug, [feas[gens == g].mean() for g in ug], "C1-")
+    ax[1].set_xlabel("generation")
+    ax[1].set_ylabel("feasible share of candidates")
+    ax[1].set_ylim(0, 1.02)
+    fig.suptitle(f"{res.start.get('name', '')} optimize --objective {res.config.objective} "
+                 f"(seed {res.config.seed}, {len(res.entries)} evaluations)", fontsize=10)
+    fig.tight_layout()
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def _plot_front(res: SearchResult, path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    feas = [e for e in res.entries if e["feasible"]]
+    fig, ax = plt.subplots(figsize=(5.6, 4.2))
+    if res.config.objective == "accuracy-diameter":
+        key_x, key_y = ("outer_diameter_mm", "translation_p95_mm")
+        lab = ("body outer diameter, mm", "p95 translation error, mm (predicted 1σ)")
+    else:
+        key_x, key_y = ("translation_p95_mm", "rotation_p95_deg")
+        lab = ("p95 translation error, mm", "p95 rotation error, ° (predicted 1σ)")
+    ax.plot([e["figures"][key_x] for e in feas], [e["figures"][key_y] for e in feas], ".", color="0.75", ms=3,
+            label="feasible candidates")
+    ax.plot([e["figures"][key_x] for e in res.front], [e["figures"][key_y] for e in res.front], "C0o-", ms=4,
+            label="Pareto front")
+    ax.plot([res.start["figures"][key_x]], [res.start["figures"][key_y]], "k*", ms=10, label="start")
+    if res.best is not None:
+        ax.plot([res.best["figures"][key_x]], [res.best["figures"][key_y]], "C3*", ms=10, label="best")
+    ax.set_xlabel(lab[0])
+    ax.set_ylabel(lab[1])
+    if res.config.objective == "accuracy-diameter":
+        ax.set_yscale("log")
+    ax.legend(fontsize=8)
+    ax.set_title(f"optimize --objective {res.config.objective}", fontsize=10)
+    fig.tight_layout()
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def _front_table(res: SearchResult) -> tuple[list[dict], str]:
+    rows = []
+    for e in res.front:
+        rows.append({"index": e["index"], "design_sha256": e["design_sha256"], **e["figures"],
+                     **{f"objective_{k}": v for k, v in e["objectives"].items()}, **e["parameters"]})
+    buf = io.StringIO()
+    if rows:
+        w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
+        w.writeheader()
+        w.writerows(rows)
+    return rows, buf.getvalue()
+
+
+def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: str, verify_poses: int,
+                  solver_images: int, build: bool, profile: str) -> dict:
+    """Write every output of a finished search into ``tmp`` (the caller renames it)."""
+    from ..design.loader import parse_design
+
+    seed = res.config.seed
+    # fresh poses: streams the search never used (search sample = seed)
+    vseed = 1_000_003 + 2 * seed
+    start_data = res.space.base
+    best_data = res.space.candidate(np.asarray(res.best["x"])) if res.best is not None else None
+    doc: dict = {"format": FORMAT, "version": VERSION, "command": command_line,
+                 "run": {"objective": res.config.objective, "objectives": list(objective_names(res.config.objective)),
+                         "evaluations": len(res.entries), "evaluated_now": res.evaluated, "replayed": res.replayed,
+                         "seed": seed, "sigma0": res.config.sigma0, "popsize": res.config.popsize,
+                         "seconds": res.seconds, "executor": res.executor, "stopped": res.stopped,
+                         "feasible_fraction": res.feasible_fraction,
+                         "refused_fraction": float(np.mean([bool(e["refused"]) for e in res.entries]))
+                         if res.entries else 0.0},
+                 "settings": res.settings.to_dict(),
+                 "space": [{"key": p.key, "low": p.low, "high": p.high, "start": p.start,
+                            "choices": list(p.choices) if p.choices else None} for p in res.space.parameters],
+                 "start": {"figures": res.start["figures"], "margins": res.start["margins"]}}
+    settings = res.settings.analysis
+    doc["start"]["verification"] = verify(start_data, settings, verify_poses, solver_images, vseed)
+    if best_data is not None:
+        header = (f"{best_data['name']}: found by `{command_line}`\n"
+                  f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
+                  f"evaluations, {res.settings.analysis.poses} search poses; start design "
+                  f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses\n"
+                  f"and the Monte-Carlo solver check are in summary.json beside it.")
+        text = design_toml(best_data, header)
+        write_text_atomic(tmp / "best.toml", text)
+        import tomllib
+
+        written = tomllib.loads(text)
+        parse_design(written, tmp / "best.toml")  # build accepts what we wrote
+        v = verify(written, settings, verify_poses, solver_images, vseed)
+        doc["best"] = {"index": res.best["index"], "generation": res.best["generation"],
+                       "parameters": res.best["parameters"], "design_sha256": res.best["design_sha256"],
+                       "figures": res.best["figures"], "objectives": res.best["objectives"],
+                       "margins": res.best["margins"], "verification": v}
+        s0, s1 = doc["start"]["verification"]["predicted"], v["predicted"]
+        doc["best"]["change_on_fresh_poses"] = {
+            "translation_p95": s1["translation_p95_mm"] / s0["translation_p95_mm"] - 1,
+            "rotation_p95": s1["rotation_p95_deg"] / s0["rotation_p95_deg"] - 1}
+        if solver_images:
+            m0, m1 = doc["start"]["verification"]["solver"], v["solver"]
+            doc["best"]["change_by_solver"] = {
+                "translation_rms": m1["translation_rms_mm"] / m0["translation_rms_mm"] - 1,
+                "rotation_rms": m1["rotation_rms_deg"] / m0["rotation_rms_deg"] - 1}
+        text_cmp, cmp_doc = comparison(start_data, written, settings, res.settings.profiles, verify_poses, vseed)
+        write_text_atomic(tmp / "comparison.txt", text_cmp)
+        doc["comparison"] = cmp_doc
+        if build:
+            from ..cad.build import build_fiducial
+
+            b = build_fiducial(parse_design(written, tmp / "best.toml"), tmp / "build", profile=profile)
+            doc["build"] = {"dir": "build", "seconds": b.manifest["build_time_s"]}
+    else:
+        doc["best"] = None
+    rows, text_csv = _front_table(res)
+    doc["front"] = rows
+    write_json_atomic(tmp / "pareto.json", {"format": FORMAT + "-front", "version": VERSION,
+                                            "objective": res.config.objective, "points": rows})
+    write_text_atomic(tmp / "pareto.csv", text_csv)
+    if res.entries:
+        _plot_convergence(res, tmp / "convergence.png")
+        if any(e["feasible"] for e in res.entries):
+            _plot_front(res, tmp / "pareto.png")
+    write_json_atomic(tmp / "summary.json", json.loads(json.dumps(doc, default=float)))
+    shutil.copyfile(log_path, tmp / "evaluations.jsonl")
+    return doc
+
+
+def format_summary(doc: dict) -> str:
+    """A few lines for the terminal: start vs best on fresh poses and by the solver."""
+    r = doc["run"]
+    out = [f"{r['evaluations']} evaluations ({r['evaluated_now']} now, {r['replayed']} from the log) in "
+           f"{r['seconds']:.1f} s on {r['executor']}; {r['feasible_fraction']:.0%} feasible"]
+    if doc.get("best") is None:
+        out.append("no feasible candidate: nothing written but the log and the front")
+        return "\n".join(out)
+    s0, s1 = doc["start"]["verification"], doc["best"]["verification"]
+    p0, p1 = s0["predicted"], s1["predicted"]
+    ch = doc["best"]["change_on_fresh_poses"]
+    out.append(f"fresh {s1['poses']} poses, predicted p95: translation {p0['translation_p95_mm']:.4f} -> "
+               f"{p1['translation_p95_mm']:.4f} mm ({ch['translation_p95']:+.1%}), rotation "
+               f"{p0['rotation_p95_deg']:.4f} -> {p1['rotation_p95_deg']:.4f}° ({ch['rotation_p95']:+.1%})")
+    if "solver" in s1:
+        m0, m1 = s0["solver"], s1["solver"]
+        c = doc["best"]["change_by_solver"]
+        out.append(f"solver, {m1['images']} images ({m0['solved']} / {m1['solved']} solved), RMS: translation "
+                   f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm ({c['translation_rms']:+.1%}), "
+                   f"rotation {m0['rotation_rms_deg']:.4f} -> {m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%})")
+    if not math.isnan(ch["translation_p95"]):
+        pass
+    return "\n".join(out)

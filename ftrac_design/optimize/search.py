@@ -1,0 +1,386 @@
+"""The search: ask/tell optimisers over an executor, an evaluation log, and resume.
+
+**Objectives** (every error is the predicted 1σ 3-D RMS over the fixed search sample,
+p95 over the poses, divided by the start design's value on the same sample, so the start
+scores 1):
+
+| ``objective`` | minimised | optimiser |
+| --- | --- | --- |
+| ``max`` (default) | max(t/t₀, r/r₀): neither translation nor rotation may get worse unnoticed | CMA-ES |
+| ``sum`` | (t/t₀ + r/r₀) / 2 | CMA-ES |
+| ``translation`` | t/t₀, with r/r₀ ≤ 1 as a constraint (rotation no worse than the start) | CMA-ES |
+| ``rotation`` | r/r₀, with t/t₀ ≤ 1 as a constraint | CMA-ES |
+| ``translation-rotation`` | (t/t₀, r/r₀) | NSGA-II |
+| ``accuracy-diameter`` | (max(t/t₀, r/r₀), body outer diameter in mm) | NSGA-II |
+
+**Constraints**: candidates that break a rule are not scored; they (and scored ones that
+break the objective's own constraint, by ``objective_violation``) are told
+``W + violation`` where W is the worst feasible objective value seen so far (never below
+the start's), so every feasible candidate ranks above every infeasible one and infeasible
+ones are ranked by how far they are from feasibility (Deb's feasibility rules). NSGA-II
+gets the violation as its constraint (G = violation ≤ 0).
+
+**Determinism**: CMA-ES (``cma``, seeded, its global-numpy random draws kept in a private
+state) and NSGA-II (``pymoo``, seeded generator) see only the told values, which come
+back in submission order; an evaluation depends only on the candidate and the fixed pose
+sample. So one seed gives one result with any number of workers.
+
+**Log and resume**: every evaluation is appended to a JSON Lines log as soon as its
+generation's earlier evaluations are in (line 1: the run's header; then the start design;
+then one line per candidate: index, generation, unit point, parameters, design hash,
+rule margins, violation, figures, objectives, seed). ``resume`` replays the logged
+evaluations through the same ask/tell sequence — the same seeds give the same asks, which
+must match the logged ones exactly — and evaluates only what is missing, so an interrupted
+run resumed ends exactly where the uninterrupted one would have. Generations are whole:
+the run stops after the generation in which the evaluation count is reached.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .evaluate import EvalSettings, evaluate_candidate
+from .space import SearchSpace, design_hash
+
+LOG_FORMAT = "ftrac-optimize-log"
+LOG_VERSION = 1
+SINGLE = ("max", "sum", "translation", "rotation")
+MULTI = ("translation-rotation", "accuracy-diameter")
+OBJECTIVES = SINGLE + MULTI
+
+
+@dataclass(frozen=True)
+class SearchConfig:
+    """What is searched for and how: objective, budget, seed and optimiser settings."""
+
+    objective: str = "max"
+    evaluations: int = 400
+    seed: int = 0
+    sigma0: float = 0.1
+    popsize: int | None = None
+
+    @property
+    def multi(self) -> bool:
+        return self.objective in MULTI
+
+    def header(self) -> dict:
+        """What a resumed run must share with the interrupted one (not the budget)."""
+        d = asdict(self)
+        d.pop("evaluations")
+        return d
+
+
+def objective_names(objective: str) -> tuple[str, ...]:
+    return {"translation-rotation": ("translation_ratio", "rotation_ratio"),
+            "accuracy-diameter": ("accuracy_ratio", "outer_diameter_mm")}.get(objective, (f"{objective}_ratio",))
+
+
+def objective_violation(objective: str, figures: dict, ref: dict) -> float:
+    """How far a scored candidate breaks the objective's own constraint (0 = not at all):
+    ``translation`` keeps the rotation error within the start's and vice versa."""
+    t = figures["translation_p95_mm"] / ref["translation_p95_mm"]
+    r = figures["rotation_p95_deg"] / ref["rotation_p95_deg"]
+    return {"translation": max(0.0, r - 1.0), "rotation": max(0.0, t - 1.0)}.get(objective, 0.0)
+
+
+def _ok(e: dict) -> bool:
+    return bool(e["feasible"]) and not e.get("objective_violation")
+
+
+def objective_values(objective: str, figures: dict, ref: dict) -> tuple[float, ...]:
+    """The objective vector of a scored candidate (see the module doc)."""
+    t = figures["translation_p95_mm"] / ref["translation_p95_mm"]
+    r = figures["rotation_p95_deg"] / ref["rotation_p95_deg"]
+    return {"max": (max(t, r),), "sum": ((t + r) / 2,), "translation": (t,), "rotation": (r,),
+            "translation-rotation": (t, r),
+            "accuracy-diameter": (max(t, r), figures["outer_diameter_mm"])}[objective]
+
+
+@contextlib.contextmanager
+def _private_numpy_random(holder: dict):
+    """Run with numpy's global random state swapped for ``holder['state']`` (cma draws from it)."""
+    outer = np.random.get_state()
+    if holder.get("state") is not None:
+        np.random.set_state(holder["state"])
+    try:
+        yield
+    finally:
+        holder["state"] = np.random.get_state()
+        np.random.set_state(outer)
+
+
+class _Cma:
+    """CMA-ES (``cma``) on the unit cube, ask/tell."""
+
+    def __init__(self, x0: np.ndarray, config: SearchConfig):
+        import cma
+
+        self._rng: dict = {}
+        opts = {"bounds": [0.0, 1.0], "seed": config.seed + 1, "verbose": -9, "verb_log": 0, "verb_disp": 0,
+                "tolfun": 0.0, "tolflatfitness": 10_000, "tolfunhist": 0.0, "tolx": 1e-9}
+        if config.popsize:
+            opts["popsize"] = config.popsize
+        # cma works in two or more dimensions: a one-parameter space gets an inert second one
+        self.dim = len(x0)
+        with _private_numpy_random(self._rng):
+            self.es = cma.CMAEvolutionStrategy(list(x0) + [0.5] * (self.dim == 1), config.sigma0, opts)
+        self.popsize = self.es.popsize
+        self._asked: list = []
+
+    def ask(self) -> list[np.ndarray]:
+        with _private_numpy_random(self._rng):
+            self._asked = self.es.ask()
+        return [np.asarray(x[:self.dim], float) for x in self._asked]
+
+    def tell(self, xs: list[np.ndarray], f: np.ndarray, g: np.ndarray) -> None:
+        with _private_numpy_random(self._rng):
+            self.es.tell(self._asked, [float(v[0]) for v in f])
+
+    def stopped(self) -> str | None:
+        stop = {k: v for k, v in self.es.stop().items() if k not in ("maxfevals", "maxiter")}
+        return ", ".join(stop) if stop else None
+
+
+class _Nsga2:
+    """NSGA-II (``pymoo``) on the unit cube, ask/tell; the first population holds the start."""
+
+    def __init__(self, x0: np.ndarray, config: SearchConfig):
+        from pymoo.algorithms.moo.nsga2 import NSGA2
+        from pymoo.core.problem import Problem
+        from pymoo.core.termination import NoTermination
+
+        n = len(x0)
+        self.popsize = config.popsize or max(16, 4 * ((n + 3) // 4) + 8)
+        rng = np.random.default_rng(config.seed)
+        sampling = np.vstack([x0, rng.random((self.popsize - 1, n))])
+        self.problem = Problem(n_var=n, n_obj=2, n_ieq_constr=1, xl=np.zeros(n), xu=np.ones(n))
+        self.algorithm = NSGA2(pop_size=self.popsize, sampling=sampling, eliminate_duplicates=True)
+        self.algorithm.setup(self.problem, termination=NoTermination(), seed=config.seed, verbose=False)
+        self._pop = None
+
+    def ask(self) -> list[np.ndarray]:
+        self._pop = self.algorithm.ask()
+        return [np.asarray(x, float) for x in self._pop.get("X")]
+
+    def tell(self, xs: list[np.ndarray], f: np.ndarray, g: np.ndarray) -> None:
+        from pymoo.core.evaluator import Evaluator
+        from pymoo.problems.static import StaticProblem
+
+        Evaluator().eval(StaticProblem(self.problem, F=np.asarray(f, float), G=np.asarray(g, float)), self._pop)
+        self.algorithm.tell(infills=self._pop)
+
+    def stopped(self) -> str | None:
+        return None
+
+
+@dataclass
+class SearchResult:
+    """Everything the outputs need: the start, every candidate (log entries with their
+    objective values), the best (or the front) and the run's facts."""
+
+    space: SearchSpace
+    config: SearchConfig
+    settings: EvalSettings
+    start: dict
+    entries: list[dict]
+    best: dict | None
+    front: list[dict]
+    seconds: float
+    evaluated: int
+    replayed: int
+    executor: str = ""
+    stopped: str | None = None
+    history: list[float] = field(default_factory=list)
+
+    @property
+    def feasible_fraction(self) -> float:
+        return float(np.mean([e["feasible"] for e in self.entries])) if self.entries else 0.0
+
+
+class _Interrupted(KeyboardInterrupt):
+    """Raised by ``stop_after`` (tests): the run stops as if killed after that many candidates."""
+
+
+def _read_log(path: Path) -> list[dict]:
+    """The complete lines of a log; a torn last line (killed mid-write) is cut off the file."""
+    if not path.exists():
+        return []
+    raw = path.read_bytes()
+    entries, good = [], 0
+    for line in raw.split(b"\n"):
+        if not line.strip():
+            good += len(line) + 1
+            continue
+        try:
+            entries.append(json.loads(line))
+        except ValueError:
+            break
+        good += len(line) + 1
+    if good < len(raw):
+        os.truncate(path, min(good, len(raw)))
+    return entries
+
+
+def _front_mask(f: np.ndarray) -> np.ndarray:
+    from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
+
+    mask = np.zeros(len(f), bool)
+    if len(f):
+        mask[NonDominatedSorting().do(f, only_non_dominated_front=True)] = True
+    return mask
+
+
+def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig, executor: Executor,
+               log_path: str | Path, resume: bool = False, progress: bool = True, executor_name: str = "",
+               stop_after: int | None = None, on_generation: Callable[[int], None] | None = None) -> SearchResult:
+    """Search ``space`` (see the module doc); evaluations run on ``executor`` and are logged
+    to ``log_path`` (appended; with ``resume`` the logged ones are replayed, not re-run)."""
+    from tqdm import tqdm
+
+    if config.objective not in OBJECTIVES:
+        raise InputError(None, "--objective", f"one of {', '.join(OBJECTIVES)}, got {config.objective!r}")
+    if config.multi and len(objective_names(config.objective)) != 2:
+        raise InputError(None, "--objective", "two objectives")
+    log_path = Path(log_path)
+    header = {"kind": "run", "format": LOG_FORMAT, "version": LOG_VERSION,
+              "design_sha256": design_hash(space.base), "space": [asdict(p) for p in space.parameters],
+              "config": config.header(), "settings": settings.to_dict()}
+    header = json.loads(json.dumps(header))  # tuples → lists, as the log holds them
+    logged = _read_log(log_path) if resume else []
+    if resume and not logged:
+        raise InputError(log_path, None, "an evaluation log to resume (none found; run without --resume)")
+    if logged:
+        if logged[0] != header:
+            diff = next((k for k in header if logged[0].get(k) != header.get(k)), "header")
+            raise InputError(log_path, diff, "a log of this same run (design, space, objective, seed and settings); "
+                                             "it differs here")
+    elif log_path.exists() and log_path.stat().st_size:
+        raise InputError(log_path, None, "no earlier log (pass --resume to continue it, or remove it)")
+    t_start = time.perf_counter()
+    out = open(log_path, "a", encoding="utf-8")
+    if not logged:
+        out.write(json.dumps(header, allow_nan=False) + "\n")
+    pos = 1  # next logged line to replay
+    counts = {"evaluated": 0, "replayed": 0, "written": 0}
+
+    def write(entry: dict) -> None:
+        out.write(json.dumps(entry, allow_nan=False) + "\n")
+        out.flush()
+        counts["written"] += 1
+
+    # the start design: the reference of every ratio, scored even if it breaks a rule
+    if pos < len(logged):
+        start = logged[pos]
+        pos += 1
+        counts["replayed"] += 1
+    else:
+        start = {"kind": "start", "index": 0, "seed": config.seed, **evaluate_candidate(space.base, settings),
+                 "parameters": {p.key: p.start for p in space.parameters}}
+        if start["figures"] is None:
+            from ..features import compute_features
+            from ..design.loader import parse_design
+            from .evaluate import score_figures
+
+            d = parse_design(space.base)
+            fig = score_figures(compute_features(d), settings.analysis)
+            if fig is None:
+                raise InputError(space.base.get("name"), None, "a start design that is not singular in its workspace")
+            fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))
+            start["figures"] = fig
+        write(start)
+    ref = start["figures"]
+    names = objective_names(config.objective)
+    start_obj = np.array(objective_values(config.objective, ref, ref))
+    worst = start_obj.copy()
+    x0 = space.start_unit()
+    opt = _Cma(x0, config) if not config.multi else _Nsga2(x0, config)
+    entries: list[dict] = []
+    history: list[float] = []
+    best: dict | None = None
+    gen = 0
+    stopped = None
+    bar = tqdm(total=config.evaluations, unit="eval", desc="optimize", disable=None if progress else True,
+               leave=False)
+    try:
+        while len(entries) < config.evaluations:
+            xs = opt.ask()
+            batch: list[dict | None] = [None] * len(xs)
+            futures = []
+            for j, x in enumerate(xs):
+                k = len(entries) + j + 1
+                data = space.candidate(x)
+                if pos < len(logged):
+                    e = logged[pos]
+                    if e.get("index") != k or e.get("x") != [float(v) for v in x]:
+                        raise InputError(log_path, f"line {pos + 1}",
+                                         "the evaluation this run asks for next (the log belongs to another run "
+                                         "or another version of the optimiser)")
+                    batch[j] = e
+                    pos += 1
+                    counts["replayed"] += 1
+                else:
+                    futures.append((j, k, x, executor.submit(evaluate_candidate, data, settings)))
+            for j, k, x, fut in futures:  # in submission order, whoever finished first
+                res = fut.result()
+                e = {"kind": "candidate", "index": k, "generation": gen, "seed": config.seed,
+                     "x": [float(v) for v in x], "parameters": space.values(x), **res}
+                if e["feasible"]:
+                    e["objectives"] = dict(zip(names, objective_values(config.objective, e["figures"], ref)))
+                    e["objective_violation"] = objective_violation(config.objective, e["figures"], ref)
+                write(e)
+                batch[j] = e
+                counts["evaluated"] += 1
+                bar.update(1)
+                if stop_after is not None and counts["evaluated"] >= stop_after:
+                    raise _Interrupted(f"stopped after {stop_after} evaluations")
+            bar.update(len(xs) - len(futures))
+            # objective values, then what is told: W + violation for the infeasible
+            for e in batch:
+                if _ok(e):
+                    worst = np.maximum(worst, list(e["objectives"].values()))
+            f = np.array([list(e["objectives"].values()) if _ok(e)
+                          else worst + e["violation"] + e.get("objective_violation", 0.0) for e in batch])
+            g = np.array([[0.0 if _ok(e) else e["violation"] + e.get("objective_violation", 0.0)] for e in batch])
+            opt.tell(xs, f, g)
+            for e in batch:
+                entries.append(e)
+                if _ok(e) and not config.multi and (best is None or e["objectives"][names[0]]
+                                                           < best["objectives"][names[0]]):
+                    best = e
+                history.append(best["objectives"][names[0]] if best else math.nan)
+            if best is not None:
+                bar.set_postfix_str(f"best {names[0]} {best['objectives'][names[0]]:.4f}")
+            gen += 1
+            if on_generation is not None:
+                on_generation(gen)
+            stopped = opt.stopped()
+            if stopped:
+                break
+    finally:
+        bar.close()
+        out.close()
+    feas = [e for e in entries if e["feasible"]]
+    front: list[dict] = []
+    if feas:
+        if config.multi:
+            f = np.array([list(e["objectives"].values()) for e in feas])
+        else:  # the translation–rotation trade-off among everything feasible that was scored
+            f = np.array([[e["figures"]["translation_p95_mm"], e["figures"]["rotation_p95_deg"]] for e in feas])
+        front = sorted((e for e, m in zip(feas, _front_mask(f)) if m),
+                       key=lambda e: list(e["objectives"].values())[1] if config.multi
+                       else e["figures"]["translation_p95_mm"])
+        if config.multi:  # the most accurate point of the front is the "best" design
+            best = min(front, key=lambda e: (e["objectives"][names[0]], e["index"]))
+    return SearchResult(space, config, settings, start, entries, best, front, time.perf_counter() - t_start,
+                        counts["evaluated"], counts["replayed"], executor_name, stopped, history)

@@ -1,0 +1,212 @@
+"""ftrac_design.optimize: search space, graded rules, CMA-ES / NSGA-II, executors, resume."""
+
+from __future__ import annotations
+
+import json
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ftrac_design.analysis.score import AnalysisSettings
+from ftrac_design.cli.main import main
+from ftrac_design.errors import InputError
+from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, optimize, parse_space, run_search
+from ftrac_design.optimize.execution import SerialExecutor, local_pool
+from ftrac_design.optimize.search import objective_values
+from ftrac_design.optimize.space import apply_values, place_beads
+
+MODELS = Path(__file__).resolve().parents[1] / "models"
+MINI = MODELS / "ftrac_mini.toml"
+SETTINGS = EvalSettings(("cnc",), AnalysisSettings(poses=200, seed=3))
+
+
+@pytest.fixture(scope="module")
+def base() -> dict:
+    return tomllib.loads(MINI.read_text())
+
+
+def _space(base, params: dict, **search):
+    return parse_space(base, {"parameters": params, "search": search}, "test_space.toml")
+
+
+def _strip(entries: list[dict]) -> list[dict]:
+    return [{k: v for k, v in e.items() if k != "seconds"} for e in entries]
+
+
+def _log(path: Path) -> list[dict]:
+    return _strip([json.loads(line) for line in path.read_text().splitlines()])
+
+
+# ---- space ----------------------------------------------------------------------------------
+
+def test_ordered_bead_fractions_keep_beads_apart_and_on_the_line():
+    zs = place_beads(-5.0, 5.0, 4, True, True, [0.9, 0.1], 1.0)
+    assert zs[0] == -5.0 and zs[-1] == 5.0
+    assert all(b - a > 1.0 for a, b in zip(zs, zs[1:]))  # sorted, more than a diameter apart
+    # the start design maps to its own fractions and back
+    assert place_beads(-6.4, 6.4, 4, True, True, [(0.0 + 6.4 - 1.001) / (12.8 - 3.003),
+                                                  (4.2 + 6.4 - 2.002) / (12.8 - 3.003)], 1.0) == \
+        pytest.approx([-6.4, 0.0, 4.2, 6.4], abs=1e-12)
+
+
+def test_start_point_reproduces_the_start_design(base):
+    sp = _space(base, {"lines.L1.beads": [0, 1], "lines.L1.z_start": [-8, -5], "ellipses.E1.tilt_deg": [20, 40]})
+    data = sp.candidate(sp.start_unit())
+    assert data["lines"][0]["beads_z"] == pytest.approx(base["lines"][0]["beads_z"], abs=1e-9)
+    assert data["ellipses"][0]["tilt_deg"] == pytest.approx(30.0)
+
+
+def test_body_scale_and_stock_sizes(base):
+    d = apply_values(base, {"body.scale": 2.0, "bead.diameter": 0.8})
+    assert d["body"]["outer_diameter"] == 20.0 and d["ellipses"][1]["z_center"] == pytest.approx(9.6)
+    assert d["lines"][0]["z_end"] == pytest.approx(12.8) and d["lines"][0]["beads_z"][-1] == pytest.approx(12.8)
+    # the bead keeps its cover: 0.65 - 0.5 = 0.15 mm above a 1.0 mm ball, so 0.55 for 0.8 mm
+    assert d["seating"]["line_wire_depth"] == pytest.approx(0.55)
+
+
+# ---- rules as graded margins ----------------------------------------------------------------
+
+def test_margins_are_graded_and_the_infeasible_are_not_scored(base):
+    ok = evaluate_candidate(base, SETTINGS)
+    assert ok["feasible"] and ok["violation"] == 0 and ok["figures"]["translation_p95_mm"] > 0
+    # pockets.spacing is 1.22 mm against 1.0: margin (1.22 - 1) / 1
+    assert ok["margins"]["cnc:pockets.spacing"] == pytest.approx(0.22, abs=1e-3)
+    closer = [evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": z, "ellipses.E2.z_center": -z}),
+                                 SETTINGS) for z in (-5.6, -5.8)]
+    assert not any(c["feasible"] for c in closer) and all(c["figures"] is None for c in closer)
+    assert 0 < closer[0]["violation"] < closer[1]["violation"]  # further out, further from feasible
+    refused = evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": -1.0}), SETTINGS)
+    assert refused["refused"] and refused["violation"] >= 1000
+
+
+# ---- the search -----------------------------------------------------------------------------
+
+def test_toy_space_finds_the_optimum_of_a_dense_scan(base, tmp_path):
+    """One ellipse's tilt, everything else fixed: CMA-ES must land on the best feasible tilt
+    of a 0.05° scan (the optimum lies on a rule's boundary, where pockets.spacing fails)."""
+    sp = _space(base, {"ellipses.E1.tilt_deg": [25.0, 45.0]}, sigma0=0.3)
+    cfg = SearchConfig(objective="max", evaluations=60, seed=1, sigma0=0.3, popsize=6)
+    res = run_search(sp, SETTINGS, cfg, SerialExecutor(), tmp_path / "log.jsonl", progress=False)
+    ref = res.start["figures"]
+
+    def scan(tilts):
+        out = []
+        for t in tilts:
+            e = evaluate_candidate(apply_values(base, {"ellipses.E1.tilt_deg": float(t)}), SETTINGS)
+            out.append(objective_values("max", e["figures"], ref)[0] if e["feasible"] else np.inf)
+        return np.array(out)
+
+    coarse = np.arange(25.0, 45.0001, 1.0)  # then 0.05° around the best whole degree
+    k = int(np.argmin(scan(coarse)))
+    assert 30.0 < coarse[k] < 44.0  # an interior, rule-bound optimum, not a bound of the space
+    tilts = np.arange(coarse[k] - 1.0, coarse[k] + 1.0001, 0.05)
+    fine = scan(tilts)
+    k = int(np.argmin(fine))
+    found = res.best["parameters"]["ellipses.E1.tilt_deg"]
+    assert res.best["objectives"]["max_ratio"] <= fine[k] + 1e-4
+    assert abs(found - tilts[k]) < 0.1
+
+
+def _small_space(base):
+    return _space(base, {"ellipses.E1.tilt_deg": [25.0, 38.0], "ellipses.E2.z_center": [4.0, 6.0],
+                         "lines.L2.azimuth_deg": [100.0, 140.0]})
+
+
+def test_same_seed_same_result_in_process_with_2_workers_and_on_a_dask_cluster(base, tmp_path):
+    from distributed import Client, LocalCluster
+
+    sp = _small_space(base)
+    cfg = SearchConfig(evaluations=16, seed=7, sigma0=0.25, popsize=8)
+    logs = []
+    res = run_search(sp, SETTINGS, cfg, SerialExecutor(), tmp_path / "serial.jsonl", progress=False)
+    logs.append(_log(tmp_path / "serial.jsonl"))
+    with local_pool(2) as pool:
+        r = run_search(sp, SETTINGS, cfg, pool, tmp_path / "pool2.jsonl", progress=False)
+    assert r.best["x"] == res.best["x"]
+    logs.append(_log(tmp_path / "pool2.jsonl"))
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        r = run_search(sp, SETTINGS, cfg, client.get_executor(), tmp_path / "dask.jsonl", progress=False)
+    logs.append(_log(tmp_path / "dask.jsonl"))
+    assert r.best["x"] == res.best["x"]
+    assert all(lg == logs[0] for lg in logs[1:])
+    assert len(logs[0]) == 2 + 16  # header, start, two generations of 8
+
+
+def test_interrupted_run_resumed_gives_the_uninterrupted_result(base, tmp_path):
+    from ftrac_design.optimize.search import _Interrupted
+
+    sp = _small_space(base)
+    cfg = SearchConfig(evaluations=18, seed=11, sigma0=0.25, popsize=6)
+    full = run_search(sp, SETTINGS, cfg, SerialExecutor(), tmp_path / "full.jsonl", progress=False)
+    log = tmp_path / "cut.jsonl"
+    with pytest.raises(_Interrupted):  # mid-generation: 8 of 18 evaluations
+        run_search(sp, SETTINGS, cfg, SerialExecutor(), log, progress=False, stop_after=8)
+    with log.open("a") as fh:
+        fh.write('{"kind": "candidate", "index": 9, "x": [0.1')  # killed while writing
+    with pytest.raises(InputError):  # the log is not overwritten without resume
+        run_search(sp, SETTINGS, cfg, SerialExecutor(), log, progress=False)
+    res = run_search(sp, SETTINGS, cfg, SerialExecutor(), log, resume=True, progress=False)
+    assert res.replayed == 1 + 8 and res.evaluated == 18 - 8
+    assert res.best["x"] == full.best["x"] and res.history == full.history
+    assert _log(log) == _log(tmp_path / "full.jsonl")
+    other = SearchConfig(evaluations=18, seed=12, sigma0=0.25, popsize=6)
+    with pytest.raises(InputError, match="config"):  # a log of another run is refused
+        run_search(sp, SETTINGS, other, SerialExecutor(), log, resume=True, progress=False)
+
+
+def test_nsga2_front_is_non_dominated_and_feasible(base, tmp_path):
+    sp = _space(base, {"body.scale": [1.0, 2.0], "ellipses.E1.tilt_deg": [25.0, 35.0]})
+    cfg = SearchConfig(objective="accuracy-diameter", evaluations=32, seed=2, popsize=16)
+    res = run_search(sp, SETTINGS, cfg, SerialExecutor(), tmp_path / "log.jsonl", progress=False)
+    f = np.array([list(e["objectives"].values()) for e in res.front])
+    assert len(f) >= 2 and all(e["feasible"] for e in res.front)
+    for i in range(len(f)):
+        assert not np.any(np.all(f <= f[i], 1) & np.any(f < f[i], 1))
+    assert np.all(np.diff(f[:, 1]) > 0) and np.all(np.diff(f[:, 0]) < 0)  # bigger is more accurate
+    assert f[:, 1].min() >= 10.0 - 1e-9 and f[:, 1].max() <= 20.0 + 1e-9
+
+
+# ---- the command ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("params, key", [
+    ('"ellipses.E1.tilt_deg" = [40.0, 20.0]', "parameters.ellipses.E1.tilt_deg"),
+    ('"ellipses.E9.tilt_deg" = [20.0, 40.0]', "parameters.ellipses.E9.tilt_deg"),
+    ('"lines.L1.colour" = [0.0, 1.0]', "parameters.lines.L1.colour"),
+    ('"ellipses.E1.tilt_deg" = [20.0, 85.0]', "parameters.ellipses.E1.tilt_deg"),
+    ('"body.outer_diameter" = [-1.0, 12.0]', "parameters.body.outer_diameter"),
+    ('"lines.L1.beads" = [0.0, 1.5]', "parameters.lines.L1.beads"),
+    ('"wire.diameter" = {choices = []}', "parameters.wire.diameter"),
+])
+def test_invalid_space_exits_2_with_one_line(tmp_path, capsys, params, key):
+    space = tmp_path / "space.toml"
+    space.write_text(f"[parameters]\n{params}\n")
+    rc = main(["optimize", str(MINI), "--space", str(space), "-o", str(tmp_path / "out"), "--no-build"])
+    err = capsys.readouterr().err
+    assert rc == 2
+    assert len(err.strip().splitlines()) == 1 and str(space) in err and key in err
+    assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
+
+
+@pytest.mark.slow
+def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_path, capsys):
+    space = tmp_path / "space.toml"
+    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [25.0, 38.0]\n"ellipses.E2.tilt_deg" = [25.0, 38.0]\n'
+                     "[search]\npopsize = 6\n")
+    out = tmp_path / "opt"
+    rc = main(["optimize", str(MINI), "--space", str(space), "--evaluations", "12", "--workers", "0",
+               "--poses", "200", "--verify-poses", "500", "--solver-images", "20", "-o", str(out)])
+    assert rc == 0, capsys.readouterr().err
+    for name in ("best.toml", "summary.json", "comparison.txt", "pareto.json", "pareto.csv", "pareto.png",
+                 "convergence.png", "evaluations.jsonl", "build/fiducial.step", "build/manifest.json"):
+        assert (out / name).exists(), name
+    assert not (tmp_path / "opt.partial").exists()
+    assert main(["check", str(out / "best.toml")]) == 0
+    doc = json.loads((out / "summary.json").read_text())
+    assert doc["best"]["verification"]["solver"]["solved"] == 20
+    best = doc["best"]["verification"]["predicted"]["translation_p95_mm"]
+    start = doc["start"]["verification"]["predicted"]["translation_p95_mm"]
+    assert best <= start * 1.01  # on fresh poses the winner is no worse than the start
+    assert "start: ftrac_mini" in (out / "comparison.txt").read_text()
