@@ -146,7 +146,7 @@ def test_straight_wire_profile_is_the_chord_of_a_circle():
     the axis at distance z0 |Y| / √(Y² + f²), Y = (v − o_y) s_y, so p = μ 2 √(r² − dist²)."""
     r, z0 = 0.25, 667.0
     f = _features(lines=[LineFeature("L", np.array([-10.0, 0, 0]), np.array([10.0, 0, 0]), 2 * r)])
-    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1)
+    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, single_precision=False)
     p, (v0, u0) = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, im, None)
     col = p[:, 128 - u0]
     v = v0 + np.arange(len(col))
@@ -163,9 +163,17 @@ def test_body_chord_through_its_axis():
     """Axis across the beam through the principal ray: the central ray crosses the wall twice."""
     f = _features()
     R = _rot_y(90.0)                       # F's z axis along camera x
-    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1)
+    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, single_precision=False)
     p, (v0, u0) = line_integral_box(f, R, np.array([0.0, 0.0, 667.0]), CAM_SMALL, im, BODY_2005)
     assert p[128 - v0, 128 - u0] == pytest.approx(im.mu("acetal") * 2 * (15.0 - 10.0), rel=1e-12)
+
+
+def test_single_precision_stays_close_to_double(features_2005):
+    R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(8))
+    a, oa = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel(), BODY_2005)
+    b, ob = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel(single_precision=False), BODY_2005)
+    assert oa == ob and a.shape == b.shape
+    assert np.abs(a - b).max() < 2e-3 and np.mean(np.abs(a - b) > 4e-4) < 1e-3 and a.max() > 1.5
 
 
 def test_bead_centroid_follows_the_projection():
@@ -238,7 +246,8 @@ def test_blur_acts_on_intensity_and_matches_its_sigma():
 def test_needle_occluder_in_camera_frame():
     """A needle across the principal ray in X: the central ray meets its full diameter."""
     occ = Occluder((-40.0, 0.0, 600.0), (40.0, 0.0, 600.0), diameter=1.0, frame="X")
-    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, focal_spot_mm=0, detector_blur_px=0)
+    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, focal_spot_mm=0, detector_blur_px=0,
+                      single_precision=False)
     img = render(_features(), _rot_y(30), np.array([0, 0, 667.0]), CAM_SMALL, im, occluders=[occ], body=None)
     assert img.line_integral[128, 128] == pytest.approx(im.mu("steel") * 1.0, rel=1e-6)
     assert img.truth["occluders"][0]["frame"] == "X"
