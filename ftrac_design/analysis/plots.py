@@ -252,7 +252,7 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     ax.set_rlim(0, seg_atlas.cone_deg)
     ax.tick_params(labelsize=7)
     _colorbar(fig, pcm, ax, "smallest clearance, px", 0.1)
-    ax.set_title("the workspace cone (radius: ° from nominal; up: toward +z)", fontsize=10, pad=18)
+    ax.set_title("the workspace cone\n(radius: ° from nominal; up: tilted toward +z)", fontsize=10, pad=14)
     fig.suptitle(f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
-                 f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs", fontsize=11, y=1.03)
+                 f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs", fontsize=11, y=1.07)
     return _save(fig, path)

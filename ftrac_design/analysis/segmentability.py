@@ -219,25 +219,29 @@ def _batched_search(s: np.ndarray, q: np.ndarray, side: str) -> np.ndarray:
 
 
 def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool = False) -> np.ndarray:
-    """(B,) the smallest d such that the curve through P (B, m, 2) stays within d of the other
-    curve along a connected stretch of ``stretch`` px: min over windows of that arc length of
-    the largest distance f (B, m) in the window.
+    """(..., B) the smallest d such that the curve through P (B, m, 2) stays within d of
+    another curve along a connected stretch of ``stretch`` px: min over windows of that arc
+    length of the largest distance f (..., B, m) to it in the window. Leading axes of f are
+    other curves measured along the same one (the windows depend only on P: found once).
 
     f is taken as linear in arc length between the points; the windows tried are those that
     start or end at a point, so the result exceeds the exact minimax by at most half a point
     spacing × the slope of f there (sin θ for a crossing at θ). A curve shorter than
     ``stretch`` is one window: its largest distance. ``closed``: P[:, -1] = P[:, 0].
     """
-    B, m = f.shape
+    lead = f.shape[:-2]
+    B, m = f.shape[-2:]
+    f = f.reshape((-1, B, m))
+    K = f.shape[0]
     s = np.concatenate([np.zeros((B, 1)), np.cumsum(np.hypot(*np.moveaxis(np.diff(P, axis=1), -1, 0)), 1)], 1)
     total = s[:, -1].copy()
     if closed:                                   # once more round: windows may wrap
-        f = np.concatenate([f, f[:, 1:]], 1)
+        f = np.concatenate([f, f[..., 1:]], -1)
         s = np.concatenate([s, s[:, 1:] + total[:, None]], 1)
         starts, ends = np.arange(m - 1), np.arange(m - 1, 2 * m - 1)
     else:
         starts = ends = np.arange(m)
-    L = f.shape[1]
+    L = s.shape[1]
     rows = np.arange(B)[:, None]
     # where the windows starting at a vertex end (inside segment j−1 … j) and where those
     # ending at a vertex start (inside segment i … i+1)
@@ -252,39 +256,62 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
     while (2 << (len(levels) - 1)) <= min(longest, L):
         h = 1 << (len(levels) - 1)
         prev = levels[-1]
-        levels.append(np.concatenate([np.maximum(prev[:, :-h], prev[:, h:]), prev[:, -h:]], 1))
-    table = np.stack(levels)
+        levels.append(np.concatenate([np.maximum(prev[..., :-h], prev[..., h:]), prev[..., -h:]], -1))
+    table = np.stack(levels).ravel()
     log2 = np.minimum(np.floor(np.log2(np.arange(1, L + 1))).astype(int), len(levels) - 1)
+    # flat indices (np.take beats fancy indexing): level, curve, pose, vertex
+    base = (np.arange(K)[:, None, None] * B + rows) * L
+    fl, sl = f.ravel(), s.ravel()
 
-    def range_max(lo, hi):                       # inclusive vertex ranges (B, n)
+    def range_max(lo, hi):                       # inclusive vertex ranges (B, n) → (K, B, n)
         p = log2[hi - lo]
-        return np.maximum(table[p, rows, lo], table[p, rows, hi - (1 << p) + 1])
+        q = p * (K * B * L) + base
+        return np.maximum(table.take(q + lo), table.take(q + hi - (1 << p) + 1))
 
     def lerp(i, x):                              # f at arc position x in segment i … i+1
-        s0, s1 = s[rows, i], s[rows, i + 1]
+        k = rows * L + i
+        s0, s1 = sl.take(k), sl.take(k + 1)
         lam = np.clip((x - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0, 1.0)
-        return f[rows, i] + lam * (f[rows, i + 1] - f[rows, i])
+        f0, f1 = fl.take(base + i), fl.take(base + i + 1)
+        return f0 + lam * (f1 - f0)
 
     ok = j < L                                   # an open curve's windows may run off its end
     j = np.clip(j, 1, L - 1)
     best = np.where(ok, np.maximum(range_max(np.broadcast_to(starts, j.shape), j - 1), lerp(j - 1, end)),
-                    np.inf).min(1)
+                    np.inf).min(-1)
     ok = i >= 0
     i = np.clip(i, 0, L - 2)
     jj = np.broadcast_to(ends, i.shape)
     best = np.minimum(best, np.where(ok, np.maximum(range_max(np.minimum(i + 1, jj), jj), lerp(i, beg)),
-                                     np.inf).min(1))
-    return np.where(total < stretch, f[:, :m].max(1), best)
+                                     np.inf).min(-1))
+    return np.where(total < stretch, f[..., :m].max(-1), best).reshape(lead + (B,))
 
 
-def _wire_pair(a: _Curve, b: _Curve, stretch: float) -> np.ndarray:
-    """(B,) stretch clearance of two curves (see module doc)."""
-    if a.kind == "line" and b.kind == "ellipse":
-        a, b = b, a                               # measure along the ellipse, to the exact segment
-    d = stretch_distance(distance_to_polyline(a.vertices, b.target, b.closed), a.vertices, stretch, a.closed)
-    if a.kind == "line" and b.kind == "line":
-        d = np.minimum(d, stretch_distance(distance_to_polyline(b.vertices, a.target), b.vertices, stretch))
-    return d - a.half_width - b.half_width
+def _wire_pairs(curves: list[_Curve], stretch: float) -> dict[tuple[int, int], np.ndarray]:
+    """(B,) stretch clearance of every pair of curves (index pairs ia < ib; see module doc):
+    along the ellipse for a line and an ellipse, along the first of two ellipses, both ways
+    for two lines — all curves measured along one curve at once."""
+    along: dict[int, list[int]] = {}
+    for ia in range(len(curves)):
+        for ib in range(ia + 1, len(curves)):
+            a, b = curves[ia], curves[ib]
+            if a.kind == "line" and b.kind == "ellipse":
+                along.setdefault(ib, []).append(ia)
+            else:
+                along.setdefault(ia, []).append(ib)
+                if a.kind == "line" and b.kind == "line":
+                    along.setdefault(ib, []).append(ia)
+    out: dict[tuple[int, int], np.ndarray] = {}
+    for ia, targets in along.items():
+        a = curves[ia]
+        f = np.stack([distance_to_polyline(a.vertices, curves[ib].target, curves[ib].closed) for ib in targets])
+        d = stretch_distance(f, a.vertices, stretch, a.closed)
+        for k, ib in enumerate(targets):
+            key = (min(ia, ib), max(ia, ib))
+            out[key] = np.minimum(out[key], d[k]) if key in out else d[k]
+    for (ia, ib), d in out.items():
+        d -= curves[ia].half_width + curves[ib].half_width
+    return out
 
 
 def _pair_chunk(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, settings: ClearanceSettings):
@@ -312,10 +339,11 @@ def _pair_chunk(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray
         cols.append(d - r[:, own] - cv.half_width[:, None])
         pairs += [(pts[k].id, cv.id) for k in own]
         kinds += [f"bead-{cv.kind}"] * len(own)
+    wires = _wire_pairs(curves, settings.stretch_px)
     for ia in range(len(curves)):
         for ib in range(ia + 1, len(curves)):
             a, b = curves[ia], curves[ib]
-            cols.append(_wire_pair(a, b, settings.stretch_px)[:, None])
+            cols.append(wires[ia, ib][:, None])
             pairs.append((a.id, b.id))
             kinds.append("-".join(sorted((a.kind, b.kind), key=("line", "ellipse").index)))
     C = np.concatenate(cols, 1) if cols else np.zeros((R.shape[0], 0))
@@ -359,8 +387,8 @@ def image_clearance(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     features overlap there (B,) bool (clearance < 0): beads merging, a bead on a foreign
     line, or two wires within their widths of each other along ``settings.stretch_px`` of
     image curve (a bead on an ellipse wire is not counted by default). Every feature must
-    be in front of the source (as at every workspace pose). About 0.1–0.2 ms per pose
-    for ``ftrac_2005``, batched. Pair
+    be in front of the source (as at every workspace pose). About 0.1 ms of CPU per pose
+    for ``ftrac_2005``, batched (``benchmarks/segmentability_figures.py``). Pair
     definitions in the module doc; :func:`pair_clearances` gives every pair.
     """
     pc = pair_clearances(features, camera, R, t, settings)
