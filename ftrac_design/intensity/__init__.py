@@ -1,0 +1,16 @@
+"""Intensity-based pose: the simulator's derivative, the pixel-level Cramér–Rao bound, refinement.
+
+- :class:`RoiModel` — the noise-free log image over a region of interest and its
+  derivative with respect to the pose (:mod:`.model`).
+- :func:`pixel_information` — Fisher information / Cramér–Rao bound of the pose from the
+  pixels at a stated dose, blur and background (:mod:`.bound`).
+- :func:`refine_intensity` — Gauss–Newton/LM fit of the simulated image to a radiograph,
+  with gain and a smooth background as nuisance parameters (:mod:`.refine`).
+"""
+
+from .bound import PixelBound, pixel_information
+from .model import PARAMETERS, RoiModel, perturb, roi_around
+from .refine import IntensityResult, refine_intensity
+
+__all__ = ["PARAMETERS", "IntensityResult", "PixelBound", "RoiModel", "perturb", "pixel_information",
+           "refine_intensity", "roi_around"]

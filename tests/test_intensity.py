@@ -1,0 +1,126 @@
+"""Intensity path: the simulator's pose derivative, the pixel-level bound, the refinement."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from ftrac_design.features.model import Features, PointFeature
+from ftrac_design.pose import so3
+from ftrac_design.pose.camera import Camera
+from ftrac_design.pose.simulate import Workspace
+from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
+from ftrac_design.xray import Body, ImagingModel, render
+
+BODY = Body(30.0, 50.0, 20.0)
+
+
+@pytest.fixture(scope="module")
+def pose_2005(features_2005):
+    R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(4))
+    return R[0], t[0]
+
+
+def test_bead_jacobian_matches_the_closed_form():
+    """Point-sampled, unblurred bead: L = μ 2√(r² − m²), m the ray's distance from the centre P;
+    ∂L/∂P = −2μ P⊥ / √(r² − m²) (P⊥ the part of P across the ray); ∂P/∂δ = δ × (P − t), ∂P/∂t = I."""
+    r = 1.0
+    f = Features("b", None, None, np.array([0, -1.0, 0]), points=(PointFeature("B", np.array([3.0, -2.0, 4.0]), 2 * r),))
+    cam = Camera(1000.0, (0.44, 0.44), (64.0, 64.0))
+    im = ImagingModel(image_shape=(128, 128), photons_per_px=None, supersample=1, focal_spot_mm=0.0,
+                      detector_blur_px=0.0, single_precision=False)
+    R = so3.exp(np.array([[0.3, -0.2, 0.5]]))[0]
+    t = np.array([1.0, -2.0, 660.0])
+    P = R @ f.points[0].center + t
+    roi = roi_around(f, R, t, cam, im.image_shape)
+    model = RoiModel(f, cam, im, None, roi)
+    L, J = model.jacobian(R, t)
+    v0, u0, h, w = roi
+    V, U = np.mgrid[v0:v0 + h, u0:u0 + w]
+    D = np.stack([(U - 64.0) * 0.44, (V - 64.0) * 0.44, np.full(U.shape, 1000.0)], -1)
+    Dh = D / np.linalg.norm(D, axis=-1, keepdims=True)
+    Pp = P - (Dh @ P)[..., None] * Dh
+    m2 = (Pp ** 2).sum(-1)
+    inside = m2 < (0.8 * r) ** 2
+    mu = im.mu("steel")
+    np.testing.assert_allclose(L[inside], mu * 2 * np.sqrt(r * r - m2[inside]), rtol=1e-9)
+    dLdP = -2 * mu * Pp / np.sqrt(np.maximum(r * r - m2, 1e-12))[..., None]
+    for j in range(3):
+        e = np.eye(3)[j]
+        rot = dLdP @ np.cross(e, P - t)
+        # O(h²) of the 0.15 px difference step
+        np.testing.assert_allclose(J[j][inside], rot[inside], rtol=1e-2, atol=1e-5)
+        np.testing.assert_allclose(J[3 + j][inside], dLdP[..., j][inside], rtol=1e-2, atol=1e-5)
+    assert inside.sum() > 20
+
+
+def test_jacobian_agrees_with_differences_along_any_direction(features_2005, pose_2005):
+    """The full model (body, wires, beads, pixel integration, blur): J·x equals the central
+    difference along a random pose direction x (so the six columns compose as the solver's
+    so(3) perturbation does)."""
+    R, t = pose_2005
+    im = ImagingModel(photons_per_px=None, single_precision=False)
+    roi = roi_around(features_2005, R, t, Camera(), im.image_shape, BODY)
+    model = RoiModel(features_2005, Camera(), im, BODY, roi)
+    L, J = model.jacobian(R, t)
+    x = np.array([0.4, -0.7, 0.3, 0.5, -0.4, 0.6]) * model.steps(t)       # ~0.15 px motion, like the steps
+    model.freeze(R, t)
+    Lp = model.log_image(*perturb(R, t, x))
+    Lm = model.log_image(*perturb(R, t, -x))
+    fd = (Lp - Lm) / 2
+    lin = np.tensordot(x, J, 1)
+    # sub-samples that cross a silhouette within a step make single pixels depart (the
+    # 4 × 4-sampled model has √-kinks there, ~4 % of the norm; a wrong column or sign would
+    # give ≥ 30 %)
+    err = np.abs(lin - fd)
+    assert np.abs(fd).max() > 0.02
+    assert np.percentile(err, 99) < 0.05 * np.abs(fd).max()
+    assert np.linalg.norm(lin - fd) < 0.07 * np.linalg.norm(fd)
+
+
+def test_bound_scales_as_one_over_root_dose(features_2005, pose_2005):
+    R, t = pose_2005
+    lo = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=2500.0), body=BODY)
+    hi = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY)
+    np.testing.assert_allclose(lo.std / hi.std, 2.0, rtol=1e-9)
+    assert np.all(lo.std > 0) and lo.std[5] > lo.std[3]               # depth is the weak axis
+    with_bg = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY,
+                                background=np.full((1024, 1024), 1.0))
+    np.testing.assert_allclose(with_bg.std / hi.std, math.exp(0.5), rtol=1e-9)    # e^{-1} of the counts
+    nuis = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY,
+                             nuisance=True)
+    assert np.all(nuis.std >= hi.std * (1 - 1e-9))                      # unknown gain/background cost information
+    with pytest.raises(ValueError):
+        pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=None), body=BODY)
+
+
+def test_noise_free_image_refines_to_the_exact_pose(features_2005, pose_2005):
+    R, t = pose_2005
+    img = render(features_2005, R, t, imaging=ImagingModel(photons_per_px=None), body=BODY)
+    rng = np.random.default_rng(0)
+    ax, d = rng.normal(size=3), rng.normal(size=3)
+    x = np.concatenate([np.radians(1.0) * ax / np.linalg.norm(ax), 2.0 * d / np.linalg.norm(d)])
+    R0, t0 = perturb(R, t, x)
+    res = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, ImagingModel(photons_per_px=None),
+                           body=BODY, scales=(4.0, 2.0, 0.0))
+    assert res.converged and res.cost_end < 1e-6 * res.cost_start
+    assert np.degrees(so3.angle(res.rotation, R)) < 1e-3
+    assert np.abs(res.translation_mm - t).max() < 2e-3
+    assert res.gain == pytest.approx(1.0, abs=1e-4)
+
+
+def test_refinement_never_ends_worse_than_its_start(features_2005, pose_2005):
+    R, t = pose_2005
+    im = ImagingModel()
+    img = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(3), body=BODY)
+    # from the true pose on a noisy image: it may only lower the objective
+    res = refine_intensity(features_2005, img.raw, Camera(), R, t, im, body=BODY, polarity="dense_dark", scales=(0.0,))
+    assert res.cost_end <= res.cost_start
+    assert np.abs(res.translation_mm - t)[:2].max() < 0.01 and res.covariance is not None
+    # from far off (10 mm across the view), with no coarse scale: whatever it does, never worse
+    R0, t0 = perturb(R, t, np.array([0, 0, 0, 10.0, -6.0, 0]))
+    far = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark",
+                           scales=(0.0,), max_iterations=3)
+    assert far.cost_end <= far.cost_start
