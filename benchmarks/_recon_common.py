@@ -33,18 +33,21 @@ def draw_camera(rng: np.random.Generator, focal_mm: float, origin_mm: float, pix
 
 def solve_images(features, R, t, e_mm, rng, solve_cameras=None, camera: Camera = CAM):
     """Simulate images at poses (n, 3, 3), (n, 3) with the true ``camera`` and solve them with
-    ``solve_cameras`` (list, or None: the true one). Returns R_est, t_est (NaN where not
-    solved), converged (n,), covariances (n, 6, 6) (NaN where none) and the observations."""
+    ``solve_cameras`` (list, or None: the true one). Returns R_est, t_est (NaN where no pose
+    was found), found (n,) bool, covariances (n, 6, 6) (NaN where none), the observations
+    and how many found poses the solver flagged as not converged (e.g. residuals that misfit
+    under a miscalibrated camera). Flagged poses are still scored, as in paper_table2.py:
+    they are the answer the solver gives, and dropping them would hide calibration error."""
     n = len(R)
     obs = [simulate_observation(features, camera, R[i], t[i], e_mm, rng,
                                 solve_camera=None if solve_cameras is None else solve_cameras[i]) for i in range(n)]
     poses = solve_batch(features, obs, SolverOptions(noise=NoiseModel.from_segmentation_error(max(e_mm, 0.1))))
-    ok = np.array([p.converged for p in poses])
-    Re = np.array([p.rotation if p.converged else np.full((3, 3), np.nan) for p in poses])
-    te = np.array([p.translation_mm if p.converged else np.full(3, np.nan) for p in poses])
-    cov = np.array([p.covariance if p.converged and p.covariance is not None else np.full((6, 6), np.nan)
-                    for p in poses])
-    return Re, te, ok, cov, obs
+    Re = np.array([p.rotation for p in poses], float)
+    te = np.array([p.translation_mm for p in poses], float)
+    ok = np.isfinite(Re).all((1, 2)) & np.isfinite(te).all(1)
+    cov = np.array([p.covariance if p.covariance is not None else np.full((6, 6), np.nan) for p in poses])
+    flagged = int(sum(not p.converged for p in poses) - (~ok).sum())
+    return Re, te, ok, cov, obs, flagged
 
 
 def seeds(rng: np.random.Generator, n: int, centre=(0.0, 130.0, 75.0), spread_mm: float = 20.0) -> np.ndarray:

@@ -62,7 +62,7 @@ def run(features, trials, rng, cnc_mm=CNC_MM, tu_mm=TU_MM, pf_mm=None):
     k = 3
     R, t = Workspace(cone_deg=20.0).sample(k * trials, features.nominal_beam_direction, rng)
     cams = [draw_camera(rng, PAPER["focal_mm"], PAPER["origin_mm"], PAPER["pixel_mm"]) for _ in range(k * trials)]
-    Re, te, ok, cov, _ = solve_images(features, R, t, 0.25, rng, cams)
+    Re, te, ok, cov, _, _ = solve_images(features, R, t, 0.25, rng, cams)
     FT, TU = transforms(features, cnc_mm, tu_mm)
     errs, preds = [], []
     for tr in range(trials):

@@ -51,11 +51,11 @@ def reconstruct_sets(features, R, t, rng, sets, with_seeds=True, e_mm=E_MM):
     """Solve every image (n_trials, k, …) and triangulate beads (and seeds) per image subset."""
     T, k = R.shape[:2]
     cams = [draw_camera(rng, PAPER["focal_mm"], PAPER["origin_mm"], PAPER["pixel_mm"]) for _ in range(T * k)]
-    Re, te, ok, cov, obs = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), e_mm, rng, cams)
+    Re, te, ok, cov, obs, flagged = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), e_mm, rng, cams)
     ids = sorted(p.id for p in features.points)
     beads = np.array([{p.id: p.center for p in features.points}[i] for i in ids])
     out = {s: {"bead": [], "bead_sigma": [], "seed": [], "seed_sigma": []} for s in sets}
-    unsolved = int((~ok).sum())
+    unsolved = int((~ok).sum())   # flagged poses (found, not converged) are used, as a user would
     for tr in range(T):
         idx = np.arange(tr * k, tr * k + k)
         S = seeds(rng, 5)

@@ -84,14 +84,14 @@ def run_trial(features, angles, reps, rng, shared: bool, e_mm: float):
             cams += [c] * k
         else:
             cams += [draw_camera(rng, PAPER["focal_mm"], PAPER["origin_mm"], PAPER["pixel_mm"]) for _ in range(k)]
-    Re, te, ok, _, _ = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), e_mm, rng, cams)
+    Re, te, ok, _, _, flagged = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), e_mm, rng, cams)
     Re, te, ok = Re.reshape(reps, k, 3, 3), te.reshape(reps, k, 3), ok.reshape(reps, k)
     G_est = Re[:, 1:] @ np.swapaxes(Re[:, :1], -1, -2)
     G_rel = G[1:] @ G[0].T                                    # known motion from the trial's first image
     rot = np.degrees(so3.log(G_est @ np.swapaxes(G_rel[None], -1, -2)))         # (reps, k-1, 3)
     tra = te[:, 1:] - te[:, :1]
     good = ok[:, 1:] & ok[:, :1]
-    return tra[good], rot[good], int((~ok).sum())
+    return tra[good], rot[good], f"{int((~ok).sum())}/{flagged}"
 
 
 def main(reps: int = 200) -> None:
@@ -118,7 +118,7 @@ def main(reps: int = 200) -> None:
     for (shared, e_mm), rows in out.items():
         print(f"\nours, segmentation error {e_mm} mm, calibration error "
               f"{'shared by the trial (one C-arm)' if shared else 'drawn per image'}:\n{head}"
-              f" | 3-D mm  3-D ° | unsolved")
+              f" | 3-D mm  3-D ° | unsolved/flagged")
         for trial, n, tm, rm, tn, rn, bad in rows:
             print(f"{trial:5d} {n:6d} | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    | {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}  "
                   f" | {tn.mean():6.2f} {rn.mean():6.2f} | {bad}")

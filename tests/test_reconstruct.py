@@ -286,3 +286,18 @@ def test_demo_step(tmp_path):
     assert "mean |error|" in text and (tmp_path / "reconstruction.json").exists()
     out = json.loads((tmp_path / "reconstruction.json").read_text())
     assert out["reconstructed"] == 14
+
+
+def test_cli_unsolved_pose_leaves_its_image_out(files):
+    tmp, v, ids, P = files
+    write_points(tmp / "points.jsonl", v, ids, P)
+    poses = (tmp / "poses.jsonl").read_text().splitlines()
+    d = json.loads(poses[2])
+    d.update(converged=False, rotation=None, translation_mm=None, covariance=None, error="ambiguous")
+    poses[2] = json.dumps(d)
+    (tmp / "poses.jsonl").write_text("\n".join(poses) + "\n")
+    assert run(tmp) == 0
+    out = json.loads((tmp / "out.json").read_text())
+    assert out["images_used"] == [0, 1] and out["images_skipped"][0]["index"] == 2
+    assert "ambiguous" in out["images_skipped"][0]["reason"]
+    assert all(e["views"] == [0, 1] for e in out["points"].values())
