@@ -103,7 +103,8 @@ def quick_study() -> None:
     print("   L2 and L3 on one image line (quick study: 3.7 %):")
     for tol in (1.0, 1.35, 1.7, 2.0):
         print(f"     every end point within {tol:g} px of the other's image line: {100 * np.mean(apart < tol):.2f} %")
-    print(f"     ours (within both widths, 1.7 px, along a 10 px stretch): {100 * np.mean(pc.clearance_px[:, i] < 0):.2f} %")
+    ours = 100 * np.mean(pc.clearance_px[:, i] < 0)
+    print(f"     ours (within both widths, 1.7 px, along a 10 px stretch): {ours:.2f} %")
     c = proj(f.point_centers())
     iu = np.triu_indices(len(f.points), 1)
     closest = np.linalg.norm(c[:, iu[0]] - c[:, iu[1]], axis=-1).min(1)

@@ -23,7 +23,7 @@ Pairs and their clearance (px; negative = the images overlap):
 - **bead–ellipse**: likewise, to the projected ellipse. Reported but *not counted* by
   default: an ellipse wire crossing a bead is a crossing — the 7 px disc is still found by
   its size, the ellipse loses a few px of a 300 px contour — and it happens at most poses
-  of every ellipse design (65 % of ``ftrac_2005``'s workspace).
+  of every ellipse design (about 60 % of ``ftrac_2005``'s workspace).
 - **wire–wire** (line–line, line–ellipse, ellipse–ellipse). Wires' images may cross —
   segmentation handles a crossing point — so what counts is a *stretch*: the clearance is
   the smallest d such that the two centre-lines stay within d of each other along a
@@ -45,13 +45,14 @@ A pose's clearance is the smallest over the counted pairs (:data:`COUNTED`); its
 Sampling and its error. Lines are measured at ``line_samples`` + 1 points, ellipses at
 ``ellipse_samples`` + 1 points equally spaced in parameter; as a distance target a line is
 its exact segment and an ellipse the polygon through its points, which is within its sag
-of the true projected ellipse (``PairClearance.sampling_error_px``: 0.03 px for
-``ftrac_2005`` over its workspace at 96 points). f is taken as linear between points and
+of the true projected ellipse (``PairClearance.sampling_error_px``: 0.07 px for
+``ftrac_2005`` over its workspace at 64 points). f is taken as linear between points and
 the windows tried start or end at a point, so a wire–wire clearance is overstated by at
-most half a point spacing × sin θ: ≤ 0.5 px for crossings near the overlap threshold
-(≈ 20°), up to 1.5 px for right-angle crossings far from it (against 512/256 points over
-1,000 ``ftrac_2005`` poses: the same overlap verdict at every pose; largest differences
-bead–ellipse 0.03, ellipse–ellipse 0.2, line–ellipse 1.4 px at steep crossings, 0 for beads).
+most half a point spacing × sin θ: ≤ 0.8 px for crossings near the overlap threshold
+(≈ 20°; ~4.7 px spacing on a ~300 px ellipse), up to 2.4 px for right-angle crossings far
+from it (against 512/256 points over 1,000 ``ftrac_2005`` poses: the same overlap verdict at
+every pose; largest differences bead–ellipse 0.06, line–line 0.02, ellipse–ellipse 0.15,
+line–ellipse 2.4 px at steep crossings, 0 for beads; ``benchmarks/segmentability_figures.py``).
 
 Everything is batched over poses: R (B, 3, 3), t (B, 3) mm, F → X.
 """
@@ -519,7 +520,8 @@ class SegmentabilityAtlas:
 
 
 def segmentability_atlas(features: Features, camera: Camera, depth_mm: float, cone_deg: float,
-                         step_deg: float = 3.0, settings: ClearanceSettings = ClearanceSettings()) -> SegmentabilityAtlas:
+                         step_deg: float = 3.0,
+                         settings: ClearanceSettings = ClearanceSettings()) -> SegmentabilityAtlas:
     """Clearances over the whole sphere of view directions (``step_deg`` grid) and the
     workspace cone (1° × 5° polar grid), fiducial origin at ``depth_mm`` on the principal ray."""
     from .sampling import cone_grid, isocentre_poses, sphere_grid
@@ -561,8 +563,9 @@ def demo_step(out_dir, poses: int = 2000) -> str:
         kinds = ", ".join(f"{k} {100 * v['overlap_share']:.1f} %" for k, v in d["kinds"].items()
                           if v["counted"] and v["overlap_share"] > 0) or "none"
         w = d["worst_poses"][0] if d["worst_poses"] else None
+        worst = f"; worst {w['pair']} {w['clearance_px']:.1f} px" if w else ""
         lines.append(f"  {name:<11} overlap at {100 * seg.overlap_share:4.1f} % of poses ({kinds}); clearance p5 "
-                     f"{d['clearance_px']['p5']:.2f} px" + (f"; worst {w['pair']} {w['clearance_px']:.1f} px" if w else ""))
+                     f"{d['clearance_px']['p5']:.2f} px{worst}")
         if name == "ftrac_2005":
             atlas = segmentability_atlas(f, cam, Workspace().depth_mm, Workspace().cone_deg, 6.0)
             plot_segmentability(seg, atlas, out_dir / "segmentability_ftrac_2005.png")

@@ -56,8 +56,9 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
                      f"{100 * s.segmentability.overlap_share:.1f} %", g(s.segmentability.clearance_p5_px),
                      "PASS" if s.passed else "FAIL"))
         d = s.to_dict()
+        seg = {k: d["segmentability"][k] for k in ("overlap_share", "clearance_px", "kinds")}
         table.append({"design": s.name, "figures": f, "thresholds": d["thresholds"], "passed": s.passed,
-                      "segmentability": {k: d["segmentability"][k] for k in ("overlap_share", "clearance_px", "kinds")}})
+                      "segmentability": seg})
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     ws = base.workspace
     click.echo(f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
