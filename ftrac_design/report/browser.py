@@ -57,3 +57,27 @@ def dump_dom(html: str | Path, timeout: float = 90.0) -> str:
     if proc.returncode != 0 or "<html" not in proc.stdout:
         raise RuntimeError(f"chromium --dump-dom failed (exit {proc.returncode}): {proc.stderr[-500:]}")
     return proc.stdout
+
+
+def readme_screenshot(html: str | Path, png: str | Path, width: int = 1280, height: int = 1100,
+                      out_width: int = 900, colours: int = 256) -> Path:
+    """The top of a report as a small PNG for documentation: rendered at ``width`` ×
+    ``height``, scaled to ``out_width`` px and reduced to ``colours`` colours (≤ ~200 KB)."""
+    from PIL import Image
+
+    png = Path(png)
+    with tempfile.TemporaryDirectory(prefix="ftrac-shot-") as tmp:
+        raw = screenshot(html, Path(tmp) / "raw.png", width, height)
+        im = Image.open(raw).convert("RGB")
+        im = im.resize((out_width, round(im.height * out_width / im.width)), Image.LANCZOS)
+        # octree keeps the small saturated badges (median cut merges them into grey)
+        im = im.quantize(colours, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.FLOYDSTEINBERG)
+        png.parent.mkdir(parents=True, exist_ok=True)
+        im.save(png, optimize=True)
+    return png
+
+
+if __name__ == "__main__":  # python -m ftrac_design.report.browser REPORT.html OUT.png
+    import sys
+
+    print(readme_screenshot(sys.argv[1], sys.argv[2]))

@@ -123,7 +123,7 @@ def _read_png(path: Path, _override: bool):
             text = dict(getattr(im, "text", {}) or {})
             mode = im.mode
             arr = np.array(im)
-    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as exc:
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as exc:
         raise InputError(path, None, f"a readable PNG image ({exc})") from None
     bits = 16 if arr.dtype in (np.uint16, np.int32) and mode.startswith("I") else 8 * arr.dtype.itemsize
     meta: dict[str, Any] = {"bits": int(bits)}
