@@ -38,10 +38,11 @@ _SCALE = {"ci": 1, "long": 20}
 if PROFILE not in _SCALE:
     raise RuntimeError(f"FTRAC_FUZZ_PROFILE={PROFILE!r}: expected one of {sorted(_SCALE)}")
 
+# filter_too_much: the tiny optimize runs keep only the mutated spaces that validate
+_QUIET = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
 settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True,
-                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-settings.register_profile("long", deadline=None, print_blob=True,
-                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+                          suppress_health_check=_QUIET)
+settings.register_profile("long", deadline=None, print_blob=True, suppress_health_check=_QUIET)
 settings.load_profile(PROFILE)
 
 #: generated cases per input kind under the ``ci`` profile (README: *Fuzzing*); ``long`` ×20

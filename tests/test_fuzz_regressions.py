@@ -164,3 +164,45 @@ def test_swapped_neighbouring_wires_on_ftrac_mini_are_refused():
     pose = solve_pose(FEATURES["ftrac_mini"], observation_from_dict(scrambled, "scrambled"))
     assert not pose.converged and "fit no single pose" in pose.error
     assert solve_pose(FEATURES["ftrac_mini"], obs0).converged  # the unscrambled image is solved
+
+
+def test_png_header_claiming_50000_squared_pixels_exits_2():
+    """A PNG whose header claims 50,000 × 50,000 pixels raised PIL.Image.DecompressionBombError
+    out of `track` (found by tests/test_fuzz_image.py)."""
+    from test_fuzz_image import _png_huge_header
+
+    with scratch() as tmp:
+        img = tmp / "bomb.png"
+        img.write_bytes(_png_huge_header(50000, 50000))
+        run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "-o", tmp / "out" / "pose.json"])
+        assert_clean(run, [img], tmp)
+        assert run.code == 2 and "bomb.png" in run.err and not (tmp / "out" / "pose.json").exists()
+
+
+# Crashes found in the segmentation (ftrac_design/segment, another helper's room, being
+# changed while this was written): reported, not fixed here. Strict: when the fix lands these
+# XPASS and fail — then drop the marker and keep the test.
+class SegmentCrash(Exception):
+    """An exception escaped `track` (the last line of its traceback)."""
+
+
+def _track(args: list, inputs: list, tmp) -> None:
+    run = run_cli(args)
+    if run.crash:
+        raise SegmentCrash(run.crash.strip().splitlines()[-1])
+    assert_clean(run, inputs, tmp)
+
+
+@pytest.mark.xfail(strict=True, raises=SegmentCrash,
+                   reason="segment: a 2 x 2 image crashes bead fitting (IndexError in segment/beads.py fit_beads, "
+                          "later ValueError: kth out of bounds in np.partition)")
+def test_track_2x2_png_with_camera_exits_cleanly():
+    from test_fuzz_image import _png_bytes
+    from test_fuzz_observation import CAMERA
+
+    with scratch() as tmp:
+        img, cam = tmp / "tiny.png", tmp / "camera.json"
+        img.write_bytes(_png_bytes(np.array([[10, 200], [30, 90]], np.uint8)))
+        cam.write_text(json.dumps(CAMERA.to_dict()))
+        _track(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", cam,
+                "-o", tmp / "out" / "pose.json"], [img], tmp)
