@@ -50,7 +50,7 @@ from ..pose.problem import jacobian_rows, project_points
 
 #: default minimum angle (deg) between two views' rays through a point (see module doc)
 MIN_PARALLAX_DEG = 2.0
-#: Gauss–Newton steps after the linear start; the start is within ~1e-3 mm after one
+#: most Gauss–Newton steps after the linear start (they stop once a step is below 1e-9 mm)
 GAUSS_NEWTON_STEPS = 8
 #: a point whose reprojection residuals are less probable than this under the noise model
 #: (χ² with 2N − 3 degrees of freedom) is refused as inconsistent — one in a million
@@ -186,7 +186,7 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
     count = seen.sum(0)
     refused: list[str | None] = [None] * n
     P = linear_start(views, uvz, seen)
-    par = np.full(n, np.nan)
+    dP = np.zeros_like(P)
     with np.errstate(all="ignore"):
         for _ in range(steps):
             uvp, Z, pr = _project(views, np.where(np.isfinite(P), P, 0.0))
@@ -195,7 +195,7 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
             Si = np.where(seen[..., None, None], Si, 0.0)
             r = uvp - uvz
             JtS = np.swapaxes(JP, -1, -2) @ Si                                          # (N, n, 3, 2)
-            H = (JtS @ JP).sum(0)                                               # (n, 3, 3)
+            H = (JtS @ JP).sum(0)                                                       # (n, 3, 3)
             g = (JtS @ r[..., None]).sum(0)[..., 0]
             good = np.isfinite(H).all((1, 2)) & (np.linalg.cond(np.where(np.isfinite(H), H, 0.0)) < 1e14)
             dP = np.zeros_like(P)
@@ -225,6 +225,8 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
                           f"a point needs at least two views")
         elif not np.isfinite(P[k]).all():
             refused[k] = "the views' projection equations do not determine the point"
+        elif not (Z[seen[:, k], k] > 0).all():
+            refused[k] = "behind the X-ray source in some view: wrong correspondence or pose?"
         elif not par[k] >= min_parallax_deg:
             refused[k] = (f"nearly parallel views: the widest angle between two rays through the point is "
                           f"{par[k]:.2f}° (< {min_parallax_deg:g}°), depth would be "
@@ -234,8 +236,6 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
             refused[k] = (f"the image points do not meet in 3-D: reprojection RMS {rms[k]:.2f} px, χ² = "
                           f"{chi2[k]:.3g} on {int(dof[k])} degrees of freedom (p = {pval[k]:.1e}); a wrong "
                           f"correspondence, or raise the noise (σ = {np.median(views.sigma_px):.3g} px)")
-        elif not (Z[seen[:, k], k] > 0).all():
-            refused[k] = "behind the X-ray source in some view: wrong correspondence or pose?"
         elif not (np.isfinite(cov[k]).all() and last_step[k] < 1e-3):
             refused[k] = "the triangulation did not settle (inconsistent pixels or poses)"
     return Triangulation(P, cov, rms, seen, par, refused)
