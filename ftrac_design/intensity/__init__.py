@@ -10,7 +10,7 @@
 
 from .bound import PixelBound, pixel_information
 from .model import PARAMETERS, RoiModel, perturb, roi_around
-from .refine import IntensityResult, refine_intensity
+from .refine import IntensityResult, refine_intensity, refine_track_result
 
 __all__ = ["PARAMETERS", "IntensityResult", "PixelBound", "RoiModel", "perturb", "pixel_information",
-           "refine_intensity", "roi_around"]
+           "refine_intensity", "refine_track_result", "roi_around"]

@@ -187,8 +187,18 @@ class RoiModel:
         return I
 
     def log_image(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Noise-free log image −ln(I/I0) (rows, cols) of the fiducial over the ROI."""
-        return -np.log(self.transmission(R, t))
+        """Noise-free log image −ln(I/I0) (rows, cols) of the fiducial over the ROI (the last
+        few are cached: the refinement asks for the same pose more than once)."""
+        R, t = np.asarray(R, float), np.asarray(t, float)
+        key = (R.tobytes(), t.tobytes(), self.body_flags is None)
+        cache = self.__dict__.setdefault("_cache", {})
+        if key in cache:
+            return cache[key]
+        L = -np.log(self.transmission(R, t))
+        if len(cache) >= 4:
+            cache.pop(next(iter(cache)))
+        cache[key] = L
+        return L
 
     # ------------------------------------------------------------------ derivative
     def steps(self, t: np.ndarray) -> np.ndarray:

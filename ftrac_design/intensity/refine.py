@@ -114,6 +114,13 @@ class _Problem:
             self.w = np.ones_like(self.w)
 
 
+def history_drop(history: list) -> float:
+    """Objective decrease of the last accepted step at the same scale (inf if none before)."""
+    if len(history) < 2 or history[-2][0] != history[-1][0]:
+        return float("inf")
+    return history[-2][1] - history[-1][1]
+
+
 def _log_of(image: np.ndarray, polarity: str) -> np.ndarray:
     img = np.asarray(image, float)
     if polarity == "dense_bright":
@@ -127,14 +134,17 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
                      imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
                      body: Body | None | str = AUTO, polarity: str = "dense_bright",
                      scales: tuple[float, ...] = (2.0, 0.0), background_degree: int = 2, max_iterations: int = 12,
-                     tolerance: float = 1e-3) -> IntensityResult:
+                     tolerance: float = 1e-4, ftol: float = 1e-7, central_covariance: bool = False) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
     ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
     raw counts (``"dense_dark"``). ``imaging`` supplies the blur, the energy and the dose
     (weights; ``photons_per_px=None``: uniform weights and a covariance scaled by the fitted
     residual). ``roi`` = (row0, col0, rows, cols), default the fiducial at the start plus 12 px.
-    ``tolerance`` stops when a step moves the features by less than this many pixels.
+    Each scale stops when a step moves the features by less than ``tolerance`` px or lowers
+    the objective by less than ``ftol`` of itself (with Poisson weights the objective is a
+    χ² of ~n pixels, so 1e-7 is ≪ 1). The covariance uses the last iteration's (forward
+    difference) Jacobian, or a fresh central-difference one with ``central_covariance``.
     """
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     body = resolve_body(features, body)
@@ -158,6 +168,7 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
         prob.set_weights(coef, Phi)
         cst, r, coef, Phi = prob.cost(R, t)
         lam = 1e-3
+        J = None
         for _ in range(max_iterations):
             iterations += 1
             L0 = model.log_image(R, t)
@@ -188,18 +199,21 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
             if not accepted:
                 message = f"no decrease at scale {scale:g} px"
                 break
-            if np.max(np.abs(dx) / steps) < tolerance:
+            if np.max(np.abs(dx) / steps) < tolerance or history_drop(history) < ftol * cst:
                 break
     c_end, r, coef, Phi = full.cost(R, t)
     converged = True
     if c_end > cost_start:
         R, t, converged, message = R0.copy(), t0.copy(), False, "refinement did not lower the objective; start kept"
         c_end, r, coef, Phi = full.cost(R, t)
-    # covariance: information of the pose with gain and background unknown (central differences)
-    _, Jc = model.jacobian(R, t)
-    Jc = Jc.reshape(6, -1) * coef[0]
+    # covariance: information of the pose with gain and background unknown
     full.set_weights(coef, Phi)
-    c_end_w, r, coef, Phi = full.fit(model.log_image(R, t))
+    if central_covariance or J is None or scales[-1] != 0.0:
+        L0, Jc = model.jacobian(R, t)
+        Jc = Jc.reshape(6, -1) * coef[0]
+    else:
+        L0, Jc = model.log_image(R, t), J
+    c_end_w, r, coef, Phi = full.fit(L0)
     F = schur_information(Jc, Phi, full.w)
     try:
         cov = np.linalg.inv(F)
@@ -210,3 +224,34 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     rms = float(math.sqrt(np.mean(r * r)))
     return IntensityResult(R, t, cov, converged, cost_start, c_end, iterations, float(coef[0]), coef[1:], roi, rms,
                            message, history)
+
+
+def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result, imaging: ImagingModel | None = None,
+                        body: Body | None | str = AUTO, **options):
+    """``ftrac-design track --refine intensity``: refine a converged
+    :class:`ftrac_design.segment.pipeline.TrackResult` on ``image`` (as stored) and return a
+    copy whose pose is the refined one, with the covariance from the pixel information
+    (scaled by the fitted χ²/dof when that exceeds 1: a real image's dose and blur are not
+    known exactly). A result that did not converge is returned unchanged. ``options`` go to
+    :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
+    from dataclasses import replace
+
+    pose = result.pose
+    if not pose.converged:
+        return result
+    polarity = "dense_dark" if "dark" in str(getattr(result, "polarity", "")) else "dense_bright"
+    imaging = imaging or ImagingModel(image_shape=tuple(np.asarray(image).shape))
+    res = refine_intensity(features, image, camera, pose.rotation, pose.translation_mm, imaging, body=body,
+                           polarity=polarity, **{"scales": (1.0, 0.0), **options})
+    cov = res.covariance
+    dof = max(res.roi[2] * res.roi[3] - 6 - 7, 1)
+    chi2 = res.cost_end / dof
+    if cov is not None and imaging.noisy and chi2 > 1:
+        cov = cov * chi2
+    new_pose = replace(pose, rotation=res.rotation, translation_mm=res.translation_mm,
+                       covariance=cov if cov is not None else pose.covariance)
+    diag = dict(result.diagnostics)
+    diag["intensity"] = {"refined": bool(res.converged), "cost_start": res.cost_start, "cost_end": res.cost_end,
+                         "chi2_per_dof": chi2, "iterations": res.iterations, "gain": res.gain,
+                         "roi": list(res.roi), "message": res.message}
+    return replace(result, pose=new_pose, diagnostics=diag)
