@@ -219,7 +219,8 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     ax.set_xlabel("image clearance beyond the features' widths, px (< 0: overlap)")
     ax.set_ylabel("fraction of workspace poses")
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=7)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
     ax.set_title(f"overlap at {100 * seg.overlap_share:.1f} % of {m.size} workspace poses", fontsize=10)
     sph, cone = seg_atlas.sphere_grid(), seg_atlas.cone_grid()
     vals = np.concatenate([sph[np.isfinite(sph)], cone[np.isfinite(cone)]])

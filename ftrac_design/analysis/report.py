@@ -207,11 +207,11 @@ def _pct(v) -> str:
 
 def format_segmentability(sg: dict) -> str:
     """Two or three lines on image clearances from an analysis.json ``segmentability`` block."""
-    c = sg["clearance_px"]
+    c = {k: ("n/a" if v is None else f"{v:.3g}") for k, v in sg["clearance_px"].items()}
     kinds = ", ".join(f"{k} {_pct(v['overlap_share'])}" for k, v in sg["kinds"].items()
                       if v["counted"] and v["overlap_share"] > 0) or "none"
     out = [f"  segmentability ({sg['settings']['poses']} poses): features overlap at {_pct(sg['overlap_share'])} "
-           f"of poses ({kinds}); smallest clearance p5 {_fmt(c['p5'])} px, min {_fmt(c['min'])} px"]
+           f"of poses ({kinds}); smallest clearance p5 {c['p5']} px, min {c['min']} px"]
     if sg["worst_poses"]:
         w = sg["worst_poses"][0]
         out.append(f"    worst: {w['pair']} ({w['kind']}) {w['clearance_px']:.2g} px at "
