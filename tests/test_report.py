@@ -21,6 +21,8 @@ from ftrac_design.report import SECTIONS, demo_step
 from ftrac_design.report.browser import dump_dom, find_chromium, screenshot
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
+# one worker builds the module's fixture once (``make test`` runs -n 2 --dist loadgroup)
+pytestmark = pytest.mark.xdist_group("report")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
