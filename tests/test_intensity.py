@@ -124,3 +124,29 @@ def test_refinement_never_ends_worse_than_its_start(features_2005, pose_2005):
     far = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark",
                            scales=(0.0,), max_iterations=3)
     assert far.cost_end <= far.cost_start
+
+
+def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
+    """The ``track --refine intensity`` call: a converged track result comes back with the
+    refined pose and an ``intensity`` diagnostic; a failed one unchanged."""
+    from dataclasses import dataclass, field
+
+    from ftrac_design.intensity import refine_track_result
+    from ftrac_design.pose.solver import Pose
+
+    @dataclass
+    class Result:                       # the fields of segment.pipeline.TrackResult it uses
+        pose: Pose
+        polarity: str
+        diagnostics: dict = field(default_factory=dict)
+
+    R, t = pose_2005
+    img = render(features_2005, R, t, imaging=ImagingModel(), rng=np.random.default_rng(2), body=BODY)
+    R0, t0 = perturb(R, t, np.array([2e-4, -1e-4, 1e-4, 0.02, -0.01, 0.3]))
+    start = Result(Pose(R0, t0, True, 0.1, np.eye(6), {}, 3), "dense-dark")
+    out = refine_track_result(img.raw, features_2005, Camera(), start, body=BODY)
+    assert out.diagnostics["intensity"]["cost_end"] <= out.diagnostics["intensity"]["cost_start"]
+    assert np.abs(out.pose.translation_mm - t).max() < 0.1 < np.abs(t0 - t).max()
+    assert out.pose.covariance.shape == (6, 6) and out.pose.converged
+    failed = Result(Pose(R0, t0, False, np.nan, None, {}, 0, "not found"), "dense-dark")
+    assert refine_track_result(img.raw, features_2005, Camera(), failed, body=BODY) is failed
