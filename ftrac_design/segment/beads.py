@@ -87,10 +87,12 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float, max_count: 
 
 
 def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: float, noise: float,
-              response: np.ndarray | None = None, iterations: int = 8) -> Beads:
+              response: np.ndarray | None = None, iterations: int = 8, exclude: np.ndarray | None = None) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
-    blur (starting values; both are fitted), ``noise`` the pixel noise σ."""
+    blur (starting values; both are fitted), ``noise`` the pixel noise σ. ``exclude``
+    (H, W) bool marks pixels to leave out of every fit (where a pose predicts wires: a
+    ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights)."""
     n = len(starts)
     if n == 0:
         z = np.zeros(0)
@@ -118,7 +120,8 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     p[:, 5] = np.percentile(y, 10, axis=1)
     peak = sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0]
     p[:, 4] = np.maximum(y.max(1) - p[:, 5], 1e-6) / np.maximum(peak, 1e-9)
-    w = np.ones_like(y)
+    w0 = np.ones_like(y) if exclude is None else (~np.asarray(exclude, bool)[py, px]).astype(float)
+    w = w0.copy()
     eps = np.array([1e-3, 1e-3, 1e-3, 1e-3])
 
     def model(q):
@@ -127,6 +130,9 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         return q[:, 4:5] * S + q[:, 5:6] + q[:, 6:7] * X + q[:, 7:8] * Y, S
 
     cost_scale = 4.685 * max(noise, 1e-12)
+    # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
+    # with σ_prior = 25 % of the expected radius and 0.5 px of blur
+    prior_w = (max(noise, 1e-12) ** 2 / (0.25 * radius_px) ** 2, max(noise, 1e-12) ** 2 / 0.5 ** 2)
     for it in range(iterations):
         m, S = model(p)
         res = y - m
@@ -144,16 +150,25 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
             # Tukey biweight on the residuals: a wire touching the ball is an outlier
             scale = max(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
             u = np.clip(np.abs(res) / scale, 0, 1)
-            w = (1 - u * u) ** 2
+            w = (1 - u * u) ** 2 * w0
         Jw = J * w[..., None]
         A = np.einsum("nmi,nmj->nij", Jw, J) + 1e-9 * np.eye(8)
         g = np.einsum("nmi,nm->ni", Jw, res)
+        # weak priors on the radius and the blur: for a ball of a few pixels the blurred
+        # profile is nearly Gaussian and r, σ and A trade off against each other (the
+        # unregularised fit ran off to r → 0.3 r₀ or σ → 4 px on ftrac_mini's 1 mm balls)
+        A[:, 2, 2] += prior_w[0]
+        A[:, 3, 3] += prior_w[1]
+        g[:, 2] += prior_w[0] * (radius_px - p[:, 2])
+        g[:, 3] += prior_w[1] * (max(blur_px, 0.5) - p[:, 3])
         try:
             dp = np.linalg.solve(A, g[..., None])[..., 0]
         except np.linalg.LinAlgError:
             dp = (np.linalg.pinv(A) @ g[..., None])[..., 0]
         # keep the shape parameters physical and the steps modest
         dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
+        dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
+        dp[:, 3] = np.clip(dp[:, 3], -0.3, 0.3)
         p += dp
         p[:, 2] = np.clip(p[:, 2], 0.3 * radius_px, 3.0 * radius_px)
         p[:, 3] = np.clip(p[:, 3], 0.2, 4.0)

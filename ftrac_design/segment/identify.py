@@ -192,7 +192,8 @@ def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndar
 
 def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, ridges: RidgePoints,
                     bead_radius_px: np.ndarray, tol_px: float, separation_px: float,
-                    min_points: int = 8, max_angle_deg: float = 25.0, ridge_var_px2: float = 0.0) -> Contours:
+                    min_points: int = 8, max_angle_deg: float = 25.0, ridge_var_px2: float = 0.0,
+                    thin_px: float = 0.0) -> Contours:
     """Ridge points of each projected line and ellipse at pose (R, t).
 
     A ridge point belongs to a curve when it lies within ``tol_px`` of it, its normal is
@@ -205,6 +206,12 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     wire's ridge lies σ²κ/2 inside its centre-line (the peak of a ring of radius 1/κ
     blurred by σ), so each ellipse point is moved outward by that much, κ taken from the
     predicted curve.
+
+    ``thin_px`` > 0 keeps one point per ``thin_px`` of arc length (the one nearest the
+    middle of its stretch, so the choice does not favour the prediction): Steger points one
+    pixel apart share most of their smoothed noise, and counted as independent they
+    overstate a curve's information several-fold (the per-feature χ² test then rejected
+    correct ellipses and the pose covariance came out ~3× too small).
     """
     out = Contours()
     if len(ridges) == 0:
@@ -221,6 +228,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         free = (db > np.asarray(bead_radius_px)[None]).all(1)
     else:
         free = np.ones(len(uvr), bool)
+    arc = np.zeros((len(ids), len(uvr)))
     dist = np.full((len(ids), len(uvr)), np.inf)
     tang = np.zeros((len(ids), len(uvr), 2))
     corr = np.zeros((len(ids), len(uvr), 2))
@@ -246,6 +254,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
             dd = np.where(ok & inner, perp, dd)
         dist[k] = dd
         tang[k] = tv
+        arc[k] = jj * 0.5                                    # _curve_samples' step, px
         if kind == "ellipse":
             # signed curvature from three neighbouring samples; its centre side is where the
             # chord's midpoint bends
@@ -274,6 +283,52 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
             out.dropped[fid] = (f"{int(sel.sum())} usable contour points ({int(cover)} near it; the rest lie on "
                                 f"beads or other wires)")
             continue
-        (out.lines if kind == "line" else out.ellipses)[fid] = uvr[sel] + corr[k][sel]
-        out.snr[fid] = ridges.snr[sel]
+        idx = np.flatnonzero(sel)
+        if thin_px > 0:
+            a = arc[k][idx]
+            b = np.floor(a / thin_px)
+            off = np.abs(a - (b + 0.5) * thin_px)
+            o = np.lexsort((off, b))
+            first = np.r_[True, b[o][1:] != b[o][:-1]]
+            idx = np.sort(idx[o[first]])
+            if len(idx) < 5:
+                out.dropped[fid] = f"{len(idx)} independent contour points"
+                continue
+        (out.lines if kind == "line" else out.ellipses)[fid] = uvr[idx] + corr[k][idx]
+        out.snr[fid] = ridges.snr[idx]
+    return out
+
+
+def wire_support(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, T: np.ndarray,
+                 bead_radius_px: np.ndarray, min_free_px: float = 8.0) -> dict[str, tuple[float, int]]:
+    """How much wire the image shows where pose (R, t) puts each line and ellipse.
+
+    ``T`` is the background-free density image (dense = bright). Each curve's centre-line is
+    sampled every 0.5 px, samples under a projected bead (``bead_radius_px`` per model bead)
+    or outside the image are left out, and the image is read there (bilinear). Returns id →
+    (median density along the free samples, number of free samples); curves with less than
+    ``min_free_px`` of free length are left out. A labelling that is right puts every wire on
+    a ridge of the image; a wrong one that happens to fit its beads and a few contours puts
+    some wire on bare background, which this sees without any contour extraction.
+    """
+    H, W = T.shape
+    out: dict[str, tuple[float, int]] = {}
+    curves = _curve_samples(features, camera, R, t)
+    bu = _project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
+    rad = np.asarray(bead_radius_px, float)
+    for fid, (kind, pts) in curves.items():
+        ok = np.isfinite(pts).all(1) & (pts[:, 0] >= 0) & (pts[:, 1] >= 0) & (pts[:, 0] <= W - 2) & \
+            (pts[:, 1] <= H - 2)
+        if len(bu):
+            dd = np.linalg.norm(pts[:, None] - bu[None], axis=-1)
+            ok &= (dd > rad[None]).all(1)
+        if ok.sum() * 0.5 < min_free_px:
+            continue
+        p = pts[ok]
+        i0 = np.floor(p).astype(int)
+        f = p - i0
+        u0, v0 = i0[:, 0], i0[:, 1]
+        val = (T[v0, u0] * (1 - f[:, 0]) * (1 - f[:, 1]) + T[v0, u0 + 1] * f[:, 0] * (1 - f[:, 1])
+               + T[v0 + 1, u0] * (1 - f[:, 0]) * f[:, 1] + T[v0 + 1, u0 + 1] * f[:, 0] * f[:, 1])
+        out[fid] = (float(np.median(val)), int(ok.sum()))
     return out

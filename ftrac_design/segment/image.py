@@ -45,12 +45,18 @@ def detect_polarity(image: np.ndarray, disc_px: int) -> str:
     img = np.asarray(image, dtype=np.float32)
     scale = float(np.percentile(img, 99) - np.percentile(img, 1)) or 1.0
     img = (img - float(np.median(img))) / scale
-    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * disc_px + 1, 2 * disc_px + 1))
-    white = cv2.morphologyEx(img, cv2.MORPH_TOPHAT, k)
-    black = cv2.morphologyEx(img, cv2.MORPH_BLACKHAT, k)
-    # compare in the log domain too: raw counts shrink with density, so their dips are
-    # smaller where the background is dark; the extreme quantiles are what metal gives
-    w, b = float(np.percentile(white, 99.99)), float(np.percentile(black, 99.99))
+    # blob strength of each sign at the bead scale: the smaller-magnitude Hessian
+    # eigenvalue where both have the same sign. A top-hat was fooled by the bright gap
+    # between two dark balls (a saddle, not a blob) and by noise extremes — ftrac_mini's
+    # nine 1 mm balls cover < 100 of 10⁶ pixels — and gave the wrong polarity on a third
+    # of ftrac_mini's raw images
+    d = derivatives(img, max(disc_px / 4.0, 1.0))
+    half_tr = 0.5 * (d["xx"] + d["yy"])
+    disc = np.sqrt(0.25 * (d["xx"] - d["yy"]) ** 2 + d["xy"] ** 2)
+    bright = np.maximum(-(half_tr + disc), 0)       # both eigenvalues < 0: a bright blob
+    dark = np.maximum(half_tr - disc, 0)            # both > 0: a dark blob
+    w = float(np.partition(bright.ravel(), -16)[-16])
+    b = float(np.partition(dark.ravel(), -16)[-16])
     return "dense-bright" if w >= b else "dense-dark"
 
 

@@ -21,6 +21,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import cv2
 import numpy as np
 from scipy.stats import chi2
 
@@ -57,9 +58,15 @@ class TrackOptions:
     contour_tol_px: float = 2.0
     final_contour_tol_px: float = 1.0
     separation_px: float = 3.0
+    #: contour points are thinned to one per ``thin_factor`` × the ridge scale of arc (the
+    #: correlation length of Steger points' noise, ≈ 2√π σ for Gaussian-smoothed white noise)
+    thin_factor: float = 3.5
     #: floors of the measured segmentation σ per axis (mm at the detector), from rendered
     #: images at the default imaging model (benchmarks/track_accuracy.py)
     floor_point_mm: float = 0.02
+    #: systematic error per feature (px per axis / along the normal), see :func:`_noise_model`
+    sys_point_px: float = 0.07
+    sys_curve_px: float = 0.04
     floor_line_mm: float = 0.01
     floor_ellipse_mm: float = 0.01
     #: a feature whose own residual is this improbable under the noise model is dropped
@@ -67,6 +74,11 @@ class TrackOptions:
     max_dropped: int = 2
     #: a second labelling this close in χ² (per κ²) and far enough away makes it ambiguous
     ambiguity_chi2: float = 9.0
+    #: a predicted wire whose median density along its prediction is below this fraction of
+    #: the best-supported wire's is absent: the labelling is not confirmed
+    wire_support: float = 0.3
+    #: χ² charged for each predicted, unobstructed feature a labelling does not explain
+    unexplained_chi2: float = 25.0
     #: the solver's maximum noise scale κ for an image pose (the model is measured here)
     max_noise_scale: float = 3.0
 
@@ -187,22 +199,34 @@ def _match_beads(features: Features, camera: Camera, R, t, beads: Beads, tol: fl
 
 
 def _noise_model(obs: Observation, beads: Beads, match: dict[str, int], pix: float, opts: TrackOptions):
-    """Per-feature-type σ (mm at the detector) measured on this image, with floors."""
+    """Per-feature-type σ (mm at the detector) measured on this image, with floors.
+
+    Beside the random part measured here (each bead fit's own σ; each curve's scatter about
+    its own fit) every feature carries a systematic error that does not average away over
+    its points — a bead centre pulled by a wire or a bone edge, a wire's contour shifted by
+    the background's slope (``TrackOptions.sys_point_px`` / ``sys_curve_px``, measured
+    against the truth on rendered images with anatomy). The solver's noise model is one σ
+    per point of a type, so a curve's systematic part enters as ``n σ_sys²`` per point (n
+    its typical number of points): then a curve's fitted parameters carry σ_sys as they
+    should and the per-feature χ² test does not reject correct curves for a 0.05 px shift."""
     sig_p = [float(beads.sigma_px[j]) for j in match.values()] if match else []
-    point = max(float(np.sqrt(np.mean(np.square(sig_p)))) * pix if sig_p else 0.0, opts.floor_point_mm)
-    rss, dof = 0.0, 0
-    for c in obs.lines.values():
-        f = fit_line(c.points)
-        rss += float(f.rss)
-        dof += int(f.dof)
-    line = max(math.sqrt(rss / dof) * pix if dof > 0 else 0.0, opts.floor_line_mm)
-    rss, dof = 0.0, 0
-    for c in obs.ellipses.values():
-        f = fit_conic(c.points)
-        rss += float(f.rss)
-        dof += int(f.dof)
-    ell = max(math.sqrt(rss / dof) * pix if dof > 0 else 0.0, opts.floor_ellipse_mm)
-    return NoiseModel(point, line, ell)
+    # the median: one poorly fitted ball (σ of a pixel) must not loosen every other bead;
+    # it fails its own χ² test instead
+    sp = float(np.median(sig_p)) if sig_p else 0.0
+    point = max(math.hypot(sp, opts.sys_point_px) * pix, opts.floor_point_mm)
+    out = []
+    for store, fitter, floor in ((obs.lines, fit_line, opts.floor_line_mm),
+                                 (obs.ellipses, fit_conic, opts.floor_ellipse_mm)):
+        rss, dof, ns = 0.0, 0, []
+        for c in store.values():
+            f = fitter(c.points)
+            rss += float(f.rss)
+            dof += int(f.dof)
+            ns.append(len(c.points))
+        s = math.sqrt(rss / dof) if dof > 0 else 0.0
+        n = float(np.median(ns)) if ns else 0.0
+        out.append(max(math.sqrt(s * s + n * opts.sys_curve_px ** 2) * pix, floor))
+    return NoiseModel(point, out[0], out[1])
 
 
 def _clean_contours(contours: identify.Contours, k: float = 4.0) -> None:
@@ -239,6 +263,63 @@ def _feature_chi2(features: Features, obs: Observation, pose: Pose, noise: Noise
     return out
 
 
+def _calibrated_covariance(features: Features, obs: Observation, pose: Pose, noise: NoiseModel) -> None:
+    """Rescale the pose covariance (in place) to the image path's noise model.
+
+    The solver scales (JᵀJ)⁻¹ by κ², pooled over the pose residuals *and* the contour fits'
+    scatter; here the contour scatter is only the random part of the noise model (the
+    systematic part, see :func:`_noise_model`, does not show in a curve's scatter about
+    its own fit), so κ² < 1 would shrink the covariance below what the model says. The
+    covariance is (JᵀJ)⁻¹ × max(1, χ²/dof of the pose residuals alone)."""
+    if pose.covariance is None or not math.isfinite(pose.noise_scale) or pose.noise_scale <= 0:
+        return
+    prob = compile_problem(features, [obs], noise)
+    ev = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=False)
+    m = ev.rho.shape[1]
+    if m <= 6:
+        return
+    s2 = max(float(np.sum(ev.rho[0] ** 2)) / (m - 6), 1.0)
+    pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+
+
+def _absent_wires(features: Features, camera: Camera, pose: Pose, T: np.ndarray, noise: float, sc: dict,
+                  opts: TrackOptions) -> tuple[list[str], dict[str, float]]:
+    """Curves the pose predicts on bare background (see :func:`identify.wire_support`):
+    those whose median density along the prediction is below ``wire_support`` × the
+    best-supported curve's, or below 4 noise σ; also returns each curve's support in
+    noise σ."""
+    excl = np.full(len(features.points), sc["bead_radius_px"] + 2 * opts.blur_px + 1.0)
+    sup = identify.wire_support(features, camera, pose.rotation, pose.translation_mm, T, excl)
+    if not sup:
+        return [], {}
+    top = max(v for v, _ in sup.values())
+    thr = max(4.0 * noise, opts.wire_support * top)
+    return [fid for fid, (v, _) in sup.items() if v < thr], {fid: round(v / max(noise, 1e-12), 1)
+                                                             for fid, (v, _) in sup.items()}
+
+
+def _refit_beads_off_wires(T: np.ndarray, beads: Beads, features: Features, camera: Camera, pose: Pose, sc: dict,
+                           noise: float, opts: TrackOptions) -> Beads:
+    """The bead fits again with the pixels of the pose's predicted wires left out (a
+    wire passing under a ball biases its centre; two crossing there, by ~0.4 px)."""
+    if not (features.lines or features.ellipses) or len(beads) == 0:
+        return beads
+    H, W = T.shape
+    mask = np.zeros((H, W), np.uint8)
+    half = 0.5 * sc["wire_px"] + 1.5 * float(np.median(beads.blur))
+    for kind, pts in identify._curve_samples(features, camera, pose.rotation, pose.translation_mm).values():
+        p = np.round(pts[np.isfinite(pts).all(1)]).astype(np.int32)
+        if len(p) > 1:
+            cv2.polylines(mask, [p.reshape(-1, 1, 2)], kind == "ellipse", 1, thickness=max(1, int(round(2 * half))))
+    refit = fit_beads(T, beads.uv, sc["bead_radius_px"], float(np.median(beads.blur)), noise, beads.response,
+                      exclude=mask.astype(bool))
+    # keep the first fit where the mask left too little of a ball to fit
+    ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
+        np.isfinite(refit.sigma_px) & (refit.radius > 0.5 * sc["bead_radius_px"])
+    return Beads(*(np.where(ok[:, None] if getattr(beads, k).ndim == 2 else ok, getattr(refit, k), getattr(beads, k))
+                   for k in beads.__dataclass_fields__))
+
+
 def _solve(features: Features, obs: Observation, noise: NoiseModel, R0, t0, opts: TrackOptions) -> Pose:
     sopts = SolverOptions(noise=noise, max_noise_scale=opts.max_noise_scale)
     p = refine_pose(features, obs, R0, t0, sopts)
@@ -271,7 +352,8 @@ def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHyp
                 / 2 * mag / pix
             var = sc["ridge_sigma_px"] ** 2 + blur ** 2 + wr * wr / 4
             cont = identify.gather_contours(features, camera, R, t, ridges, excl, tol, opts.separation_px,
-                                            ridge_var_px2=var)
+                                            ridge_var_px2=var,
+                                            thin_px=opts.thin_factor * sc["ridge_sigma_px"] if stage == 2 else 0.0)
             _clean_contours(cont)
         else:
             cont = identify.Contours()
@@ -315,9 +397,37 @@ def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHyp
                           {k: v for k, v in obs.lines.items() if k != worst},
                           {k: v for k, v in obs.ellipses.items() if k != worst}, obs.origin)
         pose = _solve(features, obs, noise, pose.rotation, pose.translation_mm, opts)
+    _calibrated_covariance(features, obs, pose, noise)
     result.update(pose=pose, obs=obs, removed=removed)
-    result["chi2"] = float(pose.noise_scale ** 2) * max(1, 1)
+    result["score"] = _score(features, camera, obs, pose, noise, result.get("dropped", {}), removed,
+                             result["contours"], sc, opts)
     return result
+
+
+def _score(features: Features, camera: Camera, obs: Observation, pose: Pose, noise: NoiseModel, dropped: dict,
+           removed: dict, cont: identify.Contours, sc: dict, opts: TrackOptions) -> float:
+    """A labelling's misfit to the whole image: the χ² of the features it explains plus
+    ``unexplained_chi2`` for each feature it predicts in view and clear of others but does
+    not explain (a ball with no blob under it, a wire with no ridge, a feature rejected by
+    its own χ²). Labellings that use different numbers of features are compared on this,
+    not on the feature count or κ alone: a near-mirror labelling of ftrac_mini matched one
+    ball more at a worse fit, and "more features" picked it."""
+    if not np.all(np.isfinite(pose.rotation)):
+        return math.inf
+    prob = compile_problem(features, [obs], noise)
+    ev = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=False)
+    chi = float(np.sum(ev.rho[0] ** 2))
+    H, W = sc.get("shape", (np.inf, np.inf))
+    uv, _ = identify._project(camera, pose.rotation, pose.translation_mm, features.point_centers()) \
+        if features.points else (np.zeros((0, 2)), None)
+    m = sc["bead_radius_px"] + 2
+    unexplained = 0
+    for k, p in enumerate(features.points):
+        inside = m <= uv[k, 0] <= W - 1 - m and m <= uv[k, 1] <= H - 1 - m
+        if inside and p.id not in obs.points and (p.id not in dropped or p.id in removed):
+            unexplained += 1
+    unexplained += len(set(cont.missing) | {k for k in removed if k not in {p.id for p in features.points}})
+    return chi + opts.unexplained_chi2 * unexplained
 
 
 def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
@@ -394,6 +504,7 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
             pol = detect_polarity(img, int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2)))
     g = to_density(img, pol)
     T, noise_px, beads, ridges, sc = detect(g, features, camera, opts)
+    sc["shape"] = g.shape
     diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
                             "ridge_points": 0 if ridges is None else len(ridges)}
     if not features.points:
@@ -422,14 +533,19 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                for R0, t0 in seen_poses):
             continue
         seen_poses.append((p.rotation, p.translation_mm))
+        if p.converged:
+            # a labelling that puts wire on bare background is no candidate, and no rival
+            absent, _ = _absent_wires(features, camera, p, T, noise_px, sc, opts)
+            if absent:
+                p.converged = False
+                p.error = (f"identification not confirmed: the image shows no wire where the pose puts "
+                           f"{', '.join(absent)}")
         evaluated.append(r)
     if not evaluated:
         return TrackResult(_failed("no bead labelling led to a pose"), None, {}, beads, ridges, pol, None, diag)
 
     def key(r):
-        p = r["pose"]
-        nfeat = len(r["obs"].points) + len(r["obs"].lines) + len(r["obs"].ellipses)
-        return (not p.converged, -nfeat, p.noise_scale if math.isfinite(p.noise_scale) else math.inf)
+        return (not r["pose"].converged, r["score"])
 
     evaluated.sort(key=key)
     best = evaluated[0]
@@ -448,11 +564,13 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                                  np.concatenate([ridges.normal[outside], rp2.normal]),
                                  np.concatenate([ridges.strength[outside], rp2.strength]),
                                  np.concatenate([ridges.snr[outside], rp2.snr]))
-            r2 = _evaluate_hypothesis(features, camera, h2, beads, merged, sc, opts)
+            beads2 = _refit_beads_off_wires(T, beads, features, camera, p0, sc, noise_px, opts)
+            r2 = _evaluate_hypothesis(features, camera, h2, beads2, merged, sc, opts)
             if "pose" in r2 and (r2["pose"].converged or not best["pose"].converged):
                 others = [e for e in evaluated[1:]]
                 best = r2
                 ridges = merged
+                beads = beads2
                 evaluated = [best] + others
                 diag["body_subtracted"] = True
     pose = best["pose"]
@@ -461,9 +579,7 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
             q = other["pose"]
             if not q.converged:
                 continue
-            nb = len(best["obs"].points) + len(best["obs"].lines) + len(best["obs"].ellipses)
-            no = len(other["obs"].points) + len(other["obs"].lines) + len(other["obs"].ellipses)
-            if no < nb:
+            if other["score"] - best["score"] >= opts.ambiguity_chi2:
                 continue
             dang = math.degrees(float(so3.angle(q.rotation, pose.rotation)))
             dt = float(np.linalg.norm(q.translation_mm - pose.translation_mm))
@@ -476,11 +592,18 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                      "noise_scale": float(x["pose"].noise_scale)} for x in (best, other)]
                 pose.converged = False
                 pose.error = (f"ambiguous identification: another labelling {dang:.1f}° and {dt:.1f} mm away "
-                              f"explains the image as well (noise scale {q.noise_scale:.2f} vs "
-                              f"{pose.noise_scale:.2f})")
+                              f"explains the image as well (misfit {other['score']:.1f} vs {best['score']:.1f}, "
+                              f"noise scale {q.noise_scale:.2f} vs {pose.noise_scale:.2f})")
                 break
     obs = best["obs"]
     cont = best["contours"]
+    if pose.converged:
+        absent = _absent_wires(features, camera, pose, T, noise_px, sc, opts)
+        diag["wire_support"] = absent[1]
+        if absent[0]:
+            pose.converged = False
+            pose.error = (f"identification not confirmed: the image shows no wire where the pose puts "
+                          f"{', '.join(absent[0])}")
     n_curves = len(features.lines) + len(features.ellipses)
     if pose.converged and n_curves and len(cont.missing) >= max(2, (n_curves + 1) // 2):
         # the labelling predicts wires where the image has none: the beads were misread
