@@ -138,19 +138,19 @@ def test_presets_have_no_self_symmetry(name, improper):
 
 
 def test_nine_bead_margin_and_view():
-    """The graded helix: ≥ 3.5 mm RMS from any relabelling (3.83, B1↔B2), ≥ 5 mm with a mirror (8.8);
+    """The graded helix: ≥ 3.5 mm RMS from any relabelling (3.63, B1↔B2), ≥ 5 mm with a mirror (8.7);
     non-coplanar; the balls stay apart in the AP view (beam along −y: x–z plane)."""
     p = _preset_beads("nine_bead")
     assert not len(near_symmetries(p, 3.5)[0]) and not len(near_symmetries(p, 5.0, improper=True)[0])
     ap = p[:, [0, 2]]
     gap = np.linalg.norm(ap[:, None] - ap[None], axis=2) + np.eye(len(p)) * 1e9
-    assert gap.min() > 2.0 + 3.0  # ball diameter plus 3 mm
+    assert gap.min() > 2.0 + 2.0  # ball diameter plus 2 mm (5.1 mm)
 
 
 def test_nine_bead_conditioning_close_to_the_even_helix():
     """The graded helix stays the Fig. 8 comparator: over the same workspace poses its
     predicted p95 translation error and median condition within 5 % of the even helix's,
-    its p95 rotation error within 10 % (measured −2.7 %, −3.8 %, −6.2 %)."""
+    its p95 rotation error within 10 % (measured −2.1 %, −4.0 %, −2.2 % on these 1,000 poses)."""
     R, t = workspace_poses(Workspace(), np.array([0.0, -1.0, 0.0]), 1000, 0)
     noise = NoiseModel.from_segmentation_error(0.25)
 
