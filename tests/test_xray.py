@@ -387,6 +387,15 @@ def test_radiograph_cli_writes_images_and_truth(tmp_path, features_json):
     assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out2),
                  "--no-noise", "--image-size", "256", "256", "--format", "npy"]) == 0
     assert (out2 / "img_0000.npy").exists() and read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
+    # a background file in line-integral units (a quantised PNG with its rescale) is added in the log domain
+    bg = np.full((256, 256), 0.5)
+    write_image(tmp_path / "bg.png", bg, value_range=(0.0, 1.0))
+    out3 = tmp_path / "rg3"
+    assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out3),
+                 "--no-noise", "--image-size", "256", "256", "--format", "npy", "--background",
+                 str(tmp_path / "bg.png")]) == 0
+    a, b = np.load(out2 / "img_0000.npy"), np.load(out3 / "img_0000.npy")
+    assert np.abs(b - a - 0.5).max() < 1e-4
 
 
 @pytest.mark.parametrize("extra,expect", [

@@ -159,7 +159,9 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     occluders = [_parse_occluder(o, occluder_frame) for o in occluder]
     bg_image = None
     if background and background != "anatomy":
-        bg_image, _, _ = read_image(background, camera=camera)
+        bg_image, _, bg_meta = read_image(background, camera=camera)
+        # stored values → line integrals where the file records its linear map (our PNG/TIFF/DICOM)
+        bg_image = bg_image * bg_meta.get("rescale_slope", 1.0) + bg_meta.get("rescale_intercept", 0.0)
         if bg_image.shape != imaging.image_shape:
             raise InputError(background, "pixels", f"a background of {imaging.image_shape[0]} × "
                                                    f"{imaging.image_shape[1]} pixels, got {bg_image.shape}")
