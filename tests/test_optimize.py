@@ -11,7 +11,9 @@ import pytest
 
 from ftrac_design.analysis.score import AnalysisSettings
 from ftrac_design.cli.main import main
+from ftrac_design.design import load_design
 from ftrac_design.errors import InputError
+from ftrac_design.features import compute_features
 from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, optimize, parse_space, run_search
 from ftrac_design.optimize.execution import SerialExecutor, local_pool
 from ftrac_design.optimize.search import objective_values
@@ -79,6 +81,34 @@ def test_margins_are_graded_and_the_infeasible_are_not_scored(base):
     assert 0 < closer[0]["violation"] < closer[1]["violation"]  # further out, further from feasible
     refused = evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": -1.0}), SETTINGS)
     assert refused["refused"] and refused["violation"] >= 1000
+
+
+def test_ellipses_seen_edge_on_are_refused_by_the_view_angle_constraint(base):
+    from ftrac_design.optimize.evaluate import min_ellipse_view_deg
+
+    s = EvalSettings(("cnc",), SETTINGS.analysis, min_ellipse_view_deg=3.0)
+    ok = evaluate_candidate(base, s)
+    # 30° tilt toward the beam inside a 25° cone: never closer than ~5° to edge-on (perspective
+    # of the ±25 mm lateral offsets takes up to ~2° of that)
+    assert 3.0 < ok["ellipse_view_deg"] < 5.0 and ok["feasible"]
+    low = evaluate_candidate(apply_values(base, {"ellipses.E1.tilt_deg": 16.7}), s)
+    assert not low["feasible"] and low["ellipse_view_deg"] < 1.0
+    assert low["margins"]["ellipses:view_angle"] == pytest.approx((low["ellipse_view_deg"] - 3.0) / 3.0)
+    assert "ellipses:view_angle" not in evaluate_candidate(base, SETTINGS)["margins"]
+    assert min_ellipse_view_deg(compute_features(load_design(MODELS / "nine_bead.toml")), SETTINGS.analysis) is None
+
+
+def test_segmentability_is_an_optional_graded_constraint(base):
+    free = evaluate_candidate(base, SETTINGS)
+    assert "segmentability:clearance_p5" not in free["margins"]
+    s = EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=-10.0, clearance_poses=100)
+    loose = evaluate_candidate(base, s)
+    p5 = loose["clearance_p5_px"]
+    assert loose["feasible"] and loose["margins"]["segmentability:clearance_p5"] == pytest.approx((p5 + 10) / 10)
+    tight = evaluate_candidate(base, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5,
+                                                  clearance_poses=100))
+    assert not tight["feasible"] and tight["figures"] is None
+    assert tight["violation"] == pytest.approx(0.5 / max(abs(p5 + 0.5), 1.0) + 1e-6)
 
 
 # ---- the search -----------------------------------------------------------------------------

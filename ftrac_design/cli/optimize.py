@@ -40,13 +40,21 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 @click.option("--verify-poses", type=click.IntRange(min=100), default=None,
               help="fresh poses that re-score start and best [default: 20000]")
 @click.option("--solver-images", type=click.IntRange(min=0), default=None,
-              help="simulated images solved for start and best (0 = skip) [default: 300]")
+              help="simulated images solved for start and best (0 = skip) [default: 1000]")
+@click.option("--min-clearance-px", type=float, default=None,
+              help="segmentability constraint: 5th percentile of the smallest image clearance between "
+                   "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]")
+@click.option("--min-ellipse-view-deg", type=click.FloatRange(min=0.0, max=90.0), default=None,
+              help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
+                   "[default: the start design's own value: 3.9 for ftrac_mini, 4.5 for ftrac_2005]")
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
 @click.option("--print-space", is_flag=True, default=False,
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
 def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
             scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
-            verify_poses: int | None, solver_images: int | None, no_build: bool, print_space: bool) -> int:
+            verify_poses: int | None, solver_images: int | None, min_clearance_px: float | None, min_ellipse_view_deg: float | None,
+            no_build: bool,
+            print_space: bool) -> int:
     """Optimise DESIGN.toml's layout under the design rules.
 
     Every candidate is checked against the rules of the profile(s) first (graded margins);
@@ -72,7 +80,8 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
     try:
         doc = optimize(design, out, space, objective, evaluations, seed, profiles, scheduler, workers,
                        resume=resume, poses=poses, verify_poses=verify_poses, solver_images=solver_images,
-                       build=not no_build, command_line=cmd)
+                       build=not no_build, command_line=cmd, min_clearance_px=min_clearance_px,
+                       min_ellipse_view_deg=min_ellipse_view_deg)
     except KeyboardInterrupt:
         click.echo(f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
                    "run the same command with --resume to continue", err=True)

@@ -10,6 +10,7 @@ is removed.
 from __future__ import annotations
 
 import json
+import math
 import shutil
 import tomllib
 from concurrent.futures import Executor
@@ -27,7 +28,7 @@ from .space import SearchSpace, default_space, load_space
 #: workspace poses of the search sample unless the space file or the caller says otherwise
 SEARCH_POSES = 2000
 VERIFY_POSES = 20_000
-SOLVER_IMAGES = 300
+SOLVER_IMAGES = 1000
 
 
 def read_design(path: str | Path) -> tuple[dict, object]:
@@ -57,18 +58,30 @@ def _check_output_dir(out_dir: Path) -> None:
 
 
 def prepare(design_path: str | Path, space_path: str | Path | None = None, poses: int | None = None,
-            seed: int = 0, profiles: tuple[str, ...] = ("cnc",)) -> tuple[SearchSpace, EvalSettings]:
+            seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
+            min_clearance_px: float | None = None,
+            min_ellipse_view_deg: float | None = None) -> tuple[SearchSpace, EvalSettings]:
     """The search space and evaluation settings of a run: the design's own [analysis]
     workspace and noise, a sample of ``poses`` (else the space's ``search.poses``, else
-    :data:`SEARCH_POSES`) drawn with ``seed``."""
+    :data:`SEARCH_POSES`) drawn with ``seed``; ellipses seen no closer to edge-on than
+    ``min_ellipse_view_deg`` (default: as close as the start design's, rounded down to
+    0.1°; 0 switches the constraint off)."""
     from ..analysis.report import Subject, settings_for
     from ..features import compute_features
 
     base, design = read_design(design_path)
     space = load_space(base, space_path) if space_path is not None else default_space(base)
     n = poses or space.search.get("poses", SEARCH_POSES)
-    analysis, _ = settings_for(Subject(compute_features(design), design.analysis, Path(design_path)))
-    return space, EvalSettings(tuple(profiles), replace(analysis, poses=int(n), seed=int(seed)))
+    from .evaluate import min_ellipse_view_deg as view_of
+
+    features = compute_features(design)
+    analysis, _ = settings_for(Subject(features, design.analysis, Path(design_path)))
+    analysis = replace(analysis, poses=int(n), seed=int(seed))
+    if min_ellipse_view_deg is None:
+        v = view_of(features, analysis)
+        min_ellipse_view_deg = None if v is None else math.floor(v * 10) / 10
+    return space, EvalSettings(tuple(profiles), analysis, min_clearance_px,
+                               min_ellipse_view_deg=min_ellipse_view_deg or None)
 
 
 def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Path | None = None,
@@ -77,14 +90,16 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
              resume: bool = False, poses: int | None = None, verify_poses: int | None = None,
              solver_images: int | None = None, build: bool = True, progress: bool = True,
              command_line: str | None = None, stop_after: int | None = None, sigma0: float | None = None,
-             popsize: int | None = None) -> dict:
+             popsize: int | None = None, min_clearance_px: float | None = None,
+             min_ellipse_view_deg: float | None = None) -> dict:
     """Run a search and write its outputs into ``out_dir`` (see :mod:`.report`); returns
     ``summary.json``'s content. ``executor`` (any ``concurrent.futures``-style one) wins
     over ``scheduler`` / ``workers`` (see :mod:`.execution`). Raises
     :class:`~ftrac_design.errors.GoalError` when no candidate is feasible."""
     out_dir = Path(out_dir)
     _check_output_dir(out_dir)
-    space, settings = prepare(design_path, space_path, poses, seed, profiles)
+    space, settings = prepare(design_path, space_path, poses, seed, profiles, min_clearance_px,
+                              min_ellipse_view_deg)
     config = SearchConfig(objective=objective, evaluations=evaluations, seed=seed,
                           sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
                           popsize=popsize or space.search.get("popsize"))

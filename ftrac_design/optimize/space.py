@@ -33,7 +33,7 @@ A space file (``--space SPACE.toml``) is::
     sigma0 = 0.1                               # CMA-ES step size in the unit cube
     popsize = 12                               # CMA-ES λ / NSGA-II population
     verify_poses = 20000                       # fresh poses that re-score the winner
-    solver_images = 300                        # Monte-Carlo images solved for start and winner
+    solver_images = 1000                       # Monte-Carlo images solved for start and winner
 
 Without ``--space`` :func:`default_space` varies the layout within the body's envelope
 (see there); ``ftrac-design optimize DESIGN --print-space`` prints it as a file to edit.
