@@ -150,3 +150,24 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     assert out.pose.covariance.shape == (6, 6) and out.pose.converged
     failed = Result(Pose(R0, t0, False, np.nan, None, {}, 0, "not found"), "dense-dark")
     assert refine_track_result(img.raw, features_2005, Camera(), failed, body=BODY) is failed
+
+
+def test_bound_matches_the_spread_of_a_simple_estimator():
+    """One bead, tx alone unknown: the linearised weighted least-squares estimate from the
+    true pose, Σ w J (Y − L) / Σ w J², scatters as the bound 1/√F_tx,tx predicts (200 noise
+    draws: the sample std is good to ±5 %)."""
+    f = Features("b", None, None, np.array([0, -1.0, 0]), points=(PointFeature("B", np.zeros(3), 2.0),))
+    cam = Camera(1000.0, (0.44, 0.44), (32.0, 32.0))
+    im = ImagingModel(image_shape=(64, 64), photons_per_px=2000.0)
+    R, t = np.eye(3), np.array([0.05, -0.03, 667.0])
+    bound = pixel_information(f, R, t, cam, im, body=None)
+    sd_tx = 1 / math.sqrt(bound.information[3, 3])
+    v0, u0, h, w = bound.roi
+    L, J = RoiModel(f, cam, im, None, bound.roi).jacobian(R, t)
+    wts = im.photons_per_px * np.exp(-L)
+    est = []
+    for k in range(200):
+        Y = render(f, R, t, cam, im, rng=np.random.default_rng(100 + k), body=None).log_image[v0:v0 + h, u0:u0 + w]
+        est.append(float(np.sum(wts * J[3] * (Y - L)) / np.sum(wts * J[3] ** 2)))
+    assert abs(np.mean(est)) < 3 * sd_tx / math.sqrt(200)
+    assert np.std(est, ddof=1) == pytest.approx(sd_tx, rel=0.2)

@@ -206,7 +206,7 @@ class RoiModel:
         z = float(np.asarray(t, float)[2])
         mm_per_px = min(self.camera.pixel_size_mm) * z / self.camera.focal_length_mm
         lat = STEP_PX * mm_per_px
-        rho = self.features.characteristic_radius
+        rho = max(self.features.characteristic_radius, 1.0)      # a lone bead at the origin has 0
         return np.array([lat / rho] * 3 + [lat, lat, lat * z / rho])
 
     def jacobian(self, R: np.ndarray, t: np.ndarray, what: str = "log") -> tuple[np.ndarray, np.ndarray]:
