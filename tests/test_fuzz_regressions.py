@@ -206,3 +206,15 @@ def test_track_2x2_png_with_camera_exits_cleanly():
         cam.write_text(json.dumps(CAMERA.to_dict()))
         _track(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", cam,
                 "-o", tmp / "out" / "pose.json"], [img], tmp)
+
+
+@pytest.mark.parametrize("suffix", [".npy", ".png", ".dcm", ".tif"])
+def test_track_empty_image_file_exits_2_not_aborted(suffix):
+    """An empty .npy made np.load raise EOFError, which click turns into "aborted", exit 130
+    (found by the long profile of tests/test_fuzz_image.py)."""
+    with scratch() as tmp:
+        img = tmp / f"empty{suffix}"
+        img.write_bytes(b"")
+        run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "-o", tmp / "out" / "pose.json"])
+        assert_clean(run, [img], tmp)
+        assert run.code == 2 and img.name in run.err

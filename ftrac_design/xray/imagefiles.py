@@ -123,7 +123,7 @@ def _read_png(path: Path, _override: bool):
             text = dict(getattr(im, "text", {}) or {})
             mode = im.mode
             arr = np.array(im)
-    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, SyntaxError, ValueError) as exc:
+    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, EOFError, SyntaxError, ValueError) as exc:
         raise InputError(path, None, f"a readable PNG image ({exc})") from None
     bits = 16 if arr.dtype in (np.uint16, np.int32) and mode.startswith("I") else 8 * arr.dtype.itemsize
     meta: dict[str, Any] = {"bits": int(bits)}
@@ -150,7 +150,7 @@ def _read_tiff(path: Path, _override: bool):
 def _read_npy(path: Path, _override: bool):
     try:
         arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError) as exc:
+    except (ValueError, OSError, EOFError) as exc:  # an empty file: EOFError
         raise InputError(path, None, f"a NumPy .npy array ({exc})") from None
     if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
         raise InputError(path, "dtype", f"a real numeric array, got {arr.dtype}")
@@ -164,7 +164,7 @@ def _read_dicom(path: Path, override: bool):
     try:
         ds = pydicom.dcmread(path)
         arr = ds.pixel_array
-    except (InvalidDicomError, AttributeError, KeyError, ValueError, OSError, TypeError) as exc:
+    except (InvalidDicomError, AttributeError, KeyError, ValueError, OSError, EOFError, TypeError) as exc:
         raise InputError(path, None, f"a readable DICOM image with pixel data ({type(exc).__name__}: {exc})") from None
     if arr.ndim == 3 and getattr(ds, "SamplesPerPixel", 1) == 1:
         arr = arr[0]                                     # first frame of a multi-frame image
