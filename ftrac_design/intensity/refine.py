@@ -33,7 +33,6 @@ import numpy as np
 from scipy.ndimage import gaussian_filter
 
 from ..features.model import Features
-from ..pose import so3
 from ..pose.camera import Camera
 from ..xray.model import Body, ImagingModel
 from ..xray.render import AUTO, resolve_body

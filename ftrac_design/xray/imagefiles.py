@@ -20,7 +20,6 @@ the TIFF ImageDescription (JSON), DICOM ImageComments.
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
