@@ -26,7 +26,8 @@ test: $(STAMP) chromium
 chromium:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
 	if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
-		apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium; \
+		(apt-get update -q && DEBIAN_FRONTEND=noninteractive apt-get install -y -q chromium) || \
+		echo "warning: chromium could not be installed; the report's browser test will fail under CI"; \
 	else echo "note: chromium not found and not root; the report's browser tests will skip (fail under CI)"; fi
 
 bench: $(STAMP)

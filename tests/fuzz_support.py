@@ -58,6 +58,7 @@ CASES = {
     "radiograph_track": 12,   # a simulated radiograph damaged (NaN, dtype, crop, scale, …) → `track`
     "space_optimize": 40,     # mutated search-space TOML → `optimize --print-space` (validation only)
     "space_optimize_run": 2,  # mutated spaces that validate → one tiny in-process `optimize` run
+    "report": 20,             # a build's manifest.json or analysis.json mutated → `report BUILD_DIR`
 }
 
 

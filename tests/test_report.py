@@ -187,3 +187,39 @@ def test_report_room_does_not_import_cadquery(built):
             "print(sorted(m for m in ('cadquery', 'OCP', 'pyvista') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def _linked_copy(src: Path, dst: Path) -> None:
+    """A build directory of hard links (cheap per generated case), manifest and analysis.json copied."""
+    dst.mkdir()
+    for p in src.rglob("*"):
+        q = dst / p.relative_to(src)
+        if p.is_dir():
+            q.mkdir(exist_ok=True)
+        elif p.suffix == ".json":
+            q.write_bytes(p.read_bytes())
+        else:
+            os.link(p, q)
+
+
+from hypothesis import given  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from fuzz_support import cases, mutated, scratch  # noqa: E402
+
+
+@cases("report")
+@given(which=st.sampled_from(["manifest.json", "analysis/analysis.json"]), data=st.data())
+def test_fuzz_report_of_a_corrupted_build(built, which, data):
+    """manifest.json or analysis.json mutated at any key: exit 0 or 2 (one line naming the
+    file), never a traceback, never a half-written page."""
+    doc, done = data.draw(mutated(json.loads((built / which).read_text())))
+    with scratch() as tmp:
+        copy = tmp / "b"
+        _linked_copy(built, copy)
+        (copy / which).write_text(json.dumps(doc))
+        out = tmp / "r.html"
+        run = run_cli(["report", copy, "-o", out])
+        assert_clean(run, [copy / which, copy / "manifest.json", copy / "features.json"], tmp)
+        assert run.code in (0, 2), run.describe()
+        assert out.exists() == (run.code == 0), run.describe()

@@ -160,7 +160,11 @@ def collect(build_dir: str | Path | None = None, design: Any | None = None,
         features = load_features(build_dir / "features.json")
         rp = build_dir / "render.png"
         render = rp.read_bytes() if rp.is_file() else None
-        files = output_files(build_dir, manifest, build_kept)
+        try:
+            files = output_files(build_dir, manifest, build_kept)
+        except (TypeError, ValueError, OverflowError) as exc:
+            raise InputError(build_dir / "manifest.json", "files", f"name → {{sha256, bytes}} as `build` writes "
+                                                                  f"({exc})") from None
         if analysis_dir is None and (build_dir / "analysis" / "analysis.json").is_file():
             analysis_dir = build_dir / "analysis"
     elif design is not None:

@@ -17,6 +17,7 @@ import math
 from pathlib import Path
 from typing import Any, Iterable
 
+from ..errors import InputError
 from ..fileio import write_text_atomic
 from .inputs import ReportInputs
 
@@ -352,19 +353,37 @@ def _versions(r: ReportInputs) -> str:
     return _table(["component", "version"], rows)
 
 
+#: sections drawn from analysis.json (the others that read files read manifest.json)
+_FROM_ANALYSIS = ("Score", "Blind-spot atlas")
+
+
+def _guarded(title: str, fn, r: ReportInputs) -> str:
+    """A section's HTML; a manifest or analysis.json that lacks what ``build`` / ``analyze``
+    write (hand-edited, truncated) is bad input: InputError naming the file and the section."""
+    try:
+        return fn(r)
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError, OverflowError) as exc:
+        if title in _FROM_ANALYSIS and r.analysis_dir is not None:
+            src, cmd = r.analysis_dir / "analysis.json", "analyze"
+        else:
+            src, cmd = (r.build_dir / "manifest.json" if r.build_dir is not None else None), "build"
+        raise InputError(src, f"({title})", f"what `ftrac-design {cmd}` writes ({type(exc).__name__}: {exc})") \
+            from None
+
+
 def render_html(r: ReportInputs, generated: _dt.datetime | None = None) -> str:
     """The whole page as a string."""
     generated = generated or _dt.datetime.now(_dt.timezone.utc)
     desc = getattr(r.design, "description", "") if r.design is not None else ""
     profile = r.manifest.get("profile") if r.manifest else None
+    profile = profile if isinstance(profile, str) else None
     sub = [f"<p>{_e(desc)}</p>" if desc else "",
            f"<p>design <code>{_e(r.design_source or '–')}</code>"
            + (f" · built with profile <b>{_e(profile)}</b>" if profile else " · not built")
            + f" · report generated {_e(generated.strftime('%Y-%m-%d %H:%M UTC'))}</p>"]
     nav = "".join(f'<a href="#{t.lower().replace(" ", "-")}">{_e(t)}</a>' for t in SECTIONS)
-    parts = [_render(r), _parameters(r), _features(r), _rules(r), _score(r), _atlas(r), _bom(r), _cut_list(r),
-             _files(r), _versions(r)]
-    sections = "\n".join(_section(t, b) for t, b in zip(SECTIONS, parts))
+    makers = [_render, _parameters, _features, _rules, _score, _atlas, _bom, _cut_list, _files, _versions]
+    sections = "\n".join(_section(t, _guarded(t, fn, r)) for t, fn in zip(SECTIONS, makers))
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8">'
             f'<meta name="viewport" content="width=device-width, initial-scale=1">'
             f"<title>FTRAC design report: {_e(r.name)}</title><style>{_CSS}</style></head>\n"
