@@ -2,20 +2,31 @@
 
 For each preset: N workspace poses (SPEC §1) rendered by the xray simulator at the default
 imaging model, with and without the anatomy-like background; each image tracked with no
-initial guess. Reports identification failures (a converged pose > 1° or > 5 mm off: a
-*wrong* confident answer — target 0), images not converged (with reasons), segmentation
-residuals per feature type in mm at the detector (beads: centre error; lines, ellipses:
-distance of each contour point to the true projected curve) beside the paper's Table V
-(0.43 / 0.19 / 0.13 mm; target ≤ 0.1 mm), the ellipse shrinkage (mean signed distance of
-the ellipse points, + = inside) with and without the modelled-body subtraction, and the
-pose error per camera axis beside the solver's own covariance.
+initial guess. Reports
+
+- identification failures: a converged pose > 1° or > 5 mm off (a *wrong* confident
+  answer — target 0), with the image indices; and converged poses whose error is
+  improbable under their own covariance (χ²₆ > 25.7, p < 1e-4): overconfident;
+- images not converged (with reasons);
+- segmentation residuals per feature type in mm at the detector (beads: centre error per
+  axis; lines, ellipses: distance of each contour point to the true projected curve)
+  beside the paper's Table V (0.43 / 0.19 / 0.13 mm; target ≤ 0.1 mm), and how many
+  ellipses the converged poses used;
+- the pose error per camera axis (RMS, mean ± its standard error: the depth bias) beside
+  the solver's own 1σ (RMS over images; ratio empirical / solver per axis) and the
+  Cramér–Rao prediction of ``ftrac_design.analysis`` at the same poses with the
+  segmentation's measured noise model (median over the images) and contour counts;
+- sweeps on ftrac_2005 (where it breaks): dose, detector blur, background strength, a
+  needle occluder across the fiducial, truncation (the fiducial partly outside the image).
 
     .venv/bin/python benchmarks/track_accuracy.py --n-2005 1000 --n-mini 300 --n-nine 300
+    .venv/bin/python benchmarks/track_accuracy.py --only sweeps --n-sweep 20
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections import Counter
 from pathlib import Path
@@ -23,21 +34,23 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from ftrac_design.analysis import analyse_poses
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
-from ftrac_design.pose import Camera
+from ftrac_design.pose import Camera, NoiseModel
 from ftrac_design.pose.fitting import conic_matrix
-from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, ImagingModel, anatomy, render
+from ftrac_design.pose.simulate import ContourSampling, Workspace, pose_errors
+from ftrac_design.segment.pipeline import TrackOptions, track_image
+from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, render
 
 ROOT = Path(__file__).resolve().parents[1]
+AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 
 
 def residuals(obs, truth, pix):
     out = {"point": [], "line": [], "ellipse": [], "ellipse_signed": []}
     for fid, uv in obs.points.items():
-        out["point"].append(np.linalg.norm(uv - np.array(truth["points"][fid])) / np.sqrt(2) * pix)
+        out["point"] += list((uv - np.array(truth["points"][fid])) * pix)
     for fid, c in obs.lines.items():
         a, b = np.array(truth["lines"][fid]["start"]), np.array(truth["lines"][fid]["end"])
         d = (b - a) / np.linalg.norm(b - a)
@@ -54,59 +67,111 @@ def residuals(obs, truth, pix):
     return out
 
 
-def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), occlude=False):
+def _needle(rng, features):
+    """A steel needle (Ø1.27 mm) across the fiducial's middle, in F, random direction ⟂-ish to z."""
+    c = features.point_centers().mean(0) + rng.uniform(-5, 5, 3)
+    a = rng.uniform(0, 2 * np.pi)
+    d = np.array([math.cos(a), math.sin(a), rng.uniform(-0.5, 0.5)])
+    d /= np.linalg.norm(d)
+    return Occluder(tuple(c - 60 * d), tuple(c + 60 * d))
+
+
+def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_strength=1.0, needle=False,
+        truncate_px=None, label=""):
     design = load_design(ROOT / "models" / f"{name}.toml")
     features = compute_features(design)
     body = Body.from_design(design)
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
     cam = Camera()
     pix = float(np.mean(cam.pixel_size_mm))
+    if truncate_px is not None:
+        # the fiducial origin projected ``truncate_px`` from the left edge (negative: outside)
+        t = t.copy()
+        t[:, 0] = (truncate_px - cam.principal_point_px[0]) * pix / cam.focal_length_mm * t[:, 2]
     res_all = {"point": [], "line": [], "ellipse": [], "ellipse_signed": []}
-    wrong, notconv, reasons, perr, psd, times = 0, 0, Counter(), [], [], []
-    for k in tqdm(range(n), desc=f"{name}{' +bg' if background else ''}", leave=False):
-        bg = anatomy(seed=seed * 1000 + k) if background else None
-        rad = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(seed * 1000 + k), background=bg,
-                     body=body)
+    wrong, overconf, notconv, reasons = [], [], 0, Counter()
+    perr, psd, noise, counts, n_ell, times, conv_idx = [], [], [], [], Counter(), [], []
+    for k in tqdm(range(n), desc=label or name, leave=False, mininterval=5):
+        rng = np.random.default_rng(seed * 1000 + k)
+        bg = anatomy(seed=seed * 1000 + k, strength=bg_strength) if background else None
+        occ = (_needle(rng, features),) if needle else ()
+        rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg, body=body, occluders=occ)
         t0 = time.perf_counter()
         tr = track_image(rad.raw, features, cam, body=body if use_body else None)
         times.append(time.perf_counter() - t0)
         p = tr.pose
         if tr.observation is not None:
-            for key, v in residuals(tr.observation, rad.truth["projected"], pix).items():
-                res_all[key] += v
+            truth = rad.truth["projected"]
+            obs = tr.observation
+            ok = (all(f in truth["points"] for f in obs.points) and all(f in truth["lines"] for f in obs.lines)
+                  and all(f in truth["ellipses"] for f in obs.ellipses))
+            if ok:
+                for key, v in residuals(obs, truth, pix).items():
+                    res_all[key] += v
         if not p.converged:
             notconv += 1
             reasons[(p.error or "?").split(":")[0][:60]] += 1
             continue
         dr, dt = pose_errors(p.rotation, p.translation_mm, R[k], t[k])
         if np.degrees(np.linalg.norm(dr)) > 1.0 or np.linalg.norm(dt) > 5.0:
-            wrong += 1
+            wrong.append(k)
             continue
+        e = np.r_[dr, dt]
+        if p.covariance is not None and e @ np.linalg.solve(p.covariance, e) > 25.7:
+            overconf.append(k)
         perr.append(np.r_[np.degrees(dr), dt])
         psd.append(np.r_[np.degrees(np.sqrt(np.diag(p.covariance)[:3])), p.std_mm])
+        noise.append([tr.noise.point_mm, tr.noise.line_mm, tr.noise.ellipse_mm])
+        obs = tr.observation
+        counts.append([np.median([len(c.points) for c in obs.lines.values()]) if obs.lines else np.nan,
+                       np.median([len(c.points) for c in obs.ellipses.values()]) if obs.ellipses else np.nan])
+        n_ell[len(obs.ellipses)] += 1
+        conv_idx.append(k)
     perr, psd = np.array(perr).reshape(-1, 6), np.array(psd).reshape(-1, 6)
+    cr = np.full(6, np.nan)
+    if len(conv_idx) and features.points:
+        nm = np.nanmedian(np.array(noise), 0)
+        cnt = np.nanmedian(np.array(counts), 0)
+        cs = ContourSampling(ellipse=int(cnt[1]) if np.isfinite(cnt[1]) else 24,
+                             line=int(cnt[0]) if np.isfinite(cnt[0]) else 12)
+        an = analyse_poses(features, R[conv_idx], t[conv_idx], cam, NoiseModel(*nm), cs, detail=False)
+        sd = np.c_[np.degrees(an.overall.rotation_std_rad), an.overall.translation_std_mm]
+        cr = np.sqrt(np.mean(sd ** 2, 0))
 
     def rms(v):
         return float(np.sqrt(np.mean(np.square(v)))) if len(v) else float("nan")
-    return {"n": n, "wrong": wrong, "not_converged": notconv, "reasons": dict(reasons),
+    m = len(perr)
+    return {"n": n, "wrong": wrong, "overconfident": overconf, "not_converged": notconv, "reasons": dict(reasons),
             "rms_mm": {k: rms(res_all[k]) for k in ("point", "line", "ellipse")},
-            "ellipse_shrink_px": float(np.mean(res_all["ellipse_signed"])) if res_all["ellipse_signed"] else float("nan"),
-            "pose_rms": np.sqrt(np.mean(perr ** 2, 0)) if len(perr) else np.full(6, np.nan),
-            "pose_bias": np.mean(perr, 0) if len(perr) else np.full(6, np.nan),
-            "pose_sd_pred": np.sqrt(np.mean(psd ** 2, 0)) if len(psd) else np.full(6, np.nan),
-            "median_ms": 1000 * float(np.median(times))}
+            "ellipse_shrink_px": float(np.mean(res_all["ellipse_signed"])) if res_all["ellipse_signed"] else math.nan,
+            "ellipses_used": dict(sorted(n_ell.items())),
+            "pose_rms": np.sqrt(np.mean(perr ** 2, 0)) if m else np.full(6, np.nan),
+            "pose_bias": np.mean(perr, 0) if m else np.full(6, np.nan),
+            "pose_bias_se": np.std(perr, 0, ddof=1) / math.sqrt(m) if m > 1 else np.full(6, np.nan),
+            "pose_sd_pred": np.sqrt(np.mean(psd ** 2, 0)) if m else np.full(6, np.nan),
+            "cr": cr, "noise_mm": np.nanmedian(np.array(noise), 0) if noise else np.full(3, np.nan),
+            "median_ms": 1000 * float(np.median(times)), "converged": m + len(wrong)}
 
 
 def show(label, r):
-    print(f"\n{label}: {r['n']} images — wrong confident poses {r['wrong']} (target 0), not converged "
-          f"{r['not_converged']} {r['reasons'] or ''}")
+    w = r["wrong"]
+    print(f"\n{label}: {r['n']} images — WRONG confident poses {len(w)} (target 0){' ' + str(w[:20]) if w else ''}; "
+          f"converged {r['converged']}, not converged {r['not_converged']} {r['reasons'] or ''}")
+    print(f"  overconfident (right but χ²₆ of the error vs its covariance > 25.7): {len(r['overconfident'])}"
+          f"{' ' + str(r['overconfident'][:20]) if r['overconfident'] else ''}")
     m = r["rms_mm"]
     print(f"  segmentation RMS at the detector, mm: points {m['point']:.3f}  lines {m['line']:.3f}  ellipses "
           f"{m['ellipse']:.3f}   (paper Table V: 0.43 / 0.19 / 0.13; target ≤ 0.1)")
-    print(f"  ellipse points' mean signed distance (+ = inside, i.e. shrinkage): {r['ellipse_shrink_px']:+.3f} px")
-    print("  pose error RMS  rx ry rz (°) tx ty tz (mm): " + " ".join(f"{x:.4f}" for x in r["pose_rms"]))
-    print("  pose error mean                            : " + " ".join(f"{x:+.4f}" for x in r["pose_bias"]))
-    print("  solver's own 1σ (RMS over images)          : " + " ".join(f"{x:.4f}" for x in r["pose_sd_pred"]))
+    print(f"  ellipses used per converged image {r['ellipses_used']}; mean signed ellipse distance (+ = inside) "
+          f"{r['ellipse_shrink_px']:+.3f} px; measured noise model (median) point/line/ellipse "
+          + " ".join(f"{x:.3f}" for x in r["noise_mm"]) + " mm")
+    print("                                 " + "  ".join(f"{a:>8s}" for a in AXES) + "   (° and mm)")
+    print("  pose error RMS               : " + "  ".join(f"{x:8.4f}" for x in r["pose_rms"]))
+    print("  pose error mean              : " + "  ".join(f"{x:+8.4f}" for x in r["pose_bias"]))
+    print("  standard error of the mean   : " + "  ".join(f"{x:8.4f}" for x in r["pose_bias_se"]))
+    print("  solver's own 1σ (RMS)        : " + "  ".join(f"{x:8.4f}" for x in r["pose_sd_pred"]))
+    print("  ratio error RMS / solver 1σ  : " + "  ".join(f"{x:8.2f}" for x in r["pose_rms"] / r["pose_sd_pred"]))
+    print("  Cramér–Rao (analysis), RMS   : " + "  ".join(f"{x:8.4f}" for x in r["cr"]))
     print(f"  median track time {r['median_ms']:.0f} ms per image")
 
 
@@ -117,25 +182,38 @@ def main():
     ap.add_argument("--n-nine", type=int, default=300)
     ap.add_argument("--n-sweep", type=int, default=20, help="images per sweep setting (0: no sweeps)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--only", choices=("all", "presets", "sweeps", "ftrac_2005", "small"), default="all",
+                    help="presets: the three presets; ftrac_2005 / small: that one / ftrac_mini and nine_bead")
     a = ap.parse_args()
     print("track_accuracy: rendered workspace images, default imaging model "
           f"({ImagingModel()}), machine shared with other jobs")
+    todo = {"all": ("ftrac_2005", "ftrac_mini", "nine_bead"), "presets": ("ftrac_2005", "ftrac_mini", "nine_bead"),
+            "ftrac_2005": ("ftrac_2005",), "small": ("ftrac_mini", "nine_bead"), "sweeps": ()}[a.only]
     for name, n in (("ftrac_2005", a.n_2005), ("ftrac_mini", a.n_mini), ("nine_bead", a.n_nine)):
-        if n <= 0:
+        if n <= 0 or name not in todo:
             continue
         for bg in (False, True):
-            show(f"{name}{' with anatomy background' if bg else ''}", run(name, n, a.seed, bg))
-    if a.n_2005 > 0:
+            lab = f"{name}{' with anatomy background' if bg else ''}"
+            show(lab, run(name, n, a.seed, bg, label=lab))
+    if "ftrac_2005" in todo and a.n_2005 > 0:
         show("ftrac_2005 WITHOUT the modelled-body subtraction (blur bias left in)",
-             run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False))
-    if a.n_sweep > 0:
-        print("\nSweeps (ftrac_2005, where it breaks):")
-        for dose in (1e3, 3e3, 1e5):
-            show(f"photons/px {dose:g}", run("ftrac_2005", a.n_sweep, a.seed + 1, False,
-                                             imaging=ImagingModel(photons_per_px=dose)))
-        for blur in (1.2, 2.0):
-            show(f"detector blur σ {blur} px", run("ftrac_2005", a.n_sweep, a.seed + 2, False,
-                                                   imaging=ImagingModel(detector_blur_px=blur)))
+             run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False, label="no body"))
+    if a.n_sweep > 0 and a.only in ("all", "sweeps"):
+        n = a.n_sweep
+        print(f"\nSweeps (ftrac_2005, {n} images each; where it breaks):")
+        for dose in (300, 1e3, 3e3, 1e5):
+            show(f"photons/px {dose:g}", run("ftrac_2005", n, a.seed + 1, False, imaging=ImagingModel(photons_per_px=dose),
+                                             label=f"dose {dose:g}"))
+        for blur in (1.2, 2.0, 3.0):
+            show(f"detector blur σ {blur} px", run("ftrac_2005", n, a.seed + 2, False,
+                                                   imaging=ImagingModel(detector_blur_px=blur), label=f"blur {blur}"))
+        for s in (2.0, 4.0, 8.0):
+            show(f"anatomy background × {s:g}", run("ftrac_2005", n, a.seed + 3, True, bg_strength=s, label=f"bg {s}"))
+        show("a steel needle (Ø1.27 mm) across the fiducial", run("ftrac_2005", n, a.seed + 4, False, needle=True,
+                                                                   label="needle"))
+        for px in (80, 40, 0):
+            show(f"truncated: fiducial origin {px} px from the image edge",
+                 run("ftrac_2005", n, a.seed + 5, False, truncate_px=px, label=f"trunc {px}"))
 
 
 if __name__ == "__main__":

@@ -332,3 +332,47 @@ def wire_support(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
                + T[v0 + 1, u0] * (1 - f[:, 0]) * f[:, 1] + T[v0 + 1, u0 + 1] * f[:, 0] * f[:, 1])
         out[fid] = (float(np.median(val)), int(ok.sum()))
     return out
+
+
+def image_agreement(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, T: np.ndarray,
+                    ridges: RidgePoints, bead_radius_px: np.ndarray, noise: float, tol_px: float,
+                    min_snr: float = 4.0) -> tuple[float, float]:
+    """How well pose (R, t) accounts for the image, with no labels: ``(unexplained,
+    unsupported)`` in pixels of length. *Unexplained*: ridge points farther than ``tol_px``
+    from every predicted wire and outside every predicted ball (each ridge point stands for
+    ~1 px of wire). *Unsupported*: predicted wire, clear of the balls and inside the image,
+    where ``T`` (background-free density) is below ``min_snr`` noise σ. Both are the same
+    for every hypothesis where the image has clutter; between two labellings the right one
+    has less of each (a near-mirror labelling of ftrac_mini put its ellipses where the image
+    has hardly any wire and left the real ellipses' ridges unexplained, while dropping its
+    own ellipses as "crowded" made its χ² the smaller)."""
+    H, W = T.shape
+    curves = _curve_samples(features, camera, R, t)
+    bu = _project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
+    rad = np.asarray(bead_radius_px, float)
+    pts = [p for _, p in curves.values()]
+    allp = np.concatenate(pts) if pts else np.zeros((0, 2))
+    allp = allp[np.isfinite(allp).all(1)]
+    unexplained = 0.0
+    if len(ridges):
+        d = cKDTree(allp).query(ridges.uv, distance_upper_bound=tol_px)[0] if len(allp) else np.full(len(ridges), np.inf)
+        far = ~np.isfinite(d)
+        if len(bu) and far.any():
+            db = np.linalg.norm(ridges.uv[far][:, None] - bu[None], axis=-1)
+            far[np.flatnonzero(far)[(db <= rad[None] + 1.0).any(1)]] = False
+        unexplained = float(far.sum())
+    unsupported = 0.0
+    for kind, p in curves.values():
+        ok = np.isfinite(p).all(1) & (p[:, 0] >= 0) & (p[:, 1] >= 0) & (p[:, 0] <= W - 2) & (p[:, 1] <= H - 2)
+        if len(bu):
+            ok &= (np.linalg.norm(p[:, None] - bu[None], axis=-1) > rad[None]).all(1)
+        q = p[ok]
+        if not len(q):
+            continue
+        i0 = np.floor(q).astype(int)
+        f = q - i0
+        u0, v0 = i0[:, 0], i0[:, 1]
+        val = (T[v0, u0] * (1 - f[:, 0]) * (1 - f[:, 1]) + T[v0, u0 + 1] * f[:, 0] * (1 - f[:, 1])
+               + T[v0 + 1, u0] * (1 - f[:, 0]) * f[:, 1] + T[v0 + 1, u0 + 1] * f[:, 0] * f[:, 1])
+        unsupported += 0.5 * float((val < min_snr * noise).sum())       # samples every 0.5 px
+    return unexplained, unsupported

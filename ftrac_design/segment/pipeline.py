@@ -18,7 +18,7 @@ the reason — never a confident wrong pose.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import cv2
@@ -79,6 +79,11 @@ class TrackOptions:
     wire_support: float = 0.3
     #: χ² charged for each predicted, unobstructed feature a labelling does not explain
     unexplained_chi2: float = 25.0
+    #: look for the fiducial on a half-size image first and work in its region only
+    roi: bool = True
+    #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
+    #: image does not show (:func:`identify.image_agreement`)
+    agreement_chi2_per_px: float = 1.0
     #: the solver's maximum noise scale κ for an image pose (the model is measured here)
     max_noise_scale: float = 3.0
 
@@ -320,6 +325,21 @@ def _refit_beads_off_wires(T: np.ndarray, beads: Beads, features: Features, came
                    for k in beads.__dataclass_fields__))
 
 
+def _add_agreement(r: dict, features: Features, camera: Camera, T: np.ndarray, ridges: RidgePoints | None,
+                   noise: float, sc: dict, opts: TrackOptions) -> None:
+    """Add the label-free image agreement (:func:`identify.image_agreement`) to a
+    labelling's misfit: ``agreement_chi2_per_px`` per pixel of unexplained ridge and of
+    unsupported predicted wire."""
+    p = r["pose"]
+    if not np.all(np.isfinite(p.rotation)) or not (features.lines or features.ellipses) or ridges is None:
+        return
+    excl = np.full(len(features.points), sc["bead_radius_px"] + 2 * opts.blur_px + 1.0)
+    ux, us = identify.image_agreement(features, camera, p.rotation, p.translation_mm, T, ridges, excl, noise,
+                                      max(1.5, 0.5 * sc["wire_px"] + 1.0))
+    r["agreement"] = (ux, us)
+    r["score"] = r.get("score", 0.0) + opts.agreement_chi2_per_px * (ux + us)
+
+
 def _solve(features: Features, obs: Observation, noise: NoiseModel, R0, t0, opts: TrackOptions) -> Pose:
     sopts = SolverOptions(noise=noise, max_noise_scale=opts.max_noise_scale)
     p = refine_pose(features, obs, R0, t0, sopts)
@@ -332,8 +352,11 @@ def _solve(features: Features, obs: Observation, noise: NoiseModel, R0, t0, opts
 
 
 def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHypothesis, beads: Beads,
-                         ridges: RidgePoints | None, sc: dict, opts: TrackOptions) -> dict[str, Any]:
-    """Refine one labelling into a pose with every feature it can see."""
+                         ridges: RidgePoints | None, sc: dict, opts: TrackOptions, first_stage: int = 0
+                         ) -> dict[str, Any]:
+    """Refine one labelling into a pose with every feature it can see: matching and
+    contour gathering with wide tolerances (stage 0), tight ones (1), then tight and
+    thinned (2); ``first_stage`` = 2 when the hypothesis's pose is already refined."""
     R, t = h.R, h.t
     rb = sc["bead_radius_px"]
     blur = float(np.median(beads.blur)) if len(beads) else opts.blur_px
@@ -342,7 +365,7 @@ def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHyp
     excl = np.full(len(features.points), rb + 3 * opts.blur_px + 1.5)
     result: dict[str, Any] = {}
     pose = None
-    for stage in range(3):
+    for stage in range(first_stage, 3):
         match, dropped_beads = _match_beads(features, camera, R, t, beads,
                                             opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep)
         tol = opts.contour_tol_px if stage == 0 else opts.final_contour_tol_px
@@ -495,14 +518,91 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
         from ..xray.scene import body_from_source
         body = body_from_source(features.source)
     opts = options or TrackOptions()
-    img = np.asarray(image, dtype=np.float64)
+    img = np.asarray(image)
+    if img.dtype != np.float32:
+        img = img.astype(np.float32)
     sc = scales(features, camera, opts)
+    disc = int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2))
+    # everything first on a half-size image: polarity, and where the fiducial is
+    small = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA) \
+        if min(img.shape) >= 64 else img
     pol = opts.polarity
     if pol == "auto":
         pol = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(polarity_hint or "", "")
         if not pol:
-            pol = detect_polarity(img, int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2)))
-    g = to_density(img, pol)
+            pol = detect_polarity(small, max(disc // 2, 2))
+    roi = fiducial_roi(to_density(small, pol), features, sc, opts) if small is not img and opts.roi else None
+    if roi is not None:
+        r0, r1, c0, c1 = roi
+        res = _track_density(to_density(img[r0:r1, c0:c1], pol), features,
+                             replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
+                                                                 camera.principal_point_px[1] - r0)),
+                             opts, body, pol)
+        res = _shifted(res, camera, c0, r0)
+        res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
+        if res.pose.converged:
+            return res
+        # not found in the region the coarse look picked: the whole image, once
+    res = _track_density(to_density(img, pol), features, camera, opts, body, pol)
+    return res
+
+
+def fiducial_roi(gs: np.ndarray, features: Features, sc: dict, opts: TrackOptions):
+    """Where the fiducial is, from a half-size density image ``gs``: the full-size box
+    ``(row0, row1, col0, col1)`` around the densest cluster of bead-like blobs, wide enough
+    for the whole fiducial's projection from any of them; None when nothing bead-like is
+    found (then the whole image is searched)."""
+    if not features.points:
+        return None
+    rb = sc["bead_radius_px"] / 2
+    disc = int(math.ceil(max(rb, sc["wire_px"] / 2) + 1.5 * opts.blur_px + 2))
+    T = top_hat(gs, disc)
+    noise = max(noise_sigma(T), 1e-9)
+    P = len(features.points)
+    cand, resp = blob_candidates(T, rb, noise, 3 * P + 6, opts.bead_min_snr)
+    if len(cand) < 3:
+        return None
+    # the fiducial's largest extent in pixels at a generous magnification
+    pts = [features.point_centers()]
+    pts += [np.array([ln.start, ln.end]) for ln in features.lines]
+    pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
+    X = np.concatenate(pts)
+    ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
+    D = ext * opts.magnification * 1.25 / sc["pixel_mm"]
+    uv = 2 * cand + 0.5                                     # half-size pixel i covers full-size 2i, 2i + 1
+    near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
+    k = int(np.argmax(near.astype(float) @ resp))
+    cl = uv[near[k]]
+    lo = cl.min(0) - 0.5 * D - 8
+    hi = cl.max(0) + 0.5 * D + 8
+    H, W = 2 * gs.shape[0], 2 * gs.shape[1]
+    c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
+    if (r1 - r0) * (c1 - c0) > 0.6 * H * W:
+        return None
+    return r0, r1, c0, c1
+
+
+def _shifted(res: TrackResult, camera: Camera, du: int, dv: int) -> TrackResult:
+    """``res`` found on a crop whose corner is at (du, dv) px, in the full image's pixels."""
+    off = np.array([du, dv], float)
+    if res.observation is not None:
+        o = res.observation
+        res.observation = Observation(camera, {k: v + off for k, v in o.points.items()},
+                                      {k: CurveObservation(points=c.points + off) for k, c in o.lines.items()},
+                                      {k: CurveObservation(points=c.points + off) for k, c in o.ellipses.items()},
+                                      origin=o.origin)
+    if res.beads is not None:
+        res.beads = Beads(*(getattr(res.beads, k) + off if k == "uv" else getattr(res.beads, k)
+                            for k in res.beads.__dataclass_fields__))
+    if res.ridges is not None:
+        res.ridges = RidgePoints(res.ridges.uv + off, res.ridges.normal, res.ridges.strength, res.ridges.snr)
+    return res
+
+
+def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str
+                   ) -> TrackResult:
+    """:func:`track_image` on a density image (dense = bright) seen with ``camera``."""
     T, noise_px, beads, ridges, sc = detect(g, features, camera, opts)
     sc["shape"] = g.shape
     diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
@@ -540,6 +640,7 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                 p.converged = False
                 p.error = (f"identification not confirmed: the image shows no wire where the pose puts "
                            f"{', '.join(absent)}")
+        _add_agreement(r, features, camera, T, ridges, noise_px, sc, opts)
         evaluated.append(r)
     if not evaluated:
         return TrackResult(_failed("no bead labelling led to a pose"), None, {}, beads, ridges, pol, None, diag)
@@ -565,7 +666,10 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
                                  np.concatenate([ridges.strength[outside], rp2.strength]),
                                  np.concatenate([ridges.snr[outside], rp2.snr]))
             beads2 = _refit_beads_off_wires(T, beads, features, camera, p0, sc, noise_px, opts)
-            r2 = _evaluate_hypothesis(features, camera, h2, beads2, merged, sc, opts)
+            r2 = _evaluate_hypothesis(features, camera, h2, beads2, merged, sc, opts, first_stage=2)
+            if "pose" in r2:
+                # judged on the same ridges as the other labellings
+                _add_agreement(r2, features, camera, T, ridges, noise_px, sc, opts)
             if "pose" in r2 and (r2["pose"].converged or not best["pose"].converged):
                 others = [e for e in evaluated[1:]]
                 best = r2
