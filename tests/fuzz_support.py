@@ -184,7 +184,6 @@ def to_toml(d: dict[str, Any], prefix: str = "") -> str:
 
 
 # ------------------------------------------------------------------------- mutations
-Path_ = tuple  # a key path into nested dicts/lists: ("lines", 0, "beads_z")
 
 
 def key_paths(obj: Any, prefix: tuple = ()) -> list[tuple]:
