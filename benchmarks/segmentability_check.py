@@ -70,9 +70,13 @@ def main() -> None:
             bg = anatomy(seed=int(k)) if a.background else None
             rad = render(features, R[k], t[k], cam, ImagingModel(), rng=np.random.default_rng(int(k)), background=bg,
                          body=body)
-            tr = track_image(rad.raw, features, cam, body=body)
-            p = tr.pose
             status, err = "ok", np.nan
+            try:
+                p = track_image(rad.raw, features, cam, body=body).pose
+            except Exception as e:  # noqa: BLE001 — a crash of track is a failure to count, and to report
+                status = f"raised {type(e).__name__}: {str(e)[:50]} (pose {k})"
+                rows.append((b, float(m[k]), pc.kinds[wp[k]], status, err, bool(be[k])))
+                continue
             if not p.converged:
                 status = "not converged: " + (p.error or "?").split(":")[0][:50]
             else:
@@ -82,14 +86,14 @@ def main() -> None:
                     status = "wrong"
             rows.append((b, float(m[k]), pc.kinds[wp[k]], status, err, bool(be[k])))
     print(f"{len(rows)} images in {time.perf_counter() - t0:.0f} s")
-    print("\n| predicted clearance, px | images | failed | not converged | wrong confident "
+    print("\n| predicted clearance, px | images | failed | not converged (or raised) | wrong confident "
           "| median |Δt| of the rest, mm |")
     print("| --- | --- | --- | --- | --- | --- |")
     for b, (lo, hi) in enumerate(zip(bins[:-1], bins[1:])):
         r = [x for x in rows if x[0] == b]
         if not r:
             continue
-        nc = sum(x[3].startswith("not") for x in r)
+        nc = sum(x[3].startswith(("not", "raised")) for x in r)
         wr = sum(x[3] == "wrong" for x in r)
         ok = [x[4] for x in r if x[3] == "ok"]
         print(f"| [{lo:g}, {hi:g}) | {len(r)} | {100 * (nc + wr) / len(r):.0f} % | {nc} | {wr} | "
