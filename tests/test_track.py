@@ -257,3 +257,23 @@ def test_ftrac_mini_near_mirror_labelling_is_not_confident():
         errs = [np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]),
                                                       R[19], t[19])[0])) for a in res.diagnostics["alternatives"]]
         assert min(errs) < 1.5
+
+
+def test_cli_refine_intensity(tmp_path, f2005, features_json, capsys):
+    """--refine intensity: the converged pose refined on the pixels (ftrac_design.intensity)
+    stays right, says it was refined, and keeps a covariance."""
+    pytest.importorskip("ftrac_design.intensity")
+    features, body = f2005
+    R, t = _pose(features, 1)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1), body=body)
+    p = tmp_path / "img.png"
+    write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
+    out = tmp_path / "pose.json"
+    rc, so, se = _run(["track", "--features", str(features_json), str(p), "-o", str(out), "--refine", "intensity"],
+                      capsys)
+    assert rc == 0, se
+    d = json.loads(out.read_text())
+    assert d["converged"] and "intensity" in d["segmentation"]
+    dr, dt = pose_errors(np.array(d["rotation"]), np.array(d["translation_mm"]), R, t)
+    assert np.degrees(np.linalg.norm(dr)) < 0.1 and abs(dt[2]) < 1.0
+    assert d["covariance"] is not None

@@ -76,7 +76,7 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
     refine_fn = None
     if refine == "intensity":
         try:
-            from ..intensity import refine_intensity as refine_fn  # type: ignore[attr-defined]
+            from ..intensity import refine_track_result as refine_fn
         except ImportError:
             raise InputError(None, "--refine", "intensity refinement, which this installation does not have "
                                                "(ftrac_design.intensity); use --refine none") from None
@@ -100,7 +100,9 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
                                                  f"a {meta.get('format', 'image').upper()} file carries none")
             res = track_image(img, features, cam, opts, polarity_hint=meta.get("polarity_hint"), body=body)
             if refine_fn is not None and res.pose.converged:
-                res = refine_fn(img, features, cam, res)  # the intensity helper's contract
+                # the converged pose refined on the pixels (ftrac_design.intensity), its
+                # covariance from the pixel information; the observation stays the segmented one
+                res = refine_fn(img, features, cam, res, body=body)
             results.append((path, img, res))
             if overlay:
                 png = output.with_name(f"{stem}_{path.stem}_overlay.png")

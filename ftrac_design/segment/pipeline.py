@@ -84,6 +84,8 @@ class TrackOptions:
     #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
     #: image does not show (:func:`identify.image_agreement`)
     agreement_chi2_per_px: float = 1.0
+    #: two refinement stages (wide, then tight and thinned) instead of three
+    fast: bool = True
     #: the solver's maximum noise scale κ for an image pose (the model is measured here)
     max_noise_scale: float = 3.0
 
@@ -365,7 +367,7 @@ def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHyp
     excl = np.full(len(features.points), rb + 3 * opts.blur_px + 1.5)
     result: dict[str, Any] = {}
     pose = None
-    for stage in range(first_stage, 3):
+    for stage in (first_stage, 2) if first_stage < 2 and opts.fast else range(first_stage, 3):
         match, dropped_beads = _match_beads(features, camera, R, t, beads,
                                             opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep)
         tol = opts.contour_tol_px if stage == 0 else opts.final_contour_tol_px
