@@ -88,6 +88,10 @@ def read_image(path: str | Path, camera: Camera | None = None) -> tuple[np.ndarr
         raise InputError(path, "pixels", f"an image of at least 2 × 2 pixels, got shape {img.shape}")
     if not np.all(np.isfinite(img)):
         raise InputError(path, "pixels", "finite pixel values")
+    # the segmentation works in float32: a value beyond its range becomes inf there
+    if np.abs(img).max() > np.finfo(np.float32).max:
+        raise InputError(path, "pixels", f"pixel values within ±{np.finfo(np.float32).max:.3g} (float32), "
+                                         f"got {np.abs(img).max():.3g}")
     meta.setdefault("polarity_hint", None)
     meta["format"] = fmt
     return img, (camera if camera is not None else cam), meta
