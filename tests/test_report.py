@@ -117,6 +117,16 @@ def _need_chromium() -> None:
         pytest.skip("chromium not installed (apt-get install chromium; make test does it as root)")
 
 
+def test_missing_chromium_fails_under_ci_and_skips_elsewhere(monkeypatch):
+    monkeypatch.setattr(sys.modules[__name__], "find_chromium", lambda: None)
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="chromium not found"):
+        _need_chromium()
+    monkeypatch.delenv("CI")
+    with pytest.raises(pytest.skip.Exception):
+        _need_chromium()
+
+
 def test_page_renders_in_headless_chromium(built, tmp_path):
     _need_chromium()
     from PIL import Image
