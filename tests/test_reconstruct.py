@@ -301,3 +301,16 @@ def test_cli_unsolved_pose_leaves_its_image_out(files):
     assert out["images_used"] == [0, 1] and out["images_skipped"][0]["index"] == 2
     assert "ambiguous" in out["images_skipped"][0]["reason"]
     assert all(e["views"] == [0, 1] for e in out["points"].values())
+
+
+def test_cli_template_tolerance_widens_the_covariance(files):
+    tmp, v, ids, P = files
+    write_points(tmp / "points.jsonl", v, ids, P)
+    assert run(tmp, "--to", "template") == 0
+    exact = json.loads((tmp / "out.json").read_text())["points"]["B1"]
+    assert run(tmp, "--to", "template", "--template-sigma-mm", "0.5") == 0
+    loose = json.loads((tmp / "out.json").read_text())["points"]["B1"]
+    assert exact["position_mm"] == loose["position_mm"]
+    # σ² adds: 0.25 mm² of translation plus the tilt-free part (no rotation σ given)
+    assert np.allclose(np.array(loose["covariance_mm2"]) - np.array(exact["covariance_mm2"]), 0.25 * np.eye(3),
+                       atol=1e-6)
