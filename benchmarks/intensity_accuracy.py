@@ -15,7 +15,10 @@ background (``xray.anatomy``); the bound then includes the background's attenuat
 takes the background as known), and the refinement has only its high-pass and Huber
 weights against it — its bone edges inside the region of interest are model error.
 
-Run: ``.venv/bin/python benchmarks/intensity_accuracy.py [N] [anatomy]`` (default 30 images)
+With ``plain`` the refinement fits gain + quadratic background without high-pass or Huber
+weights (``highpass_px=0, robust=None``).
+
+Run: ``.venv/bin/python benchmarks/intensity_accuracy.py [N] [anatomy] [plain]`` (default 30 images)
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ def errors(R, t, R_true, t_true) -> np.ndarray:
     return np.concatenate([so3.log(R @ R_true.T), t - t_true])
 
 
-def main(n: int = 30, background: bool = False) -> None:
+def main(n: int = 30, background: bool = False, plain: bool = False) -> None:
     features = load("ftrac_2005")
     body = Body(30.0, 50.0, 20.0)
     cam = Camera()
@@ -62,7 +65,8 @@ def main(n: int = 30, background: bool = False) -> None:
         std_nuis.append(bn.std)
         t0, c0 = time.perf_counter(), time.process_time()
         res = refine_intensity(features, img.raw, cam, tr.pose.rotation, tr.pose.translation_mm, imaging, body=body,
-                               polarity="dense_dark", scales=(0.0,))
+                               polarity="dense_dark", scales=(0.0,),
+                               **({"highpass_px": 0.0, "robust": None} if plain else {}))
         times.append((time.perf_counter() - t0, time.process_time() - c0))
         worse += res.cost_end > res.cost_start
         z_int.append(errors(res.rotation, res.translation_mm, R[k], t[k]) / bn.std)
@@ -71,7 +75,8 @@ def main(n: int = 30, background: bool = False) -> None:
     eff_int = 1 / np.mean(z_int ** 2, 0)
     eff_feat = 1 / np.mean(z_feat ** 2, 0)
     sb, sn = np.median(std_bound, 0), np.median(std_nuis, 0)
-    print(f"\nftrac_2005, {n} workspace images{' over anatomy' if background else ''}, default imaging model, raw "
+    print(f"\nftrac_2005, {n} workspace images{' over anatomy' if background else ''}, "
+          f"{'plain (gain + quadratic)' if plain else 'default (high-pass 8 px, Huber 3σ)'} refinement, default imaging model, raw "
           f"16-bit; {len(z_int)} started from the "
           f"feature path ({skipped} not converged there, skipped)")
     print(f"machine: {machine()} (shared with other jobs)")
@@ -89,4 +94,5 @@ def main(n: int = 30, background: bool = False) -> None:
 
 
 if __name__ == "__main__":
-    main(int(sys.argv[1]) if len(sys.argv) > 1 else 30, len(sys.argv) > 2 and sys.argv[2] == "anatomy")
+    args = sys.argv[1:]
+    main(int(args[0]) if args and args[0].isdigit() else 30, "anatomy" in args, "plain" in args)
