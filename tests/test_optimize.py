@@ -223,7 +223,7 @@ def test_invalid_space_exits_2_with_one_line(tmp_path, capsys, params, key):
 @pytest.mark.slow
 def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_path, capsys):
     space = tmp_path / "space.toml"
-    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [25.0, 38.0]\n"ellipses.E2.tilt_deg" = [25.0, 38.0]\n'
+    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [30.0, 35.0]\n"ellipses.E2.tilt_deg" = [30.0, 35.0]\n'
                      "[search]\npopsize = 6\n")
     out = tmp_path / "opt"
     rc = main(["optimize", str(MINI), "--space", str(space), "--evaluations", "12", "--workers", "0",

@@ -202,6 +202,7 @@ class SearchResult:
     executor: str = ""
     stopped: str | None = None
     history: list[float] = field(default_factory=list)
+    popsize: int | None = None
 
     @property
     def feasible_fraction(self) -> float:
@@ -383,4 +384,4 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
         if config.multi:  # the most accurate point of the front is the "best" design
             best = min(front, key=lambda e: (e["objectives"][names[0]], e["index"]))
     return SearchResult(space, config, settings, start, entries, best, front, time.perf_counter() - t_start,
-                        counts["evaluated"], counts["replayed"], executor_name, stopped, history)
+                        counts["evaluated"], counts["replayed"], executor_name, stopped, history, opt.popsize)
