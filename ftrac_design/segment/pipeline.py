@@ -276,17 +276,20 @@ def _calibrated_covariance(features: Features, obs: Observation, pose: Pose, noi
     The solver scales (JᵀJ)⁻¹ by κ², pooled over the pose residuals *and* the contour fits'
     scatter; here the contour scatter is only the random part of the noise model (the
     systematic part, see :func:`_noise_model`, does not show in a curve's scatter about
-    its own fit), so κ² < 1 would shrink the covariance below what the model says. The
-    covariance is (JᵀJ)⁻¹ × max(1, χ²/dof of the pose residuals alone)."""
+    its own fit). The covariance is (JᵀJ)⁻¹ × χ²/dof of the pose residuals alone — the
+    a-posteriori variance factor: the model's systematic terms are sized for cluttered
+    images (anatomy), and on a clean image the residuals are ~5× smaller than they allow,
+    which this factor follows (floored at 0.02, i.e. σ at ≥ 14 % of the model's)."""
     if pose.covariance is None or not math.isfinite(pose.noise_scale) or pose.noise_scale <= 0:
-        return
+        return None
     prob = compile_problem(features, [obs], noise)
     ev = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=False)
     m = ev.rho.shape[1]
     if m <= 6:
-        return
-    s2 = max(float(np.sum(ev.rho[0] ** 2)) / (m - 6), 1.0)
+        return None
+    s2 = max(float(np.sum(ev.rho[0] ** 2)) / (m - 6), 0.02)
     pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+    return s2
 
 
 def _absent_wires(features: Features, camera: Camera, pose: Pose, T: np.ndarray, noise: float, sc: dict,
@@ -309,7 +312,7 @@ def _refit_beads_off_wires(T: np.ndarray, beads: Beads, features: Features, came
                            noise: float, opts: TrackOptions) -> Beads:
     """The bead fits again with the pixels of the pose's predicted wires left out (a
     wire passing under a ball biases its centre; two crossing there, by ~0.4 px)."""
-    if not (features.lines or features.ellipses) or len(beads) == 0:
+    if len(beads) == 0:
         return beads
     H, W = T.shape
     mask = np.zeros((H, W), np.uint8)
@@ -422,7 +425,7 @@ def _evaluate_hypothesis(features: Features, camera: Camera, h: identify.BeadHyp
                           {k: v for k, v in obs.lines.items() if k != worst},
                           {k: v for k, v in obs.ellipses.items() if k != worst}, obs.origin)
         pose = _solve(features, obs, noise, pose.rotation, pose.translation_mm, opts)
-    _calibrated_covariance(features, obs, pose, noise)
+    result["variance_factor"] = _calibrated_covariance(features, obs, pose, noise)
     result.update(pose=pose, obs=obs, removed=removed)
     result["score"] = _score(features, camera, obs, pose, noise, result.get("dropped", {}), removed,
                              result["contours"], sc, opts)
@@ -487,22 +490,26 @@ def _ridges_without_body(g: np.ndarray, T: np.ndarray, noise: float, features: F
     r0, r1 = max(v0, 0), min(v0 + B.shape[0], H)
     c0, c1 = max(u0, 0), min(u0 + B.shape[1], W)
     if r1 - r0 < 8 or c1 - c0 < 8:
-        return None
+        return None, None
     gb = g[r0:r1, c0:c1].astype(np.float64)
     Bb = B[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
     quiet = T[r0:r1, c0:c1] < 3 * noise                 # not a wire or a bead
     if quiet.sum() < 50 or np.ptp(Bb[quiet]) <= 0:
-        return None
+        return None, None
     A = np.stack([Bb[quiet], np.ones(int(quiet.sum()))], -1)
     (scale, off), *_ = np.linalg.lstsq(A, gb[quiet], rcond=None)
     if not scale > 0:
-        return None
+        return None, None
     g2 = (gb - scale * Bb).astype(np.float32)
     disc = int(math.ceil(max(sc["bead_radius_px"], sc["wire_px"]) + 3 * opts.blur_px + 2))
     T2 = top_hat(g2, disc)
-    rp = ridge_points(T2, sc["ridge_sigma_px"], noise, opts.ridge_min_snr)
-    rp.uv = rp.uv + np.array([c0, r0], float)
-    return rp
+    rp = None
+    if features.lines or features.ellipses:
+        rp = ridge_points(T2, sc["ridge_sigma_px"], noise, opts.ridge_min_snr)
+        rp.uv = rp.uv + np.array([c0, r0], float)
+    Tb = T.copy()
+    Tb[r0:r1, c0:c1] = T2
+    return rp, Tb
 
 
 def track_image(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None = None,
@@ -652,22 +659,26 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
 
     evaluated.sort(key=key)
     best = evaluated[0]
-    if body is not None and ridges is not None and np.all(np.isfinite(best["pose"].rotation)):
+    if body is not None and np.all(np.isfinite(best["pose"].rotation)):
+        # the body's modelled projection out of the image, then the balls refitted and the
+        # wires found again there: the body's curved silhouette under a ball or a wire
+        # shifts it toward the body's middle (ellipses shrank; nine_bead's depth was biased)
         blur = float(np.median(beads.blur))
         p0 = best["pose"]
-        rp2 = _ridges_without_body(g, T, noise_px, features, camera, p0.rotation, p0.translation_mm, body, blur, sc,
-                                   opts)
-        if rp2 is not None and len(rp2):
-            # ridge points outside the body's box stay as they were
-            H, W = g.shape
+        rp2, Tb = _ridges_without_body(g, T, noise_px, features, camera, p0.rotation, p0.translation_mm, body, blur,
+                                       sc, opts)
+        if Tb is not None:
+            merged = None
+            if ridges is not None and rp2 is not None and len(rp2):
+                # ridge points outside the body's box stay as they were
+                lo, hi = rp2.uv.min(0) - 1, rp2.uv.max(0) + 1
+                outside = ~((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)
+                merged = RidgePoints(np.concatenate([ridges.uv[outside], rp2.uv]),
+                                     np.concatenate([ridges.normal[outside], rp2.normal]),
+                                     np.concatenate([ridges.strength[outside], rp2.strength]),
+                                     np.concatenate([ridges.snr[outside], rp2.snr]))
             h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
-            lo, hi = rp2.uv.min(0) - 1, rp2.uv.max(0) + 1
-            outside = ~((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)
-            merged = RidgePoints(np.concatenate([ridges.uv[outside], rp2.uv]),
-                                 np.concatenate([ridges.normal[outside], rp2.normal]),
-                                 np.concatenate([ridges.strength[outside], rp2.strength]),
-                                 np.concatenate([ridges.snr[outside], rp2.snr]))
-            beads2 = _refit_beads_off_wires(T, beads, features, camera, p0, sc, noise_px, opts)
+            beads2 = _refit_beads_off_wires(Tb, beads, features, camera, p0, sc, noise_px, opts)
             r2 = _evaluate_hypothesis(features, camera, h2, beads2, merged, sc, opts, first_stage=2)
             if "pose" in r2:
                 # judged on the same ridges as the other labellings
@@ -675,7 +686,7 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
             if "pose" in r2 and (r2["pose"].converged or not best["pose"].converged):
                 others = [e for e in evaluated[1:]]
                 best = r2
-                ridges = merged
+                ridges = merged if merged is not None else ridges
                 beads = beads2
                 evaluated = [best] + others
                 diag["body_subtracted"] = True
@@ -737,5 +748,7 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
         "dropped": best.get("dropped", {}),
         "rejected": best.get("removed", {}),
         "pixel_noise": float(noise_px),
+        # the residuals' own scale relative to the noise model (the covariance uses it)
+        "variance_factor": best.get("variance_factor"),
     })
     return TrackResult(pose, obs, quality, beads, ridges, pol, best["noise"], diag)
