@@ -171,3 +171,17 @@ def test_bound_matches_the_spread_of_a_simple_estimator():
         est.append(float(np.sum(wts * J[3] * (Y - L)) / np.sum(wts * J[3] ** 2)))
     assert abs(np.mean(est)) < 3 * sd_tx / math.sqrt(200)
     assert np.std(est, ddof=1) == pytest.approx(sd_tx, rel=0.2)
+
+
+def test_track_cli_call_form_is_forwarded(features_2005, pose_2005, monkeypatch):
+    """cli/track.py calls refine_intensity(image, features, camera, track_result)."""
+    import ftrac_design.intensity.refine as refine_mod
+    seen = {}
+    monkeypatch.setattr(refine_mod, "refine_track_result", lambda *a: seen.setdefault("args", a))
+
+    class Res:
+        pose = None
+    image = np.zeros((8, 8))
+    res = Res()
+    refine_mod.refine_intensity(image, features_2005, Camera(), res)
+    assert seen["args"][0] is image and seen["args"][1] is features_2005 and seen["args"][3] is res

@@ -150,7 +150,7 @@ def _log_of(image: np.ndarray, polarity: str) -> np.ndarray:
     raise ValueError("polarity: 'dense_bright' (log/display image) or 'dense_dark' (raw counts)")
 
 
-def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: np.ndarray, t0: np.ndarray,
+def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: np.ndarray, t0: np.ndarray = None,
                      imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
                      body: Body | None | str = AUTO, polarity: str = "dense_bright",
                      scales: tuple[float, ...] = (2.0, 0.0), background_degree: int = 2, max_iterations: int = 12,
@@ -174,6 +174,10 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     χ² of ~n pixels, so 1e-7 is ≪ 1). The covariance uses the last iteration's (forward
     difference) Jacobian, or a fresh central-difference one with ``central_covariance``.
     """
+    if hasattr(R0, "pose") and isinstance(features, np.ndarray):
+        # the call form of cli/track.py, refine_fn(image, features, camera, track_result):
+        # forwarded until it calls refine_track_result itself
+        return refine_track_result(features, image, camera, R0)
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     body = resolve_body(features, body)
     Yfull = _log_of(image, polarity)
