@@ -169,9 +169,28 @@ class Contours:
     missing: list[str] = field(default_factory=list)
 
 
+_SAMPLES_CACHE: dict = {}
+
+
 def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                    step_px: float = 0.5) -> dict[str, tuple[str, np.ndarray]]:
-    """Densely projected centre-lines: id → (kind, (n, 2) px), wire pieces of lines only."""
+    """Densely projected centre-lines: id → (kind, (n, 2) px), wire pieces of lines only.
+    The last few poses' samples are kept (contour gathering, wire support, agreement and
+    the ball refit all ask for the same pose)."""
+    key = (id(features), tuple(camera.intrinsics), np.asarray(R, float).tobytes(), np.asarray(t, float).tobytes(),
+           step_px)
+    hit = _SAMPLES_CACHE.get(key)
+    if hit is not None and hit[0] is features:
+        return hit[1]
+    out = _curve_samples_uncached(features, camera, R, t, step_px)
+    if len(_SAMPLES_CACHE) >= 8:
+        _SAMPLES_CACHE.pop(next(iter(_SAMPLES_CACHE)))
+    _SAMPLES_CACHE[key] = (features, out)
+    return out
+
+
+def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                            step_px: float) -> dict[str, tuple[str, np.ndarray]]:
     out = {}
     for ln in features.lines:
         pieces = features.wire_segments(ln.id) or [(ln.start, ln.end)]
