@@ -240,3 +240,19 @@ def test_track_radiograph_with_one_absurd_pixel(value, code):
         assert run.code == code, run.describe()
         if code == 2:
             assert "pixels" in run.err and "float32" in run.err
+
+
+def test_track_npy_with_a_garbled_header_exits_2():
+    """A .npy whose header dict is garbled made np.load raise tokenize.TokenError out of
+    `track` (found by an exploratory run of tests/test_fuzz_image.py's generator)."""
+    import io as _io
+
+    buf = _io.BytesIO()
+    np.save(buf, np.zeros((48, 64), np.uint8))
+    data = buf.getvalue().replace(b"'shape': (", b"'shape':((", 1)
+    with scratch() as tmp:
+        img = tmp / "garbled.npy"
+        img.write_bytes(data)
+        run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "-o", tmp / "out" / "pose.json"])
+        assert_clean(run, [img], tmp)
+        assert run.code == 2 and "garbled.npy" in run.err

@@ -153,8 +153,8 @@ def _read_tiff(path: Path, _override: bool):
 def _read_npy(path: Path, _override: bool):
     try:
         arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:  # an empty file: EOFError
-        raise InputError(path, None, f"a NumPy .npy array ({exc})") from None
+    except Exception as exc:  # np.load raises many types for malformed files (EOFError, TokenError, …)
+        raise InputError(path, None, f"a NumPy .npy array ({type(exc).__name__}: {exc})") from None
     if not np.issubdtype(arr.dtype, np.number) or np.iscomplexobj(arr):
         raise InputError(path, "dtype", f"a real numeric array, got {arr.dtype}")
     bits = 8 * arr.dtype.itemsize
