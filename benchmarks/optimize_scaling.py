@@ -1,7 +1,7 @@
 """How ``ftrac-design optimize``'s evaluations scale over executors (issue 16).
 
 One fixed, seeded batch of candidates (``ftrac_mini``'s default layout space, unit points
-drawn around the start with σ = 0.04; about half pass
+drawn around the start with σ = 0.02; about half pass
 the CNC rules and are scored at ``--poses`` workspace poses, the rest stop after the
 rules) is evaluated:
 
@@ -48,7 +48,7 @@ def candidates(n: int, seed: int = 0) -> list[dict]:
     sp = default_space(base)
     rng = np.random.default_rng(seed)
     x0 = sp.start_unit()
-    return [sp.candidate(np.clip(x0 + 0.04 * rng.standard_normal(sp.dim), 0, 1)) for _ in range(n)]
+    return [sp.candidate(np.clip(x0 + 0.02 * rng.standard_normal(sp.dim), 0, 1)) for _ in range(n)]
 
 
 def run_batch(executor, cands, settings) -> tuple[float, list[dict]]:
