@@ -185,3 +185,51 @@ def test_track_cli_call_form_is_forwarded(features_2005, pose_2005, monkeypatch)
     res = Res()
     refine_mod.refine_intensity(image, features_2005, Camera(), res)
     assert seen["args"][0] is image and seen["args"][1] is features_2005 and seen["args"][3] is res
+
+
+def test_workspace_imaging_block_scales_as_one_over_root_dose(features_2005):
+    """analyze --imaging's figures: the image-level σ at 4× the dose is exactly half (Poisson
+    information ∝ dose), the feature-level σ does not change, so their ratio doubles; the
+    feature-level σ equals the existing analysis's Cramér–Rao bound at the same poses."""
+    from ftrac_design.analysis.information import feature_layout, total_information
+    from ftrac_design.intensity.workspace import imaging_analysis
+    from ftrac_design.pose.problem import NoiseModel
+
+    a = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=1e4), body=BODY)
+    b = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=4e4), body=BODY)
+    np.testing.assert_allclose(b.image_std, a.image_std / 2, rtol=1e-9)
+    np.testing.assert_allclose(b.feature_std, a.feature_std, rtol=1e-12)
+    da, db = a.to_dict(), b.to_dict()
+    for q in ("p50", "p95"):
+        for ax in ("rx", "tz"):
+            assert db["ratio_feature_to_image"][q][ax] == pytest.approx(2 * da["ratio_feature_to_image"][q][ax])
+    F = total_information(feature_layout(features_2005), Camera(), a.R, a.t, NoiseModel.from_segmentation_error(0.25))
+    std = np.sqrt(np.diagonal(np.linalg.inv(F), axis1=1, axis2=2))
+    np.testing.assert_allclose(a.feature_std[:, 3:], std[:, 3:], rtol=1e-12)
+    np.testing.assert_allclose(a.feature_std[:, :3], np.degrees(std[:, :3]), rtol=1e-12)
+    assert np.all(da["image_std"]["p50"]["tz"] <= da["image_std"]["p95"]["tz"])
+
+
+def test_analyze_imaging_cli_writes_the_block(tmp_path):
+    """``analyze --imaging``: analysis.json gains the imaging block with the stated settings,
+    the summary prints it, imaging.png is written; a bad dose is exit 2."""
+    import json
+
+    from click.testing import CliRunner
+
+    from ftrac_design.cli.main import cli
+
+    out = tmp_path / "an"
+    r = CliRunner().invoke(cli, ["analyze", "models/ftrac_2005.toml", "--poses", "100", "--atlas-step-deg", "15",
+                                 "--imaging", "--imaging-poses", "2", "--dose", "2e4", "-o", str(out)])
+    assert r.exit_code in (0, 1), r.output
+    doc = json.loads((out / "analysis.json").read_text())
+    im = doc["imaging"]
+    assert im["settings"]["poses"] == 2 and im["settings"]["photons_per_px"] == 2e4
+    assert set(im["image_std"]["p50"]) == {"rx", "ry", "rz", "tx", "ty", "tz"}
+    assert all(im["ratio_feature_to_image"]["p50"][a] > 1 for a in im["units"])
+    assert "imaging.png" in doc["files"] and (out / "imaging.png").stat().st_size > 0
+    assert "features/image p50" in r.output
+    bad = CliRunner().invoke(cli, ["analyze", "models/ftrac_2005.toml", "--imaging", "--dose", "-1",
+                                   "-o", str(tmp_path / "b")])
+    assert bad.exit_code == 2

@@ -7,7 +7,9 @@ lines, ellipses alone), per-feature figures (own rank ratio, fraction of the wor
 it is blind, smallest view angle, the score without it), the worst workspace poses, the
 atlas summary with the worst view directions and the features responsible, the
 segmentability block (image clearances between features over the workspace and the sphere,
-overlap shares per kind and pair, worst poses; :mod:`.segmentability`), and the PNG files
+overlap shares per kind and pair, worst poses; :mod:`.segmentability`), with ``--imaging`` an
+``imaging`` block (pixel-level vs feature-level predicted errors at a smaller pose sample;
+:mod:`ftrac_design.intensity.workspace`), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
 """
 
@@ -125,8 +127,13 @@ def default_output_dir(features: Features) -> Path:
 
 def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thresholds, out_dir: Path | None,
                  atlas_step_deg: float = 2.0, plots: bool = True,
-                 progress: Callable[[int], None] | None = None) -> tuple[dict, Path]:
-    """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically."""
+                 progress: Callable[[int], None] | None = None, imaging: Any = None,
+                 imaging_poses: int = 60) -> tuple[dict, Path]:
+    """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
+
+    ``imaging`` (an :class:`ftrac_design.xray.ImagingModel`): also the pixel-level bound at
+    ``imaging_poses`` workspace poses beside the feature-level one (the ``imaging`` block and
+    imaging.png; :mod:`ftrac_design.intensity.workspace`)."""
     out_dir = Path(out_dir) if out_dir is not None else default_output_dir(subject.features)
     _check_output_dir(out_dir)
     t0 = time.perf_counter()
@@ -135,6 +142,12 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
     seg_atlas = segmentability_atlas(subject.features, settings.camera, settings.workspace.depth_mm,
                                      settings.workspace.cone_deg, max(atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
                                      settings.clearance)
+    ia = None
+    if imaging is not None:
+        from ..intensity.workspace import imaging_analysis
+
+        ia = imaging_analysis(subject.features, settings.workspace, imaging, imaging_poses, settings.seed,
+                              settings.camera, settings.segmentation_error_mm, settings.contour, progress=progress)
     seconds = time.perf_counter() - t0
     with atomic_directory(out_dir) as tmp:
         files = []
@@ -146,7 +159,14 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
             plot_atlas_cone(atlas, tmp / PLOTS["cone"])
             plot_segmentability(score.segmentability, seg_atlas, tmp / PLOTS["segmentability"], thresholds)
             files = list(PLOTS.values())
+            if ia is not None:
+                from ..intensity.workspace import plot_imaging
+
+                plot_imaging(ia, tmp / "imaging.png")
+                files.append("imaging.png")
         doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
+        if ia is not None:
+            doc["imaging"] = ia.to_dict()
         write_json_atomic(tmp / "analysis.json", doc)
     return doc, out_dir
 
@@ -189,6 +209,10 @@ def format_summary(doc: dict) -> str:
     sg = doc.get("segmentability")
     if sg:
         echo(format_segmentability(sg))
+    if doc.get("imaging"):
+        from ..intensity.workspace import format_imaging
+
+        echo(format_imaging(doc["imaging"]))
     at = doc.get("atlas")
     if at:
         echo(f"  atlas: {at['directions']} directions; worst view directions:")

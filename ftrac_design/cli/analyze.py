@@ -62,19 +62,34 @@ def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, l
                    "px beyond their widths [default: design's, else not judged]")
 @click.option("--atlas-step-deg", type=click.FloatRange(min=0.5, max=15.0), default=2.0, show_default=True,
               help="grid step of the whole-sphere atlas")
+@click.option("--imaging", is_flag=True, default=False,
+              help="also the pixel-level Cramér–Rao bound of the pose from a rendered radiograph beside the "
+                   "feature-level one, at a separate sample of --imaging-poses workspace poses (imaging block, "
+                   "imaging.png)")
+@click.option("--imaging-poses", type=click.IntRange(min=1), default=60, show_default=True,
+              help="workspace poses of the image-level bound (~13 renders of the fiducial each)")
+@click.option("--dose", type=_POS, default=1.0e4, show_default=True,
+              help="imaging: unattenuated quanta per detector pixel")
+@click.option("--energy-kev", type=click.FloatRange(40.0, 100.0), default=60.0, show_default=True,
+              help="imaging: effective beam energy")
+@click.option("--blur-px", type=click.FloatRange(min=0.0), default=0.7, show_default=True,
+              help="imaging: detector line-spread Gaussian σ, pixels")
+@click.option("--focal-spot-mm", type=click.FloatRange(min=0.0), default=0.6, show_default=True,
+              help="imaging: focal spot size (FWHM)")
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
 @click.option("--report", is_flag=True, default=False,
               help="also write report.html into the output directory (with the build, for a build's features.json)")
 def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm,
             lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
-            no_plots, report=False, max_overlap_share=None, min_clearance_px=None) -> int:
+            no_plots, report=False, max_overlap_share=None, min_clearance_px=None, imaging=False, imaging_poses=60,
+            dose=1.0e4, energy_kev=60.0, blur_px=0.7, focal_spot_mm=0.6) -> int:
     """Score SOURCE (a design or a features.json) over the C-arm workspace.
 
     Predicted 1σ pose errors (the Cramér–Rao bound of the solver's Jacobian) and the
     condition number at every workspace pose, per feature group and feature, and a
     whole-sphere atlas of blind spots; the image clearance between features (segmentability).
-    Writes analysis.json and score.png, atlas_sphere.png, atlas_cone.png, segmentability.png;
-    exits 1 if a threshold is exceeded.
+    Writes analysis.json and score.png, atlas_sphere.png, atlas_cone.png, segmentability.png
+    (and imaging.png with --imaging); exits 1 if a threshold is exceeded.
     """
     from tqdm import tqdm
 
@@ -86,8 +101,17 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
         max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition,
         max_overlap_share=max_overlap_share, min_clearance_px=min_clearance_px))
     total = settings.poses + atlas_directions(atlas_step_deg, settings.workspace.cone_deg)
+    model = None
+    if imaging:
+        from ..xray import ImagingModel
+
+        pp = settings.camera.principal_point_px
+        model = ImagingModel(energy_kev=energy_kev, image_shape=(round(2 * pp[1]), round(2 * pp[0])),
+                             focal_spot_mm=focal_spot_mm, detector_blur_px=blur_px, photons_per_px=dose)
+        total += imaging_poses
     with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:
-        doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update)
+        doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update,
+                                    imaging=model, imaging_poses=imaging_poses)
     click.echo(format_summary(doc))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
     if report:

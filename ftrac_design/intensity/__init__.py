@@ -6,11 +6,14 @@
   pixels at a stated dose, blur and background (:mod:`.bound`).
 - :func:`refine_intensity` — Gauss–Newton/LM fit of the simulated image to a radiograph,
   with gain and a smooth background as nuisance parameters (:mod:`.refine`).
+- :func:`imaging_analysis` — that bound over workspace poses beside the feature-level one
+  (``analyze --imaging``; :mod:`.workspace`).
 """
 
 from .bound import PixelBound, pixel_information
 from .model import PARAMETERS, RoiModel, perturb, roi_around
 from .refine import IntensityResult, refine_intensity, refine_track_result
+from .workspace import ImagingAnalysis, imaging_analysis
 
-__all__ = ["PARAMETERS", "IntensityResult", "PixelBound", "RoiModel", "perturb", "pixel_information",
+__all__ = ["PARAMETERS", "ImagingAnalysis", "IntensityResult", "imaging_analysis", "PixelBound", "RoiModel", "perturb", "pixel_information",
            "refine_intensity", "refine_track_result", "roi_around"]

@@ -155,7 +155,8 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
                      body: Body | None | str = AUTO, polarity: str = "dense_bright",
                      scales: tuple[float, ...] = (2.0, 0.0), background_degree: int = 2, max_iterations: int = 12,
                      tolerance: float = 1e-4, ftol: float = 1e-7, central_covariance: bool = False,
-                     highpass_px: float = 8.0, robust: float | None = 3.0) -> IntensityResult:
+                     highpass_px: float = 8.0, robust: float | None = 3.0,
+                     central_steps: bool = False) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
     ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
@@ -206,7 +207,7 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
         for _ in range(max_iterations):
             iterations += 1
             L0 = model.log_image(R, t)
-            _, J = model._differences(R, t, "log", central=False, value=L0)
+            _, J = model._differences(R, t, "log", central=central_steps, value=L0)
             J = prob.smooth(J).reshape(6, -1) * coef[0]
             # Kaufman: project the pose columns off the nuisance columns
             A = (Phi * prob.w) @ Phi.T
