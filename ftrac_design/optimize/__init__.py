@@ -31,14 +31,14 @@ def demo_step(out_dir: Path) -> str:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     space = out_dir / "demo_space.toml"
-    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [20.0, 40.0]\n"ellipses.E2.tilt_deg" = [20.0, 40.0]\n'
+    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [28.0, 36.0]\n"ellipses.E2.tilt_deg" = [28.0, 36.0]\n'
                      "[search]\nsigma0 = 0.3\npopsize = 6\n", encoding="utf-8")
     doc = _optimize(models / "ftrac_mini.toml", out_dir / "optimize", space, evaluations=12, seed=0, poses=300,
                     verify_poses=2000, solver_images=0, build=False, progress=False, workers=0,
                     command_line="demo_step")
     s, b = doc["start"]["verification"]["predicted"], doc["best"]["verification"]["predicted"]
     p = doc["best"]["parameters"]
-    return (f"optimize (demo): ftrac_mini, E1/E2 tilt within 20–40°, {doc['run']['evaluations']} evaluations "
+    return (f"optimize (demo): ftrac_mini, E1/E2 tilt within 28–36°, {doc['run']['evaluations']} evaluations "
             f"(CMA-ES, seed 0, 300 search poses)\n"
             f"  start: tilts 30.0° / 30.0°, p95 translation {s['translation_p95_mm']:.3f} mm, "
             f"rotation {s['rotation_p95_deg']:.3f}° (2,000 fresh poses)\n"
