@@ -257,3 +257,27 @@ def test_track_npy_with_a_garbled_header_exits_2():
         run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "-o", tmp / "out" / "pose.json"])
         assert_clean(run, [img], tmp)
         assert run.code == 2 and "garbled.npy" in run.err
+
+
+def test_every_truncation_of_a_dicom_header_is_an_input_error():
+    """A DICOM file cut inside its meta header raised pydicom's NotImplementedError (transfer
+    syntax '1'), struct.error or BytesLengthException out of `track` (found by an exploratory
+    run of tests/test_fuzz_image.py's generator). Every cut of the first 400 bytes is now an
+    InputError naming the file, and `track` exits 2."""
+    import warnings
+
+    from ftrac_design.xray import read_image
+    from test_fuzz_image import _dicom_bytes
+
+    data = _dicom_bytes(np.zeros((48, 64)))
+    with scratch() as tmp, warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # pydicom warns about the cut UIDs
+        img = tmp / "cut.dcm"
+        for cut in range(400):
+            img.write_bytes(data[:cut])
+            with pytest.raises(InputError, match="cut.dcm"):
+                read_image(img)
+        img.write_bytes(data[:276])  # transfer syntax UID "1"
+        run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "-o", tmp / "out" / "pose.json"])
+        assert_clean(run, [img], tmp)
+        assert run.code == 2

@@ -163,11 +163,11 @@ def _read_npy(path: Path, _override: bool):
 
 def _read_dicom(path: Path, override: bool):
     import pydicom
-    from pydicom.errors import InvalidDicomError
     try:
         ds = pydicom.dcmread(path)
         arr = ds.pixel_array
-    except (InvalidDicomError, AttributeError, KeyError, ValueError, OSError, EOFError, TypeError) as exc:
+    except Exception as exc:  # pydicom raises many types for malformed files (NotImplementedError for an
+        # unknown transfer syntax, InvalidDicomError, KeyError, EOFError, …)
         raise InputError(path, None, f"a readable DICOM image with pixel data ({type(exc).__name__}: {exc})") from None
     if arr.ndim == 3 and getattr(ds, "SamplesPerPixel", 1) == 1:
         arr = arr[0]                                     # first frame of a multi-frame image
