@@ -15,7 +15,7 @@ from ftrac_design.design import load_design
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
 from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, optimize, parse_space, run_search
-from ftrac_design.optimize.execution import SerialExecutor, local_pool
+from ftrac_design.optimize.execution import SerialExecutor, local_pool, open_executor
 from ftrac_design.optimize.search import objective_values
 from ftrac_design.optimize.space import apply_values, place_beads
 
@@ -145,7 +145,7 @@ def _small_space(base):
 
 
 def test_same_seed_same_result_in_process_with_2_workers_and_on_a_dask_cluster(base, tmp_path):
-    from distributed import Client, LocalCluster
+    from distributed import LocalCluster
 
     sp = _small_space(base)
     cfg = SearchConfig(evaluations=16, seed=7, sigma0=0.25, popsize=8)
@@ -156,9 +156,11 @@ def test_same_seed_same_result_in_process_with_2_workers_and_on_a_dask_cluster(b
         r = run_search(sp, SETTINGS, cfg, pool, tmp_path / "pool2.jsonl", progress=False)
     assert r.best["x"] == res.best["x"]
     logs.append(_log(tmp_path / "pool2.jsonl"))
+    # by address, as --scheduler / DASK_SCHEDULER_ADDRESS do (an in-process cluster's inproc:// address)
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
-        r = run_search(sp, SETTINGS, cfg, client.get_executor(), tmp_path / "dask.jsonl", progress=False)
+            open_executor(cluster.scheduler_address) as (executor, name):
+        assert name.startswith("Dask cluster")
+        r = run_search(sp, SETTINGS, cfg, executor, tmp_path / "dask.jsonl", progress=False)
     logs.append(_log(tmp_path / "dask.jsonl"))
     assert r.best["x"] == res.best["x"]
     assert all(lg == logs[0] for lg in logs[1:])

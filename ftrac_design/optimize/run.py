@@ -112,12 +112,17 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     work.mkdir(parents=True, exist_ok=True)
     command_line = command_line or (f"ftrac-design optimize {design_path} --objective {objective} "
                                     f"--evaluations {evaluations} --seed {seed}")
-    if executor is not None:
-        res = run_search(space, settings, config, executor, log, resume, progress, type(executor).__name__,
-                         stop_after=stop_after)
-    else:
-        with open_executor(scheduler, workers) as (ex, name):
-            res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
+    try:
+        if executor is not None:
+            res = run_search(space, settings, config, executor, log, resume, progress, type(executor).__name__,
+                             stop_after=stop_after)
+        else:
+            with open_executor(scheduler, workers) as (ex, name):
+                res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
+    except BaseException:
+        if not log.exists() or not log.stat().st_size:  # nothing to resume: leave nothing behind
+            shutil.rmtree(work, ignore_errors=True)
+        raise
     with atomic_directory(out_dir) as tmp:
         doc = write_outputs(res, tmp, log, command_line,
                             verify_poses or space.search.get("verify_poses", VERIFY_POSES),
