@@ -50,14 +50,25 @@ def polynomial_basis(shape: tuple[int, int], degree: int) -> np.ndarray:
     return np.array([u ** a * v ** b for a in range(degree + 1) for b in range(degree + 1 - a)])
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Contraction over the last axis of both: ``a @ b.T`` (a 1-D operand: a vector). Without
+    BLAS: these products are a few × 50,000 pixels, where a threaded BLAS spends more time
+    waking and spinning its threads than multiplying (measured: refinement CPU time 0.90 →
+    0.44 s on the loaded 2-core machine with one BLAS thread)."""
+    sa = "in" if a.ndim == 2 else "n"
+    sb = "jn" if b.ndim == 2 else "n"
+    out = ("i" if a.ndim == 2 else "") + ("j" if b.ndim == 2 else "")
+    return np.einsum(f"{sa},{sb}->{out}", a, b)
+
+
 def schur_information(J: np.ndarray, N: np.ndarray, w: np.ndarray) -> np.ndarray:
     """Information of the first parameters, columns ``J`` (6, n), with nuisance columns
     ``N`` (k, n) unknown too; pixel weights ``w`` (n,)."""
-    A = (J * w) @ J.T
+    A = _dot(J * w, J)
     if N is None or len(N) == 0:
         return A
-    B = (J * w) @ N.T
-    C = (N * w) @ N.T
+    B = _dot(J * w, N)
+    C = _dot(N * w, N)
     return A - B @ np.linalg.solve(C, B.T)
 
 

@@ -36,7 +36,7 @@ from ..features.model import Features
 from ..pose.camera import Camera
 from ..xray.model import Body, ImagingModel
 from ..xray.render import AUTO, resolve_body
-from .bound import polynomial_basis, schur_information
+from .bound import _dot, polynomial_basis, schur_information
 from .model import STEP_PX, RoiModel, perturb, roi_around
 
 
@@ -102,9 +102,9 @@ class _Problem:
     def fit(self, L: np.ndarray):
         """Nuisance fit for model image L: (cost, residual, coefficients, design)."""
         Phi = np.concatenate([L.reshape(1, -1), self.basis])
-        A = (Phi * self.w) @ Phi.T
-        coef = np.linalg.solve(A + 1e-12 * np.trace(A) / len(A) * np.eye(len(A)), (Phi * self.w) @ self.Y.ravel())
-        r = self.Y.ravel() - coef @ Phi
+        A = _dot(Phi * self.w, Phi)
+        coef = np.linalg.solve(A + 1e-12 * np.trace(A) / len(A) * np.eye(len(A)), _dot(Phi * self.w, self.Y.ravel()))
+        r = self.Y.ravel() - _dot(coef, Phi.T)
         return float(np.sum(self.w * r * r)), r, coef, Phi
 
     def cost(self, R, t):
@@ -120,7 +120,7 @@ class _Problem:
                 Ys = gaussian_filter(self.Yraw, 2.0).ravel()
                 self.w = N0 * np.exp(-np.clip(Ys - Ys.min(), 0, 20))
             else:
-                fitted = coef @ Phi
+                fitted = _dot(coef, Phi.T)
                 # the fitted log image carries the gain's scale: back to line-integral units
                 g = coef[0] if abs(coef[0]) > 1e-6 else 1.0
                 self.w = N0 * np.exp(-np.clip(fitted / g - (coef[1] / g), -5, 20))
@@ -210,10 +210,10 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
             _, J = model._differences(R, t, "log", central=central_steps, value=L0)
             J = prob.smooth(J).reshape(6, -1) * coef[0]
             # Kaufman: project the pose columns off the nuisance columns
-            A = (Phi * prob.w) @ Phi.T
-            Jp = J - np.linalg.solve(A, (Phi * prob.w) @ J.T).T @ Phi
-            H = (Jp * prob.w) @ Jp.T
-            g = (Jp * prob.w) @ r
+            A = _dot(Phi * prob.w, Phi)
+            Jp = J - _dot(np.linalg.solve(A, _dot(Phi * prob.w, J)).T, Phi.T)
+            H = _dot(Jp * prob.w, Jp)
+            g = _dot(Jp * prob.w, r)
             D = np.diag(H).copy()
             accepted = False
             for _ in range(8):

@@ -145,7 +145,7 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
         for off, data, lab, col in ((-0.18, ia.image_std[:, sl], "image (pixel bound)", "tab:blue"),
                                     (0.18, ia.feature_std[:, sl], "features (segmentation)", "tab:orange")):
             bp = ax.boxplot(data, positions=pos + off, widths=0.3, whis=(5, 95), showfliers=False,
-                            patch_artist=True)
+                            patch_artist=True, medianprops={"color": "k"})
             for b in bp["boxes"]:
                 b.set_facecolor(col)
                 b.set_alpha(0.6)
@@ -156,7 +156,7 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8)
     ax = axes[2]
-    ax.boxplot(ia.ratio, whis=(5, 95), showfliers=False)
+    ax.boxplot(ia.ratio, whis=(5, 95), showfliers=False, medianprops={"color": "k"})
     ax.set_xticks(np.arange(1, 7), PARAMETERS)
     ax.set_yscale("log")
     ax.axhline(1.0, color="k", lw=0.8)
