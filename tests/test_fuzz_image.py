@@ -83,7 +83,7 @@ def _npy_huge_header() -> bytes:
 def _dicom_bytes(a: np.ndarray, rows: int | None = None, spacing=(0.44, 0.44), sdd=1000.0) -> bytes:
     import pydicom
     from pydicom.dataset import FileDataset, FileMetaDataset
-    from pydicom.uid import ExplicitVRLittleEndian, generate_uid
+    from pydicom.uid import ExplicitVRLittleEndian
 
     a = np.nan_to_num(a.real if np.iscomplexobj(a) else a)
     a = np.atleast_2d(a)
@@ -92,7 +92,8 @@ def _dicom_bytes(a: np.ndarray, rows: int | None = None, spacing=(0.44, 0.44), s
     a = np.clip(a, 0, 65535).astype(np.uint16)
     meta = FileMetaDataset()
     meta.MediaStorageSOPClassUID = "1.2.840.10008.5.1.4.1.1.12.1"
-    meta.MediaStorageSOPInstanceUID = generate_uid()
+    # a fixed UID: the file's length must not vary between runs (Hypothesis draws a cut within it)
+    meta.MediaStorageSOPInstanceUID = "1.2.826.0.1.3680043.8.498.1"
     meta.TransferSyntaxUID = ExplicitVRLittleEndian
     ds = FileDataset(None, {}, file_meta=meta, preamble=b"\0" * 128)
     ds.Rows, ds.Columns = (rows if rows is not None else a.shape[0]), a.shape[1]
