@@ -1,4 +1,6 @@
-"""``make demo`` / ``python -m ftrac_design.demo``: build the paper's fiducial and summarise.
+"""``make demo`` / ``python -m ftrac_design.demo``: build the paper's fiducial and summarise:
+score it, solve a synthetic observation, render a radiograph and track it from the image,
+reconstruct points from two views, run a tiny design search and write the one-page report.
 
 Each step is a small function returning a plain summary dict, and :func:`main` prints
 them, so later steps (scoring, a solved synthetic image) slot in beside :func:`demo_build`.
@@ -145,6 +147,63 @@ def format_solve(s: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
+    """Track ``image_dir/radiograph.png`` (written by the radiograph step; camera from the
+    PNG's header) as a user would, with no initial guess, write the overlay beside it and
+    return truth vs estimate (camera frame X: rotation error deg, translation mm)."""
+    import time
+
+    import numpy as np
+
+    from .features import load_features
+    from .pose import Camera
+    from .pose.simulate import pose_errors
+    from .segment.overlay import draw_overlay
+    from .segment.pipeline import track_image
+    from .xray.imagefiles import read_image
+    from .xray.truth import read_truth
+
+    image_dir = Path(image_dir)
+    features = load_features(features_path)
+    image, _, meta = read_image(image_dir / "radiograph.png")
+    c = meta["camera"]  # our writer notes the camera in the PNG's text chunk
+    camera = Camera(float(c["focal_length_mm"]), tuple(c["pixel_size_mm"]), tuple(c["principal_point_px"]))
+    truth = read_truth(image_dir / "radiograph.truth.json")
+    R = np.asarray(truth["pose"]["rotation"], float)
+    t = np.asarray(truth["pose"]["translation_mm"], float)
+    t0 = time.perf_counter()
+    res = track_image(image, features, camera, polarity_hint=meta.get("polarity_hint"))
+    ms = (time.perf_counter() - t0) * 1e3
+    png = draw_overlay(image_dir / "track_overlay.png", image, features, res, title="ftrac_2005: radiograph.png tracked")
+    p = res.pose
+    lines = [f"track: radiograph.png -> pose with no initial guess in {ms:.0f} ms: "
+             + ("converged" if p.converged else f"NOT converged ({p.error})")]
+    lines.append(f"  truth     t = ({t[0]:8.3f}, {t[1]:8.3f}, {t[2]:8.3f}) mm")
+    if np.all(np.isfinite(p.rotation)):
+        dr, dt = pose_errors(p.rotation, p.translation_mm, R, t)
+        e, s = p.translation_mm, p.std_mm
+        lines.append(f"  estimate  t = ({e[0]:8.3f}, {e[1]:8.3f}, {e[2]:8.3f}) mm   (1σ {s[0]:.3f}, {s[1]:.3f}, {s[2]:.3f})")
+        lines.append(f"  error     translation ({dt[0]:+.3f}, {dt[1]:+.3f}, {dt[2]:+.3f}) mm, "
+                     f"rotation {np.degrees(np.linalg.norm(dr)):.3f}°")
+    lines.append(f"  overlay: {_relative(png)}")
+    return "\n".join(lines)
+
+
+def image_and_beyond_steps(out_dir: Path) -> list:
+    """The later demo steps, each a callable returning the text to print: a radiograph of the
+    built fiducial, tracked from the image with no initial guess (overlay written), 3-D
+    reconstruction from two tracked views, a tiny design search, and the one-page report."""
+    from .optimize import demo_step as optimize_step
+    from .reconstruct import demo_step as reconstruct_step
+    from .report import demo_step as report_step
+    from .xray.demo import demo_step as radiograph_step
+
+    image_dir = out_dir / "radiograph"
+    return [lambda: radiograph_step(image_dir), lambda: demo_track(out_dir / "features.json", image_dir),
+            lambda: reconstruct_step(out_dir / "reconstruct"), lambda: optimize_step(out_dir / "optimize_demo"),
+            lambda: report_step(out_dir)]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run every demo step and print its summary; returns the exit code."""
     from .errors import GoalError, InputError
@@ -158,6 +217,9 @@ def main(argv: list[str] | None = None) -> int:
         print()
         print(format_solve(demo_solve(Path(built["out_dir"]) / "features.json",
                                       Path(built["out_dir"]) / "synthetic")))
+        for step in image_and_beyond_steps(Path(built["out_dir"])):
+            print()
+            print(step())
     except InputError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
