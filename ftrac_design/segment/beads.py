@@ -121,12 +121,14 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float, max_count: 
 
 
 def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: float, noise: float,
-              response: np.ndarray | None = None, iterations: int = 8, exclude: np.ndarray | None = None) -> Beads:
+              response: np.ndarray | None = None, iterations: int = 8, exclude: np.ndarray | None = None,
+              prior_scale: float = 1.0) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
     blur (starting values; both are fitted), ``noise`` the pixel noise σ. ``exclude``
     (H, W) bool marks pixels to leave out of every fit (where a pose predicts wires: a
-    ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights)."""
+    ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights).
+    ``prior_scale`` multiplies the weights of the radius and blur priors."""
     n = len(starts)
     if n == 0:
         z = np.zeros(0)
@@ -166,7 +168,8 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     cost_scale = 4.685 * max(noise, 1e-12)
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
-    prior_w = (max(noise, 1e-12) ** 2 / (0.25 * radius_px) ** 2, max(noise, 1e-12) ** 2 / 0.5 ** 2)
+    prior_w = (prior_scale * max(noise, 1e-12) ** 2 / (0.25 * radius_px) ** 2,
+               prior_scale * max(noise, 1e-12) ** 2 / 0.5 ** 2)
     for it in range(iterations):
         m, S = model(p)
         res = y - m
