@@ -185,6 +185,8 @@ def main():
     ap.add_argument("--n-nine", type=int, default=300)
     ap.add_argument("--n-sweep", type=int, default=20, help="images per sweep setting (0: no sweeps)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--background", choices=("both", "none", "anatomy"), default="both",
+                    help="the preset runs without / with the anatomy background, or both")
     ap.add_argument("--only", choices=("all", "presets", "sweeps", "ftrac_2005", "small"), default="all",
                     help="presets: the three presets; ftrac_2005 / small: that one / ftrac_mini and nine_bead")
     a = ap.parse_args()
@@ -195,10 +197,10 @@ def main():
     for name, n in (("ftrac_2005", a.n_2005), ("ftrac_mini", a.n_mini), ("nine_bead", a.n_nine)):
         if n <= 0 or name not in todo:
             continue
-        for bg in (False, True):
+        for bg in {"both": (False, True), "none": (False,), "anatomy": (True,)}[a.background]:
             lab = f"{name}{' with anatomy background' if bg else ''}"
             show(lab, run(name, n, a.seed, bg, label=lab))
-    if "ftrac_2005" in todo and a.n_2005 > 0:
+    if "ftrac_2005" in todo and a.n_2005 > 0 and a.background != "anatomy":
         show("ftrac_2005 WITHOUT the modelled-body subtraction (blur bias left in)",
              run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False, label="no body"))
     if a.n_sweep > 0 and a.only in ("all", "sweeps"):

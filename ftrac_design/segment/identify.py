@@ -97,6 +97,8 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     ``model`` (P, 3) bead centres in F (mm); ``uv`` (n, 2) detected blob centres, strongest
     first; a projected bead matches a blob within ``tol_px``.
     """
+    uv = np.asarray(uv, float)
+    uv = uv[np.isfinite(uv).all(1)] if not np.isfinite(uv).all() else uv
     P, n = len(model), len(uv)
     if P < 3 or n < 3:
         return []
@@ -121,7 +123,8 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
         R = np.array(Rs)
         t = np.array(ts)
         proj, Z = _project(camera, R, t, model)
-        front = (Z > 0).all(1)
+        front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
+        proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
         d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
         d, j = d.reshape(len(R), P), j.reshape(len(R), P)
         hit = np.isfinite(d) & front[:, None]

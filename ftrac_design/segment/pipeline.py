@@ -178,7 +178,8 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
                     getattr(b, k)[bad] = getattr(b2, k)
         H, W = g.shape
         edge = rb + 2 * opts.blur_px + 1
-        ok = ((b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0) & (b.amplitude > 0)
+        ok = (np.isfinite(b.uv).all(1) & (b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0)
+              & (b.amplitude > 0)
               & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
               & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
         beads = b.take(ok)
