@@ -100,7 +100,7 @@ def main(n: int = 30, background: bool = False, plain: bool = False, perturbed: 
     lo = chi2.ppf(0.025, m) / (m * np.mean(z_int ** 2, 0))
     hi = chi2.ppf(0.975, m) / (m * np.mean(z_int ** 2, 0))
     print(f"{'axis':6s} {'bound 1σ':>12s} {'+nuisance':>12s} {'eff. intensity':>15s} {'95 % interval':>14s} "
-          f"{'eff. features':>14s} {'RMS z int.':>11s} {'mean z int.':>12s}")
+          f"{'eff. start' if perturbed else 'eff. features':>14s} {'RMS z int.':>11s} {'mean z int.':>12s}")
     for j, a in enumerate(AXES):
         unit, f = ("deg", 180 / np.pi) if j < 3 else ("mm", 1.0)
         print(f"{a:6s} {sb[j] * f:9.5f} {unit:3s}{sn[j] * f:9.5f} {unit:3s} {eff_int[j]:15.2f} "
