@@ -92,7 +92,7 @@ class TrackOptions:
     #: (> 4 radii + 2 px), without their blob or rejected
     max_unexplained_beads: int = 1
     #: a confident labelling uses at least this many balls
-    min_beads: int = 4
+    min_beads: int = 5
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
     #: labelling needs
     min_redundancy: int = 6
@@ -772,7 +772,8 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
                       f"not explained (at most {opts.max_unexplained_beads})")
     if pose.converged and len(obs.points) < min(opts.min_beads, len(features.points)):
         # the balls carry the labelling; with fewer, a near-mirror of a small fiducial fits
-        # its wires as well (ftrac_mini, image 242: 3 balls and both ellipses, 173° off)
+        # its wires as well (ftrac_mini, benchmark images 242 and 165: 3 and 4 balls and both
+        # ellipses, 173° and 168° off)
         pose.converged = False
         pose.error = (f"too little evidence: {len(obs.points)} beads could be used (need "
                       f"{min(opts.min_beads, len(features.points))} to confirm the labelling)")
