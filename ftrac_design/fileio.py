@@ -1,4 +1,6 @@
-"""Atomic file and directory writes: a failed run never leaves half-written output."""
+"""Atomic file and directory writes (a failed run never leaves half-written output) and the
+strict JSON / JSON Lines reading every input file shares (finite numbers only; errors name
+the file and line)."""
 
 from __future__ import annotations
 
@@ -10,6 +12,8 @@ import shutil
 import tempfile
 from pathlib import Path
 from typing import Any, Iterator
+
+from .errors import InputError
 
 
 def sha256_file(path: str | Path) -> str:
@@ -81,3 +85,36 @@ def atomic_directory(final: str | Path) -> Iterator[Path]:
     os.replace(tmp, final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"finite numbers (JSON has no {name})")
+
+
+def read_text_input(path: str | Path) -> str:
+    """The UTF-8 text of an input file; InputError (exit 2) when missing or unreadable."""
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(path, None, "file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
+
+
+def parse_json(text: str, origin: str | Path, expected: str = "valid JSON") -> Any:
+    """``json.loads`` that refuses NaN/Infinity; InputError naming ``origin`` on failure."""
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(origin, None, f"{expected} ({exc.msg} at line {exc.lineno})") from None
+    except ValueError as exc:
+        raise InputError(origin, None, str(exc)) from None
+
+
+def json_lines(path: str | Path, text: str | None = None) -> Iterator[tuple[str, Any]]:
+    """(origin ``"file:line"``, parsed value) for each non-blank line of a JSON Lines file."""
+    text = read_text_input(path) if text is None else text
+    for i, line in enumerate(text.splitlines(), 1):
+        if line.strip():
+            origin = f"{path}:{i}"
+            yield origin, parse_json(line, origin, "one JSON object per line")

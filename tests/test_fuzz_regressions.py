@@ -179,9 +179,7 @@ def test_png_header_claiming_50000_squared_pixels_exits_2():
         assert run.code == 2 and "bomb.png" in run.err and not (tmp / "out" / "pose.json").exists()
 
 
-# Crashes found in the segmentation (ftrac_design/segment, another helper's room, being
-# changed while this was written): reported, not fixed here. Strict: when the fix lands these
-# XPASS and fail — then drop the marker and keep the test.
+# Crashes found in the segmentation (ftrac_design/segment) by the image fuzzing.
 class SegmentCrash(Exception):
     """An exception escaped `track` (the last line of its traceback)."""
 
@@ -193,18 +191,22 @@ def _track(args: list, inputs: list, tmp) -> None:
     assert_clean(run, inputs, tmp)
 
 
-@pytest.mark.xfail(strict=True, raises=SegmentCrash,
-                   reason="segment/beads.py fit_beads: np.clip(c0, half, W - 1 - half) gives out-of-range patch "
-                          "indices when the image is smaller than the ~31 px bead patch (IndexError; 2 x 2 and "
-                          "3 x 256 images seen; earlier also ValueError: kth out of bounds in np.partition)")
 def test_track_2x2_png_with_camera_exits_cleanly():
+    """segment/beads.py fit_beads placed its ~31 px patch outside images smaller than it
+    (IndexError on 2 × 2 and 3 × 256 images, found by tests/test_fuzz_image.py): an image
+    narrower than one ball's patch now holds no ball, and track exits 1 (not found)."""
     from test_fuzz_image import _png_bytes
     from test_fuzz_observation import CAMERA
 
+    for pixels in (np.array([[10, 200], [30, 90]], np.uint8), np.random.default_rng(0).integers(0, 255, (3, 256))):
+        _track_tiny(_png_bytes(pixels.astype(np.uint8)), CAMERA)
+
+
+def _track_tiny(png: bytes, camera) -> None:
     with scratch() as tmp:
         img, cam = tmp / "tiny.png", tmp / "camera.json"
-        img.write_bytes(_png_bytes(np.array([[10, 200], [30, 90]], np.uint8)))
-        cam.write_text(json.dumps(CAMERA.to_dict()))
+        img.write_bytes(png)
+        cam.write_text(json.dumps(camera.to_dict()))
         _track(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", cam,
                 "-o", tmp / "out" / "pose.json"], [img], tmp)
 

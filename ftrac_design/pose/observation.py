@@ -17,6 +17,7 @@ from typing import Any, Iterator
 import numpy as np
 
 from ..errors import InputError
+from ..fileio import json_lines, parse_json, read_text_input
 from .camera import Camera
 
 FORMAT = "ftrac-observation"
@@ -211,37 +212,15 @@ def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
 def read_observations(path: str | Path) -> Iterator[Observation]:
     """Observations from a ``.json`` file (one) or ``.jsonl`` file (one per non-blank line)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
+    text = read_text_input(path)
     if path.suffix.lower() == ".jsonl":
         found = False
-        for i, line in enumerate(text.splitlines(), 1):
-            if not line.strip():
-                continue
-            origin = f"{path}:{i}"
-            try:
-                d = json.loads(line, parse_constant=_reject_constant)
-            except json.JSONDecodeError as exc:
-                raise InputError(origin, None, f"one JSON object per line ({exc.msg})") from None
-            except ValueError as exc:
-                raise InputError(origin, None, str(exc)) from None
+        for origin, d in json_lines(path, text):
             found = True
             yield observation_from_dict(d, origin)
         if not found:
             raise InputError(path, None, "at least one observation (the file is empty)")
     else:
-        try:
-            d = json.loads(text, parse_constant=_reject_constant)
-        except json.JSONDecodeError as exc:
-            raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
-        except ValueError as exc:
-            raise InputError(path, None, str(exc)) from None
-        yield observation_from_dict(d, str(path))
+        yield observation_from_dict(parse_json(text, path), str(path))
 
 
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"finite numbers (JSON has no {name})")

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..fileio import json_lines, parse_json, read_text_input
 from ..pose.camera import Camera
 from .frames import RigidTransform, is_rigid
 
@@ -39,32 +40,10 @@ def _short(v: Any) -> str:
     return s if len(s) <= 40 else s[:37] + "..."
 
 
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"finite numbers (JSON has no {name})")
-
-
-def _read_text(path: Path) -> str:
-    try:
-        return Path(path).read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
-
-
 def _json_lines(path: Path, what: str) -> list[tuple[str, Any]]:
     """(origin "file:line", parsed object) per non-blank line."""
     out = []
-    for i, line in enumerate(_read_text(path).splitlines(), 1):
-        if not line.strip():
-            continue
-        origin = f"{path}:{i}"
-        try:
-            d = json.loads(line, parse_constant=_reject_constant)
-        except json.JSONDecodeError as exc:
-            raise InputError(origin, None, f"one JSON object per line ({exc.msg})") from None
-        except ValueError as exc:
-            raise InputError(origin, None, str(exc)) from None
+    for origin, d in json_lines(path):
         if not isinstance(d, dict):
             raise InputError(origin, None, f"a JSON object ({what}), got {_short(d)}")
         out.append((origin, d))
@@ -109,12 +88,7 @@ def camera_from_dict(cam: Any, origin: str, key: str = "camera") -> Camera:
 
 def read_camera(path: Path) -> Camera:
     """``--camera C.json``: a SPEC §3 camera object, bare or under ``"camera"``."""
-    try:
-        d = json.loads(_read_text(path), parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except ValueError as exc:
-        raise InputError(path, None, str(exc)) from None
+    d = parse_json(read_text_input(path), path)
     if isinstance(d, dict) and "camera" in d:
         return camera_from_dict(d["camera"], str(path))
     return camera_from_dict(d, str(path), "camera")
@@ -181,12 +155,7 @@ def read_points(path: Path) -> list[dict[str, Any]]:
 
 def read_transform(path: Path, source: str) -> RigidTransform:
     """``--transform T.json``: a rigid 4×4 from ``source`` to the frame it names (default "user")."""
-    try:
-        d = json.loads(_read_text(path), parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise InputError(path, None, f"valid JSON ({exc.msg} at line {exc.lineno})") from None
-    except ValueError as exc:
-        raise InputError(path, None, str(exc)) from None
+    d = parse_json(read_text_input(path), path)
     origin = str(path)
     name, cov = "user", None
     if isinstance(d, dict):

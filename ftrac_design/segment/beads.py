@@ -129,12 +129,14 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     (H, W) bool marks pixels to leave out of every fit (where a pose predicts wires: a
     ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights).
     ``prior_scale`` multiplies the weights of the radius and blur priors."""
-    n = len(starts)
-    if n == 0:
-        z = np.zeros(0)
-        return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
     H, W = img.shape
     half = int(np.ceil(radius_px + 3 * max(blur_px, 0.5) + 1.5))
+    n = len(starts)
+    # an image narrower than one ball's patch holds no ball that can be fitted (and the
+    # patch could not be placed inside it)
+    if n == 0 or min(H, W) < 2 * half + 1:
+        z = np.zeros(0)
+        return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
     off = np.arange(-half, half + 1)
     oy, ox = np.meshgrid(off, off, indexing="ij")
     inside = (ox ** 2 + oy ** 2) <= half * half
@@ -168,7 +170,7 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     cost_scale = 4.685 * max(noise, 1e-12)
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
-    prior_w = (prior_scale * max(noise, 1e-12) ** 2 / (0.25 * radius_px) ** 2,
+    prior_w = (prior_scale * max(noise, 1e-12) ** 2 / max(0.25 * radius_px, 1e-6) ** 2,
                prior_scale * max(noise, 1e-12) ** 2 / 0.5 ** 2)
     for it in range(iterations):
         m, S = model(p)
