@@ -112,9 +112,21 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float, max_count: 
     resp = -(xx + yy) * (sb * sb)
     noise_resp = noise * sb * sb * float(np.sqrt(2 * (g2.astype(float) ** 2).sum() * (g0.astype(float) ** 2).sum()))
     k = max(int(round(radius_px)), 1)
-    dil = cv2.dilate(resp, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1)))
-    peak = (resp >= dil) & (resp > min_snr * noise_resp) & (xx < 0) & (yy < 0)
-    j, i = np.nonzero(peak)
+    se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+    j, i = np.nonzero((resp > min_snr * noise_resp) & (xx < 0) & (yy < 0))
+    if len(j) * int(se.sum()) < resp.size:
+        # local maximum over the disc tested at the few strong pixels only (the dilation of
+        # the whole image cost more than the rest of this function); pixels outside the
+        # image do not count, as in cv2.dilate's default border
+        P = cv2.copyMakeBorder(resp, k, k, k, k, cv2.BORDER_CONSTANT, value=-np.inf)
+        v = resp[j, i]
+        peak = np.ones(len(j), bool)
+        for dy, dx in np.argwhere(se) - k:
+            peak &= v >= P[j + k + dy, i + k + dx]
+        j, i = j[peak], i[peak]
+    else:
+        dil = cv2.dilate(resp, se)
+        j, i = np.nonzero((resp >= dil) & (resp > min_snr * noise_resp) & (xx < 0) & (yy < 0))
     val = resp[j, i]
     order = np.argsort(-val)[:max_count]
     return np.stack([i[order], j[order]], -1).astype(float), val[order] / noise_resp
