@@ -258,7 +258,11 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         kind, pts = curves[fid]
         tree = cKDTree(pts)
         d, j = tree.query(uvr, distance_upper_bound=max(separation_px, tol_px) + 2)
-        ok = np.isfinite(d)
+        # only the ridge points near this curve can be near, crowded or kept (the rest of
+        # its row stays at distance ∞): the per-point arithmetic on those alone
+        on = np.flatnonzero(np.isfinite(d))
+        d, j = d[on], j[on]
+        ok = np.ones(len(on), bool)
         jj = np.clip(j, 0, len(pts) - 1)
         # tangent from neighbouring samples; perpendicular distance to the local chord
         a = pts[np.clip(jj - 1, 0, len(pts) - 1)]
@@ -268,15 +272,15 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
             b = pts[(jj + 1) % len(pts)]
         tv = b - a
         tv /= np.maximum(np.linalg.norm(tv, axis=1, keepdims=True), 1e-12)
-        perp = np.abs((uvr - pts[jj])[:, 0] * tv[:, 1] - (uvr - pts[jj])[:, 1] * tv[:, 0])
+        perp = np.abs((uvr[on] - pts[jj])[:, 0] * tv[:, 1] - (uvr[on] - pts[jj])[:, 1] * tv[:, 0])
         # at a line piece's ends the nearest sample is the end: use the plain distance there
         dd = np.where(ok, np.minimum(np.maximum(perp, 0), d) if kind == "ellipse" else d, np.inf)
         if kind == "line":
             inner = (jj > 0) & (jj < len(pts) - 1)
             dd = np.where(ok & inner, perp, dd)
-        dist[k] = dd
-        tang[k] = tv
-        arc[k] = jj * 0.5                                    # _curve_samples' step, px
+        dist[k, on] = dd
+        tang[k, on] = tv
+        arc[k, on] = jj * 0.5                                # _curve_samples' step, px
         if kind == "ellipse":
             # signed curvature from three neighbouring samples; its centre side is where the
             # chord's midpoint bends
@@ -290,7 +294,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
                 kappa = 2 * sl / (sl * sl + half * half)
                 outward = sag / sl[:, None]
             shift = np.where(np.isfinite(kappa), 0.5 * ridge_var_px2 * kappa, 0.0)
-            corr[k] = np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+            corr[k, on] = np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
     near = dist <= tol_px
     crowded = (dist <= separation_px).sum(0) > 1
     cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))   # normal ⟂ tangent → ~0
