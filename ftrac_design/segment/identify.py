@@ -243,13 +243,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     if not ids:
         return out
     uvr = ridges.uv
-    # beads cover the wire ends they butt against and anything under them
-    if len(features.points):
-        bu = _project(camera, R, t, features.point_centers())[0]
-        db = np.linalg.norm(uvr[:, None] - bu[None], axis=-1)
-        free = (db > np.asarray(bead_radius_px)[None]).all(1)
-    else:
-        free = np.ones(len(uvr), bool)
+    reach = np.zeros(len(uvr), bool)                         # within reach of some curve
     arc = np.zeros((len(ids), len(uvr)))
     dist = np.full((len(ids), len(uvr)), np.inf)
     tang = np.zeros((len(ids), len(uvr), 2))
@@ -261,6 +255,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         # only the ridge points near this curve can be near, crowded or kept (the rest of
         # its row stays at distance ∞): the per-point arithmetic on those alone
         on = np.flatnonzero(np.isfinite(d))
+        reach[on] = True
         d, j = d[on], j[on]
         ok = np.ones(len(on), bool)
         jj = np.clip(j, 0, len(pts) - 1)
@@ -295,6 +290,13 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
                 outward = sag / sl[:, None]
             shift = np.where(np.isfinite(kappa), 0.5 * ridge_var_px2 * kappa, 0.0)
             corr[k, on] = np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+    # beads cover the wire ends they butt against and anything under them (only a point
+    # within reach of a curve can be kept, so only those are tested)
+    free = np.ones(len(uvr), bool)
+    if len(features.points) and reach.any():
+        bu = _project(camera, R, t, features.point_centers())[0]
+        db = np.linalg.norm(uvr[reach][:, None] - bu[None], axis=-1)
+        free[reach] = (db > np.asarray(bead_radius_px)[None]).all(1)
     near = dist <= tol_px
     crowded = (dist <= separation_px).sum(0) > 1
     cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))   # normal ⟂ tangent → ~0
