@@ -118,3 +118,19 @@ def json_lines(path: str | Path, text: str | None = None) -> Iterator[tuple[str,
         if line.strip():
             origin = f"{path}:{i}"
             yield origin, parse_json(line, origin, "one JSON object per line")
+
+
+def write_output_text(output: str | Path, text: str):
+    """Write a command's result ``text`` to ``output`` atomically, or to stdout when it is
+    ``-``; returns the stream the command's messages go to (stderr when stdout holds the
+    result). An unwritable path is an InputError (exit 2)."""
+    import sys
+
+    if str(output) == "-":
+        sys.stdout.write(text)
+        return sys.stderr
+    try:
+        write_text_atomic(output, text)
+    except OSError as exc:
+        raise InputError(output, None, f"a writable output path ({exc.strerror})") from None
+    return sys.stdout

@@ -21,28 +21,6 @@ _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
 _POS = click.FloatRange(min=0.0, min_open=True)
 
 
-def _read_camera(path: Path):
-    from ..pose.camera import Camera
-    try:
-        d = json.loads(path.read_text("utf-8"))
-    except OSError as exc:
-        raise InputError(path, None, f"a readable camera JSON file ({exc.strerror})") from None
-    except ValueError:
-        raise InputError(path, None, "JSON text (a SPEC §3 camera object)") from None
-    if isinstance(d, dict) and isinstance(d.get("camera"), dict):
-        d = d["camera"]                  # an observation.json or truth.json holding one
-    try:
-        cam = Camera(float(d["focal_length_mm"]), tuple(float(x) for x in d["pixel_size_mm"]),
-                     tuple(float(x) for x in d["principal_point_px"]))
-        if len(cam.pixel_size_mm) != 2 or len(cam.principal_point_px) != 2:
-            raise ValueError
-        cam.validate()
-    except (KeyError, TypeError, ValueError):
-        raise InputError(path, "focal_length_mm/pixel_size_mm/principal_point_px",
-                         "a SPEC §3 camera object with a positive focal length and pixel size") from None
-    return cam
-
-
 def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file."""
     try:
@@ -136,6 +114,7 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     from ..features import load_features
     from ..fileio import atomic_directory, write_text_atomic
     from ..pose.camera import Camera
+    from ..pose.observation import read_camera
     from ..pose.simulate import Workspace
     from ..xray import (ImagingModel, anatomy, body_from_design_file, body_from_features_file, read_image, render,
                         write_image, write_truth)
@@ -143,7 +122,7 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     if (pose_path is None) == (workspace_sample is None):
         raise click.UsageError("give exactly one of --pose POSE.json and --workspace-sample N")
     features = load_features(features_path)
-    camera = _read_camera(camera_path) if camera_path else Camera()
+    camera = read_camera(camera_path) if camera_path else Camera()
     imaging = ImagingModel(energy_kev=energy_kev, image_shape=tuple(image_size), focal_spot_mm=focal_spot_mm,
                            detector_blur_px=detector_blur_px, photons_per_px=None if no_noise else dose,
                            bit_depth=bit_depth)

@@ -4,12 +4,10 @@
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import click
 
-from ..errors import InputError
 
 _FILE = click.Path(dir_okay=False, path_type=Path)
 
@@ -51,8 +49,9 @@ def command(features_path: Path, poses_path: Path, points_path: Path, camera_pat
     point could be reconstructed, 2 on bad input (nothing is written).
     """
     from ..features import load_features
-    from ..fileio import write_text_atomic
-    from ..reconstruct.io import read_camera, read_points, read_poses, read_transform
+    from ..fileio import write_output_text
+    from ..pose.observation import read_camera
+    from ..reconstruct.io import read_points, read_poses, read_transform
     from ..reconstruct.pipeline import reconstruct
 
     features = load_features(features_path)
@@ -63,14 +62,7 @@ def command(features_path: Path, poses_path: Path, points_path: Path, camera_pat
     result = reconstruct(features, poses, points, camera, to, transform, noise_px, min_parallax_deg,
                          template_sigma_mm, str(poses_path), str(points_path), str(features_path))
     text = json.dumps(result, indent=2, allow_nan=False) + "\n"
-    out = sys.stderr if str(output) == "-" else sys.stdout
-    if str(output) == "-":
-        sys.stdout.write(text)
-    else:
-        try:
-            write_text_atomic(output, text)
-        except OSError as exc:
-            raise InputError(output, None, f"a writable output path ({exc.strerror})") from None
+    out = write_output_text(output, text)
     for s in result["images_skipped"]:
         click.echo(f"image {s['index']}: not used: {s['reason']}", file=out)
     for pid, e in result["points"].items():

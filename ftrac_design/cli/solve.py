@@ -46,8 +46,7 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
     opts = SolverOptions(noise=NoiseModel.from_segmentation_error(segmentation_error_mm), distance=distance,
                          starts=starts)
     if estimate_intrinsics is not None:
-        from ..reconstruct.intrinsics import solve_command
-        return solve_command(features, obs, opts, estimate_intrinsics, output)
+        return _solve_estimating_intrinsics(features, obs, opts, estimate_intrinsics, output)
     poses = solve_batch(features, obs, opts)
     several = len(obs) > 1 or any(p.suffix.lower() == ".jsonl" for p in observations)
     if output is None:
@@ -74,3 +73,37 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
     if str(output) != "-":
         click.echo(f"{len(poses) - len(failed)} of {len(poses)} solved; wrote {output}", file=out)
     return 1 if failed else 0
+
+
+def _solve_estimating_intrinsics(features, observations, options, which: str, output) -> int:
+    """``--estimate-intrinsics WHICH``: joint poses + intrinsics
+    (:func:`ftrac_design.reconstruct.intrinsics.estimate`), written as JSON Lines (one SPEC §4
+    object per image, the estimated camera under ``"camera"``, an extension); on refusal the
+    poses solved with the given camera are written, the reason is printed, and the exit code is 1."""
+    import json
+
+    from ..fileio import write_output_text
+    from ..reconstruct.intrinsics import PARAMETER_SETS, estimate
+
+    est = estimate(features, observations, None, PARAMETER_SETS[which], options)
+    text = "".join(json.dumps(d, allow_nan=False) + "\n" for d in est.pose_dicts())
+    output = Path("poses.jsonl") if output is None else Path(output)
+    out = write_output_text(output, text)
+    if est.ok:
+        c = est.camera
+        sd = dict(zip(est.params, est.std))
+        sx = c.pixel_size_mm[0]
+        parts = [f"f = {c.focal_length_mm:.2f} mm" + (f" ± {sd['f'] * sx:.2f}" if "f" in sd else "")]
+        if "fx" in sd:
+            parts = [f"fx = {est.intrinsics[0]:.1f} ± {sd['fx']:.1f} px", f"fy = {est.intrinsics[1]:.1f} ± {sd['fy']:.1f} px"]
+        if "ox" in sd:
+            parts.append(f"principal point = ({est.intrinsics[2]:.1f} ± {sd['ox']:.1f}, "
+                         f"{est.intrinsics[3]:.1f} ± {sd['oy']:.1f}) px")
+        click.echo(f"intrinsics from {len(est.solved)} images: " + ", ".join(parts)
+                   + f" (noise scale {est.noise_scale:.2f})", file=out)
+    else:
+        click.echo(f"intrinsics not estimated: {est.reason}", file=sys.stderr)
+    unsolved = sum(not p.converged for p in est.start)
+    if str(output) != "-":
+        click.echo(f"{len(est.start) - unsolved} of {len(est.start)} solved; wrote {output}", file=out)
+    return 0 if est.ok and not unsolved else 1

@@ -21,21 +21,6 @@ def _tmp_beside(path: Path) -> Path:
     return Path(tmp)
 
 
-def _read_camera(path: Path):
-    from ..pose.observation import observation_from_dict
-    try:
-        d = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(path, None, f"a JSON SPEC §3 camera object ({exc})") from None
-    if isinstance(d, dict) and "camera" in d and isinstance(d["camera"], dict):
-        d = d["camera"]
-    # reuse the observation parser's checks for the camera object
-    obs = observation_from_dict({"camera": d, "points": {"_": [0.0, 0.0]}}, str(path))
-    return obs.camera
-
-
 @click.command("track")
 @click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
               help="features.json written by `ftrac-design build`.")
@@ -58,11 +43,10 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
     from our own simulator's note in PNG/TIFF files, or from --camera. Exits 1 if any pose
     was not found (its SPEC §4 object says why), 2 on bad input (nothing is written).
     """
-    import numpy as np
     from tqdm import tqdm
 
     from ..features import load_features
-    from ..pose.io import pose_lines
+    from ..pose.observation import read_camera
     from ..segment.pipeline import TrackOptions, track_image
     from ..xray import read_image
     from ..xray.scene import body_from_features_file
@@ -72,7 +56,7 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
     if body is None:
         from ..xray.scene import body_from_source
         body = body_from_source(features.source, features_path.parent)
-    cam_override = _read_camera(camera_path) if camera_path is not None else None
+    cam_override = read_camera(camera_path) if camera_path is not None else None
     refine_fn = None
     if refine == "intensity":
         try:

@@ -162,6 +162,38 @@ def _check_ellipse(c: np.ndarray, origin: str, key: str) -> None:
                                       f"semi-axes {semi.max():.3g}, {semi.min():.3g} px)")
 
 
+def camera_from_dict(cam: Any, origin: str | Path, key: str = "camera") -> Camera:
+    """Validate a SPEC §3 ``camera`` object (the one parser of it: observations, ``--camera``
+    files, pose and point lines). ``key`` names it in errors."""
+    origin = str(origin)
+    if not isinstance(cam, dict):
+        raise InputError(origin, key, "an object with focal_length_mm, pixel_size_mm, principal_point_px")
+    for k in ("focal_length_mm", "pixel_size_mm", "principal_point_px"):
+        if k not in cam:
+            raise InputError(origin, f"{key}.{k}", "a value (the key is required)")
+    f = _num(cam["focal_length_mm"], origin, f"{key}.focal_length_mm")
+    px = _vec(cam["pixel_size_mm"], 2, origin, f"{key}.pixel_size_mm")
+    pp = _pixel(cam["principal_point_px"], origin, f"{key}.principal_point_px")
+    if f <= 0:
+        raise InputError(origin, f"{key}.focal_length_mm", f"a positive number, got {f}")
+    if px.min() <= 0:
+        raise InputError(origin, f"{key}.pixel_size_mm", f"positive numbers, got {px.tolist()}")
+    lo, hi = FOCAL_PX_RANGE
+    if not lo <= f / px.max() <= f / px.min() <= hi:
+        raise InputError(origin, key, f"focal_length_mm / pixel_size_mm (the focal length in pixels) "
+                                      f"between {lo:g} and {hi:g}, got {f / px.max():.3g}–{f / px.min():.3g}")
+    return Camera(f, (float(px[0]), float(px[1])), (float(pp[0]), float(pp[1])))
+
+
+def read_camera(path: str | Path) -> Camera:
+    """``--camera C.json``: a SPEC §3 camera object, bare or under ``"camera"`` (an
+    observation.json or truth.json holding one)."""
+    d = parse_json(read_text_input(path), path)
+    if isinstance(d, dict) and "camera" in d:
+        return camera_from_dict(d["camera"], path)
+    return camera_from_dict(d, path)
+
+
 def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
     """Validate a parsed SPEC §3 object. ``origin`` names the file (and line) in errors."""
     if not isinstance(d, dict):
@@ -172,24 +204,7 @@ def observation_from_dict(d: Any, origin: str = "<observation>") -> Observation:
     ver = d.get("version", VERSION)
     if ver != VERSION:
         raise InputError(origin, "version", f"{VERSION}, got {_short(ver)}")
-    cam = d.get("camera")
-    if not isinstance(cam, dict):
-        raise InputError(origin, "camera", "an object with focal_length_mm, pixel_size_mm, principal_point_px")
-    for k in ("focal_length_mm", "pixel_size_mm", "principal_point_px"):
-        if k not in cam:
-            raise InputError(origin, f"camera.{k}", "a value (the key is required)")
-    f = _num(cam["focal_length_mm"], origin, "camera.focal_length_mm")
-    px = _vec(cam["pixel_size_mm"], 2, origin, "camera.pixel_size_mm")
-    pp = _pixel(cam["principal_point_px"], origin, "camera.principal_point_px")
-    if f <= 0:
-        raise InputError(origin, "camera.focal_length_mm", f"a positive number, got {f}")
-    if px.min() <= 0:
-        raise InputError(origin, "camera.pixel_size_mm", f"positive numbers, got {px.tolist()}")
-    lo, hi = FOCAL_PX_RANGE
-    if not lo <= f / px.max() <= f / px.min() <= hi:
-        raise InputError(origin, "camera", f"focal_length_mm / pixel_size_mm (the focal length in pixels) "
-                                           f"between {lo:g} and {hi:g}, got {f / px.max():.3g}–{f / px.min():.3g}")
-    camera = Camera(f, (float(px[0]), float(px[1])), (float(pp[0]), float(pp[1])))
+    camera = camera_from_dict(d.get("camera"), origin)
 
     def section(name: str) -> dict:
         v = d.get(name, {})

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fileio import json_lines, parse_json, read_text_input
-from ..pose.camera import Camera
+from ..pose.observation import camera_from_dict
 from .frames import RigidTransform, is_rigid
 
 FORMAT = "ftrac-reconstruction"
@@ -63,35 +63,6 @@ def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
         raise InputError(origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), "
                                       f"got {_short(v)}")
     return np.array([[_num(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
-
-
-def camera_from_dict(cam: Any, origin: str, key: str = "camera") -> Camera:
-    """A SPEC §3 camera object."""
-    if not isinstance(cam, dict):
-        raise InputError(origin, key, "an object with focal_length_mm, pixel_size_mm, principal_point_px")
-    for k in ("focal_length_mm", "pixel_size_mm", "principal_point_px"):
-        if k not in cam:
-            raise InputError(origin, f"{key}.{k}", "a value (the key is required)")
-    f = _num(cam["focal_length_mm"], origin, f"{key}.focal_length_mm")
-    px, pp = cam["pixel_size_mm"], cam["principal_point_px"]
-    for k, v in (("pixel_size_mm", px), ("principal_point_px", pp)):
-        if not isinstance(v, list) or len(v) != 2:
-            raise InputError(origin, f"{key}.{k}", f"a list of 2 numbers, got {_short(v)}")
-    px = [_num(x, origin, f"{key}.pixel_size_mm[{i}]") for i, x in enumerate(px)]
-    pp = [_num(x, origin, f"{key}.principal_point_px[{i}]") for i, x in enumerate(pp)]
-    if f <= 0:
-        raise InputError(origin, f"{key}.focal_length_mm", f"a positive number, got {f}")
-    if min(px) <= 0:
-        raise InputError(origin, f"{key}.pixel_size_mm", f"positive numbers, got {px}")
-    return Camera(f, (px[0], px[1]), (pp[0], pp[1]))
-
-
-def read_camera(path: Path) -> Camera:
-    """``--camera C.json``: a SPEC §3 camera object, bare or under ``"camera"``."""
-    d = parse_json(read_text_input(path), path)
-    if isinstance(d, dict) and "camera" in d:
-        return camera_from_dict(d["camera"], str(path))
-    return camera_from_dict(d, str(path), "camera")
 
 
 def read_poses(path: Path) -> list[dict[str, Any]]:
