@@ -68,6 +68,22 @@ def test_body_scale_and_stock_sizes(base):
     assert d["seating"]["line_wire_depth"] == pytest.approx(0.55)
 
 
+
+def test_connector_follows_the_mount_when_the_body_grows(base):
+    from ftrac_design.cad.rules import check_design
+    from ftrac_design.design.loader import parse_design
+    from ftrac_design.features.mounting import mount_layout
+
+    # at Ø38 the mount's z hole pattern steps from 50 to 75 mm and the block from 64 to 89 mm;
+    # with the connector axis fixed at 50 mm the block reached 4.5 mm below the template's edge
+    for scale, width in ((1.0, 39.0), (2.0, 64.0), (4.0, 89.0)):
+        d = parse_design(apply_values(base, {"body.scale": scale}), "scaled")
+        assert mount_layout(d).width == width
+        # the start's clearance: 50 − 39/2 − 10 = 20.5 mm, whatever the block
+        assert d.connector.axis_height - width / 2 - d.connector.template_edge == pytest.approx(20.5)
+        assert check_design(d, "cnc").result("connector.template_clearance").verdict == "ok"
+    assert "axis_height" not in apply_values(base, {"body.scale": 1.0}).get("connector", {})
+
 # ---- rules as graded margins ----------------------------------------------------------------
 
 def test_margins_are_graded_and_the_infeasible_are_not_scored(base):

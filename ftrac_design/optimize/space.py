@@ -11,6 +11,13 @@ design value by feature id (lengths mm, angles degrees as in the design file):
 | ``lines.<id>.beads`` | the line's movable beads as ordered fractions (below) |
 | ``body.outer_diameter`` / ``.length`` / ``.bore_diameter`` | absolute, feature positions unchanged |
 | ``body.scale`` | the body and every axial position × this factor (bought parts and seating unchanged; axial parameters are then in the start design's mm and scaled too) |
+
+When the body's diameter varies (``body.scale``, ``body.outer_diameter``) the mount block
+grows with it (its width follows the socket and the hole pattern that must clear it), and
+the connector's ``axis_height`` follows the mount: it rises by half of the block's growth,
+so the mount keeps the start design's clearance above the template's top edge
+(``connector.template_clearance``) instead of running into the template at a size where
+the mount's hole pattern steps up.
 | ``wire.diameter`` / ``bead.diameter`` | ``{choices = [...]}``: stock sizes (seating keeps the start's cover) |
 
 Bead positions are *ordered fractions* so that the schema rarely refuses a candidate: the
@@ -223,6 +230,8 @@ def apply_values(base: dict, values: dict[str, float]) -> dict:
                 item[parts[2]] = v * scale  # axial values are in the start design's mm, scaled
             else:
                 item[parts[2]] = v
+    if scale is not None or "body.outer_diameter" in values:
+        _connector_follows_mount(base, data)
     bead_d = float(data.get("bead", {}).get("diameter", 0.0))
     for line in data.get("lines", []):
         g = geo[line["id"]]
@@ -235,6 +244,29 @@ def apply_values(base: dict, values: dict[str, float]) -> dict:
             line["beads_z"] = place_beads(float(line["z_start"]), float(line["z_end"]), g["n"], g["pin_a"],
                                           g["pin_b"], f, bead_d)
     return data
+
+
+def _mount_width(data: dict) -> float | None:
+    """The mount block's side (mm) of design data, or None where the schema refuses it."""
+    from ..features.mounting import mount_layout
+
+    try:
+        return float(mount_layout(Design.model_validate(data)).width)
+    except (ValidationError, ValueError):
+        return None
+
+
+def _connector_follows_mount(base: dict, data: dict) -> None:
+    """Raise (or lower) ``data``'s connector axis by half of its mount's growth over
+    ``base``'s, so the mount keeps ``base``'s clearance above the template (in place)."""
+    w0, w = _mount_width(base), _mount_width(data)
+    if w0 is None or w is None or w == w0:
+        return
+    from ..design.schema import Connector
+
+    con = data.setdefault("connector", {})
+    h0 = float(base.get("connector", {}).get("axis_height", Connector.model_fields["axis_height"].default))
+    con["axis_height"] = h0 + (w - w0) / 2
 
 
 def _schema_problem(data: dict) -> str | None:
