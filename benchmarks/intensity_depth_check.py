@@ -42,7 +42,7 @@ def main(mode: str, n: int, first: int = 0) -> None:
     R, t = Workspace().sample(SAMPLE, features.nominal_beam_direction, np.random.default_rng(1313))
     # the starts of intensity_accuracy.py's ``perturbed`` mode (the same generator, drawn in order)
     X = np.random.default_rng(7).standard_normal((SAMPLE, 6)) * np.array([np.radians(0.05)] * 3 + [0.02, 0.02, 0.4])
-    plain = {"body": body, "scales": (0.0,), "highpass_px": 0.0, "robust": None}
+    plain = {"body": body, "scales": (0.0,), "background": "polynomial", "robust": None}
     za, zb = [], []
     for k in tqdm(range(first, min(first + n, SAMPLE)), desc=mode, unit="image"):
         bound = pixel_information(features, R[k], t[k], cam, imaging, body, nuisance=True)

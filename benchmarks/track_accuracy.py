@@ -18,10 +18,21 @@ initial guess. Reports
   segmentation's measured noise model (median over the images, at the scale each image's
   residuals showed: the variance factor) and contour counts;
 - sweeps on ftrac_2005 (where it breaks): dose, detector blur, background strength, a
-  needle occluder across the fiducial, truncation (the fiducial partly outside the image).
+  needle occluder across the fiducial, truncation (the fiducial partly outside the image);
+- the intensity path (issue 13; ``--intensity N``, default 30, 0 = off) on the first N
+  images of each preset run whose feature-path pose converged and was right:
+  ``refine_intensity`` with its defaults from that pose, as ``track --refine intensity``
+  does (scales 1 px then full resolution), and the efficiency per axis, 1 / mean(z²) with
+  its 95 % interval, of the intensity path and of the feature path against the same
+  pixel-level Cramér–Rao bound at the true pose (``pixel_information`` with the nuisance
+  parameters the refinement fitted: gain and the 12 px spline background, or gain and a
+  quadratic where it took the image as cluttered; an anatomy background's attenuation
+  included and taken as known), the RMS error in units of the quadratic-background bound,
+  and the refinement's CPU time (median, max).
 
     .venv/bin/python benchmarks/track_accuracy.py --n-2005 1000 --n-mini 300 --n-nine 300
     .venv/bin/python benchmarks/track_accuracy.py --only sweeps --n-sweep 20
+    .venv/bin/python benchmarks/track_accuracy.py --only presets --n-2005 60 --n-mini 30 --n-nine 30 --intensity 30
 """
 
 from __future__ import annotations
@@ -33,6 +44,7 @@ from collections import Counter
 from pathlib import Path
 
 import numpy as np
+from intensity_common import Judge, efficiency
 from tqdm import tqdm
 
 from ftrac_design.analysis import analyse_poses
@@ -78,7 +90,7 @@ def _needle(rng, features):
 
 
 def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_strength=1.0, needle=False,
-        truncate_px=None, label=""):
+        truncate_px=None, label="", intensity=0):
     design = load_design(ROOT / "models" / f"{name}.toml")
     features = compute_features(design)
     body = Body.from_design(design)
@@ -92,6 +104,7 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
     res_all = {"point": [], "line": [], "ellipse": [], "ellipse_signed": []}
     wrong, overconf, notconv, reasons = [], [], 0, Counter()
     perr, psd, noise, counts, n_ell, times, conv_idx = [], [], [], [], Counter(), [], []
+    inten = {"z_int": [], "z_feat": [], "zq_int": [], "zq_feat": [], "cpu": [], "worse": 0, "models": Counter()}
     for k in tqdm(range(n), desc=label or name, leave=False, mininterval=5):
         rng = np.random.default_rng(seed * 1000 + k)
         bg = anatomy(seed=seed * 1000 + k, strength=bg_strength) if background else None
@@ -130,6 +143,17 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
                        np.median([len(c.points) for c in obs.ellipses.values()]) if obs.ellipses else np.nan])
         n_ell[len(obs.ellipses)] += 1
         conv_idx.append(k)
+        if len(inten["cpu"]) < intensity:
+            # the intensity path on the same image, from this pose (as track --refine intensity)
+            judge = Judge(features, cam, imaging, body if use_body else None, R[k], t[k], background=bg)
+            ri, zi, zqi, (_, cpu) = judge.refine(rad.raw, p.rotation, p.translation_mm, scales=(1.0, 0.0))
+            inten["z_int"].append(zi)
+            inten["zq_int"].append(zqi)
+            inten["z_feat"].append(judge.z(p.rotation, p.translation_mm, ri.background_model))
+            inten["zq_feat"].append(judge.z_quad(p.rotation, p.translation_mm))
+            inten["cpu"].append(cpu)
+            inten["worse"] += ri.cost_end > ri.cost_start
+            inten["models"][ri.background_model] += 1
     perr, psd = np.array(perr).reshape(-1, 6), np.array(psd).reshape(-1, 6)
     cr = np.full(6, np.nan)
     if len(conv_idx) and features.points:
@@ -153,7 +177,8 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
             "pose_bias_se": np.std(perr, 0, ddof=1) / math.sqrt(m) if m > 1 else np.full(6, np.nan),
             "pose_sd_pred": np.sqrt(np.mean(psd ** 2, 0)) if m else np.full(6, np.nan),
             "cr": cr, "noise_mm": np.nanmedian(np.array(noise), 0) if noise else np.full(3, np.nan),
-            "median_ms": 1000 * float(np.median(times)), "converged": m + len(wrong)}
+            "median_ms": 1000 * float(np.median(times)), "converged": m + len(wrong),
+            "intensity": inten if inten["cpu"] else None}
 
 
 def show(label, r):
@@ -176,6 +201,24 @@ def show(label, r):
     print("  ratio error RMS / solver 1σ  : " + "  ".join(f"{x:8.2f}" for x in r["pose_rms"] / r["pose_sd_pred"]))
     print("  Cramér–Rao (analysis), RMS   : " + "  ".join(f"{x:8.4f}" for x in r["cr"]))
     print(f"  median track time {r['median_ms']:.0f} ms per image")
+    it = r.get("intensity")
+    if it:
+        e_i, lo, hi = efficiency(it["z_int"])
+        e_f, lo_f, hi_f = efficiency(it["z_feat"])
+        m = len(it["cpu"])
+        print(f"  intensity path on the first {m} right images (refine_intensity defaults from the feature pose; "
+              f"background models {dict(it['models'])}), vs the pixel-level bound:")
+        print("  efficiency, intensity path   : " + "  ".join(f"{x:8.2f}" for x in e_i)
+              + f"   (target ≥ 0.9: {'met' if np.all(e_i >= 0.9) else 'missed'})")
+        print("    95 % interval              : " + " ".join(f"{a:.2g}–{b:.2g}".rjust(9) for a, b in zip(lo, hi)))
+        print("  efficiency, feature path     : " + "  ".join(f"{x:8.4f}" for x in e_f))
+        print("    95 % interval              : " + " ".join(f"{a:.2g}–{b:.2g}".rjust(9) for a, b in zip(lo_f, hi_f)))
+        zq_i, zq_f = np.array(it["zq_int"]), np.array(it["zq_feat"])
+        print("  RMS error / quadratic bound  : intensity " + " ".join(f"{x:.2f}" for x in np.sqrt(np.mean(zq_i ** 2, 0)))
+              + "; features " + " ".join(f"{x:.1f}" for x in np.sqrt(np.mean(zq_f ** 2, 0))))
+        cpu = 1e3 * np.array(it["cpu"])
+        print(f"  refinement CPU time per image: median {np.median(cpu):.0f} ms, max {cpu.max():.0f} ms (target ≤ 1 s); "
+              f"ended above its start's objective: {it['worse']}")
 
 
 def main():
@@ -185,6 +228,9 @@ def main():
     ap.add_argument("--n-nine", type=int, default=300)
     ap.add_argument("--n-sweep", type=int, default=20, help="images per sweep setting (0: no sweeps)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--intensity", type=int, default=30,
+                    help="refine the first N right poses of each preset run on the intensities and compare both "
+                         "paths with the pixel-level bound (0: off)")
     ap.add_argument("--background", choices=("both", "none", "anatomy"), default="both",
                     help="the preset runs without / with the anatomy background, or both")
     ap.add_argument("--only", choices=("all", "presets", "sweeps", "ftrac_2005", "small"), default="all",
@@ -199,7 +245,7 @@ def main():
             continue
         for bg in {"both": (False, True), "none": (False,), "anatomy": (True,)}[a.background]:
             lab = f"{name}{' with anatomy background' if bg else ''}"
-            show(lab, run(name, n, a.seed, bg, label=lab))
+            show(lab, run(name, n, a.seed, bg, label=lab, intensity=a.intensity))
     if "ftrac_2005" in todo and a.n_2005 > 0 and a.background != "anatomy":
         show("ftrac_2005 WITHOUT the modelled-body subtraction (blur bias left in)",
              run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False, label="no body"))

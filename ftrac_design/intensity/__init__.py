@@ -5,7 +5,8 @@
 - :func:`pixel_information` — Fisher information / Cramér–Rao bound of the pose from the
   pixels at a stated dose, blur and background (:mod:`.bound`).
 - :func:`refine_intensity` — Gauss–Newton/LM fit of the simulated image to a radiograph,
-  with gain and a smooth background as nuisance parameters (:mod:`.refine`).
+  with gain and a smooth background as nuisance parameters (:mod:`.refine`; the background's
+  B-spline / polynomial basis and its elimination: :mod:`.background`).
 - :func:`imaging_analysis` — that bound over workspace poses beside the feature-level one
   (``analyze --imaging``; :mod:`.workspace`).
 """

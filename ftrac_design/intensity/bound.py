@@ -8,9 +8,9 @@ information of the pose θ = (rx, ry, rz, tx, ty, tz) is
 
 the same as in the log domain, where ``var(−ln N_i) ≈ 1/μ_i``. Raw quantisation (step
 1/gain ≈ 0.2 quanta at 16 bits) is neglected. ``nuisance=True`` gives the bound when the
-image's gain and a smooth background (polynomial in u, v) are unknown as well — the
-Schur complement of the full information — which is what :func:`..refine.refine_intensity`
-can reach.
+image's gain and a smooth background (a polynomial in u, v, or the cubic B-spline that
+:func:`..refine.refine_intensity` fits by default) are unknown as well — the Schur
+complement of the full information — which is what the refinement can reach.
 """
 
 from __future__ import annotations
@@ -18,11 +18,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..features.model import Features
 from ..pose.camera import Camera
 from ..xray.model import Body, ImagingModel
 from ..xray.render import AUTO, resolve_body
+from .background import background_basis, polynomial_basis  # noqa: F401 (polynomial_basis: re-export)
+from .background import schur_information as _schur
 from .model import RoiModel, roi_around
 
 
@@ -42,14 +45,6 @@ class PixelBound:
         return np.concatenate([np.degrees(self.std[:3]), self.std[3:]])
 
 
-def polynomial_basis(shape: tuple[int, int], degree: int) -> np.ndarray:
-    """(k, rows, cols) monomials uᵃvᵇ (a + b ≤ degree) in coordinates scaled to [−1, 1]."""
-    h, w = shape
-    v = np.linspace(-1, 1, h)[:, None] * np.ones((1, w))
-    u = np.ones((h, 1)) * np.linspace(-1, 1, w)[None, :]
-    return np.array([u ** a * v ** b for a in range(degree + 1) for b in range(degree + 1 - a)])
-
-
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Contraction over the last axis of both: ``a @ b.T`` (a 1-D operand: a vector). Without
     BLAS: these products are a few × 50,000 pixels, where a threaded BLAS spends more time
@@ -61,26 +56,25 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.einsum(f"{sa},{sb}->{out}", a, b)
 
 
-def schur_information(J: np.ndarray, N: np.ndarray, w: np.ndarray) -> np.ndarray:
+def schur_information(J: np.ndarray, N, w: np.ndarray) -> np.ndarray:
     """Information of the first parameters, columns ``J`` (6, n), with nuisance columns
-    ``N`` (k, n) unknown too; pixel weights ``w`` (n,)."""
-    A = _dot(J * w, J)
-    if N is None or len(N) == 0:
-        return A
-    B = _dot(J * w, N)
-    C = _dot(N * w, N)
-    return A - B @ np.linalg.solve(C, B.T)
+    ``N`` (k, n) unknown too; pixel weights ``w`` (n,) (:func:`.background.schur_information`)."""
+    return _schur(J, N if N is not None and len(N) else None, w)
 
 
 def pixel_information(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
                       imaging: ImagingModel = ImagingModel(), body: Body | None | str = AUTO,
                       background: np.ndarray | None = None, roi: tuple[int, int, int, int] | None = None,
-                      nuisance: bool = False, background_degree: int = 2) -> PixelBound:
+                      nuisance: bool = False, background_degree: int = 2,
+                      background_spline_px: float | None = None) -> PixelBound:
     """Pixel-level Cramér–Rao bound of the pose at (R, t) under ``imaging`` (see the module).
 
     ``background`` (H, W) is a known line-integral image (it lowers the counts); ``roi``
-    defaults to the fiducial's projection plus 12 px. Raises ValueError for a noise-free
-    imaging model (the information is infinite).
+    defaults to the fiducial's projection plus 12 px. ``nuisance=True``: the gain and a smooth
+    background are unknown as well — a polynomial of ``background_degree`` or, with
+    ``background_spline_px``, the cubic B-spline of that knot spacing that
+    :func:`..refine.refine_intensity` fits by default (:mod:`.background`). Raises ValueError
+    for a noise-free imaging model (the information is infinite).
     """
     if not imaging.noisy:
         raise ValueError("a pixel-level bound needs a finite dose (photons_per_px)")
@@ -99,8 +93,9 @@ def pixel_information(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     JL = (-JI / I).reshape(6, -1)
     wts = mu.ravel()
     if nuisance:
-        Nmat = np.concatenate([(-np.log(I))[None], polynomial_basis(I.shape, background_degree)]).reshape(-1, I.size)
-        F = schur_information(JL, Nmat, wts)
+        bg = background_basis(I.shape, background_degree, background_spline_px)
+        with threadpool_limits(1, "blas"):         # small products: see refine.refine_intensity
+            F = _schur(JL, bg, wts, extra=(-np.log(I)).reshape(1, -1))       # the gain's column: L itself
     else:
         F = schur_information(JL, None, wts)
     cov = np.linalg.inv(F)

@@ -5,15 +5,17 @@ parameters the noise-weighted squared difference between the image's log values 
 the model ``g L(θ) + B(β)`` over a region of interest around the fiducial:
 
 - ``L(θ)``: the simulator's noise-free log image of the fiducial (:class:`.model.RoiModel`),
-- ``g``: an unknown gain (a display image's contrast scale), ``B(β)``: a smooth background,
-  a polynomial in (u, v) of ``background_degree`` (its constant term is the offset) — or,
-  by default, a high-pass (image minus its Gaussian blur of ``highpass_px``) applied to image
-  and model alike, with Huber weights against anatomy clutter,
+- ``g``: an unknown gain (a display image's contrast scale), ``B(β)``: a smooth background —
+  by default a tensor cubic B-spline with knots every 12 px (:mod:`.background`), or a
+  polynomial in (u, v); where that background cannot explain the image (χ²/dof > 3 at the
+  start: anatomy clutter) a high-pass (image minus its Gaussian blur of ``highpass_px``)
+  applied to image and model alike instead; Huber weights against clutter such as bone edges,
 - weights ``1/var(Y_i) = N0 e^{−Ŷ_i}`` (Poisson counts in the log domain) from the fitted
   model Ŷ, or uniform for a noise-free imaging model.
 
 The nuisance parameters enter linearly and are eliminated exactly at every pose (variable
-projection, Kaufman's Jacobian); the pose takes Levenberg–Marquardt steps in the solver's
+projection, Kaufman's Jacobian; the background's W-orthogonal projection factored once per
+set of weights); the pose takes Levenberg–Marquardt steps in the solver's
 so(3) parametrisation (``R ← exp([δ]ₓ) R``, ``t ← t + δt``). A coarse-to-fine schedule
 smooths image and model alike by Gaussians of ``scales`` px first, which widens the basin
 (a thin wire is ~2 px wide). A step is kept only if it lowers the objective, and the result
@@ -31,13 +33,21 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
+from threadpoolctl import threadpool_limits
 
 from ..features.model import Features
 from ..pose.camera import Camera
 from ..xray.model import Body, ImagingModel
 from ..xray.render import AUTO, resolve_body
-from .bound import _dot, polynomial_basis, schur_information
+from .background import Nuisance, background_basis
+from .bound import _dot
 from .model import STEP_PX, RoiModel, perturb, roi_around
+
+#: knot spacing (px) of the default spline background (see :func:`refine_intensity`)
+DEFAULT_SPLINE_PX = 12.0
+#: χ² per degree of freedom of the smooth-background fit above which ``background="auto"``
+#: takes the image as cluttered (see :func:`refine_intensity`)
+CLUTTER_CHI2 = 3.0
 
 
 @dataclass
@@ -58,6 +68,8 @@ class IntensityResult:
     rms_residual: float
     message: str = ""
     history: list = field(default_factory=list)
+    n_nuisance: int = 7
+    background_model: str = "polynomial"
 
     @property
     def std(self) -> np.ndarray:
@@ -74,21 +86,36 @@ class IntensityResult:
                 "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
                 "intensity": {"cost_start": self.cost_start, "cost_end": self.cost_end,
                               "iterations": self.iterations, "gain": self.gain, "roi": list(self.roi),
-                              "rms_residual_log": self.rms_residual, "message": self.message}}
+                              "rms_residual_log": self.rms_residual, "background": self.background_model,
+                              "message": self.message}}
 
 
 class _Problem:
-    """The objective at one smoothing scale."""
+    """The objective at one smoothing scale: the weighted residual of ``Y − g L − Nᵀβ`` with
+    the gain g and background β eliminated (:class:`.background.Nuisance`)."""
 
     def __init__(self, model: RoiModel, Y: np.ndarray, imaging: ImagingModel, scale: float, degree: int,
-                 highpass: float = 0.0, robust: float | None = None):
+                 highpass: float = 0.0, robust: float | None = None, spline_px: float | None = None,
+                 loss: str = "huber"):
         self.model, self.scale, self.imaging, self.highpass, self.robust = model, scale, imaging, highpass, robust
+        self.loss = loss
         self.Yraw = Y
         self.Y = self.smooth(Y)
+        self.y = self.Y.ravel()
         if highpass > 0:
-            degree = -1                             # the high-pass removes any smooth background
-        self.basis = polynomial_basis(Y.shape, degree).reshape(-1, Y.size) if degree >= 0 else np.zeros((0, Y.size))
-        self.w = np.ones(Y.size)
+            degree, spline_px = -1, None            # the high-pass removes any smooth background
+        self.basis = background_basis(Y.shape, degree, spline_px)
+        self.set_pixel_weights(np.ones(Y.size))
+
+    @property
+    def n_nuisance(self) -> int:
+        """Nuisance parameters: the gain and the background's coefficients."""
+        return 1 + self.nuis.k
+
+    def set_pixel_weights(self, w: np.ndarray) -> None:
+        self.w = w
+        self.nuis = Nuisance(self.basis, w)
+        self.yp = self.nuis.project(self.y)
 
     def smooth(self, a: np.ndarray) -> np.ndarray:
         if a.ndim == 3:
@@ -100,38 +127,52 @@ class _Problem:
         return a
 
     def fit(self, L: np.ndarray):
-        """Nuisance fit for model image L: (cost, residual, coefficients, design)."""
-        Phi = np.concatenate([L.reshape(1, -1), self.basis])
-        A = _dot(Phi * self.w, Phi)
-        coef = np.linalg.solve(A + 1e-12 * np.trace(A) / len(A) * np.eye(len(A)), _dot(Phi * self.w, self.Y.ravel()))
-        r = self.Y.ravel() - _dot(coef, Phi.T)
-        return float(np.sum(self.w * r * r)), r, coef, Phi
+        """Nuisance fit for the (smoothed) model image L: (cost, residual, gain, background
+        coefficients, projected model column)."""
+        l = L.ravel()
+        lp = self.nuis.project(l)
+        wl = self.w * lp
+        den = float(lp @ wl)
+        g = float(wl @ self.yp) / den if den > 0 else 0.0
+        r = self.yp - g * lp
+        return float(np.sum(self.w * r * r)), r, g, self.nuis.coefficients(self.y - g * l), lp
 
     def cost(self, R, t):
-        L = self.smooth(self.model.log_image(R, t))
-        return self.fit(L)
+        return self.fit(self.smooth(self.model.log_image(R, t)))
 
-    def set_weights(self, coef: np.ndarray, Phi: np.ndarray, r: np.ndarray | None = None) -> None:
-        """Poisson weights N0 e^{−p̂} (p̂ from the fitted model, or from the smoothed image
-        with a high-pass), times Huber weights of the residual ``r`` with ``robust``."""
+    def project_jacobian(self, J: np.ndarray, lp: np.ndarray) -> np.ndarray:
+        """Kaufman's variable-projection Jacobian: the pose columns (6, n) W-projected off the
+        background columns and off the (projected) model column of the gain."""
+        Jp = self.nuis.project(J)
+        den = float(lp @ (self.w * lp))
+        return Jp - np.outer(_dot(Jp * self.w, lp) / den, lp) if den > 0 else Jp
+
+    def set_weights(self, g: float, r: np.ndarray, huber: bool = True) -> None:
+        """Poisson weights N0 e^{−p̂} (p̂ the fitted model above its lowest value, in the
+        model's line-integral units; with a high-pass, from the smoothed image), times Huber
+        weights of the residual ``r`` with ``robust``."""
         if self.imaging.noisy:
             N0 = float(self.imaging.photons_per_px)
-            if self.highpass > 0 or len(coef) < 2:
+            if self.highpass > 0:
                 Ys = gaussian_filter(self.Yraw, 2.0).ravel()
-                self.w = N0 * np.exp(-np.clip(Ys - Ys.min(), 0, 20))
+                w = N0 * np.exp(-np.clip(Ys - Ys.min(), 0, 20))
             else:
-                fitted = _dot(coef, Phi.T)
-                # the fitted log image carries the gain's scale: back to line-integral units
-                g = coef[0] if abs(coef[0]) > 1e-6 else 1.0
-                self.w = N0 * np.exp(-np.clip(fitted / g - (coef[1] / g), -5, 20))
+                fitted = self.y - r
+                gg = g if g > 1e-6 else 1.0
+                w = N0 * np.exp(-np.clip((fitted - fitted.min()) / gg, 0, 20))
             if self.scale > 0:                      # smoothing lowers the variance: keep the shape only
-                self.w = self.w / self.w.mean()
+                w = w / w.mean()
         else:
-            self.w = np.ones_like(self.w)
-        if self.robust and r is not None:
-            z = np.abs(r) * np.sqrt(self.w)
+            w = np.ones(self.y.size)
+        if self.robust and huber:
+            z = np.abs(r) * np.sqrt(w)
             sd = 1.4826 * np.median(z) if not self.imaging.noisy or self.scale > 0 else 1.0
-            self.w = self.w * np.minimum(1.0, self.robust * max(sd, 1e-300) / np.maximum(z, 1e-300))
+            c = self.robust * max(sd, 1e-300)
+            if self.loss == "tukey":
+                w = w * np.clip(1 - (z / c) ** 2, 0, 1) ** 2
+            else:
+                w = w * np.minimum(1.0, c / np.maximum(z, 1e-300))
+        self.set_pixel_weights(w)
 
 
 def history_drop(history: list) -> float:
@@ -154,34 +195,66 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
                      imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
                      body: Body | None | str = AUTO, polarity: str = "dense_bright",
                      scales: tuple[float, ...] = (2.0, 0.0), background_degree: int = 2, max_iterations: int = 12,
-                     tolerance: float = 1e-4, ftol: float = 1e-7, central_covariance: bool = False,
+                     tolerance: float = 1e-4, ftol: float = 0.0, central_covariance: bool = False,
                      highpass_px: float = 8.0, robust: float | None = 3.0,
-                     central_steps: bool = False) -> IntensityResult:
+                     central_steps: bool = False, background: str = "auto",
+                     background_spline_px: float | None = DEFAULT_SPLINE_PX, clutter_chi2: float = CLUTTER_CHI2,
+                     step_sigma: float = 0.01, reweight_rounds: int = 2, robust_loss: str = "huber") -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
     ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
     raw counts (``"dense_dark"``). ``imaging`` supplies the blur, the energy and the dose
     (weights; ``photons_per_px=None``: uniform weights and a covariance scaled by the fitted
     residual). ``roi`` = (row0, col0, rows, cols), default the fiducial at the start plus 12 px.
-    ``highpass_px`` > 0 (default 8) subtracts a Gaussian of that σ from image and model alike
-    instead of fitting the polynomial background — anatomy has structure a quadratic cannot
-    follow; ``robust`` = c (default 3) gives Huber weights at full resolution (residuals beyond
-    c σ down-weighted, fixed from the residual where that scale starts) against clutter such
-    as bone edges. Over an anatomy-like background they cut the errors from 6–30× the
-    pixel bound (quadratic background) to 1.4–2.3×; on clean images both reach the bound
-    (``benchmarks/intensity_accuracy.py``). ``highpass_px=0, robust=None`` is the plain
-    gain + polynomial model. Each scale stops when a step moves the features by less than ``tolerance`` px or lowers
-    the objective by less than ``ftol`` of itself (with Poisson weights the objective is a
-    χ² of ~n pixels, so 1e-7 is ≪ 1). The covariance uses the last iteration's (forward
-    difference) Jacobian, or a fresh central-difference one with ``central_covariance``.
-    ``central_steps=True`` takes the LM steps on central differences (twice the renders; on
-    300 images it changed no axis's efficiency beyond sampling, depth 0.861 → 0.864:
-    ``benchmarks/intensity_depth_check.py``).
+
+    ``background`` — the model of what lies under the fiducial:
+
+    - ``"spline"``: a tensor cubic B-spline with knots every ``background_spline_px`` (12) px,
+      fitted jointly with the gain (:mod:`.background`); white noise stays white, so the fit
+      is maximum likelihood and its bound is :func:`.bound.pixel_information` with
+      ``nuisance=True, background_spline_px=12``;
+    - ``"polynomial"``: the polynomial of ``background_degree`` (the plain model);
+    - ``"highpass"``: image and model minus their Gaussian blur of ``highpass_px`` (8) px —
+      colours the noise (up to 29 % efficiency lost on clean images), but over an anatomy-like
+      background its errors were the smallest we measured;
+    - ``"auto"`` (default): the spline (the polynomial if ``background_spline_px`` is None),
+      unless its χ² per degree of freedom at the start exceeds ``clutter_chi2`` (3: clean
+      images give 1.0–2.1 from a start a few bound-σ off, anatomy 1.6–14), then the high-pass
+      (never with ``highpass_px=0``). The choice is ``IntensityResult.background_model``.
+
+    ``robust`` = c (default 3): Huber weights at full resolution (residuals beyond c σ
+    down-weighted; ``robust_loss="tukey"``: Tukey's biweight, zero beyond c σ) against
+    clutter such as bone edges, recomputed from the residual at the pose each round reached
+    (``reweight_rounds`` rounds of iteratively reweighted least squares, the Poisson weights
+    with them). ``background="polynomial", robust=None`` is the plain gain + quadratic model.
+    Figures: ``benchmarks/intensity_accuracy.py``, README.
+
+    Each scale (and round) stops when a step is smaller than ``step_sigma`` of the estimate's
+    own σ in the Mahalanobis norm ``√(δᵀ H δ / s²)`` (H the Gauss–Newton information, s² the
+    fitted χ² per degree of freedom; at full resolution with Poisson weights, s ≈ 1 and this
+    is the step in units of the pixel-level bound), or moves the features by less than
+    ``tolerance`` px, or (``ftol`` > 0) lowers the objective by less than ``ftol`` of itself.
+    The covariance uses the last iteration's (forward difference) Jacobian, or a fresh
+    central-difference one with ``central_covariance``. ``central_steps=True`` takes the LM
+    steps on central differences (twice the renders; on 300 images it changed no axis's
+    efficiency beyond sampling: ``benchmarks/intensity_depth_check.py``).
     """
     if hasattr(R0, "pose") and isinstance(features, np.ndarray):
         # the call form of cli/track.py, refine_fn(image, features, camera, track_result):
         # forwarded until it calls refine_track_result itself
         return refine_track_result(features, image, camera, R0)
+    # one BLAS thread: the products here are small (k ≲ 500 background columns, 6 pose
+    # columns), where a threaded BLAS spends more time spinning its threads than multiplying
+    # (a banded Cholesky of 391 columns: 217 ms with threads on the loaded 2-core machine)
+    with threadpool_limits(1, "blas"):
+        return _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
+                       max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
+                       background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss)
+
+
+def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
+            max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
+            background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss):
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     body = resolve_body(features, body)
     Yfull = _log_of(image, polarity)
@@ -191,77 +264,117 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     Y = Yfull[v0:v0 + h, u0:u0 + w]
     model = RoiModel(features, camera, imaging, body, roi)
     steps = model.steps(t0) / STEP_PX              # parameter change that moves features ~1 px
-    R, t = R0.copy(), t0.copy()
 
-    full = _Problem(model, Y, imaging, 0.0, background_degree, highpass_px, robust)
-    c, r, coef, Phi = full.cost(R, t)
-    full.set_weights(coef, Phi, r)
-    cost_start, _, _, _ = full.cost(R, t)
-    history, iterations, message = [], 0, ""
+    if background not in ("auto", "spline", "polynomial", "highpass"):
+        raise ValueError("background: 'auto', 'spline', 'polynomial' or 'highpass'")
+    if background == "highpass" and not highpass_px > 0:
+        raise ValueError("background='highpass' needs highpass_px > 0")
+    mode = background
+    if mode in ("auto", "spline") and not background_spline_px:
+        mode = "polynomial" if mode == "spline" else "auto"
+    if mode == "auto":
+        mode = "spline" if background_spline_px else "polynomial"
+        if highpass_px > 0:
+            probe = _Problem(model, Y, imaging, 0.0, background_degree, 0.0, None,
+                             background_spline_px if mode == "spline" else None)
+            _, r, g, _, _ = probe.cost(R0, t0)
+            probe.set_weights(g, r)
+            c, r, _, _, _ = probe.cost(R0, t0)
+            if imaging.noisy and c / max(r.size - 6 - probe.n_nuisance, 1) > clutter_chi2:
+                mode = "highpass"
+
+    def problem(scale: float, huber: bool) -> _Problem:
+        return _Problem(model, Y, imaging, scale, background_degree, highpass_px if mode == "highpass" else 0.0,
+                        robust if huber else None, background_spline_px if mode == "spline" else None, robust_loss)
+
+    R, t = R0.copy(), t0.copy()
+    history, iterations, message, J, prob = [], 0, "", None, None
     for scale in scales:
         # robust weights only at full resolution: at a coarse scale far from the pose the
         # largest residuals are the fiducial's own misaligned wires
-        prob = _Problem(model, Y, imaging, scale, background_degree, highpass_px, robust if scale == 0 else None)
-        cst, r, coef, Phi = prob.cost(R, t)
-        prob.set_weights(coef, Phi, r)
-        cst, r, coef, Phi = prob.cost(R, t)
-        lam = 1e-3
-        J = None
-        for _ in range(max_iterations):
-            iterations += 1
-            L0 = model.log_image(R, t)
-            _, J = model._differences(R, t, "log", central=central_steps, value=L0)
-            J = prob.smooth(J).reshape(6, -1) * coef[0]
-            # Kaufman: project the pose columns off the nuisance columns
-            A = _dot(Phi * prob.w, Phi)
-            Jp = J - _dot(np.linalg.solve(A, _dot(Phi * prob.w, J)).T, Phi.T)
-            H = _dot(Jp * prob.w, Jp)
-            g = _dot(Jp * prob.w, r)
-            D = np.diag(H).copy()
-            accepted = False
-            for _ in range(8):
+        huber = bool(robust) and scale == 0
+        prob, Jraw = problem(scale, huber), None
+        for _round in range(max(int(reweight_rounds), 1) if huber or imaging.noisy else 1):
+            cst, r, g, b, lp = prob.cost(R, t)
+            prob.set_weights(g, r)
+            cst, r, g, b, lp = prob.cost(R, t)
+            dof = max(r.size - 6 - prob.n_nuisance, 1)
+            if _round > 0 and Jraw is not None:
+                # new weights: is a step still due? (the last linearisation, re-projected: no render)
+                Jt = prob.project_jacobian(Jraw, lp)
+                Ht = _dot(Jt * prob.w, Jt)
                 try:
-                    dx = np.linalg.solve(H + lam * np.diag(D), g)
+                    dt = np.linalg.solve(Ht, _dot(Jt * prob.w, r))
                 except np.linalg.LinAlgError:
-                    lam *= 10
-                    continue
-                Rn, tn = perturb(R, t, dx)
-                cn, rn, coefn, Phin = prob.cost(Rn, tn)
-                if cn < cst:
-                    R, t, cst, r, coef, Phi = Rn, tn, cn, rn, coefn, Phin
-                    lam = max(lam / 3, 1e-7)
-                    accepted = True
+                    dt = np.full(6, np.inf)
+                if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < step_sigma:
+                    J = Jt
                     break
-                lam *= 4
-            history.append((scale, cst, lam))
-            if not accepted:
-                message = f"no decrease at scale {scale:g} px"
-                break
-            if np.max(np.abs(dx) / steps) < tolerance or history_drop(history) < ftol * cst:
-                break
-    c_end, r, coef, Phi = full.cost(R, t)
+            lam, moved = 1e-3, 0
+            for _ in range(max_iterations):
+                iterations += 1
+                L0 = model.log_image(R, t)
+                _, J = model._differences(R, t, "log", central=central_steps, value=L0)
+                Jraw = prob.smooth(J).reshape(6, -1) * g
+                J = prob.project_jacobian(Jraw, lp)
+                H = _dot(J * prob.w, J)
+                grad = _dot(J * prob.w, r)
+                D = np.diag(H).copy()
+                accepted = False
+                for _ in range(8):
+                    try:
+                        dx = np.linalg.solve(H + lam * np.diag(D), grad)
+                    except np.linalg.LinAlgError:
+                        lam *= 10
+                        continue
+                    Rn, tn = perturb(R, t, dx)
+                    cn, rn, gn, bn, lpn = prob.cost(Rn, tn)
+                    if cn < cst:
+                        R, t, cst, r, g, b, lp = Rn, tn, cn, rn, gn, bn, lpn
+                        lam = max(lam / 3, 1e-7)
+                        accepted = True
+                        moved += 1
+                        break
+                    lam *= 4
+                history.append((scale, cst, lam))
+                if not accepted:
+                    message = f"no decrease at scale {scale:g} px"
+                    break
+                s2 = max(cst / dof, 1e-300)
+                if (math.sqrt(max(float(dx @ H @ dx), 0.0) / s2) < step_sigma
+                        or np.max(np.abs(dx) / steps) < tolerance or history_drop(history) < ftol * cst):
+                    break
+            if not moved and _round > 0:
+                break                               # reweighting moved nothing: converged
+    # the image objective: full resolution, the weights of the last round (or, without a
+    # full-resolution stage, from the start); start and end on the same weights
+    full = prob if prob is not None and prob.scale == 0 else problem(0.0, bool(robust))
+    if full is not prob:
+        _, r, g, _, _ = full.cost(R0, t0)
+        full.set_weights(g, r)
+    cost_start = full.cost(R0, t0)[0]
+    c_end, r, g, b, lp = full.cost(R, t)
     converged = True
     if c_end > cost_start:
         R, t, converged, message = R0.copy(), t0.copy(), False, "refinement did not lower the objective; start kept"
-        c_end, r, coef, Phi = full.cost(R, t)
+        c_end, r, g, b, lp = full.cost(R, t)
     # covariance: information of the pose with gain and background unknown (the weights the
     # objective used, so that cost_end stays comparable)
-    if central_covariance or J is None or scales[-1] != 0.0 or not converged:
+    if central_covariance or J is None or full is not prob or not converged:
         L0, Jc = model.jacobian(R, t)
-        Jc = full.smooth(Jc).reshape(6, -1) * coef[0]
+        Jc = full.project_jacobian(full.smooth(Jc).reshape(6, -1) * g, lp)
     else:
-        L0, Jc = model.log_image(R, t), J
-    c_end_w, r, coef, Phi = full.fit(full.smooth(L0))
-    F = schur_information(Jc, Phi, full.w)
+        Jc = J                                     # already projected at (R, t)'s last linearisation
+    F = _dot(Jc * full.w, Jc)
     try:
-        cov = np.linalg.inv(F)
+        cov = np.linalg.inv((F + F.T) / 2)
         if not imaging.noisy:
-            cov *= c_end_w / max(r.size - 6 - len(Phi), 1)
+            cov *= c_end / max(r.size - 6 - full.n_nuisance, 1)
     except np.linalg.LinAlgError:
         cov = None
     rms = float(math.sqrt(np.mean(r * r)))
-    return IntensityResult(R, t, cov, converged, cost_start, c_end, iterations, float(coef[0]), coef[1:], roi, rms,
-                           message, history)
+    return IntensityResult(R, t, cov, converged, cost_start, c_end, iterations, float(g), b, roi, rms,
+                           message, history, full.n_nuisance, mode)
 
 
 def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result, imaging: ImagingModel | None = None,
@@ -282,7 +395,7 @@ def refine_track_result(image: np.ndarray, features: Features, camera: Camera, r
     res = refine_intensity(features, image, camera, pose.rotation, pose.translation_mm, imaging, body=body,
                            polarity=polarity, **{"scales": (1.0, 0.0), **options})
     cov = res.covariance
-    dof = max(res.roi[2] * res.roi[3] - 6 - 7, 1)
+    dof = max(res.roi[2] * res.roi[3] - 6 - res.n_nuisance, 1)
     chi2 = res.cost_end / dof
     if cov is not None and imaging.noisy and chi2 > 1:
         cov = cov * chi2
