@@ -85,6 +85,8 @@ def main(n: int = 30, background: bool = False, mode: str = "default", perturbed
         z_feat.append(judge.z(tr.pose.rotation, tr.pose.translation_mm, res.background_model))
         std_q.append(judge.quad.std)
         std_s.append(judge.spline.std if res.background_model == "spline" else judge.quad.std)
+        if len(z_int) % 100 == 0:                   # interim figures of a long run
+            tqdm.write(f"after {len(z_int)}: efficiency " + " ".join(f"{x:.2f}" for x in efficiency(z_int)[0]))
     z_int, z_q, z_feat = np.array(z_int), np.array(z_q), np.array(z_feat)
     eff_int, lo, hi = efficiency(z_int)
     eff_feat = efficiency(z_feat)[0]

@@ -310,7 +310,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                 if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < step_sigma:
                     J = Jt
                     break
-            lam, moved = 1e-3, 0
+            lam, moved, this_round = 1e-3, 0, []        # the objective's weights change between rounds
             for _ in range(max_iterations):
                 iterations += 1
                 L0 = model.log_image(R, t)
@@ -337,12 +337,13 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                         break
                     lam *= 4
                 history.append((scale, cst, lam))
+                this_round.append((scale, cst, lam))
                 if not accepted:
                     message = f"no decrease at scale {scale:g} px"
                     break
                 s2 = max(cst / dof, 1e-300)
                 if (math.sqrt(max(float(dx @ H @ dx), 0.0) / s2) < step_sigma
-                        or np.max(np.abs(dx) / steps) < tolerance or history_drop(history) < ftol * cst):
+                        or np.max(np.abs(dx) / steps) < tolerance or history_drop(this_round) < ftol * cst):
                     break
             if not moved and _round > 0:
                 break                               # reweighting moved nothing: converged
