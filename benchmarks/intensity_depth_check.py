@@ -68,7 +68,7 @@ def main(mode: str, n: int, first: int = 0) -> None:
             kw = dict(plain, polarity="dense_dark")
             za.append(z(refine_intensity(features, img.raw, cam, Rs, ts, imaging, **kw)))
             exact = {"central_steps": True} if mode == "paired" else \
-                {"central_steps": True, "step_sigma": 1e-4, "max_iterations": 40, "tolerance": 0.0}
+                {"central_steps": True, "step_sigma": 1e-4, "max_iterations": 40, "tolerance": 0.0, "polish": False}
             zb.append(z(refine_intensity(features, img.raw, cam, Rs, ts, imaging, **exact, **kw)))
     za = np.array(za)
     m = len(za)
