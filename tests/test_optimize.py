@@ -258,3 +258,20 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
     start = doc["start"]["verification"]["predicted"]["translation_p95_mm"]
     assert best <= start * 1.01  # on fresh poses the winner is no worse than the start
     assert "start: ftrac_mini" in (out / "comparison.txt").read_text()
+
+
+@pytest.mark.parametrize("space_file, design_file", [("ftrac_mini_layout.toml", "ftrac_mini.toml"),
+                                                     ("ftrac_mini_size.toml", "ftrac_mini.toml"),
+                                                     ("ftrac_2005_ellipses.toml", "ftrac_2005.toml")])
+def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_file):
+    from ftrac_design.optimize import load_space
+
+    base = tomllib.loads((MODELS / design_file).read_text())
+    sp = load_space(base, MODELS / "spaces" / space_file)
+    # the start lies within every bound, so the search begins at the preset itself
+    assert all(p.low <= p.start <= p.high for p in sp.parameters if p.choices is None)
+    values = sp.values(sp.start_unit())
+    assert [values[p.key] for p in sp.parameters] == pytest.approx([p.start for p in sp.parameters], abs=1e-9)
+    data = sp.candidate(sp.start_unit())
+    assert [ln["beads_z"] for ln in data["lines"]] == \
+        [pytest.approx(ln["beads_z"], abs=1e-9) for ln in base["lines"]]

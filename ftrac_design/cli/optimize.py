@@ -46,7 +46,8 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
                    "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]")
 @click.option("--min-ellipse-view-deg", type=click.FloatRange(min=0.0, max=90.0), default=None,
               help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
-                   "[default: the start design's own value: 3.9 for ftrac_mini, 4.5 for ftrac_2005]")
+                   "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
+                   "3.6 at seed 1]")
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
 @click.option("--print-space", is_flag=True, default=False,
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
