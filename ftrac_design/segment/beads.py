@@ -184,15 +184,21 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
     prior_w = (prior_scale * max(noise, 1e-12) ** 2 / max(0.25 * radius_px, 1e-6) ** 2,
                prior_scale * max(noise, 1e-12) ** 2 / 0.5 ** 2)
+    X5, Y5 = np.tile(X, (5, 1)), np.tile(Y, (5, 1))
     for it in range(iterations):
-        m, S = model(p)
+        # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
+        # element-wise: the same numbers as five separate calls, at a fifth of the overhead)
+        q = np.tile(p, (5, 1))
+        for k in range(4):
+            q[(k + 1) * n:(k + 2) * n, k] += eps[k]
+        S5 = model_S(q, X5, Y5)
+        S = S5[:n]
+        m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
         res = y - m
         # Jacobian: numeric for u, v, r, s (through S), analytic for the linear terms
         J = np.empty(y.shape + (8,))
         for k in range(4):
-            q = p.copy()
-            q[:, k] += eps[k]
-            J[..., k] = (p[:, 4:5] * (model_S(q, X, Y) - S)) / eps[k]
+            J[..., k] = (p[:, 4:5] * (S5[(k + 1) * n:(k + 2) * n] - S)) / eps[k]
         J[..., 4] = S
         J[..., 5] = 1.0
         J[..., 6] = X

@@ -54,6 +54,19 @@ def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tup
     return uv, Z
 
 
+def _rodrigues(r: np.ndarray) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of rotation vectors ``r`` (n, 3), radians: what
+    ``cv2.Rodrigues`` gives, for all at once (one call per P3P solution cost more than the
+    solutions' projections)."""
+    th = np.linalg.norm(r, axis=1)
+    k = r / np.where(th > 1e-300, th, 1.0)[:, None]
+    c, s = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
+    Kx = np.zeros((len(r), 3, 3))
+    Kx[:, 0, 1], Kx[:, 0, 2], Kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
+    Kx[:, 1, 0], Kx[:, 2, 0], Kx[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
+    return c * np.eye(3) + (1 - c) * k[:, :, None] * k[:, None, :] + s * Kx
+
+
 def _image_triplets(uv: np.ndarray, limit: int) -> list[tuple[int, int, int]]:
     """Up to ``limit`` triplets of the first (strongest) blobs, largest triangle first."""
     k = min(len(uv), 8)
@@ -106,22 +119,21 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     mtri = _model_triplets(model)
     tree = cKDTree(uv)
     best: dict[tuple, BeadHypothesis] = {}
+    objs = np.ascontiguousarray(model[mtri], dtype=np.float64)      # (m, 3, 3), once for every image triplet
     for itri in _image_triplets(uv, image_triplets):
         img = np.ascontiguousarray(uv[list(itri)], dtype=np.float64)
-        Rs, ts = [], []
-        for m in mtri:
-            obj = np.ascontiguousarray(model[m], dtype=np.float64)
+        rs, ts = [], []
+        for obj in objs:
             try:
                 nsol, rvecs, tvecs = cv2.solveP3P(obj, img, K, None, flags=cv2.SOLVEPNP_P3P)
             except cv2.error:
                 continue
-            for rv, tv in zip(rvecs[:nsol], tvecs[:nsol]):
-                Rs.append(cv2.Rodrigues(rv)[0])
-                ts.append(np.asarray(tv, float).ravel())
-        if not Rs:
+            rs += rvecs[:nsol]
+            ts += tvecs[:nsol]
+        if not rs:
             continue
-        R = np.array(Rs)
-        t = np.array(ts)
+        R = _rodrigues(np.asarray(rs, float).reshape(-1, 3))
+        t = np.asarray(ts, float).reshape(-1, 3)
         proj, Z = _project(camera, R, t, model)
         front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
         proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
@@ -194,22 +206,34 @@ def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndar
 
 def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                             step_px: float) -> dict[str, tuple[str, np.ndarray]]:
-    out = {}
-    for ln in features.lines:
-        pieces = features.wire_segments(ln.id) or [(ln.start, ln.end)]
-        pts = []
-        for a, b in pieces:
-            ab = _project(camera, R, t, np.array([a, b]))[0]
-            n = max(int(np.linalg.norm(ab[1] - ab[0]) / step_px), 2)
-            s = np.linspace(0, 1, n)[:, None]
-            pts.append(_project(camera, R, t, a + s * (b - a))[0])
-        out[ln.id] = ("line", np.concatenate(pts))
-    for el in features.ellipses:
-        uv = _project(camera, R, t, el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)))[0]
+    # every piece's end points and every ellipse's 64 coarse samples in one projection,
+    # then every dense sample in a second (the projection is point-wise: the same numbers)
+    pieces = [(ln.id, a, b) for ln in features.lines for a, b in (features.wire_segments(ln.id) or [(ln.start, ln.end)])]
+    coarse = [np.array([a, b]) for _, a, b in pieces]
+    coarse += [el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)) for el in features.ellipses]
+    cuv = _project(camera, R, t, np.concatenate(coarse))[0] if coarse else np.zeros((0, 2))
+    dense, owner = [], []
+    for k, (fid, a, b) in enumerate(pieces):
+        ab = cuv[2 * k:2 * k + 2]
+        n = max(int(np.linalg.norm(ab[1] - ab[0]) / step_px), 2)
+        dense.append(a + np.linspace(0, 1, n)[:, None] * (b - a))
+        owner.append((fid, "line"))
+    o = 2 * len(pieces)
+    for k, el in enumerate(features.ellipses):
+        uv = cuv[o + 64 * k:o + 64 * (k + 1)]
         per = float(np.linalg.norm(np.diff(np.vstack([uv, uv[:1]]), axis=0), axis=1).sum())
         n = max(int(per / step_px), 64)
-        out[el.id] = ("ellipse", _project(camera, R, t, el.sample(np.linspace(0, 2 * np.pi, n, endpoint=False)))[0])
-    return out
+        dense.append(el.sample(np.linspace(0, 2 * np.pi, n, endpoint=False)))
+        owner.append((el.id, "ellipse"))
+    if not dense:
+        return {}
+    duv = _project(camera, R, t, np.concatenate(dense))[0]
+    parts: dict[str, tuple[str, list]] = {}
+    i = 0
+    for (fid, kind), X in zip(owner, dense):
+        parts.setdefault(fid, (kind, []))[1].append(duv[i:i + len(X)])
+        i += len(X)
+    return {fid: (kind, np.concatenate(p)) for fid, (kind, p) in parts.items()}
 
 
 def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, ridges: RidgePoints,
@@ -242,6 +266,14 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     ids = list(curves)
     if not ids:
         return out
+    reach_px = max(separation_px, tol_px) + 2
+    # only ridge points inside the curves' bounding box (grown by the reach) can be near
+    # one: everything below runs on those alone (a few hundred of several thousand)
+    allp = np.concatenate([p for _, p in curves.values()])
+    allp = allp[np.isfinite(allp).all(1)]
+    if len(allp):
+        lo, hi = allp.min(0) - reach_px, allp.max(0) + reach_px
+        ridges = ridges.take(np.flatnonzero(((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)))
     uvr = ridges.uv
     reach = np.zeros(len(uvr), bool)                         # within reach of some curve
     arc = np.zeros((len(ids), len(uvr)))
@@ -250,13 +282,19 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     corr = np.zeros((len(ids), len(uvr), 2))
     for k, fid in enumerate(ids):
         kind, pts = curves[fid]
-        tree = cKDTree(pts)
-        d, j = tree.query(uvr, distance_upper_bound=max(separation_px, tol_px) + 2)
         # only the ridge points near this curve can be near, crowded or kept (the rest of
-        # its row stays at distance ∞): the per-point arithmetic on those alone
-        on = np.flatnonzero(np.isfinite(d))
+        # its row stays at distance ∞): the query and the per-point arithmetic on those
+        # inside its own bounding box grown by the reach alone
+        fin = pts[np.isfinite(pts).all(1)]
+        box = np.flatnonzero(((uvr >= fin.min(0) - reach_px) & (uvr <= fin.max(0) + reach_px)).all(1)) \
+            if len(fin) else np.zeros(0, int)
+        if len(box) == 0:
+            continue
+        tree = cKDTree(pts)
+        d, j = tree.query(uvr[box], distance_upper_bound=reach_px)
+        on = box[np.isfinite(d)]
+        d, j = d[np.isfinite(d)], j[np.isfinite(d)]
         reach[on] = True
-        d, j = d[on], j[on]
         ok = np.ones(len(on), bool)
         jj = np.clip(j, 0, len(pts) - 1)
         # tangent from neighbouring samples; perpendicular distance to the local chord

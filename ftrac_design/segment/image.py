@@ -60,6 +60,24 @@ def detect_polarity(image: np.ndarray, disc_px: int) -> str:
 def _kth_largest(a: np.ndarray, k: int) -> float:
     """The k-th largest value of a non-negative array (0 if fewer than k are positive);
     the zeros are left out first (introselect is slow on many ties)."""
+    a = np.asarray(a)
+    if a.ndim == 2 and a.shape[0] >= 8 and a.shape[1] >= 8:
+        # the k-th largest of 8 × 8 block maxima is k distinct values, so at most the k-th
+        # largest of all: only the few values above it need sorting (exact, ~10× faster)
+        H, W = a.shape[0] // 8 * 8, a.shape[1] // 8 * 8
+        b = a[:H, :W]
+        r = b[0::8].copy()
+        for i in range(1, 8):
+            np.maximum(r, b[i::8], out=r)
+        bm = r[:, 0::8].copy()
+        for i in range(1, 8):
+            np.maximum(bm, r[:, i::8], out=bm)
+        bm = bm.ravel()
+        if len(bm) >= k:
+            thr = np.partition(bm, -k)[-k]
+            if thr > 0:
+                v = a[a >= thr]
+                return float(np.partition(v, -k)[-k])
     v = a.ravel()
     v = v[v > 0]
     return float(np.partition(v, -k)[-k]) if len(v) >= k else 0.0
