@@ -92,9 +92,31 @@ def top_hat(g: np.ndarray, disc_px: int) -> np.ndarray:
 def noise_sigma(g: np.ndarray) -> float:
     """Robust standard deviation of the pixel noise: the MAD of the difference of
     neighbouring pixels (structure-free where the image is smooth), divided by √2."""
-    d = np.diff(np.asarray(g, np.float32)[::2, :], axis=1)
-    mad = float(np.median(np.abs(d - np.median(d))))
+    d = np.diff(np.asarray(g, np.float32)[::2, :], axis=1).ravel()
+    mad = float(_median(np.abs(d - _median(d))))
     return 1.4826 * mad / math.sqrt(2.0)
+
+
+def _median(v: np.ndarray) -> np.floating:
+    """``np.median`` of a flat float32 array, the same number: the values are binned (the
+    bin index is monotone in the value), and only the bin holding the middle rank(s) is
+    partitioned — selecting among all ~10⁵ values twice per image cost ~2 ms."""
+    n = len(v)
+    if n < 4096 or not np.isfinite(v).all():
+        return np.median(v)
+    lo, hi = float(v.min()), float(v.max())
+    if not hi > lo:
+        return np.median(v)
+    nb = 1024
+    b = ((v - np.float32(lo)) * np.float32(nb / (hi - lo))).astype(np.int64)
+    np.clip(b, 0, nb - 1, out=b)
+    cum = np.cumsum(np.bincount(b, minlength=nb))
+    ks = (n // 2 - 1, n // 2) if n % 2 == 0 else (n // 2,)
+    bins = sorted({int(np.searchsorted(cum, k, side="right")) for k in ks})
+    sel = v[(b >= bins[0]) & (b <= bins[-1])]
+    below = int(cum[bins[0] - 1]) if bins[0] > 0 else 0
+    part = np.partition(sel, [k - below for k in ks])
+    return np.mean(part[[k - below for k in ks]])
 
 
 def gaussian_kernels(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
