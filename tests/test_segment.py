@@ -140,3 +140,29 @@ def test_same_input_same_result(rendered):
     b = track_image(rad.raw, features, Camera(), body=body)
     assert np.array_equal(a.pose.rotation, b.pose.rotation)
     assert np.array_equal(a.pose.translation_mm, b.pose.translation_mm)
+
+
+def test_fast_selections_equal_numpy():
+    """The noise MAD's binned median and the polarity's block-maxima k-th largest are
+    shortcuts: they must give numpy's numbers exactly (ties, zeros, skew, tiny arrays)."""
+    from ftrac_design.segment.identify import _rodrigues
+    from ftrac_design.segment.image import _kth_largest, _median
+
+    rng = np.random.default_rng(5)
+    for t in range(60):
+        n = int(rng.integers(1, 60000))
+        v = rng.normal(size=n).astype(np.float32)
+        if t % 3 == 1:
+            v = np.round(3 * v).astype(np.float32)          # many ties
+        if t % 3 == 2:
+            v[: n // 2] = 0
+            v = np.abs(v) ** 3
+        m = _median(v)
+        assert m == np.median(v) and m.dtype == np.median(v).dtype
+        a = np.maximum(v[: (n // 97) * 97].reshape(-1, 97) if n >= 97 else v[None], 0)
+        ref = np.sort(a[a > 0])[::-1]
+        assert _kth_largest(a, 16) == (float(ref[15]) if len(ref) >= 16 else 0.0)
+    r = rng.normal(size=(50, 3))
+    r[0] = 0
+    import cv2
+    assert np.allclose(_rodrigues(r), np.array([cv2.Rodrigues(x)[0] for x in r]), atol=1e-14)
