@@ -26,7 +26,9 @@ def _default_space(preset: str) -> dict:
 
 
 SPACES = {f"default:{p}": (p, _default_space(p)) for p in PRESETS if p != "nine_bead"}
-SPACES.update({f"file:{f.stem}": (f.stem.split("_ell")[0].split("_size")[0], tomllib.loads(f.read_text()))
+# A shipped space is named after the preset it searches (``<preset>_<what>.toml``).
+SPACES.update({f"file:{f.stem}": (max((p for p in PRESETS if f.stem.startswith(p + "_")), key=len),
+                                  tomllib.loads(f.read_text()))
                for f in sorted((MODELS / "spaces").glob("*.toml"))})
 
 
