@@ -22,7 +22,7 @@ initial guess. Reports
 - the intensity path (issue 13; ``--intensity N``, default 30, 0 = off) on the first N
   images of each preset run whose feature-path pose converged and was right:
   ``refine_intensity`` with its defaults from that pose, as ``track --refine intensity``
-  does (scales 1 px then full resolution), and the efficiency per axis, 1 / mean(z²) with
+  does (full resolution, a 1 px scale first only from a far start), and the efficiency per axis, 1 / mean(z²) with
   its 95 % interval, of the intensity path and of the feature path against the same
   pixel-level Cramér–Rao bound at the true pose (``pixel_information`` with the nuisance
   parameters the refinement fitted: gain and the 12 px spline background, or gain and a
@@ -146,7 +146,7 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
         if len(inten["cpu"]) < intensity:
             # the intensity path on the same image, from this pose (as track --refine intensity)
             judge = Judge(features, cam, imaging, body if use_body else None, R[k], t[k], background=bg)
-            ri, zi, zqi, (_, cpu) = judge.refine(rad.raw, p.rotation, p.translation_mm, scales=(1.0, 0.0))
+            ri, zi, zqi, (_, cpu) = judge.refine(rad.raw, p.rotation, p.translation_mm, coarse_scales=(1.0,))
             inten["z_int"].append(zi)
             inten["zq_int"].append(zqi)
             inten["z_feat"].append(judge.z(p.rotation, p.translation_mm, ri.background_model))

@@ -233,3 +233,37 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
     bad = CliRunner().invoke(cli, ["analyze", "models/ftrac_2005.toml", "--imaging", "--dose", "-1",
                                    "-o", str(tmp_path / "b")])
     assert bad.exit_code == 2
+
+
+def test_central_differences_from_forward_ones_equal_the_direct_central_ones(features_2005, pose_2005):
+    """The polishing step's Jacobian: six backward renders added to the forward differences
+    give the same central differences as twelve fresh renders (same frozen body pixels)."""
+    R, t = pose_2005
+    im = ImagingModel()
+    model = RoiModel(features_2005, Camera(), im, BODY, roi_around(features_2005, R, t, Camera(), im.image_shape, BODY))
+    L0 = model.log_image(R, t)
+    _, Jf = model._differences(R, t, "log", central=False, value=L0)
+    _, Jc = model._differences(R, t, "log", central=True, value=L0)
+    Jr = model.central_from_forward(R, t, L0, Jf)
+    np.testing.assert_allclose(Jr, Jc, rtol=0, atol=1e-9 * np.abs(Jc).max())
+    assert model.body_flags is None                 # the frozen flags are given back
+
+
+def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
+    """``scales="auto"``: full resolution from a start a fraction of a pixel off (the feature
+    path's), the coarse scales first from a start ~0.5° / 1 mm off; both reach the pose."""
+    R, t = pose_2005
+    im = ImagingModel(photons_per_px=None)
+    img = render(features_2005, R, t, imaging=im, body=BODY)
+    near = refine_intensity(features_2005, img.log_image, Camera(), *perturb(R, t, np.r_[np.radians([0.005] * 3),
+                                                                                           0.005, -0.005, 0.05]),
+                            im, body=BODY)
+    assert {h[0] for h in near.history} == {0.0}
+    far = refine_intensity(features_2005, img.log_image, Camera(), *perturb(R, t, np.r_[np.radians([0.3, -0.3, 0.25]),
+                                                                                        0.6, -0.6, 0.5]),
+                           im, body=BODY, coarse_scales=(4.0, 2.0))
+    assert far.history[0][0] == 4.0 and far.history[-1][0] == 0.0
+    for res in (near, far):
+        assert np.degrees(so3.angle(res.rotation, R)) < 2e-3 and np.abs(res.translation_mm - t).max() < 5e-3
+    with pytest.raises(ValueError):
+        refine_intensity(features_2005, img.log_image, Camera(), R, t, im, body=BODY, scales="fast")

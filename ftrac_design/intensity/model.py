@@ -209,6 +209,26 @@ class RoiModel:
         rho = max(self.features.characteristic_radius, 1.0)      # a lone bead at the origin has 0
         return np.array([lat / rho] * 3 + [lat, lat, lat * z / rho])
 
+    def central_from_forward(self, R: np.ndarray, t: np.ndarray, value: np.ndarray,
+                             forward: np.ndarray) -> np.ndarray:
+        """Central-difference derivative (6, rows, cols) of the log image at (R, t) from its
+        forward differences ``forward`` (``_differences(..., central=False)`` at the same
+        pose, same ``value``): only the six backward renders are new."""
+        kept = self.body_flags
+        self.freeze(R, t)                          # the flags the forward renders used
+        try:
+            h = self.steps(t)
+            J = np.empty_like(forward)
+            for j in range(6):
+                x = np.zeros(6)
+                x[j] = h[j]
+                Rm, tm = perturb(R, t, -x)
+                # f(x + h) = value + h J_fwd, so (f(x + h) − f(x − h)) / 2h:
+                J[j] = (value + h[j] * forward[j] - self.log_image(Rm, tm)) / (2 * h[j])
+        finally:
+            self.body_flags = kept
+        return J
+
     def jacobian(self, R: np.ndarray, t: np.ndarray, what: str = "log") -> tuple[np.ndarray, np.ndarray]:
         """(value (rows, cols), derivative (6, rows, cols)) of the log image (``what="log"``)
         or the transmission (``"transmission"``) with respect to (rx, ry, rz, tx, ty, tz)."""

@@ -16,9 +16,10 @@ the model ``g L(θ) + B(β)`` over a region of interest around the fiducial:
 The nuisance parameters enter linearly and are eliminated exactly at every pose (variable
 projection, Kaufman's Jacobian; the background's W-orthogonal projection factored once per
 set of weights); the pose takes Levenberg–Marquardt steps in the solver's
-so(3) parametrisation (``R ← exp([δ]ₓ) R``, ``t ← t + δt``). A coarse-to-fine schedule
-smooths image and model alike by Gaussians of ``scales`` px first, which widens the basin
-(a thin wire is ~2 px wide). A step is kept only if it lowers the objective, and the result
+so(3) parametrisation (``R ← exp([δ]ₓ) R``, ``t ← t + δt``). From a far start a
+coarse-to-fine schedule smooths image and model alike by Gaussians of a few px first, which
+widens the basin (a thin wire is ~2 px wide); from a start within a pixel (the feature
+path's) it goes straight to full resolution. A step is kept only if it lowers the objective, and the result
 is the start itself when the final objective at full resolution would be worse, so the
 refinement never ends worse than its start. The covariance is the inverse of the
 information of the pose with the nuisance parameters unknown (Schur complement), at the
@@ -194,13 +195,14 @@ def _log_of(image: np.ndarray, polarity: str) -> np.ndarray:
 def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: np.ndarray, t0: np.ndarray = None,
                      imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
                      body: Body | None | str = AUTO, polarity: str = "dense_bright",
-                     scales: tuple[float, ...] = (2.0, 0.0), background_degree: int = 2, max_iterations: int = 12,
+                     scales: tuple[float, ...] | str = "auto", background_degree: int = 2, max_iterations: int = 12,
                      tolerance: float = 1e-4, ftol: float = 0.0, central_covariance: bool = False,
                      highpass_px: float = 8.0, robust: float | None = 3.0,
                      central_steps: bool = False, background: str = "auto",
                      background_spline_px: float | None = DEFAULT_SPLINE_PX, clutter_chi2: float = CLUTTER_CHI2,
                      step_sigma: float = 0.3, reweight_rounds: int = 2, robust_loss: str = "huber",
-                     polish: bool = True) -> IntensityResult:
+                     polish: bool = True, coarse_scales: tuple[float, ...] = (2.0,),
+                     coarse_px: float = 1.0) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
     ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
@@ -240,12 +242,23 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     the iterates wander by ~0.2 σ — and the polishing step below lands within 0.01–0.05 σ RMS
     of where a 0.01 σ rule ends, at 15 % less CPU (120 paired images).
     A coarse scale stops at 0.3 σ or ``step_sigma`` if larger (it only brings the pose into the
-    fine scale's basin).
+    fine scale's basin). The rule is tested on the Gauss–Newton step proposed at each new
+    linearisation, before a trial render: a converged scale costs no trial (nor a cascade of
+    rejected ones), and its last linearisation serves the next scale and the polishing step.
+
+    ``scales``: the smoothing scales (px, ending at 0) in order, or ``"auto"`` (default):
+    ``coarse_scales`` (2 px) then full resolution where the first Gauss–Newton step at full
+    resolution moves the features by more than ``coarse_px`` (1) px, else full resolution
+    only. From the feature path's starts (10–50 bound-σ, well under a pixel) a 1 px scale
+    first cost 2–3 iterations and changed nothing on clean images; over anatomy it ended
+    further off (RMS error / bound 3.0–6.0 vs 2.6–4.9 on the same 30 ftrac_2005 images;
+    ``benchmarks/intensity_feature_start.py``).
     ``polish`` (default): one last Gauss–Newton step on a central-difference Jacobian — the
     LM steps on forward differences stop where ``J_fwdᵀ W r = 0``, which is not the
     objective's minimum (0.1–0.23 σ RMS from it; ``benchmarks/intensity_depth_check.py
-    stopping``). The covariance uses that last Jacobian, or a fresh central-difference one
-    with ``central_covariance``. ``central_steps=True`` takes every LM step on central
+    stopping``); its central differences add six backward renders to the last forward ones
+    (taken at the same pose). The covariance uses that last Jacobian, or a fresh
+    central-difference one with ``central_covariance``. ``central_steps=True`` takes every LM step on central
     differences (twice the renders).
     """
     if hasattr(R0, "pose") and isinstance(features, np.ndarray):
@@ -259,12 +272,13 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
         return _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
                        max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
                        background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss,
-                       polish)
+                       polish, coarse_scales, coarse_px)
 
 
 def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
             max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
-            background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss, polish):
+            background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss, polish,
+            coarse_scales=(2.0,), coarse_px=1.0):
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     body = resolve_body(features, body)
     Yfull = _log_of(image, polarity)
@@ -299,6 +313,41 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
 
     R, t = R0.copy(), t0.copy()
     history, iterations, message, J, prob = [], 0, "", None, None
+    last = {}                                       # the last forward differences: pose, value, J
+
+    def forward(R, t):
+        """Forward differences of the (unsmoothed) log image at (R, t); the last pose's are
+        kept (a scale's last, converged linearisation is the next scale's first, and the
+        polishing step's central differences reuse them)."""
+        key = (R.tobytes(), t.tobytes())
+        if last.get("key") != key:
+            L0 = model.log_image(R, t)
+            last.update(key=key, value=L0, J=model._differences(R, t, "log", central=central_steps, value=L0)[1])
+        return last["J"]
+
+    if isinstance(scales, str):
+        if scales != "auto":
+            raise ValueError("scales: 'auto' or a tuple of smoothing scales (px) ending at 0")
+        scales = (0.0,)
+        if coarse_scales:
+            # the coarse scales only where the start is far: where the first Gauss–Newton step
+            # at full resolution (no Huber) moves the features by more than coarse_px. Its
+            # linearisation is the first iteration's, whichever scale comes first: no extra render.
+            # From the feature path (~10–50 bound-σ, well under a pixel) the 1 px scale cost
+            # 2–3 iterations and, over anatomy, moved the pose into worse minima (RMS error /
+            # bound 3.0–6.0 with it, 2.6–4.9 without, same 30 images).
+            p0 = problem(0.0, False)
+            _, r0, g0, _, lp0 = p0.cost(R, t)
+            p0.set_weights(g0, r0)
+            _, r0, g0, _, lp0 = p0.cost(R, t)
+            J0 = p0.project_jacobian(p0.smooth(forward(R, t)).reshape(6, -1) * g0, lp0)
+            try:
+                d0 = np.linalg.solve(_dot(J0 * p0.w, J0), _dot(J0 * p0.w, r0))
+                far = not np.max(np.abs(d0) / steps) <= coarse_px
+            except np.linalg.LinAlgError:
+                far = True
+            if far:
+                scales = tuple(coarse_scales) + (0.0,)
     for scale in scales:
         # robust weights only at full resolution: at a coarse scale far from the pose the
         # largest residuals are the fiducial's own misaligned wires
@@ -321,15 +370,25 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                     J = Jt
                     break
             lam, moved, this_round = 1e-3, 0, []        # the objective's weights change between rounds
+            # a coarse scale only brings the pose into the fine scale's basin
+            rule = step_sigma if scale == 0 else max(step_sigma, 0.3)
             for _ in range(max_iterations):
                 iterations += 1
-                L0 = model.log_image(R, t)
-                _, J = model._differences(R, t, "log", central=central_steps, value=L0)
-                Jraw = prob.smooth(J).reshape(6, -1) * g
+                Jraw = prob.smooth(forward(R, t)).reshape(6, -1) * g
                 J = prob.project_jacobian(Jraw, lp)
                 H = _dot(J * prob.w, J)
                 grad = _dot(J * prob.w, r)
                 D = np.diag(H).copy()
+                s2 = max(cst / dof, 1e-300)
+                # converged when the Gauss–Newton step from here is below the rule: stop before
+                # rendering a trial (a rejected cascade costs up to 8 renders), and the polishing
+                # step below reuses this linearisation
+                try:
+                    dgn = np.linalg.solve(H, grad)
+                    if math.sqrt(max(float(dgn @ H @ dgn), 0.0) / s2) < rule:
+                        break
+                except np.linalg.LinAlgError:
+                    pass
                 accepted = False
                 for _ in range(8):
                     try:
@@ -351,10 +410,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                 if not accepted:
                     message = f"no decrease at scale {scale:g} px"
                     break
-                s2 = max(cst / dof, 1e-300)
-                # a coarse scale only brings the pose into the fine scale's basin
-                if (math.sqrt(max(float(dx @ H @ dx), 0.0) / s2) < (step_sigma if scale == 0 else max(step_sigma, 0.3))
-                        or np.max(np.abs(dx) / steps) < tolerance or history_drop(this_round) < ftol * cst):
+                if np.max(np.abs(dx) / steps) < tolerance or history_drop(this_round) < ftol * cst:
                     break
             if not moved and _round > 0:
                 break                               # reweighting moved nothing: converged
@@ -363,7 +419,11 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
         # (0.1–0.23 σ RMS from it on ftrac_2005: intensity_depth_check.py stopping): one
         # Gauss–Newton step on central differences, kept if it lowers the objective
         iterations += 1
-        _, Jc = model._differences(R, t, "log", central=True, value=model.log_image(R, t))
+        L0 = model.log_image(R, t)
+        if last.get("key") == (R.tobytes(), t.tobytes()):
+            Jc = model.central_from_forward(R, t, L0, last["J"])     # six renders, not twelve
+        else:
+            Jc = model._differences(R, t, "log", central=True, value=L0)[1]
         J = prob.project_jacobian(prob.smooth(Jc).reshape(6, -1) * g, lp)
         H = _dot(J * prob.w, J)
         try:
@@ -410,9 +470,9 @@ def refine_track_result(image: np.ndarray, features: Features, camera: Camera, r
                         body: Body | None | str = AUTO, **options):
     """``ftrac-design track --refine intensity``: refine a converged
     :class:`ftrac_design.segment.pipeline.TrackResult` on ``image`` (as stored) and return a
-    copy whose pose is the refined one, with the covariance from the pixel information
-    (scaled by the fitted χ²/dof when that exceeds 1: a real image's dose and blur are not
-    known exactly). A result that did not converge is returned unchanged. ``options`` go to
+    copy whose pose is the refined one (``scales="auto"`` with a 1 px coarse scale), with the
+    covariance from the pixel information (scaled by the fitted χ²/dof when that exceeds 1: a
+    real image's dose and blur are not known exactly). A result that did not converge is returned unchanged. ``options`` go to
     :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
     from dataclasses import replace
 
@@ -422,7 +482,7 @@ def refine_track_result(image: np.ndarray, features: Features, camera: Camera, r
     polarity = "dense_dark" if "dark" in str(getattr(result, "polarity", "")) else "dense_bright"
     imaging = imaging or ImagingModel(image_shape=tuple(np.asarray(image).shape))
     res = refine_intensity(features, image, camera, pose.rotation, pose.translation_mm, imaging, body=body,
-                           polarity=polarity, **{"scales": (1.0, 0.0), **options})
+                           polarity=polarity, **{"coarse_scales": (1.0,), **options})
     cov = res.covariance
     dof = max(res.roi[2] * res.roi[3] - 6 - res.n_nuisance, 1)
     chi2 = res.cost_end / dof
