@@ -8,6 +8,7 @@ import pytest
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
+from ftrac_design.xray import Body
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
@@ -32,3 +33,9 @@ def design_2005():
 @pytest.fixture(scope="session")
 def features_2005(design_2005):
     return compute_features(design_2005)
+
+
+@pytest.fixture(scope="session")
+def f2005(features_2005, design_2005):
+    """ftrac_2005's features and its acetal body, as the radiograph simulator takes them."""
+    return features_2005, Body.from_design(design_2005)

@@ -5,8 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftrac_design.design import load_design
-from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.fitting import conic_matrix
 from ftrac_design.pose.simulate import Workspace
@@ -14,15 +12,7 @@ from ftrac_design.segment.beads import fit_beads, sphere_profile
 from ftrac_design.segment.image import detect_polarity, noise_sigma, to_density, top_hat
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.segment.ridges import ridge_points
-from ftrac_design.xray import Body, render
-
-ROOT = __import__("pathlib").Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def f2005():
-    d = load_design(ROOT / "models" / "ftrac_2005.toml")
-    return compute_features(d), Body.from_design(d)
+from ftrac_design.xray import render
 
 
 @pytest.fixture(scope="module")

@@ -6,28 +6,17 @@ searched again on the whole image."""
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from ftrac_design.design import load_design
-from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera, Pose
 from ftrac_design.pose.observation import Observation
 from ftrac_design.pose.problem import compile_problem, evaluate
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment import pipeline
 from ftrac_design.segment.pipeline import TrackOptions, TrackResult, track_image
-from ftrac_design.xray import Body, render
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture(scope="module")
-def f2005():
-    d = load_design(ROOT / "models" / "ftrac_2005.toml")
-    return compute_features(d), Body.from_design(d)
+from ftrac_design.xray import render
 
 
 @pytest.fixture(scope="module")
