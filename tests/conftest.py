@@ -4,10 +4,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
+from ftrac_design.pose.simulate import Workspace
 from ftrac_design.xray import Body
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -39,3 +41,10 @@ def features_2005(design_2005):
 def f2005(features_2005, design_2005):
     """ftrac_2005's features and its acetal body, as the radiograph simulator takes them."""
     return features_2005, Body.from_design(design_2005)
+
+
+@pytest.fixture(scope="session")
+def pose_2005(features_2005):
+    """One workspace pose (R, t) of ftrac_2005 (sample seed 4), camera frame X, mm."""
+    R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(4))
+    return R[0], t[0]

@@ -10,17 +10,10 @@ import pytest
 from ftrac_design.features.model import Features, PointFeature
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
-from ftrac_design.pose.simulate import Workspace
 from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.xray import Body, ImagingModel, render
 
 BODY = Body(30.0, 50.0, 20.0)
-
-
-@pytest.fixture(scope="module")
-def pose_2005(features_2005):
-    R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(4))
-    return R[0], t[0]
 
 
 def test_bead_jacobian_matches_the_closed_form():

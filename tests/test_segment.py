@@ -135,7 +135,7 @@ def test_same_input_same_result(rendered):
 def test_fast_selections_equal_numpy():
     """The noise MAD's binned median and the polarity's block-maxima k-th largest are
     shortcuts: they must give numpy's numbers exactly (ties, zeros, skew, tiny arrays)."""
-    from ftrac_design.segment.identify import _rodrigues
+    from ftrac_design.pose import so3
     from ftrac_design.segment.image import _kth_largest, _median
 
     rng = np.random.default_rng(5)
@@ -155,4 +155,4 @@ def test_fast_selections_equal_numpy():
     r = rng.normal(size=(50, 3))
     r[0] = 0
     import cv2
-    assert np.allclose(_rodrigues(r), np.array([cv2.Rodrigues(x)[0] for x in r]), atol=1e-14)
+    assert np.allclose(so3.exp(r), np.array([cv2.Rodrigues(x)[0] for x in r]), atol=1e-14)

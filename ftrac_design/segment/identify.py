@@ -28,7 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from ..features.model import Features
-from ..pose import Camera
+from ..pose import Camera, so3
 from .ridges import RidgePoints
 
 
@@ -52,19 +52,6 @@ def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tup
         uv = np.stack([camera.fx * X[..., 0] / Z + camera.principal_point_px[0],
                        camera.fy * X[..., 1] / Z + camera.principal_point_px[1]], -1)
     return uv, Z
-
-
-def _rodrigues(r: np.ndarray) -> np.ndarray:
-    """Rotation matrices (n, 3, 3) of rotation vectors ``r`` (n, 3), radians: what
-    ``cv2.Rodrigues`` gives, for all at once (one call per P3P solution cost more than the
-    solutions' projections)."""
-    th = np.linalg.norm(r, axis=1)
-    k = r / np.where(th > 1e-300, th, 1.0)[:, None]
-    c, s = np.cos(th)[:, None, None], np.sin(th)[:, None, None]
-    Kx = np.zeros((len(r), 3, 3))
-    Kx[:, 0, 1], Kx[:, 0, 2], Kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    Kx[:, 1, 0], Kx[:, 2, 0], Kx[:, 2, 1] = k[:, 2], -k[:, 1], k[:, 0]
-    return c * np.eye(3) + (1 - c) * k[:, :, None] * k[:, None, :] + s * Kx
 
 
 def _image_triplets(uv: np.ndarray, limit: int) -> list[tuple[int, int, int]]:
@@ -132,7 +119,9 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
             ts += tvecs[:nsol]
         if not rs:
             continue
-        R = _rodrigues(np.asarray(rs, float).reshape(-1, 3))
+        # all P3P solutions' rotations at once (one cv2.Rodrigues per solution cost more
+        # than the solutions' projections)
+        R = so3.exp(np.asarray(rs, float).reshape(-1, 3))
         t = np.asarray(ts, float).reshape(-1, 3)
         proj, Z = _project(camera, R, t, model)
         front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
