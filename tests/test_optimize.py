@@ -245,7 +245,8 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
                      "[search]\npopsize = 6\n")
     out = tmp_path / "opt"
     rc = main(["optimize", str(MINI), "--space", str(space), "--evaluations", "12", "--workers", "0",
-               "--poses", "200", "--verify-poses", "500", "--solver-images", "20", "-o", str(out)])
+               "--poses", "200", "--verify-poses", "500", "--solver-images", "20", "--check-images", "3",
+               "-o", str(out)])
     assert rc == 0, capsys.readouterr().err
     for name in ("best.toml", "summary.json", "comparison.txt", "pareto.json", "pareto.csv", "pareto.png",
                  "convergence.png", "evaluations.jsonl", "build/fiducial.step", "build/manifest.json"):
@@ -254,6 +255,12 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
     assert main(["check", str(out / "best.toml")]) == 0
     doc = json.loads((out / "summary.json").read_text())
     assert doc["best"]["verification"]["solver"]["solved"] == 20
+    # the rendered-image check: same poses and noise draws for both, errors of the right poses
+    imgs = doc["best"]["verification"]["images"]
+    assert imgs["images"] == 3 and imgs["pose_seed"] == doc["start"]["verification"]["images"]["pose_seed"]
+    assert imgs["right"] + imgs["wrong"] == imgs["converged"] <= 3
+    assert imgs["right"] == 0 or 0 < imgs["translation_median_mm"] <= imgs["translation_p95_mm"] < 5.0
+    assert "rendered images, 3 tracked" in capsys.readouterr().out
     best = doc["best"]["verification"]["predicted"]["translation_p95_mm"]
     start = doc["start"]["verification"]["predicted"]["translation_p95_mm"]
     assert best <= start * 1.01  # on fresh poses the winner is no worse than the start
@@ -275,3 +282,16 @@ def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_f
     data = sp.candidate(sp.start_unit())
     assert [ln["beads_z"] for ln in data["lines"]] == \
         [pytest.approx(ln["beads_z"], abs=1e-9) for ln in base["lines"]]
+
+
+def test_image_check_is_reproducible_and_finds_the_pose(f2005):
+    from ftrac_design.optimize.imagecheck import image_check
+
+    data = tomllib.loads((Path(__file__).resolve().parents[1] / "models" / "ftrac_2005.toml").read_text())
+    s = AnalysisSettings()
+    a = image_check(data, s, 2, seed=7)
+    assert a == image_check(data, s, 2, seed=7)
+    assert a["converged"] == a["right"] == 2 and a["wrong"] == 0
+    # ftrac_2005 tracked from clean images: well under a millimetre and a tenth of a degree
+    assert 0 < a["translation_median_mm"] <= a["translation_p95_mm"] < 1.0
+    assert 0 < a["rotation_p95_deg"] < 0.2

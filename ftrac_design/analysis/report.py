@@ -78,6 +78,8 @@ def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, 
     if "roll_range_deg" in vals:
         ws = replace(ws, roll_deg=tuple(float(v) for v in vals["roll_range_deg"]))
     s = replace(s, workspace=ws, **{k: vals[k2] for k, k2 in (("segmentation_error_mm", "segmentation_error"),
+                                                              ("bead_error_factor", "bead_error_factor"),
+                                                              ("wire_error_factor", "wire_error_factor"),
                                                               ("poses", "poses"), ("seed", "seed")) if k2 in vals})
     th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),
                                                  ("max_rotation_deg", "max_rotation_deg"),
@@ -190,7 +192,9 @@ def format_summary(doc: dict) -> str:
     f = doc["figures"]
     s = doc["settings"]
     echo(f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
-         f"segmentation error {s['segmentation_error_mm']:g} mm (predicted 1σ, 3-D RMS)")
+         f"segmentation error {s['segmentation_error_mm']:g} mm"
+         + "".join(f", {k} ×{s[k + '_error_factor']:.3g}" for k in ("bead", "wire") if k + "_error_factor" in s)
+         + " (predicted 1σ, 3-D RMS)")
     tz = f["translation_p95_per_axis_mm"][2]
     echo(f"  translation  p95 {_fmt(f['translation_mm']['p95'])} mm  worst {_fmt(f['translation_mm']['worst'])} mm"
          f"  (depth p95 {_fmt(tz)} mm)")

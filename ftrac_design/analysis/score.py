@@ -21,7 +21,7 @@ segmentation error, and a condition number of 1000 (well-placed features give ~5
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -59,6 +59,9 @@ class AnalysisSettings:
 
     workspace: Workspace = field(default_factory=Workspace)
     segmentation_error_mm: float = 0.25
+    #: bead centres' and wire contours' error as multiples of ``segmentation_error_mm``
+    bead_error_factor: float = 1.0
+    wire_error_factor: float = 1.0
     poses: int = DEFAULT_POSES
     seed: int = 0
     camera: Camera = field(default_factory=Camera)
@@ -68,15 +71,40 @@ class AnalysisSettings:
 
     @property
     def noise(self) -> NoiseModel:
-        """The paper's uniform segmentation error as per-axis σ on every feature."""
-        return NoiseModel.from_segmentation_error(self.segmentation_error_mm)
+        """The paper's uniform segmentation error as per-axis σ: beads ×``bead_error_factor``,
+        line and ellipse contours ×``wire_error_factor``."""
+        return NoiseModel.from_segmentation_error(self.segmentation_error_mm).scaled(self.bead_error_factor,
+                                                                                     self.wire_error_factor)
+
+    def for_parts(self, spec) -> "AnalysisSettings":
+        """These settings with the (bead, wire) error factors of a design's [analysis] table
+        ``spec`` — the errors its own parts are read with (:mod:`ftrac_design.xray.localization`);
+        unchanged for None (a features file)."""
+        if spec is None:
+            return self
+        return replace(self, bead_error_factor=float(spec.bead_error_factor),
+                       wire_error_factor=float(spec.wire_error_factor))
+
+    @property
+    def noise_text(self) -> str:
+        """'segmentation error 0.25 mm' and, where not 1, the parts' factors."""
+        parts = [f"{k} ×{v:.3g}" for k, v in zip(("beads", "wires"), self.error_factors) if v != 1.0]
+        return f"segmentation error {self.segmentation_error_mm:g} mm" + (f" ({', '.join(parts)})" if parts else "")
+
+    @property
+    def error_factors(self) -> tuple[float, float]:
+        """(bead, wire) multiples of the segmentation error."""
+        return self.bead_error_factor, self.wire_error_factor
 
     def to_dict(self) -> dict:
         """Plain values for analysis.json."""
         ws = self.workspace
         return {"cone_deg": ws.cone_deg, "depth_mm": ws.depth_mm, "depth_range_mm": ws.depth_range_mm,
                 "lateral_mm": ws.lateral_mm, "roll_deg": list(ws.roll_deg),
-                "segmentation_error_mm": self.segmentation_error_mm, "poses": self.poses, "seed": self.seed,
+                "segmentation_error_mm": self.segmentation_error_mm,
+                **({"bead_error_factor": self.bead_error_factor, "wire_error_factor": self.wire_error_factor}
+                   if self.error_factors != (1.0, 1.0) else {}),
+                "poses": self.poses, "seed": self.seed,
                 "camera": self.camera.to_dict(), "contour_samples": asdict(self.contour)}
 
 

@@ -39,7 +39,7 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     with tqdm(total=base.poses * len(subjects), unit="pose", desc="scoring", leave=False, disable=None) as bar:
         for sub in subjects:
             _, th = settings_for(sub, **common)
-            scores.append(score_design(sub.features, base, th, progress=bar.update))
+            scores.append(score_design(sub.features, base.for_parts(sub.spec), th, progress=bar.update))
     rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "overlap",
              "clear p5 px", "verdict")]
     table = []
@@ -62,7 +62,9 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     ws = base.workspace
     click.echo(f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
-               f"{ws.depth_range_mm:g} mm, segmentation error {base.segmentation_error_mm:g} mm (predicted 1σ, 3-D RMS)")
+               f"{ws.depth_range_mm:g} mm, {base.noise_text} (predicted 1σ, 3-D RMS)"
+               + "".join(f"; {s.name}: beads ×{s.settings.bead_error_factor:.3g}, wires ×{s.settings.wire_error_factor:.3g}"
+                         for s in scores if s.settings.error_factors != (1.0, 1.0)))
     for r in rows:
         click.echo("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))
     out = Path(output) if output is not None else Path("outputs") / "compare.png"

@@ -41,6 +41,9 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
               help="fresh poses that re-score start and best [default: 20000]")
 @click.option("--solver-images", type=click.IntRange(min=0), default=None,
               help="simulated images solved for start and best (0 = skip) [default: 1000]")
+@click.option("--check-images", type=click.IntRange(min=0), default=None,
+              help="rendered radiographs of start and best tracked with no initial guess, the winner's "
+                   "check beyond the noise model (0 = skip) [default: 200]")
 @click.option("--min-clearance-px", type=float, default=None,
               help="segmentability constraint: 5th percentile of the smallest image clearance between "
                    "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]")
@@ -53,7 +56,7 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
 def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
             scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
-            verify_poses: int | None, solver_images: int | None, min_clearance_px: float | None, min_ellipse_view_deg: float | None,
+            verify_poses: int | None, solver_images: int | None, check_images: int | None, min_clearance_px: float | None, min_ellipse_view_deg: float | None,
             no_build: bool,
             print_space: bool) -> int:
     """Optimise DESIGN.toml's layout under the design rules.
@@ -61,7 +64,8 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
     Every candidate is checked against the rules of the profile(s) first (graded margins);
     feasible ones are scored by their predicted p95 translation and rotation errors over a
     fixed, seeded sample of workspace poses. The winner is re-scored on fresh poses,
-    checked by solving simulated images, written as best.toml and built. The same seed
+    checked by solving simulated feature observations and by tracking rendered
+    radiographs, written as best.toml and built. The same seed
     gives the same result with any number of workers; an interrupted run continues with
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
@@ -82,7 +86,7 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
         doc = optimize(design, out, space, objective, evaluations, seed, profiles, scheduler, workers,
                        resume=resume, poses=poses, verify_poses=verify_poses, solver_images=solver_images,
                        build=not no_build, command_line=cmd, min_clearance_px=min_clearance_px,
-                       min_ellipse_view_deg=min_ellipse_view_deg)
+                       min_ellipse_view_deg=min_ellipse_view_deg, check_images=check_images)
     except KeyboardInterrupt:
         click.echo(f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
                    "run the same command with --resume to continue", err=True)

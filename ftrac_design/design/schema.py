@@ -310,6 +310,10 @@ class Analysis(_Strict):
     roll_range_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
         default_factory=lambda: [0.0, 360.0], description="roll about the beam, [from, to] degrees")
     segmentation_error: Pos = Field(default=0.25, description="mm at the detector")
+    # a part's image localises better or worse than another size's (ftrac_design.xray.localization):
+    # the optimiser writes these when it changes stock sizes, so `analyze` scores the design it wrote
+    bead_error_factor: Pos = Field(default=1.0, description="bead centres' segmentation error / segmentation_error")
+    wire_error_factor: Pos = Field(default=1.0, description="wire contours' segmentation error / segmentation_error")
     poses: Annotated[int, Field(ge=100, le=10_000_000)] = 20_000
     max_translation: Pos = Field(default=1.0, description="worst predicted translation error, mm")
     max_rotation_deg: Pos = 0.5

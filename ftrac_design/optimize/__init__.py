@@ -34,7 +34,7 @@ def demo_step(out_dir: Path) -> str:
     space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [28.0, 36.0]\n"ellipses.E2.tilt_deg" = [28.0, 36.0]\n'
                      "[search]\nsigma0 = 0.3\npopsize = 6\n", encoding="utf-8")
     doc = _optimize(models / "ftrac_mini.toml", out_dir / "optimize", space, evaluations=12, seed=0, poses=300,
-                    verify_poses=2000, solver_images=0, build=False, progress=False, workers=0,
+                    verify_poses=2000, solver_images=0, check_images=0, build=False, progress=False, workers=0,
                     command_line="demo_step")
     s, b = doc["start"]["verification"]["predicted"], doc["best"]["verification"]["predicted"]
     p = doc["best"]["parameters"]

@@ -27,7 +27,9 @@ process pool, a Dask cluster) can run it and the result does not depend on where
   ``segmentability:clearance_p5`` like the rules', normalised by max(|limit|, 1 px).
 - **Score** (only when no rule fails): predicted 1σ errors (Cramér–Rao, the analysis's
   engine) over a fixed, seeded workspace sample — common random numbers: every candidate
-  is scored on the same poses, which each worker draws once and keeps.
+  is scored on the same poses, which each worker draws once and keeps — with the
+  candidate's own bead and wire error factors (``[analysis]``; set by the search space when
+  it changes stock sizes, :func:`ftrac_design.optimize.space.apply_values`).
 """
 
 from __future__ import annotations
@@ -100,11 +102,16 @@ def rule_margins(report) -> tuple[dict[str, float], float]:
     return margins, violation
 
 
-@functools.lru_cache(maxsize=8)
 def _sample(settings: AnalysisSettings, nominal_beam: tuple[float, float, float]):
+    return _poses(settings.workspace, settings.poses, settings.seed, nominal_beam)
+
+
+@functools.lru_cache(maxsize=8)
+def _poses(workspace, poses: int, seed: int, nominal_beam: tuple[float, float, float]):
+    # keyed by the sample alone: candidates with other stock sizes (error factors) share it
     from ..analysis.sampling import workspace_poses
 
-    return workspace_poses(settings.workspace, np.asarray(nominal_beam), settings.poses, settings.seed)
+    return workspace_poses(workspace, np.asarray(nominal_beam), poses, seed)
 
 
 def score_figures(features, settings: AnalysisSettings) -> dict[str, float] | None:
@@ -173,7 +180,8 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
         if p5 < lim:
             out["violation"] += -m + 1e-6
     if out["violation"] == 0.0:
-        figures = score_figures(features, settings.analysis)
+        # the candidate's own parts: stock sizes other than the start's carry their error factors
+        figures = score_figures(features, settings.analysis.for_parts(design.analysis))
         if figures is None:
             out.update(refused="singular somewhere in the workspace", violation=SINGULAR_VIOLATION)
         else:

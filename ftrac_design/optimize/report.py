@@ -110,13 +110,16 @@ def verify(data: dict, settings: AnalysisSettings, poses: int, images: int, seed
     from ..pose.simulate import pose_errors, simulate_observation
     from .evaluate import score_figures
 
-    f = compute_features(parse_design(data))
+    design = parse_design(data)
+    settings = settings.for_parts(design.analysis)       # its own parts' segmentation errors
+    f = compute_features(design)
     fresh = score_figures(f, replace(settings, poses=poses, seed=seed))
     out = {"poses": poses, "pose_seed": seed, "predicted": fresh}
     if images:
         R, t = workspace_poses(settings.workspace, f.nominal_beam_direction, images, seed + 1)
         rng = np.random.default_rng(seed + 2)
-        obs = [simulate_observation(f, settings.camera, R[i], t[i], settings.segmentation_error_mm, rng)
+        obs = [simulate_observation(f, settings.camera, R[i], t[i], settings.segmentation_error_mm, rng,
+                                    error_factors=settings.error_factors)
                for i in range(images)]
         sol = solve_batch(f, obs, SolverOptions(noise=settings.noise))
         ok = np.array([p.converged for p in sol])
@@ -174,10 +177,12 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
     for k, d in designs.items():
         a = d.analysis
         th = Thresholds(a.max_translation, a.max_rotation_deg, a.max_condition)
-        scores[k] = score_design(feats[k], s, th)
+        scores[k] = score_design(feats[k], s.for_parts(d.analysis), th)
     ws = s.workspace
     lines = [f"{s.poses} fresh poses within {ws.cone_deg:g}° of the nominal beam, depth {ws.depth_mm:g} ± "
-             f"{ws.depth_range_mm:g} mm, segmentation error {s.segmentation_error_mm:g} mm (predicted 1σ, 3-D RMS)",
+             f"{ws.depth_range_mm:g} mm, {s.noise_text} (predicted 1σ, 3-D RMS; each design's own parts' factors: "
+             f"start {s.for_parts(designs['start'].analysis).error_factors}, best "
+             f"{s.for_parts(designs['best'].analysis).error_factors})",
              _score_rows([(f"{k}: {designs[k].name}", scores[k]) for k in designs]), ""]
     doc: dict = {"score": {k: v.figures for k, v in scores.items()}, "rules": {}, "atlas": {}}
     for prof in profiles:
@@ -196,7 +201,7 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
     lines.append(f"atlas (whole sphere, {atlas_step_deg:g}° grid; fiducial at the isocentre)")
     rows = [("design", "cond median", "cond worst", "cond worst in cone", "t worst mm", "r worst °", "worst direction")]
     for k, f in feats.items():
-        at = blind_spot_atlas(f, s, step_deg=atlas_step_deg, n_worst=1).to_dict()
+        at = blind_spot_atlas(f, s.for_parts(designs[k].analysis), step_deg=atlas_step_deg, n_worst=1).to_dict()
         doc["atlas"][k] = at
         w = at["worst_directions"][0] if at["worst_directions"] else {}
 
@@ -304,8 +309,10 @@ def _front_table(res: SearchResult) -> tuple[list[dict], str]:
 
 
 def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: str, verify_poses: int,
-                  solver_images: int, build: bool, profile: str) -> dict:
-    """Write every output of a finished search into ``tmp`` (the caller renames it)."""
+                  solver_images: int, build: bool, profile: str, check_images: int = 0,
+                  progress: bool = False) -> dict:
+    """Write every output of a finished search into ``tmp`` (the caller renames it);
+    ``check_images`` rendered radiographs of start and best are tracked (:mod:`.imagecheck`)."""
     from ..design.loader import parse_design
 
     seed = res.config.seed
@@ -327,6 +334,10 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
                  "start": {"figures": res.start["figures"], "margins": res.start["margins"]}}
     settings = res.settings.analysis
     doc["start"]["verification"] = verify(start_data, settings, verify_poses, solver_images, vseed)
+    if check_images:
+        from .imagecheck import image_check
+
+        doc["start"]["verification"]["images"] = image_check(start_data, settings, check_images, vseed + 3, progress)
     if best_data is not None:
         header = (f"{best_data['name']}: found by `{command_line}`\n"
                   f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
@@ -340,6 +351,8 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
         written = tomllib.loads(text)
         parse_design(written, tmp / "best.toml")  # build accepts what we wrote
         v = verify(written, settings, verify_poses, solver_images, vseed)
+        if check_images:
+            v["images"] = image_check(written, settings, check_images, vseed + 3, progress)
         doc["best"] = {"index": res.best["index"], "generation": res.best["generation"],
                        "parameters": res.best["parameters"], "design_sha256": res.best["design_sha256"],
                        "figures": res.best["figures"], "objectives": res.best["objectives"],
@@ -353,6 +366,13 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
             doc["best"]["change_by_solver"] = {
                 "translation_rms": m1["translation_rms_mm"] / m0["translation_rms_mm"] - 1,
                 "rotation_rms": m1["rotation_rms_deg"] / m0["rotation_rms_deg"] - 1}
+        if check_images:
+            i0, i1 = doc["start"]["verification"]["images"], v["images"]
+            change = {}
+            for key in ("translation_p95_mm", "rotation_p95_deg", "translation_median_mm", "rotation_median_deg"):
+                a, b = i0[key], i1[key]
+                change[key.rsplit("_", 1)[0]] = b / a - 1 if a and b is not None else None
+            doc["best"]["change_on_images"] = change
         text_cmp, cmp_doc = comparison(start_data, written, settings, res.settings.profiles, verify_poses, vseed)
         write_text_atomic(tmp / "comparison.txt", text_cmp)
         doc["comparison"] = cmp_doc
@@ -400,6 +420,18 @@ def format_summary(doc: dict) -> str:
                    f"bound at the same poses {m0['predicted_translation_rms_mm']:.4f} -> "
                    f"{m1['predicted_translation_rms_mm']:.4f} mm, {m0['predicted_rotation_rms_deg']:.4f} -> "
                    f"{m1['predicted_rotation_rms_deg']:.4f}°")
+    if "images" in s1:
+        i0, i1 = s0["images"], s1["images"]
+
+        def g(v, fmt):
+            return "-" if v is None else fmt.format(v)
+
+        out.append(f"rendered images, {i1['images']} tracked with no initial guess (right / wrong: start "
+                   f"{i0['right']} / {i0['wrong']}, best {i1['right']} / {i1['wrong']}): p95 translation "
+                   f"{g(i0['translation_p95_mm'], '{:.3f}')} -> {g(i1['translation_p95_mm'], '{:.3f}')} mm, rotation "
+                   f"{g(i0['rotation_p95_deg'], '{:.3f}')} -> {g(i1['rotation_p95_deg'], '{:.3f}')}°; median "
+                   f"{g(i0['translation_median_mm'], '{:.3f}')} -> {g(i1['translation_median_mm'], '{:.3f}')} mm, "
+                   f"{g(i0['rotation_median_deg'], '{:.3f}')} -> {g(i1['rotation_median_deg'], '{:.3f}')}°")
     return "\n".join(out)
 
 

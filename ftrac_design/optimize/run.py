@@ -29,6 +29,8 @@ from .space import SearchSpace, default_space, load_space
 SEARCH_POSES = 2000
 VERIFY_POSES = 20_000
 SOLVER_IMAGES = 1000
+#: rendered radiographs of start and winner tracked end to end (:mod:`.imagecheck`)
+CHECK_IMAGES = 200
 
 
 def read_design(path: str | Path) -> tuple[dict, object]:
@@ -91,7 +93,7 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
              solver_images: int | None = None, build: bool = True, progress: bool = True,
              command_line: str | None = None, stop_after: int | None = None, sigma0: float | None = None,
              popsize: int | None = None, min_clearance_px: float | None = None,
-             min_ellipse_view_deg: float | None = None) -> dict:
+             min_ellipse_view_deg: float | None = None, check_images: int | None = None) -> dict:
     """Run a search and write its outputs into ``out_dir`` (see :mod:`.report`); returns
     ``summary.json``'s content. ``executor`` (any ``concurrent.futures``-style one) wins
     over ``scheduler`` / ``workers`` (see :mod:`.execution`). Raises
@@ -126,7 +128,9 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     with atomic_directory(out_dir) as tmp:
         doc = write_outputs(res, tmp, log, command_line,
                             verify_poses or space.search.get("verify_poses", VERIFY_POSES),
-                            SOLVER_IMAGES if solver_images is None else solver_images, build, profiles[0])
+                            SOLVER_IMAGES if solver_images is None else solver_images, build, profiles[0],
+                            space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
+                            progress)
     shutil.rmtree(work, ignore_errors=True)
     if doc.get("best") is None:
         raise GoalError(f"no feasible candidate in {len(res.entries)} evaluations; outputs in {out_dir}")

@@ -294,7 +294,7 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
             from .evaluate import score_figures
 
             d = parse_design(space.base)
-            fig = score_figures(compute_features(d), settings.analysis)
+            fig = score_figures(compute_features(d), settings.analysis.for_parts(d.analysis))
             if fig is None:
                 raise InputError(space.base.get("name"), None, "a start design that is not singular in its workspace")
             fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))

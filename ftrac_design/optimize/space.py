@@ -20,6 +20,14 @@ so the mount keeps the start design's clearance above the template's top edge
 the mount's hole pattern steps up.
 | ``wire.diameter`` / ``bead.diameter`` | ``{choices = [...]}``: stock sizes (seating keeps the start's cover) |
 
+A stock size other than the start's is read from the image with another precision: a
+smaller ball's shadow has less contrast and less edge. The candidate's ``[analysis]``
+``bead_error_factor`` / ``wire_error_factor`` are set to the start's times the ratio of the
+pixel-level Cramér–Rao σ of the new size to the start's
+(:func:`ftrac_design.xray.localization.size_error_factors`, at the design's nominal depth,
+default camera and imaging), so a smaller part is charged for its noisier image and not
+only credited with the room it frees; ``analyze`` of the written design uses the same.
+
 Bead positions are *ordered fractions* so that the schema rarely refuses a candidate: the
 n beads of a line sit at ``z_i = z_start + i·g + s_i·(z_end − z_start − (n−1)·g)`` with g
 one bead diameter (plus 1 µm) and ``s`` sorted, so beads never swap or overlap and stay on
@@ -41,6 +49,7 @@ A space file (``--space SPACE.toml``) is::
     popsize = 12                               # CMA-ES λ / NSGA-II population
     verify_poses = 20000                       # fresh poses that re-score the winner
     solver_images = 1000                       # Monte-Carlo images solved for start and winner
+    check_images = 200                         # rendered radiographs of both tracked end to end
 
 Without ``--space`` :func:`default_space` varies the layout within the body's envelope
 (see there); ``ftrac-design optimize DESIGN --print-space`` prints it as a file to edit.
@@ -50,6 +59,7 @@ Bad spaces raise :class:`~ftrac_design.errors.InputError` naming the file and th
 from __future__ import annotations
 
 import copy
+import functools
 import hashlib
 import json
 import math
@@ -62,7 +72,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
-from ..design.schema import Design
+from ..design.schema import Analysis, Design
 from ..errors import InputError
 
 #: axial keys that body.scale multiplies
@@ -73,7 +83,8 @@ _BODY_KEYS = ("outer_diameter", "length", "bore_diameter", "scale")
 _STOCK_KEYS = ("wire.diameter", "bead.diameter")
 #: extra spacing between neighbouring beads beyond one diameter (the schema wants "more than")
 BEAD_GAP_MM = 1e-3
-SEARCH_KEYS = {"poses": int, "sigma0": float, "popsize": int, "verify_poses": int, "solver_images": int}
+SEARCH_KEYS = {"poses": int, "sigma0": float, "popsize": int, "verify_poses": int, "solver_images": int,
+               "check_images": int}
 KNOWN = ("ellipses.<id>.tilt_deg|tilt_azimuth_deg|z_center, lines.<id>.azimuth_deg|z_start|z_end|beads, "
          "body.outer_diameter|length|bore_diameter|scale, wire.diameter, bead.diameter")
 
@@ -216,6 +227,8 @@ def apply_values(base: dict, values: dict[str, float]) -> dict:
             for depth_key, owner in (("ellipse_wire_depth", "wire"), ("line_wire_depth", "bead")):
                 if owner == part and depth_key in base.get("seating", {}):
                     seat[depth_key] = float(base["seating"][depth_key]) + (values[key] - old) / 2
+    if any(k in values for k in _STOCK_KEYS):
+        _set_error_factors(base, data)
     fracs: dict[str, dict[int, float]] = {}
     for key, v in values.items():
         parts = key.split(".")
@@ -244,6 +257,31 @@ def apply_values(base: dict, values: dict[str, float]) -> dict:
             line["beads_z"] = place_beads(float(line["z_start"]), float(line["z_end"]), g["n"], g["pin_a"],
                                           g["pin_b"], f, bead_d)
     return data
+
+
+@functools.lru_cache(maxsize=64)
+def _factors(bead: float | None, wire: float | None, ref_bead: float | None, ref_wire: float | None,
+             depth: float) -> tuple[float, float]:
+    from ..xray.localization import size_error_factors
+
+    return size_error_factors(bead, wire, ref_bead, ref_wire, depth)
+
+
+def _set_error_factors(base: dict, data: dict) -> None:
+    """Write into ``data``'s [analysis] the start's error factors times the pixel-bound ratio of
+    its stock sizes to the start's (see the module doc)."""
+    def size(d: dict, part: str) -> float | None:
+        v = d.get(part, {}).get("diameter")
+        return float(v) if v is not None else None
+
+    a0 = base.get("analysis", {})
+    depth = float(a0.get("depth", Analysis().depth))
+    kb, kw = _factors(size(data, "bead"), size(data, "wire"), size(base, "bead"), size(base, "wire"), depth)
+    a = data.setdefault("analysis", {})
+    for key, k in (("bead_error_factor", kb), ("wire_error_factor", kw)):
+        a[key] = float(a0.get(key, 1.0)) * k
+        if a[key] == 1.0 and key not in a0:
+            del a[key]
 
 
 def _mount_width(data: dict) -> float | None:

@@ -64,6 +64,10 @@ class NoiseModel:
         s = max(e_mm, 1e-6) / 6 ** 0.5
         return cls(s, s, s)
 
+    def scaled(self, bead: float = 1.0, wire: float = 1.0) -> "NoiseModel":
+        """Beads' σ times ``bead``, line and ellipse contours' times ``wire``."""
+        return NoiseModel(self.point_mm * bead, self.line_mm * wire, self.ellipse_mm * wire)
+
 
 @dataclass
 class Problem:

@@ -139,15 +139,18 @@ def segmentation_noise(shape: tuple[int, ...], e_mm: float, pixel_mm, rng: np.ra
 def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                          segmentation_error_mm: float = 0.0, rng: np.random.Generator | None = None,
                          contour: ContourSampling = ContourSampling(), include: set[str] | None = None,
-                         solve_camera: Camera | None = None, as_coefficients: bool = False) -> Observation:
+                         solve_camera: Camera | None = None, as_coefficients: bool = False,
+                         error_factors: tuple[float, float] = (1.0, 1.0)) -> Observation:
     """One synthetic image of ``features`` at pose (R, t) (F → X, mm).
 
-    ``include`` limits the observed feature ids; ``solve_camera`` is the (miscalibrated)
+    ``segmentation_error_mm``: the paper's uniform error magnitude at the detector, times
+    ``error_factors`` (bead, wire) for beads and for contour points. ``include`` limits the observed feature ids; ``solve_camera`` is the (miscalibrated)
     camera written into the observation; ``as_coefficients`` reports curves as fitted
     coefficients from the exact projection instead of contour points.
     """
     rng = rng or np.random.default_rng()
     e = segmentation_error_mm
+    eb, ew = e * error_factors[0], e * error_factors[1]
     px = camera.pixel_size_mm
     keep = (lambda fid: True) if include is None else (lambda fid: fid in include)
 
@@ -157,7 +160,7 @@ def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: n
     obs = Observation(solve_camera or camera, origin="<simulated>")
     pts = [p for p in features.points if keep(p.id)]
     if pts:
-        uv = proj(np.array([p.center for p in pts])) + segmentation_noise((len(pts),), e, px, rng)
+        uv = proj(np.array([p.center for p in pts])) + segmentation_noise((len(pts),), eb, px, rng)
         obs.points = {p.id: uv[i] for i, p in enumerate(pts)}
     for ln in features.lines:
         if not keep(ln.id):
@@ -169,7 +172,7 @@ def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: n
             continue
         s = np.linspace(0.0, 1.0, contour.line)[:, None]
         P = ln.start + s * (ln.end - ln.start)
-        obs.lines[ln.id] = CurveObservation(points=proj(P) + segmentation_noise((contour.line,), e, px, rng))
+        obs.lines[ln.id] = CurveObservation(points=proj(P) + segmentation_noise((contour.line,), ew, px, rng))
     for el in features.ellipses:
         if not keep(el.id):
             continue
@@ -179,7 +182,7 @@ def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: n
             continue
         s = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
         obs.ellipses[el.id] = CurveObservation(
-            points=proj(el.sample(s)) + segmentation_noise((contour.ellipse,), e, px, rng))
+            points=proj(el.sample(s)) + segmentation_noise((contour.ellipse,), ew, px, rng))
     return obs
 
 
