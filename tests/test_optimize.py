@@ -125,6 +125,15 @@ def test_segmentability_is_an_optional_graded_constraint(base):
                                                   clearance_poses=100))
     assert not tight["feasible"] and tight["figures"] is None
     assert tight["violation"] == pytest.approx(0.5 / max(abs(p5 + 0.5), 1.0) + 1e-6)
+    # a candidate that also breaks a rule carries both violations (they must add up, or the
+    # search would rank "just outside a rule" above "inside the rules, short of clearance")
+    bad = apply_values(base, {"lines.L1.z_start": -9.499, "lines.L1.z_end": 9.499})
+    both = evaluate_candidate(bad, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5,
+                                                clearance_poses=100))
+    rules = evaluate_candidate(bad, SETTINGS)
+    assert rules["violation"] > 0 and "segmentability:clearance_p5" in both["margins"]
+    deficit = max(0.0, -both["margins"]["segmentability:clearance_p5"])
+    assert both["violation"] == pytest.approx(rules["violation"] + (deficit + 1e-6 if deficit else 0.0))
 
 
 # ---- the search -----------------------------------------------------------------------------
