@@ -164,6 +164,34 @@ def test_toy_space_finds_the_optimum_of_a_dense_scan(base, tmp_path):
     assert abs(found - tilts[k]) < 0.1
 
 
+def test_stock_sizes_are_searched_and_kept_in_play(base, tmp_path):
+    """A wire size (with its image's error factor) and a tilt: the search must end on the
+    best size of an enumeration, and keep sampling the neighbouring sizes to the end."""
+    from ftrac_design.optimize.search import CHOICE_MIN_STD_BINS
+
+    sizes = [0.25, 0.3, 0.4, 0.5]
+    sp = _space(base, {"wire.diameter": {"choices": sizes}, "ellipses.E1.tilt_deg": [28.0, 36.0]})
+    cfg = SearchConfig(objective="max", evaluations=240, seed=2, sigma0=0.2, popsize=6)
+    log = tmp_path / "log.jsonl"
+    res = run_search(sp, SETTINGS, cfg, SerialExecutor(), log, progress=False)
+    ref = res.start["figures"]
+    best_by_size = {}
+    for w in sizes:
+        vals = [objective_values("max", e["figures"], ref)[0] if e["feasible"] else np.inf
+                for e in (evaluate_candidate(apply_values(base, {"wire.diameter": w, "ellipses.E1.tilt_deg": t}),
+                                             SETTINGS) for t in np.arange(28.0, 36.01, 1.0))]
+        best_by_size[w] = min(vals)
+    best_size = min(best_by_size, key=best_by_size.get)
+    assert best_size != 0.3  # the start's size is not the answer: the search had to move
+    assert res.best["parameters"]["wire.diameter"] == best_size
+    assert res.best["objectives"]["max_ratio"] <= best_by_size[best_size] + 1e-3
+    # the last three generations still spread over the size coordinate by about the minimum step
+    # (without it: std 0.0096 here after 240 evaluations, 0.078 with it)
+    last = [e for e in _log(log) if e.get("kind") == "candidate"][-18:]
+    u = np.array([e["x"][0] for e in last])
+    assert np.std(u) > 0.5 * CHOICE_MIN_STD_BINS / len(sizes)
+
+
 def _small_space(base):
     return _space(base, {"ellipses.E1.tilt_deg": [25.0, 38.0], "ellipses.E2.z_center": [4.0, 6.0],
                          "lines.L2.azimuth_deg": [100.0, 140.0]})
@@ -304,3 +332,30 @@ def test_image_check_is_reproducible_and_finds_the_pose(f2005):
     # ftrac_2005 tracked from clean images: well under a millimetre and a tenth of a degree
     assert 0 < a["translation_median_mm"] <= a["translation_p95_mm"] < 1.0
     assert 0 < a["rotation_p95_deg"] < 0.2
+
+
+def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(base):
+    """A winner sits on its limits: best.toml's 0.1 µm rounding must not push a rule over."""
+    from ftrac_design.cad.rules import check_design
+    from ftrac_design.design.loader import parse_design
+    from ftrac_design.optimize.report import _round, design_toml
+
+    def gap(d):
+        return check_design(parse_design(d), "cnc").result("mount.coverage").measured
+
+    z0 = base["ellipses"][0]["z_center"]
+    g0 = gap(base)
+    # move E1 down until its lowest point is a hair above the socket rim, where rounding z_center
+    # to 0.1 µm drops it below (gap falls one for one with z_center)
+    for k in range(1, 2000):
+        z = z0 - g0 + k * 3e-8
+        d = apply_values(base, {"ellipses.E1.z_center": z})
+        if gap(d) > 0 and gap(_round(d)) <= 0:
+            break
+    else:
+        pytest.fail("no such z_center found")
+    text = design_toml(d, "test", ("cnc",))
+    assert tomllib.loads(text)["ellipses"][0]["z_center"] == z
+    assert gap(tomllib.loads(text)) > 0
+    # with no rules asked for, rounding stands
+    assert tomllib.loads(design_toml(d, "test"))["ellipses"][0]["z_center"] == round(z, 4)

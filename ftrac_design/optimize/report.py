@@ -79,16 +79,22 @@ def to_toml(data: dict) -> str:
     return "\n".join(out).lstrip("\n") + "\n"
 
 
-def design_toml(data: dict, header: str) -> str:
+def design_toml(data: dict, header: str, profiles: tuple[str, ...] = ()) -> str:
     """The design ``data`` as a TOML file with a comment header; values rounded to 0.1 µm /
-    0.0001° (far below any tolerance) when the rounded design stays valid, else exact."""
+    0.0001° (far below any tolerance) when the rounded design stays valid and fails no rule
+    of ``profiles`` that ``data`` passes (a winner sits on its limits: rounding can push a
+    "> 0" gap to −0.000), else exact."""
+    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..errors import InputError
 
+    def failed(d: dict) -> set[str]:
+        design = parse_design(d)
+        return {f"{p}:{r.rule}" for p in profiles for r in check_design(design, p).results if r.verdict == "fail"}
+
     rounded = _round(data)
     try:
-        parse_design(rounded)
-        body = to_toml(rounded)
+        body = to_toml(rounded) if not failed(rounded) - failed(data) else to_toml(data)
     except InputError:
         body = to_toml(data)
     comment = "".join(f"# {line}".rstrip() + "\n" for line in header.splitlines())
@@ -180,9 +186,9 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
         scores[k] = score_design(feats[k], s.for_parts(d.analysis), th)
     ws = s.workspace
     lines = [f"{s.poses} fresh poses within {ws.cone_deg:g}° of the nominal beam, depth {ws.depth_mm:g} ± "
-             f"{ws.depth_range_mm:g} mm, {s.noise_text} (predicted 1σ, 3-D RMS; each design's own parts' factors: "
-             f"start {s.for_parts(designs['start'].analysis).error_factors}, best "
-             f"{s.for_parts(designs['best'].analysis).error_factors})",
+             f"{ws.depth_range_mm:g} mm, {s.noise_text} (predicted 1σ, 3-D RMS); each design's own parts: "
+             + "; ".join(f"{k} beads ×{b:.3g}, wires ×{w:.3g}" for k, (b, w) in
+                         ((k, s.for_parts(designs[k].analysis).error_factors) for k in designs)),
              _score_rows([(f"{k}: {designs[k].name}", scores[k]) for k in designs]), ""]
     doc: dict = {"score": {k: v.figures for k, v in scores.items()}, "rules": {}, "atlas": {}}
     for prof in profiles:
@@ -344,7 +350,7 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
                   f"evaluations, {res.settings.analysis.poses} search poses; start design "
                   f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses\n"
                   f"and the Monte-Carlo solver check are in summary.json beside it.")
-        text = design_toml(best_data, header)
+        text = design_toml(best_data, header, res.settings.profiles)
         write_text_atomic(tmp / "best.toml", text)
         import tomllib
 

@@ -120,10 +120,22 @@ def _private_numpy_random(holder: dict):
         np.random.set_state(outer)
 
 
-class _Cma:
-    """CMA-ES (``cma``) on the unit cube, ask/tell."""
+#: smallest CMA-ES standard deviation along a stock-size coordinate, in bins of its choices
+CHOICE_MIN_STD_BINS = 0.3
 
-    def __init__(self, x0: np.ndarray, config: SearchConfig):
+
+class _Cma:
+    """CMA-ES (``cma``) on the unit cube, ask/tell.
+
+    A stock-size parameter is a coordinate cut into equal bins, one per choice. Left alone,
+    CMA-ES shrinks its step there like anywhere else and settles in one bin for good (the
+    first parts search found its best candidate, 0.4 mm wire, at evaluation 682, then
+    converged on 0.3 mm wire 0.2 worse). Its step along such a coordinate is kept at least
+    :data:`CHOICE_MIN_STD_BINS` of a bin (``cma``'s ``minstd``, as its own integer handling
+    does), so each generation keeps trying the neighbouring sizes (~10 % of samples from a
+    bin's centre)."""
+
+    def __init__(self, x0: np.ndarray, config: SearchConfig, choices: tuple[int, ...] = ()):
         import cma
 
         self._rng: dict = {}
@@ -131,6 +143,8 @@ class _Cma:
                 "tolfun": 0.0, "tolflatfitness": 10_000, "tolfunhist": 0.0, "tolx": 1e-9}
         if config.popsize:
             opts["popsize"] = config.popsize
+        if any(choices):
+            opts["minstd"] = [CHOICE_MIN_STD_BINS / n if n else 0.0 for n in choices] + [0.0] * (len(x0) == 1)
         # cma works in two or more dimensions: a one-parameter space gets an inert second one
         self.dim = len(x0)
         with _private_numpy_random(self._rng):
@@ -305,7 +319,8 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     start_obj = np.array(objective_values(config.objective, ref, ref))
     worst = start_obj.copy()
     x0 = space.start_unit()
-    opt = _Cma(x0, config) if not config.multi else _Nsga2(x0, config)
+    opt = (_Cma(x0, config, tuple(len(p.choices) if p.choices else 0 for p in space.parameters))
+           if not config.multi else _Nsga2(x0, config))
     entries: list[dict] = []
     history: list[float] = []
     best: dict | None = None
