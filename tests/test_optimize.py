@@ -359,3 +359,12 @@ def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(bas
     assert gap(tomllib.loads(text)) > 0
     # with no rules asked for, rounding stands
     assert tomllib.loads(design_toml(d, "test"))["ellipses"][0]["z_center"] == round(z, 4)
+
+
+def test_demo_step_runs_a_search_and_its_image_check(tmp_path):
+    from ftrac_design.optimize import demo_step
+
+    text = demo_step(tmp_path)
+    doc = json.loads((tmp_path / "optimize" / "summary.json").read_text())
+    assert doc["run"]["evaluations"] == 12 and doc["best"]["verification"]["images"]["images"] == 6
+    assert "rendered: 6 radiographs" in text and "(right " in text
