@@ -298,6 +298,7 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
     assert imgs["right"] + imgs["wrong"] == imgs["converged"] <= 3
     assert imgs["right"] == 0 or 0 < imgs["translation_median_mm"] <= imgs["translation_p95_mm"] < 5.0
     assert "rendered images, 3 tracked" in capsys.readouterr().out
+    assert "rendered radiographs (3 each" in (out / "comparison.txt").read_text()
     best = doc["best"]["verification"]["predicted"]["translation_p95_mm"]
     start = doc["start"]["verification"]["predicted"]["translation_p95_mm"]
     assert best <= start * 1.01  # on fresh poses the winner is no worse than the start

@@ -147,6 +147,23 @@ def verify(data: dict, settings: AnalysisSettings, poses: int, images: int, seed
     return out
 
 
+def image_rows(start: dict, best: dict) -> str:
+    """Start vs best on rendered radiographs (:func:`.imagecheck.image_check`) as a table."""
+    def g(v, fmt="{:.3f}"):
+        return "-" if v is None else fmt.format(v)
+
+    rows = [("design", "right", "wrong", "t median mm", "t p95", "t RMS", "r median °", "r p95", "r RMS")]
+    for name, d in (("start", start), ("best", best)):
+        rows.append((name, str(d["right"]), str(d["wrong"]), g(d["translation_median_mm"]),
+                     g(d["translation_p95_mm"]), g(d["translation_rms_mm"]), g(d["rotation_median_deg"]),
+                     g(d["rotation_p95_deg"]), g(d["rotation_rms_deg"])))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    head = (f"rendered radiographs ({best['images']} each, the same poses and noise draws, tracked with no "
+            f"initial guess; errors of the right poses, wrong = > 1° or > 5 mm off)")
+    return head + "\n" + "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in
+                                             enumerate(zip(r, widths))) for r in rows) + "\n"
+
+
 def _score_rows(named: list[tuple[str, object]]) -> str:
     """Start vs best as ``compare`` prints designs (predicted 1σ, 3-D RMS)."""
     rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "verdict")]
@@ -380,6 +397,8 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
                 change[key.rsplit("_", 1)[0]] = b / a - 1 if a and b is not None else None
             doc["best"]["change_on_images"] = change
         text_cmp, cmp_doc = comparison(start_data, written, settings, res.settings.profiles, verify_poses, vseed)
+        if check_images:
+            text_cmp += "\n" + image_rows(doc["start"]["verification"]["images"], v["images"])
         write_text_atomic(tmp / "comparison.txt", text_cmp)
         doc["comparison"] = cmp_doc
         if build:
