@@ -167,6 +167,14 @@ class Features:
             pieces.append((pos, L))
         return [(ln.sample(a / L), ln.sample(b / L)) for a, b in pieces]
 
+    @cached_property
+    def wire_pieces(self) -> tuple[tuple[str, np.ndarray, np.ndarray], ...]:
+        """Every line's straight wire pieces as (line id, start, end), mm in F, lines in order
+        (:meth:`wire_segments`); a line its beads cover whole gives its centre line, so every
+        line has a piece. Computed once per Features (the image path samples them per pose)."""
+        return tuple((ln.id, a, b) for ln in self.lines
+                     for a, b in (self.wire_segments(ln.id) or [(ln.start, ln.end)]))
+
     def wire_length(self, feature_id: str) -> float:
         """Length of wire (mm) that feature ``feature_id`` takes: an ellipse's whole
         circumference, or the sum of a line's pieces between its beads."""

@@ -194,20 +194,11 @@ def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndar
 
 
 #: each design's wire pieces (F, mm), remembered per Features object: the same for every pose
-_PIECES: dict = {}
-
-
 def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                             step_px: float) -> dict[str, tuple[str, np.ndarray]]:
     # every piece's end points and every ellipse's 64 coarse samples in one projection,
     # then every dense sample in a second (the projection is point-wise: the same numbers)
-    hit = _PIECES.get(id(features))
-    if hit is None or hit[0] is not features:
-        hit = _PIECES[id(features)] = (features, [(ln.id, a, b) for ln in features.lines
-                                                  for a, b in (features.wire_segments(ln.id) or [(ln.start, ln.end)])])
-        if len(_PIECES) > 8:
-            _PIECES.pop(next(iter(_PIECES)))
-    pieces = hit[1]
+    pieces = features.wire_pieces
     coarse = [np.array([a, b]) for _, a, b in pieces]
     coarse += [el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)) for el in features.ellipses]
     cuv = _project(camera, R, t, np.concatenate(coarse))[0] if coarse else np.zeros((0, 2))
