@@ -260,3 +260,24 @@ def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
         assert np.degrees(so3.angle(res.rotation, R)) < 2e-3 and np.abs(res.translation_mm - t).max() < 5e-3
     with pytest.raises(ValueError):
         refine_intensity(features_2005, img.log_image, Camera(), R, t, im, body=BODY, scales="fast")
+
+
+def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005, pose_2005):
+    import dataclasses
+
+    from ftrac_design.intensity import RefineOptions
+
+    R, t = pose_2005
+    im = ImagingModel(photons_per_px=1e4)
+    img = render(features_2005, R, t, Camera(), im, rng=np.random.default_rng(5), body=BODY)
+    R0, t0 = perturb(R, t, np.r_[np.radians([0.02, -0.02, 0.01]), 0.05, -0.05, 0.2])
+    opts = RefineOptions(polarity="dense_dark", scales=(0.0,), max_iterations=6)
+    a = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, options=opts)
+    b = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark",
+                         scales=(0.0,), max_iterations=6)
+    c = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY,
+                         options=dataclasses.replace(opts, max_iterations=99), max_iterations=6)
+    for x in (b, c):
+        assert np.array_equal(a.rotation, x.rotation) and np.array_equal(a.translation_mm, x.translation_mm)
+    with pytest.raises(TypeError):
+        refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, sigma_step=0.1)

@@ -5,7 +5,8 @@
 - :func:`pixel_information` — Fisher information / Cramér–Rao bound of the pose from the
   pixels at a stated dose, blur and background (:mod:`.bound`).
 - :func:`refine_intensity` — Gauss–Newton/LM fit of the simulated image to a radiograph,
-  with gain and a smooth background as nuisance parameters (:mod:`.refine`; the background's
+  with gain and a smooth background as nuisance parameters, tuned by :class:`RefineOptions`
+  (:mod:`.refine`; the background's
   B-spline / polynomial basis and its elimination: :mod:`.background`).
 - :func:`imaging_analysis` — that bound over workspace poses beside the feature-level one
   (``analyze --imaging``; :mod:`.workspace`).
@@ -13,8 +14,8 @@
 
 from .bound import PixelBound, pixel_information
 from .model import PARAMETERS, RoiModel, perturb, roi_around
-from .refine import IntensityResult, refine_intensity, refine_track_result
+from .refine import IntensityResult, RefineOptions, refine_intensity, refine_track_result
 from .workspace import ImagingAnalysis, imaging_analysis
 
 __all__ = ["PARAMETERS", "ImagingAnalysis", "IntensityResult", "imaging_analysis", "PixelBound", "RoiModel", "perturb", "pixel_information",
-           "refine_intensity", "refine_track_result", "roi_around"]
+           "RefineOptions", "refine_intensity", "refine_track_result", "roi_around"]

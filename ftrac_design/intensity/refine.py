@@ -29,7 +29,7 @@ model's noise, i.e. the pixel-level Cramér–Rao bound of :mod:`.bound` with nu
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -192,18 +192,59 @@ def _log_of(image: np.ndarray, polarity: str) -> np.ndarray:
     raise ValueError("polarity: 'dense_bright' (log/display image) or 'dense_dark' (raw counts)")
 
 
+@dataclass(frozen=True)
+class RefineOptions:
+    """How :func:`refine_intensity` fits (each option explained in its docstring)."""
+
+    #: "dense_bright" (a log image) or "dense_dark" (raw counts)
+    polarity: str = "dense_bright"
+    #: smoothing scales (px, ending at 0) in order, or "auto"
+    scales: tuple[float, ...] | str = "auto"
+    #: degree of the polynomial background
+    background_degree: int = 2
+    #: Levenberg–Marquardt iterations per scale and round
+    max_iterations: int = 12
+    #: stop when a step moves the features by less than this, px
+    tolerance: float = 1e-4
+    #: stop when a step lowers the objective by less than this share of it (0: off)
+    ftol: float = 0.0
+    #: covariance from a fresh central-difference Jacobian
+    central_covariance: bool = False
+    #: high-pass scale, px (0: never)
+    highpass_px: float = 8.0
+    #: Huber / Tukey threshold c, σ (None: plain least squares)
+    robust: float | None = 3.0
+    #: every LM step on central differences
+    central_steps: bool = False
+    #: "auto", "spline", "polynomial" or "highpass"
+    background: str = "auto"
+    #: knot spacing of the spline background, px (None: the polynomial)
+    background_spline_px: float | None = DEFAULT_SPLINE_PX
+    #: χ²/dof at the start above which "auto" takes the image as cluttered
+    clutter_chi2: float = CLUTTER_CHI2
+    #: stop when the Gauss–Newton step is below this many of the estimate's own σ
+    step_sigma: float = 0.3
+    #: rounds of reweighting at full resolution
+    reweight_rounds: int = 2
+    #: "huber" or "tukey"
+    robust_loss: str = "huber"
+    #: one final Gauss–Newton step on central differences
+    polish: bool = True
+    #: the coarse scales of scales="auto", px
+    coarse_scales: tuple[float, ...] = (2.0,)
+    #: scales="auto" smooths first where the first full-resolution step exceeds this, px
+    coarse_px: float = 1.0
+
+
 def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: np.ndarray, t0: np.ndarray = None,
                      imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
-                     body: Body | None | str = AUTO, polarity: str = "dense_bright",
-                     scales: tuple[float, ...] | str = "auto", background_degree: int = 2, max_iterations: int = 12,
-                     tolerance: float = 1e-4, ftol: float = 0.0, central_covariance: bool = False,
-                     highpass_px: float = 8.0, robust: float | None = 3.0,
-                     central_steps: bool = False, background: str = "auto",
-                     background_spline_px: float | None = DEFAULT_SPLINE_PX, clutter_chi2: float = CLUTTER_CHI2,
-                     step_sigma: float = 0.3, reweight_rounds: int = 2, robust_loss: str = "huber",
-                     polish: bool = True, coarse_scales: tuple[float, ...] = (2.0,),
-                     coarse_px: float = 1.0) -> IntensityResult:
+                     body: Body | None | str = AUTO, options: RefineOptions | None = None,
+                     **overrides: Any) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
+
+    ``options`` (:class:`RefineOptions`, default its defaults) with any of its fields
+    overridden by keyword (``scales=(0.0,)``, ``background="spline"``, …); an unknown keyword
+    raises TypeError. The options:
 
     ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
     raw counts (``"dense_dark"``). ``imaging`` supplies the blur, the energy and the dose
@@ -265,23 +306,18 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
         # the call form of cli/track.py, refine_fn(image, features, camera, track_result):
         # forwarded until it calls refine_track_result itself
         return refine_track_result(features, image, camera, R0)
+    o = replace(options or RefineOptions(), **overrides)
     # one BLAS thread: the products here are small (k ≲ 500 background columns, 6 pose
     # columns), where a threaded BLAS spends more time spinning its threads than multiplying
     # (a banded Cholesky of 391 columns: 217 ms with threads on the loaded 2-core machine)
     with threadpool_limits(1, "blas"):
-        return _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
-                       max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
-                       background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss,
-                       polish, coarse_scales, coarse_px)
+        return _refine(features, image, camera, R0, t0, imaging, roi, body, o)
 
 
-def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scales, background_degree,
-            max_iterations, tolerance, ftol, central_covariance, highpass_px, robust, central_steps,
-            background, background_spline_px, clutter_chi2, step_sigma, reweight_rounds, robust_loss, polish,
-            coarse_scales=(2.0,), coarse_px=1.0):
+def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOptions):
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     body = resolve_body(features, body)
-    Yfull = _log_of(image, polarity)
+    Yfull = _log_of(image, o.polarity)
     if roi is None:
         roi = roi_around(features, R0, t0, camera, Yfull.shape, body)
     v0, u0, h, w = roi
@@ -289,27 +325,27 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
     model = RoiModel(features, camera, imaging, body, roi)
     steps = model.steps(t0) / STEP_PX              # parameter change that moves features ~1 px
 
-    if background not in ("auto", "spline", "polynomial", "highpass"):
+    if o.background not in ("auto", "spline", "polynomial", "highpass"):
         raise ValueError("background: 'auto', 'spline', 'polynomial' or 'highpass'")
-    if background == "highpass" and not highpass_px > 0:
+    if o.background == "highpass" and not o.highpass_px > 0:
         raise ValueError("background='highpass' needs highpass_px > 0")
-    mode = background
-    if mode in ("auto", "spline") and not background_spline_px:
+    mode = o.background
+    if mode in ("auto", "spline") and not o.background_spline_px:
         mode = "polynomial" if mode == "spline" else "auto"
     if mode == "auto":
-        mode = "spline" if background_spline_px else "polynomial"
-        if highpass_px > 0:
-            probe = _Problem(model, Y, imaging, 0.0, background_degree, 0.0, None,
-                             background_spline_px if mode == "spline" else None)
+        mode = "spline" if o.background_spline_px else "polynomial"
+        if o.highpass_px > 0:
+            probe = _Problem(model, Y, imaging, 0.0, o.background_degree, 0.0, None,
+                             o.background_spline_px if mode == "spline" else None)
             _, r, g, _, _ = probe.cost(R0, t0)
             probe.set_weights(g, r)
             c, r, _, _, _ = probe.cost(R0, t0)
-            if imaging.noisy and c / max(r.size - 6 - probe.n_nuisance, 1) > clutter_chi2:
+            if imaging.noisy and c / max(r.size - 6 - probe.n_nuisance, 1) > o.clutter_chi2:
                 mode = "highpass"
 
     def problem(scale: float, huber: bool) -> _Problem:
-        return _Problem(model, Y, imaging, scale, background_degree, highpass_px if mode == "highpass" else 0.0,
-                        robust if huber else None, background_spline_px if mode == "spline" else None, robust_loss)
+        return _Problem(model, Y, imaging, scale, o.background_degree, o.highpass_px if mode == "highpass" else 0.0,
+                        o.robust if huber else None, o.background_spline_px if mode == "spline" else None, o.robust_loss)
 
     R, t = R0.copy(), t0.copy()
     history, iterations, message, J, prob = [], 0, "", None, None
@@ -322,14 +358,15 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
         key = (R.tobytes(), t.tobytes())
         if last.get("key") != key:
             L0 = model.log_image(R, t)
-            last.update(key=key, value=L0, J=model._differences(R, t, "log", central=central_steps, value=L0)[1])
+            last.update(key=key, value=L0, J=model._differences(R, t, "log", central=o.central_steps, value=L0)[1])
         return last["J"]
 
+    scales = o.scales
     if isinstance(scales, str):
         if scales != "auto":
             raise ValueError("scales: 'auto' or a tuple of smoothing scales (px) ending at 0")
         scales = (0.0,)
-        if coarse_scales:
+        if o.coarse_scales:
             # the coarse scales only where the start is far: where the first Gauss–Newton step
             # at full resolution (no Huber) moves the features by more than coarse_px. Its
             # linearisation is the first iteration's, whichever scale comes first: no extra render.
@@ -343,17 +380,17 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
             J0 = p0.project_jacobian(p0.smooth(forward(R, t)).reshape(6, -1) * g0, lp0)
             try:
                 d0 = np.linalg.solve(_dot(J0 * p0.w, J0), _dot(J0 * p0.w, r0))
-                far = not np.max(np.abs(d0) / steps) <= coarse_px
+                far = not np.max(np.abs(d0) / steps) <= o.coarse_px
             except np.linalg.LinAlgError:
                 far = True
             if far:
-                scales = tuple(coarse_scales) + (0.0,)
+                scales = tuple(o.coarse_scales) + (0.0,)
     for scale in scales:
         # robust weights only at full resolution: at a coarse scale far from the pose the
         # largest residuals are the fiducial's own misaligned wires
-        huber = bool(robust) and scale == 0
+        huber = bool(o.robust) and scale == 0
         prob, Jraw = problem(scale, huber), None
-        for _round in range(max(int(reweight_rounds), 1) if huber or imaging.noisy else 1):
+        for _round in range(max(int(o.reweight_rounds), 1) if huber or imaging.noisy else 1):
             cst, r, g, b, lp = prob.cost(R, t)
             prob.set_weights(g, r)
             cst, r, g, b, lp = prob.cost(R, t)
@@ -366,13 +403,13 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                     dt = np.linalg.solve(Ht, _dot(Jt * prob.w, r))
                 except np.linalg.LinAlgError:
                     dt = np.full(6, np.inf)
-                if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < step_sigma:
+                if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < o.step_sigma:
                     J = Jt
                     break
             lam, moved, this_round = 1e-3, 0, []        # the objective's weights change between rounds
             # a coarse scale only brings the pose into the fine scale's basin
-            rule = step_sigma if scale == 0 else max(step_sigma, 0.3)
-            for _ in range(max_iterations):
+            rule = o.step_sigma if scale == 0 else max(o.step_sigma, 0.3)
+            for _ in range(o.max_iterations):
                 iterations += 1
                 Jraw = prob.smooth(forward(R, t)).reshape(6, -1) * g
                 J = prob.project_jacobian(Jraw, lp)
@@ -410,11 +447,11 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
                 if not accepted:
                     message = f"no decrease at scale {scale:g} px"
                     break
-                if np.max(np.abs(dx) / steps) < tolerance or history_drop(this_round) < ftol * cst:
+                if np.max(np.abs(dx) / steps) < o.tolerance or history_drop(this_round) < o.ftol * cst:
                     break
             if not moved and _round > 0:
                 break                               # reweighting moved nothing: converged
-    if polish and prob is not None and prob.scale == 0 and not central_steps:
+    if o.polish and prob is not None and prob.scale == 0 and not o.central_steps:
         # LM on forward differences stops where J_fwdᵀ W r = 0, not at the objective's minimum
         # (0.1–0.23 σ RMS from it on ftrac_2005: intensity_depth_check.py stopping): one
         # Gauss–Newton step on central differences, kept if it lowers the objective
@@ -437,7 +474,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
             pass
     # the image objective: full resolution, the weights of the last round (or, without a
     # full-resolution stage, from the start); start and end on the same weights
-    full = prob if prob is not None and prob.scale == 0 else problem(0.0, bool(robust))
+    full = prob if prob is not None and prob.scale == 0 else problem(0.0, bool(o.robust))
     if full is not prob:
         _, r, g, _, _ = full.cost(R0, t0)
         full.set_weights(g, r)
@@ -449,7 +486,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, polarity, scale
         c_end, r, g, b, lp = full.cost(R, t)
     # covariance: information of the pose with gain and background unknown (the weights the
     # objective used, so that cost_end stays comparable)
-    if central_covariance or J is None or full is not prob or not converged:
+    if o.central_covariance or J is None or full is not prob or not converged:
         L0, Jc = model.jacobian(R, t)
         Jc = full.project_jacobian(full.smooth(Jc).reshape(6, -1) * g, lp)
     else:
