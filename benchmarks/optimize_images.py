@@ -29,7 +29,10 @@ from track_accuracy import run
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("designs", nargs="+", type=Path, help="design files; the first is the reference")
+    models = Path(__file__).resolve().parents[1] / "models"
+    ap.add_argument("designs", nargs="*", type=Path, help="design files; the first is the reference "
+                    "[default: ftrac_mini, ftrac_mini_opt, ftrac_mini_stock]",
+                    default=[models / f"{n}.toml" for n in ("ftrac_mini", "ftrac_mini_opt", "ftrac_mini_stock")])
     ap.add_argument("--n", type=int, default=100, help="images per design and background")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--background", choices=("both", "none", "anatomy"), default="both")
