@@ -365,8 +365,9 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
         header = (f"{best_data['name']}: found by `{command_line}`\n"
                   f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
                   f"evaluations, {res.settings.analysis.poses} search poses; start design "
-                  f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses\n"
-                  f"and the Monte-Carlo solver check are in summary.json beside it.")
+                  f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses,\n"
+                  f"the Monte-Carlo solver check{' and the rendered-image check' if check_images else ''} are in "
+                  f"summary.json beside it.")
         text = design_toml(best_data, header, res.settings.profiles)
         write_text_atomic(tmp / "best.toml", text)
         import tomllib
