@@ -172,7 +172,7 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
             "rms_mm": {k: rms(res_all[k]) for k in ("point", "line", "ellipse")},
             "ellipse_shrink_px": float(np.mean(res_all["ellipse_signed"])) if res_all["ellipse_signed"] else math.nan,
             "ellipses_used": dict(sorted(n_ell.items())),
-            "pose_errors": perr,
+            "pose_errors": perr, "right_index": np.array(conv_idx, int),
             "pose_rms": np.sqrt(np.mean(perr ** 2, 0)) if m else np.full(6, np.nan),
             "pose_bias": np.mean(perr, 0) if m else np.full(6, np.nan),
             "pose_bias_se": np.std(perr, 0, ddof=1) / math.sqrt(m) if m > 1 else np.full(6, np.nan),

@@ -333,6 +333,31 @@ def test_image_check_is_reproducible_and_finds_the_pose(f2005):
     # ftrac_2005 tracked from clean images: well under a millimetre and a tenth of a degree
     assert 0 < a["translation_median_mm"] <= a["translation_p95_mm"] < 1.0
     assert 0 < a["rotation_p95_deg"] < 0.2
+    assert a["per_image"]["index"] == [0, 1] and len(a["per_image"]["translation_mm"]) == 2
+
+
+def test_paired_p95_ratio_of_image_checks():
+    from ftrac_design.optimize.imagecheck import paired_p95_ratio
+
+    rng = np.random.default_rng(0)
+    x = rng.gamma(2.0, 0.3, 200)
+    start = {"per_image": {"index": list(range(200)), "translation_mm": list(x), "rotation_deg": list(x / 10)}}
+    # best: the same poses but one missing, errors exactly 0.8x in translation, equal in rotation
+    keep = [k for k in range(200) if k != 7]
+    best = {"per_image": {"index": keep, "translation_mm": list(0.8 * x[keep]), "rotation_deg": list(x[keep] / 10)}}
+    r = paired_p95_ratio(start, best)
+    assert r["poses"] == 199
+    assert r["translation_p95_ratio"] == pytest.approx(0.8) and r["rotation_p95_ratio"] == pytest.approx(1.0)
+    # paired resampling: an exact scaling has no spread at all
+    assert r["translation_p95_ratio_95ci"] == pytest.approx([0.8, 0.8])
+    # independent errors of the same law: an interval that holds 1 and is about ±10–25 % wide
+    y = rng.gamma(2.0, 0.3, 200)
+    r = paired_p95_ratio(start, {"per_image": {"index": list(range(200)), "translation_mm": list(y),
+                                              "rotation_deg": list(y / 10)}})
+    lo, hi = r["translation_p95_ratio_95ci"]
+    assert lo < 1.0 < hi and 0.05 < hi - lo < 0.8
+    assert paired_p95_ratio(start, {"per_image": {"index": [1, 2], "translation_mm": [1, 1],
+                                                 "rotation_deg": [1, 1]}}) is None
 
 
 def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(base):

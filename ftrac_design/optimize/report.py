@@ -396,6 +396,9 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
             for key in ("translation_p95_mm", "rotation_p95_deg", "translation_median_mm", "rotation_median_deg"):
                 a, b = i0[key], i1[key]
                 change[key.rsplit("_", 1)[0]] = b / a - 1 if a and b is not None else None
+            from .imagecheck import paired_p95_ratio
+
+            change["paired"] = paired_p95_ratio(i0, i1)
             doc["best"]["change_on_images"] = change
         text_cmp, cmp_doc = comparison(start_data, written, settings, res.settings.profiles, verify_poses, vseed)
         if check_images:
@@ -458,6 +461,12 @@ def format_summary(doc: dict) -> str:
                    f"{g(i0['rotation_p95_deg'], '{:.3f}')} -> {g(i1['rotation_p95_deg'], '{:.3f}')}°; median "
                    f"{g(i0['translation_median_mm'], '{:.3f}')} -> {g(i1['translation_median_mm'], '{:.3f}')} mm, "
                    f"{g(i0['rotation_median_deg'], '{:.3f}')} -> {g(i1['rotation_median_deg'], '{:.3f}')}°")
+        pr = doc["best"].get("change_on_images", {}).get("paired")
+        if pr:
+            out.append(f"  p95 ratio over the {pr['poses']} poses both got right: translation "
+                       f"{pr['translation_p95_ratio']:.2f} (95 % bootstrap {pr['translation_p95_ratio_95ci'][0]:.2f}–"
+                       f"{pr['translation_p95_ratio_95ci'][1]:.2f}), rotation {pr['rotation_p95_ratio']:.2f} "
+                       f"({pr['rotation_p95_ratio_95ci'][0]:.2f}–{pr['rotation_p95_ratio_95ci'][1]:.2f})")
     return "\n".join(out)
 
 
