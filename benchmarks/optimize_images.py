@@ -28,19 +28,23 @@ from pathlib import Path
 import numpy as np
 from track_accuracy import run
 
+from ftrac_design.optimize.imagecheck import paired_p95_ratio
 
-def paired_ratio(ref: dict, r: dict, boot: int = 2000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+
+def paired_ratio(ref: dict, r: dict) -> tuple[np.ndarray, np.ndarray]:
     """p95 ratio (design / reference) of the 3-D translation and rotation errors over the poses
-    both got right, and its bootstrap 95 % interval (the poses resampled in pairs): (2,), (2, 2)."""
-    common, ia, ib = np.intersect1d(ref["right_index"], r["right_index"], return_indices=True)
-    ea, eb = ref["pose_errors"][ia], r["pose_errors"][ib]
-    a = np.c_[np.linalg.norm(ea[:, 3:], axis=1), np.linalg.norm(ea[:, :3], axis=1)]
-    b = np.c_[np.linalg.norm(eb[:, 3:], axis=1), np.linalg.norm(eb[:, :3], axis=1)]
-    ratio = np.percentile(b, 95, axis=0) / np.percentile(a, 95, axis=0)
-    rng = np.random.default_rng(seed)
-    k = rng.integers(0, len(common), (boot, len(common)))
-    bs = np.percentile(b[k], 95, axis=1) / np.percentile(a[k], 95, axis=1)      # (boot, 2)
-    return ratio, np.percentile(bs, [2.5, 97.5], axis=0).T
+    both got right, and its bootstrap 95 % interval (:func:`paired_p95_ratio`): (2,), (2, 2);
+    NaN where fewer than 20 poses are shared."""
+    def per_image(x: dict) -> dict:
+        e = x["pose_errors"]
+        return {"per_image": {"index": list(x["right_index"]), "translation_mm": np.linalg.norm(e[:, 3:], axis=1),
+                              "rotation_deg": np.linalg.norm(e[:, :3], axis=1)}}
+
+    p = paired_p95_ratio(per_image(ref), per_image(r))
+    if p is None:                                   # fewer than 20 poses in common
+        return np.full(2, np.nan), np.full((2, 2), np.nan)
+    return (np.array([p["translation_p95_ratio"], p["rotation_p95_ratio"]]),
+            np.array([p["translation_p95_ratio_95ci"], p["rotation_p95_ratio_95ci"]]))
 
 
 def main() -> None:

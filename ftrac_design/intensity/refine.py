@@ -511,8 +511,6 @@ def refine_track_result(image: np.ndarray, features: Features, camera: Camera, r
     covariance from the pixel information (scaled by the fitted χ²/dof when that exceeds 1: a
     real image's dose and blur are not known exactly). A result that did not converge is returned unchanged. ``options`` go to
     :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
-    from dataclasses import replace
-
     pose = result.pose
     if not pose.converged:
         return result

@@ -157,11 +157,16 @@ def image_rows(start: dict, best: dict) -> str:
         rows.append((name, str(d["right"]), str(d["wrong"]), g(d["translation_median_mm"]),
                      g(d["translation_p95_mm"]), g(d["translation_rms_mm"]), g(d["rotation_median_deg"]),
                      g(d["rotation_p95_deg"]), g(d["rotation_rms_deg"])))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     head = (f"rendered radiographs ({best['images']} each, the same poses and noise draws, tracked with no "
             f"initial guess; errors of the right poses, wrong = > 1° or > 5 mm off)")
-    return head + "\n" + "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in
-                                             enumerate(zip(r, widths))) for r in rows) + "\n"
+    return head + "\n" + _aligned(rows) + "\n"
+
+
+def _aligned(rows: list[tuple[str, ...]]) -> str:
+    """Rows as text columns: the first left-aligned, the rest right-aligned."""
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
+                     for r in rows)
 
 
 def _score_rows(named: list[tuple[str, object]]) -> str:
@@ -179,9 +184,7 @@ def _score_rows(named: list[tuple[str, object]]) -> str:
                      "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
                      "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
                      "PASS" if s.passed else "FAIL"))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
-                     for r in rows)
+    return _aligned(rows)
 
 
 def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tuple[str, ...], poses: int,

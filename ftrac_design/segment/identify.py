@@ -193,7 +193,6 @@ def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndar
     return out
 
 
-#: each design's wire pieces (F, mm), remembered per Features object: the same for every pose
 def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                             step_px: float) -> dict[str, tuple[str, np.ndarray]]:
     # every piece's end points and every ellipse's 64 coarse samples in one projection,
