@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from ftrac_design.pose.fitting import fit_conic, fit_line
-from ftrac_design.segment import pipeline
+from ftrac_design.segment.noise import cached_fit
 from ftrac_design.segment.beads import blob_candidates
 from ftrac_design.segment.image import gaussian_kernels
 
@@ -49,9 +49,9 @@ def test_remembered_fits_equal_fresh_ones():
     s = np.linspace(0, 2 * np.pi, 40, endpoint=False)
     pts = np.stack([30 * np.cos(s) + 5, 18 * np.sin(s) - 2], -1) + rng.normal(0, 0.1, (40, 2))
     for fitter in (fit_conic, fit_line):
-        f1, f2 = pipeline._fit(fitter, pts), pipeline._fit(fitter, pts.copy())
+        f1, f2 = cached_fit(fitter, pts), cached_fit(fitter, pts.copy())
         assert f1 is f2  # same points: remembered
         g = fitter(pts)
         assert float(f1.rss) == float(g.rss) and int(f1.dof) == int(g.dof)
     moved = pts + 0.5
-    assert float(pipeline._fit(fit_conic, moved).rss) == float(fit_conic(moved).rss)
+    assert float(cached_fit(fit_conic, moved).rss) == float(fit_conic(moved).rss)

@@ -1,5 +1,5 @@
 """The image path's reported uncertainty and its whole-image retry (issue 12): the pose
-covariance is the per-feature-type sandwich of :func:`pipeline._calibrated_covariance`
+covariance is the per-feature-type sandwich of :func:`ftrac_design.segment.noise.calibrated_covariance`
 (components scale it exactly, the estimate does not move, and the z-scores of rendered
 images are near unit), and a region whose answer is limited by the view itself is not
 searched again on the whole image."""
@@ -14,8 +14,9 @@ from ftrac_design.pose import Camera, Pose
 from ftrac_design.pose.observation import Observation
 from ftrac_design.pose.problem import compile_problem, evaluate
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment import pipeline
-from ftrac_design.segment.pipeline import TrackOptions, TrackResult, track_image
+from ftrac_design.segment.detection import scales
+from ftrac_design.segment.region import resolvable_beads, view_limited
+from ftrac_design.segment import TrackOptions, TrackResult, track_image
 from ftrac_design.xray import render
 
 
@@ -100,19 +101,19 @@ def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
     cam, opts = Camera(), TrackOptions()
     R, t, on = _looking_down_a_line(features)
     assert len(on) >= 3
-    sc = {**pipeline.scales(features, cam, opts), "shape": (1024, 1024)}
+    sc = scales(features, cam, opts)
     uv = cam.project(features.point_centers() @ R.T + t)
-    n = pipeline._resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), sc, opts)
+    n = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), opts)
     # the balls on L1 coincide; every other ball counts only if it is clear of all the others
     P = len(features.points)
     assert n <= P - len(on)
     np.testing.assert_allclose(uv[on], np.tile(cam.principal_point_px, (len(on), 1)), atol=1e-9)
-    sep = 2 * sc["bead_radius_px"] + 2 * opts.blur_px
+    sep = 2 * sc.bead_radius_px + 2 * opts.blur_px
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(P) * 1e9
     assert n == int((dd.min(1) >= sep).sum())
     # moved off the image entirely: none
-    far = pipeline._resolvable_beads(features, cam, Pose(R, t + np.array([400.0, 0, 0]), True, 1.0, None, {}, 0,
-                                                         None), sc, opts)
+    far = resolvable_beads(features, cam, Pose(R, t + np.array([400.0, 0, 0]), True, 1.0, None, {}, 0, None),
+                           (1024, 1024), opts)
     assert far == 0
 
 
@@ -121,14 +122,13 @@ def test_view_limited_only_for_too_little_evidence_that_the_view_caps(f2005):
     cam, opts = Camera(), TrackOptions()
     R, t, on = _looking_down_a_line(features)
     need = min(opts.min_beads, len(features.points))
-    capped = pipeline._resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None),
-                                        {**pipeline.scales(features, cam, opts), "shape": (1024, 1024)}, opts)
+    capped = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), opts)
     err = "too little evidence: 3 beads could be used (need 5 to confirm the labelling)"
-    assert pipeline._view_limited(_result(R, t, 3, err), features, cam, (1024, 1024), opts) == (capped < need)
+    assert view_limited(_result(R, t, 3, err), features, cam, (1024, 1024), opts) == (capped < need)
     # other reasons, or a region answer that a larger field could change, search again
-    assert not pipeline._view_limited(_result(R, t, 3, "ambiguous identification: ..."), features, cam,
+    assert not view_limited(_result(R, t, 3, "ambiguous identification: ..."), features, cam,
                                       (1024, 1024), opts)
     Rw, tw = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(0))
-    assert pipeline._resolvable_beads(features, cam, Pose(Rw[0], tw[0], True, 1.0, None, {}, 0, None),
-                                      {**pipeline.scales(features, cam, opts), "shape": (1024, 1024)}, opts) >= need
-    assert not pipeline._view_limited(_result(Rw[0], tw[0], 3, err), features, cam, (1024, 1024), opts)
+    assert resolvable_beads(features, cam, Pose(Rw[0], tw[0], True, 1.0, None, {}, 0, None), (1024, 1024),
+                            opts) >= need
+    assert not view_limited(_result(Rw[0], tw[0], 3, err), features, cam, (1024, 1024), opts)

@@ -506,7 +506,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
 def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result, imaging: ImagingModel | None = None,
                         body: Body | None | str = AUTO, **options):
     """``ftrac-design track --refine intensity``: refine a converged
-    :class:`ftrac_design.segment.pipeline.TrackResult` on ``image`` (as stored) and return a
+    :class:`ftrac_design.segment.TrackResult` on ``image`` (as stored) and return a
     copy whose pose is the refined one (``scales="auto"`` with a 1 px coarse scale), with the
     covariance from the pixel information (scaled by the fitted χ²/dof when that exceeds 1: a
     real image's dose and blur are not known exactly). A result that did not converge is returned unchanged. ``options`` go to

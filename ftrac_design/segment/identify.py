@@ -44,7 +44,7 @@ class BeadHypothesis:
     rms_px: float
 
 
-def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pixels (..., n, 2) and depths (..., n) of model points P (n, 3) at poses R (..., 3, 3), t (..., 3)."""
     X = np.einsum("...ij,nj->...ni", R, P) + t[..., None, :]
     Z = X[..., 2]
@@ -123,7 +123,7 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
         # than the solutions' projections)
         R = so3.exp(np.asarray(rs, float).reshape(-1, 3))
         t = np.asarray(ts, float).reshape(-1, 3)
-        proj, Z = _project(camera, R, t, model)
+        proj, Z = project(camera, R, t, model)
         front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
         proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
         d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
@@ -176,7 +176,7 @@ class Contours:
 _SAMPLES_CACHE: dict = {}
 
 
-def _curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+def curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
                    step_px: float = 0.5) -> dict[str, tuple[str, np.ndarray]]:
     """Densely projected centre-lines: id → (kind, (n, 2) px), wire pieces of lines only.
     The last few poses' samples are kept (contour gathering, wire support, agreement and
@@ -200,7 +200,7 @@ def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t
     pieces = features.wire_pieces
     coarse = [np.array([a, b]) for _, a, b in pieces]
     coarse += [el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)) for el in features.ellipses]
-    cuv = _project(camera, R, t, np.concatenate(coarse))[0] if coarse else np.zeros((0, 2))
+    cuv = project(camera, R, t, np.concatenate(coarse))[0] if coarse else np.zeros((0, 2))
     dense, owner = [], []
     for k, (fid, a, b) in enumerate(pieces):
         ab = cuv[2 * k:2 * k + 2]
@@ -216,7 +216,7 @@ def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t
         owner.append((el.id, "ellipse"))
     if not dense:
         return {}
-    duv = _project(camera, R, t, np.concatenate(dense))[0]
+    duv = project(camera, R, t, np.concatenate(dense))[0]
     parts: dict[str, tuple[str, list]] = {}
     i = 0
     for (fid, kind), X in zip(owner, dense):
@@ -251,7 +251,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     out = Contours()
     if len(ridges) == 0:
         return out
-    curves = _curve_samples(features, camera, R, t)
+    curves = curve_samples(features, camera, R, t)
     ids = list(curves)
     if not ids:
         return out
@@ -321,7 +321,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     # within reach of a curve can be kept, so only those are tested)
     free = np.ones(len(uvr), bool)
     if len(features.points) and reach.any():
-        bu = _project(camera, R, t, features.point_centers())[0]
+        bu = project(camera, R, t, features.point_centers())[0]
         db = np.linalg.norm(uvr[reach][:, None] - bu[None], axis=-1)
         free[reach] = (db > np.asarray(bead_radius_px)[None]).all(1)
     near = dist <= tol_px
@@ -368,8 +368,8 @@ def wire_support(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
     """
     H, W = T.shape
     out: dict[str, tuple[float, int]] = {}
-    curves = _curve_samples(features, camera, R, t)
-    bu = _project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
+    curves = curve_samples(features, camera, R, t)
+    bu = project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
     rad = np.asarray(bead_radius_px, float)
     for fid, (kind, pts) in curves.items():
         ok = np.isfinite(pts).all(1) & (pts[:, 0] >= 0) & (pts[:, 1] >= 0) & (pts[:, 0] <= W - 2) & \
@@ -402,8 +402,8 @@ def image_agreement(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     has hardly any wire and left the real ellipses' ridges unexplained, while dropping its
     own ellipses as "crowded" made its χ² the smaller)."""
     H, W = T.shape
-    curves = _curve_samples(features, camera, R, t)
-    bu = _project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
+    curves = curve_samples(features, camera, R, t)
+    bu = project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
     rad = np.asarray(bead_radius_px, float)
     pts = [p for _, p in curves.values()]
     allp = np.concatenate(pts) if pts else np.zeros((0, 2))

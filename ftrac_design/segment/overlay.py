@@ -14,11 +14,11 @@ import numpy as np
 
 from ..features.model import Features
 from ..fileio import atomic_file
-from .identify import _project
+from .identify import project
 
 
 def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result, title: str = "") -> Path:
-    """Write the overlay PNG of ``result`` (a :class:`~.pipeline.TrackResult`) on ``image``
+    """Write the overlay PNG of ``result`` (a :class:`~.options.TrackResult`) on ``image``
     (the density image or the image as stored; shown dense = bright), atomically."""
     import matplotlib
     matplotlib.use("Agg")
@@ -35,11 +35,11 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
     if result.beads is not None and len(result.beads):
         pts.append(result.beads.uv)
     if ok_pose:
-        uv, _ = _project(cam, pose.rotation, pose.translation_mm, features.point_centers()) \
+        uv, _ = project(cam, pose.rotation, pose.translation_mm, features.point_centers()) \
             if features.points else (np.zeros((0, 2)), None)
         pts.append(uv)
         for el in features.ellipses:
-            pts.append(_project(cam, pose.rotation, pose.translation_mm, el.sample(np.linspace(0, 2 * np.pi, 16)))[0])
+            pts.append(project(cam, pose.rotation, pose.translation_mm, el.sample(np.linspace(0, 2 * np.pi, 16)))[0])
     H, W = img.shape
     if pts:
         allp = np.concatenate(pts)
@@ -73,18 +73,18 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
         R, t = pose.rotation, pose.translation_mm
         style = "-" if pose.converged else "--"
         for p in features.points:
-            uv = _project(cam, R, t, p.center[None])[0][0]
+            uv = project(cam, R, t, p.center[None])[0][0]
             rad = p.diameter / 2 * cam.fx / float((R @ p.center + t)[2])
             ax.add_patch(plt.Circle(uv, rad, fill=False, color=colour[p.id], lw=1.0, ls=style))
             ax.annotate(p.id, uv, xytext=(6, -6), textcoords="offset points", color=colour[p.id], fontsize=8)
         for ln in features.lines:
-            ab = _project(cam, R, t, np.array([ln.start, ln.end]))[0]
+            ab = project(cam, R, t, np.array([ln.start, ln.end]))[0]
             ax.plot(ab[:, 0], ab[:, 1], style, color=colour[ln.id], lw=0.9, alpha=0.9)
             m = ab.mean(0)
             ax.annotate(ln.id, m, xytext=(8, 8), textcoords="offset points", color=colour[ln.id], fontsize=9,
                         weight="bold")
         for el in features.ellipses:
-            uv = _project(cam, R, t, el.sample(np.linspace(0, 2 * np.pi, 200)))[0]
+            uv = project(cam, R, t, el.sample(np.linspace(0, 2 * np.pi, 200)))[0]
             ax.plot(uv[:, 0], uv[:, 1], style, color=colour[el.id], lw=0.9, alpha=0.9)
             top = uv[np.argmin(uv[:, 1])]
             ax.annotate(el.id, top, xytext=(0, -10), textcoords="offset points", color=colour[el.id], fontsize=9,

@@ -1,0 +1,152 @@
+"""The acetal body's modelled projection, subtracted before the wires are found again.
+
+The body's silhouette is a √-shaped ramp under the ellipse wires (they sit 0.3 mm inside the
+surface); a top-hat keeps part of that ramp under a wire whose profile it cannot separate
+from it, and the ridges shift inward — ellipses shrank (~0.3 px at σ = 0.8 px) and the depth
+came out 1–2 mm short; nine_bead's depth was biased the same way. With the body's projection
+at the best labelling's pose subtracted first (its density scale fitted to the image, so
+display images work too) the wire sits on a flat background again, and the balls are
+refitted with the predicted wires' pixels left out.
+"""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+
+from ..features.model import Features
+from ..pose import Camera, Pose
+from . import identify
+from .beads import Beads, fit_beads
+from .detection import Scene
+from .image import top_hat
+from .ridges import RidgePoints, ridge_points
+
+#: largest body box rendered (pixels): a labelling whose pose puts the body over more than
+#: this is refused before rendering it (its image would not fit the detector anyway)
+MAX_BOX_PX = 4096 * 4096
+
+
+def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
+                 margin_px: int = 8, clip: tuple[int, int] | None = None):
+    """The acetal body's modelled density (−ln of its blurred transmission) over its bounding
+    box at pose (R, t): ``(box image, (row0, col0))``; uses the simulator's exact
+    hollow-cylinder chords (:func:`ftrac_design.xray.line_integral_box`).
+
+    Parameters
+    ----------
+    features : the design (only its frame is used: the body alone is rendered).
+    camera : intrinsics; (R, t) the pose F → X (mm).
+    body : :class:`ftrac_design.xray.Body`.
+    blur_px : Gaussian σ of the image's blur, px (pixel area included).
+    clip : (H, W) of the image: the box is cut to it before anything is computed.
+
+    Returns
+    -------
+    (density (h, w) float64, (row0, col0)), or None when the pose puts the body behind the
+    source, outside ``clip`` or over more than :data:`MAX_BOX_PX` pixels.
+    """
+    from scipy.ndimage import gaussian_filter
+
+    from ..xray import ImagingModel, line_integral_box
+
+    if not body_box_ok(camera, R, t, body, clip):
+        return None
+    p, (v0, u0) = line_integral_box(features.subset(set()), R, t, camera, ImagingModel(supersample=2), body,
+                                    margin_px=margin_px)
+    # the bead fit's blur includes the pixel's own width (variance 1/12), which the
+    # pixel-integrated line integral already has
+    s = math.sqrt(max(blur_px ** 2 - 1.0 / 12.0, 0.0))
+    I = gaussian_filter(np.exp(-p), s, mode="nearest") if s > 0 else np.exp(-p)
+    return -np.log(np.maximum(I, 1e-12)), (v0, u0)
+
+
+def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[int, int] | None) -> bool:
+    """Whether the body's projection at pose (R, t) is in front of the source, meets the
+    image (``clip`` = (H, W), if given) and covers at most :data:`MAX_BOX_PX` pixels."""
+    ro, h = body.outer_diameter / 2, body.length / 2
+    corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
+    X = corners @ np.asarray(R, float).T + np.asarray(t, float)
+    if not np.all(np.isfinite(X)) or np.any(X[:, 2] <= 1.0):
+        return False
+    uv = camera.project(X)
+    lo, hi = uv.min(0), uv.max(0)
+    if float(np.prod(hi - lo + 2)) > MAX_BOX_PX:
+        return False
+    if clip is not None:
+        H, W = clip
+        if hi[0] < 0 or hi[1] < 0 or lo[0] > W - 1 or lo[1] > H - 1:
+            return False
+    return True
+
+
+def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose) -> Beads:
+    """The bead fits again with the pixels of the pose's predicted wires left out (a
+    wire passing under a ball biases its centre; two crossing there, by ~0.4 px)."""
+    if len(beads) == 0:
+        return beads
+    sc = scene.scales
+    H, W = T.shape
+    mask = np.zeros((H, W), np.uint8)
+    half = 0.5 * sc.wire_px + 1.5 * float(np.median(beads.blur))
+    for kind, pts in identify.curve_samples(scene.features, scene.camera, pose.rotation,
+                                            pose.translation_mm).values():
+        p = np.round(pts[np.isfinite(pts).all(1)]).astype(np.int32)
+        if len(p) > 1:
+            cv2.polylines(mask, [p.reshape(-1, 1, 2)], kind == "ellipse", 1, thickness=max(1, int(round(2 * half))))
+    refit = fit_beads(T, beads.uv, sc.bead_radius_px, float(np.median(beads.blur)), scene.noise, beads.response,
+                      exclude=mask.astype(bool))
+    # keep the first fit where the mask left too little of a ball to fit
+    ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
+        np.isfinite(refit.sigma_px) & (refit.radius > 0.5 * sc.bead_radius_px)
+    return Beads(*(np.where(ok[:, None] if getattr(beads, k).ndim == 2 else ok, getattr(refit, k), getattr(beads, k))
+                   for k in beads.__dataclass_fields__))
+
+
+def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float
+                        ) -> tuple[RidgePoints | None, np.ndarray | None]:
+    """Ridge points over the body's box after subtracting its modelled projection at
+    ``pose`` from the density image ``g``, and the background-free image with that box
+    replaced; (None, None) when the body cannot be modelled there."""
+    bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, body, blur, clip=g.shape)
+    if bd is None:
+        return None, None
+    B, (v0, u0) = bd
+    T, noise, sc = scene.T, scene.noise, scene.scales
+    H, W = g.shape
+    r0, r1 = max(v0, 0), min(v0 + B.shape[0], H)
+    c0, c1 = max(u0, 0), min(u0 + B.shape[1], W)
+    if r1 - r0 < 8 or c1 - c0 < 8:
+        return None, None
+    gb = g[r0:r1, c0:c1].astype(np.float64)
+    Bb = B[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
+    quiet = T[r0:r1, c0:c1] < 3 * noise                 # not a wire or a bead
+    if quiet.sum() < 50 or np.ptp(Bb[quiet]) <= 0:
+        return None, None
+    A = np.stack([Bb[quiet], np.ones(int(quiet.sum()))], -1)
+    (scale, off), *_ = np.linalg.lstsq(A, gb[quiet], rcond=None)
+    if not scale > 0:
+        return None, None
+    g2 = (gb - scale * Bb).astype(np.float32)
+    T2 = top_hat(g2, sc.disc_px)
+    rp = None
+    if scene.features.lines or scene.features.ellipses:
+        rp = ridge_points(T2, sc.ridge_sigma_px, noise, scene.opts.ridge_min_snr)
+        rp.uv = rp.uv + np.array([c0, r0], float)
+    Tb = T.copy()
+    Tb[r0:r1, c0:c1] = T2
+    return rp, Tb
+
+
+def merge_ridges(ridges: RidgePoints | None, inner: RidgePoints | None) -> RidgePoints | None:
+    """``inner`` (found over the body's box) with the ridge points of ``ridges`` outside that box."""
+    if ridges is None or inner is None or not len(inner):
+        return None
+    lo, hi = inner.uv.min(0) - 1, inner.uv.max(0) + 1
+    outside = ~((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)
+    return RidgePoints(np.concatenate([ridges.uv[outside], inner.uv]),
+                       np.concatenate([ridges.normal[outside], inner.normal]),
+                       np.concatenate([ridges.strength[outside], inner.strength]),
+                       np.concatenate([ridges.snr[outside], inner.snr]))

@@ -1,0 +1,181 @@
+"""The image path's own noise model, its contour cleaning, per-feature tests and covariance.
+
+The solver's noise model is not a fixed default but the segmentation's measured accuracy:
+each bead's centre uncertainty from its model fit and each curve's residual scatter about
+its own fit, pooled per feature type, with floors and systematic terms measured on rendered
+images (:class:`~.options.TrackOptions` ``floor_*``, ``sys_*``). Each feature's whitened
+residual is then tested on its own (:func:`feature_p_values`), and the pose covariance is
+rescaled to what the residuals showed (:func:`calibrated_covariance`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.special import chdtrc
+
+from ..features.model import Features
+from ..pose import NoiseModel, Observation, Pose
+from ..pose.fitting import fit_conic, fit_line, sampson_theta_jacobian
+from ..pose.problem import compile_problem, evaluate
+from . import identify
+from .beads import Beads
+from .options import TrackOptions
+
+
+def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: float,
+                   opts: TrackOptions) -> NoiseModel:
+    """Per-feature-type σ (mm at the detector) measured on this image, with floors.
+
+    Beside the random part measured here (each bead fit's own σ; each curve's scatter about
+    its own fit) every feature carries a systematic error that does not average away over
+    its points — a bead centre pulled by a wire or a bone edge, a wire's contour shifted by
+    the background's slope (``TrackOptions.sys_point_px`` / ``sys_curve_px``, measured
+    against the truth on rendered images with anatomy). The solver's noise model is one σ
+    per point of a type, so a curve's systematic part enters as ``n σ_sys²`` per point (n
+    its typical number of points): then a curve's fitted parameters carry σ_sys as they
+    should and the per-feature χ² test does not reject correct curves for a 0.05 px shift.
+
+    Parameters
+    ----------
+    obs : the labelling's observation (pixels).
+    beads : the fitted blobs; ``match`` maps bead id → blob index.
+    pix : pixel pitch, mm.
+
+    Returns
+    -------
+    NoiseModel with point, line and ellipse σ in mm at the detector.
+    """
+    sig_p = [float(beads.sigma_px[j]) for j in match.values()] if match else []
+    # the median: one poorly fitted ball (σ of a pixel) must not loosen every other bead;
+    # it fails its own χ² test instead
+    sp = float(np.median(sig_p)) if sig_p else 0.0
+    point = max(math.hypot(sp, opts.sys_point_px) * pix, opts.floor_point_mm)
+    out = []
+    for store, fitter, floor in ((obs.lines, fit_line, opts.floor_line_mm),
+                                 (obs.ellipses, fit_conic, opts.floor_ellipse_mm)):
+        rss, dof, ns = 0.0, 0, []
+        for c in store.values():
+            f = cached_fit(fitter, c.points)
+            rss += float(f.rss)
+            dof += int(f.dof)
+            ns.append(len(c.points))
+        s = math.sqrt(rss / dof) if dof > 0 else 0.0
+        n = float(np.median(ns)) if ns else 0.0
+        out.append(max(math.sqrt(s * s + n * opts.sys_curve_px ** 2) * pix, floor))
+    return NoiseModel(point, out[0], out[1])
+
+
+_FITS: dict = {}
+
+
+def cached_fit(fitter, pts: np.ndarray):
+    """``fitter(pts)`` (fit_line or fit_conic), remembered for the contours of the current
+    labelling: the cleaning's last fit and the noise model's are of the same points."""
+    pts = np.ascontiguousarray(pts, dtype=float)
+    key = (fitter.__name__, pts.shape, pts.tobytes())
+    f = _FITS.get(key)
+    if f is None:
+        if len(_FITS) >= 64:
+            _FITS.clear()
+        f = _FITS[key] = fitter(pts)
+    return f
+
+
+def clean_contours(contours: identify.Contours, k: float = 4.0) -> None:
+    """Drop contour points farther than ``k`` robust σ from their own curve fit (in place)."""
+    for store in (contours.lines, contours.ellipses):
+        for fid, pts in list(store.items()):
+            for _ in range(2):
+                if store is contours.lines:
+                    f = cached_fit(fit_line, pts)
+                    r = (pts - f.anchor) @ f.normal + f.offset
+                else:
+                    f = cached_fit(fit_conic, pts)
+                    pn = (pts - f.center) / f.scale
+                    r, _ = sampson_theta_jacobian(f.theta, pn[:, 0], pn[:, 1])
+                    r = np.asarray(r) * f.scale
+                s = 1.4826 * float(np.median(np.abs(r - np.median(r))))
+                keep = np.abs(r) <= max(k * s, 0.05)
+                if keep.all() or keep.sum() < 6:
+                    break
+                pts = pts[keep]
+                snr = contours.snr[fid]
+                contours.snr[fid] = snr[keep[: len(snr)]] if len(snr) == len(keep) else snr
+            store[fid] = pts
+
+
+_RESIDUALS: list = []
+
+
+def residuals_at(features: Features, obs: Observation, noise: NoiseModel, R: np.ndarray, t: np.ndarray):
+    """``(problem, evaluation)`` of ``obs`` at pose (R, t), the last one remembered: the
+    per-feature test, the covariance's variance factor and the labelling's score all ask
+    for the same observation at the same pose, and compiling it fits every contour again."""
+    key = (R.tobytes(), t.tobytes())
+    if _RESIDUALS and _RESIDUALS[0] is features and _RESIDUALS[1] is obs and _RESIDUALS[2] is noise \
+            and _RESIDUALS[3] == key:
+        return _RESIDUALS[4], _RESIDUALS[5]
+    prob = compile_problem(features, [obs], noise)
+    ev = evaluate(prob, R[None], t[None], jac=False)
+    _RESIDUALS[:] = [features, obs, noise, key, prob, ev]
+    return prob, ev
+
+
+def feature_p_values(features: Features, obs: Observation, pose: Pose, noise: NoiseModel) -> dict[str, float]:
+    """Each feature's p-value: the probability of a whitened χ² at least as large as its own
+    at ``pose``, with its rows as degrees of freedom."""
+    prob, ev = residuals_at(features, obs, noise, pose.rotation, pose.translation_mm)
+    out = {}
+    for fid, sl in prob.row_groups():
+        c2 = float(np.sum(ev.rho[0, sl] ** 2))
+        # chdtrc is what scipy.stats.chi2.sf evaluates, without its per-call argument checks
+        out[fid] = float(chdtrc(sl.stop - sl.start, c2))
+    return out
+
+
+def calibrated_covariance(features: Features, obs: Observation, pose: Pose, noise: NoiseModel,
+                          opts: TrackOptions | None = None) -> float | None:
+    """Rescale the pose covariance (in place) to the image path's noise model; returns s².
+
+    The solver scales (JᵀJ)⁻¹ by κ², pooled over the pose residuals *and* the contour fits'
+    scatter; here the contour scatter is only the random part of the noise model (the
+    systematic part, see :func:`measured_noise`, does not show in a curve's scatter about
+    its own fit). The scale is χ²/dof of the pose residuals alone — the a-posteriori
+    variance factor s²: the model's systematic terms are sized for cluttered images
+    (anatomy), and on a clean image the residuals are ~5× smaller than they allow, which
+    this factor follows (floored at 0.02, i.e. σ at ≥ 14 % of the model's).
+
+    That alone left the tilts' σ 1.3–1.5× too small on 600 tracked ftrac_2005 images (errors
+    a pose absorbs show in no residual) while rz's was 1.3× too large. The covariance is
+    therefore the sandwich ``s² A⁻¹ (Σₖ qₖ Jₖᵀ Jₖ) A⁻¹`` (A = JᵀJ, whitened; k = points,
+    lines, ellipses) with the components qₖ of ``TrackOptions.variance_*``, chosen against
+    the truth on rendered images of the three presets, clean and over anatomy
+    (benchmarks/track_accuracy.py); the estimate itself is unchanged. Per-type components
+    cannot make every axis exact: rz stays conservative (its errors ~0.55–0.6 σ)."""
+    if pose.covariance is None or not math.isfinite(pose.noise_scale) or pose.noise_scale <= 0:
+        return None
+    prob, ev = residuals_at(features, obs, noise, pose.rotation, pose.translation_mm)
+    m = ev.rho.shape[1]
+    if m <= 6:
+        return None
+    s2 = max(float(np.sum(ev.rho[0] ** 2)) / (m - 6), 0.02)
+    opts = opts or TrackOptions()
+    q = {"p": opts.variance_point, "l": opts.variance_line, "e": opts.variance_ellipse}
+    J = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=True).J
+    if J is None or not np.all(np.isfinite(J)):
+        pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+        return s2
+    J = J[0]
+    w = np.empty(m)
+    for fid, sl in prob.row_groups():
+        w[sl] = q["p"] if fid in obs.points else (q["l"] if fid in obs.lines else q["e"])
+    try:
+        Ai = np.linalg.inv(J.T @ J)
+    except np.linalg.LinAlgError:
+        pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+        return s2
+    C = s2 * Ai @ ((J * w[:, None]).T @ J) @ Ai
+    pose.covariance = 0.5 * (C + C.T)
+    return s2

@@ -1,0 +1,135 @@
+"""Settings of the image path (:class:`TrackOptions`) and what it returns (:class:`TrackResult`)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+
+from ..pose import NoiseModel, Observation, Pose
+from .beads import Beads
+from .ridges import RidgePoints
+
+#: how dense matter looks in an image: "auto" (the header, else the fiducial's own evidence),
+#: "dense-dark" (raw detector counts) or "dense-bright" (log / display image)
+Polarity = Literal["auto", "dense-dark", "dense-bright"]
+
+
+@dataclass(frozen=True)
+class TrackOptions:
+    """Settings of the image path; lengths in pixels unless named ``_mm``."""
+
+    #: "auto", "dense-dark" (raw detector counts) or "dense-bright" (log/display image)
+    polarity: Polarity = "auto"
+    #: source-to-fiducial over source-to-detector distance assumed to size the filters
+    #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)
+    magnification: float = 1.5
+    #: starting value of the Gaussian blur σ (fitted on the beads)
+    blur_px: float = 0.8
+    ridge_min_snr: float = 5.0
+    bead_min_snr: float = 8.0
+    #: first bead-matching tolerance (× the bead radius), then the refined one (px)
+    hypothesis_tol_radii: float = 1.0
+    match_tol_px: float = 2.0
+    #: contour points within this of a predicted curve belong to it (px); a second curve
+    #: within ``separation_px`` makes a point ambiguous
+    contour_tol_px: float = 2.0
+    final_contour_tol_px: float = 1.0
+    separation_px: float = 3.0
+    #: contour points are thinned to one per ``thin_factor`` × the ridge scale of arc (the
+    #: correlation length of Steger points' noise, ≈ 2√π σ for Gaussian-smoothed white noise)
+    thin_factor: float = 3.5
+    #: floors of the measured segmentation σ per axis (mm at the detector), from rendered
+    #: images at the default imaging model (benchmarks/track_accuracy.py)
+    floor_point_mm: float = 0.02
+    #: systematic error per feature (px per axis / along the normal), see :func:`~.noise.measured_noise`
+    sys_point_px: float = 0.07
+    sys_curve_px: float = 0.04
+    floor_line_mm: float = 0.01
+    floor_ellipse_mm: float = 0.01
+    #: a feature whose own residual is this improbable under the noise model is dropped
+    feature_p_value: float = 1e-6
+    max_dropped: int = 2
+    #: a second labelling whose misfit (χ² + charges, see :func:`~.labelling.misfit`) is within this of
+    #: the best's, and that is far enough away, makes the answer ambiguous (one unexplained
+    #: feature's charge: ftrac_mini's near-mirror labellings came within 24)
+    ambiguity_chi2: float = 25.0
+    #: a predicted wire whose median density along its prediction is below this fraction of
+    #: the best-supported wire's is absent: the labelling is not confirmed
+    wire_support: float = 0.3
+    #: χ² charged for each predicted, unobstructed feature a labelling does not explain
+    unexplained_chi2: float = 25.0
+    #: look for the fiducial on a half-size image first and work in its region only
+    roi: bool = True
+    #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
+    #: image does not show (:func:`identify.image_agreement`)
+    agreement_chi2_per_px: float = 1.0
+    #: two refinement stages (wide, then tight and thinned) instead of three
+    fast: bool = True
+    #: a converged pose may leave at most this many balls in view, well clear of the others
+    #: (> 4 radii + 2 px), without their blob or rejected
+    max_unexplained_beads: int = 1
+    #: a confident labelling uses at least this many balls
+    min_beads: int = 5
+    #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
+    #: labelling needs
+    min_redundancy: int = 6
+    #: the solver's maximum noise scale κ for an image pose (the model is measured here)
+    max_noise_scale: float = 3.0
+    #: variance components qₖ of the pose covariance per feature type, relative to the
+    #: residuals' variance factor (see :func:`~.noise.calibrated_covariance`); chosen against the
+    #: truth on rendered images (600 ftrac_2005, 180 ftrac_mini, 200 nine_bead; clean and
+    #: over anatomy): the error over its σ has an RMS of 0.55–1.2 on every axis
+    variance_point: float = 2.0
+    variance_line: float = 2.0
+    variance_ellipse: float = 1.0
+
+
+@dataclass
+class TrackResult:
+    """What :func:`~ftrac_design.segment.track_image` found: the pose (SPEC §4, converged or
+    not, with the reason), the observation it segmented (SPEC §3), per-feature quality, the
+    raw detections (for the overlay) and diagnostics."""
+
+    pose: Pose
+    observation: Observation | None
+    quality: dict[str, Any]
+    beads: Beads | None
+    ridges: RidgePoints | None
+    polarity: str
+    noise: NoiseModel | None
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    def pose_dict(self) -> dict[str, Any]:
+        """SPEC §4 object plus diagnostics (readers ignore unknown keys)."""
+        d = self.pose.to_dict()
+        d["segmentation"] = {
+            "polarity": self.polarity,
+            "noise_model_mm": None if self.noise is None else
+            {"point": self.noise.point_mm, "line": self.noise.line_mm, "ellipse": self.noise.ellipse_mm},
+            **self.diagnostics,
+        }
+        return d
+
+    def observation_dict(self) -> dict[str, Any] | None:
+        """SPEC §3 object plus ``quality`` (per feature; readers ignore unknown keys)."""
+        if self.observation is None:
+            return None
+        d = self.observation.to_dict()
+        d["quality"] = self.quality
+        return d
+
+
+def failed_pose(reason: str) -> Pose:
+    """A SPEC §4 pose that was not found: NaN rotation and translation, ``converged`` False
+    and ``reason`` as its error."""
+    nan = np.full(3, np.nan)
+    return Pose(np.full((3, 3), np.nan), nan, False, math.nan, None, {}, 0, reason)
+
+
+def failed_result(reason: str, polarity: str = "", beads: Beads | None = None, ridges: RidgePoints | None = None,
+                  diagnostics: dict[str, Any] | None = None) -> TrackResult:
+    """A :class:`TrackResult` without a pose: nothing was identified, for ``reason``."""
+    return TrackResult(failed_pose(reason), None, {}, beads, ridges, polarity, None, dict(diagnostics or {}))

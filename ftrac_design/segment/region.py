@@ -1,0 +1,109 @@
+"""Where to look: the fiducial's region on a half-size image, results moved between a crop
+and the full image, and whether a view itself limits what any search could confirm."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..features.model import Features
+from ..pose import Camera, Observation, Pose
+from ..pose.observation import CurveObservation
+from . import identify
+from .beads import Beads, blob_candidates
+from .detection import Scales, scales
+from .image import noise_sigma, top_hat
+from .options import TrackOptions, TrackResult
+from .ridges import RidgePoints
+
+
+def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions
+                 ) -> tuple[int, int, int, int] | None:
+    """Where the fiducial is, from a half-size density image ``gs``: the full-size box
+    ``(row0, row1, col0, col1)`` around the densest cluster of bead-like blobs, wide enough
+    for the whole fiducial's projection from any of them; None when nothing bead-like is
+    found (then the whole image is searched)."""
+    if not features.points:
+        return None
+    rb = sc.bead_radius_px / 2
+    disc = int(math.ceil(max(rb, sc.wire_px / 2) + 1.5 * opts.blur_px + 2))
+    T = top_hat(gs, disc)
+    noise = max(noise_sigma(T), 1e-9)
+    P = len(features.points)
+    cand, resp = blob_candidates(T, rb, noise, 3 * P + 6, opts.bead_min_snr)
+    if len(cand) < 3:
+        return None
+    # the fiducial's largest extent in pixels at a generous magnification
+    pts = [features.point_centers()]
+    pts += [np.array([ln.start, ln.end]) for ln in features.lines]
+    pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
+    X = np.concatenate(pts)
+    ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
+    D = ext * opts.magnification * 1.25 / sc.pixel_mm
+    uv = 2 * cand + 0.5                                     # half-size pixel i covers full-size 2i, 2i + 1
+    near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
+    k = int(np.argmax(near.astype(float) @ resp))
+    cl = uv[near[k]]
+    lo = cl.min(0) - 0.5 * D - 8
+    hi = cl.max(0) + 0.5 * D + 8
+    H, W = 2 * gs.shape[0], 2 * gs.shape[1]
+    c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+    c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
+    if (r1 - r0) * (c1 - c0) > 0.6 * H * W:
+        return None
+    return r0, r1, c0, c1
+
+
+def shifted(res: TrackResult, camera: Camera, du: int, dv: int) -> TrackResult:
+    """``res`` found on a crop whose corner is at (du, dv) px, in the full image's pixels
+    (``camera`` the full image's)."""
+    off = np.array([du, dv], float)
+    if res.observation is not None:
+        o = res.observation
+        res.observation = Observation(camera, {k: v + off for k, v in o.points.items()},
+                                      {k: CurveObservation(points=c.points + off) for k, c in o.lines.items()},
+                                      {k: CurveObservation(points=c.points + off) for k, c in o.ellipses.items()},
+                                      origin=o.origin)
+    if res.beads is not None:
+        res.beads = Beads(*(getattr(res.beads, k) + off if k == "uv" else getattr(res.beads, k)
+                            for k in res.beads.__dataclass_fields__))
+    if res.ridges is not None:
+        res.ridges = RidgePoints(res.ridges.uv + off, res.ridges.normal, res.ridges.strength, res.ridges.snr)
+    return res
+
+
+def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tuple[int, int],
+                     opts: TrackOptions) -> int:
+    """How many balls a perfect segmentation could use at ``pose``: those projected inside
+    the image of ``shape`` (clear of its edge as detection requires) and not within the
+    merging distance of another ball (the labelling leaves those out). A bound set by the
+    view alone, whatever the noise or the region searched."""
+    if not features.points:
+        return 0
+    sc = scales(features, camera, opts)
+    uv, _ = identify.project(camera, pose.rotation, pose.translation_mm, features.point_centers())
+    H, W = shape
+    edge = sc.bead_radius_px + 2 * opts.blur_px + 1
+    sep = 2 * sc.bead_radius_px + 2 * opts.blur_px
+    inside = np.isfinite(uv).all(1) & (uv[:, 0] > edge) & (uv[:, 1] > edge) & (uv[:, 0] < W - 1 - edge) \
+        & (uv[:, 1] < H - 1 - edge)
+    dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9
+    return int((inside & (dd.min(1) >= sep)).sum())
+
+
+def view_limited(res: TrackResult, features: Features, camera: Camera, shape: tuple[int, int],
+                 opts: TrackOptions) -> bool:
+    """Whether a region's unconfirmed answer is limited by the view itself, so that searching
+    the whole image (``shape``, seen with ``camera``) again cannot confirm it: too few balls
+    could be used, and even a perfect segmentation of the whole image at that pose could
+    use no more (:func:`resolvable_beads`: the others overlap or leave the image). The
+    whole-image retry cost ~200 ms and ended the same way."""
+    need = min(opts.min_beads, len(features.points))
+    p = res.pose
+    if p.converged or res.observation is None or not np.all(np.isfinite(p.rotation)) or \
+            not str(p.error or "").startswith("too little evidence") or len(res.observation.points) >= need:
+        return False
+    n = resolvable_beads(features, camera, p, shape, opts)
+    res.diagnostics["beads_resolvable"] = n
+    return n < need
