@@ -24,9 +24,9 @@ from .detection import Scene
 from .image import top_hat
 from .ridges import RidgePoints, ridge_points
 
-#: largest body box rendered (pixels): a labelling whose pose puts the body over more than
-#: this is refused before rendering it (its image would not fit the detector anyway)
-MAX_BOX_PX = 4096 * 4096
+#: largest body box rendered, per side, as a multiple of the image's larger side: a
+#: labelling whose pose puts the body over more is not modelled (memory stays bounded)
+MAX_BOX_SIDE = 2.0
 
 
 def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
@@ -46,7 +46,7 @@ def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
     Returns
     -------
     (density (h, w) float64, (row0, col0)), or None when the pose puts the body behind the
-    source, outside ``clip`` or over more than :data:`MAX_BOX_PX` pixels.
+    source, outside ``clip`` or wider than :data:`MAX_BOX_SIDE` × its larger side.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -65,7 +65,8 @@ def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
 
 def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[int, int] | None) -> bool:
     """Whether the body's projection at pose (R, t) is in front of the source, meets the
-    image (``clip`` = (H, W), if given) and covers at most :data:`MAX_BOX_PX` pixels."""
+    image (``clip`` = (H, W), if given; else a 1024² one) and is at most
+    :data:`MAX_BOX_SIDE` × the image's larger side across."""
     ro, h = body.outer_diameter / 2, body.length / 2
     corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
     X = corners @ np.asarray(R, float).T + np.asarray(t, float)
@@ -73,13 +74,10 @@ def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[
         return False
     uv = camera.project(X)
     lo, hi = uv.min(0), uv.max(0)
-    if float(np.prod(hi - lo + 2)) > MAX_BOX_PX:
+    H, W = clip if clip is not None else (1024, 1024)
+    if float(np.max(hi - lo)) > MAX_BOX_SIDE * max(H, W):
         return False
-    if clip is not None:
-        H, W = clip
-        if hi[0] < 0 or hi[1] < 0 or lo[0] > W - 1 or lo[1] > H - 1:
-            return False
-    return True
+    return not (hi[0] < 0 or hi[1] < 0 or lo[0] > W - 1 or lo[1] > H - 1)
 
 
 def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose) -> Beads:

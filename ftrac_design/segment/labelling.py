@@ -130,6 +130,11 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
     sep = 2 * rb + 2 * opts.blur_px
     out: Labelling | None = None
     for stage in (first_stage, 2) if first_stage < 2 and opts.fast else range(first_stage, 3):
+        why = implausible(scene, R, t)
+        if why is not None:
+            # before anything is projected: a pose near the source projects the wires over
+            # millions of pixels
+            return why
         match, dropped_beads = match_beads(scene, R, t, beads, opts.match_tol_px if stage else
                                            max(opts.match_tol_px, rb), sep)
         cont = _contours(scene, R, t, blur, stage)
@@ -183,6 +188,21 @@ def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
     return replace(lab, pose=pose, obs=obs, removed=removed)
 
 
+def implausible(scene: Scene, R: np.ndarray, t: np.ndarray) -> str | None:
+    """Why pose (R, t) cannot be the fiducial's (it puts the fiducial's origin outside
+    ``TrackOptions.depth_range`` of the source-to-detector distance, or a ball behind or at
+    the source), or None."""
+    lo, hi = scene.opts.depth_range
+    f = scene.camera.focal_length_mm
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        return "no finite pose"
+    Z = scene.features.point_centers() @ R[2] + t[2] if scene.features.points else np.array([t[2]])
+    if not lo * f <= t[2] <= hi * f or np.any(Z <= 0.05 * f):
+        return (f"implausible pose: the fiducial at {t[2]:.0f} mm from the source (between {lo * f:.0f} and "
+                f"{hi * f:.0f} mm expected for a source-to-detector distance of {f:.0f} mm)")
+    return None
+
+
 def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> Labelling | str:
     """Refine one labelling into a pose with every feature it can see: matching and contour
     gathering with wide tolerances (stage 0), tight ones (1), then tight and thinned (2);
@@ -196,6 +216,9 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> 
     lab = _staged_solve(scene, h, first_stage)
     if isinstance(lab, str):
         return lab
+    why = implausible(scene, lab.pose.rotation, lab.pose.translation_mm)
+    if why is not None:
+        return why
     lab = _drop_inconsistent(scene, lab)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts)
     lab = replace(lab, variance_factor=vf)

@@ -85,6 +85,11 @@ class TrackOptions:
     variance_point: float = 2.0
     variance_line: float = 2.0
     variance_ellipse: float = 1.0
+    #: a labelling's pose must put the fiducial's origin between these fractions of the
+    #: source-to-detector distance (magnification 1.01–10): the fiducial lies between the
+    #: source and the detector, and a pose outside is a wrong labelling (its body rendered
+    #: over 10⁸ pixels before this test)
+    depth_range: tuple[float, float] = (0.1, 0.99)
 
 
 @dataclass

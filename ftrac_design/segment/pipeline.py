@@ -37,7 +37,11 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis]) -> list[Label
     for h in hyps[:4]:
         if h.count < max(4, hyps[0].count - 2):
             continue
-        lab = evaluate(scene, h)
+        try:
+            lab = evaluate(scene, h)
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError) as exc:
+            # one labelling that breaks the numerics is one labelling less, not a lost image
+            lab = f"labelling failed: {type(exc).__name__}: {exc}"
         if isinstance(lab, str):
             continue
         p = lab.pose
@@ -170,9 +174,17 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
 
     Returns
     -------
-    TrackResult. Never raises for an image in which the fiducial cannot be found: the pose
-    then has ``converged = False`` and the reason.
+    TrackResult. Never raises for an image: where the fiducial cannot be found, or the
+    numerics fail on what the image shows, the pose has ``converged = False`` and the reason.
     """
+    try:
+        return _track(image, features, camera, options, polarity_hint, body)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
+        return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
+
+
+def _track(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None,
+           polarity_hint: str | None, body) -> TrackResult:
     if isinstance(body, str):
         from ..xray.scene import body_from_source
         body = body_from_source(features.source)
