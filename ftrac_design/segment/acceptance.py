@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from ..pose import Pose, so3
-from . import identify
+from . import evidence
 from .detection import Scene
 from .labelling import Labelling
 
@@ -28,19 +28,15 @@ def refuse(pose: Pose, reason: str | None) -> bool:
 
 
 def wire_support(scene: Scene, pose: Pose) -> tuple[list[str], dict[str, float]]:
-    """Curves the pose predicts on bare background (see :func:`identify.wire_support`):
-    those whose median density along the prediction is below ``wire_support`` × the
-    best-supported curve's, or below 4 noise σ; also returns each curve's support in
-    noise σ."""
-    sup = identify.wire_support(scene.features, scene.camera, pose.rotation, pose.translation_mm, scene.T,
-                                scene.bead_exclusion())
+    """Curves the pose predicts on bare background (see :func:`.evidence.wire_support`):
+    those whose median ridge evidence is below ``wire_min_snr``, or below ``wire_support``
+    × the median curve's; also returns each curve's evidence in noise units."""
+    sup = evidence.wire_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
     if not sup:
         return [], {}
-    noise = scene.noise
-    top = max(v for v, _ in sup.values())
-    thr = max(4.0 * noise, scene.opts.wire_support * top)
-    return [fid for fid, (v, _) in sup.items() if v < thr], {fid: round(v / max(noise, 1e-12), 1)
-                                                             for fid, (v, _) in sup.items()}
+    ref = float(np.median([v for v, _ in sup.values()]))
+    thr = max(scene.opts.wire_min_snr, scene.opts.wire_support * ref)
+    return [fid for fid, (v, _) in sup.items() if v < thr], {fid: round(v, 1) for fid, (v, _) in sup.items()}
 
 
 def absent_wires(scene: Scene, pose: Pose) -> str | None:

@@ -100,11 +100,13 @@ class Beads:
         return len(self.uv)
 
 
-def blob_candidates(img: np.ndarray, radius_px: float, noise: float, max_count: int,
+def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray, max_count: int,
                     min_snr: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima (n, 2) (u, v) of the scale-normalised negative Laplacian at the bead
     scale σ = r/√2, strongest first, at most ``max_count``, each ≥ ``min_snr`` times the
-    noise response; also requires both Hessian eigenvalues negative (a blob, not a ridge)."""
+    noise response; also requires both Hessian eigenvalues negative (a blob, not a ridge).
+    ``noise``: the pixel noise σ, one number or a map (H, W). Returns the maxima and their
+    response in units of the noise response there."""
     sb = max(radius_px / np.sqrt(2.0), 0.8)
     g0, _, g2 = gaussian_kernels(sb)
     xx = cv2.sepFilter2D(img, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE)
@@ -127,17 +129,19 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float, max_count: 
     else:
         dil = cv2.dilate(resp, se)
         j, i = np.nonzero((resp >= dil) & (resp > min_snr * noise_resp) & (xx < 0) & (yy < 0))
-    val = resp[j, i]
+    nr = noise_resp[j, i] if np.ndim(noise_resp) == 2 else noise_resp
+    val = resp[j, i] / nr
     order = np.argsort(-val)[:max_count]
-    return np.stack([i[order], j[order]], -1).astype(float), val[order] / noise_resp
+    return np.stack([i[order], j[order]], -1).astype(float), val[order]
 
 
-def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: float, noise: float,
+def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: float, noise: float | np.ndarray,
               response: np.ndarray | None = None, iterations: int = 8, exclude: np.ndarray | None = None,
               prior_scale: float = 1.0) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
-    blur (starting values; both are fitted), ``noise`` the pixel noise σ. ``exclude``
+    blur (starting values; both are fitted), ``noise`` the pixel noise σ (one number, or
+    one per start). ``exclude``
     (H, W) bool marks pixels to leave out of every fit (where a pose predicts wires: a
     ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights).
     ``prior_scale`` multiplies the weights of the radius and blur priors."""
@@ -179,11 +183,11 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         S = sphere_profile_fast(rho, q[:, 2], q[:, 3])
         return q[:, 4:5] * S + q[:, 5:6] + q[:, 6:7] * X + q[:, 7:8] * Y, S
 
-    cost_scale = 4.685 * max(noise, 1e-12)
+    sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
+    cost_scale = 4.685 * sn[:, None]
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
-    prior_w = (prior_scale * max(noise, 1e-12) ** 2 / max(0.25 * radius_px, 1e-6) ** 2,
-               prior_scale * max(noise, 1e-12) ** 2 / 0.5 ** 2)
+    prior_w = (prior_scale * sn ** 2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn ** 2 / 0.5 ** 2)
     X5, Y5 = np.tile(X, (5, 1)), np.tile(Y, (5, 1))
     for it in range(iterations):
         # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
@@ -205,7 +209,7 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         J[..., 7] = Y
         if it >= 2:
             # Tukey biweight on the residuals: a wire touching the ball is an outlier
-            scale = max(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
+            scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
             u = np.clip(np.abs(res) / scale, 0, 1)
             w = (1 - u * u) ** 2 * w0
         Jw = J * w[..., None]
@@ -232,8 +236,8 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     m, S = model(p)
     res = y - m
     wsum = np.maximum(w.sum(1), 1.0)
-    rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / max(noise, 1e-12)
-    sig2 = max(noise, 1e-12) ** 2 * np.maximum(rms, 1.0) ** 2
+    rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
+    sig2 = sn ** 2 * np.maximum(rms, 1.0) ** 2
     with np.errstate(all="ignore"):
         cov = np.linalg.pinv(np.einsum("nmi,nmj->nij", J * w[..., None], J) + 1e-12 * np.eye(8)) \
             * sig2[:, None, None]

@@ -21,7 +21,7 @@ from ..pose import Camera, Pose
 from . import identify
 from .beads import Beads, fit_beads
 from .detection import Scene
-from .image import top_hat
+from .image import derivatives, top_hat
 from .ridges import RidgePoints, ridge_points
 
 #: largest body box rendered, per side, as a multiple of the image's larger side: a
@@ -94,7 +94,8 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
         p = np.round(pts[np.isfinite(pts).all(1)]).astype(np.int32)
         if len(p) > 1:
             cv2.polylines(mask, [p.reshape(-1, 1, 2)], kind == "ellipse", 1, thickness=max(1, int(round(2 * half))))
-    refit = fit_beads(T, beads.uv, sc.bead_radius_px, float(np.median(beads.blur)), scene.noise, beads.response,
+    refit = fit_beads(T, beads.uv, sc.bead_radius_px, float(np.median(beads.blur)), scene.noise_at(beads.uv),
+                      beads.response,
                       exclude=mask.astype(bool))
     # keep the first fit where the mask left too little of a ball to fit
     ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
@@ -103,39 +104,49 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
                    for k in beads.__dataclass_fields__))
 
 
-def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float
-                        ) -> tuple[RidgePoints | None, np.ndarray | None]:
-    """Ridge points over the body's box after subtracting its modelled projection at
-    ``pose`` from the density image ``g``, and the background-free image with that box
-    replaced; (None, None) when the body cannot be modelled there."""
+def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float) -> Scene | None:
+    """The scene over the body's box again after subtracting the body's modelled projection
+    at ``pose`` from the density image ``g``: the background-free image and its second derivatives
+    with that box replaced, and the ridge points found there (those of the box only); None
+    when the body cannot be modelled there."""
     bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, body, blur, clip=g.shape)
     if bd is None:
-        return None, None
+        return None
     B, (v0, u0) = bd
-    T, noise, sc = scene.T, scene.noise, scene.scales
+    T, sc = scene.T, scene.scales
     H, W = g.shape
     r0, r1 = max(v0, 0), min(v0 + B.shape[0], H)
     c0, c1 = max(u0, 0), min(u0 + B.shape[1], W)
     if r1 - r0 < 8 or c1 - c0 < 8:
-        return None, None
-    gb = g[r0:r1, c0:c1].astype(np.float64)
+        return None
+    box = (slice(r0, r1), slice(c0, c1))
+    gb = g[box].astype(np.float64)
     Bb = B[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
-    quiet = T[r0:r1, c0:c1] < 3 * noise                 # not a wire or a bead
+    quiet = T[box] < 3 * scene.noise_map[box]          # not a wire or a bead
+    if scene.valid is not None:
+        quiet &= scene.valid[box]
     if quiet.sum() < 50 or np.ptp(Bb[quiet]) <= 0:
-        return None, None
+        return None
     A = np.stack([Bb[quiet], np.ones(int(quiet.sum()))], -1)
     (scale, off), *_ = np.linalg.lstsq(A, gb[quiet], rcond=None)
     if not scale > 0:
-        return None, None
-    g2 = (gb - scale * Bb).astype(np.float32)
-    T2 = top_hat(g2, sc.disc_px)
+        return None
+    T2 = top_hat((gb - scale * Bb).astype(np.float32), sc.disc_px)
+    if scene.valid is not None:
+        T2[~scene.valid[box]] = 0.0
+    d = derivatives(T2, sc.ridge_sigma_px)
     rp = None
     if scene.features.lines or scene.features.ellipses:
-        rp = ridge_points(T2, sc.ridge_sigma_px, noise, scene.opts.ridge_min_snr)
+        rp = ridge_points(T2, sc.ridge_sigma_px, scene.noise_map[box], scene.opts.ridge_min_snr, derivs=d)
         rp.uv = rp.uv + np.array([c0, r0], float)
+        rp = rp.take(scene.readable(rp.uv))
     Tb = T.copy()
-    Tb[r0:r1, c0:c1] = T2
-    return rp, Tb
+    Tb[box] = T2
+    hess = tuple(h.copy() for h in scene.hessian) if scene.hessian is not None else None
+    if hess is not None:
+        for h, k in zip(hess, ("xx", "xy", "yy")):
+            h[box] = d[k]
+    return scene.with_detections(Tb, scene.beads, rp, hess)
 
 
 def merge_ridges(ridges: RidgePoints | None, inner: RidgePoints | None) -> RidgePoints | None:

@@ -9,14 +9,14 @@ argument instead of eight.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..features.model import Features
 from ..pose import Camera
 from .beads import Beads, blob_candidates, fit_beads
-from .image import noise_sigma, top_hat
+from .image import derivatives, noise_map, second_derivative_gain, top_hat
 from .options import TrackOptions
 from .ridges import RidgePoints, ridge_points
 
@@ -35,6 +35,9 @@ class Scales:
     ridge_sigma_px: float
     #: radius of the top-hat's disc, px: wider than any ball or wire with its blur
     disc_px: int
+    #: the largest distance two balls can be apart in the image, px: their spread in F at
+    #: ``TrackOptions.max_magnification``
+    max_bead_spread_px: float = float("inf")
 
 
 def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
@@ -57,12 +60,19 @@ def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
     wires = [ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses]
     wire = (max(wires) if wires else 0.0) * m / pix
     disc = int(math.ceil(max(bead, wire) + 3 * opts.blur_px + 2))
-    return Scales(bead, wire, pix, max(1.0, 0.5 * wire + 0.5), disc)
+    P = features.point_centers() if features.points else np.zeros((0, 3))
+    spread = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) if len(P) > 1 else 0.0
+    return Scales(bead, wire, pix, max(1.0, 0.5 * wire + 0.5), disc,
+                  spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead)
 
 
 @dataclass(frozen=True)
 class Scene:
-    """One density image's detections, with what they were found for."""
+    """One density image's detections, with what they were found for.
+
+    Every threshold is in units of the local noise (:func:`.image.noise_map` at the ridge
+    scale) where it is applied; positions are measured on ``T`` itself (dividing it by a
+    varying map would pull every centre along the map's gradient)."""
 
     features: Features
     camera: Camera
@@ -70,43 +80,95 @@ class Scene:
     scales: Scales
     #: background-free density image (white top-hat, dense = bright)
     T: np.ndarray
-    #: robust pixel noise σ of ``T``
-    noise: float
+    #: local noise σ of ``T`` (H, W), density units
+    noise_map: np.ndarray
     beads: Beads | None
     ridges: RidgePoints | None
+    #: True where the image can be read (None: everywhere)
+    valid: np.ndarray | None = None
+    #: second derivatives (xx, xy, yy) of ``T`` at the ridge scale
+    hessian: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         """(H, W) of the image searched."""
         return self.T.shape
 
+    @property
+    def pixel_noise(self) -> float:
+        """The median local noise σ in density units (a diagnostic)."""
+        return float(np.median(self.noise_map))
+
+    def noise_at(self, uv: np.ndarray) -> np.ndarray:
+        """The local noise σ at points ``uv`` (n, 2) px."""
+        return bilinear(self.noise_map, np.asarray(uv, float).reshape(-1, 2))
+
     def bead_exclusion(self, extra_px: float = 1.0) -> np.ndarray:
         """Per model bead, the radius (px) within which wire evidence is not read: the ball's
         blurred image and ``extra_px``."""
         return np.full(len(self.features.points), self.scales.bead_radius_px + 2 * self.opts.blur_px + extra_px)
 
-    def with_detections(self, T: np.ndarray, beads: Beads | None, ridges: RidgePoints | None) -> "Scene":
+    def with_detections(self, T: np.ndarray, beads: Beads | None, ridges: RidgePoints | None,
+                        hessian: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> "Scene":
         """The same scene with other detections (the body subtracted)."""
-        return Scene(self.features, self.camera, self.opts, self.scales, T, self.noise, beads, ridges)
+        return replace(self, T=T, beads=beads, ridges=ridges, hessian=hessian if hessian is not None else self.hessian)
+
+    def readable(self, uv: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
+        """Whether each point (n, 2) px lies inside the image (``margin_px`` clear of its
+        edge) and where it can be read (``valid``)."""
+        H, W = self.shape
+        uv = np.asarray(uv, float)
+        ok = np.isfinite(uv).all(-1) & (uv[..., 0] >= margin_px) & (uv[..., 1] >= margin_px) & \
+            (uv[..., 0] <= W - 1 - margin_px) & (uv[..., 1] <= H - 1 - margin_px)
+        if self.valid is not None and ok.any():
+            iu = np.clip(np.rint(uv[..., 0]), 0, W - 1).astype(int)
+            iv = np.clip(np.rint(uv[..., 1]), 0, H - 1).astype(int)
+            ok &= self.valid[iv, iu]
+        return ok
+
+    def ridge_evidence(self, uv: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """Ridge strength across ``normal`` (n, 2, unit) at points ``uv`` (n, 2) px, in units
+        of its noise: −∂²T/∂n² at the ridge scale (bilinear), over that filter's response
+        to unit white noise. A wire there reads several units; bare background reads about
+        zero, whatever its level (a second derivative has none)."""
+        xx, xy, yy = self.hessian
+        nx, ny = normal[:, 0], normal[:, 1]
+        c = nx * nx * bilinear(xx, uv) + 2 * nx * ny * bilinear(xy, uv) + ny * ny * bilinear(yy, uv)
+        return -c / (second_derivative_gain(self.scales.ridge_sigma_px) * self.noise_at(uv))
 
 
-def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: float, opts: TrackOptions) -> Beads:
+def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """``img`` (H, W) at points ``uv`` (n, 2) px (u = column), bilinear; points outside
+    are clamped to the border."""
+    H, W = img.shape
+    u = np.clip(uv[:, 0], 0, W - 1.000001)
+    v = np.clip(uv[:, 1], 0, H - 1.000001)
+    u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
+    fu, fv = u - u0, v - v0
+    return (img[v0, u0] * (1 - fu) * (1 - fv) + img[v0, u0 + 1] * fu * (1 - fv)
+            + img[v0 + 1, u0] * (1 - fu) * fv + img[v0 + 1, u0 + 1] * fu * fv)
+
+
+def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, opts: TrackOptions) -> Beads:
     rb = sc.bead_radius_px
     P = len(features.points)
-    cand, resp = blob_candidates(T, rb, noise, 3 * P + 6, opts.bead_min_snr)
+    # more candidates than the labelling uses: over anatomy or on a display frame, clutter
+    # (a clipped bone edge's staircase, edge-enhancement overshoot) can outrank the balls in
+    # response alone; the model fit tells them apart (below)
+    cand, resp = blob_candidates(T, rb, noise, 4 * P + 24, opts.bead_min_snr)
     if len(cand):
         # the beads are the strongest blobs; anything far weaker is a wire crossing or clutter
         ref = np.sort(resp)[::-1][: P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
-    b = fit_beads(T, cand, rb, opts.blur_px, noise, resp)
+    b = fit_beads(T, cand, rb, opts.blur_px, bilinear(noise, cand), resp)
     # a fit that ran off (amplitude far from the others', radius or blur at a bound) is
     # redone with priors 25× stronger (σ_prior / 5)
     if len(b) > 2:
         med = float(np.median(b.amplitude))
         bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
         if bad.any():
-            b2 = fit_beads(T, cand[bad], rb, opts.blur_px, noise, resp[bad], prior_scale=25.0)
+            b2 = fit_beads(T, cand[bad], rb, opts.blur_px, bilinear(noise, cand[bad]), resp[bad], prior_scale=25.0)
             for k in b.__dataclass_fields__:
                 getattr(b, k)[bad] = getattr(b2, k)
     H, W = T.shape
@@ -115,17 +177,26 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: float
           & (b.amplitude > 0)
           & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
           & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
-    return b.take(ok)
+    b = b.take(ok)
+    # strongest first, each response discounted by its misfit to the ball model (a ball fits
+    # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5)
+    order = np.argsort(-(b.response / np.maximum(b.rms, 1.0)), kind="stable")[: 3 * P + 6]
+    return b.take(order)
 
 
-def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions) -> Scene:
-    """Background-free image, noise σ, fitted bead candidates and ridge points of the density
-    image ``g`` (dense = bright).
+def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions,
+           valid: np.ndarray | None = None, nmap: np.ndarray | None = None) -> Scene:
+    """Background-free image and its local noise, fitted bead candidates and ridge points of the
+    density image ``g`` (dense = bright).
 
     Parameters
     ----------
     g : (H, W) density image.
     features, camera, opts : the design, the intrinsics of ``g``'s pixels, the options.
+    valid : (H, W) bool, True where ``g`` can be read; nothing is detected elsewhere.
+    nmap : (H, W) local noise σ of ``g`` (:func:`.image.noise_map`); measured here when not
+        given (a crop's own map is inflated by the fiducial filling it: measure it on the
+        whole image and crop it).
 
     Returns
     -------
@@ -133,9 +204,13 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     """
     sc = scales(features, camera, opts)
     T = top_hat(g, sc.disc_px)
-    noise = max(noise_sigma(T), 1e-9)
-    beads = _bead_candidates(T, features, sc, noise, opts) if features.points else None
+    if nmap is None:
+        nmap = noise_map(g, sc.ridge_sigma_px, valid, structure_px=sc.disc_px)
+    if valid is not None:
+        T[~valid] = 0.0
+    beads = _bead_candidates(T, features, sc, nmap, opts) if features.points else None
+    d = derivatives(T, sc.ridge_sigma_px)
     ridges = None
     if features.lines or features.ellipses:
-        ridges = ridge_points(T, sc.ridge_sigma_px, noise, opts.ridge_min_snr)
-    return Scene(features, camera, opts, sc, T, noise, beads, ridges)
+        ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
+    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, (d["xx"], d["xy"], d["yy"]))

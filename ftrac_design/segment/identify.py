@@ -54,28 +54,24 @@ def project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tupl
     return uv, Z
 
 
-def _image_triplets(uv: np.ndarray, limit: int) -> list[tuple[int, int, int]]:
-    """Up to ``limit`` triplets of the first (strongest) blobs, largest triangle first."""
-    k = min(len(uv), 8)
+def _image_triplets(uv: np.ndarray, limit: int, max_extent_px: float = np.inf, k: int = 12
+                    ) -> list[tuple[int, int, int]]:
+    """Up to ``limit`` triplets of the ``k`` strongest blobs (``uv`` strongest first) that
+    could all be balls of one fiducial: no side longer than ``max_extent_px`` and not
+    nearly collinear; the strongest blobs first (the sum of their ranks), then the larger
+    triangle. Over anatomy or on a display frame a few clutter blobs rank among the balls;
+    the largest triangles of the first eight (the earlier rule) all held the one far away."""
+    k = min(len(uv), k)
     tri = []
     for a, b, c in itertools.combinations(range(k), 3):
-        e1, e2 = uv[b] - uv[a], uv[c] - uv[a]
+        e1, e2, e3 = uv[b] - uv[a], uv[c] - uv[a], uv[c] - uv[b]
+        side = max(float(np.hypot(*e1)), float(np.hypot(*e2)), float(np.hypot(*e3)))
         area = abs(e1[0] * e2[1] - e1[1] * e2[0]) / 2
-        tri.append((area, (a, b, c)))
-    tri.sort(key=lambda x: -x[0])
-    out, used = [], set()
-    for area, abc in tri:
-        if area <= 0:
+        if side > max_extent_px or not area > 0.05 * side * side:
             continue
-        # prefer triplets that do not reuse the same three blobs in another order and that
-        # differ in at least one blob from those already taken
-        if abc in used:
-            continue
-        out.append(abc)
-        used.add(abc)
-        if len(out) >= limit:
-            break
-    return out
+        tri.append((a + b + c, -area, (a, b, c)))
+    tri.sort()
+    return [abc for _, _, abc in tri[:limit]]
 
 
 def _model_triplets(P: np.ndarray) -> np.ndarray:
@@ -91,11 +87,25 @@ def _model_triplets(P: np.ndarray) -> np.ndarray:
 
 
 def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: float,
-                    image_triplets: int = 6, keep: int = 8) -> list[BeadHypothesis]:
+                    image_triplets: int = 24, keep: int = 8, max_extent_px: float = np.inf
+                    ) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
 
-    ``model`` (P, 3) bead centres in F (mm); ``uv`` (n, 2) detected blob centres, strongest
-    first; a projected bead matches a blob within ``tol_px``.
+    Parameters
+    ----------
+    model : (P, 3) bead centres in F (mm).
+    uv : (n, 2) detected blob centres (px), strongest first.
+    camera : intrinsics.
+    tol_px : a projected bead matches a blob within this distance.
+    image_triplets : how many triplets of blobs are tried at most (see :func:`_image_triplets`);
+        the search stops early once a labelling explains every ball, or a few triplets after
+        one explains all but one.
+    keep : how many labellings are returned.
+    max_extent_px : the largest distance two balls of the fiducial can be apart in the image.
+
+    Returns
+    -------
+    list of BeadHypothesis
     """
     uv = np.asarray(uv, float)
     uv = uv[np.isfinite(uv).all(1)] if not np.isfinite(uv).all() else uv
@@ -107,7 +117,8 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     tree = cKDTree(uv)
     best: dict[tuple, BeadHypothesis] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)      # (m, 3, 3), once for every image triplet
-    for itri in _image_triplets(uv, image_triplets):
+    after_near = 0
+    for itri in _image_triplets(uv, image_triplets, max_extent_px):
         img = np.ascontiguousarray(uv[list(itri)], dtype=np.float64)
         rs, ts = [], []
         for obj in objs:
@@ -156,6 +167,10 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
         top = max((h.count for h in best.values()), default=0)
         if top >= min(P, n):
             break
+        if top >= min(P, n) - 1:
+            after_near += 1
+            if after_near > 4:
+                break
     ranked = sorted(best.values(), key=lambda h: (-h.count, h.rms_px))
     return ranked[:keep]
 
@@ -352,82 +367,3 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         (out.lines if kind == "line" else out.ellipses)[fid] = uvr[idx] + corr[k][idx]
         out.snr[fid] = ridges.snr[idx]
     return out
-
-
-def wire_support(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, T: np.ndarray,
-                 bead_radius_px: np.ndarray, min_free_px: float = 8.0) -> dict[str, tuple[float, int]]:
-    """How much wire the image shows where pose (R, t) puts each line and ellipse.
-
-    ``T`` is the background-free density image (dense = bright). Each curve's centre-line is
-    sampled every 0.5 px, samples under a projected bead (``bead_radius_px`` per model bead)
-    or outside the image are left out, and the image is read there (bilinear). Returns id →
-    (median density along the free samples, number of free samples); curves with less than
-    ``min_free_px`` of free length are left out. A labelling that is right puts every wire on
-    a ridge of the image; a wrong one that happens to fit its beads and a few contours puts
-    some wire on bare background, which this sees without any contour extraction.
-    """
-    H, W = T.shape
-    out: dict[str, tuple[float, int]] = {}
-    curves = curve_samples(features, camera, R, t)
-    bu = project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
-    rad = np.asarray(bead_radius_px, float)
-    for fid, (kind, pts) in curves.items():
-        ok = np.isfinite(pts).all(1) & (pts[:, 0] >= 0) & (pts[:, 1] >= 0) & (pts[:, 0] <= W - 2) & \
-            (pts[:, 1] <= H - 2)
-        if len(bu):
-            dd = np.linalg.norm(pts[:, None] - bu[None], axis=-1)
-            ok &= (dd > rad[None]).all(1)
-        if ok.sum() * 0.5 < min_free_px:
-            continue
-        p = pts[ok]
-        i0 = np.floor(p).astype(int)
-        f = p - i0
-        u0, v0 = i0[:, 0], i0[:, 1]
-        val = (T[v0, u0] * (1 - f[:, 0]) * (1 - f[:, 1]) + T[v0, u0 + 1] * f[:, 0] * (1 - f[:, 1])
-               + T[v0 + 1, u0] * (1 - f[:, 0]) * f[:, 1] + T[v0 + 1, u0 + 1] * f[:, 0] * f[:, 1])
-        out[fid] = (float(np.median(val)), int(ok.sum()))
-    return out
-
-
-def image_agreement(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, T: np.ndarray,
-                    ridges: RidgePoints, bead_radius_px: np.ndarray, noise: float, tol_px: float,
-                    min_snr: float = 4.0) -> tuple[float, float]:
-    """How well pose (R, t) accounts for the image, with no labels: ``(unexplained,
-    unsupported)`` in pixels of length. *Unexplained*: ridge points farther than ``tol_px``
-    from every predicted wire and outside every predicted ball (each ridge point stands for
-    ~1 px of wire). *Unsupported*: predicted wire, clear of the balls and inside the image,
-    where ``T`` (background-free density) is below ``min_snr`` noise σ. Both are the same
-    for every hypothesis where the image has clutter; between two labellings the right one
-    has less of each (a near-mirror labelling of ftrac_mini put its ellipses where the image
-    has hardly any wire and left the real ellipses' ridges unexplained, while dropping its
-    own ellipses as "crowded" made its χ² the smaller)."""
-    H, W = T.shape
-    curves = curve_samples(features, camera, R, t)
-    bu = project(camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
-    rad = np.asarray(bead_radius_px, float)
-    pts = [p for _, p in curves.values()]
-    allp = np.concatenate(pts) if pts else np.zeros((0, 2))
-    allp = allp[np.isfinite(allp).all(1)]
-    unexplained = 0.0
-    if len(ridges):
-        d = cKDTree(allp).query(ridges.uv, distance_upper_bound=tol_px)[0] if len(allp) else np.full(len(ridges), np.inf)
-        far = ~np.isfinite(d)
-        if len(bu) and far.any():
-            db = np.linalg.norm(ridges.uv[far][:, None] - bu[None], axis=-1)
-            far[np.flatnonzero(far)[(db <= rad[None] + 1.0).any(1)]] = False
-        unexplained = float(far.sum())
-    unsupported = 0.0
-    for kind, p in curves.values():
-        ok = np.isfinite(p).all(1) & (p[:, 0] >= 0) & (p[:, 1] >= 0) & (p[:, 0] <= W - 2) & (p[:, 1] <= H - 2)
-        if len(bu):
-            ok &= (np.linalg.norm(p[:, None] - bu[None], axis=-1) > rad[None]).all(1)
-        q = p[ok]
-        if not len(q):
-            continue
-        i0 = np.floor(q).astype(int)
-        f = q - i0
-        u0, v0 = i0[:, 0], i0[:, 1]
-        val = (T[v0, u0] * (1 - f[:, 0]) * (1 - f[:, 1]) + T[v0, u0 + 1] * f[:, 0] * (1 - f[:, 1])
-               + T[v0 + 1, u0] * (1 - f[:, 0]) * f[:, 1] + T[v0 + 1, u0 + 1] * f[:, 0] * f[:, 1])
-        unsupported += 0.5 * float((val < min_snr * noise).sum())       # samples every 0.5 px
-    return unexplained, unsupported

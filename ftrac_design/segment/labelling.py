@@ -17,7 +17,7 @@ import numpy as np
 
 from ..pose import NoiseModel, Observation, Pose, SolverOptions, refine_pose, solve_pose
 from ..pose.observation import CurveObservation
-from . import identify
+from . import evidence, identify
 from .beads import Beads
 from .detection import Scene
 from .noise import calibrated_covariance, clean_contours, feature_p_values, measured_noise, residuals_at
@@ -41,7 +41,7 @@ class Labelling:
     variance_factor: float | None = None
     #: misfit to the whole image (:func:`misfit`, plus :func:`with_agreement`'s charge)
     score: float = math.inf
-    #: (unexplained ridge px, unsupported wire px) of :func:`~.identify.image_agreement`
+    #: (unexplained ridge px, unsupported wire px) of :func:`~.evidence.image_agreement`
     agreement: tuple[float, float] | None = None
 
     @property
@@ -260,14 +260,14 @@ def misfit(scene: Scene, lab: Labelling) -> float:
 
 
 def with_agreement(scene: Scene, lab: Labelling) -> Labelling:
-    """``lab`` with the label-free image agreement (:func:`~.identify.image_agreement`) added
+    """``lab`` with the label-free image agreement (:func:`~.evidence.image_agreement`) added
     to its misfit: ``agreement_chi2_per_px`` per pixel of unexplained ridge and of unsupported
     predicted wire."""
     features, opts, sc = scene.features, scene.opts, scene.scales
     p = lab.pose
     if not np.all(np.isfinite(p.rotation)) or not (features.lines or features.ellipses) or scene.ridges is None:
         return lab
-    ux, us = identify.image_agreement(features, scene.camera, p.rotation, p.translation_mm, scene.T, scene.ridges,
-                                      scene.bead_exclusion(), scene.noise, max(1.5, 0.5 * sc.wire_px + 1.0))
+    ux, us = evidence.image_agreement(scene, p.rotation, p.translation_mm, scene.bead_exclusion(),
+                                      max(1.5, 0.5 * sc.wire_px + 1.0), opts.agreement_min_snr)
     return replace(lab, agreement=(ux, us), score=lab.score + opts.agreement_chi2_per_px * (ux + us))
 

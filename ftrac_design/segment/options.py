@@ -26,6 +26,9 @@ class TrackOptions:
     #: source-to-fiducial over source-to-detector distance assumed to size the filters
     #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)
     magnification: float = 1.5
+    #: the largest magnification a view may have (the fiducial at 1/3 of the way from the
+    #: source): triplets of blobs farther apart than the balls can be are not labelled
+    max_magnification: float = 3.0
     #: starting value of the Gaussian blur σ (fitted on the beads)
     blur_px: float = 0.8
     ridge_min_snr: float = 5.0
@@ -56,15 +59,20 @@ class TrackOptions:
     #: the best's, and that is far enough away, makes the answer ambiguous (one unexplained
     #: feature's charge: ftrac_mini's near-mirror labellings came within 24)
     ambiguity_chi2: float = 25.0
-    #: a predicted wire whose median density along its prediction is below this fraction of
-    #: the best-supported wire's is absent: the labelling is not confirmed
+    #: a predicted wire whose median ridge evidence (:func:`~.evidence.wire_support`, noise
+    #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
+    #: wire's, is absent: the labelling is not confirmed
     wire_support: float = 0.3
+    wire_min_snr: float = 3.0
+    #: predicted wire whose ridge evidence is below this counts as unsupported in the
+    #: labelling's agreement with the image (:func:`~.evidence.image_agreement`)
+    agreement_min_snr: float = 3.0
     #: χ² charged for each predicted, unobstructed feature a labelling does not explain
     unexplained_chi2: float = 25.0
     #: look for the fiducial on a half-size image first and work in its region only
     roi: bool = True
     #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
-    #: image does not show (:func:`identify.image_agreement`)
+    #: image does not show (:func:`~.evidence.image_agreement`)
     agreement_chi2_per_px: float = 1.0
     #: two refinement stages (wide, then tight and thinned) instead of three
     fast: bool = True

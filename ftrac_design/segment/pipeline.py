@@ -24,7 +24,8 @@ from ..pose import Camera, so3
 from . import acceptance, identify
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
 from .detection import Scene, detect, scales
-from .image import detect_polarity, to_density
+from .conditioning import FORMATIONS, condition, formation_of
+from .image import detect_polarity, noise_map
 from .labelling import Labelling, evaluate, with_agreement
 from .options import TrackOptions, TrackResult, failed_result
 from .region import fiducial_roi, shifted, view_limited
@@ -63,12 +64,12 @@ def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) ->
     old one had converged)."""
     blur = float(np.median(scene.beads.blur))
     p0 = best.pose
-    rp2, Tb = ridges_without_body(g, scene, p0, body, blur)
-    if Tb is None:
+    inner = ridges_without_body(g, scene, p0, body, blur)
+    if inner is None:
         return None
-    merged = merge_ridges(scene.ridges, rp2)
+    merged = merge_ridges(scene.ridges, inner.ridges)
     h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
-    beads2 = refit_beads_off_wires(scene, Tb, scene.beads, p0)
+    beads2 = refit_beads_off_wires(scene, inner.T, scene.beads, p0)
     lab = evaluate(scene.with_detections(scene.T, beads2, merged), h2, first_stage=2)
     if isinstance(lab, str):
         return None
@@ -76,7 +77,7 @@ def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) ->
     lab = with_agreement(scene, lab)
     if not (lab.pose.converged or not best.pose.converged):
         return None
-    return lab, scene.with_detections(scene.T, beads2, merged if merged is not None else scene.ridges)
+    return lab, inner.with_detections(inner.T, beads2, merged if merged is not None else scene.ridges)
 
 
 def _accept(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[str, Any]) -> None:
@@ -115,10 +116,11 @@ def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
     return quality
 
 
-def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str
-                   ) -> TrackResult:
-    """:func:`track_image` on a density image (dense = bright) seen with ``camera``."""
-    scene = detect(g, features, camera, opts)
+def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str,
+                   valid: np.ndarray | None = None, nmap: np.ndarray | None = None) -> TrackResult:
+    """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
+    where ``valid``, with local noise ``nmap``."""
+    scene = detect(g, features, camera, opts, valid, nmap)
     beads, ridges = scene.beads, scene.ridges
     diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
                             "ridge_points": 0 if ridges is None else len(ridges)}
@@ -128,7 +130,8 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
         return failed_result(f"no fiducial found: {0 if beads is None else len(beads)} bead-like blobs "
                              f"(need at least 3 of {len(features.points)})", pol, beads, ridges, diag)
     hyps = identify.bead_hypotheses(features.point_centers(), beads.uv, camera,
-                                    opts.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0))
+                                    opts.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+                                    max_extent_px=scene.scales.max_bead_spread_px)
     if not hyps:
         return failed_result(f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads,
                              ridges, diag)
@@ -149,7 +152,7 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
         "beads_matched": len(best.obs.points),
         "dropped": best.dropped,
         "rejected": best.removed,
-        "pixel_noise": float(scene.noise),
+        "pixel_noise": scene.pixel_noise,
         # the residuals' own scale relative to the noise model (the covariance uses it)
         "variance_factor": best.variance_factor,
     })
@@ -157,20 +160,23 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
 
 
 def track_image(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None = None,
-                polarity_hint: str | None = None, body="auto") -> TrackResult:
+                polarity_hint: str | None = None, body="auto", formation_hint: str | None = None) -> TrackResult:
     """Segment, identify and solve one image with no initial guess.
 
     Parameters
     ----------
-    image : (H, W) pixels as stored (raw counts or a log/display image; see
-        ``TrackOptions.polarity``).
+    image : (H, W) pixels as stored (raw counts, a log image or a display frame).
     features : the design's features (mm, frame F).
     camera : the image's intrinsics (SPEC §1).
     options : the image path's settings (default :class:`TrackOptions`).
-    polarity_hint : "dense_dark" / "dense_bright" when the file says how dense matter looks.
+    polarity_hint : "dense-dark" / "dense-bright" (or "dense_dark" / "dense_bright") when the
+        file says how dense matter looks; with ``TrackOptions.polarity`` "auto" and no hint,
+        the more likely polarity is tried first and the other when the first finds no pose.
     body : an :class:`ftrac_design.xray.Body`, None, or "auto" (from the design file named
         in ``features.source``): lets the ridges be found on the image with the body's
         modelled projection subtracted (:mod:`.body`).
+    formation_hint : "linear", "log" or "display" when the file says (see
+        :mod:`.conditioning`); else found from the pixels.
 
     Returns
     -------
@@ -178,13 +184,25 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
     numerics fail on what the image shows, the pose has ``converged = False`` and the reason.
     """
     try:
-        return _track(image, features, camera, options, polarity_hint, body)
+        return _track(image, features, camera, options, polarity_hint, body, formation_hint)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
+def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px: int) -> list[str]:
+    """The polarities to try, in order: the one asked for or the file's; else both, the one
+    in which compact structures stand out more first."""
+    if opts.polarity != "auto":
+        return [opts.polarity]
+    pol = str(hint or "").replace("_", "-")
+    if pol in ("dense-dark", "dense-bright"):
+        return [pol]
+    first = detect_polarity(small, max(disc_px // 2, 2))
+    return [first, "dense-bright" if first == "dense-dark" else "dense-dark"]
+
+
 def _track(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None,
-           polarity_hint: str | None, body) -> TrackResult:
+           polarity_hint: str | None, body, formation_hint: str | None) -> TrackResult:
     if isinstance(body, str):
         from ..xray.scene import body_from_source
         body = body_from_source(features.source)
@@ -196,20 +214,49 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
     # everything first on a half-size image: polarity, and where the fiducial is
     small = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA) \
         if min(img.shape) >= 64 else img
-    pol = opts.polarity
-    if pol == "auto":
-        pol = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(polarity_hint or "", "")
-        if not pol:
-            pol = detect_polarity(small, max(sc.disc_px // 2, 2))
-    roi = fiducial_roi(to_density(small, pol), features, sc, opts) if small is not img and opts.roi else None
+    # the formation is a property of the pixels (their range and type), not of the polarity
+    # tried: 8-bit integers are a display frame either way
+    form = formation_hint if formation_hint in FORMATIONS else \
+        formation_of(image, "dense-dark", None)
+    tried: list[TrackResult] = []
+    for pol in _polarities(opts, polarity_hint, small, sc.disc_px):
+        cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
+        res = _track_conditioned(cond, small, features, camera, opts, body, sc)
+        res.diagnostics["formation"] = cond.formation
+        if res.pose.converged:
+            if tried:
+                res.diagnostics["polarity_tried"] = [t.polarity for t in tried] + [pol]
+            return res
+        tried.append(res)
+    if len(tried) > 1:
+        first = tried[0]
+        first.pose.error = (f"{first.pose.error} (as {first.polarity}; as {tried[1].polarity}: "
+                            f"{tried[1].pose.error})")
+        first.diagnostics["polarity_tried"] = [t.polarity for t in tried]
+    return tried[0]
+
+
+def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body,
+                       sc) -> TrackResult:
+    """:func:`track_image` on a conditioned image: in the fiducial's region first, then the
+    whole image."""
+    img, valid, pol = cond.density, cond.valid, cond.polarity
+    nmap = noise_map(img, sc.ridge_sigma_px, valid, structure_px=sc.disc_px)
+    roi = None
+    if small.shape != img.shape and opts.roi:
+        vs = None if valid is None else cv2.resize(valid.astype(np.uint8), (small.shape[1], small.shape[0]),
+                                                   interpolation=cv2.INTER_NEAREST).astype(bool)
+        gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
+        roi = fiducial_roi(gs, features, sc, opts, vs)
     if roi is not None:
         r0, r1, c0, c1 = roi
         crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
                                                        camera.principal_point_px[1] - r0))
-        res = _track_density(to_density(img[r0:r1, c0:c1], pol), features, crop_cam, opts, body, pol)
+        res = _track_density(img[r0:r1, c0:c1], features, crop_cam, opts, body, pol,
+                             None if valid is None else valid[r0:r1, c0:c1], nmap[r0:r1, c0:c1])
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
         if res.pose.converged or view_limited(res, features, camera, img.shape, opts):
             return res
         # not found in the region the coarse look picked: the whole image, once
-    return _track_density(to_density(img, pol), features, camera, opts, body, pol)
+    return _track_density(img, features, camera, opts, body, pol, valid, nmap)

@@ -13,25 +13,27 @@ from ..pose.observation import CurveObservation
 from . import identify
 from .beads import Beads, blob_candidates
 from .detection import Scales, scales
-from .image import noise_sigma, top_hat
+from .image import noise_map, top_hat
 from .options import TrackOptions, TrackResult
 from .ridges import RidgePoints
 
 
-def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions
-                 ) -> tuple[int, int, int, int] | None:
-    """Where the fiducial is, from a half-size density image ``gs``: the full-size box
-    ``(row0, row1, col0, col1)`` around the densest cluster of bead-like blobs, wide enough
-    for the whole fiducial's projection from any of them; None when nothing bead-like is
-    found (then the whole image is searched)."""
+def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions,
+                 valid: np.ndarray | None = None) -> tuple[int, int, int, int] | None:
+    """Where the fiducial is, from a half-size density image ``gs`` (readable where
+    ``valid``): the full-size box ``(row0, row1, col0, col1)`` around the densest cluster
+    of bead-like blobs, wide enough for the whole fiducial's projection from any of them;
+    None when nothing bead-like is found (then the whole image is searched)."""
     if not features.points:
         return None
     rb = sc.bead_radius_px / 2
     disc = int(math.ceil(max(rb, sc.wire_px / 2) + 1.5 * opts.blur_px + 2))
     T = top_hat(gs, disc)
-    noise = max(noise_sigma(T), 1e-9)
+    nmap = noise_map(gs, max(sc.ridge_sigma_px / 2, 0.8), valid, structure_px=disc)
+    if valid is not None:
+        T[~valid] = 0.0
     P = len(features.points)
-    cand, resp = blob_candidates(T, rb, noise, 3 * P + 6, opts.bead_min_snr)
+    cand, resp = blob_candidates(T, rb, nmap, 3 * P + 6, opts.bead_min_snr)
     if len(cand) < 3:
         return None
     # the fiducial's largest extent in pixels at a generous magnification

@@ -38,14 +38,15 @@ class RidgePoints:
         return len(self.uv)
 
 
-def ridge_points(img: np.ndarray, sigma: float, noise: float, min_snr: float = 6.0,
-                 max_aspect: float = 0.5) -> RidgePoints:
+def ridge_points(img: np.ndarray, sigma: float, noise: float | np.ndarray, min_snr: float = 6.0,
+                 max_aspect: float = 0.5, derivs: dict[str, np.ndarray] | None = None) -> RidgePoints:
     """Steger ridge points of bright lines in ``img`` (float32, background removed) at scale
-    ``sigma`` px. ``noise`` is the pixel noise σ of ``img``; a point is kept when its
+    ``sigma`` px. ``noise`` is the pixel noise σ of ``img`` (one number or a map (H, W)); a point is kept when its
     curvature exceeds ``min_snr`` times the curvature that noise alone produces, and when
     the curvature along the line is at most ``max_aspect`` of that across it (which
-    rejects blobs)."""
-    d = derivatives(img, sigma)
+    rejects blobs). ``derivs``: :func:`.image.derivatives` of ``img`` at ``sigma``, when
+    already computed."""
+    d = derivs if derivs is not None else derivatives(img, sigma)
     xx, xy, yy = d["xx"], d["xy"], d["yy"]
     # white noise of σ through the second-derivative filter: σ·‖g2⊗g0‖ (≈ σ·0.61/σ_s³·…);
     # measured here from the kernels so it is exact for the sampled filter
@@ -65,6 +66,7 @@ def ridge_points(img: np.ndarray, sigma: float, noise: float, min_snr: float = 6
     fxx, fxy, fyy = xx.ravel()[cand].astype(float), xy.ravel()[cand].astype(float), yy.ravel()[cand].astype(float)
     fx, fy = d["x"].ravel()[cand].astype(float), d["y"].ravel()[cand].astype(float)
     l1 = lam.ravel()[cand].astype(float)
+    nc = noise_curv.ravel()[cand].astype(float) if np.ndim(noise_curv) == 2 else noise_curv
     l2 = (half_tr + disc).ravel()[cand].astype(float)
     # eigenvector of l1: (xy, l1 − xx) or (l1 − yy, xy), whichever is better conditioned
     a = np.stack([fxy, l1 - fxx], -1)
@@ -78,4 +80,4 @@ def ridge_points(img: np.ndarray, sigma: float, noise: float, min_snr: float = 6
     ok = (np.abs(t * nx) <= 0.5) & (np.abs(t * ny) <= 0.5) & (np.abs(l2) <= max_aspect * np.abs(l1))
     uv = np.stack([i + t * nx, j + t * ny], -1)[ok]
     strength = -l1[ok] * sigma * sigma
-    return RidgePoints(uv, n[ok], strength, -l1[ok] / noise_curv)
+    return RidgePoints(uv, n[ok], strength, -l1[ok] / (nc[ok] if np.ndim(nc) else nc))

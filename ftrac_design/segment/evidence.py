@@ -1,0 +1,102 @@
+"""How well a pose accounts for the image, with no labels: the wire it predicts and the
+ridges the image shows.
+
+A labelling that is right puts every wire on a ridge of the image; a wrong one that happens
+to fit its beads and a few contours puts some wire on bare background, which these measures
+see without any contour extraction. The evidence is the ridge strength across the predicted
+curve's normal in units of its noise (:meth:`.detection.Scene.ridge_evidence`): a second
+derivative reads about zero on background whatever its level, so a wire shows the same
+whether it lies over bone or soft tissue, on a raw or a display image. Samples under a
+predicted ball, outside the image or where it cannot be read (``Scene.valid``) count
+neither way.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import identify
+from .detection import Scene
+
+
+def _curve_normals(pts: np.ndarray, closed: bool) -> np.ndarray:
+    """Unit normals (n, 2) of a densely sampled curve (n, 2) from its neighbouring samples."""
+    if len(pts) < 2:
+        return np.zeros_like(pts)
+    if closed:
+        tv = np.roll(pts, -1, axis=0) - np.roll(pts, 1, axis=0)
+    else:
+        tv = np.gradient(pts, axis=0)
+    nrm = np.stack([-tv[:, 1], tv[:, 0]], -1)
+    return nrm / np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+
+
+def _free_samples(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray):
+    """Per predicted curve: id → (kind, samples (n, 2), normals (n, 2)) of the samples that
+    can be read (inside the image, valid, clear of every predicted ball)."""
+    features = scene.features
+    curves = identify.curve_samples(features, scene.camera, R, t)
+    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) \
+        else np.zeros((0, 2))
+    rad = np.asarray(bead_radius_px, float)
+    out = {}
+    for fid, (kind, pts) in curves.items():
+        nrm = _curve_normals(pts, kind == "ellipse")
+        ok = scene.readable(pts, margin_px=1.0)
+        if len(bu) and ok.any():
+            idx = np.flatnonzero(ok)
+            dd = np.linalg.norm(pts[idx, None] - bu[None], axis=-1)
+            ok[idx[(dd <= rad[None]).any(1)]] = False
+        out[fid] = (kind, pts[ok], nrm[ok])
+    return out
+
+
+def wire_support(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray,
+                 min_free_px: float = 8.0) -> dict[str, tuple[float, int]]:
+    """How much wire the image shows where pose (R, t) puts each line and ellipse.
+
+    Each curve's centre-line is sampled every 0.5 px; the samples that can be read (see the
+    module; ``bead_radius_px`` per model bead) give the ridge evidence across the curve.
+    Returns id → (median evidence, in noise units, number of samples); curves with less than
+    ``min_free_px`` of readable length are left out."""
+    out: dict[str, tuple[float, int]] = {}
+    for fid, (_, pts, nrm) in _free_samples(scene, R, t, bead_radius_px).items():
+        if len(pts) * 0.5 < min_free_px:
+            continue
+        out[fid] = (float(np.median(scene.ridge_evidence(pts, nrm))), len(pts))
+    return out
+
+
+def image_agreement(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, tol_px: float,
+                    min_snr: float = 3.0) -> tuple[float, float]:
+    """How well pose (R, t) accounts for the image, with no labels: ``(unexplained,
+    unsupported)`` in pixels of length. *Unexplained*: ridge points farther than ``tol_px``
+    from every predicted wire and outside every predicted ball (each ridge point stands for
+    ~1 px of wire). *Unsupported*: readable predicted wire where the ridge evidence is below
+    ``min_snr``. Both are the same for every hypothesis where the image has clutter; between
+    two labellings the right one has less of each (a near-mirror labelling of ftrac_mini put
+    its ellipses where the image has hardly any wire and left the real ellipses' ridges
+    unexplained, while dropping its own ellipses as "crowded" made its χ² the smaller)."""
+    features, ridges = scene.features, scene.ridges
+    curves = identify.curve_samples(features, scene.camera, R, t)
+    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) \
+        else np.zeros((0, 2))
+    rad = np.asarray(bead_radius_px, float)
+    pts = [p for _, p in curves.values()]
+    allp = np.concatenate(pts) if pts else np.zeros((0, 2))
+    allp = allp[np.isfinite(allp).all(1)]
+    unexplained = 0.0
+    if ridges is not None and len(ridges):
+        d = cKDTree(allp).query(ridges.uv, distance_upper_bound=tol_px)[0] if len(allp) \
+            else np.full(len(ridges), np.inf)
+        far = ~np.isfinite(d)
+        if len(bu) and far.any():
+            db = np.linalg.norm(ridges.uv[far][:, None] - bu[None], axis=-1)
+            far[np.flatnonzero(far)[(db <= rad[None] + 1.0).any(1)]] = False
+        unexplained = float(far.sum())
+    unsupported = 0.0
+    for _, q, nrm in _free_samples(scene, R, t, rad).values():
+        if len(q):
+            unsupported += 0.5 * float((scene.ridge_evidence(q, nrm) < min_snr).sum())   # samples every 0.5 px
+    return unexplained, unsupported
