@@ -27,6 +27,7 @@ Syntax = Literal["explicit", "rle", "jpeg-lossless", "jpeg2000-lossless"]
 SOP = {"xa": ("1.2.840.10008.5.1.4.1.1.12.1", "XA"), "rf": ("1.2.840.10008.5.1.4.1.1.12.2", "RF"),
        "dx": ("1.2.840.10008.5.1.4.1.1.1.1", "DX"), "cr": ("1.2.840.10008.5.1.4.1.1.1", "CR"),
        "enhanced-xa": ("1.2.840.10008.5.1.4.1.1.12.1.1", "XA"), "enhanced-xrf": ("1.2.840.10008.5.1.4.1.1.12.2.1", "RF")}
+DX_FOR_PROCESSING = "1.2.840.10008.5.1.4.1.1.1.1.1"
 SYNTAX = {"explicit": "1.2.840.10008.1.2.1", "rle": "1.2.840.10008.1.2.5", "jpeg-lossless": "1.2.840.10008.1.2.4.70",
           "jpeg2000-lossless": "1.2.840.10008.1.2.4.90"}
 _T0 = datetime.datetime(2026, 1, 1, 12, 0, 0)
@@ -85,6 +86,8 @@ def write_dicom(path: str | Path, frames: np.ndarray, camera: Camera | Sequence[
     ds = _base(path, kind, stored, n, photometric, rgb, signed, bits_stored, transfer_syntax)
     if presentation_intent:
         ds.PresentationIntentType = presentation_intent
+        if kind == "dx" and presentation_intent == "FOR PROCESSING":
+            ds.SOPClassUID = ds.file_meta.MediaStorageSOPClassUID = DX_FOR_PROCESSING
     if image_comments:
         ds.ImageComments = image_comments
     if kind.startswith("enhanced"):
