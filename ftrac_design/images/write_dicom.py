@@ -213,7 +213,7 @@ def _modality_lut(ds, table: np.ndarray, bits_stored: int) -> None:
     item = Dataset()
     item.LUTDescriptor = [int(table.size), 0, 16]
     item.ModalityLUTType = "US"
-    item.LUTData = [int(x) for x in table.astype(np.uint16)]
+    item.add_new(0x00283006, "US", [int(x) for x in table.astype(np.uint16)])      # LUT Data, US or OW
     ds.ModalityLUTSequence = Seq([item])
 
 
