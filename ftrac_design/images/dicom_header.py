@@ -141,9 +141,12 @@ def _check_length(hdr: DicomHeader) -> None:
     if UID(hdr.transfer_syntax).is_compressed:
         return
     try:
-        length = hdr.ds.get_item("PixelData").length
-    except Exception:
-        return
+        elem = hdr.ds.get_item("PixelData")
+        length = getattr(elem, "length", None)           # a raw (deferred) element knows its length
+        if length is None:
+            length = len(elem.value or b"")
+    except Exception as exc:  # pydicom raises many types for a damaged element
+        raise InputError(hdr.path, "PixelData (7FE0,0010)", f"a readable pixel data element ({exc})") from None
     if length is None or length == 0xFFFFFFFF:
         raise InputError(hdr.path, "PixelData (7FE0,0010)", "native pixel data of defined length (the transfer "
                                                              "syntax is uncompressed)")
