@@ -141,7 +141,7 @@ def _check_length(hdr: DicomHeader) -> None:
     if UID(hdr.transfer_syntax).is_compressed:
         return
     try:
-        elem = hdr.ds.get_item("PixelData")
+        elem = hdr.ds.get_item("PixelData", keep_deferred=True)
         length = getattr(elem, "length", None)           # a raw (deferred) element knows its length
         if length is None:
             length = len(elem.value or b"")
