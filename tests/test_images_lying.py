@@ -3,7 +3,6 @@ large allocation — never another exception, never a hang."""
 
 from __future__ import annotations
 
-import numpy as np
 import pydicom
 import pytest
 
