@@ -140,3 +140,14 @@ def test_float_images_are_quantised_with_their_map_applied_on_reading(tmp_path):
     a = np.random.default_rng(6).normal(1.0, 0.3, (20, 20))
     f = _only(write_image(tmp_path / "a.png", a, CAM, value_range=(0.0, 2.0)))
     assert np.abs(f.pixels - np.clip(a, 0, 2)).max() <= 2 / 65535 + 1e-6
+
+
+def test_the_old_names_in_xray_still_work(tmp_path):
+    """``ftrac-design track`` still imports the reader and the note's camera parser from xray."""
+    from ftrac_design.xray import read_image as old_read_image
+    from ftrac_design.xray.imagefiles import _camera_from_dict, write_image as old_write_image
+
+    p = old_write_image(tmp_path / "a.png", np.zeros((6, 8), np.uint8), CAM)
+    img, cam, meta = old_read_image(p)
+    assert img.shape == (6, 8) and cam is None and _camera_from_dict(meta["camera"]) == CAM
+    assert _camera_from_dict({"focal_length_mm": "x"}) is None

@@ -14,8 +14,8 @@ from ftrac_design.features import write_features
 from ftrac_design.features.model import EllipseFeature, Features, LineFeature, PointFeature
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import (Body, ImagingModel, Occluder, anatomy, line_integral_box, read_image, read_truth,
-                               render, write_image, write_truth)
+from ftrac_design.images import read_image, write_image
+from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, line_integral_box, read_truth, render, write_truth
 from ftrac_design.xray.geometry import body_chord_uv, cylinder_z_chord, ellipse_pieces, tube_chord, tube_chord_uv
 from ftrac_design.xray.materials import linear_attenuation
 from ftrac_design.xray.render import _Rays
