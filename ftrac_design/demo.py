@@ -160,7 +160,7 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     from .pose.simulate import pose_errors
     from .segment.overlay import draw_overlay
     from .segment.pipeline import track_image
-    from .xray.imagefiles import read_image
+    from .images import read_image
     from .xray.truth import read_truth
 
     image_dir = Path(image_dir)

@@ -55,6 +55,7 @@ CASES = {
     "observation_solve": 150,  # mutated observation.json / .jsonl → `solve`
     "scrambled_solve": 40,    # simulated observation with swapped ids / moved beads → solver
     "image_track": 40,        # broken image files → `track`
+    "image_read": 300,        # broken and lying image files → ftrac_design.images readers
     "radiograph_track": 12,   # a simulated radiograph damaged (NaN, dtype, crop, scale, …) → `track`
     "space_optimize": 40,     # mutated search-space TOML → `optimize --print-space` (validation only)
     "space_optimize_run": 2,  # mutated spaces that validate → one tiny in-process `optimize` run

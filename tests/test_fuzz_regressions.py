@@ -268,7 +268,7 @@ def test_every_truncation_of_a_dicom_header_is_an_input_error():
     InputError naming the file, and `track` exits 2."""
     import warnings
 
-    from ftrac_design.xray import read_image
+    from ftrac_design.images import read_image
     from test_fuzz_image import _dicom_bytes
 
     data = _dicom_bytes(np.zeros((48, 64)))

@@ -11,10 +11,11 @@ import pytest
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features, write_features
+from ftrac_design.images import write_image
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, render, write_image
+from ftrac_design.xray import Body, render
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -90,7 +90,7 @@ def _parse_occluder(text: str, frame: str):
 @click.option("--image-size", type=(click.IntRange(min=8), click.IntRange(min=8)), default=(1024, 1024),
               show_default=True, metavar="H W", help="image rows and columns.")
 @click.option("--background", default=None, metavar="FILE|anatomy",
-              help="line-integral image (any read_image format, H × W) added in the log domain, or 'anatomy' "
+              help="line-integral image (PNG, TIFF, JPEG, NumPy or DICOM, H × W; its first frame) added in the log domain, or 'anatomy' "
                    "for the synthetic anatomy-like background (seeded per image).")
 @click.option("--occluder", multiple=True, metavar="x0,y0,z0,x1,y1,z1[,d]",
               help="a steel needle/rod from (x0,y0,z0) to (x1,y1,z1) mm, diameter d (default 1.27); repeatable.")
@@ -116,8 +116,8 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     from ..pose.camera import Camera
     from ..pose.observation import read_camera
     from ..pose.simulate import Workspace
-    from ..xray import (ImagingModel, anatomy, body_from_design_file, body_from_features_file, read_image, render,
-                        write_image, write_truth)
+    from ..images import read_frame, write_image
+    from ..xray import ImagingModel, anatomy, body_from_design_file, body_from_features_file, render, write_truth
 
     if (pose_path is None) == (workspace_sample is None):
         raise click.UsageError("give exactly one of --pose POSE.json and --workspace-sample N")
@@ -138,9 +138,8 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     occluders = [_parse_occluder(o, occluder_frame) for o in occluder]
     bg_image = None
     if background and background != "anatomy":
-        bg_image, _, bg_meta = read_image(background, camera=camera)
-        # stored values → line integrals where the file records its linear map (our PNG/TIFF/DICOM)
-        bg_image = bg_image * bg_meta.get("rescale_slope", 1.0) + bg_meta.get("rescale_intercept", 0.0)
+        # modality values: the linear map our PNG/TIFF/DICOM record is applied on reading
+        bg_image = read_frame(background, 0, camera, need_camera=False).pixels.astype(np.float64)
         if bg_image.shape != imaging.image_shape:
             raise InputError(background, "pixels", f"a background of {imaging.image_shape[0]} × "
                                                    f"{imaging.image_shape[1]} pixels, got {bg_image.shape}")

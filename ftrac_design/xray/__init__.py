@@ -3,7 +3,7 @@
 - :func:`render` — Beer–Lambert image of a :class:`~ftrac_design.features.Features` at a
   pose, with blur, quantum noise, background and occluders (:mod:`.render`).
 - :class:`ImagingModel`, :class:`Body`, :class:`Occluder`, :class:`Radiograph` (:mod:`.model`).
-- :func:`read_image` / :func:`write_image` — PNG, TIFF, NumPy, DICOM (:mod:`.imagefiles`).
+- :func:`read_image` / :func:`write_image` — re-exported from :mod:`ftrac_design.images`.
 - :func:`anatomy` — a synthetic anatomy-like background (:mod:`.background`).
 - truth.json (:mod:`.truth`); attenuation coefficients (:mod:`.materials`).
 """
@@ -24,8 +24,8 @@ __all__ = [
 def __getattr__(name):
     # image-file and background modules import imaging libraries: load them on first use
     if name in ("read_image", "write_image"):
-        from . import imagefiles
-        return getattr(imagefiles, name)
+        from .. import images
+        return getattr(images, name)
     if name == "anatomy":
         from .background import anatomy
         return anatomy

@@ -16,7 +16,7 @@ def demo_step(out_dir: Path, seed: int = 2005) -> str:
     from ..features import compute_features
     from ..pose.simulate import Workspace
     from .background import anatomy
-    from .imagefiles import write_image
+    from ..images import write_image
     from .render import render
     from .scene import _REPO
     from .truth import write_truth
