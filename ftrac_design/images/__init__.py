@@ -1,0 +1,1 @@
+"""Image-level corrections and conversions that sit before segmentation."""
