@@ -21,7 +21,7 @@ Measured (30 poses, this project's 2-core VM; rotation error RMS in degrees, dep
 
 | distortion | ideal | distorted, uncorrected | undistort image | map points |
 | --- | --- | --- | --- | --- |
-| 2 mm + 3 px (max 4.5 px at 100 mm) | 30/30, 0.025°, 0.083 | 30/30, 0.26°, 3.7 | 30/30, 0.036°, 0.12 | 30/30, 0.039°, 0.18 |
+| 2 mm + 3 px (4.5 px radial, 3 px along the circle at 100 mm) | 30/30, 0.025°, 0.083 | 30/30, 0.26°, 3.7 | 30/30, 0.036°, 0.12 | 30/30, 0.039°, 0.18 |
 | 6 mm + 8 px | 30/30, 0.025°, 0.083 | 11/30, 0.41°, 8.5 | 30/30, 0.043°, 0.16 | 11/30, 0.14°, 0.19 |
 
 With the distortion simulated by an exact resampling (a quintic spline instead of

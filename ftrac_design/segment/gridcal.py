@@ -228,13 +228,15 @@ def lattice_vectors(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return a, b, pitch
 
 
-def index_grid(uv: np.ndarray, centre: tuple[float, float]) -> tuple[np.ndarray, float]:
-    """Lattice indices (n, 2) of beads ``uv`` (n, 2) px, −1 where a bead is not on the lattice
-    grown from a seed near ``centre`` (see the module, step 2), and the pitch (px)."""
+def index_grid(uv: np.ndarray, centre: tuple[float, float]) -> tuple[np.ndarray, np.ndarray, float]:
+    """Lattice indices (n, 2) of beads ``uv`` (n, 2) px, whether each bead is on the lattice
+    grown from a seed near ``centre`` (n,) bool (see the module, step 2), and the pitch (px).
+    Indices are relative to the seed (0, 0) and may be negative; off-lattice rows are 0."""
     n = len(uv)
-    idx = np.full((n, 2), -(1 << 30), int)
+    idx = np.zeros((n, 2), int)
+    on = np.zeros(n, bool)
     if n < 5:
-        return idx, float("nan")
+        return idx, on, float("nan")
     a, b, pitch = lattice_vectors(uv)
     tree = cKDTree(uv)
     tol = _MATCH_TOL * pitch
@@ -250,9 +252,9 @@ def index_grid(uv: np.ndarray, centre: tuple[float, float]) -> tuple[np.ndarray,
             seed = int(k)
             break
     if seed is None:
-        return idx, pitch
+        return idx, on, pitch
     at: dict[tuple[int, int], int] = {(0, 0): seed}
-    idx[seed] = (0, 0)
+    on[seed] = True
     queue = deque([seed])
     while queue:
         k = queue.popleft()
@@ -266,12 +268,12 @@ def index_grid(uv: np.ndarray, centre: tuple[float, float]) -> tuple[np.ndarray,
                 m = nearest(uv[k] + mult * step)
                 if m is None:
                     continue
-                if idx[m, 0] == -(1 << 30):
-                    idx[m] = t
+                if not on[m]:
+                    idx[m], on[m] = t, True
                     at[t] = m
                     queue.append(m)
                 break
-    return idx, pitch
+    return idx, on, pitch
 
 
 def _local_step(uv: np.ndarray, at: dict, ij: tuple[int, int], e: tuple[int, int], fallback: np.ndarray) -> np.ndarray:
@@ -383,26 +385,26 @@ def estimate_distortion(image: np.ndarray, pitch_mm: float, pixel_mm: float, *, 
                             None if bead_diameter_mm is None else bead_diameter_mm / 2 / pixel_mm)
     model = DistortionModel.identity(img.shape, degree)
     need = int(math.ceil(1.5 * parameter_count(degree)))
-    idx, pitch = index_grid(found.uv, model.centre_px) if len(found.uv) >= need else (None, float("nan"))
-    on = np.zeros(len(found.uv), bool) if idx is None else idx[:, 0] > -(1 << 30)
-    if on.sum() < need:
-        raise InputError(origin, "image", f"a bead-grid image with at least {need} grid beads indexed for a "
-                                          f"degree-{degree} fit; found {int(on.sum())} "
-                                          f"({len(found.uv)} beads detected)")
+    idx, on, pitch = index_grid(found.uv, model.centre_px)
+    # the lattice must span the degree in both directions, not only hold enough beads
+    span = min(len(np.unique(idx[on, 0])), len(np.unique(idx[on, 1])))
+    if on.sum() < need or span < degree + 1:
+        raise InputError(origin, "image", f"a bead-grid image with at least {need} grid beads, in at least "
+                                          f"{degree + 1} rows and columns, indexed for a degree-{degree} fit; "
+                                          f"found {int(on.sum())} in {span} ({len(found.uv)} beads detected)")
     index, det = idx[on].astype(float), found.uv[on]
-    used = np.ones(len(det), bool)
-    for it in range(6):
-        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=it == 0)
-        fitted_all = _apply(model, coef, Hpx, index)
-        err = np.hypot(*(det - fitted_all).T)
-        sigma = float(np.median(err[used])) / math.sqrt(math.log(4.0))   # Rayleigh median → per-axis σ
-        new = err <= max(5 * sigma, 1e-3)
-        if new.sum() < need:
+    # a robust (soft-L1) fit first, then plain least squares without the beads beyond 5 σ
+    # (σ per axis from the median residual, Rayleigh), until the set of beads settles
+    used, robust = np.ones(len(det), bool), True
+    for _ in range(6):
+        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust)
+        err = np.hypot(*(det - _apply(model, coef, Hpx, index)).T)
+        new = err <= max(5 * float(np.median(err[used])) / math.sqrt(math.log(4.0)), 1e-3)
+        if new.sum() < need or (not robust and np.array_equal(new, used)):
             break
-        if np.array_equal(new, used) and it > 0:
-            break
-        used = new
-    coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=False)
+        used, robust = new, False
+    else:
+        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=False)
     ideal = (np.c_[index, np.ones(len(index))] @ Hpx.T)
     ideal = ideal[:, :2] / ideal[:, 2:3]
     fitted = _apply(model, coef, Hpx, index)
@@ -429,8 +431,8 @@ def _check_args(image, pitch_mm, pixel_mm, degree, bead_diameter_mm, polarity, o
     img = np.asarray(image)
     if img.ndim != 2 or min(img.shape) < 16:
         raise InputError(origin, "image", f"a 2-D grey-scale image of at least 16 × 16 pixels, got shape {img.shape}")
-    if not np.issubdtype(img.dtype, np.number) or not np.all(np.isfinite(img)):
-        raise InputError(origin, "image", "finite pixel values")
+    if not np.issubdtype(img.dtype, np.number) or np.iscomplexobj(img) or not np.all(np.isfinite(img)):
+        raise InputError(origin, "image", f"finite, real, numeric pixel values (got {img.dtype})")
     for key, v in (("pitch_mm", pitch_mm), ("pixel_mm", pixel_mm)):
         if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
             raise InputError(origin, key, f"a positive number of millimetres, got {v!r}")
