@@ -60,8 +60,16 @@ def command(grid_image: Path, pitch_mm: float, pixel_mm: float | None, camera_pa
     if polarity == "auto":
         polarity = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(meta.get("polarity_hint") or "",
                                                                                     "auto")
-    model, report = estimate_distortion(img, pitch_mm, pixel_mm, polarity=polarity, degree=degree,
-                                        bead_diameter_mm=bead_mm, origin=str(grid_image))
+    try:
+        model, report = estimate_distortion(img, pitch_mm, pixel_mm, polarity=polarity, degree=degree,
+                                            bead_diameter_mm=bead_mm, origin=str(grid_image))
+    except InputError as exc:
+        # the library names its arguments; the user typed options
+        option = {"pitch_mm": "--pitch", "pixel_mm": "--pixel-mm", "bead_diameter_mm": "--bead-mm",
+                  "degree": "--degree"}.get(exc.key or "")
+        if option is None:
+            raise
+        raise InputError(None, option, exc.expected) from None
     try:
         with contextlib.ExitStack() as stack:
             if plot_path is not None:
