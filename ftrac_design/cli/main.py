@@ -27,6 +27,7 @@ COMMANDS = {
     "optimize": "optimize",
     "reconstruct": "reconstruct",
     "report": "report",
+    "distortion": "distortion",
 }
 
 

@@ -8,6 +8,9 @@ standard into :class:`Frame` objects on the detector's own pixel grid, and the w
 - :func:`read_image` — the first frame as the old ``(pixels, camera, meta)`` tuple.
 - :func:`write_image` — one image (PNG/TIFF/NPY/DICOM, atomic); :func:`write_dicom` — the
   test-data DICOM writer (XA, RF, DX, CR, Enhanced XA/XRF, every case below).
+- :class:`DistortionModel`, :func:`read_distortion` / :func:`write_distortion`,
+  :func:`undistort_image` / :func:`distort_image` — an image intensifier's distortion as a
+  2-D polynomial from ideal (pinhole) to imaged pixels (:mod:`.distortion`).
 
 Bad input of any kind is an :class:`~ftrac_design.errors.InputError` (file, key, expected);
 a header that lies is refused before anything is allocated (at most 4096 × 4096 pixels a
@@ -52,10 +55,12 @@ alpha dropped, with notes; our note's camera, polarity, formation and linear map
 NumPy: ``allow_pickle=False``; (n, H, W) is a run; an ``.npz`` named ``.npy`` is refused.
 """
 
+from .distortion import DistortionModel, distort_image, read_distortion, undistort_image, write_distortion
 from .frame import MAX_FRAME_PIXELS, Formation, Frame, Polarity
 from .runs import frame_count, read_frame, read_frames, read_image
 from .write import write_image
 from .write_dicom import write_dicom
 
 __all__ = ["Frame", "Formation", "Polarity", "MAX_FRAME_PIXELS", "frame_count", "read_frame", "read_frames",
-           "read_image", "write_image", "write_dicom"]
+           "read_image", "write_image", "write_dicom", "DistortionModel", "read_distortion", "write_distortion",
+           "undistort_image", "distort_image"]
