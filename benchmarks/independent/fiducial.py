@@ -36,6 +36,8 @@ from ftrac_design.features import Features, load_features
 
 ROOT = Path(__file__).resolve().parents[2]
 CACHE = ROOT / "outputs" / "independent_cache"
+#: environment variable that moves the build cache (the tests point it at a temporary folder)
+CACHE_ENV = "FTRAC_INDEPENDENT_CACHE"
 
 #: largest radial gap (mm) between a steel mesh and the ideal surface it stands for
 MAX_GAP_MM = 2e-4
@@ -93,12 +95,12 @@ def cached_build(preset: str) -> Path:
     Returns
     -------
     pathlib.Path
-        ``outputs/independent_cache/<name>/<sha256[:16]>/`` holding ``fiducial.stl`` and
+        ``outputs/independent_cache/<name>/<sha256[:16]>/`` (or under ``$FTRAC_INDEPENDENT_CACHE``) holding ``fiducial.stl`` and
         ``features.json``.
     """
     design = design_path(preset)
     sha = hashlib.sha256(design.read_bytes()).hexdigest()
-    out = CACHE / design.stem / sha[:16]
+    out = Path(os.environ.get(CACHE_ENV) or CACHE) / design.stem / sha[:16]
     if (out / "fiducial.stl").is_file() and (out / "features.json").is_file():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -204,15 +206,15 @@ def assemble(features: Features, parts: list[tuple[str, str, trimesh.Trimesh]],
 
 
 @lru_cache(maxsize=8)
-def load_scene(preset: str, body: bool = True) -> FiducialScene:
+def load_scene(preset: str, body: bool = True, steel: bool = True) -> FiducialScene:
     """The built fiducial of ``preset``: the CAD body (acetal) and every ball and wire (steel).
 
     Parameters
     ----------
     preset : str
         A design name under ``models/`` or a design TOML path.
-    body : bool
-        False leaves the body out (steel only).
+    body, steel : bool
+        False leaves the body (acetal) or the balls and wires (steel) out.
 
     Returns
     -------
@@ -221,7 +223,7 @@ def load_scene(preset: str, body: bool = True) -> FiducialScene:
     """
     d = cached_build(preset)
     features = load_features(d / "features.json")
-    parts = [(n, STEEL, m) for n, m in steel_meshes(features)]
+    parts = [(n, STEEL, m) for n, m in steel_meshes(features)] if steel else []
     if body:
         stl = trimesh.load_mesh(str(d / "fiducial.stl"), file_type="stl", process=True)
         parts.insert(0, ("body", ACETAL, stl))

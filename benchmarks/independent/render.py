@@ -54,7 +54,7 @@ class RenderSettings:
 
     image_shape: tuple[int, int] = (1024, 1024)
     subsample: int = 4
-    margin_px: int = 20
+    margin_px: int = 24
     coarse: int = 2
     drr_step_mm: float = 1.0
     al_mm: float = 3.0
@@ -181,7 +181,7 @@ def _feather(shape, margin: int) -> np.ndarray:
 def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(), *,
                        kvp: float = 80.0, dose_behind_patient: float = 1000.0, patient: bool = True,
                        seed: int = 0, spr: float = 1.5, focal_spot_mm: float = 0.8,
-                       mono_kev: float | None = None, noise: bool = True, body: bool = True,
+                       mono_kev: float | None = None, noise: bool = True, body: bool = True, steel: bool = True,
                        settings: RenderSettings = RenderSettings(),
                        patient_pose: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
     """A raw C-arm image (uint16, dense = dark) of the built ``preset`` at pose (R, t).
@@ -211,8 +211,8 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
         One photon energy instead of the spectrum (checks against closed forms).
     noise : bool
         False: the expected image (no quantum or read noise).
-    body : bool
-        False: steel only (no acetal body).
+    body, steel : bool
+        False leaves out the acetal body, or the steel balls and wires.
     settings : RenderSettings
         Sampling and detector model.
     patient_pose : (R_pf, t_pf), optional
@@ -227,7 +227,7 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
     """
     rng = np.random.default_rng(seed)
     R, t = np.asarray(R, float), np.asarray(t, float)
-    scene = load_scene(preset, body)
+    scene = load_scene(preset, body, steel)
     H, W = settings.image_shape
     s, c = settings.subsample, settings.coarse
     det = DetectorModel(**{**asdict(settings.detector), "focal_spot_mm": focal_spot_mm})
