@@ -78,8 +78,8 @@ def blur(field: np.ndarray, transfer: np.ndarray, pad: int) -> np.ndarray:
 
 
 def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm: float,
-                  sigma_mm: float) -> tuple[np.ndarray, float]:
-    """Scatter (same units as ``primary``) and the SPR it reaches behind the thick part.
+                  sigma_mm: float) -> np.ndarray:
+    """A broad scatter field (same units and grid as ``primary``).
 
     Parameters
     ----------
@@ -88,7 +88,8 @@ def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm
     open_field : float
         Primary energy per sample with nothing in the beam.
     spr : float
-        Wanted scatter-to-primary ratio, averaged where τ = −ln(P/P_open) > 3.
+        Wanted scatter-to-primary ratio, averaged where τ = −ln(P/P_open) > 3 (behind the
+        pelvis; the thickest quarter of the image if no path is that thick).
     spacing_mm : float
         Grid spacing at the detector, mm.
     sigma_mm : float
@@ -96,7 +97,8 @@ def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm
 
     Returns
     -------
-    (scatter, achieved_spr)
+    numpy.ndarray
+        ``k G_σ ⊗ (P τ)`` with k set for the requested SPR.
     """
     tau = -np.log(np.clip(primary / open_field, 1e-12, 1.0))
     src = gaussian_filter(primary * tau, sigma_mm / spacing_mm, mode="nearest", truncate=3.0)
@@ -104,8 +106,7 @@ def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm
     if not np.any(thick):
         thick = tau >= np.percentile(tau, 75)
     ratio = float(np.mean(src[thick] / primary[thick]))
-    k = spr / ratio if ratio > 0 else 0.0
-    return k * src, spr
+    return src * (spr / ratio) if ratio > 0 else np.zeros_like(primary)
 
 
 def draw_counts(energy: np.ndarray, mean_quantum_kev: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -127,9 +128,3 @@ def auto_gain(expected: np.ndarray, model: DetectorModel) -> float:
     """ADU per keV placing the expected image's 99.9th percentile at ``range_fill`` of the range."""
     top = float(np.percentile(expected, 99.9))
     return model.range_fill * (model.full_scale - model.offset_adu) / max(top, 1e-12)
-
-
-def focal_blur_mm(model: DetectorModel, magnification: float) -> float:
-    """Side of the focal spot's image at the detector (mm) for an object at ``magnification``."""
-    return model.focal_spot_mm * max(magnification - 1.0, 0.0)
-

@@ -257,7 +257,7 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
         M_pat = camera.focal_length_mm / float((R @ t_pf + t)[2])
         tr = otf((H + 2 * 32, W + 2 * 32), tuple(camera.pixel_size_mm[::-1]), det, M_pat)
         S_img, V_img = blur(S_img, tr, 32), blur(V_img, tr, 32)
-        scat_c, _ = scatter_field(S_c, S_open, spr, pix * c, det.scatter_sigma_mm)
+        scat_c = scatter_field(S_c, S_open, spr, pix * c, det.scatter_sigma_mm)
         scatter = _coarse_sample(scat_c, uu, vv, c)
     else:
         S_img, V_img = np.full((H, W), S_open), np.full((H, W), V_open)
