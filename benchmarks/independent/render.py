@@ -229,74 +229,94 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
     R, t = np.asarray(R, float), np.asarray(t, float)
     scene = load_scene(preset, body, steel)
     H, W = settings.image_shape
-    s, c = settings.subsample, settings.coarse
     det = DetectorModel(**{**asdict(settings.detector), "focal_spot_mm": focal_spot_mm})
     spec = Spectrum(float(mono_kev), np.array([float(mono_kev)]), np.array([1.0])) if mono_kev else \
         tungsten_spectrum(kvp, settings.al_mm, settings.cu_mm)
     mu = _mu_table(spec)
-    S_open = float(np.sum(spec.photons * spec.energy_kev))
-    V_open = float(np.sum(spec.photons * spec.energy_kev ** 2))
-    pix = float(np.mean(camera.pixel_size_mm))
-
-    A = None
     placement = None
     if patient:
-        vol, basis = _patient_basis(7)
         placement = patient_pose if patient_pose is not None else patient_placement(scene, rng)
-        R_pf, t_pf = placement
-        R_px, t_px = R @ R_pf, R @ t_pf + t
-        cu, cv = np.meshgrid(np.arange(W // c) * c + (c - 1) / 2, np.arange(H // c) * c + (c - 1) / 2)
-        A = line_integrals(basis, vol, camera, R_px, t_px, cu, cv, settings.drr_step_mm)
-
-    # patient-only field at pixel resolution, blurred as the patient's depth magnifies it
-    if A is not None:
-        S_c, V_c = _spectral_sums(spec, mu, A)
-        uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
-        S_img = _coarse_sample(S_c, uu, vv, c)
-        V_img = _coarse_sample(V_c, uu, vv, c)
-        M_pat = camera.focal_length_mm / float((R @ t_pf + t)[2])
-        tr = otf((H + 2 * 32, W + 2 * 32), tuple(camera.pixel_size_mm[::-1]), det, M_pat)
-        S_img, V_img = blur(S_img, tr, 32), blur(V_img, tr, 32)
-        scat_c = scatter_field(S_c, S_open, spr, pix * c, det.scatter_sigma_mm)
-        scatter = _coarse_sample(scat_c, uu, vv, c)
+        fld = _patient_field(spec, mu, camera, R, t, placement, settings, det, spr)
     else:
-        S_img, V_img = np.full((H, W), S_open), np.full((H, W), V_open)
-        scatter = np.zeros((H, W))
-
-    # the fiducial's box at sub-sample resolution: patient × fiducial per energy, blurred, integrated
-    cast, box = _fiducial_box(scene, R, t, camera, (H, W), settings.margin_px)
-    r0, r1, c0, c1 = box
-    if r1 > r0 and c1 > c0:
-        U, V, steel, acetal = _fiducial_chords(scene, R, t, camera, cast, box, s)
-        A_sub = _coarse_sample(A, U, V, c) if A is not None else None
-        S_sub, V_sub = _spectral_sums(spec, mu, A_sub, steel, acetal)
-        M_fid = camera.focal_length_mm / float(t[2])
-        pad = 8 * s
-        tr = otf((S_sub.shape[0] + 2 * pad, S_sub.shape[1] + 2 * pad),
-                 (camera.pixel_size_mm[1] / s, camera.pixel_size_mm[0] / s), det, M_fid)
-        S_box = blur(S_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
-        V_box = blur(V_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
-        w = _feather(S_box.shape, settings.margin_px) if A is not None else np.ones(S_box.shape)
-        S_img[r0:r1, c0:c1] = w * S_box + (1 - w) * S_img[r0:r1, c0:c1]
-        V_img[r0:r1, c0:c1] = w * V_box + (1 - w) * V_img[r0:r1, c0:c1]
+        S_open = float(np.sum(spec.photons * spec.energy_kev))
+        V_open = float(np.sum(spec.photons * spec.energy_kev ** 2))
+        fld = _Field(np.full((H, W), S_open), np.full((H, W), V_open), np.zeros((H, W)), None, (S_open, V_open))
+    cast = _add_fiducial(fld, scene, R, t, camera, spec, mu, settings, det)
 
     # tube output: the requested quanta behind the patient at the fiducial's projected origin
-    e_mean = V_img / np.maximum(S_img, 1e-300)
+    e_mean = fld.V / np.maximum(fld.S, 1e-300)
     u0, v0 = camera.project(t)
     iu, iv = int(np.clip(round(u0), 0, W - 1)), int(np.clip(round(v0), 0, H - 1))
-    if A is not None:
-        ref_S = float(_coarse_sample(S_c, np.array([u0]), np.array([v0]), c)[0])
-        ref_V = float(_coarse_sample(V_c, np.array([u0]), np.array([v0]), c)[0])
-        ref_quanta = (ref_S + float(scatter[iv, iu])) / (ref_V / ref_S)
-    else:
-        ref_quanta = S_open / (V_open / S_open)
+    ref_S, ref_V = fld.reference
+    ref_quanta = (ref_S + float(fld.scatter[iv, iu])) / (ref_V / ref_S)
     n0 = float(dose_behind_patient) / ref_quanta
-    energy = n0 * (S_img + scatter)
+    energy = n0 * (fld.S + fld.scatter)
     gain = auto_gain(energy, det)
     counts = read_out(draw_counts(energy, e_mean, rng) if noise else energy, gain, det, rng if noise else None)
     truth = _truth(preset, scene, R, t, camera, spec, kvp, mono_kev, dose_behind_patient, patient, seed, spr,
                    det, settings, placement, n0, gain, cast, e_mean[iv, iu])
     return counts, truth
+
+
+@dataclass
+class _Field:
+    """Per-pixel expected energy S and second moment V (per open-field photon), scatter, and
+    the patient's coarse basis line integrals A (None without a patient)."""
+
+    S: np.ndarray
+    V: np.ndarray
+    scatter: np.ndarray
+    A: np.ndarray | None
+    #: (S, V) of the patient alone (or the open field) at the fiducial's projected origin
+    reference: tuple[float, float]
+
+
+def _patient_field(spec, mu, camera: Camera, R, t, placement, settings: RenderSettings, det: DetectorModel,
+                   spr: float) -> _Field:
+    """The patient-only field: DRR on the coarse grid, spectral sums, pixel-level blur at the
+    patient's magnification, and scatter."""
+    H, W = settings.image_shape
+    c = settings.coarse
+    vol, basis = _patient_basis(7)
+    R_pf, t_pf = placement
+    R_px, t_px = R @ R_pf, R @ t_pf + t
+    cu, cv = np.meshgrid(np.arange(W // c) * c + (c - 1) / 2, np.arange(H // c) * c + (c - 1) / 2)
+    A = line_integrals(basis, vol, camera, R_px, t_px, cu, cv, settings.drr_step_mm)
+    S_c, V_c = _spectral_sums(spec, mu, A)
+    uu, vv = np.meshgrid(np.arange(W, dtype=float), np.arange(H, dtype=float))
+    S, V = _coarse_sample(S_c, uu, vv, c), _coarse_sample(V_c, uu, vv, c)
+    tr = otf((H + 64, W + 64), tuple(camera.pixel_size_mm[::-1]), det, camera.focal_length_mm / float(t_px[2]))
+    S, V = blur(S, tr, 32), blur(V, tr, 32)
+    S_open = float(np.sum(spec.photons * spec.energy_kev))
+    pix = float(np.mean(camera.pixel_size_mm))
+    scatter = _coarse_sample(scatter_field(S_c, S_open, spr, pix * c, det.scatter_sigma_mm), uu, vv, c)
+    u0, v0 = camera.project(t)
+    ref = tuple(float(_coarse_sample(x, np.array([u0]), np.array([v0]), c)[0]) for x in (S_c, V_c))
+    return _Field(S, V, scatter, A, ref)
+
+
+def _add_fiducial(fld: _Field, scene: FiducialScene, R, t, camera: Camera, spec, mu, settings: RenderSettings,
+                  det: DetectorModel):
+    """Replace the fiducial's box of ``fld`` by patient × fiducial at sub-sample resolution,
+    blurred at the fiducial's magnification and integrated over pixels; returns the cast box."""
+    s, c = settings.subsample, settings.coarse
+    cast, box = _fiducial_box(scene, R, t, camera, settings.image_shape, settings.margin_px)
+    r0, r1, c0, c1 = box
+    if r1 <= r0 or c1 <= c0:
+        return cast
+    U, V, steel, acetal = _fiducial_chords(scene, R, t, camera, cast, box, s)
+    A_sub = _coarse_sample(fld.A, U, V, c) if fld.A is not None else None
+    S_sub, V_sub = _spectral_sums(spec, mu, A_sub, steel, acetal)
+    pad = 8 * s
+    tr = otf((S_sub.shape[0] + 2 * pad, S_sub.shape[1] + 2 * pad),
+             (camera.pixel_size_mm[1] / s, camera.pixel_size_mm[0] / s), det, camera.focal_length_mm / float(t[2]))
+    S_box = blur(S_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
+    V_box = blur(V_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
+    # with a patient, blend into the pixel-level field over the margin (both are the patient alone there)
+    w = _feather(S_box.shape, settings.margin_px) if fld.A is not None else np.ones(S_box.shape)
+    fld.S[r0:r1, c0:c1] = w * S_box + (1 - w) * fld.S[r0:r1, c0:c1]
+    fld.V[r0:r1, c0:c1] = w * V_box + (1 - w) * fld.V[r0:r1, c0:c1]
+    return cast
 
 
 def _truth(preset, scene, R, t, camera, spec, kvp, mono_kev, dose, patient, seed, spr, det, settings,
