@@ -22,7 +22,7 @@ In the order the physics puts them (:func:`apply_chain`):
    line integral where nothing saturates); ``display`` — what a monitor or a frame grabber
    shows (DISP): the log signal, unsharp-mask edge enhancement ``s + amount (s − G_σ s)``,
    window ``x = clip((s − c + w/2) / w, 0, 1)`` (centre/width given, or from percentiles of
-   the exposed patient), gamma ``y = x^γ``, ``polarity`` (dense-dark: ``1 − y``), quantised to
+   the exposed patient in the central measuring field), gamma ``y = x^γ``, ``polarity`` (dense-dark: ``1 − y``), quantised to
    8 or 16 bits; outside the round field the lowest value (black), with burned-in text and a
    crosshair when asked, and the frame grabber's analog noise.
 
@@ -307,10 +307,16 @@ def apply_gamma(x: np.ndarray, gamma: float) -> np.ndarray:
 
 
 def auto_window(s: np.ndarray, mask: np.ndarray, percentiles: tuple[float, float] = (0.5, 99.5)) -> tuple[float, float]:
-    """(centre, width) spanning the given percentiles of ``s`` over ``mask``, leaving out the
-    direct beam (s < :data:`DIRECT_BEAM`) unless that leaves under a fifth of the field; every
-    fourth pixel each way (the percentiles move by far less than a grey level)."""
-    sub = s[::4, ::4][mask[::4, ::4]]
+    """(centre, width) spanning the given percentiles of ``s`` over the measuring field — the
+    central half of the image each way, within ``mask``, as a C-arm's automatic brightness
+    and contrast measure — leaving out the direct beam (s < :data:`DIRECT_BEAM`) unless that
+    leaves under a fifth of it; every fourth pixel each way (the percentiles move by far less
+    than a grey level)."""
+    H, W = s.shape
+    centre = (slice(H // 4, H - H // 4, 4), slice(W // 4, W - W // 4, 4))
+    sub = s[centre][mask[centre]]
+    if sub.size < 16:
+        sub = s[::4, ::4][mask[::4, ::4]]
     if sub.size == 0:
         sub = s[::4, ::4].ravel()
     body = sub[sub >= DIRECT_BEAM]

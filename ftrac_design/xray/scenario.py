@@ -22,7 +22,7 @@ raw                 linear 14/16-bit counts (dense = dark), radiograph dose 1000
                     behind the patient, the direct beam saturated
 log                 float32 line integral (dense = bright), radiograph dose
 display-dark        8-bit display frame, dense = dark (fluoroscopy monitor), dose 200–3000,
-                    window (auto from percentiles, or a narrower one about the fiducial),
+                    window auto from the 0–2 / 98–100 % percentiles (one in three 2–8 / 92–98 %),
                     gamma 0.6–1.6, unsharp mask σ 2–12 px × 0–1.5, burned-in text half the time
 display-bright      the same, dense = bright (radiograph look)
 round-shutter       image intensifier: round field, black outside, radius 35–50 % of the image
@@ -133,22 +133,14 @@ def _display(condition: str, rng, box) -> Display:
         return Display(formation)
     polarity = {"display-dark": "dense-dark", "display-bright": "dense-bright"}.get(
         condition, "dense-dark" if rng.random() < 0.5 else "dense-bright")
-    pct = (float(rng.uniform(0.0, 2.0)), float(rng.uniform(98.0, 100.0)))
+    # the automatic window, or one time in three a tighter one (a user's contrast boost)
+    if rng.random() < 1 / 3:
+        pct = (float(rng.uniform(2.0, 8.0)), float(rng.uniform(92.0, 98.0)))
+    else:
+        pct = (float(rng.uniform(0.0, 2.0)), float(rng.uniform(98.0, 100.0)))
     return Display("display", None, pct, _loguniform(rng, 0.6, 1.6),
                    float(rng.uniform(2.0, 12.0)), float(rng.uniform(0.0, 1.5)) if rng.random() < 0.8 else 0.0,
                    polarity, 8, bool(rng.random() < 0.5), float(rng.uniform(0.0, 1.5)))
-
-
-def _narrow_window(display: Display, rng, signal_near_fiducial: np.ndarray) -> Display:
-    """One time in three a user's window: centred near the fiducial's neighbourhood, narrower."""
-    if display.formation != "display" or rng.random() > 1 / 3:
-        return display
-    lo, hi = np.percentile(signal_near_fiducial, (10, 90))
-    width = max(float(hi - lo), 0.3) * float(rng.uniform(1.0, 2.0))
-    centre = float(np.median(signal_near_fiducial)) + float(rng.normal(0, 0.1)) * width
-    return Display(display.formation, (centre, width), display.window_percentiles, display.gamma,
-                   display.unsharp_sigma_px, display.unsharp_amount, display.polarity, display.bits,
-                   display.annotations, display.video_noise)
 
 
 def _needles(features: Features, rng, n: int) -> tuple[Occluder, ...]:
@@ -268,8 +260,6 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     detector = _detector(condition, rng, counts, intensifier)
     shutter = _shutter(condition, rng, box, (H, W))
     display = _display(condition, rng, box)
-    u0, v0, u1, v1 = box
-    display = _narrow_window(display, rng, bg[max(v0 - 40, 0):v1 + 40, max(u0 - 40, 0):u1 + 40])
     image, chain = apply_chain(np.float32(n0) * T, detector, display, shutter, rng, n0=n0)
 
     info.update(chain)
