@@ -15,10 +15,10 @@ from ftrac_design.pose.camera import Camera
 from ftrac_design.xray.display import (Detector, Display, Shutter, apply_chain, apply_gamma, n0_for_counts,
                                        round_field, unsharp_mask, window_level)
 from ftrac_design.xray.materials import linear_attenuation, mass_attenuation
-from ftrac_design.xray.patient import (Placement, patient, patient_model, render_patient, seed_line_integral_sum,
-                                       seeds)
+from ftrac_design.xray.patient import (Placement, clips, patient, patient_model, render_patient,
+                                       seed_line_integral_sum, seeds)
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
-from ftrac_design.xray.solids import Canal, Column, Tube, capsule_chord
+from ftrac_design.xray.solids import Canal, Column, Tube, capsule_chord, capsule_volume
 from ftrac_design.xray.truth import projected_features
 
 
@@ -205,9 +205,11 @@ def test_seeds_integrated_attenuation_is_mu_volume_over_pixel_area():
     img = seeds((160, 160), 12, rng, (80, 80), 50, pixel_mm=0.44, magnification=1.4, supersample=8)
     want = seed_line_integral_sum(12, pixel_mm=0.44, magnification=1.4)
     assert img.sum() == pytest.approx(want, rel=0.01)
-    # one seed end-on through its axis: the chord is the capsule's length
-    one = seeds((64, 64), 1, np.random.default_rng(7), (32, 32), 0.0, supersample=1)
-    assert one.max() <= linear_attenuation("titanium", 60.0) * 4.5 + 1e-6
+    # closed clips: two touching legs, each a capsule of the leg's length
+    img = clips((160, 160), 3, rng, (80, 80), 40, pixel_mm=0.44, magnification=1.4, supersample=8)
+    px = 0.44 / 1.4
+    want = 3 * 2 * linear_attenuation("titanium", 60.0) * capsule_volume(7.0, 0.4) / px ** 2
+    assert img.sum() == pytest.approx(want, rel=0.01)
 
 
 # ----------------------------------------------------------------------------- conditions

@@ -720,8 +720,8 @@ def seeds(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: S
     half = (length_mm / 2 - diameter_mm / 2) / px  # half the capsule's axis, pixels
     c = _region(shape, rng, center_px, spread_px, n)
     d = _directions(rng, n)
-    cz = np.zeros((n, 1))
-    centers = np.c_[c, cz]
+    # seeds sit at different depths (solid capsules never share space): ±20 mm about the plane
+    centers = np.c_[c, rng.uniform(-20.0, 20.0, n) / px]
     mu = linear_attenuation(material, energy_kev) * px
     return _capsules_image(shape, centers - half * d, centers + half * d, r, mu, supersample)
 
@@ -730,26 +730,25 @@ def clips(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: S
           spread_px: float | None = None, pixel_mm: float = 0.44, magnification: float = 1.3,
           energy_kev: float = 60.0, leg_mm: float = 7.0, wire_mm: float = 0.8, material: str = "titanium",
           supersample: int = 4) -> np.ndarray:
-    """Surgical (ligation) clips as a line-integral image (H, W) float32: each a V of two
-    ``wire_mm`` thick legs ``leg_mm`` long, opened 10–30°, randomly oriented (see :func:`seeds`)."""
+    """Closed surgical (ligation) clips as a line-integral image (H, W) float32: each two
+    touching parallel legs (capsules ``leg_mm`` long end to end, ``wire_mm`` thick), randomly
+    oriented at random depths (±20 mm), placed as in :func:`seeds`."""
     if n < 0 or supersample < 1:
         raise InputError(None, "n / supersample", "a non-negative count and a positive supersampling")
     px = pixel_mm / magnification
-    c = _region(shape, rng, center_px, spread_px, n)
+    r = wire_mm / 2 / px
+    half = (leg_mm / 2 - wire_mm / 2) / px
+    c = np.c_[_region(shape, rng, center_px, spread_px, n), rng.uniform(-20.0, 20.0, n) / px]
     d = _directions(rng, n)
+    q = np.cross(d, _directions(rng, n))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)       # the side the second leg lies on
     p0, p1 = [], []
-    for k in range(n):
-        # a second direction perpendicular to the clip's axis sets the plane the legs open in
-        q = np.cross(d[k], _directions(rng, 1)[0])
-        q /= np.linalg.norm(q)
-        half = math.radians(float(rng.uniform(5, 15)))
-        hinge = np.r_[c[k], 0.0] - 0.5 * leg_mm / px * d[k]
-        for s in (-1, 1):
-            leg = math.cos(half) * d[k] + s * math.sin(half) * q
-            p0.append(hinge)
-            p1.append(hinge + leg_mm / px * leg)
+    for s in (-1.0, 1.0):
+        mid = c + s * r * q                              # the legs' axes 2 r apart: touching
+        p0.append(mid - half * d)
+        p1.append(mid + half * d)
     mu = linear_attenuation(material, energy_kev) * px
-    return _capsules_image(shape, np.array(p0).reshape(-1, 3), np.array(p1).reshape(-1, 3), wire_mm / 2 / px, mu, supersample)
+    return _capsules_image(shape, np.concatenate(p0), np.concatenate(p1), r, mu, supersample)
 
 
 def seed_line_integral_sum(n: int, pixel_mm: float = 0.44, magnification: float = 1.3, energy_kev: float = 60.0,

@@ -205,8 +205,6 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     rng = np.random.default_rng([int(seed), CONDITIONS.index(condition), 2024])
     pixel = float(np.mean(camera.pixel_size_mm))
     body = resolve_body(features, body)
-    info: dict[str, Any] = {"condition": condition, "seed": int(seed)}
-
     # the fiducial, blurred by its focal spot only (the detector's line spread comes later)
     focal = float(rng.uniform(0.3, 0.7) if condition == "fluoro-dose" else rng.uniform(0.3, 1.2))
     imaging = ImagingModel(image_shape=(H, W), focal_spot_mm=focal, detector_blur_px=0.0, photons_per_px=None)
@@ -215,41 +213,18 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     sigma_target = float(rng.uniform(1.6, 2.0)) if condition == "blur-2px" else float(rng.uniform(0.5, 0.9))
     sigma_det = math.sqrt(max(sigma_target ** 2 - sigma_focal ** 2, 0.0))
     occluders = _needles(features, rng, int(rng.integers(1, 3))) if condition == "seeds-needle" else ()
-
-    # the patient
-    kinds = ("pelvis", "spine") if condition == "strong-anatomy" else tuple(KIND_WEIGHTS)
-    w = np.array([KIND_WEIGHTS[k] for k in kinds])
-    kind = str(rng.choice(kinds, p=w / w.sum()))
-    mag = camera.focal_length_mm / (float(t[2]) + float(rng.uniform(-40, 60)))
-    field_mm = max(H, W) * pixel / mag
-    p_seed = int(rng.integers(2 ** 31))
-    model = patient_model(kind, p_seed, field_mm)
     Ib, (r0, c0), box = _footprint(features, R, t, camera, imaging, body)
-    landmark = None
-    model = over_body(model, box, (H, W), pixel, mag)
-    if condition == "strong-anatomy":
-        model, landmark = _strong_placement(model, rng, ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), (H, W),
-                                            pixel, mag)
-    thickness = 2 * model.body.half_depth * model.placement.scale
-    energy = float(np.clip(50.0 + 0.1 * (thickness - 150.0), 50.0, 70.0))
-    tex = texture((H, W), rng, pixel / mag / model.placement.scale)
-    bg = render_patient(model, (H, W), pixel, mag, energy, tex)
-    n_seeds = n_clips = 0
-    if condition == "seeds-needle":
-        c = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
-        spread = 0.6 * max(box[2] - box[0], box[3] - box[1])
-        n_seeds, n_clips = int(rng.integers(30, 101)), int(rng.integers(0, 4))
-        bg = bg + seeds((H, W), n_seeds, rng, c, spread, pixel, mag, energy)
-        if n_clips:
-            bg = bg + clips((H, W), n_clips, rng, c, 1.5 * spread, pixel, mag, energy)
+    if occluders:
+        Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, body, occluders)
+
+    mag = camera.focal_length_mm / (float(t[2]) + float(rng.uniform(-40, 60)))
+    bg, patient_info = _patient(condition, rng, box, (H, W), pixel, mag)
 
     # the photons: patient (its focal blur) × fiducial, then the detector's line spread
     patient_focal = max(mag - 1.0, 0.0) * focal / 2.3548 / pixel
     T = np.exp(-bg)
     if patient_focal > 0.05:
         T = cv2.GaussianBlur(T, (0, 0), patient_focal, borderType=cv2.BORDER_REFLECT)
-    if occluders:
-        Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, body, occluders)
     T[r0:r0 + Ib.shape[0], c0:c0 + Ib.shape[1]] *= Ib
     if sigma_det > 0:
         T = cv2.GaussianBlur(T, (0, 0), sigma_det, borderType=cv2.BORDER_REFLECT)
@@ -260,16 +235,46 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     detector = _detector(condition, rng, counts, intensifier)
     shutter = _shutter(condition, rng, box, (H, W))
     display = _display(condition, rng, box)
-    image, chain = apply_chain(np.float32(n0) * T, detector, display, shutter, rng, n0=n0)
-
-    info.update(chain)
+    image, info = apply_chain(np.float32(n0) * T, detector, display, shutter, rng, n0=n0)
     info.update({
-        "counts_behind_patient": counts, "fiducial_box": box, "blur_sigma_px": math.hypot(sigma_focal, sigma_det),
-        "detector_blur_px": sigma_det, "focal_spot_mm": focal, "energy_kev": energy, "intensifier": intensifier,
-        "patient": {"kind": kind, "seed": p_seed, "thickness_mm": thickness, "magnification": mag,
-                    "placement": asdict(model.placement), "landmark": landmark,
-                    "line_integral": (float(bg.min()), float(np.percentile(bg, 99.9)), float(bg.max()))},
+        "condition": condition, "seed": int(seed), "counts_behind_patient": counts, "fiducial_box": box,
+        "blur_sigma_px": math.hypot(sigma_focal, sigma_det), "detector_blur_px": sigma_det, "focal_spot_mm": focal,
+        "energy_kev": patient_info.pop("energy_kev"), "intensifier": intensifier, "patient": patient_info,
+        "seeds": patient_info.pop("seeds"), "clips": patient_info.pop("clips"),
+        "needles": [oc.to_dict() for oc in occluders],
         "detector": asdict(detector), "display": asdict(display), "shutter_settings": asdict(shutter),
-        "seeds": n_seeds, "clips": n_clips, "needles": [oc.to_dict() for oc in occluders],
     })
     return image, info
+
+
+def _patient(condition: str, rng, box, shape, pixel: float, mag: float) -> tuple[np.ndarray, dict[str, Any]]:
+    """The patient's line integral (with seeds and clips for seeds-needle) behind the fiducial's
+    footprint ``box``, and what was drawn for it."""
+    kinds = ("pelvis", "spine") if condition == "strong-anatomy" else tuple(KIND_WEIGHTS)
+    w = np.array([KIND_WEIGHTS[k] for k in kinds])
+    kind = str(rng.choice(kinds, p=w / w.sum()))
+    p_seed = int(rng.integers(2 ** 31))
+    model = patient_model(kind, p_seed, max(shape) * pixel / mag)
+    model = over_body(model, box, shape, pixel, mag)
+    landmark = None
+    if condition == "strong-anatomy":
+        model, landmark = _strong_placement(model, rng, ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), shape,
+                                            pixel, mag)
+    thickness = 2 * model.body.half_depth * model.placement.scale
+    # automatic exposure control raises the kV (and the beam hardens) through a thicker patient
+    energy = float(np.clip(50.0 + 0.1 * (thickness - 150.0), 50.0, 70.0))
+    tex = texture(shape, rng, pixel / mag / model.placement.scale)
+    bg = render_patient(model, shape, pixel, mag, energy, tex)
+    n_seeds = n_clips = 0
+    if condition == "seeds-needle":
+        c = ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2)
+        spread = 0.6 * max(box[2] - box[0], box[3] - box[1])
+        n_seeds, n_clips = int(rng.integers(30, 101)), int(rng.integers(0, 4))
+        bg = bg + seeds(shape, n_seeds, rng, c, spread, pixel, mag, energy)
+        if n_clips:
+            bg = bg + clips(shape, n_clips, rng, c, 1.5 * spread, pixel, mag, energy)
+    sub = bg[::4, ::4]
+    return bg, {"kind": kind, "seed": p_seed, "thickness_mm": thickness, "magnification": mag,
+                "placement": asdict(model.placement), "landmark": landmark, "energy_kev": energy,
+                "texture_amplitude": model.texture_amplitude, "seeds": n_seeds, "clips": n_clips,
+                "line_integral": (float(bg.min()), float(np.percentile(sub, 99.9)), float(bg.max()))}
