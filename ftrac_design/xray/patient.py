@@ -246,9 +246,9 @@ def _pelvis(rng: np.random.Generator, levels: list[dict]) -> list[Structure]:
         r_wing = _j(rng, 68.0, 0.06)
         cw = (s * _j(rng, 88.0, 0.05), levels[-1]["y"] - 20 + r_wing)
         # the wing is a fan: the inferior-medial part (the ilium's body) is cut off toward the hip
-        # seen obliquely (the wing faces 40–50° off the coronal plane): a 10–20 mm chord of a thin plate
-        out.append(Structure("iliac wing", Ellipsoid(cw, (r_wing, r_wing * 0.95), 10.0, 0.0, wall=2.0,
-                                                     clips=((-0.35 * s, 1.0, 0.45 * r_wing),))))
+        # seen obliquely (the wing faces 40–50° off the coronal plane): a 10–20 mm chord of a thin
+        # plate; its lower part runs into the acetabulum's roof and the sacro-iliac joint
+        out.append(Structure("iliac wing", Ellipsoid(cw, (r_wing, r_wing), 10.0, 0.0, wall=2.0)))
         out.append(Structure("iliac crest", Tube(cw, half_width=5.0, depth=8.0, wall=1.5, radius=r_wing - 5.0,
                                                  angles=((math.pi * 1.05, math.pi * 1.9) if s > 0 else
                                                          (math.pi * 1.10, math.pi * 1.95)))))

@@ -13,7 +13,8 @@ effective energy from the patient's thickness (automatic exposure control raises
 50 keV at 150 mm to 70 keV at 350 mm), focal spot 0.3–1.2 mm, detector line spread σ
 0.5–0.9 px, scatter-to-primary 0.2–1.2, flat-field residual 0–1 %, 14/16-bit flat panel or
 12-bit image intensifier (vignetting 0.1–0.35, post-sink blur 0–0.6 px), gain putting the
-patient at 8–30 % of full scale, dark offset, read noise 0–4 quanta.
+brightest patient pixels of the central field at 40–80 % of full scale (the direct beam
+beside the patient saturates), dark offset, read noise 0–4 quanta.
 
 ==================  ==========================================================================
 condition           what it stresses
@@ -156,12 +157,20 @@ def _needles(features: Features, rng, n: int) -> tuple[Occluder, ...]:
     return tuple(out)
 
 
-def _detector(condition: str, rng, counts: float, intensifier: bool) -> Detector:
+def _detector(rng, expected: np.ndarray, intensifier: bool) -> Detector:
+    """A flat panel (14/16 bits) or an image intensifier (12 bits): the brightest patient pixels
+    of the central measuring field (99.5th percentile of the expected quanta, scatter
+    included) at 40–80 % of full scale, so the fiducial's neighbourhood stays in range while
+    the direct beam beside the patient saturates."""
     bits = 12 if intensifier else int(rng.choice([14, 16]))
     full = (1 << bits) - 1
-    gain = float(rng.uniform(0.08, 0.3)) * full / counts
+    spr = float(rng.uniform(0.2, 1.2))
+    H, W = expected.shape
+    central = expected[H // 4:H - H // 4:4, W // 4:W - W // 4:4]
+    bright = float(np.percentile(central, 99.5)) + spr * float(central.mean())
+    gain = float(rng.uniform(0.4, 0.8)) * full / max(bright, 1e-6)
     return Detector(bits, gain, float(rng.uniform(0.0, 0.02)) * full, float(rng.uniform(0.0, 4.0)) * gain,
-                    float(rng.uniform(0.0, 0.01)), float(rng.uniform(0.2, 1.2)), float(rng.uniform(40, 120)),
+                    float(rng.uniform(0.0, 0.01)), spr, float(rng.uniform(40, 120)),
                     float(rng.uniform(0.1, 0.35)) if intensifier else 0.0,
                     float(rng.uniform(0.0, 0.6)) if intensifier else 0.0)
 
@@ -232,10 +241,11 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     n0 = n0_for_counts(bg, counts)
     intensifier = condition == "round-shutter" or (condition in ("display-dark", "display-bright", "fluoro-dose",
                                                                  "blur-2px") and rng.random() < 0.5)
-    detector = _detector(condition, rng, counts, intensifier)
+    expected = np.float32(n0) * T
+    detector = _detector(rng, expected, intensifier)
     shutter = _shutter(condition, rng, box, (H, W))
     display = _display(condition, rng, box)
-    image, info = apply_chain(np.float32(n0) * T, detector, display, shutter, rng, n0=n0)
+    image, info = apply_chain(expected, detector, display, shutter, rng, n0=n0)
     info.update({
         "condition": condition, "seed": int(seed), "counts_behind_patient": counts, "fiducial_box": box,
         "blur_sigma_px": math.hypot(sigma_focal, sigma_det), "detector_blur_px": sigma_det, "focal_spot_mm": focal,
