@@ -5,6 +5,10 @@
 - :class:`ImagingModel`, :class:`Body`, :class:`Occluder`, :class:`Radiograph` (:mod:`.model`).
 - :func:`read_image` / :func:`write_image` — re-exported from :mod:`ftrac_design.images`.
 - :func:`anatomy` — a synthetic anatomy-like background (:mod:`.background`).
+- :func:`.patient.patient` / :func:`seeds` — a patient's line integral (spine, ribs, lungs,
+  pelvis, gas) and brachytherapy seeds (:mod:`.patient`; the package's ``patient`` is that module); :func:`apply_chain` / :func:`n0_for_counts` — a
+  C-arm's detector and display chain (:mod:`.display`); :func:`realistic_image` — a complete
+  test image for a named condition (:mod:`.scenario`).
 - truth.json (:mod:`.truth`); attenuation coefficients (:mod:`.materials`).
 """
 
@@ -17,8 +21,11 @@ __all__ = [
     "Body", "ImagingModel", "Occluder", "Radiograph", "render", "expected_transmission", "line_integral_box",
     "blur_sigma_px", "body_from_design_file", "body_from_features_file", "body_from_source",
     "projected_features", "read_truth", "truth_dict", "write_truth", "read_image", "write_image", "anatomy",
-    "demo_step",
+    "demo_step", "seeds", "apply_chain", "n0_for_counts", "realistic_image",
 ]
+
+_LAZY = {"seeds": "patient", "apply_chain": "display", "n0_for_counts": "display",
+         "realistic_image": "scenario"}
 
 
 def __getattr__(name):
@@ -29,6 +36,9 @@ def __getattr__(name):
     if name == "anatomy":
         from .background import anatomy
         return anatomy
+    if name in _LAZY:
+        import importlib
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
     if name == "demo_step":
         from .demo import demo_step
         return demo_step
