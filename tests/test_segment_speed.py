@@ -39,7 +39,7 @@ def test_blob_peaks_equal_whole_image_dilation(seed):
         img[max(y - 3, 0):y + 3, max(x - 3, 0):x + 3] += rng.uniform(3, 20)
     r = float(rng.uniform(1.5, 6))
     snr = float(rng.choice([0.1, 2.0, 8.0]))  # 0.1: most pixels strong, the dilation path
-    a = blob_candidates(img, r, 1.0, 40, snr)
+    a = blob_candidates(img, r, 1.0, 40, snr, min_isotropy=0.0)
     b = _blob_candidates_dense(img, r, 1.0, 40, snr)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
 

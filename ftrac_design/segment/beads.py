@@ -101,12 +101,13 @@ class Beads:
 
 
 def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray, max_count: int,
-                    min_snr: float = 8.0) -> tuple[np.ndarray, np.ndarray]:
+                    min_snr: float = 8.0, min_isotropy: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima (n, 2) (u, v) of the scale-normalised negative Laplacian at the bead
     scale σ = r/√2, strongest first, at most ``max_count``, each ≥ ``min_snr`` times the
-    noise response; also requires both Hessian eigenvalues negative (a blob, not a ridge).
-    ``noise``: the pixel noise σ, one number or a map (H, W). Returns the maxima and their
-    response in units of the noise response there."""
+    noise response; also requires both Hessian eigenvalues negative, the smaller at least
+    ``min_isotropy`` of the larger (a blob, not a ridge: a cortical band as wide as a ball
+    gave hundreds of maxima along its length). ``noise``: the pixel noise σ, one number or a
+    map (H, W). Returns the maxima and their response in units of the noise response there."""
     sb = max(radius_px / np.sqrt(2.0), 0.8)
     g0, _, g2 = gaussian_kernels(sb)
     xx = cv2.sepFilter2D(img, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE)
@@ -129,6 +130,13 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray
     else:
         dil = cv2.dilate(resp, se)
         j, i = np.nonzero((resp >= dil) & (resp > min_snr * noise_resp) & (xx < 0) & (yy < 0))
+    if len(j) and min_isotropy > 0:
+        g1 = gaussian_kernels(sb)[1]
+        xy = cv2.sepFilter2D(img, cv2.CV_32F, -g1, -g1, borderType=cv2.BORDER_REPLICATE)[j, i]
+        a, c = xx[j, i], yy[j, i]
+        half, disc = 0.5 * (a + c), np.sqrt(0.25 * (a - c) ** 2 + xy * xy)
+        iso = (half + disc < 0) & (half + disc <= min_isotropy * (half - disc))
+        j, i = j[iso], i[iso]
     nr = noise_resp[j, i] if np.ndim(noise_resp) == 2 else noise_resp
     val = resp[j, i] / nr
     order = np.argsort(-val)[:max_count]
@@ -209,6 +217,9 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         J[..., 7] = Y
         if it >= 2:
             # Tukey biweight on the residuals: a wire touching the ball is an outlier
+            # one scale pooled over the candidates fitted together: a ball's own handful of
+            # pixels (a 1 mm ball's patch, less the wires masked out) gives too unstable a
+            # scale, and its centre moved by 0.6 px
             scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
             u = np.clip(np.abs(res) / scale, 0, 1)
             w = (1 - u * u) ** 2 * w0

@@ -71,24 +71,64 @@ def to_density(image: np.ndarray, polarity: str, formation: str = "linear") -> n
 
 def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int) -> np.ndarray | None:
     """Pixels that hold no information (bool, True = invalid), or None when there are none:
-    regions at the image's lowest or highest value (clipped: a shutter, black outside a round
-    field, saturation) wider than the disc of radius ``disc_px``, grown by ``margin_px``."""
+    regions pinned at the image's lowest or highest value (clipped: a shutter, black outside a
+    round field, a saturated direct beam, a display window's white or black) wider than the
+    disc of radius ``disc_px``, grown by ``margin_px``.
+
+    A display frame's clipped region is noisy around its clip level (quantisation, analogue
+    video noise), so it is found on the 5 × 5 mean: within 2 % of the range of an extreme (a
+    raw or log image: exactly at it). Holes up to ~24 px across in it — burned-in text and
+    graphics over a saturated corner — are closed: they carry no anatomy either."""
     a = np.asarray(image, dtype=np.float32)
     lo, hi = float(a.min()), float(a.max())
     if not hi > lo:
         return None
-    # a display frame's black is rarely one exact value (analogue video noise, compression):
-    # within 1 % of the range of the extremes is clipped
-    tol = 0.01 * (hi - lo) if hi - lo <= 255.0 else 0.0
-    ext = ((a <= lo + tol) | (a >= hi - tol)).astype(np.uint8)
+    display = hi - lo <= 255.0
+    tol = 0.02 * (hi - lo) if display else 0.0
+    m = cv2.blur(a, (5, 5)) if display else a
+    ext = ((m <= lo + tol) | (m >= hi - tol)).astype(np.uint8)
     if ext.sum() < (2 * disc_px + 1) ** 2:
         return None
+    if display:
+        ext = cv2.morphologyEx(ext, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25)))
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * disc_px + 1, 2 * disc_px + 1))
     ext = cv2.morphologyEx(ext, cv2.MORPH_OPEN, k)
     if not ext.any():
         return None
-    m = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1))
-    return cv2.dilate(ext, m).astype(bool)
+    mk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1))
+    return cv2.dilate(ext, mk).astype(bool)
+
+
+def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2) -> np.ndarray:
+    """``image`` (float32) with its pixels at the extreme values (within 1 % of the range of
+    the lowest or highest, for 0–255 images; exactly, otherwise) replaced by the nearest
+    unclipped values: a high pixel by the highest unclipped pixel within ``radius_px``, a low
+    one by the lowest, ``passes`` times outward.
+
+    A frame grabber's burned-in text, crosshairs and rulers are strokes 1–3 px wide at the
+    display's extreme value with no blur; they were the strongest blobs in the image (their
+    contrast against black air is many times a ball's against a patient) and took every
+    candidate slot and the region search. Filled in, they vanish into the background around
+    them, while a ball or a wire whose core the window clipped keeps its blurred flanks and
+    becomes flat-topped."""
+    a = np.array(image, dtype=np.float32, copy=True)
+    lo, hi = float(a.min()), float(a.max())
+    if not hi > lo:
+        return a
+    tol = 0.01 * (hi - lo) if hi - lo <= 255.0 else 0.0
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius_px + 1, 2 * radius_px + 1))
+    for sign, clip in ((1.0, a >= hi - tol), (-1.0, a <= lo + tol)):
+        todo = clip.copy()
+        for _ in range(passes):
+            if not todo.any():
+                break
+            # OpenCV's dilation saturates −inf to −FLT_MAX: a finite sentinel is tested instead
+            src = np.where(todo, np.float32(-1e30), sign * a).astype(np.float32)
+            near = cv2.dilate(src, k)
+            got = todo & (near > -1e29)
+            a[got] = sign * near[got]
+            todo &= ~got
+    return a
 
 
 def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: int) -> Conditioned:
@@ -108,4 +148,5 @@ def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: 
     """
     form = formation_of(image, polarity, formation)
     bad = invalid_regions(image, disc_px, disc_px + 2)
-    return Conditioned(to_density(image, polarity, form), None if bad is None else ~bad, polarity, form)
+    filled = fill_clipped(image) if form == "display" else np.asarray(image, np.float32)
+    return Conditioned(to_density(filled, polarity, form), None if bad is None else ~bad, polarity, form)

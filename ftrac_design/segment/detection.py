@@ -16,8 +16,11 @@ import numpy as np
 from ..features.model import Features
 from ..pose import Camera
 from .beads import Beads, blob_candidates, fit_beads
-from .image import derivatives, noise_map, second_derivative_gain, top_hat
+from .image import NoiseField, derivatives, second_derivative_gain, top_hat
 from .options import TrackOptions
+
+#: the blur the ridge scale is sized for (``TrackOptions.blur_px``'s default, px)
+DEFAULT_BLUR_PX = TrackOptions.blur_px
 from .ridges import RidgePoints, ridge_points
 
 
@@ -60,9 +63,12 @@ def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
     wires = [ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses]
     wire = (max(wires) if wires else 0.0) * m / pix
     disc = int(math.ceil(max(bead, wire) + 3 * opts.blur_px + 2))
+    # the ridge detector at the wire's blurred width: its own scale for the default blur, and
+    # wider by the blur beyond that (a 2 px blur left half the wire below threshold)
+    ridge = math.sqrt(max(1.0, 0.5 * wire + 0.5) ** 2 + max(opts.blur_px ** 2 - DEFAULT_BLUR_PX ** 2, 0.0))
     P = features.point_centers() if features.points else np.zeros((0, 3))
     spread = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) if len(P) > 1 else 0.0
-    return Scales(bead, wire, pix, max(1.0, 0.5 * wire + 0.5), disc,
+    return Scales(bead, wire, pix, ridge, disc,
                   spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead)
 
 
@@ -155,7 +161,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
     # more candidates than the labelling uses: over anatomy or on a display frame, clutter
     # (a clipped bone edge's staircase, edge-enhancement overshoot) can outrank the balls in
     # response alone; the model fit tells them apart (below)
-    cand, resp = blob_candidates(T, rb, noise, 4 * P + 24, opts.bead_min_snr)
+    cand, resp = blob_candidates(T, rb, noise, 8 * P + 40, opts.bead_min_snr)
     if len(cand):
         # the beads are the strongest blobs; anything far weaker is a wire crossing or clutter
         ref = np.sort(resp)[::-1][: P]
@@ -179,13 +185,24 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
           & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
     b = b.take(ok)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
-    # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5)
-    order = np.argsort(-(b.response / np.maximum(b.rms, 1.0)), kind="stable")[: 3 * P + 6]
+    # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
+    # and by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×)
+    size = np.exp(-0.5 * (np.log(b.radius / rb) / 0.25) ** 2)
+    order = np.argsort(-(b.response * size / np.maximum(b.rms, 1.0)), kind="stable")[: 3 * P + 6]
+    if len(order) < len(b):
+        # the kept ones fitted again among themselves: the fit's robust scale is pooled over
+        # the candidates fitted together, and the clutter left out must not loosen it
+        kept = b.take(order)
+        again = fit_beads(T, kept.uv, rb, opts.blur_px, bilinear(noise, kept.uv), kept.response)
+        same = np.isfinite(again.uv).all(1) & (np.linalg.norm(again.uv - kept.uv, axis=1) < 1.0) & \
+            np.isfinite(again.sigma_px)
+        return Beads(*(np.where(same[:, None] if getattr(kept, k).ndim == 2 else same, getattr(again, k),
+                                getattr(kept, k)) for k in kept.__dataclass_fields__))
     return b.take(order)
 
 
 def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions,
-           valid: np.ndarray | None = None, nmap: np.ndarray | None = None) -> Scene:
+           valid: np.ndarray | None = None, noise: NoiseField | None = None) -> Scene:
     """Background-free image and its local noise, fitted bead candidates and ridge points of the
     density image ``g`` (dense = bright).
 
@@ -194,9 +211,8 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     g : (H, W) density image.
     features, camera, opts : the design, the intrinsics of ``g``'s pixels, the options.
     valid : (H, W) bool, True where ``g`` can be read; nothing is detected elsewhere.
-    nmap : (H, W) local noise σ of ``g`` (:func:`.image.noise_map`); measured here when not
-        given (a crop's own map is inflated by the fiducial filling it: measure it on the
-        whole image and crop it).
+    noise : the local noise of ``g`` (:class:`.image.NoiseField`, of the whole image when
+        ``g`` is a crop of it); measured on ``g`` when not given.
 
     Returns
     -------
@@ -204,8 +220,9 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     """
     sc = scales(features, camera, opts)
     T = top_hat(g, sc.disc_px)
-    if nmap is None:
-        nmap = noise_map(g, sc.ridge_sigma_px, valid, structure_px=sc.disc_px)
+    if noise is None:
+        noise = NoiseField(g, valid, sc.disc_px)
+    nmap = noise.at(sc.ridge_sigma_px)
     if valid is not None:
         T[~valid] = 0.0
     beads = _bead_candidates(T, features, sc, nmap, opts) if features.points else None
@@ -214,3 +231,12 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
     return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, (d["xx"], d["xy"], d["yy"]))
+
+
+def fitted_blur(scene: Scene) -> float | None:
+    """The image's blur σ (px) as the balls show it: the median fitted blur of the most
+    ball-like candidates (as many as the design has balls), or None with fewer than three."""
+    b = scene.beads
+    if b is None or len(b) < 3:
+        return None
+    return float(np.median(b.blur[: max(3, len(scene.features.points))]))

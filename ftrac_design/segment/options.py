@@ -31,6 +31,9 @@ class TrackOptions:
     max_magnification: float = 3.0
     #: starting value of the Gaussian blur σ (fitted on the beads)
     blur_px: float = 0.8
+    #: when the balls' fitted blur exceeds this multiple of ``blur_px`` (and 1.1 px), the
+    #: image is detected again with the filters sized for the fitted blur
+    blur_redetect: float = 1.4
     ridge_min_snr: float = 5.0
     bead_min_snr: float = 8.0
     #: first bead-matching tolerance (× the bead radius), then the refined one (px)
@@ -63,14 +66,20 @@ class TrackOptions:
     #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
     #: wire's, is absent: the labelling is not confirmed
     wire_support: float = 0.3
-    wire_min_snr: float = 3.0
+    wire_min_snr: float = 1.5
     #: predicted wire whose ridge evidence is below this counts as unsupported in the
     #: labelling's agreement with the image (:func:`~.evidence.image_agreement`)
-    agreement_min_snr: float = 3.0
+    agreement_min_snr: float = 1.5
     #: χ² charged for each predicted, unobstructed feature a labelling does not explain
     unexplained_chi2: float = 25.0
-    #: look for the fiducial on a half-size image first and work in its region only
+    #: look for the fiducial on a half-size image first and work in its regions only
     roi: bool = True
+    #: how many regions where the fiducial may be are searched, most likely first
+    max_regions: int = 3
+    #: when no region gives a pose, the whole image is searched only if it has at most
+    #: this many pixels (a 1024² search cost ~0.3 s and found what the regions had not in
+    #: too few images to pay for it)
+    whole_image_px: int = 512 * 512
     #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
     #: image does not show (:func:`~.evidence.image_agreement`)
     agreement_chi2_per_px: float = 1.0

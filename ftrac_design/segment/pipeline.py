@@ -23,12 +23,12 @@ from ..features.model import Features
 from ..pose import Camera, so3
 from . import acceptance, identify
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
-from .detection import Scene, detect, scales
+from .detection import Scene, detect, fitted_blur, scales
 from .conditioning import FORMATIONS, condition, formation_of
-from .image import detect_polarity, noise_map
+from .image import NoiseField, detect_polarity
 from .labelling import Labelling, evaluate, with_agreement
 from .options import TrackOptions, TrackResult, failed_result
-from .region import fiducial_roi, shifted, view_limited
+from .region import fiducial_regions, shifted, view_limited
 
 
 def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis]) -> list[Labelling]:
@@ -117,10 +117,15 @@ def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
 
 
 def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str,
-                   valid: np.ndarray | None = None, nmap: np.ndarray | None = None) -> TrackResult:
+                   valid: np.ndarray | None = None, noise: NoiseField | None = None) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
-    where ``valid``, with local noise ``nmap``."""
-    scene = detect(g, features, camera, opts, valid, nmap)
+    where ``valid``, with local noise ``noise``."""
+    scene = detect(g, features, camera, opts, valid, noise)
+    blur = fitted_blur(scene)
+    if blur is not None and blur > max(opts.blur_px * opts.blur_redetect, 1.1):
+        # a blurrier image than the filters are sized for: detected again at its own blur
+        opts = replace(opts, blur_px=blur)
+        scene = detect(g, features, camera, opts, valid, noise)
     beads, ridges = scene.beads, scene.ridges
     diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
                             "ridge_points": 0 if ridges is None else len(ridges)}
@@ -147,6 +152,7 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
             diag["body_subtracted"] = True
     _accept(scene, best, others, diag)
     diag.update({
+        "blur_px": scene.opts.blur_px,
         "hypotheses": len(hyps),
         "labellings_tested": len(evaluated),
         "beads_matched": len(best.obs.points),
@@ -211,13 +217,12 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
     if img.dtype != np.float32:
         img = img.astype(np.float32)
     sc = scales(features, camera, opts)
-    # everything first on a half-size image: polarity, and where the fiducial is
+    # everything first on a half-size image: polarity, and where the fiducial may be
     small = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA) \
         if min(img.shape) >= 64 else img
     # the formation is a property of the pixels (their range and type), not of the polarity
     # tried: 8-bit integers are a display frame either way
-    form = formation_hint if formation_hint in FORMATIONS else \
-        formation_of(image, "dense-dark", None)
+    form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
     tried: list[TrackResult] = []
     for pol in _polarities(opts, polarity_hint, small, sc.disc_px):
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
@@ -238,25 +243,30 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
 
 def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body,
                        sc) -> TrackResult:
-    """:func:`track_image` on a conditioned image: in the fiducial's region first, then the
-    whole image."""
+    """:func:`track_image` on a conditioned image: in each region where the fiducial may be
+    (most likely first) until one gives a pose; the whole image when none is found."""
     img, valid, pol = cond.density, cond.valid, cond.polarity
-    nmap = noise_map(img, sc.ridge_sigma_px, valid, structure_px=sc.disc_px)
-    roi = None
+    noise = NoiseField(img, valid, sc.disc_px)
+    regions: list[tuple[int, int, int, int]] = []
     if small.shape != img.shape and opts.roi:
         vs = None if valid is None else cv2.resize(valid.astype(np.uint8), (small.shape[1], small.shape[0]),
                                                    interpolation=cv2.INTER_NEAREST).astype(bool)
         gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
-        roi = fiducial_roi(gs, features, sc, opts, vs)
-    if roi is not None:
-        r0, r1, c0, c1 = roi
+        regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
+    first: TrackResult | None = None
+    for r0, r1, c0, c1 in regions:
         crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
                                                        camera.principal_point_px[1] - r0))
         res = _track_density(img[r0:r1, c0:c1], features, crop_cam, opts, body, pol,
-                             None if valid is None else valid[r0:r1, c0:c1], nmap[r0:r1, c0:c1])
+                             None if valid is None else valid[r0:r1, c0:c1], noise.crop(r0, r1, c0, c1))
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
         if res.pose.converged or view_limited(res, features, camera, img.shape, opts):
             return res
-        # not found in the region the coarse look picked: the whole image, once
-    return _track_density(img, features, camera, opts, body, pol, valid, nmap)
+        first = first or res
+    if regions:
+        # a region was looked at and gave nothing: its answer, unless a whole-image search is
+        # cheap enough to be worth it (a small image)
+        if img.size > opts.whole_image_px:
+            return first
+    return _track_density(img, features, camera, opts, body, pol, valid, noise)

@@ -18,14 +18,20 @@ from .options import TrackOptions, TrackResult
 from .ridges import RidgePoints
 
 
-def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions,
-                 valid: np.ndarray | None = None) -> tuple[int, int, int, int] | None:
-    """Where the fiducial is, from a half-size density image ``gs`` (readable where
-    ``valid``): the full-size box ``(row0, row1, col0, col1)`` around the densest cluster
-    of bead-like blobs, wide enough for the whole fiducial's projection from any of them;
-    None when nothing bead-like is found (then the whole image is searched)."""
+def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions,
+                     valid: np.ndarray | None = None, max_regions: int = 3) -> list[tuple[int, int, int, int]]:
+    """Where the fiducial may be, from a half-size density image ``gs`` (readable where
+    ``valid``): up to ``max_regions`` full-size boxes ``(row0, row1, col0, col1)``, each
+    around a cluster of bead-like blobs no wider than the fiducial and wide enough for its
+    whole projection from any of them, the most ball-like cluster first; empty when nothing
+    bead-like is found (then the whole image is searched).
+
+    A cluster's weight is the sum of its ``P`` strongest blobs' SNR, each capped at 3 × the
+    bead threshold: a frame grabber's burned-in text or a clipped bone edge has blobs of a
+    far higher contrast than the balls behind a patient, and must not win on contrast alone.
+    The next region is looked for among the blobs outside the boxes taken."""
     if not features.points:
-        return None
+        return []
     rb = sc.bead_radius_px / 2
     disc = int(math.ceil(max(rb, sc.wire_px / 2) + 1.5 * opts.blur_px + 2))
     T = top_hat(gs, disc)
@@ -33,9 +39,9 @@ def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOpti
     if valid is not None:
         T[~valid] = 0.0
     P = len(features.points)
-    cand, resp = blob_candidates(T, rb, nmap, 3 * P + 6, opts.bead_min_snr)
+    cand, resp = blob_candidates(T, rb, nmap, 8 * P + 40, opts.bead_min_snr)
     if len(cand) < 3:
-        return None
+        return []
     # the fiducial's largest extent in pixels at a generous magnification
     pts = [features.point_centers()]
     pts += [np.array([ln.start, ln.end]) for ln in features.lines]
@@ -44,17 +50,29 @@ def fiducial_roi(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOpti
     ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
     D = ext * opts.magnification * 1.25 / sc.pixel_mm
     uv = 2 * cand + 0.5                                     # half-size pixel i covers full-size 2i, 2i + 1
+    w = np.minimum(resp, 3.0 * opts.bead_min_snr)
     near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
-    k = int(np.argmax(near.astype(float) @ resp))
-    cl = uv[near[k]]
-    lo = cl.min(0) - 0.5 * D - 8
-    hi = cl.max(0) + 0.5 * D + 8
     H, W = 2 * gs.shape[0], 2 * gs.shape[1]
-    c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-    c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
-    if (r1 - r0) * (c1 - c0) > 0.6 * H * W:
-        return None
-    return r0, r1, c0, c1
+    alive = np.ones(len(uv), bool)
+    boxes: list[tuple[int, int, int, int]] = []
+    while len(boxes) < max_regions and alive.sum() >= 3:
+        member = near & alive[None, :] & alive[:, None]
+        wk = np.where(member, w[None, :], 0.0)
+        score = -np.sort(-wk, axis=1)[:, :P].sum(1)
+        k = int(np.argmax(score))
+        if member[k].sum() < 3:
+            break
+        cl = uv[member[k]]
+        lo = cl.min(0) - 0.5 * D - 8
+        hi = cl.max(0) + 0.5 * D + 8
+        c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
+        c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
+        inside = (uv[:, 0] >= c0) & (uv[:, 0] < c1) & (uv[:, 1] >= r0) & (uv[:, 1] < r1)
+        alive &= ~inside
+        alive[k] = False
+        if (r1 - r0) * (c1 - c0) <= 0.6 * H * W:
+            boxes.append((r0, r1, c0, c1))
+    return boxes
 
 
 def shifted(res: TrackResult, camera: Camera, du: int, dv: int) -> TrackResult:

@@ -110,8 +110,15 @@ class PatientModel:
     lungs: tuple[Ellipsoid, ...]
     lung_intruders: tuple[Ellipsoid, ...]
     placement: Placement
-    texture_amplitude: float = 0.35
+    texture_amplitude: float = 0.06
 
+
+#: range of the trabecular texture's relative amplitude (std of the core's line integral at
+#: the 0.5–2 mm scale): a ray crosses ~L / 0.8 mm trabeculae 0.15 mm thick (BV/TV 10–25 %),
+#: so the bone path along it fluctuates by ~√N × 0.15 mm ≈ 20 % of its mean, ~10–14 % after
+#: averaging over a detector pixel's footprint; the bone is ~⅓ of a trabecular core's
+#: attenuation (the rest is marrow), so the core's line integral fluctuates by ~3–10 %
+TEXTURE_AMPLITUDE = (0.03, 0.10)
 
 # ----------------------------------------------------------------------------- anatomy
 def _j(rng: np.random.Generator, x: float, rel: float = 0.08) -> float:
@@ -421,7 +428,7 @@ def patient_model(kind: Kind = "pelvis", seed: int = 0, field_mm: float = 340.0,
     angle = float(rng.normal(0, 0.12)) if rng.random() < 0.7 else float(rng.uniform(-math.pi, math.pi))
     placement = Placement((cx, cy), angle, bool(rng.random() < 0.5), scale)
     return PatientModel(kind, body, tuple(structures), lungs, intruders, placement,
-                        float(rng.uniform(0.25, 0.45)))
+                        float(rng.uniform(*TEXTURE_AMPLITUDE)))
 
 
 def place_at(model: PatientModel, point_mm: tuple[float, float], pixel_uv: tuple[float, float],

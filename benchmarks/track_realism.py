@@ -1,0 +1,187 @@
+"""Image → pose on images as C-arms hand them over, with the tracker's default options.
+
+For each preset and condition, N workspace poses (SPEC §1) are made into images by
+:func:`ftrac_design.xray.scenario.realistic_image` (a patient behind the fiducial, the C-arm's
+detector and display chain: raw, log, 8-bit display frames of either polarity, round
+intensifier fields, collimator blades, fluoroscopy dose, strong anatomy, blur σ ≈ 2 px, seeds
+and needles) and by an image intensifier's distortion on top of raw frames (pincushion
+1–2.5 mm at 100 mm from the centre and an S-distortion of 0–3 px), tracked once without and
+once with the true distortion model (``track --distortion``). Every image is tracked as a user
+would with a PNG of it: :func:`ftrac_design.segment.track_image` with no hints (polarity and
+formation found from the pixels) and default options.
+
+Per condition it prints: the share tracked (converged, ≤ 1° and ≤ 3 mm from the truth),
+*confident wrong* answers (converged, > 1° or > 3 mm off, and the error improbable under the
+pose's own covariance, χ²₆ > 25.7, p < 1e-4: target 0), far-but-honest answers (> 1° or
+> 3 mm off with the covariance saying so), the RMS error per camera axis of the tracked ones,
+the median and largest time per image (wall, the image already in memory), and the largest
+resident memory of any worker process over all its images. Beside the times: the median time
+per image of the *clean* condition (our simulator's own images, no patient, the same poses) in
+the same run — the baseline the conditions' times are compared with.
+
+    .venv/bin/python benchmarks/track_realism.py                         # 200 per condition, 3 presets
+    .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --conditions raw display-dark
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import time
+from collections import Counter
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import _common  # noqa: F401  (puts the checkout first on sys.path)
+import numpy as np
+from tqdm import tqdm
+
+from ftrac_design.design import load_design
+from ftrac_design.features import compute_features
+from ftrac_design.images.distortion import combine, radial, s_distortion, undistort_image, distort_image
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.segment import track_image
+from ftrac_design.xray import Body, render
+from ftrac_design.xray.scenario import CONDITIONS, realistic_image
+
+ROOT = Path(__file__).resolve().parents[1]
+PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
+ALL = ("clean",) + CONDITIONS + ("distortion", "distortion-corrected")
+WRONG_DEG, WRONG_MM, CHI2_6 = 1.0, 3.0, 25.7
+AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
+
+_CACHE: dict = {}
+
+
+def _preset(name: str):
+    if name not in _CACHE:
+        d = load_design(ROOT / "models" / f"{name}.toml")
+        _CACHE[name] = (compute_features(d), Body.from_design(d))
+    return _CACHE[name]
+
+
+def distortion_model(shape: tuple[int, int], rng: np.random.Generator):
+    """An image intensifier's distortion: pincushion of 1–2.5 mm at 100 mm from a centre up to
+    30 px off the image's, plus an S-distortion of 0–3 px at the field's edge."""
+    H, W = shape
+    c = (W / 2 + rng.uniform(-30, 30), H / 2 + rng.uniform(-30, 30))
+    pin = radial(shape, k_mm_at_r=(rng.uniform(1.0, 2.5), 100.0), pixel_mm=0.44, centre=c)
+    s = s_distortion(shape, amplitude_px=rng.uniform(0.0, 3.0), radius_px=0.5 * min(H, W), centre=c)
+    return combine(pin, s)
+
+
+def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Path | None = None):
+    """(image, R, t, camera, distortion model or None) of image ``k`` of a condition; kept in
+    ``cache`` (a folder) when given, so a second run tracks the same images without making them."""
+    if cache is not None:
+        f = cache / f"{preset}_{condition}_{seed}_{n}_{k}.npy"
+        if f.is_file() and not condition.startswith("distortion"):
+            features, _ = _preset(preset)
+            R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
+            return np.load(f), R[k], t[k], Camera(), None
+        out = make_image(preset, condition, k, seed, n)
+        if not condition.startswith("distortion"):
+            cache.mkdir(parents=True, exist_ok=True)
+            np.save(f, out[0])
+        return out
+    features, body = _preset(preset)
+    R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
+    R, t = R[k], t[k]
+    cam = Camera()
+    img_seed = seed * 100_000 + k
+    if condition == "clean":
+        rad = render(features, R, t, cam, rng=np.random.default_rng(img_seed), body=body)
+        return rad.raw, R, t, cam, None
+    if condition.startswith("distortion"):
+        img, _ = realistic_image(features, R, t, cam, "raw", img_seed, body=body)
+        model = distortion_model(img.shape, np.random.default_rng(img_seed + 7))
+        warped = distort_image(img.astype(np.float32), model)
+        return warped, R, t, cam, model
+    img, _ = realistic_image(features, R, t, cam, condition, img_seed, body=body)
+    return img, R, t, cam, None
+
+
+def one(task: tuple) -> dict:
+    """Make and track one image; the outcome, the time and this process's peak memory."""
+    preset, condition, k, seed, n, cache = task
+    features, body = _preset(preset)
+    img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
+    t0 = time.perf_counter()
+    if condition == "distortion-corrected":
+        img = undistort_image(img, model)
+    res = track_image(img, features, cam, body=body)
+    wall = time.perf_counter() - t0
+    out = {"preset": preset, "condition": condition, "k": k, "time_s": wall,
+           "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+           "converged": bool(res.pose.converged), "error": res.pose.error}
+    if res.pose.converged:
+        dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+        e = np.r_[dr, dt]
+        out["err"] = np.r_[np.degrees(dr), dt].tolist()
+        out["far"] = bool(math.degrees(float(np.linalg.norm(dr))) > WRONG_DEG or float(np.linalg.norm(dt)) > WRONG_MM)
+        out["chi2"] = float(e @ np.linalg.solve(res.pose.covariance, e)) if res.pose.covariance is not None \
+            else float("inf")
+    return out
+
+
+def summarise(rows: list[dict], baseline_ms: float | None) -> str:
+    """One block of text per (preset, condition)."""
+    lines = []
+    by = {}
+    for r in rows:
+        by.setdefault((r["preset"], r["condition"]), []).append(r)
+    for (preset, cond), rs in by.items():
+        n = len(rs)
+        conv = [r for r in rs if r["converged"]]
+        right = [r for r in conv if not r["far"]]
+        wrong = [r for r in conv if r["far"] and r["chi2"] > CHI2_6]
+        honest = [r for r in conv if r["far"] and r["chi2"] <= CHI2_6]
+        times = np.array([r["time_s"] for r in rs]) * 1000
+        reasons = Counter((r["error"] or "?").split(":")[0][:48] for r in rs if not r["converged"])
+        rms = np.sqrt(np.mean(np.square([r["err"] for r in right]), axis=0)) if right else np.full(6, np.nan)
+        ratio = f" ({np.median(times) / baseline_ms:.2f}× clean)" if baseline_ms else ""
+        lines.append(f"{preset:10s} {cond:21s} tracked {len(right):4d}/{n:<4d} ({100 * len(right) / n:5.1f} %)  "
+                     f"confident wrong {len(wrong)}  far-but-honest {len(honest)}  "
+                     f"time median {np.median(times):4.0f} ms{ratio} max {times.max():5.0f} ms")
+        lines.append(f"{'':32s} RMS " + "  ".join(f"{a} {v:.3f}" for a, v in zip(AXES, rms))
+                     + ("  wrong: " + ", ".join(str(r["k"]) for r in wrong) if wrong else ""))
+        if reasons:
+            lines.append(f"{'':32s} not converged: " + "; ".join(f"{v} {k}" for k, v in reasons.most_common(4)))
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--n", type=int, default=200, help="images per preset and condition")
+    ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    ap.add_argument("--conditions", nargs="+", default=list(ALL), choices=ALL)
+    ap.add_argument("--seed", type=int, default=21)
+    ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
+    ap.add_argument("--cache", type=Path, default=None,
+                    help="a folder to keep the images in (made once, tracked again on later runs)")
+    args = ap.parse_args()
+    conds = list(args.conditions)
+    if "clean" not in conds:
+        conds.insert(0, "clean")
+    tasks = [(p, c, k, args.seed, args.n, args.cache) for p in args.presets for c in conds for k in range(args.n)]
+    print(f"track_realism: {len(tasks)} images on {_common.machine()}, {args.workers} worker processes")
+    rows = []
+    with ProcessPoolExecutor(args.workers) as pool:
+        for r in tqdm(pool.map(one, tasks, chunksize=4), total=len(tasks), desc="track", mininterval=10):
+            rows.append(r)
+    for p in args.presets:
+        base = [r["time_s"] for r in rows if r["preset"] == p and r["condition"] == "clean"]
+        print(summarise([r for r in rows if r["preset"] == p], 1000 * float(np.median(base)) if base else None))
+    print(f"largest resident memory of a worker process: {max(r['rss_mb'] for r in rows):.0f} MB; "
+          f"largest time per image: {max(r['time_s'] for r in rows):.2f} s")
+    args.json.parent.mkdir(parents=True, exist_ok=True)
+    args.json.write_text(json.dumps(rows))
+
+
+if __name__ == "__main__":
+    main()
