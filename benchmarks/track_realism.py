@@ -44,7 +44,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.images.distortion import combine, radial, s_distortion, undistort_image, distort_image
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment import track_image
+from ftrac_design.segment import TrackOptions, track_image
 from ftrac_design.xray import Body, render
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
@@ -111,9 +111,12 @@ def one(task: tuple) -> dict:
     features, body = _preset(preset)
     img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
     t0 = time.perf_counter()
+    opts = TrackOptions()
     if condition == "distortion-corrected":
+        # corrected with its model, as `track --distortion` does: no distortion term left
         img = undistort_image(img, model)
-    res = track_image(img, features, cam, body=body)
+        opts = TrackOptions(distortion_prior_mm=0.0)
+    res = track_image(img, features, cam, opts, body=body)
     wall = time.perf_counter() - t0
     out = {"preset": preset, "condition": condition, "k": k, "time_s": wall,
            "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,

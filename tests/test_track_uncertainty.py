@@ -20,6 +20,10 @@ from ftrac_design.segment import TrackOptions, TrackResult, track_image
 from ftrac_design.xray import render
 
 
+#: the simulator's camera is a pinhole: no unmodelled distortion in the covariance
+PINHOLE = TrackOptions(distortion_prior_mm=0.0)
+
+
 @pytest.fixture(scope="module")
 def rendered(f2005):
     features, body = f2005
@@ -32,10 +36,10 @@ def test_variance_components_scale_the_covariance_and_leave_the_estimate(f2005, 
     features, body = f2005
     R, t, imgs = rendered
     one = track_image(imgs[0], features, Camera(), TrackOptions(variance_point=1, variance_line=1,
-                                                                variance_ellipse=1), body=body)
+                                                                variance_ellipse=1, distortion_prior_mm=0.0), body=body)
     two = track_image(imgs[0], features, Camera(), TrackOptions(variance_point=2, variance_line=2,
-                                                                variance_ellipse=2), body=body)
-    mixed = track_image(imgs[0], features, Camera(), body=body)
+                                                                variance_ellipse=2, distortion_prior_mm=0.0), body=body)
+    mixed = track_image(imgs[0], features, Camera(), PINHOLE, body=body)
     assert one.pose.converged and two.pose.converged and mixed.pose.converged
     for r in (two, mixed):
         assert np.array_equal(r.pose.rotation, one.pose.rotation)
@@ -63,7 +67,7 @@ def test_pose_errors_are_near_unit_z_scores(f2005, rendered):
     R, t, imgs = rendered
     z = []
     for k, img in enumerate(imgs):
-        res = track_image(img, features, Camera(), body=body)
+        res = track_image(img, features, Camera(), PINHOLE, body=body)
         if not res.pose.converged:
             continue
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R[k], t[k])
@@ -132,3 +136,34 @@ def test_view_limited_only_for_too_little_evidence_that_the_view_caps(f2005):
     assert resolvable_beads(features, cam, Pose(Rw[0], tw[0], True, 1.0, None, {}, 0, None), (1024, 1024),
                             opts) >= need
     assert not view_limited(_result(Rw[0], tw[0], 3, err), features, cam, (1024, 1024), opts)
+
+
+def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):
+    """The distortion term is Σₖ σ² Δθₖ Δθₖᵀ with Δθ the least-squares pose shift of each
+    mode's displacement of the observed features: the same estimate, the covariance larger
+    by exactly that (a pinhole pose of an intensifier image is biased in depth)."""
+    from ftrac_design.segment.noise import distortion_covariance
+    features, body = f2005
+    R, t, imgs = rendered
+    plain = track_image(imgs[1], features, Camera(), PINHOLE, body=body)
+    prior = track_image(imgs[1], features, Camera(), TrackOptions(distortion_prior_mm=1.5), body=body)
+    assert plain.pose.converged and prior.pose.converged
+    assert np.array_equal(plain.pose.translation_mm, prior.pose.translation_mm)
+    extra = distortion_covariance(features, plain.observation, plain.pose, plain.noise, 1.5)
+    np.testing.assert_allclose(prior.pose.covariance, plain.pose.covariance + extra, rtol=1e-9,
+                               atol=1e-12 * np.abs(extra).max())
+    # depth gains the most, and the term scales as σ²
+    assert np.argmax(np.diag(extra)) == 5
+    np.testing.assert_allclose(distortion_covariance(features, plain.observation, plain.pose, plain.noise, 3.0),
+                               4 * extra, rtol=1e-9)
+
+
+def test_distortion_modes_are_the_closed_form():
+    """1 mm at 100 mm from the principal point, cubic in the radius (pincushion) and a
+    rotation growing with its square (S): at 50 mm, 0.125 mm radially / tangentially."""
+    from ftrac_design.segment.noise import distortion_modes
+    cam = Camera(1000.0, (0.5, 0.5), (100.0, 200.0))
+    uv = np.array([[100.0 + 100.0, 200.0], [100.0, 200.0 + 200.0], [100.0, 200.0]])   # 50 mm, 100 mm, centre
+    pin, s = distortion_modes(cam, uv, 100.0)
+    np.testing.assert_allclose(pin, [[0.25, 0.0], [0.0, 2.0], [0.0, 0.0]], atol=1e-12)   # px: 0.125 / 1 mm
+    np.testing.assert_allclose(s, [[0.0, 0.25], [-2.0, 0.0], [0.0, 0.0]], atol=1e-12)

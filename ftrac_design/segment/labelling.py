@@ -20,7 +20,8 @@ from ..pose.observation import CurveObservation
 from . import evidence, identify
 from .beads import Beads
 from .detection import Scene
-from .noise import calibrated_covariance, clean_contours, feature_p_values, measured_noise, residuals_at
+from .noise import (calibrated_covariance, clean_contours, distortion_covariance, feature_p_values, measured_noise,
+                    residuals_at)
 
 
 @dataclass(frozen=True)
@@ -221,6 +222,10 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> 
         return why
     lab = _drop_inconsistent(scene, lab)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts)
+    if lab.pose.covariance is not None and scene.opts.distortion_prior_mm > 0:
+        extra = distortion_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts.distortion_prior_mm)
+        if extra is not None:
+            lab.pose.covariance = lab.pose.covariance + extra
     lab = replace(lab, variance_factor=vf)
     return replace(lab, score=misfit(scene, lab))
 
