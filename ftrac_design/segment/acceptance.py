@@ -29,14 +29,26 @@ def refuse(pose: Pose, reason: str | None) -> bool:
 
 def wire_support(scene: Scene, pose: Pose) -> tuple[list[str], dict[str, float]]:
     """Curves the pose predicts on bare background (see :func:`.evidence.wire_support`):
-    those whose median ridge evidence is below ``wire_min_snr``, or below ``wire_support``
-    × the median curve's; also returns each curve's evidence in noise units."""
+    those whose median ridge evidence is not clearly above zero, or below ``wire_support`` ×
+    the median curve's; also returns each curve's evidence in noise units.
+
+    *Clearly above zero*: on bare background the evidence is zero-mean with unit spread, and
+    the median of a curve's n samples (0.5 px apart, correlated over the ridge scale's 2σ)
+    spreads by ~1.25 / √n_eff; a wire is present when its median is 3 of those above zero
+    (and at least 0.5), at most ``wire_min_snr``: a straight 0.5 mm wire seen face-on behind a
+    patient reads 1.3–1.5, a long ellipse far more, and both are there."""
     sup = evidence.wire_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
     if not sup:
         return [], {}
     ref = float(np.median([v for v, _ in sup.values()]))
-    thr = max(scene.opts.wire_min_snr, scene.opts.wire_support * ref)
-    return [fid for fid, (v, _) in sup.items() if v < thr], {fid: round(v, 1) for fid, (v, _) in sup.items()}
+    corr = 2.0 * scene.scales.ridge_sigma_px
+    absent = []
+    for fid, (v, n) in sup.items():
+        n_eff = max(n * 0.5 / corr, 1.0)
+        present = min(scene.opts.wire_min_snr, max(0.5, 3 * 1.25 / np.sqrt(n_eff)))
+        if v < max(present, scene.opts.wire_support * ref):
+            absent.append(fid)
+    return absent, {fid: round(v, 1) for fid, (v, _) in sup.items()}
 
 
 def absent_wires(scene: Scene, pose: Pose) -> str | None:
@@ -85,7 +97,7 @@ def too_little_evidence(scene: Scene, lab: Labelling) -> str | None:
     obs, cont = lab.obs, lab.contours
     n_curves = len(features.lines) + len(features.ellipses)
     if n_curves and len(cont.missing) >= max(2, (n_curves + 1) // 2):
-        # the labelling predicts wires where the image has none: the beads were misread
+        # the labelling predicts wires where the image shows no ridge at all: the beads were misread
         return f"identification not confirmed: no wire found where the pose puts {', '.join(cont.missing)}"
     if n_curves and not (obs.lines or obs.ellipses):
         # the wires are what confirms a bead labelling; beads alone of a wire design

@@ -142,11 +142,12 @@ def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: flo
         rp = rp.take(scene.readable(rp.uv))
     Tb = T.copy()
     Tb[box] = T2
-    hess = tuple(h.copy() for h in scene.hessian) if scene.hessian is not None else None
-    if hess is not None:
-        for h, k in zip(hess, ("xx", "xy", "yy")):
-            h[box] = d[k]
-    return scene.with_detections(Tb, scene.beads, rp, hess)
+    derivs = None
+    if scene.derivs is not None:
+        derivs = {k: v.copy() for k, v in scene.derivs.items()}
+        for k, v in derivs.items():
+            v[box] = d[k]
+    return scene.with_detections(Tb, scene.beads, rp, derivs)
 
 
 def merge_ridges(ridges: RidgePoints | None, inner: RidgePoints | None) -> RidgePoints | None:

@@ -92,8 +92,8 @@ class Scene:
     ridges: RidgePoints | None
     #: True where the image can be read (None: everywhere)
     valid: np.ndarray | None = None
-    #: second derivatives (xx, xy, yy) of ``T`` at the ridge scale
-    hessian: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: first and second derivatives of ``T`` at the ridge scale (keys x, y, xx, xy, yy)
+    derivs: dict[str, np.ndarray] | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -115,9 +115,9 @@ class Scene:
         return np.full(len(self.features.points), self.scales.bead_radius_px + 2 * self.opts.blur_px + extra_px)
 
     def with_detections(self, T: np.ndarray, beads: Beads | None, ridges: RidgePoints | None,
-                        hessian: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> "Scene":
+                        derivs: dict[str, np.ndarray] | None = None) -> "Scene":
         """The same scene with other detections (the body subtracted)."""
-        return replace(self, T=T, beads=beads, ridges=ridges, hessian=hessian if hessian is not None else self.hessian)
+        return replace(self, T=T, beads=beads, ridges=ridges, derivs=derivs if derivs is not None else self.derivs)
 
     def readable(self, uv: np.ndarray, margin_px: float = 0.0) -> np.ndarray:
         """Whether each point (n, 2) px lies inside the image (``margin_px`` clear of its
@@ -137,7 +137,7 @@ class Scene:
         of its noise: −∂²T/∂n² at the ridge scale (bilinear), over that filter's response
         to unit white noise. A wire there reads several units; bare background reads about
         zero, whatever its level (a second derivative has none)."""
-        xx, xy, yy = self.hessian
+        xx, xy, yy = self.derivs["xx"], self.derivs["xy"], self.derivs["yy"]
         nx, ny = normal[:, 0], normal[:, 1]
         c = nx * nx * bilinear(xx, uv) + 2 * nx * ny * bilinear(xy, uv) + ny * ny * bilinear(yy, uv)
         return -c / (second_derivative_gain(self.scales.ridge_sigma_px) * self.noise_at(uv))
@@ -230,7 +230,7 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, (d["xx"], d["xy"], d["yy"]))
+    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d)
 
 
 def fitted_blur(scene: Scene) -> float | None:

@@ -20,6 +20,7 @@ from ..pose.observation import CurveObservation
 from . import evidence, identify
 from .beads import Beads
 from .detection import Scene
+from .guided import guided_contours
 from .noise import (calibrated_covariance, clean_contours, distortion_covariance, feature_p_values, measured_noise,
                     residuals_at)
 
@@ -115,9 +116,14 @@ def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
         / 2 * mag / sc.pixel_mm
     var = sc.ridge_sigma_px ** 2 + blur ** 2 + wr * wr / 4
     excl = np.full(len(features.points), sc.bead_radius_px + 3 * opts.blur_px + 1.5)
-    cont = identify.gather_contours(features, scene.camera, R, t, scene.ridges, excl, tol, opts.separation_px,
-                                    ridge_var_px2=var,
-                                    thin_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 0.0)
+    if opts.contours == "guided":
+        cont = guided_contours(scene, R, t, excl, tol, opts.separation_px, opts.guided_min_snr,
+                               spacing_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 1.0,
+                               ridge_var_px2=var)
+    else:
+        cont = identify.gather_contours(features, scene.camera, R, t, scene.ridges, excl, tol, opts.separation_px,
+                                        ridge_var_px2=var,
+                                        thin_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 0.0)
     clean_contours(cont)
     return cont
 

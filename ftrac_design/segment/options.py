@@ -41,6 +41,11 @@ class TrackOptions:
     match_tol_px: float = 2.0
     #: contour points within this of a predicted curve belong to it (px); a second curve
     #: within ``separation_px`` makes a point ambiguous
+    #: "guided": contour points measured where each labelling puts its wires
+    #: (:mod:`~.guided`); "detected": the whole-image ridge points near the prediction
+    contours: Literal["guided", "detected"] = "guided"
+    #: a guided contour point needs a curvature across the wire of this many noise σ
+    guided_min_snr: float = 3.0
     contour_tol_px: float = 2.0
     final_contour_tol_px: float = 1.0
     separation_px: float = 3.0

@@ -70,7 +70,7 @@ def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) ->
     merged = merge_ridges(scene.ridges, inner.ridges)
     h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
     beads2 = refit_beads_off_wires(scene, inner.T, scene.beads, p0)
-    lab = evaluate(scene.with_detections(scene.T, beads2, merged), h2, first_stage=2)
+    lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, first_stage=2)
     if isinstance(lab, str):
         return None
     # judged on the same ridges as the other labellings
