@@ -70,7 +70,7 @@ class TrackOptions:
     #: a predicted wire whose median ridge evidence (:func:`~.evidence.wire_support`, noise
     #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
     #: wire's, is absent: the labelling is not confirmed
-    wire_support: float = 0.3
+    wire_support: float = 0.2
     wire_min_snr: float = 1.5
     #: predicted wire whose ridge evidence is below this counts as unsupported in the
     #: labelling's agreement with the image (:func:`~.evidence.image_agreement`)
@@ -85,6 +85,10 @@ class TrackOptions:
     #: this many pixels (a 1024² search cost ~0.3 s and found what the regions had not in
     #: too few images to pay for it)
     whole_image_px: int = 512 * 512
+    #: wall-clock seconds after which no further region, polarity or labelling is tried
+    #: (the one under way finishes): the answer so far, or why none was found. A bound on
+    #: the time per image whatever it shows; images that track need far less (0.1–0.5 s)
+    time_budget_s: float = 1.5
     #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
     #: image does not show (:func:`~.evidence.image_agreement`)
     agreement_chi2_per_px: float = 1.0

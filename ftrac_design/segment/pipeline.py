@@ -13,6 +13,7 @@ fiducial is first looked for on a half-size image and tracked in its region
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import replace
 from typing import Any
 
@@ -31,11 +32,14 @@ from .options import TrackOptions, TrackResult, failed_result
 from .region import fiducial_regions, shifted, view_limited
 
 
-def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis]) -> list[Labelling]:
-    """The best distinct labellings refined, each with its agreement with the image."""
+def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], deadline: float) -> list[Labelling]:
+    """The best distinct labellings refined, each with its agreement with the image (until
+    ``deadline``, a :func:`time.monotonic` time, has passed)."""
     out: list[Labelling] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     for h in hyps[:4]:
+        if out and time.monotonic() > deadline:
+            break
         if h.count < max(4, hyps[0].count - 2):
             continue
         try:
@@ -117,7 +121,8 @@ def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
 
 
 def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str,
-                   valid: np.ndarray | None = None, noise: NoiseField | None = None) -> TrackResult:
+                   valid: np.ndarray | None = None, noise: NoiseField | None = None,
+                   deadline: float = math.inf) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
     where ``valid``, with local noise ``noise``."""
     scene = detect(g, features, camera, opts, valid, noise)
@@ -140,7 +145,7 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
     if not hyps:
         return failed_result(f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads,
                              ridges, diag)
-    evaluated = _labellings(scene, hyps)
+    evaluated = _labellings(scene, hyps, deadline)
     if not evaluated:
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
@@ -209,6 +214,7 @@ def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px
 
 def _track(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None,
            polarity_hint: str | None, body, formation_hint: str | None) -> TrackResult:
+    start = time.monotonic()
     if isinstance(body, str):
         from ..xray.scene import body_from_source
         body = body_from_source(features.source)
@@ -224,9 +230,13 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
     # tried: 8-bit integers are a display frame either way
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
     tried: list[TrackResult] = []
+    deadline = start + opts.time_budget_s
     for pol in _polarities(opts, polarity_hint, small, sc.disc_px):
+        if tried and time.monotonic() > deadline:
+            tried[0].diagnostics["time_budget_spent"] = True
+            break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, body, sc)
+        res = _track_conditioned(cond, small, features, camera, opts, body, sc, deadline)
         res.diagnostics["formation"] = cond.formation
         if res.pose.converged:
             if tried:
@@ -242,7 +252,7 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
 
 
 def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body,
-                       sc) -> TrackResult:
+                       sc, deadline: float) -> TrackResult:
     """:func:`track_image` on a conditioned image: in each region where the fiducial may be
     (most likely first) until one gives a pose; the whole image when none is found."""
     img, valid, pol = cond.density, cond.valid, cond.polarity
@@ -255,10 +265,13 @@ def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Came
         regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
+        if first is not None and time.monotonic() > deadline:
+            first.diagnostics["time_budget_spent"] = True
+            return first
         crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
                                                        camera.principal_point_px[1] - r0))
         res = _track_density(img[r0:r1, c0:c1], features, crop_cam, opts, body, pol,
-                             None if valid is None else valid[r0:r1, c0:c1], noise.crop(r0, r1, c0, c1))
+                             None if valid is None else valid[r0:r1, c0:c1], noise.crop(r0, r1, c0, c1), deadline)
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
         if res.pose.converged or view_limited(res, features, camera, img.shape, opts):
@@ -267,6 +280,6 @@ def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Came
     if regions:
         # a region was looked at and gave nothing: its answer, unless a whole-image search is
         # cheap enough to be worth it (a small image)
-        if img.size > opts.whole_image_px:
+        if img.size > opts.whole_image_px or time.monotonic() > deadline:
             return first
-    return _track_density(img, features, camera, opts, body, pol, valid, noise)
+    return _track_density(img, features, camera, opts, body, pol, valid, noise, deadline)
