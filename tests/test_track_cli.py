@@ -11,7 +11,9 @@ each tracked frame costs ~0.1 s.
 from __future__ import annotations
 
 import gc
+import io
 import json
+import sys
 import weakref
 from pathlib import Path
 
@@ -359,3 +361,36 @@ def test_the_files_polarity_and_formation_are_the_trackers_hints(kwargs, option,
     dcm = write_dicom(tmp_path / "img.dcm", scene["log"], CAM, **kwargs)
     rc, so, se = _run(["track", "--features", FEATS, dcm, *option, "-o", tmp_path / "pose.json"], capsys)
     assert rc == 1 and seen == [want]
+
+
+class _Terminal:
+    """A stderr that says it is a terminal (tqdm draws only there)."""
+
+    def __init__(self):
+        self.buffer = io.StringIO()
+
+    def isatty(self) -> bool:
+        return True
+
+    def write(self, s: str) -> int:
+        return self.buffer.write(s)
+
+    def flush(self) -> None:
+        pass
+
+
+@pytest.mark.parametrize("frames,tty,bar", [(4, True, True), (3, True, False), (4, False, False)])
+def test_a_progress_bar_on_a_terminal_for_more_than_three_frames(frames, tty, bar, scene, camera_json, tmp_path,
+                                                                 monkeypatch, capsys):
+    def spy(*args, **kwargs):
+        raise RuntimeError("spy")
+
+    monkeypatch.setattr(track_run, "track_image", spy)
+    np.save(tmp_path / "run.npy", np.stack([scene["counts"][:64, :64]] * frames))
+    err = _Terminal() if tty else io.StringIO()
+    monkeypatch.setattr(sys, "stderr", err)
+    rc = main(["track", "--features", FEATS, str(tmp_path / "run.npy"), "--camera", str(camera_json),
+               "-o", str(tmp_path / "poses.jsonl")])
+    text = err.buffer.getvalue() if tty else err.getvalue()
+    assert rc == 1 and text.count("internal error: RuntimeError: spy") == frames
+    assert (f"| {frames}/{frames} " in text) == bar          # tqdm's "track: 100%|████| 4/4 [..."
