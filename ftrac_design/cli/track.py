@@ -1,12 +1,16 @@
-"""``ftrac-design track``: X-ray image(s) → segmented observation (SPEC §3) → pose (SPEC §4)."""
+"""``ftrac-design track``: X-ray images and runs → segmented observations (SPEC §3) → poses (SPEC §4).
+
+Plumbing only; the steps (validation, the per-frame guard, the pose object's keys, the
+atomic outputs) are :mod:`ftrac_design.workflows.track_run`, whose docstring lists the pose
+keys this command adds beyond SPEC §4 (extensions: ``camera_source``, ``intake_notes``,
+``distortion``).
+Overlays are drawn right after each frame is tracked, under temporary names renamed with the
+poses at the end; a frame whose tracking raised has none.
+"""
 
 from __future__ import annotations
 
-import contextlib
-import json
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 import click
@@ -14,49 +18,22 @@ import click
 from ..errors import InputError
 
 
-def _tmp_beside(path: Path) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    return Path(tmp)
-
-
-@click.command("track")
-@click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="features.json written by `ftrac-design build`.")
-@click.argument("images", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="SPEC §3 camera object (JSON); overrides what the image header says.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="pose.json for one image, JSON Lines for several (default pose.json / poses.jsonl). "
-                   "The segmented observations go beside it (<stem>.observation.json / .observations.jsonl).")
-@click.option("--overlay", is_flag=True, help="Also write <stem>_<image>_overlay.png per image beside OUT.")
-@click.option("--polarity", type=click.Choice(["auto", "dense-dark", "dense-bright"]), default="auto",
-              show_default=True, help="dense-dark: raw detector counts; dense-bright: log/display image.")
-@click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
-              help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
-def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | None, output: Path | None,
-            overlay: bool, polarity: str, refine: str) -> int:
-    """Segment, identify and solve the fiducial's pose in each X-ray IMAGE, no initial guess.
-
-    Reads PNG/TIFF (8/16-bit), NumPy and DICOM images; the camera comes from the DICOM tags,
-    from our own simulator's note in PNG/TIFF files, or from --camera. Exits 1 if any pose
-    was not found (its SPEC §4 object says why), 2 on bad input (nothing is written).
-    """
-    from tqdm import tqdm
-
+def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path | None, polarity: str,
+           refine: str):
+    """The TrackSetup from the options (InputError on any bad one)."""
     from ..features import load_features
+    from ..images import read_distortion
     from ..pose.observation import read_camera
-    from ..segment.pipeline import TrackOptions, track_image
-    from ..xray import read_image
-    from ..xray.scene import body_from_features_file
+    from ..segment import TrackOptions
+    from ..workflows.track_run import TrackSetup
+    from ..xray.scene import body_from_features_file, body_from_source
 
     features = load_features(features_path)
     body = body_from_features_file(features_path)
     if body is None:
-        from ..xray.scene import body_from_source
         body = body_from_source(features.source, features_path.parent)
-    cam_override = read_camera(camera_path) if camera_path is not None else None
+    camera = read_camera(camera_path) if camera_path is not None else None
+    model = read_distortion(distortion_path) if distortion_path is not None else None
     refine_fn = None
     if refine == "intensity":
         try:
@@ -64,74 +41,94 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
         except ImportError:
             raise InputError(None, "--refine", "intensity refinement, which this installation does not have "
                                                "(ftrac_design.intensity); use --refine none") from None
-    several = len(images) > 1
+    return TrackSetup(features, body, TrackOptions(polarity=polarity), camera, model,
+                      str(distortion_path) if distortion_path is not None else None, refine_fn)
+
+
+def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
+    """Draw one overlay to a temporary name (renamed with the poses); a picture that cannot
+    be drawn is reported and skipped, a disk that cannot take it is bad output (exit 2)."""
+    from ..segment.overlay import draw_overlay
+
+    tmp = outputs.temporary(path)
+    try:
+        draw_overlay(tmp, img, setup.features, res, title=title)
+    except OSError as exc:
+        raise InputError(path, None, f"a writable output path ({exc.strerror or exc})") from None
+    except Exception as exc:  # noqa: BLE001 — the pose is kept; only its picture is missing
+        from ..workflows.track_run import one_line
+        click.echo(f"{path}: overlay not drawn: {type(exc).__name__}: {one_line(exc)}", err=True)
+
+
+@click.command("track")
+@click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="features.json written by `ftrac-design build`.")
+@click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="SPEC §3 camera object (JSON) used for every frame; overrides what the files say.")
+@click.option("--distortion", "distortion_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
+                   "pinhole grid before tracking; frames must have the model's image_shape.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
+                   "(default pose.json / poses.jsonl). The segmented observations go beside it "
+                   "(<stem>.observation.json / <stem>.observations.jsonl).")
+@click.option("--overlay", is_flag=True,
+              help="Also write <stem>_<image stem>[_<frame>]_overlay.png per frame beside OUT (the frame index "
+                   "for runs).")
+@click.option("--polarity", type=click.Choice(["auto", "dense-dark", "dense-bright"]), default="auto",
+              show_default=True, help="How dense matter looks (dense-dark: raw detector counts; dense-bright: "
+                                      "log/display image); overrides the file's. auto: the file's, else found.")
+@click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
+              help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
+def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | None, distortion_path: Path | None,
+            output: Path | None, overlay: bool, polarity: str, refine: str) -> int:
+    """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
+
+    IMAGE is a file (PNG/TIFF/JPEG, NumPy .npy, DICOM: XA, RF, DX, CR, Enhanced XA/XRF) or a
+    directory of them (a run, natural order of names); multi-frame DICOM, multi-page TIFF and
+    (n, H, W) .npy are runs: one pose per frame, in order, with "frame" and "time_s". The
+    camera comes from --camera, else from each file (DICOM geometry tags, our own note in
+    PNG/TIFF); the polarity and formation from the file where it says (DICOM Pixel Intensity
+    Relationship and Sign), --polarity overriding.
+
+    Every input is read and checked before anything is tracked: bad input anywhere exits 2
+    with one line naming the file and what was expected, and writes nothing. A frame whose
+    tracking fails never stops the others: its pose object says why (converged false), and
+    the command exits 1; 0 when every frame converged.
+    """
+    from tqdm import tqdm
+
+    from ..images import read_frames
+    from ..workflows.track_run import TrackOutputs, overlay_name, track_frame, validate_inputs
+
+    setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
+    inputs = validate_inputs(list(images), setup.camera, setup.distortion, setup.distortion_path)
+    total = sum(i.frames for i in inputs)
+    several = total > 1
     if output is None:
         output = Path("poses.jsonl" if several else "pose.json")
     stem = output.name[: -len(output.suffix)] if output.suffix else output.name
     obs_path = output.with_name(f"{stem}.observations.jsonl" if several else f"{stem}.observation.json")
-    opts = TrackOptions(polarity=polarity)
-    results = []
-    temps: list[tuple[Path, Path]] = []
-    try:
-        bar = tqdm(images, desc="track", unit="image", disable=len(images) < 4 or not sys.stderr.isatty())
-        for path in bar:
-            img, cam, meta = read_image(path, cam_override)
-            if cam is None and isinstance(meta.get("camera"), dict):
-                from ..xray.imagefiles import _camera_from_dict
-                cam = _camera_from_dict(meta["camera"])
-            if cam is None:
-                raise InputError(path, "camera", f"camera intrinsics: a --camera C.json (SPEC §3 camera object); "
-                                                 f"a {meta.get('format', 'image').upper()} file carries none")
-            res = track_image(img, features, cam, opts, polarity_hint=meta.get("polarity_hint"), body=body)
-            if refine_fn is not None and res.pose.converged:
-                # the converged pose refined on the pixels (ftrac_design.intensity), its
-                # covariance from the pixel information; the observation stays the segmented one
-                res = refine_fn(img, features, cam, res, body=body)
-            results.append((path, img, res))
-            if overlay:
-                png = output.with_name(f"{stem}_{path.stem}_overlay.png")
-                tmp = _tmp_beside(png)
-                temps.append((tmp, png))
-                from ..segment.overlay import draw_overlay
-                draw_overlay(tmp, img, features, res, title=path.name)
-        pose_dicts = []
-        obs_dicts = []
-        for path, _, res in results:
-            d = res.pose_dict()
-            d["image"] = str(path)
-            pose_dicts.append(d)
-            od = res.observation_dict() or {"format": "ftrac-observation", "version": 1,
-                                            "camera": None, "points": {}, "lines": {}, "ellipses": {}}
-            od["image"] = str(path)
-            obs_dicts.append(od)
-        for final, payload in ((output, pose_dicts), (obs_path, obs_dicts)):
-            tmp = _tmp_beside(final)
-            temps.append((tmp, final))
-            text = ("".join(json.dumps(x, allow_nan=False) + "\n" for x in payload) if several
-                    else json.dumps(payload[0], indent=2, allow_nan=False) + "\n")
-            tmp.write_text(text, encoding="utf-8")
-        for tmp, final in temps:
-            os.replace(tmp, final)
-        temps = []
-    except OSError as exc:
-        raise InputError(output, None, f"a writable output path ({exc.strerror or exc})") from None
-    finally:
-        for tmp, _ in temps:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-    failed = 0
-    for path, _, res in results:
-        p = res.pose
-        if p.converged:
-            t = p.translation_mm
-            click.echo(f"{path}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± "
-                       f"({p.std_mm[0]:.2f}, {p.std_mm[1]:.2f}, {p.std_mm[2]:.2f}), rms {p.rms_residual_px:.3f} px, "
-                       f"{len(res.observation.points)} beads, {len(res.observation.lines)} lines, "
-                       f"{len(res.observation.ellipses)} ellipses")
-        else:
-            failed += 1
-            click.echo(f"{path}: pose not found: {' '.join(str(p.error).split())}", err=True)
+    lines: list[tuple[bool, str]] = []
+    with TrackOutputs(output, obs_path) as outputs, \
+            tqdm(total=total, desc="track", unit="frame", file=sys.stderr,
+                 disable=total <= 3 or not sys.stderr.isatty()) as bar:
+        for inp in inputs:
+            for frame in read_frames(inp.path, setup.camera):
+                outcome, img, res = track_frame(frame, inp, setup, several)
+                if overlay and res is not None:
+                    title = Path(frame.source).name + (f" frame {frame.index}" if inp.run else "")
+                    _draw(outputs, output.with_name(overlay_name(stem, inp, frame)), img, setup, res, title)
+                outputs.add(outcome)
+                lines.append((outcome.converged, outcome.line))
+                del frame, img, res          # one frame's pixels at a time
+                bar.update()
+        outputs.commit()
+    failed = sum(not ok for ok, _ in lines)
+    for ok, line in lines:
+        click.echo(line, err=not ok)
     if several or not failed:
-        click.echo(f"{len(results) - failed} of {len(results)} tracked; wrote {output}, {obs_path}"
+        click.echo(f"{total - failed} of {total} tracked; wrote {output}, {obs_path}"
                    + (" and overlays" if overlay else ""))
     return 1 if failed else 0

@@ -1,0 +1,334 @@
+"""``ftrac-design track`` as steps: validate every input, then track frame by frame.
+
+**Inputs are validated whole before anything is tracked.** Each IMAGE argument (a file or a
+directory of frames) is read through :func:`ftrac_design.images.read_frames` once, every
+frame decoded and dropped: its header, pixels and camera (``--camera``, else the file's own)
+must be good, and its shape the ``--distortion`` model's. Any bad frame is bad input for the
+whole command (:class:`~ftrac_design.errors.InputError`: exit 2, nothing written). The price is
+decoding each frame twice, milliseconds against the tracker's ~0.1–0.5 s a frame.
+
+**A failure inside one frame never loses the batch.** Tracking (undistortion, segmentation,
+``--refine``, the JSON of its answer) runs under a guard per frame: an exception becomes that
+frame's SPEC §4 object with ``converged: false`` and ``error: "internal error: <type>:
+<message>"``, and the next frame is tracked.
+
+**Memory.** Frames are read lazily and one frame's pixels are held at a time; each frame's
+answer is kept only as its JSON text and a summary line.
+
+Each pose object carries SPEC §4's optional ``image`` (the source file), ``frame`` (0-based
+index within the run; only for a directory or a multi-frame file), ``time_s`` (where the
+file gives one) and ``camera`` (the SPEC §3 camera used), and three **extensions** (readers
+ignore keys they do not know):
+
+- ``camera_source``: ``{"focal_length", "pixel_size", "principal_point"}`` → where each
+  intrinsic came from (a DICOM tag such as ``"DistanceSourceToDetector (0018,1110)"``,
+  ``"--camera"``, ``"ftrac note"`` or ``"image centre"``);
+- ``intake_notes``: what intake did that a user should know (:attr:`Frame.notes`);
+- ``distortion``: the ``--distortion`` model file the frame was undistorted with.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..errors import InputError
+from ..features import Features
+from ..images import DistortionModel, Frame, read_frames, undistort_image
+from ..pose import Camera, Pose
+from ..segment import TrackOptions, TrackResult, track_image
+
+#: the observation written for a frame that has none (nothing segmented)
+EMPTY_OBSERVATION = {"format": "ftrac-observation", "version": 1, "camera": None, "points": {}, "lines": {},
+                     "ellipses": {}}
+
+
+@dataclass(frozen=True)
+class ImageInput:
+    """One IMAGE argument, validated.
+
+    Attributes
+    ----------
+    path : the file or directory given.
+    frames : how many frames it holds.
+    run : a directory or a multi-frame file (its poses carry ``frame``).
+    name : the name its overlays use (``<out stem>_<name>[_<frame>]_overlay.png``): the
+        argument's stem, made unique among the arguments by ``-2``, ``-3``, …
+    """
+
+    path: Path
+    frames: int
+    run: bool
+    name: str
+
+
+@dataclass(frozen=True)
+class TrackSetup:
+    """What every frame is tracked with.
+
+    Attributes
+    ----------
+    features : the fiducial (mm, frame F).
+    body : its body (``ftrac_design.xray.Body``) or None.
+    options : the tracker's settings (``--polarity``).
+    camera : ``--camera`` intrinsics overriding the files', or None.
+    distortion : the ``--distortion`` model, or None.
+    distortion_path : its file (recorded in each pose as ``distortion``).
+    refine : ``--refine intensity``'s ``refine_track_result``, or None.
+    """
+
+    features: Features
+    body: Any
+    options: TrackOptions
+    camera: Camera | None = None
+    distortion: DistortionModel | None = None
+    distortion_path: str | None = None
+    refine: Callable[..., TrackResult] | None = None
+
+
+@dataclass(frozen=True)
+class FrameOutcome:
+    """One frame's answer as it is written: the pose and observation JSON text (one line each
+    for JSON Lines, indented for a single pose.json), whether it converged and the line to
+    print (stdout when converged, else stderr)."""
+
+    pose_text: str
+    observation_text: str
+    converged: bool
+    line: str
+
+
+def one_line(text: Any) -> str:
+    """``text`` with all runs of whitespace (newlines included) as single spaces."""
+    return " ".join(str(text).split())
+
+
+def check_distortion_shape(frame: Frame, model: DistortionModel | None, model_path: str | None) -> None:
+    """InputError unless ``frame``'s pixels have the shape ``model`` was made for.
+
+    Parameters
+    ----------
+    frame : a frame as read (detector grid).
+    model, model_path : the ``--distortion`` model and its file; None checks nothing.
+    """
+    if model is None or tuple(frame.pixels.shape) == tuple(model.image_shape):
+        return
+    H, W = model.image_shape
+    h, w = frame.pixels.shape
+    where = f"frame {frame.index}: " if frame.index else ""
+    raise InputError(frame.source, "image shape", f"{where}{H} × {W} pixels (rows × columns), the image_shape of "
+                                                  f"the distortion model {model_path}; got {h} × {w}")
+
+
+def validate_inputs(paths: list[Path], camera: Camera | None = None, distortion: DistortionModel | None = None,
+                    distortion_path: str | None = None) -> list[ImageInput]:
+    """Read every frame of every IMAGE argument once (decoded, then dropped) so that bad
+    input is found before anything is tracked.
+
+    Parameters
+    ----------
+    paths : the IMAGE arguments (files or directories), in order.
+    camera : ``--camera`` intrinsics, or None (each frame's file must then give its own).
+    distortion, distortion_path : the ``--distortion`` model (each frame must have its shape).
+
+    Returns
+    -------
+    list[ImageInput] : one per argument, in order.
+
+    Raises
+    ------
+    InputError : the first unreadable frame, missing camera or wrong shape, naming its file.
+    """
+    inputs: list[ImageInput] = []
+    taken: set[str] = set()
+    for path in paths:
+        n = 0
+        for fr in read_frames(path, camera):
+            check_distortion_shape(fr, distortion, distortion_path)
+            n += 1
+        if n == 0:
+            raise InputError(path, None, "an image file or directory holding at least one frame")
+        stem = path.name if path.is_dir() else path.stem
+        name, k = stem, 1
+        while name in taken:
+            k += 1
+            name = f"{stem}-{k}"
+        taken.add(name)
+        inputs.append(ImageInput(path, n, path.is_dir() or n > 1, name))
+    return inputs
+
+
+def overlay_name(out_stem: str, inp: ImageInput, frame: Frame) -> str:
+    """``<out stem>_<input name>[_<frame>]_overlay.png`` (the frame index for runs only)."""
+    return f"{out_stem}_{inp.name}" + (f"_{frame.index}" if inp.run else "") + "_overlay.png"
+
+
+def frame_label(inp: ImageInput, frame: Frame) -> str:
+    """How a frame is named in printed lines: its file, and ``frame k`` within a run."""
+    return frame.source + (f" frame {frame.index}" if inp.run else "")
+
+
+def provenance(frame: Frame, inp: ImageInput, setup: TrackSetup) -> dict[str, Any]:
+    """The keys every pose object of ``frame`` carries beyond the pose (see the module):
+    ``image``, ``frame`` (runs), ``time_s`` (where known), ``camera``, ``camera_source``,
+    ``intake_notes`` and ``distortion`` (with ``--distortion``)."""
+    d: dict[str, Any] = {"image": frame.source}
+    if inp.run:
+        d["frame"] = int(frame.index)
+    if frame.time_s is not None and math.isfinite(frame.time_s):
+        d["time_s"] = float(frame.time_s)
+    d["camera"] = frame.camera.to_dict() if frame.camera is not None else None
+    d["camera_source"] = dict(frame.camera_source)
+    d["intake_notes"] = list(frame.notes)
+    if setup.distortion_path is not None:
+        d["distortion"] = setup.distortion_path
+    return d
+
+
+def failed_pose_dict(error: str) -> dict[str, Any]:
+    """A SPEC §4 object with ``converged: false`` and ``error``, no pose."""
+    nan = np.full(3, np.nan)
+    return Pose(np.full((3, 3), np.nan), nan, False, math.nan, None, {}, 0, error).to_dict()
+
+
+def to_json(obj: dict[str, Any], lines: bool) -> str:
+    """``obj`` as one JSON line (``lines``) or indented JSON, newline-terminated; strict
+    (a NaN raises ValueError)."""
+    return (json.dumps(obj, allow_nan=False) if lines else json.dumps(obj, indent=2, allow_nan=False)) + "\n"
+
+
+def summary_line(label: str, result: TrackResult) -> str:
+    """One line for a tracked frame: the translation ± its σ (mm), the RMS residual (px) and
+    the features used, or why no pose was found."""
+    p = result.pose
+    if not p.converged:
+        return f"{label}: pose not found: {one_line(p.error)}"
+    t, s, obs = p.translation_mm, p.std_mm, result.observation
+    counts = (f"{len(obs.points)} beads, {len(obs.lines)} lines, {len(obs.ellipses)} ellipses"
+              if obs is not None else "no observation")
+    return (f"{label}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± ({s[0]:.2f}, {s[1]:.2f}, {s[2]:.2f}), "
+            f"rms {p.rms_residual_px:.3f} px, {counts}")
+
+
+def track_pixels(frame: Frame, setup: TrackSetup) -> tuple[np.ndarray, TrackResult]:
+    """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
+    frame's polarity and formation as hints (``TrackOptions.polarity`` overrides), then
+    ``setup.refine`` on a converged pose.
+
+    Returns
+    -------
+    (pixels tracked (H, W), TrackResult). Raises whatever the steps raise.
+    """
+    img = frame.pixels if setup.distortion is None else undistort_image(frame.pixels, setup.distortion)
+    res = track_image(img, setup.features, frame.camera, setup.options, polarity_hint=frame.polarity,
+                      body=setup.body, formation_hint=frame.formation)
+    if setup.refine is not None and res.pose.converged:
+        # the converged pose refined on the pixels; the observation stays the segmented one
+        res = setup.refine(img, setup.features, frame.camera, res, body=setup.body)
+    return img, res
+
+
+def track_frame(frame: Frame, inp: ImageInput, setup: TrackSetup, lines: bool
+                ) -> tuple[FrameOutcome, np.ndarray | None, TrackResult | None]:
+    """Track one frame under a guard: any exception becomes this frame's failed pose.
+
+    Parameters
+    ----------
+    frame, inp : the frame and the argument it came from.
+    setup : what it is tracked with.
+    lines : JSON Lines output (True) or a single indented pose.json (False).
+
+    Returns
+    -------
+    (FrameOutcome, pixels tracked, TrackResult); the last two are None when tracking raised
+    (the outcome then says ``internal error: <type>: <message>``).
+    """
+    extra = provenance(frame, inp, setup)
+    label = frame_label(inp, frame)
+    try:
+        img, res = track_pixels(frame, setup)
+        pose = {**res.pose_dict(), **extra}
+        obs = res.observation_dict() or dict(EMPTY_OBSERVATION)
+        obs.update({k: extra[k] for k in ("image", "frame") if k in extra})
+        outcome = FrameOutcome(to_json(pose, lines), to_json(obs, lines), bool(res.pose.converged),
+                               summary_line(label, res))
+        return outcome, img, res
+    except Exception as exc:  # noqa: BLE001 — one frame's failure of any kind must not lose the batch
+        error = f"internal error: {type(exc).__name__}: {one_line(exc)}"
+        pose = {**failed_pose_dict(error), **extra}
+        obs = {**EMPTY_OBSERVATION, **{k: extra[k] for k in ("image", "frame") if k in extra}}
+        return FrameOutcome(to_json(pose, lines), to_json(obs, lines), False, f"{label}: {error}"), None, None
+
+
+class TrackOutputs:
+    """The command's output files, written under temporary names beside their final ones and
+    renamed only by :meth:`commit`; :meth:`discard` (or leaving the ``with`` block on an
+    exception) removes them. OSError while writing is an InputError naming the output.
+
+    Parameters
+    ----------
+    poses, observations : the final paths of the pose and observation files.
+    """
+
+    def __init__(self, poses: Path, observations: Path):
+        self.poses, self.observations = Path(poses), Path(observations)
+        self._temps: list[tuple[Path, Path]] = []
+        self._files: dict[Path, Any] = {}
+
+    def __enter__(self) -> TrackOutputs:
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.discard()
+
+    def temporary(self, final: Path) -> Path:
+        """A fresh temporary file beside ``final`` (same suffix), renamed to it by :meth:`commit`."""
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            fd, tmp = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=final.suffix, dir=final.parent)
+        except OSError as exc:
+            raise InputError(final, None, f"a writable output path ({exc.strerror or exc})") from None
+        os.close(fd)
+        self._temps.append((Path(tmp), final))
+        return Path(tmp)
+
+    def add(self, outcome: FrameOutcome) -> None:
+        """Append one frame's pose and observation text."""
+        for final, text in ((self.poses, outcome.pose_text), (self.observations, outcome.observation_text)):
+            if final not in self._files:
+                self._files[final] = open(self.temporary(final), "w", encoding="utf-8")  # noqa: SIM115
+            try:
+                self._files[final].write(text)
+            except OSError as exc:
+                raise InputError(final, None, f"a writable output path ({exc.strerror or exc})") from None
+
+    def commit(self) -> None:
+        """Close the files and rename every temporary file to its final name."""
+        try:
+            for fh in self._files.values():
+                fh.close()
+            self._files.clear()
+            for tmp, final in self._temps:
+                os.replace(tmp, final)
+        except OSError as exc:
+            raise InputError(self.poses, None, f"a writable output path ({exc.strerror or exc})") from None
+        self._temps.clear()
+
+    def discard(self) -> None:
+        """Close and remove whatever was not committed."""
+        for fh in self._files.values():
+            with contextlib.suppress(OSError):
+                fh.close()
+        self._files.clear()
+        for tmp, _ in self._temps:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(tmp)
+        self._temps.clear()
