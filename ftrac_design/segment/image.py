@@ -231,13 +231,20 @@ def _sorted_median(v: np.ndarray, cnt: np.ndarray) -> np.ndarray:
     return 0.5 * (lo + hi)
 
 
+def _sorted_quantile(v: np.ndarray, cnt: np.ndarray, q: float) -> np.ndarray:
+    """The ``q`` quantile (nearest rank) over the last axis of ``v`` with ``cnt`` valid values
+    per row (NaN sort last)."""
+    srt = np.sort(v, axis=-1)
+    k = np.clip(np.round(q * (np.maximum(cnt, 1) - 1)).astype(int), 0, v.shape[-1] - 1)
+    return np.take_along_axis(srt, k[..., None], axis=-1)[..., 0]
+
+
 def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = 64) -> np.ndarray | None:
-    """The spread (1.4826 × MAD) of the Laplacian response ``lap`` in tiles of ``tile`` px,
+    """The robust spread of the Laplacian response ``lap`` in tiles of ``tile`` px,
     over the white-noise ``gain``, interpolated to every pixel: what the level function
     misses where anatomy rather than quanta makes the clutter at the detectors' scale (the
     texture of a vertebral body: blobs at the ball's scale by the hundred, 8–30 σ of the
-    quantum noise). A tile's median is moved little by the fiducial inside it (its wires and
-    balls cover a small share of a tile); None for an image of fewer than 2 × 2 tiles."""
+    quantum noise). None for an image of fewer than 2 × 2 tiles."""
     H, W = lap.shape
     ny, nx = H // tile, W // tile
     if ny < 2 or nx < 2:
@@ -253,7 +260,9 @@ def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: i
         cnt = np.full((ny, nx), v.shape[-1])
     few = cnt < 0.25 * v.shape[-1]
     med = _sorted_median(v, cnt)
-    t = 1.4826 * _sorted_median(np.abs(v - med[..., None]), cnt) / gain
+    # the lower quartile of the absolute deviations (as the level function's): texture
+    # fills a tile and moves every quantile, the fiducial's wires and balls in it hardly this one
+    t = _sorted_quantile(np.abs(v - med[..., None]), cnt, 0.25) / 0.31864 / gain
     t[few | ~np.isfinite(t)] = 0.0
     return cv2.resize(t.astype(np.float32), (W, H), interpolation=cv2.INTER_LINEAR)
 

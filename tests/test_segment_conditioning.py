@@ -1,0 +1,139 @@
+"""The image path's conditioning and its noise: formation, clipped regions, burned-in
+strokes, the local noise map, isotropic blobs, guided contours and the time budget."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace
+from ftrac_design.segment import TrackOptions, identify, track_image
+from ftrac_design.segment.beads import blob_candidates
+from ftrac_design.segment.conditioning import condition, fill_clipped, formation_of, invalid_regions, to_density
+from ftrac_design.segment.detection import detect, scales
+from ftrac_design.segment.guided import guided_contours
+from ftrac_design.segment.image import NoiseField, noise_map
+from ftrac_design.xray import render
+
+
+def test_formation_from_the_pixels():
+    assert formation_of(np.array([[0, 255], [3, 7]], np.uint8), "dense-dark") == "display"
+    assert formation_of(np.array([[0.0, 200.0], [3.0, 7.0]]), "dense-bright") == "display"   # integers ≤ 255
+    assert formation_of(np.array([[0, 4000]], np.uint16), "dense-dark") == "linear"
+    assert formation_of(np.array([[0.1, 2.5]], np.float32), "dense-bright") == "log"
+    assert formation_of(np.array([[0, 4000]], np.uint16), "dense-dark", "log") == "log"      # a header decides
+
+
+def test_density_by_formation():
+    img = np.array([[1000.0, 100.0]], np.float32)
+    np.testing.assert_allclose(to_density(img, "dense-dark", "linear"), -np.log(img), rtol=1e-6)
+    np.testing.assert_allclose(to_density(img, "dense-dark", "display"), -img)
+    np.testing.assert_allclose(to_density(img, "dense-bright", "log"), img)
+    with pytest.raises(ValueError):
+        to_density(img, "auto", "log")
+
+
+def test_invalid_regions_cover_a_round_field_and_spare_a_clipped_ball():
+    """Black outside a round intensifier field (noisy, as a grabber shows it) is invalid, with
+    a margin; a ball clipped to black inside the field is kept (narrower than the disc)."""
+    rng = np.random.default_rng(0)
+    H = W = 256
+    V, U = np.mgrid[0:H, 0:W]
+    img = 120 + 10 * rng.standard_normal((H, W))
+    outside = (U - 128) ** 2 + (V - 128) ** 2 > 100 ** 2
+    img[outside] = rng.integers(0, 3, outside.sum())          # black, ±2 grey levels
+    img[(U - 128) ** 2 + (V - 100) ** 2 <= 9] = 0              # a clipped ball, r = 3 px
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    bad = invalid_regions(img, disc_px=8, margin_px=10)
+    assert bad is not None
+    assert bad[outside].mean() > 0.99
+    inside_far = (U - 128) ** 2 + (V - 128) ** 2 < 85 ** 2
+    assert not bad[inside_far].any()
+    # nothing clipped: nothing invalid
+    assert invalid_regions(np.rint(120 + 10 * rng.standard_normal((H, W))).astype(np.uint8), 8, 10) is None
+
+
+def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
+    rng = np.random.default_rng(1)
+    img = np.full((64, 64), 100.0) + rng.normal(0, 2, (64, 64))
+    img[20, 5:60] = 255                                         # a 1-px burned-in stroke
+    yy, xx = np.mgrid[0:64, 0:64]
+    r2 = (xx - 40) ** 2 + (yy - 45) ** 2
+    ball = 100 + 200 * np.exp(-r2 / (2 * 3.0 ** 2))             # a blurred ball, clipped at 255
+    img = np.where(r2 < 100, ball, img)
+    img = np.clip(img, 0, 255)
+    out = fill_clipped(img)
+    assert np.abs(out[20, 10:55] - 100).max() < 15              # the stroke is gone
+    assert out[45, 40] > 200                                    # the ball stays a bright blob
+    assert np.all(np.isfinite(out))
+
+
+def test_noise_map_is_the_white_noise_sigma_and_follows_the_level():
+    """On white noise whose σ grows with the level (a log image's quantum noise), the map is
+    σ at each level within 10 %; with eight bright wires across the image (their responses
+    cover ~11 % of the pixels, up to a fifth of a tile) within 20 %."""
+    rng = np.random.default_rng(2)
+    H = W = 512
+    level = np.tile(np.linspace(0.0, 3.0, W, dtype=np.float32), (H, 1))
+    sigma = 0.01 * np.exp(level / 2)
+    g = level + sigma * rng.standard_normal((H, W)).astype(np.float32)
+    cols = [40, 256, 470]
+    np.testing.assert_allclose(noise_map(g, 1.36, structure_px=8)[200, cols], sigma[200, cols], rtol=0.1)
+    for _ in range(8):                                           # bright thin wires
+        r = rng.integers(10, H - 10)
+        g[r, :] += 0.5
+    np.testing.assert_allclose(noise_map(g, 1.36, structure_px=8)[200, cols], sigma[200, cols], rtol=0.2)
+
+
+def test_noise_field_crops_the_whole_images_map():
+    rng = np.random.default_rng(3)
+    g = rng.standard_normal((256, 256)).astype(np.float32)
+    field = NoiseField(g, None, 8)
+    full = field.at(1.36)
+    np.testing.assert_array_equal(field.crop(10, 100, 20, 200).at(1.36), full[10:100, 20:200])
+    np.testing.assert_array_equal(field.crop(10, 100, 20, 200).crop(5, 50, 5, 60).at(1.36), full[15:60, 25:80])
+
+
+def test_blob_candidates_keep_balls_and_drop_a_ridge_as_wide():
+    img = np.zeros((120, 120), np.float32)
+    yy, xx = np.mgrid[0:120, 0:120]
+    img += np.exp(-((xx - 30) ** 2 + (yy - 30) ** 2) / (2 * 2.5 ** 2))      # a ball
+    img += np.exp(-((yy - 80.0) ** 2) / (2 * 2.5 ** 2))                   # a band as wide, end to end
+    cand, _ = blob_candidates(img, 3.5, 0.01, 50, 8.0)
+    assert len(cand) == 1 and np.allclose(cand[0], [30, 30])
+    loose, _ = blob_candidates(img, 3.5, 0.01, 50, 8.0, min_isotropy=0.0)
+    assert len(loose) > 1                                                  # along the band
+
+
+def test_guided_contours_lie_on_the_true_curves(f2005):
+    """At the true pose of a rendered image, the points measured where each wire is predicted
+    lie on the wires' true projections (RMS < 0.25 px) and every wire gets some."""
+    features, body = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
+    opts = TrackOptions()
+    sc = scales(features, Camera(), opts)
+    c = condition(rad.raw, "dense-dark", None, sc.disc_px)
+    scene = detect(c.density, features, Camera(), opts, c.valid)
+    cont = guided_contours(scene, R[0], t[0], scene.bead_exclusion(2.0), 1.0, 3.0, 3.0)
+    assert len(cont.lines) + len(cont.ellipses) == len(features.lines) + len(features.ellipses)
+    curves = identify.curve_samples(features, Camera(), R[0], t[0], step_px=0.05)
+    for fid, pts in {**cont.lines, **cont.ellipses}.items():
+        d = np.min(np.linalg.norm(pts[:, None] - curves[fid][1][None], axis=-1), axis=1)
+        assert np.sqrt(np.mean(d ** 2)) < 0.25, fid
+
+
+def test_no_time_budget_means_one_attempt(f2005):
+    """With no time at all, one region (or the whole image) is searched and the answer says
+    why it stopped; the same image with the default budget is tracked."""
+    features, body = f2005
+    rng = np.random.default_rng(5)
+    img = rng.uniform(900, 1100, (512, 512)).astype(np.float32)
+    for k in range(40):                               # ball-like clutter in several clusters
+        u, v = rng.uniform(20, 490, 2)
+        cv2.circle(img, (int(u), int(v)), 3, 300, -1)
+    res = track_image(img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0),
+                      body=body)
+    assert not res.pose.converged and res.pose.error
