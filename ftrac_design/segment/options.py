@@ -81,6 +81,9 @@ class TrackOptions:
     roi: bool = True
     #: how many regions where the fiducial may be are searched, most likely first
     max_regions: int = 3
+    #: the regions are looked for on a half-size image when a ball's radius there is at
+    #: least this (px), else at full size
+    min_region_bead_px: float = 1.2
     #: when no region gives a pose, the whole image is searched only if it has at most
     #: this many pixels (a 1024² search cost ~0.3 s and found what the regions had not in
     #: too few images to pay for it)

@@ -259,10 +259,15 @@ def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Came
     noise = NoiseField(img, valid, sc.disc_px)
     regions: list[tuple[int, int, int, int]] = []
     if small.shape != img.shape and opts.roi:
-        vs = None if valid is None else cv2.resize(valid.astype(np.uint8), (small.shape[1], small.shape[0]),
-                                                   interpolation=cv2.INTER_NEAREST).astype(bool)
-        gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
-        regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
+        if sc.bead_radius_px / 2 >= opts.min_region_bead_px:
+            vs = None if valid is None else cv2.resize(valid.astype(np.uint8), (small.shape[1], small.shape[0]),
+                                                       interpolation=cv2.INTER_NEAREST).astype(bool)
+            gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
+            regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
+        else:
+            # balls too small to survive halving (ftrac_mini's 1 mm: 0.85 px): looked for at full size
+            regions = fiducial_regions(img, features, sc, opts, valid, opts.max_regions, factor=1,
+                                       noise=noise.at(sc.ridge_sigma_px))
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
         if first is not None and time.monotonic() > deadline:

@@ -19,9 +19,11 @@ from .ridges import RidgePoints
 
 
 def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions,
-                     valid: np.ndarray | None = None, max_regions: int = 3) -> list[tuple[int, int, int, int]]:
-    """Where the fiducial may be, from a half-size density image ``gs`` (readable where
-    ``valid``): up to ``max_regions`` full-size boxes ``(row0, row1, col0, col1)``, each
+                     valid: np.ndarray | None = None, max_regions: int = 3, factor: int = 2,
+                     noise: np.ndarray | None = None) -> list[tuple[int, int, int, int]]:
+    """Where the fiducial may be, from a density image ``gs`` reduced ``factor`` times
+    (readable where ``valid``; its local noise ``noise`` when already measured): up to
+    ``max_regions`` full-size boxes ``(row0, row1, col0, col1)``, each
     around a cluster of bead-like blobs no wider than the fiducial and wide enough for its
     whole projection from any of them, the most ball-like cluster first; empty when nothing
     bead-like is found (then the whole image is searched).
@@ -32,10 +34,11 @@ def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: Track
     The next region is looked for among the blobs outside the boxes taken."""
     if not features.points:
         return []
-    rb = sc.bead_radius_px / 2
-    disc = int(math.ceil(max(rb, sc.wire_px / 2) + 1.5 * opts.blur_px + 2))
+    rb = sc.bead_radius_px / factor
+    disc = int(math.ceil(max(rb, sc.wire_px / factor) + 3 * opts.blur_px / factor + 2))
     T = top_hat(gs, disc)
-    nmap = noise_map(gs, max(sc.ridge_sigma_px / 2, 0.8), valid, structure_px=disc)
+    nmap = noise if noise is not None else noise_map(gs, max(sc.ridge_sigma_px / factor, 0.8), valid,
+                                                     structure_px=disc)
     if valid is not None:
         T[~valid] = 0.0
     P = len(features.points)
@@ -49,10 +52,10 @@ def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: Track
     X = np.concatenate(pts)
     ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
     D = ext * opts.magnification * 1.25 / sc.pixel_mm
-    uv = 2 * cand + 0.5                                     # half-size pixel i covers full-size 2i, 2i + 1
+    uv = factor * cand + 0.5 * (factor - 1)                 # reduced pixel i covers full-size fi … fi + f − 1
     w = np.minimum(resp, 3.0 * opts.bead_min_snr)
     near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
-    H, W = 2 * gs.shape[0], 2 * gs.shape[1]
+    H, W = factor * gs.shape[0], factor * gs.shape[1]
     alive = np.ones(len(uv), bool)
     boxes: list[tuple[int, int, int, int]] = []
     while len(boxes) < max_regions and alive.sum() >= 3:
