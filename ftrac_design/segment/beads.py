@@ -100,6 +100,20 @@ class Beads:
         return len(self.uv)
 
 
+def blob_response(img: np.ndarray, radius_px: float, noise: float | np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | float]:
+    """The scale-normalised negative Laplacian of ``img`` at the bead scale σ = r/√2 (px) and
+    what white noise of pixel σ ``noise`` (a number or a map) gives it: ``(response, xx, yy,
+    noise response)``; a ball of the design shows as a peak of ``response / noise response``."""
+    sb = max(radius_px / np.sqrt(2.0), 0.8)
+    g0, _, g2 = gaussian_kernels(sb)
+    xx = cv2.sepFilter2D(img, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE)
+    yy = cv2.sepFilter2D(img, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
+    resp = -(xx + yy) * (sb * sb)
+    noise_resp = noise * sb * sb * float(np.sqrt(2 * (g2.astype(float) ** 2).sum() * (g0.astype(float) ** 2).sum()))
+    return resp, xx, yy, noise_resp
+
+
 def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray, max_count: int,
                     min_snr: float = 8.0, min_isotropy: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima (n, 2) (u, v) of the scale-normalised negative Laplacian at the bead
@@ -109,11 +123,7 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray
     gave hundreds of maxima along its length). ``noise``: the pixel noise σ, one number or a
     map (H, W). Returns the maxima and their response in units of the noise response there."""
     sb = max(radius_px / np.sqrt(2.0), 0.8)
-    g0, _, g2 = gaussian_kernels(sb)
-    xx = cv2.sepFilter2D(img, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE)
-    yy = cv2.sepFilter2D(img, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
-    resp = -(xx + yy) * (sb * sb)
-    noise_resp = noise * sb * sb * float(np.sqrt(2 * (g2.astype(float) ** 2).sum() * (g0.astype(float) ** 2).sum()))
+    resp, xx, yy, noise_resp = blob_response(img, radius_px, noise)
     k = max(int(round(radius_px)), 1)
     se = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
     j, i = np.nonzero((resp > min_snr * noise_resp) & (xx < 0) & (yy < 0))

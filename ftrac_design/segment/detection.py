@@ -15,7 +15,7 @@ import numpy as np
 
 from ..features.model import Features
 from ..pose import Camera
-from .beads import Beads, blob_candidates, fit_beads
+from .beads import Beads, blob_candidates, blob_response, fit_beads
 from .image import NoiseField, derivatives, second_derivative_gain, top_hat
 from .options import TrackOptions
 
@@ -94,6 +94,8 @@ class Scene:
     valid: np.ndarray | None = None
     #: first and second derivatives of ``T`` at the ridge scale (keys x, y, xx, xy, yy)
     derivs: dict[str, np.ndarray] | None = None
+    #: the blob detector's response over its noise (:func:`.beads.blob_response`)
+    blob_snr: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -104,6 +106,13 @@ class Scene:
     def pixel_noise(self) -> float:
         """The median local noise σ in density units (a diagnostic)."""
         return float(np.median(self.noise_map))
+
+    def ball_evidence(self, uv: np.ndarray) -> np.ndarray:
+        """The blob detector's response over its noise at points ``uv`` (n, 2) px: several
+        units where a ball is, about zero on background (0 where it was not computed)."""
+        if self.blob_snr is None:
+            return np.zeros(len(uv))
+        return bilinear(self.blob_snr, np.asarray(uv, float).reshape(-1, 2))
 
     def noise_at(self, uv: np.ndarray) -> np.ndarray:
         """The local noise σ at points ``uv`` (n, 2) px."""
@@ -186,8 +195,9 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
     b = b.take(ok)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
     # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
-    # and by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×)
-    size = np.exp(-0.5 * (np.log(b.radius / rb) / 0.25) ** 2)
+    # and, loosely, by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×;
+    # a display frame's window and gamma make a ball look 1.2–1.4 × its size)
+    size = np.exp(-0.5 * (np.log(b.radius / rb) / 0.5) ** 2)
     order = np.argsort(-(b.response * size / np.maximum(b.rms, 1.0)), kind="stable")[: 3 * P + 6]
     if len(order) < len(b):
         # the kept ones fitted again among themselves: the fit's robust scale is pooled over
@@ -230,7 +240,11 @@ def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d)
+    snr = None
+    if features.points:
+        resp, _, _, nr = blob_response(T, sc.bead_radius_px, nmap)
+        snr = (resp / nr).astype(np.float32)
+    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
 
 
 def fitted_blur(scene: Scene) -> float | None:

@@ -245,14 +245,19 @@ def misfit(scene: Scene, lab: Labelling) -> float:
     ball more at a worse fit, and "more features" picked it.
 
     Also sets ``lab.contours.unexplained_beads``: balls in view and well clear of the
-    others that the labelling leaves without a blob (or rejects)."""
+    others that the labelling leaves without a blob (or rejects).
+
+    A ball the labelling did not use but the image does show where it is predicted (the
+    blob detector reads ``bead_present_snr`` noise units or more there: a faint ball under
+    a display window, or one a wire pulled off its fit) is charged but not counted as
+    unexplained: the charge keeps rival labellings comparable (a near-mirror one puts its
+    balls where other balls are, and is shown them too)."""
     features, opts, sc = scene.features, scene.opts, scene.scales
     pose, obs, cont = lab.pose, lab.obs, lab.contours
     if not np.all(np.isfinite(pose.rotation)):
         return math.inf
     prob, ev = residuals_at(features, obs, lab.noise, pose.rotation, pose.translation_mm)
     chi = float(np.sum(ev.rho[0] ** 2))
-    H, W = scene.shape
     uv, _ = identify.project(scene.camera, pose.rotation, pose.translation_mm, features.point_centers()) \
         if features.points else (np.zeros((0, 2)), None)
     m = sc.bead_radius_px + 2
@@ -260,11 +265,12 @@ def misfit(scene: Scene, lab: Labelling) -> float:
     # a ball whose blob may be blended with a neighbour's (within 2 bead widths) is
     # not counted as clearly unexplained
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
+    inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)
+    shown = scene.ball_evidence(uv) >= opts.bead_present_snr if len(uv) else np.zeros(0, bool)
     for k, p in enumerate(features.points):
-        inside = m <= uv[k, 0] <= W - 1 - m and m <= uv[k, 1] <= H - 1 - m
-        if inside and p.id not in obs.points and (p.id not in lab.dropped or p.id in lab.removed):
+        if inside[k] and p.id not in obs.points and (p.id not in lab.dropped or p.id in lab.removed):
             unexplained += 1
-            isolated += bool(dd[k].min() > 4 * sc.bead_radius_px + 2)
+            isolated += bool(dd[k].min() > 4 * sc.bead_radius_px + 2 and not shown[k])
     cont.unexplained_beads = isolated
     unexplained += len(set(cont.missing) | {k for k in lab.removed if k not in {p.id for p in features.points}})
     return chi + opts.unexplained_chi2 * unexplained

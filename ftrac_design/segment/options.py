@@ -100,6 +100,9 @@ class TrackOptions:
     #: a converged pose may leave at most this many balls in view, well clear of the others
     #: (> 4 radii + 2 px), without their blob or rejected
     max_unexplained_beads: int = 1
+    #: a ball the labelling did not use is still shown by the image where the blob
+    #: detector reads at least this many noise units at its predicted centre
+    bead_present_snr: float = 4.0
     #: a confident labelling uses at least this many balls
     min_beads: int = 5
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
