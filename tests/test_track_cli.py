@@ -394,3 +394,26 @@ def test_a_progress_bar_on_a_terminal_for_more_than_three_frames(frames, tty, ba
     text = err.buffer.getvalue() if tty else err.getvalue()
     assert rc == 1 and text.count("internal error: RuntimeError: spy") == frames
     assert (f"| {frames}/{frames} " in text) == bar          # tqdm's "track: 100%|████| 4/4 [..."
+
+
+def test_an_undistorting_detector_narrows_the_covariance(scene, camera_json, tmp_path, capsys):
+    """Without a word on the detector, each pose's covariance carries an intensifier's
+    possible distortion (mostly in depth); `--distortion none` (a flat panel) and a DX file
+    (digital radiography) carry none: the same pose, a depth σ several times smaller."""
+    img = tmp_path / "img.npy"
+    np.save(img, scene["counts"])
+    out = {}
+    for name, extra in (("unknown", []), ("flat", ["--distortion", "none"])):
+        rc, _, err = _run(["track", "--features", FEATS, img, "--camera", camera_json, "-o", tmp_path / f"{name}.json",
+                           *extra], capsys)
+        assert rc == 0, err
+        out[name] = _poses(tmp_path / f"{name}.json")[0]
+    dx = tmp_path / "dx.dcm"
+    write_dicom(dx, scene["counts"], CAM, kind="dx")
+    rc, _, err = _run(["track", "--features", FEATS, dx, "-o", tmp_path / "dx.json"], capsys)
+    assert rc == 0, err
+    out["dx"] = _poses(tmp_path / "dx.json")[0]
+    np.testing.assert_allclose(out["flat"]["translation_mm"], out["unknown"]["translation_mm"], atol=1e-9)
+    sz = {k: np.sqrt(np.asarray(v["covariance"])[5, 5]) for k, v in out.items()}
+    assert sz["unknown"] > 3 * sz["flat"]
+    np.testing.assert_allclose(sz["dx"], sz["flat"], rtol=1e-6)

@@ -160,10 +160,14 @@ def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):
 
 def test_distortion_modes_are_the_closed_form():
     """1 mm at 100 mm from the principal point, cubic in the radius (pincushion) and a
-    rotation growing with its square (S): at 50 mm, 0.125 mm radially / tangentially."""
+    rotation growing with its square (S): at 50 mm, 0.125 mm radially / tangentially; the
+    pincushion's centre moved along u and v (−∂/∂c of |p − c|²(p − c), scaled to 1 mm at
+    100 mm along the move: ⅓ mm across it)."""
     from ftrac_design.segment.noise import distortion_modes
     cam = Camera(1000.0, (0.5, 0.5), (100.0, 200.0))
-    uv = np.array([[100.0 + 100.0, 200.0], [100.0, 200.0 + 200.0], [100.0, 200.0]])   # 50 mm, 100 mm, centre
-    pin, s = distortion_modes(cam, uv, 100.0)
-    np.testing.assert_allclose(pin, [[0.25, 0.0], [0.0, 2.0], [0.0, 0.0]], atol=1e-12)   # px: 0.125 / 1 mm
-    np.testing.assert_allclose(s, [[0.0, 0.25], [-2.0, 0.0], [0.0, 0.0]], atol=1e-12)
+    uv = np.array([[100.0 + 100.0, 200.0], [100.0, 200.0 + 200.0], [100.0, 200.0], [300.0, 200.0]])
+    pin, s, cu, cv = distortion_modes(cam, uv, 100.0)                # 50 mm, 100 mm, centre, 100 mm
+    np.testing.assert_allclose(pin, [[0.25, 0.0], [0.0, 2.0], [0.0, 0.0], [2.0, 0.0]], atol=1e-12)   # px
+    np.testing.assert_allclose(s, [[0.0, 0.25], [-2.0, 0.0], [0.0, 0.0], [0.0, 2.0]], atol=1e-12)
+    np.testing.assert_allclose(cu[1:], [[2 / 3, 0.0], [0.0, 0.0], [2.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(cv[1:], [[0.0, 2.0], [0.0, 0.0], [0.0, 2 / 3]], atol=1e-12)

@@ -33,7 +33,15 @@ def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path 
     if body is None:
         body = body_from_source(features.source, features_path.parent)
     camera = read_camera(camera_path) if camera_path is not None else None
+    # "none": the detector does not distort (a flat panel); a model: the frames are corrected.
+    # Either way no unmodelled distortion is left for the pose covariance to carry
+    no_distortion = distortion_path is not None and str(distortion_path) == "none"
+    if no_distortion:
+        distortion_path = None
     model = read_distortion(distortion_path) if distortion_path is not None else None
+    options = TrackOptions(polarity=polarity)
+    if no_distortion or model is not None:
+        options = TrackOptions(polarity=polarity, distortion_prior_mm=0.0)
     refine_fn = None
     if refine == "intensity":
         try:
@@ -41,7 +49,7 @@ def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path 
         except ImportError:
             raise InputError(None, "--refine", "intensity refinement, which this installation does not have "
                                                "(ftrac_design.intensity); use --refine none") from None
-    return TrackSetup(features, body, TrackOptions(polarity=polarity), camera, model,
+    return TrackSetup(features, body, options, camera, model,
                       str(distortion_path) if distortion_path is not None else None, refine_fn)
 
 
@@ -68,7 +76,9 @@ def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
               help="SPEC §3 camera object (JSON) used for every frame; overrides what the files say.")
 @click.option("--distortion", "distortion_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
-                   "pinhole grid before tracking; frames must have the model's image_shape.")
+                   "pinhole grid before tracking; frames must have the model's image_shape. 'none': the detector "
+                   "does not distort (a flat panel). Without it an image intensifier's distortion of up to ~2 mm "
+                   "at 100 mm is allowed for in each pose's covariance (DX/CR DICOM images excepted).")
 @click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
                    "(default pose.json / poses.jsonl). The segmented observations go beside it "

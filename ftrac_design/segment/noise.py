@@ -187,15 +187,25 @@ def calibrated_covariance(features: Features, obs: Observation, pose: Pose, nois
 
 def distortion_modes(camera, uv: np.ndarray, radius_mm: float) -> list[np.ndarray]:
     """Image displacements (px, one (n, 2) array per mode) of points ``uv`` (n, 2) px under
-    the two distortions an image intensifier adds, each 1 mm at ``radius_mm`` from the
-    principal point: pincushion (radial, cubic in the radius) and S-distortion (a rotation
-    growing with the square of the radius)."""
+    the distortions an image intensifier adds, each 1 mm at ``radius_mm`` from the principal
+    point: pincushion (radial, cubic in the radius), S-distortion (a rotation growing with
+    the square of the radius), and the pincushion's centre off the principal point along u
+    and along v (its derivative with respect to the centre: quadratic fields, scaled to 1 mm
+    at ``radius_mm`` too — an intensifier's distortion centre is not its principal point)."""
     pix = float(np.mean(camera.pixel_size_mm))
     c = np.asarray(camera.principal_point_px, float)
     d = np.asarray(uv, float) - c
     r0 = radius_mm / pix
-    g = (np.sum(d * d, axis=-1, keepdims=True) / r0 ** 3) / pix
-    return [d * g, np.stack([-d[:, 1], d[:, 0]], -1) * g]
+    r2 = np.sum(d * d, axis=-1, keepdims=True)
+    g = (r2 / r0 ** 3) / pix
+    modes = [d * g, np.stack([-d[:, 1], d[:, 0]], -1) * g]
+    for axis in range(2):
+        e = np.zeros(2)
+        e[axis] = 1.0
+        # −∂/∂c of |p − c|² (p − c) along the axis: 2 (p − c)(p − c)ᵢ + |p − c|² eᵢ; 3 r0² at r0
+        field = 2 * d * d[:, axis:axis + 1] + r2 * e
+        modes.append(field / (3 * r0 ** 2) / pix)
+    return modes
 
 
 def _displaced(obs: Observation, shift) -> Observation:
@@ -229,7 +239,7 @@ def distortion_covariance(features: Features, obs: Observation, pose: Pose, nois
     except np.linalg.LinAlgError:
         return None
     out = np.zeros((6, 6))
-    for k in range(2):
+    for k in range(4):
         shifted = _displaced(obs, lambda uv, k=k: distortion_modes(obs.camera, uv, radius_mm)[k])
         ev = evaluate(compile_problem(features, [shifted], noise), R[None], t[None], jac=False)
         drho = ev.rho[0] - ev0.rho[0]

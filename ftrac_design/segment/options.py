@@ -123,11 +123,12 @@ class TrackOptions:
     #: over 10⁸ pixels before this test)
     depth_range: tuple[float, float] = (0.1, 0.99)
     #: σ (mm at 100 mm from the principal point) of an image distortion nobody corrected —
-    #: an image intensifier's pincushion and S-distortion, up to ~2 mm there (Jain et al.
-    #: 2005) — added to the pose covariance (:func:`~.noise.distortion_covariance`): a
+    #: an image intensifier's pincushion, S-distortion and the pincushion's off-centre terms,
+    #: up to ~2 mm there (Jain et al. 2005) — added to the pose covariance
+    #: (:func:`~.noise.distortion_covariance`): a
     #: pinhole pose from such an image is biased in depth by several mm and no residual
     #: shows it. 0 for a flat-panel detector or an image corrected with its distortion model.
-    distortion_prior_mm: float = 1.0
+    distortion_prior_mm: float = 1.5
 
 
 @dataclass

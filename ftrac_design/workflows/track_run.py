@@ -34,7 +34,7 @@ import json
 import math
 import os
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
 
@@ -218,6 +218,10 @@ def summary_line(label: str, result: TrackResult) -> str:
             f"rms {p.rms_residual_px:.3f} px, {counts}")
 
 
+#: DICOM modalities whose images no intensifier distorts (digital and computed radiography)
+FLAT_MODALITIES = ("DX", "CR", "MG")
+
+
 def track_pixels(frame: Frame, setup: TrackSetup) -> tuple[np.ndarray, TrackResult]:
     """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
     frame's polarity and formation as hints (``TrackOptions.polarity`` overrides), then
@@ -228,7 +232,11 @@ def track_pixels(frame: Frame, setup: TrackSetup) -> tuple[np.ndarray, TrackResu
     (pixels tracked (H, W), TrackResult). Raises whatever the steps raise.
     """
     img = frame.pixels if setup.distortion is None else undistort_image(frame.pixels, setup.distortion)
-    res = track_image(img, setup.features, frame.camera, setup.options, polarity_hint=frame.polarity,
+    options = setup.options
+    if str(frame.meta.get("modality", "")).upper() in FLAT_MODALITIES:
+        # a DX or CR image comes from a flat panel or a storage plate: nothing distorts it
+        options = replace(options, distortion_prior_mm=0.0)
+    res = track_image(img, setup.features, frame.camera, options, polarity_hint=frame.polarity,
                       body=setup.body, formation_hint=frame.formation)
     if setup.refine is not None and res.pose.converged:
         # the converged pose refined on the pixels; the observation stays the segmented one
