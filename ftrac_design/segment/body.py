@@ -98,10 +98,10 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
                       beads.response,
                       exclude=mask.astype(bool))
     # keep the first fit where the mask left too little of a ball to fit (its centre then
-    # comes out several times less certain: a 1 mm ball's patch is mostly wire mask)
+    # comes out far less certain: a 1 mm ball's patch is mostly wire mask, σ 1.5–3 px)
     ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
         np.isfinite(refit.sigma_px) & (refit.radius > 0.5 * sc.bead_radius_px) & \
-        (refit.sigma_px <= 2.0 * np.maximum(beads.sigma_px, 1e-3))
+        ((refit.sigma_px <= 0.5) | (refit.sigma_px <= 3.0 * beads.sigma_px))
     return Beads(*(np.where(ok[:, None] if getattr(beads, k).ndim == 2 else ok, getattr(refit, k), getattr(beads, k))
                    for k in beads.__dataclass_fields__))
 
