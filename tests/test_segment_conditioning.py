@@ -137,3 +137,16 @@ def test_no_time_budget_means_one_attempt(f2005):
     res = track_image(img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0),
                       body=body)
     assert not res.pose.converged and res.pose.error
+
+
+def test_counts_are_tried_dense_dark_first_and_line_integrals_dense_bright(f2005):
+    """With no hint, raw counts (beyond 8 bits) are read dense-dark first and a log image's
+    line integrals dense-bright first: each is tracked on its first attempt."""
+    features, body = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(6))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(6), body=body)
+    for img, want in ((rad.raw, "dense-dark"), (rad.log_image, "dense-bright"),
+                      (rad.raw.astype(np.float64) + 0.25, "dense-dark")):       # resampled counts
+        res = track_image(img, features, Camera(), body=body)
+        assert res.pose.converged and res.polarity == want
+        assert "polarity_tried" not in res.diagnostics

@@ -98,8 +98,8 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     camera : intrinsics.
     tol_px : a projected bead matches a blob within this distance.
     image_triplets : how many triplets of blobs are tried at most (see :func:`_image_triplets`);
-        the search stops early once a labelling explains every ball, or a few triplets after
-        one explains all but one.
+        the search stops early once a labelling explains every ball, or five triplets after
+        the best one (explaining all but one or two) was last improved.
     keep : how many labellings are returned.
     max_extent_px : the largest distance two balls of the fiducial can be apart in the image.
 
@@ -117,7 +117,7 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     tree = cKDTree(uv)
     best: dict[tuple, BeadHypothesis] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)      # (m, 3, 3), once for every image triplet
-    after_near = 0
+    top, stale, tried = 0, 0, 0
     for itri in _image_triplets(uv, image_triplets, max_extent_px):
         img = np.ascontiguousarray(uv[list(itri)], dtype=np.float64)
         rs, ts = [], []
@@ -164,13 +164,17 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
             old = best.get(key)
             if old is None or h.rms_px < old.rms_px:
                 best[key] = h
-        top = max((h.count for h in best.values()), default=0)
-        if top >= min(P, n):
+        top_now = max((h.count for h in best.values()), default=0)
+        stale = 0 if top_now > top else stale + 1
+        top = top_now
+        # every ball explained; or nearly all (a ball or two too faint or merged) and the
+        # last few triplets found nothing better: the rest would only cost time
+        if top >= min(P, n) or (top >= max(4, min(P, n) - 2) and stale >= 5):
             break
-        if top >= min(P, n) - 1:
-            after_near += 1
-            if after_near > 4:
-                break
+        tried += 1
+        if tried >= 8 and top < 4:
+            # eight triplets of the strongest blobs and not four balls in a row: not here
+            break
     ranked = sorted(best.values(), key=lambda h: (-h.count, h.rms_px))
     return ranked[:keep]
 

@@ -200,16 +200,31 @@ def track_image(image: np.ndarray, features: Features, camera: Camera, options: 
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
-def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px: int) -> list[str]:
-    """The polarities to try, in order: the one asked for or the file's; else both, the one
-    in which compact structures stand out more first."""
+def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px: int, form: str) -> list[str]:
+    """The polarities to try, in order: the one asked for or the file's; else both — linear
+    counts (integers beyond 8 bits) dense-dark first and a log image (non-integer values)
+    dense-bright first, as detectors and log converters write them; a display frame's in the
+    polarity in which compact structures stand out more first (:func:`.image.detect_polarity`:
+    over a patient it picked a raw image's polarity wrongly in 7 of 20)."""
     if opts.polarity != "auto":
         return [opts.polarity]
     pol = str(hint or "").replace("_", "-")
     if pol in ("dense-dark", "dense-bright"):
         return [pol]
+    if form == "linear":
+        return ["dense-dark", "dense-bright"]
+    if form == "log":
+        return ["dense-bright", "dense-dark"]
     first = detect_polarity(small, max(disc_px // 2, 2))
     return [first, "dense-bright" if first == "dense-dark" else "dense-dark"]
+
+
+def _line_integrals(img: np.ndarray) -> bool:
+    """Whether the pixels look like a log image's line integrals rather than counts: not
+    integers, and none above 64 (a line integral of 64 is e⁻⁶⁴ of the beam); counts, even
+    resampled ones, run to hundreds or thousands."""
+    a = img[:: max(1, img.shape[0] // 64)]
+    return bool(float(np.max(np.abs(a))) <= 64.0 and not np.all(a == np.round(a)))
 
 
 def _track(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None,
@@ -229,9 +244,11 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
     # the formation is a property of the pixels (their range and type), not of the polarity
     # tried: 8-bit integers are a display frame either way
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
+    if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
+        form = "log"
     tried: list[TrackResult] = []
     deadline = start + opts.time_budget_s
-    for pol in _polarities(opts, polarity_hint, small, sc.disc_px):
+    for pol in _polarities(opts, polarity_hint, small, sc.disc_px, form):
         if tried and time.monotonic() > deadline:
             tried[0].diagnostics["time_budget_spent"] = True
             break
