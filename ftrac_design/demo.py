@@ -1,6 +1,8 @@
 """``make demo`` / ``python -m ftrac_design.demo``: build the paper's fiducial and summarise:
 score it, solve a synthetic observation, render a radiograph and track it from the image,
-reconstruct points from two views, run a tiny design search and write the one-page report.
+track a C-arm's DICOM run and an intensifier's distorted frame through the command line
+(:mod:`ftrac_design.demo_carm`), reconstruct points from two views, run a tiny design search
+and write the one-page report.
 
 Each step is a small function returning a plain summary dict, and :func:`main` prints
 them, so later steps (scoring, a solved synthetic image) slot in beside :func:`demo_build`.
@@ -191,8 +193,11 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
 
 def image_and_beyond_steps(out_dir: Path) -> list:
     """The later demo steps, each a callable returning the text to print: a radiograph of the
-    built fiducial, tracked from the image with no initial guess (overlay written), 3-D
-    reconstruction from two tracked views, a tiny design search, and the one-page report."""
+    built fiducial, tracked from the image with no initial guess (overlay written), a C-arm's
+    Enhanced XA run and an intensifier's distorted frame tracked with ``ftrac-design track``
+    (``carm/``), 3-D reconstruction from two tracked views, a tiny design search, and the
+    one-page report."""
+    from .demo_carm import demo_step as carm_step
     from .optimize import demo_step as optimize_step
     from .reconstruct import demo_step as reconstruct_step
     from .report import demo_step as report_step
@@ -200,6 +205,7 @@ def image_and_beyond_steps(out_dir: Path) -> list:
 
     image_dir = out_dir / "radiograph"
     return [lambda: radiograph_step(image_dir), lambda: demo_track(out_dir / "features.json", image_dir),
+            lambda: carm_step(out_dir / "carm", out_dir / "features.json"),
             lambda: reconstruct_step(out_dir / "reconstruct"), lambda: optimize_step(out_dir / "optimize_demo"),
             lambda: report_step(out_dir)]
 
