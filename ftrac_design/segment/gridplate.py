@@ -102,7 +102,8 @@ def render_grid(plate: Features, distortion: DistortionModel | None = None, *,
         v, u = np.mgrid[0:H, 0:W]
         r = np.hypot(u - (W - 1) / 2, v - (H - 1) / 2)
         # the intensifier's output is dark outside its round field (1e-3 of the flat field)
-        trans = trans * (1e-3 + (1 - 1e-3) / (1 + np.exp((r - field_radius_px) / 0.5)))
+        # a logistic edge; the exponent clipped where it is 0 or 1 to double precision anyway
+        trans = trans * (1e-3 + (1 - 1e-3) / (1 + np.exp(np.clip((r - field_radius_px) / 0.5, -50, 50))))
     n0 = float(imaging.photons_per_px) if imaging.noisy else 1.0e4
     N = n0 * trans
     if imaging.noisy:
