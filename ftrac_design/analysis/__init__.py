@@ -1,4 +1,4 @@
-"""Jacobian-conditioning analysis of a fiducial design (issue 5). numpy/scipy only.
+"""Jacobian-conditioning analysis of a fiducial design. numpy/scipy only.
 
 - :func:`analyse_poses` — per-pose conditioning and predicted (Cramér–Rao) accuracy of a
   design, of each feature group and of each feature, batched over thousands of poses;
@@ -6,7 +6,7 @@
 - :func:`blind_spot_atlas` — the same over every view direction, with the worst directions
   and the features that go blind there;
 - :func:`image_clearance` / :func:`pair_clearances` — segmentability: how far apart the
-  features' images stay (px beyond their widths) and where they overlap (issue 13).
+  features' images stay (px beyond their widths) and where they overlap.
 
 The Jacobian is the pose solver's (:mod:`ftrac_design.pose.problem`), with its parameter
 scaling; see :mod:`.information` for why its JᵀJ is the Fisher information.

@@ -1,4 +1,4 @@
-"""Segmentability: how far apart the features' images stay (issue 13, item 3). numpy only.
+"""Segmentability: how far apart the features' images stay. numpy only.
 
 The conditioning analysis assumes every feature is segmented; this module asks whether the
 image lets it be: at each pose, the image-plane clearance between the projections of

@@ -1,4 +1,4 @@
-"""Design optimisation under the manufacturing rules (issue 16). No CadQuery import.
+"""Design optimisation under the manufacturing rules. No CadQuery import.
 
 - :mod:`.space` — the search space: which design values vary, within what (unit cube ↔ design);
 - :mod:`.evaluate` — one candidate: design rules as graded margins first, then the score;

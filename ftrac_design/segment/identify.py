@@ -86,6 +86,60 @@ def _model_triplets(P: np.ndarray) -> np.ndarray:
     return trip[area > 0.02 * scale * scale]
 
 
+def _p3p_poses(objs: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """Every P3P pose (R (k, 3, 3), t (k, 3)) of the model triplets ``objs`` (m, 3, 3) seen at
+    the image triplet ``img`` (3, 2) px, or None."""
+    rs, ts = [], []
+    for obj in objs:
+        try:
+            nsol, rvecs, tvecs = cv2.solveP3P(obj, img, K, None, flags=cv2.SOLVEPNP_P3P)
+        except cv2.error:
+            continue
+        rs += rvecs[:nsol]
+        ts += tvecs[:nsol]
+    if not rs:
+        return None
+    # all P3P solutions' rotations at once (one cv2.Rodrigues per solution cost more
+    # than the solutions' projections)
+    return so3.exp(np.asarray(rs, float).reshape(-1, 3)), np.asarray(ts, float).reshape(-1, 3)
+
+
+def _collect_matches(best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray,
+                     tol_px: float) -> None:
+    """Add to ``best`` (match key → hypothesis, the lower RMS kept) the labellings of the
+    poses (R, t) that put at least four model beads within ``tol_px`` of a blob of ``tree``."""
+    P = len(model)
+    proj, Z = project(camera, R, t, model)
+    front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
+    proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
+    d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
+    d, j = d.reshape(len(R), P), j.reshape(len(R), P)
+    hit = np.isfinite(d) & front[:, None]
+    count = hit.sum(1)
+    for r in np.argsort(-count, kind="stable")[: 64]:
+        if count[r] < 4:
+            break
+        match: dict[int, int] = {}
+        taken: dict[int, float] = {}
+        # one blob per bead: the nearer bead keeps a shared blob
+        for b in np.argsort(d[r]):
+            if not hit[r, b]:
+                continue
+            blob = int(j[r, b])
+            if blob in taken:
+                continue
+            taken[blob] = d[r, b]
+            match[int(b)] = blob
+        key = tuple(sorted(match.items()))
+        if not key:
+            continue
+        rms = float(np.sqrt(np.mean([taken[v] ** 2 for v in match.values()])))
+        h = BeadHypothesis(R[r], t[r], match, len(match), rms)
+        old = best.get(key)
+        if old is None or h.rms_px < old.rms_px:
+            best[key] = h
+
+
 def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: float,
                     image_triplets: int = 24, keep: int = 8, max_extent_px: float = np.inf
                     ) -> list[BeadHypothesis]:
@@ -119,51 +173,10 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)      # (m, 3, 3), once for every image triplet
     top, stale, tried = 0, 0, 0
     for itri in _image_triplets(uv, image_triplets, max_extent_px):
-        img = np.ascontiguousarray(uv[list(itri)], dtype=np.float64)
-        rs, ts = [], []
-        for obj in objs:
-            try:
-                nsol, rvecs, tvecs = cv2.solveP3P(obj, img, K, None, flags=cv2.SOLVEPNP_P3P)
-            except cv2.error:
-                continue
-            rs += rvecs[:nsol]
-            ts += tvecs[:nsol]
-        if not rs:
+        poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
+        if poses is None:
             continue
-        # all P3P solutions' rotations at once (one cv2.Rodrigues per solution cost more
-        # than the solutions' projections)
-        R = so3.exp(np.asarray(rs, float).reshape(-1, 3))
-        t = np.asarray(ts, float).reshape(-1, 3)
-        proj, Z = project(camera, R, t, model)
-        front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
-        proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
-        d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
-        d, j = d.reshape(len(R), P), j.reshape(len(R), P)
-        hit = np.isfinite(d) & front[:, None]
-        count = hit.sum(1)
-        order = np.argsort(-count, kind="stable")[: 64]
-        for r in order:
-            if count[r] < 4:
-                break
-            match: dict[int, int] = {}
-            taken: dict[int, float] = {}
-            # one blob per bead: the nearer bead keeps a shared blob
-            for b in np.argsort(d[r]):
-                if not hit[r, b]:
-                    continue
-                blob = int(j[r, b])
-                if blob in taken:
-                    continue
-                taken[blob] = d[r, b]
-                match[int(b)] = blob
-            key = tuple(sorted(match.items()))
-            if not key:
-                continue
-            rms = float(np.sqrt(np.mean([taken[v] ** 2 for v in match.values()])))
-            h = BeadHypothesis(R[r], t[r], match, len(match), rms)
-            old = best.get(key)
-            if old is None or h.rms_px < old.rms_px:
-                best[key] = h
+        _collect_matches(best, model, camera, tree, *poses, tol_px)
         top_now = max((h.count for h in best.values()), default=0)
         stale = 0 if top_now > top else stale + 1
         top = top_now
