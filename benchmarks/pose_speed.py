@@ -17,10 +17,16 @@ import numpy as np
 from _common import load, machine
 from scipy.optimize import least_squares
 
-from ftrac_design.pose import Camera, compile_problem, evaluate, solve_batch, solve_pose, so3
+from ftrac_design.pose import Camera, compile_problem, evaluate, so3, solve_batch, solve_pose
 from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
-from ftrac_design.pose.solver import SolverOptions, _finish_all, dlt_start, levenberg_marquardt, parameter_scale, \
-    refine_on_beads
+from ftrac_design.pose.solver import (
+    SolverOptions,
+    _finish_all,
+    dlt_start,
+    levenberg_marquardt,
+    parameter_scale,
+    refine_on_beads,
+)
 
 N_SINGLE = 300
 N_BATCH = 1000

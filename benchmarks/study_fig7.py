@@ -49,7 +49,6 @@ from _common import load, machine, save_plot
 from _recon_common import CAM, PAPER, draw_camera, seeds, solve_images
 from tqdm import tqdm
 
-from ftrac_design.pose import so3
 from ftrac_design.pose.simulate import Workspace, cone_directions, pose_errors, rotations_from_beams
 from ftrac_design.reconstruct import Views, triangulate
 from ftrac_design.reconstruct import intrinsics as ik
@@ -249,7 +248,7 @@ def plot(results, joint) -> None:
             continue
         ax.plot(x, r[:, 5], "o-", label="seeds 15 cm away")
         ax.plot(x, r[:, 6], "s-", label="the nine beads")
-        ax.set_title(f"3-D reconstruction, 2 views 20° apart")
+        ax.set_title("3-D reconstruction, 2 views 20° apart")
         ax.set_xlabel(labels[name])
         ax.set_ylabel("mean 3-D error (mm)")
         ax.set_ylim(bottom=0)

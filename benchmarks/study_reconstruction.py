@@ -32,7 +32,6 @@ import time
 import numpy as np
 from _common import load, machine, save_plot
 from _recon_common import CAM, PAPER, draw_camera, seeds, solve_images
-from tqdm import tqdm
 
 from ftrac_design.pose.simulate import Workspace, rotations_from_beams, segmentation_noise
 from ftrac_design.reconstruct import Views, triangulate

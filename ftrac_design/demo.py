@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 #: the repository's models/ folder (the package is installed in editable mode by make)
-MODELS = Path(__file__).resolve().parents[1] / "models"
+from .design.presets import PRESETS_DIR as MODELS
+
 DEFAULT_DESIGN = MODELS / "ftrac_2005.toml"
 
 
@@ -158,11 +159,11 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     import numpy as np
 
     from .features import load_features
+    from .images import read_image
     from .pose import Camera
     from .pose.simulate import pose_errors
     from .segment.overlay import draw_overlay
     from .segment.pipeline import track_image
-    from .images import read_image
     from .xray.truth import read_truth
 
     image_dir = Path(image_dir)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of presets for every test)
 from scipy.integrate import quad
 from scipy.spatial import cKDTree
 
@@ -24,8 +25,6 @@ from ftrac_design.design import load_design
 from ftrac_design.design.schema import Design
 from ftrac_design.features import compute_features
 from ftrac_design.features.model import Features
-
-from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of presets for every test)
 
 PROFILES = ("cnc", "fdm")
 

@@ -10,8 +10,16 @@ import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.errors import InputError
-from ftrac_design.images.distortion import (DistortionModel, combine, distort_image, radial, read_distortion,
-                                            s_distortion, undistort_image, write_distortion)
+from ftrac_design.images.distortion import (
+    DistortionModel,
+    combine,
+    distort_image,
+    radial,
+    read_distortion,
+    s_distortion,
+    undistort_image,
+    write_distortion,
+)
 from ftrac_design.segment.gridcal import estimate_distortion
 from ftrac_design.segment.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.xray import write_image

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import tomllib
 
+from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 from hypothesis import assume, given
 from hypothesis import strategies as st
-
-from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 
 
 def _default_space(preset: str) -> dict:

@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pydicom
 import pytest
+from images_support import CAM, stored
 
 from ftrac_design.errors import InputError
 from ftrac_design.images import frame_count, read_frame, read_frames, write_dicom
 from ftrac_design.pose import Camera
-from images_support import CAM, stored
 
 
 def _one(path, **kw):

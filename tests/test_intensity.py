@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from ftrac_design.features.model import Features, PointFeature
+from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
-from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.xray import Body, ImagingModel, render
 
 BODY = Body(30.0, 50.0, 20.0)

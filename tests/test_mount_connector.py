@@ -8,12 +8,21 @@ import math
 
 import numpy as np
 import pytest
+from fixture_support import (
+    PRESETS,
+    PROFILES,
+    TMP,
+    connector_part,
+    cylindrical_faces,
+    design_of,
+    inside,
+    mount_part,
+    step_round_trip,
+    stl_mesh,
+)
 
-from fixture_support import (PRESETS, PROFILES, TMP, connector_part, cylindrical_faces, design_of, inside,
-                             mount_part, step_round_trip, stl_mesh)
 from ftrac_design.cad.profiles import cut_sizes
-from ftrac_design.features.mounting import (connector_layout, mount_layout, template_from_mount,
-                                            transform_points)
+from ftrac_design.features.mounting import connector_layout, mount_layout, template_from_mount, transform_points
 
 pytestmark = pytest.mark.xdist_group("cad")
 
@@ -144,9 +153,9 @@ def test_profiles_change_hole_sizes_exactly_as_stated(preset):
 @pytest.mark.parametrize("preset", PRESETS)
 def test_mount_key_and_body_slot(preset):
     import cadquery as cq
+    from test_rules import with_param
 
     from ftrac_design.cad.mount import MountPart, key_slot_tool
-    from test_rules import with_param
 
     assert design_of(preset).mount.key_height == 0 and key_slot_tool(design_of(preset)) is None
     d = with_param(preset, "mount.key_height", 1.0)

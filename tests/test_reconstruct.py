@@ -11,8 +11,13 @@ import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.features import write_features
-from ftrac_design.features.mounting import (mount_from_fiducial, mount_layout, template_from_fiducial,
-                                            template_from_mount, transform_points)
+from ftrac_design.features.mounting import (
+    mount_from_fiducial,
+    mount_layout,
+    template_from_fiducial,
+    template_from_mount,
+    transform_points,
+)
 from ftrac_design.pose import Camera, so3
 from ftrac_design.pose.simulate import cone_directions, rotations_from_beams
 from ftrac_design.reconstruct import Views, triangulate

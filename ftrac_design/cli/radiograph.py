@@ -113,10 +113,10 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
 
     from ..features import load_features
     from ..fileio import atomic_directory, write_text_atomic
+    from ..images import read_frame, write_image
     from ..pose.camera import Camera
     from ..pose.observation import read_camera
     from ..pose.simulate import Workspace
-    from ..images import read_frame, write_image
     from ..xray import ImagingModel, anatomy, body_from_design_file, body_from_features_file, render, write_truth
 
     if (pose_path is None) == (workspace_sample is None):

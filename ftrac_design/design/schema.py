@@ -179,6 +179,11 @@ class HoleSet(_Strict):
         return v
 
 
+#: the slot in the cylinder's end face is this much deeper than the key is high, so that the
+#: cylinder always rests on the socket floor, never on the key (mm)
+KEY_GAP = 0.2
+
+
 class Mount(_Strict):
     """The acetal mount that holds one end of the cylinder (paper §II.A.3): a square block
     with a press-fit socket for the cylinder's ``z = −L/2`` end and three mutually orthogonal

@@ -241,9 +241,8 @@ def _pixel_data(ds, stored: np.ndarray, syntax: str, bits_stored: int, signed: b
         ds.PixelData = data + (b"\0" if len(data) % 2 else b"")
         return
     if syntax == "jpeg-lossless":
-        from pydicom.encaps import encapsulate
-
         import imagecodecs
+        from pydicom.encaps import encapsulate
 
         enc = [imagecodecs.jpeg8_encode(f, lossless=True, predictor=1, bitspersample=int(ds.BitsStored)) for f in arr]
         ds.PixelData = encapsulate(enc)

@@ -68,6 +68,10 @@ class ImagingAnalysis:
         """(n, 6) feature-level / image-level σ per pose and axis."""
         return self.feature_std / self.image_std
 
+    def plot(self, path: str | Path) -> Path:
+        """Draw this analysis into ``path`` (PNG; :func:`plot_imaging`)."""
+        return plot_imaging(self, path)
+
     def to_dict(self) -> dict[str, Any]:
         """The analysis.json ``imaging`` block."""
         def stats(a: np.ndarray) -> dict:
@@ -135,9 +139,9 @@ def imaging_analysis(features: Features, workspace: Workspace = Workspace(), ima
 def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
     """imaging.png: per axis, the distribution over the sampled poses of the predicted 1σ from
     the image and from the features (log scale), and their ratio."""
-    from ..analysis.plots import _plt, _save
+    from ..analysis.plots import pyplot, save_figure
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     for ax, sl, unit in ((axes[0], slice(0, 3), "deg"), (axes[1], slice(3, 6), "mm")):
         names = PARAMETERS[sl]
@@ -167,7 +171,7 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
                  f"({ia.imaging.energy_kev:g} keV, {dose:.3g} quanta/px, segmentation error "
                  f"{ia.segmentation_error_mm:g} mm)", fontsize=10)
     fig.tight_layout()
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def format_imaging(block: dict) -> str:

@@ -309,15 +309,13 @@ def _connector_follows_mount(base: dict, data: dict) -> None:
 
 def _schema_problem(data: dict) -> str | None:
     """The design schema's complaint about ``data`` (field types and ranges only), or None."""
-    from ..design.loader import _EXPECT, _loc
+    from ..design.loader import describe_schema_error
 
     try:
         Design.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors(include_url=False)[0]
-        template = _EXPECT.get(err["type"])
-        expected = template.format(**(err.get("ctx") or {})) if template else err["msg"]
-        return f"{_loc(err['loc'])} must be {expected.removeprefix('Value error, ')}"
+        key, expected = describe_schema_error(exc.errors(include_url=False)[0], with_input=False)
+        return f"{key} must be {expected}"
     return None
 
 

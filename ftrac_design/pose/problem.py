@@ -33,8 +33,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..features.model import Features
-from .fitting import ConicFit, LineFit, conic_center_and_axes, conic_from_coefficients, conic_matrix, fit_conic, \
-    fit_line, line_from_coefficients, tangent_basis
+from .fitting import (
+    ConicFit,
+    conic_center_and_axes,
+    conic_from_coefficients,
+    conic_matrix,
+    fit_conic,
+    fit_line,
+    line_from_coefficients,
+)
 from .observation import Observation
 from .smallmat import spd_solve
 

@@ -39,8 +39,17 @@ from scipy.special import chdtrc, fdtrc
 from ..features.model import Features
 from . import so3
 from .observation import Observation
-from .problem import ELLIPSE_MODEL_POINTS, NoiseModel, Problem, bead_rows, compile_problem, evaluate, \
-    jacobian_rows, project_points, rows_where
+from .problem import (
+    ELLIPSE_MODEL_POINTS,
+    NoiseModel,
+    Problem,
+    bead_rows,
+    compile_problem,
+    evaluate,
+    jacobian_rows,
+    project_points,
+    rows_where,
+)
 
 FORMAT = "ftrac-pose"
 VERSION = 1

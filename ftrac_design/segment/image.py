@@ -18,7 +18,6 @@ faster than scipy's for the same operator).
 from __future__ import annotations
 
 import math
-import warnings
 
 import cv2
 import numpy as np
