@@ -68,11 +68,16 @@ def main() -> None:
               "checks + covariance": []}
     for o in obs[:N_SINGLE]:
         marks = [time.perf_counter()]
-        prob = compile_problem(features, [o]); marks.append(time.perf_counter())
-        R0, t0_ = dlt_start(prob); marks.append(time.perf_counter())
-        R0, t0_ = refine_on_beads(prob, R0, t0_, h); marks.append(time.perf_counter())
-        st = levenberg_marquardt(prob, R0, t0_, h, opts.max_iterations, eager=True); marks.append(time.perf_counter())
-        _finish_all(prob, st, h, opts, 1); marks.append(time.perf_counter())
+        prob = compile_problem(features, [o])
+        marks.append(time.perf_counter())
+        R0, t0_ = dlt_start(prob)
+        marks.append(time.perf_counter())
+        R0, t0_ = refine_on_beads(prob, R0, t0_, h)
+        marks.append(time.perf_counter())
+        st = levenberg_marquardt(prob, R0, t0_, h, opts.max_iterations, eager=True)
+        marks.append(time.perf_counter())
+        _finish_all(prob, st, h, opts, 1)
+        marks.append(time.perf_counter())
         for k, a, b in zip(phases, marks[:-1], marks[1:]):
             phases[k].append((b - a) * 1e3)
 

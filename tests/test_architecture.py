@@ -1,5 +1,6 @@
 """The house's rules: rooms import one way (import-linter's contracts in pyproject.toml), only
-``cad`` imports CadQuery/OCP, and no private name crosses from one room into another."""
+``cad`` imports CadQuery/OCP, no private name crosses from one room into another, and ``ruff
+check`` (its settings in pyproject.toml) finds nothing."""
 
 from __future__ import annotations
 
@@ -15,8 +16,10 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "ftrac_design"
 LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
+RUFF = Path(sys.executable).with_name("ruff")
 
-pytestmark = pytest.mark.skipif(not LINT_IMPORTS.exists(), reason="import-linter is not installed (make installs it)")
+needs_lint_imports = pytest.mark.skipif(not LINT_IMPORTS.exists(),
+                                        reason="import-linter is not installed (make installs it)")
 
 
 def _lint(cwd: Path, env_path: Path) -> subprocess.CompletedProcess:
@@ -26,12 +29,14 @@ def _lint(cwd: Path, env_path: Path) -> subprocess.CompletedProcess:
     )
 
 
+@needs_lint_imports
 def test_rooms_import_one_way_and_only_cad_imports_cadquery():
     res = _lint(ROOT, ROOT)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-2000:]
     assert "2 kept, 0 broken" in res.stdout
 
 
+@needs_lint_imports
 def test_the_layers_contract_catches_an_upward_import(tmp_path):
     # the same kind of contract on a two-room package whose lower room imports the upper one
     pkg = tmp_path / "house"
@@ -90,3 +95,9 @@ def test_the_private_name_check_finds_one(tmp_path):
     (pkg / "high" / "a.py").write_text("from ..low.b import _hidden, __version__, shown\nfrom .c import _ok\n")
     hits = private_names_across_rooms(pkg / "high" / "a.py", pkg)
     assert len(hits) == 1 and hits[0].endswith("house.low.b._hidden")
+
+
+@pytest.mark.skipif(not RUFF.exists(), reason="ruff is not installed (make installs it)")
+def test_ruff_finds_nothing():
+    res = subprocess.run([str(RUFF), "check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-2000:]

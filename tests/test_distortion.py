@@ -157,7 +157,8 @@ def test_distort_image_moves_a_blob_to_the_model_place(true_model):
     for want in true_model.distort(ideal):
         cu, cv = np.round(want).astype(int)
         w = out[cv - 8:cv + 9, cu - 8:cu + 9]
-        got = np.array([(w * u[cv - 8:cv + 9, cu - 8:cu + 9]).sum(), (w * v[cv - 8:cv + 9, cu - 8:cu + 9]).sum()]) / w.sum()
+        got = np.array([(w * u[cv - 8:cv + 9, cu - 8:cu + 9]).sum(),
+                        (w * v[cv - 8:cv + 9, cu - 8:cu + 9]).sum()]) / w.sum()
         assert np.hypot(*(got - want)) < 0.03
 
 

@@ -122,6 +122,11 @@ def test_connector_pin_axes_on_the_template_grid(preset, profile):
         assert any(f.distance_to_line(q, np.array([0.0, 0.0, 1.0])) < 1e-9 for f in taps)
 
 
+def radii(shape) -> list[float]:
+    """The distinct cylinder radii of ``shape``'s faces, to 1e-9 mm."""
+    return sorted({round(f.radius, 9) for f in cylindrical_faces(shape)})
+
+
 @pytest.mark.parametrize("preset", PRESETS)
 def test_profiles_change_hole_sizes_exactly_as_stated(preset):
     d = design_of(preset)
@@ -131,7 +136,6 @@ def test_profiles_change_hole_sizes_exactly_as_stated(preset):
     # same layout (feature geometry), different cut sizes
     assert np.array_equal([h.center for h in mc.layout.holes], [h.center for h in mf.layout.holes])
     assert (mc.layout.width, mc.layout.base_height) == (mf.layout.width, mf.layout.base_height)
-    radii = lambda s: sorted({round(f.radius, 9) for f in cylindrical_faces(s)})
     fdm_cfg = d.manufacturing.fdm
     cnc_cfg = d.manufacturing.cnc
     assert ms.isValid() and mfs.isValid()

@@ -385,7 +385,8 @@ def test_radiograph_cli_writes_images_and_truth(tmp_path, features_json):
     out2 = tmp_path / "rg2"
     assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out2),
                  "--no-noise", "--image-size", "256", "256", "--format", "npy"]) == 0
-    assert (out2 / "img_0000.npy").exists() and read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
+    assert (out2 / "img_0000.npy").exists()
+    assert read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
     # a background file in line-integral units (a quantised PNG with its rescale) is added in the log domain
     bg = np.full((256, 256), 0.5)
     write_image(tmp_path / "bg.png", bg, value_range=(0.0, 1.0))

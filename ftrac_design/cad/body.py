@@ -219,9 +219,10 @@ def build_body(plan: BodyPlan, strategy: str = "staged") -> cq.Solid:
 
     ``staged`` (default) cuts the ellipse grooves first, then the line grooves and pockets
     together: the swept (B-spline) groove walls meet the plane walls of the line grooves in
-    the second boolean only where they really cross, which is faster than one
-    boolean with every tool (1.2–1.3× on the 2-core machine; ``benchmarks/build_time.py``). ``single`` (one boolean) and ``sequential`` (one tool at a
-    time) are kept for the benchmark; all three give the same solid.
+    the second boolean only where they really cross, which is faster than one boolean with
+    every tool (1.2–1.3× on the 2-core machine; ``benchmarks/build_time.py``). ``single`` (one
+    boolean) and ``sequential`` (one tool at a time) are kept for the benchmark; all three give
+    the same solid.
     """
     zx = plan.half_length + plan.outer_radius
     ell = [ellipse_groove_tool(g, zx) for g in plan.ellipse_grooves]

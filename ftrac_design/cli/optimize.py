@@ -56,8 +56,8 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
 def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
             scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
-            verify_poses: int | None, solver_images: int | None, check_images: int | None, min_clearance_px: float | None, min_ellipse_view_deg: float | None,
-            no_build: bool,
+            verify_poses: int | None, solver_images: int | None, check_images: int | None,
+            min_clearance_px: float | None, min_ellipse_view_deg: float | None, no_build: bool,
             print_space: bool) -> int:
     """Optimise DESIGN.toml's layout under the design rules.
 

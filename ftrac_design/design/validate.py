@@ -91,7 +91,7 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
 
 def _feature_errors(design: Design) -> list[tuple[str, str]]:
     errs: list[tuple[str, str]] = []
-    R, L2, rb = design.outer_radius, design.half_length, design.bore_radius
+    L2, rb = design.half_length, design.bore_radius
 
     if (design.ellipses or design.lines) and design.wire is None:
         errs.append(("wire", "a [wire] table is required when the design has ellipses or lines"))

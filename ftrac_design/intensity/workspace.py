@@ -75,7 +75,8 @@ class ImagingAnalysis:
     def to_dict(self) -> dict[str, Any]:
         """The analysis.json ``imaging`` block."""
         def stats(a: np.ndarray) -> dict:
-            return {k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist())) for k, q in (("p50", 50), ("p95", 95))}
+            return {k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist()))
+                    for k, q in (("p50", 50), ("p95", 95))}
 
         im = self.imaging.to_dict()
         return {
@@ -131,7 +132,8 @@ def imaging_analysis(features: Features, workspace: Workspace = Workspace(), ima
     R, t = R[keep], t[keep]
     F = total_information(layout, camera, R, t, noise)
     feat = np.sqrt(np.diagonal(np.linalg.inv(F), axis1=1, axis2=2))
-    name = None if body is None else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm"
+    name = (None if body is None
+            else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm")
     return ImagingAnalysis(imaging, segmentation_error_mm, R, t, _deg_mm(np.array(img_std)), _deg_mm(feat),
                            np.array(npix), name, seed)
 
