@@ -31,7 +31,13 @@ import time
 from _common import load, machine
 
 from ftrac_design.analysis import (
-    AnalysisSettings, analyse_poses, blind_spot_atlas, feature_layout, pose_metrics, score_design, total_information,
+    AnalysisSettings,
+    analyse_poses,
+    blind_spot_atlas,
+    feature_layout,
+    pose_metrics,
+    score_design,
+    total_information,
 )
 from ftrac_design.analysis.sampling import workspace_poses
 from ftrac_design.pose import Camera

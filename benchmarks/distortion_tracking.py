@@ -21,8 +21,10 @@ Measured (30 poses, this project's 2-core VM; rotation error RMS in degrees, dep
 
 | distortion | ideal | distorted, uncorrected | undistort image | map points |
 | --- | --- | --- | --- | --- |
-| 2 mm + 3 px (4.5 px radial, 3 px along the circle at 100 mm) | 30/30, 0.025°, 0.083 | 30/30, 0.26°, 3.7 | 30/30, 0.036°, 0.12 | 30/30, 0.039°, 0.18 |
+| 2 mm + 3 px | 30/30, 0.025°, 0.083 | 30/30, 0.26°, 3.7 | 30/30, 0.036°, 0.12 | 30/30, 0.039°, 0.18 |
 | 6 mm + 8 px | 30/30, 0.025°, 0.083 | 11/30, 0.41°, 8.5 | 30/30, 0.043°, 0.16 | 11/30, 0.14°, 0.19 |
+
+(2 mm + 3 px is 4.5 px radial and 3 px along the circle at 100 mm.)
 
 With the distortion simulated by an exact resampling (a quintic spline instead of
 ``distort_image``'s bilinear cv2.remap, which itself biases bead centres by up to ~0.02 px)
@@ -76,7 +78,8 @@ def main() -> None:
     features, body = compute_features(design), Body.from_design(design)
     camera, imaging = Camera(), ImagingModel()
     shape = imaging.image_shape
-    model = combine(radial(shape, (args.k_mm, 100.0), PIXEL_MM), s_distortion(shape, args.s_px, radius_px=100 / PIXEL_MM))
+    model = combine(radial(shape, (args.k_mm, 100.0), PIXEL_MM),
+                    s_distortion(shape, args.s_px, radius_px=100 / PIXEL_MM))
     Rs, ts = Workspace().sample(args.n, features.nominal_beam_direction, np.random.default_rng(11))
     quiet = ImagingModel(photons_per_px=None)
     rows: dict[str, list] = {k: [] for k in ("ideal", "distorted", "undistort image", "map points")}

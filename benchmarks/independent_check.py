@@ -134,7 +134,8 @@ def show(label: str, r: dict, render_times: list[float]) -> None:
     n = r["n"]
     print(f"\n{label}: {n} images — tracked (≤ {WRONG_DEG:g}°, ≤ {WRONG_MM:g} mm) {r['right']} "
           f"({100 * r['right'] / max(n, 1):.0f} %); CONFIDENT WRONG {len(r['wrong'])}"
-          f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; not converged {r['not_converged']} {r['reasons'] or ''}")
+          f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; "
+          f"not converged {r['not_converged']} {r['reasons'] or ''}")
     print("                        " + "  ".join(f"{a:>8s}" for a in AXES) + "   (° and mm, camera axes)")
     print("  RMS error (tracked) : " + "  ".join(f"{x:8.4f}" for x in r["rms"]))
     rt = f"{np.median(render_times):.2f} s" if render_times else "none (reused)"

@@ -73,8 +73,9 @@ def main(mode: str, n: int, first: int = 0) -> None:
     za = np.array(za)
     m = len(za)
     print(f"\nftrac_2005, images {first}–{first + m - 1} of the {SAMPLE}-image sample, "
-          f"{'default (spline) refinement vs the same run to its exact minimum' if mode == 'stopping' else 'plain refinement'}; "
-          f"machine: {machine()} (shared with other jobs)")
+          + ("default (spline) refinement vs the same run to its exact minimum" if mode == "stopping"
+             else "plain refinement")
+          + f"; machine: {machine()} (shared with other jobs)")
     if mode == "noisefree":
         print("noise-free images: error / pixel bound at the default dose")
         print(f"{'axis':6s} {'RMS z':>8s} {'mean z':>8s} {'max |z|':>8s}")

@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import ast
 import pickle
-import time
 from pathlib import Path
 
 import numpy as np
@@ -109,7 +108,8 @@ def main():
                   " ".join(f"{x:+6.2f}" for x in zi) + f"  {res.background_model:8s} it {res.iterations:2d} "
                   f"{1e3 * c:5.0f} ms {res.message}")
     e, lo, hi = efficiency(z_i)
-    print(f"{a.name}{' + anatomy' if a.anatomy else ''}, {len(data)} feature-path starts, options {opts}; models {models}")
+    print(f"{a.name}{' + anatomy' if a.anatomy else ''}, {len(data)} feature-path starts, options {opts}; "
+          f"models {models}")
     print("  efficiency, intensity: " + " ".join(f"{x:5.2f}" for x in e) + "  (95 %: "
           + " ".join(f"{x:.2f}–{y:.2f}" for x, y in zip(lo, hi)) + ")")
     print("  RMS z, intensity     : " + " ".join(f"{x:5.2f}" for x in np.sqrt(np.mean(np.square(z_i), 0))))

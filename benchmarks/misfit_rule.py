@@ -84,7 +84,8 @@ def main(n: int = 300, scrambled_only: bool = False) -> None:
             k = np.array([p.noise_scale for p in ps])
             pv = np.array([p.residual_p_value for p in ps])
             ok = np.mean([p.converged for p in ps])
-            print(f"{preset:11s} {label:34s} {ok:7.1%} {np.nanmax(k):9.2f} {np.nanmin(pv):8.1g} {np.mean(pv < 1e-12):8.1%}")
+            print(f"{preset:11s} {label:34s} {ok:7.1%} {np.nanmax(k):9.2f} {np.nanmin(pv):8.1g} "
+                  f"{np.mean(pv < 1e-12):8.1%}")
     print()
     print(f"{'preset':11s} {'scramble':12s} {'images':>6s} {'converged':>9s} {'without rule':>12s}  refused by")
     for preset in PRESETS:

@@ -16,7 +16,8 @@ ratio to the reference's (the optimiser's objective is a p95) — again over the
 designs got right, with a bootstrap 95 % interval (poses resampled in pairs): a p95 over a
 few hundred images is uncertain by about ±10 %.
 
-    .venv/bin/python benchmarks/optimize_images.py models/ftrac_mini.toml models/ftrac_mini_opt.toml models/ftrac_mini_stock.toml --n 300
+    .venv/bin/python benchmarks/optimize_images.py --n 300 \\
+        models/ftrac_mini.toml models/ftrac_mini_opt.toml models/ftrac_mini_stock.toml
 """
 
 from __future__ import annotations

@@ -33,9 +33,9 @@ import tomllib
 import numpy as np
 from _common import ROOT, machine
 
+from ftrac_design.analysis.score import AnalysisSettings
 from ftrac_design.optimize import EvalSettings, default_space, evaluate_candidate
 from ftrac_design.optimize.execution import SerialExecutor, local_pool
-from ftrac_design.analysis.score import AnalysisSettings
 
 
 def _noop(i: int) -> int:
@@ -108,7 +108,7 @@ def main() -> None:
     rows = [dict(base, speedup=1.0, overhead_ms=0.0)]
     for w in args.workers:
         with local_pool(w) as pool:
-            rows.append(measure(f"local processes", pool, w, cands, settings, args.rounds, c0, ref))
+            rows.append(measure("local processes", pool, w, cands, settings, args.rounds, c0, ref))
     from distributed import Client, LocalCluster
 
     nw = max(args.workers)

@@ -21,7 +21,7 @@ import sys
 import numpy as np
 from _common import load, machine
 
-from ftrac_design.pose import Camera, SolverOptions, refine_pose, solve_batch, so3
+from ftrac_design.pose import Camera, SolverOptions, refine_pose, so3, solve_batch
 from ftrac_design.pose.simulate import PAPER_CALIBRATION_ERROR, Workspace, pose_errors, simulate_observation
 
 PAPER = {  # translation (mm), rotation (deg), failures (%) — paper Table I

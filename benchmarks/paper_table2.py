@@ -22,8 +22,13 @@ import numpy as np
 from _common import load, machine
 
 from ftrac_design.pose import Camera, NoiseModel, SolverOptions, solve_batch
-from ftrac_design.pose.simulate import PAPER_CALIBRATION_ERROR, ContourSampling, Workspace, pose_errors, \
-    simulate_observation
+from ftrac_design.pose.simulate import (
+    PAPER_CALIBRATION_ERROR,
+    ContourSampling,
+    Workspace,
+    pose_errors,
+    simulate_observation,
+)
 
 PAPER = {  # e: (tx, ty, tz mm, rx, ry, rz deg) — paper Table II
     0.0: (0.18, 0.19, 0.75, 0.02, 0.02, 0.01),

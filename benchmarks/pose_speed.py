@@ -17,10 +17,16 @@ import numpy as np
 from _common import load, machine
 from scipy.optimize import least_squares
 
-from ftrac_design.pose import Camera, compile_problem, evaluate, solve_batch, solve_pose, so3
+from ftrac_design.pose import Camera, compile_problem, evaluate, so3, solve_batch, solve_pose
 from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
-from ftrac_design.pose.solver import SolverOptions, _finish_all, dlt_start, levenberg_marquardt, parameter_scale, \
-    refine_on_beads
+from ftrac_design.pose.solver import (
+    SolverOptions,
+    _finish_all,
+    dlt_start,
+    levenberg_marquardt,
+    parameter_scale,
+    refine_on_beads,
+)
 
 N_SINGLE = 300
 N_BATCH = 1000
@@ -62,11 +68,16 @@ def main() -> None:
               "checks + covariance": []}
     for o in obs[:N_SINGLE]:
         marks = [time.perf_counter()]
-        prob = compile_problem(features, [o]); marks.append(time.perf_counter())
-        R0, t0_ = dlt_start(prob); marks.append(time.perf_counter())
-        R0, t0_ = refine_on_beads(prob, R0, t0_, h); marks.append(time.perf_counter())
-        st = levenberg_marquardt(prob, R0, t0_, h, opts.max_iterations, eager=True); marks.append(time.perf_counter())
-        _finish_all(prob, st, h, opts, 1); marks.append(time.perf_counter())
+        prob = compile_problem(features, [o])
+        marks.append(time.perf_counter())
+        R0, t0_ = dlt_start(prob)
+        marks.append(time.perf_counter())
+        R0, t0_ = refine_on_beads(prob, R0, t0_, h)
+        marks.append(time.perf_counter())
+        st = levenberg_marquardt(prob, R0, t0_, h, opts.max_iterations, eager=True)
+        marks.append(time.perf_counter())
+        _finish_all(prob, st, h, opts, 1)
+        marks.append(time.perf_counter())
         for k, a, b in zip(phases, marks[:-1], marks[1:]):
             phases[k].append((b - a) * 1e3)
 

@@ -76,7 +76,8 @@ def main() -> None:
     print("why: a 0.3 mm wire emulated across a pixel (1-D), spread of Σ(1 − I) with")
     for sub in (4, 8, 64):
         e, m = partial_volume(0.3, sub)
-        print(f"  {sub:>2} sub-samples: exp of the pixel's mean line integral {e:.1%}, pixel's mean transmission {m:.1%}")
+        print(f"  {sub:>2} sub-samples: exp of the pixel's mean line integral {e:.1%}, "
+              f"pixel's mean transmission {m:.1%}")
     for d in (0.8, 1.0, 1.2):
         f = _features(points=[PointFeature("B1", np.zeros(3), d)])
         a4, a8 = sweep(f, 4), sweep(f, 8)

@@ -17,11 +17,12 @@ paper's defaults (segmentation 0.25 mm, focal ±2 mm, principal point 0.5 mm, pi
   "10 µm could lead to a 5 mm shift near the boundary of the image").
 
 Reported per level: mean 3-D translation error |Δt| (mm), its depth part |Δt_z|, mean rotation
-error angle (deg), images without a pose / with a pose the solver flagged (scored anyway). The paper gives its curves only in words: 7a "1 pixel
-(0.4 mm) segmentation … indicates a 0.8 mm translation and 0.1° rotation error"; 7b "a 5 mm
-error in focal length leads to under a 2 mm pose recovery error … orientation always under
-0.1°"; 7c "a 5 mm origin error leads to under a 2 mm translation error and 0.2° orientation
-error"; 7d "orientation error less than 0.5°", translation "sensitive but linear".
+error angle (deg), images without a pose / with a pose the solver flagged (scored anyway).
+The paper gives its curves only in words: 7a "1 pixel (0.4 mm) segmentation … indicates a
+0.8 mm translation and 0.1° rotation error"; 7b "a 5 mm error in focal length leads to under
+a 2 mm pose recovery error … orientation always under 0.1°"; 7c "a 5 mm origin error leads to
+under a 2 mm translation error and 0.2° orientation error"; 7d "orientation error less than
+0.5°", translation "sensitive but linear".
 
 Two further rows per calibration error (paper §V: "inaccurate imaging parameters might still
 provide an accurate reconstruction"):
@@ -49,7 +50,6 @@ from _common import load, machine, save_plot
 from _recon_common import CAM, PAPER, draw_camera, seeds, solve_images
 from tqdm import tqdm
 
-from ftrac_design.pose import so3
 from ftrac_design.pose.simulate import Workspace, cone_directions, pose_errors, rotations_from_beams
 from ftrac_design.reconstruct import Views, triangulate
 from ftrac_design.reconstruct import intrinsics as ik
@@ -147,7 +147,8 @@ def joint_rows(features, trials, rng, images=5):
     for focal in (0.0, 5.0):
         est_err, tz_before, tz_after, refused = [], [], [], 0
         for _ in tqdm(range(trials), desc=f"joint f, {focal:g} mm", leave=False):
-            beams = cone_directions(features.nominal_beam_direction, np.arccos(rng.uniform(np.cos(np.radians(20)), 1, images)),
+            beams = cone_directions(features.nominal_beam_direction,
+                                    np.arccos(rng.uniform(np.cos(np.radians(20)), 1, images)),
                                     rng.uniform(0, 2 * np.pi, images))
             R = rotations_from_beams(beams, rng.uniform(0, 2 * np.pi, images))
             t = np.column_stack([rng.uniform(-25, 25, (images, 2)), rng.uniform(642, 692, images)])
@@ -201,10 +202,11 @@ def main(scale: float = 1.0) -> None:
     R, t = Workspace().sample(2000, features.nominal_beam_direction, np.random.default_rng(0))
     print("\nCramér–Rao bound of f (σ, mm at 0.44 mm pixels; median over 2,000 workspace poses, 0.25 mm segmentation):")
     for params in (("f",), ("f", "ox", "oy")):
-        sd = [float(np.median(ik.crb(features, CAM, R, t, params=params, images=m).std[:, 0]) * 0.44) for m in (1, 5, 20)]
+        sd = [float(np.median(ik.crb(features, CAM, R, t, params=params, images=m).std[:, 0]) * 0.44)
+              for m in (1, 5, 20)]
         cz = float(np.median(np.abs(ik.crb(features, CAM, R, t, params=params).corr_tz[:, 0])))
-        print(f"  free {','.join(params):8s}: 1 image {sd[0]:.1f} mm, 5 images {sd[1]:.1f} mm, 20 images {sd[2]:.1f} mm; "
-              f"|corr(f, tz)| {cz:.4f}")
+        print(f"  free {','.join(params):8s}: 1 image {sd[0]:.1f} mm, 5 images {sd[1]:.1f} mm, "
+              f"20 images {sd[2]:.1f} mm; |corr(f, tz)| {cz:.4f}")
     print(f"\ntotal {time.time() - t0:.0f} s")
     plot(results, joint)
 
@@ -249,7 +251,7 @@ def plot(results, joint) -> None:
             continue
         ax.plot(x, r[:, 5], "o-", label="seeds 15 cm away")
         ax.plot(x, r[:, 6], "s-", label="the nine beads")
-        ax.set_title(f"3-D reconstruction, 2 views 20° apart")
+        ax.set_title("3-D reconstruction, 2 views 20° apart")
         ax.set_xlabel(labels[name])
         ax.set_ylabel("mean 3-D error (mm)")
         ax.set_ylim(bottom=0)

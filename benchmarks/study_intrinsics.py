@@ -79,7 +79,8 @@ def main(trials: int = 40) -> None:
         b = bounds(f, e, 500)
         rms, sd, n = joint(f, e, trials, rng)
         rows.append((e, b["f"], b["f"] / np.sqrt(5), rms, sd))
-        print(f"{e:13.2f} {b['f']:15.1f} mm {b['f'] / np.sqrt(5):12.1f} mm {rms:16.2f} mm {sd:8.2f} mm  ({n} estimated)")
+        print(f"{e:13.2f} {b['f']:15.1f} mm {b['f'] / np.sqrt(5):12.1f} mm {rms:16.2f} mm {sd:8.2f} mm  "
+              f"({n} estimated)")
     need = [(e, b1 / np.sqrt(5)) for e, b1, *_ in rows]
     print("σ_f scales with the segmentation error: an estimate better than the paper's ±2 mm focal tolerance "
           f"(σ 1.15 mm) from 5 images needs e ≲ {0.25 * 1.15 / need[0][1]:.3f} mm")

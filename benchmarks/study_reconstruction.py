@@ -32,7 +32,6 @@ import time
 import numpy as np
 from _common import load, machine, save_plot
 from _recon_common import CAM, PAPER, draw_camera, seeds, solve_images
-from tqdm import tqdm
 
 from ftrac_design.pose.simulate import Workspace, rotations_from_beams, segmentation_noise
 from ftrac_design.reconstruct import Views, triangulate
@@ -97,7 +96,8 @@ def orthogonal_poses(features, rng, n, beams_deg):
         b = np.array([c * nominal[0] - s * nominal[1], s * nominal[0] + c * nominal[1], nominal[2]])
         out.append(rotations_from_beams(np.repeat(b[None], n, 0), rng.uniform(0, 2 * np.pi, n)))
     R = np.stack(out, 1)
-    t = np.concatenate([rng.uniform(-25, 25, (n, len(beams_deg), 2)), rng.uniform(642, 692, (n, len(beams_deg), 1))], -1)
+    t = np.concatenate([rng.uniform(-25, 25, (n, len(beams_deg), 2)),
+                        rng.uniform(642, 692, (n, len(beams_deg), 1))], -1)
     return R, t
 
 
@@ -151,7 +151,8 @@ def plot(rows) -> None:
 
     fig, ax = plt.subplots(figsize=(10, 4.2))
     x = np.arange(len(rows))
-    ax.bar(x - 0.2, [r[1][0] for r in rows], 0.4, yerr=[r[1][1] for r in rows], label="ours: the nine beads (mean ± STD)")
+    ax.bar(x - 0.2, [r[1][0] for r in rows], 0.4, yerr=[r[1][1] for r in rows],
+           label="ours: the nine beads (mean ± STD)")
     ax.bar(x + 0.2, [r[2][0] for r in rows], 0.4, yerr=[r[2][1] for r in rows], label="ours: seeds 15 cm away")
     ax.plot(x - 0.2, [r[3] for r in rows], "k_", ms=20,
             label="propagated σ (√trace Σ_P), beads")

@@ -120,15 +120,15 @@ def main(reps: int = 200) -> None:
               f"{'shared by the trial (one C-arm)' if shared else 'drawn per image'}:\n{head}"
               f" | 3-D mm  3-D ° | unsolved/flagged")
         for trial, n, tm, rm, tn, rn, bad in rows:
-            print(f"{trial:5d} {n:6d} | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    | {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}  "
-                  f" | {tn.mean():6.2f} {rn.mean():6.2f} | {bad}")
+            print(f"{trial:5d} {n:6d} | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    "
+                  f"| {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}   | {tn.mean():6.2f} {rn.mean():6.2f} | {bad}")
         tn = np.concatenate([r[4] for r in rows])
         rn = np.concatenate([r[5] for r in rows])
         tm = np.mean([r[2] for r in rows], 0)
         rm = np.mean([r[3] for r in rows], 0)
         print(f" mean        | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    | {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}")
-        print(f"overall: translation {tn.mean():.2f} mm (STD {tn.std():.2f}), rotation {rn.mean():.2f}° (STD {rn.std():.2f}); "
-              f"{len(tn)} relative motions")
+        print(f"overall: translation {tn.mean():.2f} mm (STD {tn.std():.2f}), "
+              f"rotation {rn.mean():.2f}° (STD {rn.std():.2f}); {len(tn)} relative motions")
     print(f"\ntotal {time.time() - t_start:.0f} s")
     plot(out)
 

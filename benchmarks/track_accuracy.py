@@ -217,11 +217,12 @@ def show(label, r):
         print("  efficiency, feature path     : " + "  ".join(f"{x:8.4f}" for x in e_f))
         print("    95 % interval              : " + " ".join(f"{a:.2g}–{b:.2g}".rjust(9) for a, b in zip(lo_f, hi_f)))
         zq_i, zq_f = np.array(it["zq_int"]), np.array(it["zq_feat"])
-        print("  RMS error / quadratic bound  : intensity " + " ".join(f"{x:.2f}" for x in np.sqrt(np.mean(zq_i ** 2, 0)))
+        print("  RMS error / quadratic bound  : intensity "
+              + " ".join(f"{x:.2f}" for x in np.sqrt(np.mean(zq_i ** 2, 0)))
               + "; features " + " ".join(f"{x:.1f}" for x in np.sqrt(np.mean(zq_f ** 2, 0))))
         cpu = 1e3 * np.array(it["cpu"])
-        print(f"  refinement CPU time per image: median {np.median(cpu):.0f} ms, max {cpu.max():.0f} ms (target ≤ 1 s); "
-              f"ended above its start's objective: {it['worse']}")
+        print(f"  refinement CPU time per image: median {np.median(cpu):.0f} ms, max {cpu.max():.0f} ms "
+              f"(target ≤ 1 s); ended above its start's objective: {it['worse']}")
 
 
 def main():
@@ -256,8 +257,8 @@ def main():
         n = a.n_sweep
         print(f"\nSweeps (ftrac_2005, {n} images each; where it breaks):")
         for dose in (300, 1e3, 3e3, 1e5):
-            show(f"photons/px {dose:g}", run("ftrac_2005", n, a.seed + 1, False, imaging=ImagingModel(photons_per_px=dose),
-                                             label=f"dose {dose:g}"))
+            show(f"photons/px {dose:g}", run("ftrac_2005", n, a.seed + 1, False,
+                                             imaging=ImagingModel(photons_per_px=dose), label=f"dose {dose:g}"))
         for blur in (1.2, 2.0, 3.0):
             show(f"detector blur σ {blur} px", run("ftrac_2005", n, a.seed + 2, False,
                                                    imaging=ImagingModel(detector_blur_px=blur), label=f"blur {blur}"))

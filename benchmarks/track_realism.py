@@ -41,7 +41,7 @@ from tqdm import tqdm
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
-from ftrac_design.images.distortion import combine, radial, s_distortion, undistort_image, distort_image
+from ftrac_design.images.distortion import combine, distort_image, radial, s_distortion, undistort_image
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment import TrackOptions, track_image

@@ -93,11 +93,12 @@ def main():
     # images with rival labellings to solve cost several times the others: say so
     best = 1000 * per_image.min(0)
     print(f"  image → pose, CPU per image (best round each): mean {best.mean():.0f} ms, median "
-          f"{np.median(best):.0f} ms, p90 {np.percentile(best, 90):.0f} ms, max {best.max():.0f} ms (target: mean ≤ 100 ms)")
+          f"{np.median(best):.0f} ms, p90 {np.percentile(best, 90):.0f} ms, max {best.max():.0f} ms "
+          f"(target: mean ≤ 100 ms)")
     print(f"    {', '.join(f'{v:.0f}' + ('*' if w else '') for v, w in zip(best, whole))}"
           + (" (* searched again on the whole image)" if whole.any() else ""))
-    print(f"  baseline: skimage canny + hough_line on the 1024² image {1000 * t_line:.0f} ms (lines only, no sub-pixel, "
-          f"no identification)")
+    print(f"  baseline: skimage canny + hough_line on the 1024² image {1000 * t_line:.0f} ms "
+          f"(lines only, no sub-pixel, no identification)")
     if not a.no_hough_ellipse:
         print(f"  baseline: skimage canny + hough_ellipse on a 96² crop around an ellipse: {1000 * t_ell:.0f} ms "
               f"({int(ce.sum())} edge pixels; one ellipse, no identification)")

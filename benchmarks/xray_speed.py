@@ -34,7 +34,8 @@ from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.xray import Body, ImagingModel, anatomy, line_integral_box, render
 from ftrac_design.xray.geometry import cylinder_z_chord, sphere_chord, tube_chord
-from ftrac_design.xray.render import _feature_pieces, _Rays, _subsamples, blur_sigma_px
+from ftrac_design.xray.rays import Rays, feature_pieces, subsample_offsets
+from ftrac_design.xray.render import blur_sigma_px
 
 N_POSES = 20
 N_BASELINE = 3
@@ -44,11 +45,11 @@ ROUNDS = 3
 def baseline_render(features, R, t, cam, imaging, body, rng):
     """The straightforward simulator (see module): same physics, no footprints or fast paths."""
     H, W = imaging.image_shape
-    rays = _Rays(cam, R, t)
+    rays = Rays(cam, R, t)
     s = 4
-    ou, ov = _subsamples(s)
+    ou, ov = subsample_offsets(s)
     p = np.zeros((H, W))
-    centers, radii, pieces = _feature_pieces(features, imaging.mu("steel"))
+    centers, radii, pieces = feature_pieces(features, imaging.mu("steel"))
 
     def box_of(P, pad):
         X = P @ R.T + t

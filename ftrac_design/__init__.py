@@ -5,7 +5,8 @@ source of truth) → ``cad`` (CadQuery parts), ``pose`` (single-image solver) an
 ``analysis`` (Jacobian conditioning). ``pose`` and ``analysis`` never import CadQuery.
 """
 
-from importlib.metadata import PackageNotFoundError, version as _version
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as _version
 
 try:
     __version__ = _version("ftrac_design")

@@ -15,7 +15,8 @@ from pathlib import Path
 from typing import Any
 
 #: the repository's models/ folder (the package is installed in editable mode by make)
-MODELS = Path(__file__).resolve().parents[1] / "models"
+from .design.presets import PRESETS_DIR as MODELS
+
 DEFAULT_DESIGN = MODELS / "ftrac_2005.toml"
 
 
@@ -63,11 +64,12 @@ def format_build(summary: dict[str, Any]) -> str:
     lines.append(f"  wire {summary['wire_length_mm']:.1f} mm in total, {summary['beads']} beads; "
                  f"STL volume {summary['stl_volume_vs_brep']:+.3%} vs the exact solid")
     r = summary["rules"]
-    lines.append(f"  design rules ({summary['profile']}): {len(r['results'])} checked, {len(r['violations'])} violated, "
-                 f"{len(r['warnings'])} warning(s)" + "".join(f"\n    warn: {w}" for w in r["warnings"]))
+    lines.append(f"  design rules ({summary['profile']}): {len(r['results'])} checked, "
+                 f"{len(r['violations'])} violated, {len(r['warnings'])} warning(s)"
+                 + "".join(f"\n    warn: {w}" for w in r["warnings"]))
     t = summary["timings_s"]
-    lines.append("  time: " + ", ".join(f"{k} {t[k]:.1f} s" for k in ("body", "export_body", "export_assembly", "render")
-                                        if k in t))
+    lines.append("  time: " + ", ".join(f"{k} {t[k]:.1f} s"
+                                        for k in ("body", "export_body", "export_assembly", "render") if k in t))
     return "\n".join(lines)
 
 
@@ -143,8 +145,10 @@ def format_solve(s: dict[str, Any]) -> str:
              f"{s['starts']} start(s), {s['iterations']} iterations, RMS {s['rms_residual_px']:.3f} px",
              f"  translation (mm, x y z)  truth    {v3(s['true_t_mm'], '{:9.3f}')}",
              f"                           estimate {v3(s['est_t_mm'], '{:9.3f}')}",
-             f"                           error    {v3(s['t_err_mm'], '{:9.3f}')}   (1σ {v3(s['t_sd_mm'], '{:.3f}')})",
-             f"  rotation error (deg)              {v3(s['rot_err_deg'], '{:9.3f}')}   (1σ {v3(s['rot_sd_deg'], '{:.3f}')})",
+             f"                           error    {v3(s['t_err_mm'], '{:9.3f}')}   "
+             f"(1σ {v3(s['t_sd_mm'], '{:.3f}')})",
+             f"  rotation error (deg)              {v3(s['rot_err_deg'], '{:9.3f}')}   "
+             f"(1σ {v3(s['rot_sd_deg'], '{:.3f}')})",
              "  wrote " + ", ".join(s["files"])]
     return "\n".join(lines)
 
@@ -158,11 +162,11 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     import numpy as np
 
     from .features import load_features
+    from .images import read_image
     from .pose import Camera
     from .pose.simulate import pose_errors
     from .segment.overlay import draw_overlay
     from .segment.pipeline import track_image
-    from .images import read_image
     from .xray.truth import read_truth
 
     image_dir = Path(image_dir)
@@ -176,7 +180,8 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     t0 = time.perf_counter()
     res = track_image(image, features, camera, polarity_hint=meta.get("polarity_hint"))
     ms = (time.perf_counter() - t0) * 1e3
-    png = draw_overlay(image_dir / "track_overlay.png", image, features, res, title="ftrac_2005: radiograph.png tracked")
+    png = draw_overlay(image_dir / "track_overlay.png", image, features, res,
+                       title="ftrac_2005: radiograph.png tracked")
     p = res.pose
     lines = [f"track: radiograph.png -> pose with no initial guess in {ms:.0f} ms: "
              + ("converged" if p.converged else f"NOT converged ({p.error})")]
@@ -184,7 +189,8 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     if np.all(np.isfinite(p.rotation)):
         dr, dt = pose_errors(p.rotation, p.translation_mm, R, t)
         e, s = p.translation_mm, p.std_mm
-        lines.append(f"  estimate  t = ({e[0]:8.3f}, {e[1]:8.3f}, {e[2]:8.3f}) mm   (1σ {s[0]:.3f}, {s[1]:.3f}, {s[2]:.3f})")
+        lines.append(f"  estimate  t = ({e[0]:8.3f}, {e[1]:8.3f}, {e[2]:8.3f}) mm   "
+                     f"(1σ {s[0]:.3f}, {s[1]:.3f}, {s[2]:.3f})")
         lines.append(f"  error     translation ({dt[0]:+.3f}, {dt[1]:+.3f}, {dt[2]:+.3f}) mm, "
                      f"rotation {np.degrees(np.linalg.norm(dr)):.3f}°")
     lines.append(f"  overlay: {_relative(png)}")

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of presets for every test)
 from scipy.integrate import quad
 from scipy.spatial import cKDTree
 
@@ -24,8 +25,6 @@ from ftrac_design.design import load_design
 from ftrac_design.design.schema import Design
 from ftrac_design.features import compute_features
 from ftrac_design.features.model import Features
-
-from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of presets for every test)
 
 PROFILES = ("cnc", "fdm")
 
@@ -204,7 +203,6 @@ def probe_epsilon(cuts: CutSizes) -> float:
 
 def _cut_regions(design: Design, f: Features, cuts: CutSizes) -> list[_Cut]:
     """Every cut as a region in closed form, from the features (independent of the CAD)."""
-    R, w, p = design.outer_radius, cuts.groove_width, cuts.pocket_diameter / 2
     out = []
     for e in f.ellipses:
         s = np.linspace(0, 2 * np.pi, 7201, endpoint=False)
@@ -241,7 +239,8 @@ def _in_cut(q: np.ndarray, c: _Cut, R: float, w: float, p: float, m: float) -> b
     return d @ N[k] >= -rw - m and abs(d @ B[k]) <= w / 2 + m
 
 
-def probes(design: Design, f: Features, cuts: CutSizes, n_ellipse: int = 96, n_line: int = 40) -> tuple[list[Probe], int]:
+def probes(design: Design, f: Features, cuts: CutSizes, n_ellipse: int = 96,
+           n_line: int = 40) -> tuple[list[Probe], int]:
     """Probe points at every feature, and how many in-material probes were skipped because
     they fall within another feature's cut (crossings, pockets on a line).
 

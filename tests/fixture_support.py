@@ -11,7 +11,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-
 from cad_support import MODELS, PRESETS, PROFILES, ROOT, design_of  # noqa: F401  (re-exported to the tests)
 
 TMP = Path(tempfile.mkdtemp(prefix="ftrac-fixture-tests-"))

@@ -7,21 +7,31 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MODELS, PRESETS
 
 from ftrac_design.analysis import (
-    AnalysisSettings, Thresholds, analyse_poses, blind_spot_atlas, feature_information, feature_layout, pose_metrics,
-    score_design, total_information,
+    AnalysisSettings,
+    Thresholds,
+    analyse_poses,
+    blind_spot_atlas,
+    feature_information,
+    feature_layout,
+    pose_metrics,
+    score_design,
+    total_information,
 )
 from ftrac_design.analysis.sampling import isocentre_poses, workspace_poses
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera, NoiseModel, SolverOptions, evaluate, solve_batch
 from ftrac_design.pose.simulate import (
-    Workspace, pose_errors, rotations_from_beams, simulate_observation, synthetic_problem,
+    Workspace,
+    pose_errors,
+    rotations_from_beams,
+    simulate_observation,
+    synthetic_problem,
 )
 from ftrac_design.pose.solver import parameter_scale
-
-from conftest import MODELS, PRESETS
 
 
 @pytest.fixture(scope="module")

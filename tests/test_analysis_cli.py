@@ -8,13 +8,12 @@ import subprocess
 import sys
 
 import pytest
+from conftest import MODELS
 
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.features.io import write_features
-
-from conftest import MODELS
 
 FAST = ["--poses", "500", "--atlas-step-deg", "10"]
 

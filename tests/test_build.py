@@ -7,9 +7,9 @@ import csv
 import json
 from pathlib import Path
 
+import cad_support as S
 import pytest
 
-import cad_support as S
 from ftrac_design.cad.build import OUTPUT_FILES
 from ftrac_design.cad.profiles import cut_sizes
 from ftrac_design.cli.main import main

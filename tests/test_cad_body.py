@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import math
 
+import cad_support as S
 import numpy as np
 import pytest
-
-import cad_support as S
 
 pytestmark = pytest.mark.xdist_group("cad")
 

@@ -10,10 +10,9 @@ every 5° and at 24 points per line, for every preset and both profiles.
 
 from __future__ import annotations
 
+import cad_support as S
 import numpy as np
 import pytest
-
-import cad_support as S
 
 pytestmark = pytest.mark.xdist_group("cad")
 

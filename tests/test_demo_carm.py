@@ -17,8 +17,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ftrac_design.demo_carm import (CAMERA, SHAPE, CarmDemoSettings, c_arm_orbit, demo_step, format_errors,
-                                    pose_report, read_jsonl)
+from ftrac_design.demo_carm import (
+    CAMERA,
+    SHAPE,
+    CarmDemoSettings,
+    c_arm_orbit,
+    demo_step,
+    format_errors,
+    pose_report,
+    read_jsonl,
+)
 from ftrac_design.features import compute_features, write_features
 from ftrac_design.images import frame_count, read_frames
 from ftrac_design.pose.simulate import pose_errors

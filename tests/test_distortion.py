@@ -10,8 +10,16 @@ import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.errors import InputError
-from ftrac_design.images.distortion import (DistortionModel, combine, distort_image, radial, read_distortion,
-                                            s_distortion, undistort_image, write_distortion)
+from ftrac_design.images.distortion import (
+    DistortionModel,
+    combine,
+    distort_image,
+    radial,
+    read_distortion,
+    s_distortion,
+    undistort_image,
+    write_distortion,
+)
 from ftrac_design.segment.gridcal import estimate_distortion
 from ftrac_design.segment.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.xray import write_image
@@ -149,7 +157,8 @@ def test_distort_image_moves_a_blob_to_the_model_place(true_model):
     for want in true_model.distort(ideal):
         cu, cv = np.round(want).astype(int)
         w = out[cv - 8:cv + 9, cu - 8:cu + 9]
-        got = np.array([(w * u[cv - 8:cv + 9, cu - 8:cu + 9]).sum(), (w * v[cv - 8:cv + 9, cu - 8:cu + 9]).sum()]) / w.sum()
+        got = np.array([(w * u[cv - 8:cv + 9, cu - 8:cu + 9]).sum(),
+                        (w * v[cv - 8:cv + 9, cu - 8:cu + 9]).sum()]) / w.sum()
         assert np.hypot(*(got - want)) < 0.03
 
 

@@ -7,11 +7,10 @@ import math
 
 import numpy as np
 import pytest
+from conftest import MODELS, PRESETS
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features, features_to_dict, load_features, write_features
-
-from conftest import MODELS, PRESETS
 
 
 @pytest.fixture(scope="module", params=PRESETS)

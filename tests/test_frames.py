@@ -9,11 +9,16 @@ import math
 
 import numpy as np
 import pytest
-
 from fixture_support import PRESETS, TMP, assembly_parts, design_of, inside
+
 from ftrac_design.features import compute_features, features_from_dict, features_to_dict
-from ftrac_design.features.mounting import (connector_layout, mount_from_fiducial, mount_layout,
-                                            template_from_fiducial, template_from_mount, transform_points)
+from ftrac_design.features.mounting import (
+    connector_layout,
+    mount_layout,
+    template_from_fiducial,
+    template_from_mount,
+    transform_points,
+)
 
 pytestmark = pytest.mark.xdist_group("cad")
 
@@ -47,6 +52,7 @@ def test_template_orientation(side):
     import tomllib
 
     from fixture_support import MODELS
+
     from ftrac_design.design import parse_design
 
     data = tomllib.loads((MODELS / "ftrac_2005.toml").read_text())
@@ -82,10 +88,10 @@ def assembly(request):
     """An assembly STEP of a stand-in body (blank cylinder, with its key slot if keyed),
     mount, connector and pins, built only through fixture_parts / add_to_assembly, re-imported."""
     import cadquery as cq
+    from test_rules import with_param
 
     from ftrac_design.cad.fixture import add_to_assembly, fixture_parts
     from ftrac_design.cad.mount import key_slot_tool
-    from test_rules import with_param
 
     name, _, variant = request.param.partition("+")
     if variant == "key":

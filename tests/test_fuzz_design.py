@@ -12,10 +12,10 @@ from __future__ import annotations
 import json
 import tomllib
 
+from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 from hypothesis import assume, given
 from hypothesis import strategies as st
 
-from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 from ftrac_design.design.loader import parse_design
 from ftrac_design.errors import InputError
 

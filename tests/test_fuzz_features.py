@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import json
 
+from fuzz_support import PRESETS, assert_clean, cases, mutated, run_cli, scratch
 from hypothesis import given
 from hypothesis import strategies as st
-
-from fuzz_support import PRESETS, assert_clean, cases, mutated, run_cli, scratch
-from ftrac_design.features import features_to_dict
 from test_fuzz_observation import BASE, FEATURES
+
+from ftrac_design.features import features_to_dict
 
 DOCS = {p: json.loads(json.dumps(features_to_dict(f))) for p, f in FEATURES.items()}
 

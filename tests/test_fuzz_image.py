@@ -16,10 +16,9 @@ import struct
 import zlib
 
 import numpy as np
+from fuzz_support import assert_clean, cases, run_cli, scratch
 from hypothesis import given
 from hypothesis import strategies as st
-
-from fuzz_support import assert_clean, cases, run_cli, scratch
 from test_fuzz_observation import CAMERA, FEATURE_FILES
 
 DTYPES = ["uint8", "uint16", "int16", "int32", "int64", "float32", "float64", "bool", "complex64", "float16"]

@@ -17,14 +17,14 @@ import warnings
 
 import numpy as np
 import pytest
+from fuzz_support import cases, scratch
 from hypothesis import given
 from hypothesis import strategies as st
-
-from fuzz_support import cases, scratch
-from ftrac_design.errors import InputError
-from ftrac_design.images import frame_count, read_frames, write_dicom
 from images_support import CAM
 from test_fuzz_image import _dicom_bytes, _npy_bytes, _png_bytes, _tiff_bytes
+
+from ftrac_design.errors import InputError
+from ftrac_design.images import frame_count, read_frames, write_dicom
 
 LIES = [("Rows", 65535), ("Columns", 3), ("NumberOfFrames", 1000000), ("NumberOfFrames", 7), ("BitsStored", 40),
         ("BitsAllocated", 12), ("HighBit", 3), ("PixelRepresentation", 5), ("SamplesPerPixel", 3),

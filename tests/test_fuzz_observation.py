@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fuzz_support import EDGE_FLOATS, MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_support import MODELS, PRESETS, EDGE_FLOATS, assert_clean, cases, mutated, run_cli, scratch
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features, write_features
 from ftrac_design.pose import Camera, SolverOptions, observation_from_dict, solve_pose

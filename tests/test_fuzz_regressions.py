@@ -9,12 +9,11 @@ import math
 
 import numpy as np
 import pytest
-
 from fuzz_support import assert_clean, run_cli, scratch
-from ftrac_design.errors import InputError
-from ftrac_design.pose import observation_from_dict, solve_pose
-from ftrac_design.pose import so3
 from test_fuzz_observation import BASE, FEATURE_FILES, FEATURES
+
+from ftrac_design.errors import InputError
+from ftrac_design.pose import observation_from_dict, so3, solve_pose
 
 
 def _solve_cli(doc: dict, preset: str = "ftrac_2005"):
@@ -278,8 +277,9 @@ def test_every_truncation_of_a_dicom_header_is_an_input_error():
     InputError naming the file, and `track` exits 2."""
     import warnings
 
-    from ftrac_design.images import read_image
     from test_fuzz_image import _dicom_bytes
+
+    from ftrac_design.images import read_image
 
     data = _dicom_bytes(np.zeros((48, 64)))
     with scratch() as tmp, warnings.catch_warnings():

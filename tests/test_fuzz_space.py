@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import tomllib
 
+from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 from hypothesis import assume, given
 from hypothesis import strategies as st
-
-from fuzz_support import MODELS, PRESETS, assert_clean, cases, mutated, run_cli, scratch, to_toml
 
 
 def _default_space(preset: str) -> dict:
@@ -78,7 +77,7 @@ def test_fuzz_space_tiny_run(case):
         assume(check.code == 0)  # invalid spaces are the test above's
         out = tmp / "opt"
         run = run_cli(["optimize", MODELS / f"{preset}.toml", "--space", space, "-o", out, "--evaluations", "1",
-                       "--workers", "0", "--poses", "100", "--verify-poses", "100", "--solver-images", "0", "--check-images", "0",
-                       "--no-build"])
+                       "--workers", "0", "--poses", "100", "--verify-poses", "100", "--solver-images", "0",
+                       "--check-images", "0", "--no-build"])
         assert_clean(run, [space], tmp)
         assert run.code in (0, 1), run.describe()

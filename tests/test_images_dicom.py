@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import pydicom
 import pytest
+from images_support import CAM, stored
 
 from ftrac_design.errors import InputError
 from ftrac_design.images import frame_count, read_frame, read_frames, write_dicom
 from ftrac_design.pose import Camera
-from images_support import CAM, stored
 
 
 def _one(path, **kw):
@@ -101,7 +101,8 @@ def test_frame_time_and_frame_time_vector_give_times(tmp_path):
     assert [x.index for x in f] == [0, 1, 2, 3] and all(np.array_equal(x.pixels, a[i]) for i, x in enumerate(f))
     f = list(read_frames(write_dicom(tmp_path / "v.dcm", a, CAM, frame_time_vector_ms=[0, 30, 50, 20])))
     assert [x.time_s for x in f] == pytest.approx([0.0, 0.03, 0.08, 0.10])
-    f = list(read_frames(write_dicom(tmp_path / "e.dcm", a, CAM, kind="enhanced-xa", frame_time_vector_ms=[0, 30, 50, 20])))
+    f = list(read_frames(write_dicom(tmp_path / "e.dcm", a, CAM, kind="enhanced-xa",
+                                     frame_time_vector_ms=[0, 30, 50, 20])))
     assert [x.time_s for x in f] == pytest.approx([0.0, 0.03, 0.08, 0.10])      # Frame Content DateTimes
     assert [x.time_s for x in read_frames(write_dicom(tmp_path / "n.dcm", a, CAM))] == [None] * 4
     assert frame_count(tmp_path / "t.dcm") == 4
@@ -133,7 +134,8 @@ def test_a_missing_codec_names_the_transfer_syntax_and_the_package(tmp_path, mon
 
 
 def test_missing_geometry_names_the_tags_and_the_ways_out(tmp_path):
-    p = write_dicom(tmp_path / "a.dcm", stored(), CAM, kind="xa", omit=("DistanceSourceToDetector", "ImagerPixelSpacing"))
+    p = write_dicom(tmp_path / "a.dcm", stored(), CAM, kind="xa",
+                    omit=("DistanceSourceToDetector", "ImagerPixelSpacing"))
     with pytest.raises(InputError, match=r"DistanceSourceToDetector \(0018,1110\), ImagerPixelSpacing \(0018,1164\).*"
                                          r"--camera C\.json.*fiducial"):
         list(read_frames(p))
@@ -150,7 +152,8 @@ def test_pixel_spacing_and_its_calibration_type(tmp_path, kind):
     a = stored()
     # no calibration type: taken as the detector pitch
     f = _one(write_dicom(tmp_path / "a.dcm", a, CAM, kind=kind, pixel_spacing_only=True, calibration=None))
-    assert f.camera.pixel_size_mm == pytest.approx(CAM.pixel_size_mm) and "PixelSpacing" in f.camera_source["pixel_size"]
+    assert (f.camera.pixel_size_mm == pytest.approx(CAM.pixel_size_mm)
+            and "PixelSpacing" in f.camera_source["pixel_size"])
     # calibrated to the object plane: × the magnification factor back to the detector
     f = _one(write_dicom(tmp_path / "b.dcm", a, CAM, kind=kind, pixel_spacing_only=True, calibration="GEOMETRY",
                          magnification=1.5))

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import pydicom
 import pytest
+from images_support import CAM, stored
 
 from ftrac_design.errors import InputError
 from ftrac_design.images import frame_count, read_frames, write_dicom
-from images_support import CAM, stored
 
 
 def _file(tmp_path, **kw):

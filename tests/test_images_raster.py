@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import tifffile
+from images_support import CAM
 from PIL import Image
 
 from ftrac_design.errors import InputError
 from ftrac_design.images import frame_count, read_frame, read_frames, read_image, write_image
-from images_support import CAM
 
 REC709 = np.array([0.2126, 0.7152, 0.0722])
 
@@ -145,7 +145,8 @@ def test_float_images_are_quantised_with_their_map_applied_on_reading(tmp_path):
 def test_the_old_names_in_xray_still_work(tmp_path):
     """``ftrac-design track`` still imports the reader and the note's camera parser from xray."""
     from ftrac_design.xray import read_image as old_read_image
-    from ftrac_design.xray.imagefiles import _camera_from_dict, write_image as old_write_image
+    from ftrac_design.xray.imagefiles import _camera_from_dict
+    from ftrac_design.xray.imagefiles import write_image as old_write_image
 
     p = old_write_image(tmp_path / "a.png", np.zeros((6, 8), np.uint8), CAM)
     img, cam, meta = old_read_image(p)

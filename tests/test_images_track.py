@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fuzz_support import MODELS
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
@@ -15,7 +16,6 @@ from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import render
 from ftrac_design.xray.scene import body_from_design_file
-from fuzz_support import MODELS
 
 
 @pytest.mark.parametrize("rotation,flip", [(0, False), (90, True)])

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from ftrac_design.features.model import Features, PointFeature
+from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
-from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.xray import Body, ImagingModel, render
 
 BODY = Body(30.0, 50.0, 20.0)
@@ -20,7 +20,8 @@ def test_bead_jacobian_matches_the_closed_form():
     """Point-sampled, unblurred bead: L = μ 2√(r² − m²), m the ray's distance from the centre P;
     ∂L/∂P = −2μ P⊥ / √(r² − m²) (P⊥ the part of P across the ray); ∂P/∂δ = δ × (P − t), ∂P/∂t = I."""
     r = 1.0
-    f = Features("b", None, None, np.array([0, -1.0, 0]), points=(PointFeature("B", np.array([3.0, -2.0, 4.0]), 2 * r),))
+    f = Features("b", None, None, np.array([0, -1.0, 0]),
+                 points=(PointFeature("B", np.array([3.0, -2.0, 4.0]), 2 * r),))
     cam = Camera(1000.0, (0.44, 0.44), (64.0, 64.0))
     im = ImagingModel(image_shape=(128, 128), photons_per_px=None, supersample=1, focal_spot_mm=0.0,
                       detector_blur_px=0.0, single_precision=False)

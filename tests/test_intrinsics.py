@@ -51,7 +51,8 @@ def test_information_rows_vs_finite_differences(features_2005):
             fd[:, :, j] = (q(CAM.intrinsics + d, layout.X) - q(CAM.intrinsics - d, layout.X)) / (2 * h)
         uvrow = np.tile([0, 1], layout.n_points)
         assert np.allclose(rows[b, :P2], w * fd[np.arange(P2), uvrow], rtol=1e-6, atol=1e-9)
-        tan = q(CAM.intrinsics, layout.X[P2:] + 1e-4 * layout.T[P2:]) - q(CAM.intrinsics, layout.X[P2:] - 1e-4 * layout.T[P2:])
+        tan = (q(CAM.intrinsics, layout.X[P2:] + 1e-4 * layout.T[P2:])
+               - q(CAM.intrinsics, layout.X[P2:] - 1e-4 * layout.T[P2:]))
         nrm = np.stack([-tan[:, 1], tan[:, 0]], -1) / np.linalg.norm(tan, axis=-1, keepdims=True)
         expect = w * np.einsum("ni,nij->nj", nrm, fd[P2:])
         assert np.allclose(rows[b, P2:], expect, rtol=1e-5, atol=1e-8)
@@ -138,8 +139,8 @@ def test_cli_solve_estimate_intrinsics(tmp_path, features_2005, capsys):
     write_features(tmp_path / "f.json", features_2005)
     obs, _, _ = images(features_2005, 3, camera_used=CAM.perturbed(3.0, (0, 0), (2.0, 1.0)))
     (tmp_path / "obs.jsonl").write_text("".join(json.dumps(o.to_dict()) + "\n" for o in obs))
-    args = ["solve", "--features", str(tmp_path / "f.json"), str(tmp_path / "obs.jsonl"), "-o", str(tmp_path / "p.jsonl"),
-            "--estimate-intrinsics", "f,o"]
+    args = ["solve", "--features", str(tmp_path / "f.json"), str(tmp_path / "obs.jsonl"),
+            "-o", str(tmp_path / "p.jsonl"), "--estimate-intrinsics", "f,o"]
     assert main(args + ["--segmentation-error-mm", "1e-5"]) == 0
     lines = [json.loads(s) for s in (tmp_path / "p.jsonl").read_text().splitlines()]
     assert len(lines) == 3 and all(d["camera"]["focal_length_mm"] == pytest.approx(1000.0, abs=1e-6) for d in lines)

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ftrac_design.features.model import Features, LineFeature, PointFeature
+from ftrac_design.features.model import Features, PointFeature
 from ftrac_design.pose.camera import Camera
 from ftrac_design.xray.localization import bead_sigma_mm, size_error_factors, wire_sigma_mm
 from ftrac_design.xray.model import ImagingModel

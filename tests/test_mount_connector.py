@@ -8,12 +8,21 @@ import math
 
 import numpy as np
 import pytest
+from fixture_support import (
+    PRESETS,
+    PROFILES,
+    TMP,
+    connector_part,
+    cylindrical_faces,
+    design_of,
+    inside,
+    mount_part,
+    step_round_trip,
+    stl_mesh,
+)
 
-from fixture_support import (PRESETS, PROFILES, TMP, connector_part, cylindrical_faces, design_of, inside,
-                             mount_part, step_round_trip, stl_mesh)
 from ftrac_design.cad.profiles import cut_sizes
-from ftrac_design.features.mounting import (connector_layout, mount_layout, template_from_mount,
-                                            transform_points)
+from ftrac_design.features.mounting import connector_layout, mount_layout, template_from_mount, transform_points
 
 pytestmark = pytest.mark.xdist_group("cad")
 
@@ -113,6 +122,11 @@ def test_connector_pin_axes_on_the_template_grid(preset, profile):
         assert any(f.distance_to_line(q, np.array([0.0, 0.0, 1.0])) < 1e-9 for f in taps)
 
 
+def radii(shape) -> list[float]:
+    """The distinct cylinder radii of ``shape``'s faces, to 1e-9 mm."""
+    return sorted({round(f.radius, 9) for f in cylindrical_faces(shape)})
+
+
 @pytest.mark.parametrize("preset", PRESETS)
 def test_profiles_change_hole_sizes_exactly_as_stated(preset):
     d = design_of(preset)
@@ -122,7 +136,6 @@ def test_profiles_change_hole_sizes_exactly_as_stated(preset):
     # same layout (feature geometry), different cut sizes
     assert np.array_equal([h.center for h in mc.layout.holes], [h.center for h in mf.layout.holes])
     assert (mc.layout.width, mc.layout.base_height) == (mf.layout.width, mf.layout.base_height)
-    radii = lambda s: sorted({round(f.radius, 9) for f in cylindrical_faces(s)})
     fdm_cfg = d.manufacturing.fdm
     cnc_cfg = d.manufacturing.cnc
     assert ms.isValid() and mfs.isValid()
@@ -144,9 +157,9 @@ def test_profiles_change_hole_sizes_exactly_as_stated(preset):
 @pytest.mark.parametrize("preset", PRESETS)
 def test_mount_key_and_body_slot(preset):
     import cadquery as cq
+    from test_rules import with_param
 
     from ftrac_design.cad.mount import MountPart, key_slot_tool
-    from test_rules import with_param
 
     assert design_of(preset).mount.key_height == 0 and key_slot_tool(design_of(preset)) is None
     d = with_param(preset, "mount.key_height", 1.0)

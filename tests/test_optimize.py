@@ -14,7 +14,7 @@ from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
-from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, optimize, parse_space, run_search
+from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, parse_space, run_search
 from ftrac_design.optimize.execution import SerialExecutor, local_pool, open_executor
 from ftrac_design.optimize.search import objective_values
 from ftrac_design.optimize.space import apply_values, place_beads

@@ -5,7 +5,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import pytest
 
 from ftrac_design.pose import so3
 from ftrac_design.pose.fitting import conic_center_and_axes, conic_from_coefficients, conic_vector, fit_conic, fit_line

@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftrac_design.pose import Camera, compile_problem, evaluate
-from ftrac_design.pose import so3
+from ftrac_design.pose import Camera, compile_problem, evaluate, so3
 from ftrac_design.pose.simulate import Workspace, simulate_observation
 
 EPS = 1e-6

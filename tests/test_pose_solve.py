@@ -5,8 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftrac_design.pose import Camera, NoiseModel, SolverOptions, refine_pose, solve_batch, solve_pose
-from ftrac_design.pose import so3
+from ftrac_design.pose import Camera, NoiseModel, SolverOptions, refine_pose, so3, solve_batch, solve_pose
 from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
 
 ALL_BEADS = {f"B{i}" for i in range(1, 10)}

@@ -12,11 +12,27 @@ import pytest
 
 from ftrac_design.errors import InputError
 from ftrac_design.pose.camera import Camera
-from ftrac_design.xray.display import (Detector, Display, Shutter, apply_chain, apply_gamma, n0_for_counts,
-                                       round_field, unsharp_mask, window_level)
+from ftrac_design.xray.display import (
+    Detector,
+    Display,
+    Shutter,
+    apply_chain,
+    apply_gamma,
+    n0_for_counts,
+    round_field,
+    unsharp_mask,
+    window_level,
+)
 from ftrac_design.xray.materials import linear_attenuation, mass_attenuation
-from ftrac_design.xray.patient import (Placement, clips, patient, patient_model, render_patient,
-                                       seed_line_integral_sum, seeds)
+from ftrac_design.xray.patient import (
+    Placement,
+    clips,
+    patient,
+    patient_model,
+    render_patient,
+    seed_line_integral_sum,
+    seeds,
+)
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 from ftrac_design.xray.solids import Canal, Column, Tube, capsule_chord, capsule_volume
 from ftrac_design.xray.truth import projected_features

@@ -11,8 +11,13 @@ import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.features import write_features
-from ftrac_design.features.mounting import (mount_from_fiducial, mount_layout, template_from_fiducial,
-                                            template_from_mount, transform_points)
+from ftrac_design.features.mounting import (
+    mount_from_fiducial,
+    mount_layout,
+    template_from_fiducial,
+    template_from_mount,
+    transform_points,
+)
 from ftrac_design.pose import Camera, so3
 from ftrac_design.pose.simulate import cone_directions, rotations_from_beams
 from ftrac_design.reconstruct import Views, triangulate
@@ -239,13 +244,14 @@ def test_cli_malformed_files_exit_2_with_one_line(files, capsys, what, key):
     if what == "points_bad_json":
         pts[1] = pts[1][:-3]
     elif what == "points_not_uv":
-        d = json.loads(pts[0]); d["B1"] = [1.0]; pts[0] = json.dumps(d)
+        pts[0] = json.dumps({**json.loads(pts[0]), "B1": [1.0]})
     elif what == "points_count":
         pts = pts[:2]
     elif what == "pose_no_rotation":
-        d = json.loads(poses[1]); del d["rotation"]; d["converged"] = True; poses[1] = json.dumps(d)
+        d = {k: v for k, v in json.loads(poses[1]).items() if k != "rotation"}
+        poses[1] = json.dumps({**d, "converged": True})
     elif what == "pose_bad_cov":
-        d = json.loads(poses[0]); d["covariance"] = [[1.0] * 5] * 6; poses[0] = json.dumps(d)
+        poses[0] = json.dumps({**json.loads(poses[0]), "covariance": [[1.0] * 5] * 6})
     elif what == "transform_not_rigid":
         (tmp / "tu.json").write_text(json.dumps((2 * np.eye(4)).tolist()))
         extra = ["--transform", str(tmp / "tu.json")]

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from fuzz_support import assert_clean, run_cli
+
 from ftrac_design.report import SECTIONS, demo_step
 from ftrac_design.report.browser import dump_dom, find_chromium, screenshot
 
@@ -212,10 +212,9 @@ def _linked_copy(src: Path, dst: Path) -> None:
             os.link(p, q)
 
 
+from fuzz_support import cases, mutated, scratch  # noqa: E402
 from hypothesis import given  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
-
-from fuzz_support import cases, mutated, scratch  # noqa: E402
 
 
 @cases("report")

@@ -164,7 +164,8 @@ def test_check_json(tmp_path, capsys):
     # ftrac_mini with the end balls of L2 back at the paper's +-6.4 mm: 0.9 mm from the ellipse wires
     bad = tmp_path / "mini_long_l2.toml"
     bad.write_text((MODELS / "ftrac_mini.toml").read_text().replace(
-        "z_start = -5.0\nz_end = 5.0\nbeads_z = [-5.0, -0.8, 5.0]", "z_start = -6.4\nz_end = 6.4\nbeads_z = [-6.4, -0.8, 6.4]"))
+        "z_start = -5.0\nz_end = 5.0\nbeads_z = [-5.0, -0.8, 5.0]",
+        "z_start = -6.4\nz_end = 6.4\nbeads_z = [-6.4, -0.8, 6.4]"))
     rc = main(["check", str(bad), "--profile", "fdm", "--json"])
     out, _ = capsys.readouterr()
     assert rc == 1
@@ -192,7 +193,8 @@ def test_check_default_profile_is_cnc(capsys):
     ("[connector]\nsource_side = \"left\"", "connector.source_side", "posterior"),
     ("[connector]\npocket_depth = 20.0", "connector.pocket_depth", "less than thickness"),
     ("[mount]\nsocket_depth = 3.0\nkey_height = 2.9", "mount.key_height", "inside the socket"),
-    ("[mount]\nsocket_depth = 3.0\nkey_height = 1.0\nkey_width = 30.0", "mount.key_width", "narrower than the cylinder"),
+    ("[mount]\nsocket_depth = 3.0\nkey_height = 1.0\nkey_width = 30.0", "mount.key_width",
+     "narrower than the cylinder"),
     ("[mount]\nsocket_depth = 3.0\nwidth = 25.0", "mount.width", "wider than the socket"),
 ])
 def test_bad_mount_and_connector_keys(tmp_path, capsys, extra, key, expected):

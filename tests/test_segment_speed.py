@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from ftrac_design.pose.fitting import fit_conic, fit_line
-from ftrac_design.segment.noise import cached_fit
 from ftrac_design.segment.beads import blob_candidates
 from ftrac_design.segment.image import gaussian_kernels
+from ftrac_design.segment.noise import cached_fit
 
 
 def _blob_candidates_dense(img, radius_px, noise, max_count, min_snr):

@@ -8,8 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from ftrac_design.analysis.segmentability import (ClearanceSettings, image_clearance, pair_clearances,
-                                                  stretch_distance)
+from ftrac_design.analysis.segmentability import ClearanceSettings, image_clearance, pair_clearances, stretch_distance
 from ftrac_design.features.model import EllipseFeature, Features, LineFeature, PointFeature
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import rotations_from_beams
@@ -225,9 +224,9 @@ def test_analyze_reports_segmentability_and_its_threshold_fails_the_design(tmp_p
 def test_min_clearance_threshold_and_the_design_file_table(tmp_path, capsys):
     import json
 
-    from ftrac_design.cli.main import main
-
     from conftest import MODELS
+
+    from ftrac_design.cli.main import main
 
     design = tmp_path / "mini.toml"
     design.write_text((MODELS / "ftrac_mini.toml").read_text() + "max_overlap_share = 0.9\nmin_clearance_px = -10.0\n")
@@ -246,9 +245,9 @@ def test_min_clearance_threshold_and_the_design_file_table(tmp_path, capsys):
 def test_compare_shows_segmentability(tmp_path, capsys):
     import json
 
-    from ftrac_design.cli.main import main
-
     from conftest import MODELS
+
+    from ftrac_design.cli.main import main
 
     out = tmp_path / "c.png"
     assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "200",

@@ -60,6 +60,7 @@ def test_track_recovers_ftrac_2005_pose_no_initial_guess(f2005, seed):
 def _even_helix():
     """nine_bead's layout before it was graded (40° and 4.5 mm steps): a two-fold axis."""
     import tomllib
+
     from ftrac_design.design.loader import parse_design
     data = tomllib.loads((ROOT / "models" / "nine_bead.toml").read_text())
     data["beads"] = [{"azimuth_deg": 10.0 + 40.0 * k, "z": -18.0 + 4.5 * k} for k in range(9)]
@@ -98,8 +99,9 @@ def test_nine_bead_graded_helix_is_tracked():
 def test_scrambled_image_is_not_a_confident_pose(f2005):
     """Beads moved off their wires (a different, wrong fiducial) must not give a converged pose."""
     features, body = f2005
-    from ftrac_design.features.model import PointFeature
     from dataclasses import replace
+
+    from ftrac_design.features.model import PointFeature
     rng = np.random.default_rng(4)
     moved = tuple(PointFeature(p.id, p.center + np.r_[rng.uniform(-3, 3, 2), 0.0], p.diameter, p.line)
                   for p in features.points)

@@ -19,17 +19,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fuzz_support import MODELS
+from test_fuzz_observation import FEATURE_FILES, FEATURES
 
 from ftrac_design.cli.main import main
-from ftrac_design.images import distort_image, write_distortion, write_dicom, write_image
+from ftrac_design.images import distort_image, write_dicom, write_distortion, write_image
 from ftrac_design.images.distortion import radial
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.workflows import track_run
 from ftrac_design.xray import ImagingModel, render
 from ftrac_design.xray.scene import body_from_design_file
-from fuzz_support import MODELS
-from test_fuzz_observation import FEATURE_FILES, FEATURES
 
 SHAPE = (384, 384)
 #: the principal point where DICOM intake puts it without a tag: the image centre

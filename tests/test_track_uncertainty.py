@@ -6,7 +6,6 @@ searched again on the whole image."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
@@ -14,11 +13,10 @@ from ftrac_design.pose import Camera, Pose
 from ftrac_design.pose.observation import Observation
 from ftrac_design.pose.problem import compile_problem, evaluate
 from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.segment import TrackOptions, TrackResult, track_image
 from ftrac_design.segment.detection import scales
 from ftrac_design.segment.region import resolvable_beads, view_limited
-from ftrac_design.segment import TrackOptions, TrackResult, track_image
 from ftrac_design.xray import render
-
 
 #: the simulator's camera is a pinhole: no unmodelled distortion in the covariance
 PINHOLE = TrackOptions(distortion_prior_mm=0.0)

@@ -10,8 +10,16 @@ import numpy as np
 import pytest
 
 from ftrac_design.cad.profiles import PROFILES, cut_sizes
-from ftrac_design.cad.unwrap import (CSV_COLUMNS, LAYERS, STEP_DEG, chord_error, read_grooves_csv,
-                                     unwrap_features, write_grooves_csv, write_grooves_dxf)
+from ftrac_design.cad.unwrap import (
+    CSV_COLUMNS,
+    LAYERS,
+    STEP_DEG,
+    chord_error,
+    read_grooves_csv,
+    unwrap_features,
+    write_grooves_csv,
+    write_grooves_dxf,
+)
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 

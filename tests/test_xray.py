@@ -12,13 +12,13 @@ from ftrac_design.cli.main import main
 from ftrac_design.errors import InputError
 from ftrac_design.features import write_features
 from ftrac_design.features.model import EllipseFeature, Features, LineFeature, PointFeature
+from ftrac_design.images import read_image, write_image
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.images import read_image, write_image
 from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, line_integral_box, read_truth, render, write_truth
 from ftrac_design.xray.geometry import body_chord_uv, cylinder_z_chord, ellipse_pieces, tube_chord, tube_chord_uv
 from ftrac_design.xray.materials import linear_attenuation
-from ftrac_design.xray.render import _Rays
+from ftrac_design.xray.rays import Rays
 
 SMALL = ImagingModel(image_shape=(256, 256), photons_per_px=None)
 CAM_SMALL = Camera(1000.0, (0.44, 0.44), (128.0, 128.0))
@@ -85,7 +85,7 @@ def test_fast_chords_equal_the_reference_forms():
     R = _rot_y(20.0) @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float)
     t = np.array([3.0, -4.0, 660.0])
     cam = Camera()
-    rays = _Rays(cam, R, t)
+    rays = Rays(cam, R, t)
     pieces = ellipse_pieces(EllipseFeature("E", np.array([0, 0, 3.0]), np.array([1.0, 0, 0]), np.array([0, 0.8, 0.6]),
                                            17.0, 15.0, 0.5), MU_STEEL, 0)
     rng = np.random.default_rng(0)
@@ -385,7 +385,8 @@ def test_radiograph_cli_writes_images_and_truth(tmp_path, features_json):
     out2 = tmp_path / "rg2"
     assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out2),
                  "--no-noise", "--image-size", "256", "256", "--format", "npy"]) == 0
-    assert (out2 / "img_0000.npy").exists() and read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
+    assert (out2 / "img_0000.npy").exists()
+    assert read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
     # a background file in line-integral units (a quantised PNG with its rescale) is added in the log domain
     bg = np.full((256, 256), 0.5)
     write_image(tmp_path / "bg.png", bg, value_range=(0.0, 1.0))

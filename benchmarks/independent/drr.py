@@ -1,12 +1,12 @@
 """Perspective DRR: basis-material line integrals of a voxel volume, by ray marching.
 
-Each ray from the source is clipped to the volume's x and y extent and sampled every ``step_mm`` with
-trilinear interpolation of both basis densities (numba, parallel over rays); the sums times
-the step are the line integrals ∫ρ dl in g/cm². Beyond the volume's ends in z the first and
-last slices continue unchanged, so the body does not stop inside the field of view. The C-arm geometry is the SPEC §1 pinhole:
-a ray through detector point (u, v) runs along ``R_pxᵀ [(u − o_x) s_x, (v − o_y) s_y, f]``
-from the source ``−R_pxᵀ t_px`` in the volume's frame, where (R_px, t_px) maps the volume's
-frame into the camera's.
+Each ray from the source is clipped to the volume's x and y extent and sampled every
+``step_mm`` with trilinear interpolation of both basis densities (numba, parallel over rays);
+the sums times the step are the line integrals ∫ρ dl in g/cm². Beyond the volume's ends in z
+the first and last slices continue unchanged, so the body does not stop inside the field of
+view. The C-arm geometry is the SPEC §1 pinhole: a ray through detector point (u, v) runs
+along ``R_pxᵀ [(u − o_x) s_x, (v − o_y) s_y, f]`` from the source ``−R_pxᵀ t_px`` in the
+volume's frame, where (R_px, t_px) maps the volume's frame into the camera's.
 """
 
 from __future__ import annotations

@@ -95,8 +95,8 @@ def cached_build(preset: str) -> Path:
     Returns
     -------
     pathlib.Path
-        ``outputs/independent_cache/<name>/<sha256[:16]>/`` (or under ``$FTRAC_INDEPENDENT_CACHE``) holding ``fiducial.stl`` and
-        ``features.json``.
+        ``outputs/independent_cache/<name>/<sha256[:16]>/`` (or under ``$FTRAC_INDEPENDENT_CACHE``)
+        holding ``fiducial.stl`` and ``features.json``.
     """
     design = design_path(preset)
     sha = hashlib.sha256(design.read_bytes()).hexdigest()

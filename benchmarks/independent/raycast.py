@@ -72,8 +72,11 @@ def _object_crossings(mesh, origins, dirs, rng):
         out_s.append(sign[good])
         todo = todo[bad]
         d = _turn(dirs[todo], rng, 1e-6 * 10 ** attempt)
-    cat = (lambda x, dt: np.concatenate(x) if x else np.zeros(0, dt))
-    return cat(out_r, np.int64), cat(out_t, float), cat(out_s, np.int8), todo
+    return _cat(out_r, np.int64), _cat(out_t, float), _cat(out_s, np.int8), todo
+
+
+def _cat(parts: list[np.ndarray], dtype) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(0, dtype)
 
 
 def _pair(ray, t, sign, n_rays: int):

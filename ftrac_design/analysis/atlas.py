@@ -7,10 +7,11 @@ toward ``+z``; drawn in a Mollweide projection) and the workspace cone around th
 beam (drawn as a polar map). The worst directions are where the design's scaled Jacobian
 comes closest to losing rank (the largest condition number; for a design that cannot fix
 all six DOF, such as a lone ellipse, the smallest σ_r/σ₁ with r its attainable rank), at
-least ``separation_deg`` apart; for each the features that have gone blind there are named — those whose own rank ratio (σ_rank/σ₁ of the feature alone)
-has fallen below a quarter of its median over the sphere, with their view angle: an ellipse
-seen edge-on (the paper's §II.A.2 singularity) or face-on and centred (a tilt then changes
-its image only to second order), or a line seen end-on.
+least ``separation_deg`` apart; for each the features that have gone blind there are named —
+those whose own rank ratio (σ_rank/σ₁ of the feature alone) has fallen below a quarter of its
+median over the sphere, with their view angle: an ellipse seen edge-on (the paper's §II.A.2
+singularity) or face-on and centred (a tilt then changes its image only to second order), or a
+line seen end-on.
 """
 
 from __future__ import annotations

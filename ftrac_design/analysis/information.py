@@ -73,18 +73,24 @@ def feature_layout(features: Features, contour: ContourSampling = ContourSamplin
     ids, kinds, X, T, owner = [], [], [], [], []
     for p in sorted(features.points, key=lambda f: f.id):
         owner += [len(ids)] * 2
-        ids.append(p.id); kinds.append("point")
-        X.append(np.stack([p.center, p.center])); T.append(np.zeros((2, 3)))
+        ids.append(p.id)
+        kinds.append("point")
+        X.append(np.stack([p.center, p.center]))
+        T.append(np.zeros((2, 3)))
     s = np.linspace(0.0, 1.0, contour.line)
     for ln in sorted(features.lines, key=lambda f: f.id):
         owner += [len(ids)] * contour.line
-        ids.append(ln.id); kinds.append("line")
-        X.append(ln.sample(s)); T.append(np.broadcast_to(ln.direction, (contour.line, 3)))
+        ids.append(ln.id)
+        kinds.append("line")
+        X.append(ln.sample(s))
+        T.append(np.broadcast_to(ln.direction, (contour.line, 3)))
     s = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
     for el in sorted(features.ellipses, key=lambda f: f.id):
         owner += [len(ids)] * contour.ellipse
-        ids.append(el.id); kinds.append("ellipse")
-        X.append(el.sample(s)); T.append(el.tangent(s))
+        ids.append(el.id)
+        kinds.append("ellipse")
+        X.append(el.sample(s))
+        T.append(el.tangent(s))
     if not ids:
         raise ValueError(f"{features.name} has no features to analyse")
     owner = np.asarray(owner)

@@ -14,7 +14,8 @@ from .atlas import BLIND_FACTOR, Atlas
 from .score import DesignScore
 
 
-def _plt():
+def pyplot():
+    """matplotlib.pyplot on the Agg backend (files only: no display is needed or opened)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -23,10 +24,11 @@ def _plt():
     return plt
 
 
-def _save(fig, path: Path) -> Path:
+def save_figure(fig, path: Path) -> Path:
+    """Write ``fig`` to ``path`` (PNG at 110 dpi, tight box), close it and return the path."""
     path = Path(path)
     fig.savefig(path, dpi=110, bbox_inches="tight")
-    _plt().close(fig)
+    pyplot().close(fig)
     return path
 
 
@@ -55,7 +57,7 @@ def _cdf(ax, values: np.ndarray, label: str, **kw) -> None:
 def plot_score(score: DesignScore, path: str | Path) -> Path:
     """Distribution of the predicted errors over the workspace, with the thresholds, and
     what losing each feature would cost (95th percentile with / without it)."""
-    plt = _plt()
+    plt = pyplot()
     pa, m, th = score.analysis, score.analysis.overall, score.thresholds
     fig, axs = plt.subplots(1, 3, figsize=(15, 4.2))
     ax = axs[0]
@@ -91,14 +93,14 @@ def plot_score(score: DesignScore, path: str | Path) -> Path:
     fig.suptitle(f"{score.name}: {s.poses} workspace poses (cone {s.workspace.cone_deg:g}°, depth "
                  f"{s.workspace.depth_mm:g} ± {s.workspace.depth_range_mm:g} mm), segmentation error "
                  f"{s.segmentation_error_mm:g} mm — {'PASS' if score.passed else 'FAIL'}", fontsize=11)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_atlas_sphere(atlas: Atlas, path: str | Path) -> Path:
     """Whole-sphere maps (Mollweide; longitude about the fiducial axis, latitude toward +z)
     of the predicted translation error and the condition number, with the workspace cone,
     each curve feature's blind band and the worst directions."""
-    plt = _plt()
+    plt = pyplot()
     m = atlas.sphere.overall
     lon, lat = np.radians(atlas.lon), np.radians(atlas.lat)
     rel = atlas.relative_rank_ratio()
@@ -133,13 +135,13 @@ def plot_atlas_sphere(atlas: Atlas, path: str | Path) -> Path:
     fig.suptitle(f"{atlas.name}: every view direction (fiducial at the isocentre); red: the "
                  f"{atlas.cone_deg:g}° workspace around the nominal beam (+); white curves: where a "
                  f"feature goes blind; numbered: worst directions", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_atlas_cone(atlas: Atlas, path: str | Path) -> Path:
     """Polar maps of the workspace cone: radius = angle from the nominal beam (deg), angle =
     azimuth (0 toward the fiducial's +z)."""
-    plt = _plt()
+    plt = pyplot()
     m = atlas.cone.overall
     th = np.radians(atlas.azimuth)
     fig = plt.figure(figsize=(12, 5))
@@ -155,13 +157,13 @@ def plot_atlas_cone(atlas: Atlas, path: str | Path) -> Path:
         _colorbar(fig, pc, ax, title, 0.1)
     fig.suptitle(f"{atlas.name}: the {atlas.cone_deg:g}° workspace (radius: degrees from the nominal beam; "
                  f"up: tilted toward the fiducial's +z)", fontsize=10)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_compare(scores: list[DesignScore], path: str | Path) -> Path:
     """Overlaid distributions of predicted translation and rotation errors of several designs,
     and of their smallest image clearance between features where it was measured."""
-    plt = _plt()
+    plt = pyplot()
     seg = [s for s in scores if s.segmentability is not None]
     fig, axs = plt.subplots(1, 3 if seg else 2, figsize=(16.5 if seg else 11, 4))
     for s in scores:
@@ -183,7 +185,7 @@ def plot_compare(scores: list[DesignScore], path: str | Path) -> Path:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=8)
     fig.suptitle("predicted accuracy over each design's workspace", fontsize=11)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Path:
@@ -197,7 +199,7 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     from ..pose.simulate import cone_directions
     from .segmentability import PAIR_KINDS
 
-    plt = _plt()
+    plt = pyplot()
     fig = plt.figure(figsize=(16, 4.8))
     ax = fig.add_subplot(1, 3, 1)
     pc = seg.pairs
@@ -256,4 +258,4 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     ax.set_title("the workspace cone\n(radius: ° from nominal; up: tilted toward +z)", fontsize=10, pad=14)
     fig.suptitle(f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
                  f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs", fontsize=11, y=1.07)
-    return _save(fig, path)
+    return save_figure(fig, path)

@@ -19,8 +19,14 @@ from ..pose.camera import Camera
 from ..pose.problem import NoiseModel
 from ..pose.simulate import ContourSampling
 from ..pose.solver import parameter_scale
-from .information import FEATURE_RANK, SOLVER_ROWS, FeatureLayout, feature_information, feature_layout, \
-    total_information
+from .information import (
+    FEATURE_RANK,
+    SOLVER_ROWS,
+    FeatureLayout,
+    feature_information,
+    feature_layout,
+    total_information,
+)
 from .metrics import PoseMetrics, pose_metrics, rank_ratio
 
 #: poses per chunk: small enough to stay in cache-friendly sizes and to share out over cores

@@ -9,7 +9,7 @@ atlas summary with the worst view directions and the features responsible, the
 segmentability block (image clearances between features over the workspace and the sphere,
 overlap shares per kind and pair, worst poses; :mod:`.segmentability`), with ``--imaging`` an
 ``imaging`` block (pixel-level vs feature-level predicted errors at a smaller pose sample;
-:mod:`ftrac_design.intensity.workspace`), and the PNG files
+:mod:`ftrac_design.intensity.workspace`, computed by the caller), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
 """
 
@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from ..errors import InputError
 from ..features.model import Features
@@ -36,6 +36,16 @@ PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone
          "segmentability": "segmentability.png"}
 #: the segmentability sphere map's grid is no finer than this (~0.1 ms a direction)
 SEGMENTABILITY_ATLAS_STEP_DEG = 3.0
+
+
+class ImagingBlock(Protocol):
+    """What ``run_analysis`` needs of a pixel-level analysis (e.g.
+    :class:`ftrac_design.intensity.workspace.ImagingAnalysis`): its analysis.json block and
+    its picture."""
+
+    def to_dict(self) -> dict[str, Any]: ...
+
+    def plot(self, path: Path) -> Path: ...
 
 
 @dataclass
@@ -129,13 +139,14 @@ def default_output_dir(features: Features) -> Path:
 
 def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thresholds, out_dir: Path | None,
                  atlas_step_deg: float = 2.0, plots: bool = True,
-                 progress: Callable[[int], None] | None = None, imaging: Any = None,
-                 imaging_poses: int = 60) -> tuple[dict, Path]:
+                 progress: Callable[[int], None] | None = None,
+                 imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None) -> tuple[dict, Path]:
     """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
 
-    ``imaging`` (an :class:`ftrac_design.xray.ImagingModel`): also the pixel-level bound at
-    ``imaging_poses`` workspace poses beside the feature-level one (the ``imaging`` block and
-    imaging.png; :mod:`ftrac_design.intensity.workspace`)."""
+    ``imaging``: a function of the progress callback returning a pixel-level analysis to put
+    beside the feature-level one (the ``imaging`` block and imaging.png), such as
+    :func:`ftrac_design.intensity.workspace.imaging_analysis` with its arguments bound. The
+    caller passes it in, so that the analysis does not depend on the intensity path above it."""
     out_dir = Path(out_dir) if out_dir is not None else default_output_dir(subject.features)
     _check_output_dir(out_dir)
     t0 = time.perf_counter()
@@ -146,10 +157,7 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
                                      settings.clearance)
     ia = None
     if imaging is not None:
-        from ..intensity.workspace import imaging_analysis
-
-        ia = imaging_analysis(subject.features, settings.workspace, imaging, imaging_poses, settings.seed,
-                              settings.camera, settings.segmentation_error_mm, settings.contour, progress=progress)
+        ia = imaging(progress)
     seconds = time.perf_counter() - t0
     with atomic_directory(out_dir) as tmp:
         files = []
@@ -162,9 +170,7 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
             plot_segmentability(score.segmentability, seg_atlas, tmp / PLOTS["segmentability"], thresholds)
             files = list(PLOTS.values())
             if ia is not None:
-                from ..intensity.workspace import plot_imaging
-
-                plot_imaging(ia, tmp / "imaging.png")
+                ia.plot(tmp / "imaging.png")
                 files.append("imaging.png")
         doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
         if ia is not None:
@@ -184,9 +190,10 @@ def _fmt(v) -> str:
     return "inf" if v is None else f"{v:.3g}"
 
 
-def format_summary(doc: dict) -> str:
+def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> str:
     """The score, groups, features and worst directions of an analysis.json object as a few
-    readable lines."""
+    readable lines; ``imaging`` formats its ``imaging`` block where there is one (e.g.
+    :func:`ftrac_design.intensity.workspace.format_imaging`)."""
     lines: list[str] = []
     echo = lines.append
     f = doc["figures"]
@@ -213,10 +220,8 @@ def format_summary(doc: dict) -> str:
     sg = doc.get("segmentability")
     if sg:
         echo(format_segmentability(sg))
-    if doc.get("imaging"):
-        from ..intensity.workspace import format_imaging
-
-        echo(format_imaging(doc["imaging"]))
+    if doc.get("imaging") and imaging is not None:
+        echo(imaging(doc["imaging"]))
     at = doc.get("atlas")
     if at:
         echo(f"  atlas: {at['directions']} directions; worst view directions:")

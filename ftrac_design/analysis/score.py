@@ -32,7 +32,8 @@ from ..pose.simulate import ContourSampling, Workspace
 from .metrics import PoseMetrics
 from .poses import PoseAnalysis, analyse_poses
 from .sampling import angle_from, workspace_poses
-from .segmentability import ClearanceSettings, Segmentability, segmentability as _segmentability
+from .segmentability import ClearanceSettings, Segmentability
+from .segmentability import segmentability as _segmentability
 
 DEFAULT_POSES = 20_000
 #: workspace poses whose image clearances are measured (the first of the scored ones, an

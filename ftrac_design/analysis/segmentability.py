@@ -543,12 +543,12 @@ def demo_step(out_dir, poses: int = 2000) -> str:
     from pathlib import Path
 
     from ..design import load_design
+    from ..design.presets import preset_path
     from ..features import compute_features
     from ..pose.simulate import Workspace
     from .plots import plot_segmentability
     from .sampling import workspace_poses
 
-    models = Path(__file__).resolve().parents[2] / "models"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     cam = Camera()
@@ -556,7 +556,7 @@ def demo_step(out_dir, poses: int = 2000) -> str:
              f"(px beyond their widths; overlap = beads merge, a bead on a foreign line, or wires "
              f"sharing {ClearanceSettings().stretch_px:g} px)"]
     for name in ("ftrac_2005", "ftrac_mini", "nine_bead"):
-        f = compute_features(load_design(models / f"{name}.toml"))
+        f = compute_features(load_design(preset_path(name)))
         R, t = workspace_poses(Workspace(), f.nominal_beam_direction, poses, 0)
         seg = segmentability(f, cam, R, t)
         d = seg.to_dict(n_worst=1)

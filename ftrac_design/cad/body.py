@@ -17,12 +17,12 @@ import numpy as np
 from OCP.BRepAdaptor import BRepAdaptor_Curve
 from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut, BRepAlgoAPI_Section
 from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon, BRepBuilderAPI_MakeWire
-from OCP.BRepOffsetAPI import BRepOffsetAPI_MakePipeShell
 from OCP.BRepGProp import BRepGProp
-from OCP.Geom import Geom_CylindricalSurface
-from OCP.GProp import GProp_GProps
+from OCP.BRepOffsetAPI import BRepOffsetAPI_MakePipeShell
 from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+from OCP.Geom import Geom_CylindricalSurface
 from OCP.gp import gp_Ax2, gp_Ax3, gp_Dir, gp_Pln, gp_Pnt, gp_Vec
+from OCP.GProp import GProp_GProps
 from OCP.TopAbs import TopAbs_EDGE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Face, TopoDS_Wire
@@ -219,9 +219,10 @@ def build_body(plan: BodyPlan, strategy: str = "staged") -> cq.Solid:
 
     ``staged`` (default) cuts the ellipse grooves first, then the line grooves and pockets
     together: the swept (B-spline) groove walls meet the plane walls of the line grooves in
-    the second boolean only where they really cross, which is faster than one
-    boolean with every tool (1.2–1.3× on the 2-core machine; ``benchmarks/build_time.py``). ``single`` (one boolean) and ``sequential`` (one tool at a
-    time) are kept for the benchmark; all three give the same solid.
+    the second boolean only where they really cross, which is faster than one boolean with
+    every tool (1.2–1.3× on the 2-core machine; ``benchmarks/build_time.py``). ``single`` (one
+    boolean) and ``sequential`` (one tool at a time) are kept for the benchmark; all three give
+    the same solid.
     """
     zx = plan.half_length + plan.outer_radius
     ell = [ellipse_groove_tool(g, zx) for g in plan.ellipse_grooves]

@@ -136,7 +136,7 @@ def key_slot_tool(design: Design, profile: Profile = "cnc", layout: MountLayout 
     """The slot across the cylinder's ``z = −L/2`` end face that takes the mount's key, as a
     cutting tool in F (None without a key). Built in M and placed by
     ``inverse(mount_from_fiducial)``; width = key + the profile's sliding clearance each side,
-    depth = key height + :data:`~ftrac_design.features.mounting.KEY_GAP`."""
+    depth = key height + :data:`~ftrac_design.design.schema.KEY_GAP`."""
     layout = layout or mount_layout(design)
     k = layout.key
     if k.height <= 0:

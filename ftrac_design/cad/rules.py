@@ -89,7 +89,8 @@ class RuleResult:
             return f"{self.rule}: {self.title} is {val} ({self.where}); the limit is {lim}"
         if self.verdict == "warn":
             return (f"{self.rule}: {self.title} is {val} ({self.where}); within the limit {lim} "
-                    f"but {'above' if self.comparison in ('<=', '<') else 'below'} the recommended {self.recommended:g}{u}")
+                    f"but {'above' if self.comparison in ('<=', '<') else 'below'} "
+                    f"the recommended {self.recommended:g}{u}")
         return f"{self.rule}: {self.title} is {val} ({self.where}); limit {lim}"
 
     def as_dict(self) -> dict[str, Any]:

@@ -101,18 +101,27 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
         max_translation=max_translation_mm, max_rotation_deg=max_rotation_deg, max_condition=max_condition,
         max_overlap_share=max_overlap_share, min_clearance_px=min_clearance_px))
     total = settings.poses + atlas_directions(atlas_step_deg, settings.workspace.cone_deg)
-    model = None
+    pixel_level, format_imaging = None, None
     if imaging:
+        from functools import partial
+
+        from ..intensity.workspace import format_imaging, imaging_analysis
         from ..xray import ImagingModel
 
         pp = settings.camera.principal_point_px
         model = ImagingModel(energy_kev=energy_kev, image_shape=(round(2 * pp[1]), round(2 * pp[0])),
                              focal_spot_mm=focal_spot_mm, detector_blur_px=blur_px, photons_per_px=dose)
+        bound = partial(imaging_analysis, subject.features, settings.workspace, model, imaging_poses, settings.seed,
+                        settings.camera, settings.segmentation_error_mm, settings.contour)
+
+        def pixel_level(progress):
+            return bound(progress=progress)
+
         total += imaging_poses
     with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:
         doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update,
-                                    imaging=model, imaging_poses=imaging_poses)
-    click.echo(format_summary(doc))
+                                    imaging=pixel_level)
+    click.echo(format_summary(doc, format_imaging))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
     if report:
         from ..report import report_for_analysis

@@ -63,7 +63,8 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     ws = base.workspace
     click.echo(f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
                f"{ws.depth_range_mm:g} mm, {base.noise_text} (predicted 1σ, 3-D RMS)"
-               + "".join(f"; {s.name}: beads ×{s.settings.bead_error_factor:.3g}, wires ×{s.settings.wire_error_factor:.3g}"
+               + "".join(f"; {s.name}: beads ×{s.settings.bead_error_factor:.3g}, "
+                         f"wires ×{s.settings.wire_error_factor:.3g}"
                          for s in scores if s.settings.error_factors != (1.0, 1.0)))
     for r in rows:
         click.echo("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))))

@@ -56,8 +56,8 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
 def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
             scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
-            verify_poses: int | None, solver_images: int | None, check_images: int | None, min_clearance_px: float | None, min_ellipse_view_deg: float | None,
-            no_build: bool,
+            verify_poses: int | None, solver_images: int | None, check_images: int | None,
+            min_clearance_px: float | None, min_ellipse_view_deg: float | None, no_build: bool,
             print_space: bool) -> int:
     """Optimise DESIGN.toml's layout under the design rules.
 
@@ -70,8 +70,8 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
     """
-    from ..optimize.run import optimize, prepare, read_design
     from ..optimize.report import format_summary
+    from ..optimize.run import optimize, prepare, read_design
 
     profiles = profiles or ("cnc",)
     if print_space:

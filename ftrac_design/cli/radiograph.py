@@ -90,8 +90,8 @@ def _parse_occluder(text: str, frame: str):
 @click.option("--image-size", type=(click.IntRange(min=8), click.IntRange(min=8)), default=(1024, 1024),
               show_default=True, metavar="H W", help="image rows and columns.")
 @click.option("--background", default=None, metavar="FILE|anatomy",
-              help="line-integral image (PNG, TIFF, JPEG, NumPy or DICOM, H × W; its first frame) added in the log domain, or 'anatomy' "
-                   "for the synthetic anatomy-like background (seeded per image).")
+              help="line-integral image (PNG, TIFF, JPEG, NumPy or DICOM, H × W; its first frame) added in the "
+                   "log domain, or 'anatomy' for the synthetic anatomy-like background (seeded per image).")
 @click.option("--occluder", multiple=True, metavar="x0,y0,z0,x1,y1,z1[,d]",
               help="a steel needle/rod from (x0,y0,z0) to (x1,y1,z1) mm, diameter d (default 1.27); repeatable.")
 @click.option("--occluder-frame", type=click.Choice(["F", "X"]), default="F", show_default=True,
@@ -113,10 +113,10 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
 
     from ..features import load_features
     from ..fileio import atomic_directory, write_text_atomic
+    from ..images import read_frame, write_image
     from ..pose.camera import Camera
     from ..pose.observation import read_camera
     from ..pose.simulate import Workspace
-    from ..images import read_frame, write_image
     from ..xray import ImagingModel, anatomy, body_from_design_file, body_from_features_file, render, write_truth
 
     if (pose_path is None) == (workspace_sample is None):
@@ -166,12 +166,13 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
                     img = render(features, Rs[i], ts[i], camera, imaging, rng=np.random.default_rng([seed, i]),
                                  background=bg, occluders=occluders, body=body, image_name=name)
                 except ValueError as exc:
-                    raise InputError(pose_path or features_path, f"pose {i + 1}", f"a pose that can be imaged ({exc})") \
-                        from None
+                    raise InputError(pose_path or features_path, f"pose {i + 1}",
+                                     f"a pose that can be imaged ({exc})") from None
                 img.truth["background"] = bg_desc
                 img.truth["output"] = kind
                 if kind == "log":
-                    write_image(tmp / name, img.log_image, camera, polarity="dense_bright", bit_depth=16 if imaging.bit_depth > 8 else 8,
+                    write_image(tmp / name, img.log_image, camera, polarity="dense_bright",
+                                bit_depth=16 if imaging.bit_depth > 8 else 8,
                                 value_range=None if fmt == "npy" else (0.0, 6.0), quantity="log")
                 else:
                     write_image(tmp / name, img.raw, camera, polarity="dense_dark", quantity="raw")

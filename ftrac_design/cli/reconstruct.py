@@ -8,7 +8,6 @@ from pathlib import Path
 
 import click
 
-
 _FILE = click.Path(dir_okay=False, path_type=Path)
 
 

@@ -95,7 +95,8 @@ def _solve_estimating_intrinsics(features, observations, options, which: str, ou
         sx = c.pixel_size_mm[0]
         parts = [f"f = {c.focal_length_mm:.2f} mm" + (f" ± {sd['f'] * sx:.2f}" if "f" in sd else "")]
         if "fx" in sd:
-            parts = [f"fx = {est.intrinsics[0]:.1f} ± {sd['fx']:.1f} px", f"fy = {est.intrinsics[1]:.1f} ± {sd['fy']:.1f} px"]
+            parts = [f"fx = {est.intrinsics[0]:.1f} ± {sd['fx']:.1f} px",
+                     f"fy = {est.intrinsics[1]:.1f} ± {sd['fy']:.1f} px"]
         if "ox" in sd:
             parts.append(f"principal point = ({est.intrinsics[2]:.1f} ± {sd['ox']:.1f}, "
                          f"{est.intrinsics[3]:.1f} ± {sd['oy']:.1f}) px")

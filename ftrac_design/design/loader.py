@@ -45,21 +45,40 @@ _EXPECT = {
 }
 
 
+def describe_schema_error(err: dict[str, Any], with_input: bool = True) -> tuple[str, str]:
+    """One error of the design schema's validation in words.
+
+    Parameters
+    ----------
+    err : dict
+        One item of pydantic's ``ValidationError.errors()``.
+    with_input : bool
+        Append ", got <value>" where the value is known (not for missing or unknown keys).
+
+    Returns
+    -------
+    (key, expected) : tuple of str
+        The dotted key (``"wires.diameter"``, ``"beads[2].z"``; "" for the whole file) and
+        what was expected (``"a number, got 'x'"``).
+    """
+    key = _loc(err["loc"])
+    template = _EXPECT.get(err["type"])
+    if template:
+        expected = template.format(**(err.get("ctx") or {}))
+        if with_input and err["type"] not in ("missing", "extra_forbidden"):
+            expected += f", got {err.get('input')!r}"
+    else:
+        expected = err["msg"].removeprefix("Value error, ")
+    return key, expected
+
+
 def parse_design(data: dict[str, Any], file: str | Path | None = None) -> Design:
     """Validate an already-parsed design mapping; raise :class:`InputError` on the first problem."""
     try:
         design = Design.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors(include_url=False)[0]
-        key = _loc(err["loc"]) or None
-        template = _EXPECT.get(err["type"])
-        if template:
-            expected = template.format(**(err.get("ctx") or {}))
-            if err["type"] not in ("missing", "extra_forbidden"):
-                expected += f", got {err.get('input')!r}"
-        else:
-            expected = err["msg"].removeprefix("Value error, ")
-        raise InputError(file, key, expected) from None
+        key, expected = describe_schema_error(exc.errors(include_url=False)[0])
+        raise InputError(file, key or None, expected) from None
     problems = geometry_errors(design)
     if problems:
         key, expected = problems[0]

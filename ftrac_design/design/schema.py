@@ -179,6 +179,11 @@ class HoleSet(_Strict):
         return v
 
 
+#: the slot in the cylinder's end face is this much deeper than the key is high, so that the
+#: cylinder always rests on the socket floor, never on the key (mm)
+KEY_GAP = 0.2
+
+
 class Mount(_Strict):
     """The acetal mount that holds one end of the cylinder (paper §II.A.3): a square block
     with a press-fit socket for the cylinder's ``z = −L/2`` end and three mutually orthogonal
@@ -250,8 +255,10 @@ class Connector(_Strict):
         default_factory=lambda: [[0, 0], [10, 0]], min_length=2, max_length=2,
         description="grid nodes [column, row] of the two pins, counted from the reference hole")
     axis_x: float = Field(default=25.0, description="x of the fiducial axis in T, mm")
-    axis_height: float = Field(default=50.0, description="height (y in T) of the fiducial axis above the reference hole, mm")
-    template_edge: float = Field(default=10.0, description="height of the template's top edge above the reference hole, mm")
+    axis_height: float = Field(
+        default=50.0, description="height (y in T) of the fiducial axis above the reference hole, mm")
+    template_edge: float = Field(
+        default=10.0, description="height of the template's top edge above the reference hole, mm")
     source_side: Literal["posterior", "anterior"] = Field(
         default="posterior", description="side of the patient the X-ray source is on in the AP view")
     thickness: Pos = Field(default=15.0, description="plate thickness along z, mm")
@@ -270,7 +277,8 @@ class CncProfile(_Strict):
     bead_interference: NonNeg = Field(default=0.02, description="ball diameter minus pocket diameter, mm")
     socket_interference: NonNeg = Field(default=0.05, description="cylinder diameter minus mount socket diameter, mm")
     pin_interference: NonNeg = Field(default=0.02, description="dowel pin diameter minus its hole in the connector, mm")
-    slide_clearance: NonNeg = Field(default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
+    slide_clearance: NonNeg = Field(
+        default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
 
 
 class FdmProfile(_Strict):
@@ -281,7 +289,8 @@ class FdmProfile(_Strict):
     bead_clearance: NonNeg = Field(default=0.15, description="gap per side between ball and pocket wall, mm")
     hole_allowance: NonNeg = Field(default=0.2, description="added to round holes' diameters (they print small), mm")
     press_allowance: NonNeg = Field(default=0.1, description="added to press-fit holes (socket, dowel pins), mm")
-    slide_clearance: NonNeg = Field(default=0.2, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
+    slide_clearance: NonNeg = Field(
+        default=0.2, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
 
 
 class Manufacturing(_Strict):
@@ -289,7 +298,8 @@ class Manufacturing(_Strict):
 
     cnc: CncProfile = Field(default_factory=CncProfile)
     fdm: FdmProfile = Field(default_factory=FdmProfile)
-    wire_cut_allowance: NonNeg = Field(default=5.0, description="extra length per wire piece in the bill of materials, mm")
+    wire_cut_allowance: NonNeg = Field(
+        default=5.0, description="extra length per wire piece in the bill of materials, mm")
 
 
 class Analysis(_Strict):

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from .schema import Design
+from .schema import KEY_GAP, Design
 
 #: samples per revolution when searching ellipse–ellipse and ellipse–bead distances;
 #: 1/7200 rev at r = 15 mm is 13 µm of arc, far below any clearance we test.
@@ -57,8 +57,6 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
     Margins (hole-to-edge distances, holes running into each other, the mount covering a
     feature, the mount reaching the template) are design rules, not errors.
     """
-    from ..features.mounting import KEY_GAP
-
     errs: list[tuple[str, str]] = []
     m, c = design.mount, design.connector
     od = design.body.outer_diameter
@@ -93,7 +91,7 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
 
 def _feature_errors(design: Design) -> list[tuple[str, str]]:
     errs: list[tuple[str, str]] = []
-    R, L2, rb = design.outer_radius, design.half_length, design.bore_radius
+    L2, rb = design.half_length, design.bore_radius
 
     if (design.ellipses or design.lines) and design.wire is None:
         errs.append(("wire", "a [wire] table is required when the design has ellipses or lines"))

@@ -1,7 +1,7 @@
 """Feature geometry: the one source of truth for where every wire and bead sits."""
 
-from .model import EllipseFeature, Features, LineFeature, PointFeature
 from .io import features_from_dict, features_to_dict, load_features, write_features
+from .model import EllipseFeature, Features, LineFeature, PointFeature
 
 __all__ = [
     "EllipseFeature", "Features", "LineFeature", "PointFeature",

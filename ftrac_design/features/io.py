@@ -152,7 +152,8 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         e = r.vector(r.get(o, "end", w), f"{w}.end")
         if np.linalg.norm(e - s) < MIN_SIZE_MM:
             raise r.fail(f"{w}.end", f"an end-point at least {MIN_SIZE_MM:g} mm from start")
-        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)))
+        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter",
+                                                       minimum=0.0)))
     line_ids = {ln.id for ln in lines}
 
     points = []

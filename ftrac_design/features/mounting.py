@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..design.schema import Design, HoleSet
+from ..design.schema import KEY_GAP, Design, HoleSet
 
 #: a hole's centre sits at least this many hole diameters from a face (the hole wall is then
 #: one diameter from the edge; the ``*.hole_edge`` rules check it)
@@ -43,9 +43,6 @@ EDGE_FACTOR = 1.5
 DESIGN_WALL = 2.0
 #: extra room (mm) in derived sizes so that FDM's enlarged holes still meet the rules
 SIZE_MARGIN = 0.25
-#: the slot in the cylinder's end face is this much deeper than the key is high, so that the
-#: cylinder always rests on the socket floor, never on the key (mm)
-KEY_GAP = 0.2
 #: the pocket that locates the mount is cut with a Ø3 mm end mill: its corners keep this radius
 POCKET_CORNER_RADIUS = 1.5
 #: chamfer on the block's four vertical edges, so that it seats in the pocket past those

@@ -16,32 +16,56 @@ Bad input of any kind is an :class:`~ftrac_design.errors.InputError` (file, key,
 a header that lies is refused before anything is allocated (at most 4096 × 4096 pixels a
 frame).
 
-DICOM attributes honoured (enhanced objects: per-frame functional group, then shared, then
-top level):
+DICOM attributes honoured, as attribute (tag) [where it is read; in enhanced objects a named
+functional group is looked in per frame, then shared, then the top level]: what intake does.
 
-| attribute | tag | where | what intake does |
-| --- | --- | --- | --- |
-| Rows, Columns, Number of Frames | (0028,0010/0011/0008) | top | frame size and count; must match the native pixel data's length; refused above 4096² pixels |
-| Samples per Pixel, Photometric Interpretation | (0028,0002/0004) | top | MONOCHROME1/2 grey; RGB/YBR (a grabber's DICOM) → Rec. 709 grey with a note; others refused. MONOCHROME1 values are kept as stored (it is a display statement) |
-| Bits Allocated, Bits Stored, High Bit, Pixel Representation | (0028,0100/0101/0102/0103) | top | bits above Bits Stored masked off; two's-complement sign restored; Bits Stored > Bits Allocated or High Bit ≠ Bits Stored − 1 refused |
-| Transfer Syntax UID | (0002,0010) | meta | native, RLE Lossless, JPEG Lossless (SV1 and others), JPEG-LS, JPEG 2000 via pydicom + pylibjpeg plug-ins; a missing codec → InputError naming the UID, its name and the package |
-| Modality LUT Sequence | (0028,3000) | top | applied (pydicom); a decreasing LUT reverses the polarity |
-| Rescale Slope / Intercept | (0028,1053/1052) | Pixel Value Transformation (0028,9145), top | applied; a negative slope reverses the polarity |
-| VOI LUT, Window Center/Width | (0028,3010), (0028,1050/1051) | — | never applied (display only) |
-| Pixel Intensity Relationship | (0028,1040) | Frame Pixel Data Properties (0028,9443), top | LIN/LOG/DISP → `formation` linear/log/display |
-| Pixel Intensity Relationship Sign | (0028,1041) | Frame Pixel Data Properties, top | +1 → `polarity` dense-dark, −1 → dense-bright (PS3.3 C.8.11.3.1.2); without it LIN → dense-dark, else none |
-| Field of View Rotation / Horizontal Flip | (0018,7032/7034) | Field of View (0018,9432), top | undone (flip, then the clockwise rotation), so pixels are on the detector grid; spacing axes swapped for 90°/270° |
-| Field of View Origin | (0018,7030) | Field of View, top | places the stored grid on the detector for the principal point |
-| Imager Pixel Spacing | (0018,1164) | Frame Pixel Data Properties, top | pixel pitch (row, column spacing) at the detector: the camera's s_y, s_x |
-| Pixel Spacing, Pixel Spacing Calibration Type | (0028,0030), (0028,0A02) | Pixel Measures (0028,9110), top | pitch when Imager Pixel Spacing is absent: as is without a calibration type; calibrated (GEOMETRY/FIDUCIAL) → × Estimated Radiographic Magnification Factor, else refused as a pitch |
-| Estimated Radiographic Magnification Factor | (0018,1114) | top | brings a calibrated Pixel Spacing back to the detector plane |
-| Distance Source to Detector | (0018,1110) | X-Ray Geometry (0018,9476), top | focal length f (mm) |
-| Position of Isocenter Projection | (0018,9430) | top (X-Ray Detector module) | principal point (fractional detector elements, via Field of View Origin and Detector Element Spacing (0018,7022)) |
-| Physical Detector Size | (0018,9429) | top | principal point at the detector centre when no isocentre projection is given |
-| Frame Time, Frame Time Vector | (0018,1063/1065) | top | `time_s` of each frame |
-| Frame Acquisition / Reference DateTime | (0018,9074/9151) | Frame Content (0020,9111) | `time_s` from the first frame (enhanced objects) |
-| Positioner Primary / Secondary Angle | (0018,1510/1511) | Positioner Position (0018,9405), top | kept in `meta` (degrees) |
-| Image Comments | (0020,4000) | top | our own note (camera, polarity) as a fallback |
+- Rows, Columns, Number of Frames (0028,0010/0011/0008) [top]: frame size and count; must match
+  the native pixel data's length; refused above 4096² pixels.
+- Samples per Pixel, Photometric Interpretation (0028,0002/0004) [top]: MONOCHROME1/2 grey;
+  RGB/YBR (a grabber's DICOM) → Rec. 709 grey with a note; others refused. MONOCHROME1 values
+  are kept as stored (it is a display statement).
+- Bits Allocated, Bits Stored, High Bit, Pixel Representation (0028,0100/0101/0102/0103) [top]:
+  bits above Bits Stored masked off; two's-complement sign restored; Bits Stored > Bits
+  Allocated or High Bit ≠ Bits Stored − 1 refused.
+- Transfer Syntax UID (0002,0010) [file meta information]: native, RLE Lossless, JPEG Lossless
+  (SV1 and others), JPEG-LS, JPEG 2000 via pydicom + pylibjpeg plug-ins; a missing codec →
+  InputError naming the UID, its name and the package.
+- Modality LUT Sequence (0028,3000) [top]: applied (pydicom); a decreasing LUT reverses the
+  polarity.
+- Rescale Slope / Intercept (0028,1053/1052) [Pixel Value Transformation (0028,9145), top]:
+  applied; a negative slope reverses the polarity.
+- VOI LUT, Window Center/Width (0028,3010), (0028,1050/1051): never applied (display only).
+- Pixel Intensity Relationship (0028,1040) [Frame Pixel Data Properties (0028,9443), top]:
+  LIN/LOG/DISP → `formation` linear/log/display.
+- Pixel Intensity Relationship Sign (0028,1041) [Frame Pixel Data Properties, top]: +1 →
+  `polarity` dense-dark, −1 → dense-bright (PS3.3 C.8.11.3.1.2); without it LIN → dense-dark,
+  else none.
+- Field of View Rotation / Horizontal Flip (0018,7032/7034) [Field of View (0018,9432), top]:
+  undone (flip, then the clockwise rotation), so pixels are on the detector grid; spacing axes
+  swapped for 90°/270°.
+- Field of View Origin (0018,7030) [Field of View, top]: places the stored grid on the detector
+  for the principal point.
+- Imager Pixel Spacing (0018,1164) [Frame Pixel Data Properties, top]: pixel pitch (row, column
+  spacing) at the detector: the camera's s_y, s_x.
+- Pixel Spacing, Pixel Spacing Calibration Type (0028,0030), (0028,0A02) [Pixel Measures
+  (0028,9110), top]: pitch when Imager Pixel Spacing is absent: as is without a calibration
+  type; calibrated (GEOMETRY/FIDUCIAL) → × Estimated Radiographic Magnification Factor, else
+  refused as a pitch.
+- Estimated Radiographic Magnification Factor (0018,1114) [top]: brings a calibrated Pixel
+  Spacing back to the detector plane.
+- Distance Source to Detector (0018,1110) [X-Ray Geometry (0018,9476), top]: focal length f
+  (mm).
+- Position of Isocenter Projection (0018,9430) [top (X-Ray Detector module)]: principal point
+  (fractional detector elements, via Field of View Origin and Detector Element Spacing
+  (0018,7022)).
+- Physical Detector Size (0018,9429) [top]: principal point at the detector centre when no
+  isocentre projection is given.
+- Frame Time, Frame Time Vector (0018,1063/1065) [top]: `time_s` of each frame.
+- Frame Acquisition / Reference DateTime (0018,9074/9151) [Frame Content (0020,9111)]: `time_s`
+  from the first frame (enhanced objects).
+- Positioner Primary / Secondary Angle (0018,1510/1511) [Positioner Position (0018,9405), top]:
+  kept in `meta` (degrees).
+- Image Comments (0020,4000) [top]: our own note (camera, polarity) as a fallback.
 
 Missing Distance Source to Detector or pixel spacing (and no ``camera``) → InputError naming
 the tags and the ways out (``--camera C.json``, or intrinsics estimated from the fiducial

@@ -18,10 +18,10 @@ PHOTOMETRIC = ("MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422", 
                "YBR_PARTIAL_420")
 #: the Python package that decodes each compressed transfer syntax, for the error when it is missing
 CODEC_PACKAGES = {
-    "1.2.840.10008.1.2.4.57": "pylibjpeg and pylibjpeg-libjpeg", "1.2.840.10008.1.2.4.70": "pylibjpeg and pylibjpeg-libjpeg",
-    "1.2.840.10008.1.2.4.50": "pylibjpeg and pylibjpeg-libjpeg", "1.2.840.10008.1.2.4.51": "pylibjpeg and pylibjpeg-libjpeg",
-    "1.2.840.10008.1.2.4.80": "pylibjpeg and pylibjpeg-libjpeg", "1.2.840.10008.1.2.4.81": "pylibjpeg and pylibjpeg-libjpeg",
-    "1.2.840.10008.1.2.4.90": "pylibjpeg and pylibjpeg-openjpeg", "1.2.840.10008.1.2.4.91": "pylibjpeg and pylibjpeg-openjpeg",
+    **dict.fromkeys(("1.2.840.10008.1.2.4.57", "1.2.840.10008.1.2.4.70", "1.2.840.10008.1.2.4.50",
+                     "1.2.840.10008.1.2.4.51", "1.2.840.10008.1.2.4.80", "1.2.840.10008.1.2.4.81"),
+                    "pylibjpeg and pylibjpeg-libjpeg"),
+    **dict.fromkeys(("1.2.840.10008.1.2.4.90", "1.2.840.10008.1.2.4.91"), "pylibjpeg and pylibjpeg-openjpeg"),
     "1.2.840.10008.1.2.5": "pydicom (RLE Lossless is built in)",
 }
 ENHANCED_SOP = {"1.2.840.10008.5.1.4.1.1.12.1.1": "Enhanced XA", "1.2.840.10008.5.1.4.1.1.12.2.1": "Enhanced XRF"}
@@ -87,7 +87,8 @@ def read_header(path: str | Path) -> DicomHeader:
         raise InputError(path, tag_name("HighBit"), f"BitsStored − 1 = {bits_stored - 1}, got {high_bit}")
     signed = as_int(raw_value(ds, "PixelRepresentation", path) or 0, "PixelRepresentation", path, 0, 1) == 1
     frames = as_int(raw_value(ds, "NumberOfFrames", path) or 1, "NumberOfFrames", path, 1, 10**7)
-    photometric = as_text(raw_value(ds, "PhotometricInterpretation", path)) or ("MONOCHROME2" if samples == 1 else "RGB")
+    photometric = (as_text(raw_value(ds, "PhotometricInterpretation", path))
+                   or ("MONOCHROME2" if samples == 1 else "RGB"))
     if photometric not in PHOTOMETRIC:
         raise InputError(path, tag_name("PhotometricInterpretation"), f"one of {', '.join(PHOTOMETRIC)}, got "
                                                                        f"{photometric!r}")

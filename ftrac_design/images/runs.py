@@ -122,8 +122,8 @@ def read_frame(path: str | Path, index: int = 0, camera: Camera | None = None, n
         n = _COUNT[fmt](f)
         if index < first + n:
             if fmt == "dicom":
-                fr = next(read_dicom_frames(f, camera, need_camera=need_camera, indices=range(index - first, index - first + 1),
-                                            first_index=first))
+                fr = next(read_dicom_frames(f, camera, need_camera=need_camera,
+                                            indices=range(index - first, index - first + 1), first_index=first))
                 return fr
             for fr in _file_frames(f, camera, need_camera, first):
                 if fr.index == index:

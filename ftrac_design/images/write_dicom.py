@@ -26,7 +26,8 @@ Kind = Literal["xa", "rf", "dx", "cr", "enhanced-xa", "enhanced-xrf"]
 Syntax = Literal["explicit", "rle", "jpeg-lossless", "jpeg2000-lossless"]
 SOP = {"xa": ("1.2.840.10008.5.1.4.1.1.12.1", "XA"), "rf": ("1.2.840.10008.5.1.4.1.1.12.2", "RF"),
        "dx": ("1.2.840.10008.5.1.4.1.1.1.1", "DX"), "cr": ("1.2.840.10008.5.1.4.1.1.1", "CR"),
-       "enhanced-xa": ("1.2.840.10008.5.1.4.1.1.12.1.1", "XA"), "enhanced-xrf": ("1.2.840.10008.5.1.4.1.1.12.2.1", "RF")}
+       "enhanced-xa": ("1.2.840.10008.5.1.4.1.1.12.1.1", "XA"),
+       "enhanced-xrf": ("1.2.840.10008.5.1.4.1.1.12.2.1", "RF")}
 DX_FOR_PROCESSING = "1.2.840.10008.5.1.4.1.1.1.1.1"
 SYNTAX = {"explicit": "1.2.840.10008.1.2.1", "rle": "1.2.840.10008.1.2.5", "jpeg-lossless": "1.2.840.10008.1.2.4.70",
           "jpeg2000-lossless": "1.2.840.10008.1.2.4.90"}
@@ -241,9 +242,8 @@ def _pixel_data(ds, stored: np.ndarray, syntax: str, bits_stored: int, signed: b
         ds.PixelData = data + (b"\0" if len(data) % 2 else b"")
         return
     if syntax == "jpeg-lossless":
-        from pydicom.encaps import encapsulate
-
         import imagecodecs
+        from pydicom.encaps import encapsulate
 
         enc = [imagecodecs.jpeg8_encode(f, lossless=True, predictor=1, bitspersample=int(ds.BitsStored)) for f in arr]
         ds.PixelData = encapsulate(enc)

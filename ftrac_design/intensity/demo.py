@@ -14,17 +14,17 @@ def demo_step(out_dir: Path, seed: int = 13) -> str:
     the pixel-level bound and the feature-level bound (0.25 mm segmentation error) at that
     pose. Writes ``intensity.json`` into ``out_dir``; returns the lines the demo prints."""
     from ..design import load_design
+    from ..design.presets import preset_path
     from ..features import compute_features
     from ..fileio import write_json_atomic
     from ..pose import so3
     from ..pose.simulate import Workspace
     from ..xray import ImagingModel, render
-    from ..xray.scene import _REPO
     from . import imaging_analysis, perturb, pixel_information, refine_intensity
     from .refine import DEFAULT_SPLINE_PX
 
     out_dir = Path(out_dir)
-    features = compute_features(load_design(_REPO / "models" / "ftrac_2005.toml"))
+    features = compute_features(load_design(preset_path("ftrac_2005")))
     rng = np.random.default_rng(seed)
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     R, t = R[0], t[0]

@@ -36,7 +36,8 @@ from ..pose import so3
 from ..pose.camera import Camera
 from ..xray.geometry import body_chord_uv, sphere_chord, tube_chord_uv
 from ..xray.model import Body, ImagingModel
-from ..xray.render import _capsule_pairs, _feature_pieces, _project, _Rays, _subsamples, blur_sigma_px
+from ..xray.rays import Rays, capsule_pixels, feature_pieces, project_points, subsample_offsets
+from ..xray.render import blur_sigma_px
 
 #: parameter names in covariance order
 PARAMETERS = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -98,24 +99,24 @@ class RoiModel:
         v0, u0, h, w = self.roi
         cam, im = self.camera, self.imaging
         fdt = np.float32 if im.single_precision else np.float64
-        rays = _Rays(cam, R, t)
+        rays = Rays(cam, R, t)
         s = int(im.supersample)
-        ou, ov = _subsamples(s)
+        ou, ov = subsample_offsets(s)
         pix = min(cam.pixel_size_mm)
         p = np.zeros(h * w)
         mu_steel = im.mu("steel")
-        centers, radii, pieces = _feature_pieces(self.features, mu_steel)
+        centers, radii, pieces = feature_pieces(self.features, mu_steel)
 
         def keep(rows, cols):
             return (rows >= v0) & (rows < v0 + h) & (cols >= u0) & (cols < u0 + w)
 
         if len(pieces.L):
             ends = np.concatenate([pieces.a, pieces.a + pieces.L[:, None] * pieces.e])
-            uv, Z = _project(cam, R, t, ends)
+            uv, Z = project_points(cam, R, t, ends)
             M = len(pieces.L)
             rad = pieces.r * cam.focal_length_mm / np.maximum(np.minimum(Z[:M], Z[M:]) - pieces.r, 1.0) / pix * 1.05 \
                 + 0.75
-            k, rows, cols = _capsule_pairs(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
+            k, rows, cols = capsule_pixels(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
             m = keep(rows, cols)
             k, rows, cols = k[m], rows[m], cols[m]
             if len(k):
@@ -123,9 +124,9 @@ class RoiModel:
                                    rows[:, None] + ov, fdt)
                 p += np.bincount((rows - v0) * w + cols - u0, ch.mean(1) * pieces.mu[k], h * w)
         if len(radii):
-            uv, Z = _project(cam, R, t, centers)
+            uv, Z = project_points(cam, R, t, centers)
             rad = radii * cam.focal_length_mm / np.maximum(Z - radii, 1.0) / pix * 1.05 + 0.75
-            k, rows, cols = _capsule_pairs(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
+            k, rows, cols = capsule_pixels(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
             m = keep(rows, cols)
             k, rows, cols = k[m], rows[m], cols[m]
             if len(k):
@@ -155,18 +156,18 @@ class RoiModel:
         if self.body is None:
             return
         b, im = self.body, self.imaging
-        rays = _Rays(self.camera, np.asarray(R, float), np.asarray(t, float))
+        rays = Rays(self.camera, np.asarray(R, float), np.asarray(t, float))
         centre = im.mu(b.material) * body_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, b.outer_diameter / 2,
                                                    b.bore_diameter / 2, b.length / 2, self._cu[None, :],
                                                    self._cv[:, None])
         self.body_flags = self._flags(centre)
 
     def _flags(self, centre: np.ndarray) -> np.ndarray:
-        from ..xray.render import _BODY_ROUGHNESS
+        from ..xray.rays import BODY_ROUGHNESS
         lap = np.zeros_like(centre)
         lap[1:-1, 1:-1] = (centre[:-2, 1:-1] + centre[2:, 1:-1] + centre[1:-1, :-2] + centre[1:-1, 2:]
                            - 4 * centre[1:-1, 1:-1])
-        flag = np.abs(lap) > _BODY_ROUGHNESS
+        flag = np.abs(lap) > BODY_ROUGHNESS
         for _ in range(1 + self.flag_dilate_px):
             f = flag.copy()
             f[1:, :] |= flag[:-1, :]

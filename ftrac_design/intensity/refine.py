@@ -345,7 +345,8 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
 
     def problem(scale: float, huber: bool) -> _Problem:
         return _Problem(model, Y, imaging, scale, o.background_degree, o.highpass_px if mode == "highpass" else 0.0,
-                        o.robust if huber else None, o.background_spline_px if mode == "spline" else None, o.robust_loss)
+                        o.robust if huber else None, o.background_spline_px if mode == "spline" else None,
+                        o.robust_loss)
 
     R, t = R0.copy(), t0.copy()
     history, iterations, message, J, prob = [], 0, "", None, None
@@ -503,14 +504,14 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
                            message, history, full.n_nuisance, mode)
 
 
-def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result, imaging: ImagingModel | None = None,
-                        body: Body | None | str = AUTO, **options):
+def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result,
+                        imaging: ImagingModel | None = None, body: Body | None | str = AUTO, **options):
     """``ftrac-design track --refine intensity``: refine a converged
     :class:`ftrac_design.segment.TrackResult` on ``image`` (as stored) and return a
     copy whose pose is the refined one (``scales="auto"`` with a 1 px coarse scale), with the
     covariance from the pixel information (scaled by the fitted χ²/dof when that exceeds 1: a
-    real image's dose and blur are not known exactly). A result that did not converge is returned unchanged. ``options`` go to
-    :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
+    real image's dose and blur are not known exactly). A result that did not converge is
+    returned unchanged. ``options`` go to :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
     pose = result.pose
     if not pose.converged:
         return result

@@ -68,10 +68,15 @@ class ImagingAnalysis:
         """(n, 6) feature-level / image-level σ per pose and axis."""
         return self.feature_std / self.image_std
 
+    def plot(self, path: str | Path) -> Path:
+        """Draw this analysis into ``path`` (PNG; :func:`plot_imaging`)."""
+        return plot_imaging(self, path)
+
     def to_dict(self) -> dict[str, Any]:
         """The analysis.json ``imaging`` block."""
         def stats(a: np.ndarray) -> dict:
-            return {k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist())) for k, q in (("p50", 50), ("p95", 95))}
+            return {k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist()))
+                    for k, q in (("p50", 50), ("p95", 95))}
 
         im = self.imaging.to_dict()
         return {
@@ -127,7 +132,8 @@ def imaging_analysis(features: Features, workspace: Workspace = Workspace(), ima
     R, t = R[keep], t[keep]
     F = total_information(layout, camera, R, t, noise)
     feat = np.sqrt(np.diagonal(np.linalg.inv(F), axis1=1, axis2=2))
-    name = None if body is None else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm"
+    name = (None if body is None
+            else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm")
     return ImagingAnalysis(imaging, segmentation_error_mm, R, t, _deg_mm(np.array(img_std)), _deg_mm(feat),
                            np.array(npix), name, seed)
 
@@ -135,9 +141,9 @@ def imaging_analysis(features: Features, workspace: Workspace = Workspace(), ima
 def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
     """imaging.png: per axis, the distribution over the sampled poses of the predicted 1σ from
     the image and from the features (log scale), and their ratio."""
-    from ..analysis.plots import _plt, _save
+    from ..analysis.plots import pyplot, save_figure
 
-    plt = _plt()
+    plt = pyplot()
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     for ax, sl, unit in ((axes[0], slice(0, 3), "deg"), (axes[1], slice(3, 6), "mm")):
         names = PARAMETERS[sl]
@@ -167,7 +173,7 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
                  f"({ia.imaging.energy_kev:g} keV, {dose:.3g} quanta/px, segmentation error "
                  f"{ia.segmentation_error_mm:g} mm)", fontsize=10)
     fig.tight_layout()
-    return _save(fig, Path(path))
+    return save_figure(fig, Path(path))
 
 
 def format_imaging(block: dict) -> str:

@@ -26,15 +26,15 @@ def demo_step(out_dir: Path) -> str:
     """A tiny seeded search (~5 s): ftrac_mini's two ellipse tilts, 12 evaluations in this
     process at 300 poses, no CAD build or solver check, 6 rendered radiographs of start and
     best tracked; returns start vs best as text."""
+    from ..design.presets import preset_path
     from .run import optimize as _optimize
 
-    models = Path(__file__).resolve().parents[2] / "models"
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     space = out_dir / "demo_space.toml"
     space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [28.0, 36.0]\n"ellipses.E2.tilt_deg" = [28.0, 36.0]\n'
                      "[search]\nsigma0 = 0.3\npopsize = 6\n", encoding="utf-8")
-    doc = _optimize(models / "ftrac_mini.toml", out_dir / "optimize", space, evaluations=12, seed=0, poses=300,
+    doc = _optimize(preset_path("ftrac_mini"), out_dir / "optimize", space, evaluations=12, seed=0, poses=300,
                     verify_poses=2000, solver_images=0, check_images=6, build=False, progress=False, workers=0,
                     command_line="demo_step")
     s, b = doc["start"]["verification"]["predicted"], doc["best"]["verification"]["predicted"]

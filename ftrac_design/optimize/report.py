@@ -3,15 +3,15 @@ design as TOML, the Pareto front, the convergence plot and start vs best side by
 
 Output directory (written atomically: a temporary sibling renamed into place):
 
-| file | content |
-| --- | --- |
-| ``best.toml`` | the winner as a design file ``build`` accepts (header: how it was found) |
-| ``summary.json`` | format ``ftrac-optimize`` v1: run, space, start and best (parameters, figures on the search sample and on fresh poses, Monte-Carlo solver errors, rules), front |
-| ``comparison.txt`` | start vs best: score (as ``compare`` prints it), rules (as ``check``), atlas |
-| ``pareto.json`` / ``pareto.csv`` / ``pareto.png`` | the non-dominated feasible candidates |
-| ``convergence.png`` | best objective so far and feasible share per generation |
-| ``evaluations.jsonl`` | the evaluation log |
-| ``build/`` | ``ftrac-design build`` of ``best.toml`` (unless ``--no-build``) |
+- ``best.toml`` — the winner as a design file ``build`` accepts (header: how it was found)
+- ``summary.json`` — format ``ftrac-optimize`` v1: run, space, start and best (parameters,
+  figures on the search sample and on fresh poses, Monte-Carlo solver errors, rules), front
+- ``comparison.txt`` — start vs best: score (as ``compare`` prints it), rules (as ``check``),
+  atlas
+- ``pareto.json`` / ``pareto.csv`` / ``pareto.png`` — the non-dominated feasible candidates
+- ``convergence.png`` — best objective so far and feasible share per generation
+- ``evaluations.jsonl`` — the evaluation log
+- ``build/`` — ``ftrac-design build`` of ``best.toml`` (unless ``--no-build``)
 """
 
 from __future__ import annotations
@@ -447,8 +447,9 @@ def format_summary(doc: dict) -> str:
         m0, m1 = s0["solver"], s1["solver"]
         c = doc["best"]["change_by_solver"]
         out.append(f"solver, {m1['images']} images ({m0['solved']} / {m1['solved']} solved), RMS: translation "
-                   f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm ({c['translation_rms']:+.1%}), "
-                   f"rotation {m0['rotation_rms_deg']:.4f} -> {m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%}); "
+                   f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm "
+                   f"({c['translation_rms']:+.1%}), rotation {m0['rotation_rms_deg']:.4f} -> "
+                   f"{m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%}); "
                    f"bound at the same poses {m0['predicted_translation_rms_mm']:.4f} -> "
                    f"{m1['predicted_translation_rms_mm']:.4f} mm, {m0['predicted_rotation_rms_deg']:.4f} -> "
                    f"{m1['predicted_rotation_rms_deg']:.4f}°")

@@ -303,8 +303,8 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
         start = {"kind": "start", "index": 0, "seed": config.seed, **evaluate_candidate(space.base, settings),
                  "parameters": {p.key: p.start for p in space.parameters}}
         if start["figures"] is None:
-            from ..features import compute_features
             from ..design.loader import parse_design
+            from ..features import compute_features
             from .evaluate import score_figures
 
             d = parse_design(space.base)

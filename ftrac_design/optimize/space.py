@@ -4,13 +4,15 @@ A space maps a point ``x`` of the unit cube ``[0, 1]ⁿ`` (what the optimisers s
 candidate design: the start design's TOML data with some values replaced. Keys name a
 design value by feature id (lengths mm, angles degrees as in the design file):
 
-| key | meaning |
-| --- | --- |
-| ``ellipses.<id>.tilt_deg`` / ``.tilt_azimuth_deg`` / ``.z_center`` | as in the design file |
-| ``lines.<id>.azimuth_deg`` / ``.z_start`` / ``.z_end`` | as in the design file |
-| ``lines.<id>.beads`` | the line's movable beads as ordered fractions (below) |
-| ``body.outer_diameter`` / ``.length`` / ``.bore_diameter`` | absolute, feature positions unchanged |
-| ``body.scale`` | the body and every axial position × this factor (bought parts and seating unchanged; axial parameters are then in the start design's mm and scaled too) |
+- ``ellipses.<id>.tilt_deg`` / ``.tilt_azimuth_deg`` / ``.z_center`` — as in the design file
+- ``lines.<id>.azimuth_deg`` / ``.z_start`` / ``.z_end`` — as in the design file
+- ``lines.<id>.beads`` — the line's movable beads as ordered fractions (below)
+- ``body.outer_diameter`` / ``.length`` / ``.bore_diameter`` — absolute, feature positions
+  unchanged
+- ``body.scale`` — the body and every axial position × this factor (bought parts and seating
+  unchanged; axial parameters are then in the start design's mm and scaled too)
+- ``wire.diameter`` / ``bead.diameter`` — ``{choices = [...]}``: stock sizes (seating keeps the
+  start's cover)
 
 When the body's diameter varies (``body.scale``, ``body.outer_diameter``) the mount block
 grows with it (its width follows the socket and the hole pattern that must clear it), and
@@ -18,7 +20,6 @@ the connector's ``axis_height`` follows the mount: it rises by half of the block
 so the mount keeps the start design's clearance above the template's top edge
 (``connector.template_clearance``) instead of running into the template at a size where
 the mount's hole pattern steps up.
-| ``wire.diameter`` / ``bead.diameter`` | ``{choices = [...]}``: stock sizes (seating keeps the start's cover) |
 
 A stock size other than the start's is read from the image with another precision: a
 smaller ball's shadow has less contrast and less edge. The candidate's ``[analysis]``
@@ -309,15 +310,13 @@ def _connector_follows_mount(base: dict, data: dict) -> None:
 
 def _schema_problem(data: dict) -> str | None:
     """The design schema's complaint about ``data`` (field types and ranges only), or None."""
-    from ..design.loader import _EXPECT, _loc
+    from ..design.loader import describe_schema_error
 
     try:
         Design.model_validate(data)
     except ValidationError as exc:
-        err = exc.errors(include_url=False)[0]
-        template = _EXPECT.get(err["type"])
-        expected = template.format(**(err.get("ctx") or {})) if template else err["msg"]
-        return f"{_loc(err['loc'])} must be {expected.removeprefix('Value error, ')}"
+        key, expected = describe_schema_error(exc.errors(include_url=False)[0], with_input=False)
+        return f"{key} must be {expected}"
     return None
 
 

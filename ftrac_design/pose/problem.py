@@ -33,8 +33,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..features.model import Features
-from .fitting import ConicFit, LineFit, conic_center_and_axes, conic_from_coefficients, conic_matrix, fit_conic, \
-    fit_line, line_from_coefficients, tangent_basis
+from .fitting import (
+    ConicFit,
+    conic_center_and_axes,
+    conic_from_coefficients,
+    conic_matrix,
+    fit_conic,
+    fit_line,
+    line_from_coefficients,
+)
 from .observation import Observation
 from .smallmat import spd_solve
 
@@ -430,8 +437,8 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         # a slice when every curve is contour-given (the usual case) indexes without copying
         return (slice(None) if len(cols) == len(ids) else cols), fit
 
-    l_n = np.zeros((B, L, 2)); l_m = np.zeros((B, L, 2)); l_c = np.zeros((B, L))
-    l_info = np.full((B, L, 2, 2), np.nan); l_from_model = np.ones(L, bool)
+    l_n, l_m, l_c = np.zeros((B, L, 2)), np.zeros((B, L, 2)), np.zeros((B, L))
+    l_info, l_from_model = np.full((B, L, 2, 2), np.nan), np.ones(L, bool)
     l_sig = np.repeat((noise.line_mm / pix)[:, None], L, 1)
     cols, fit = fit_all("lines", line_ids, fit_line, "a line")
     if fit is not None:
@@ -449,8 +456,8 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
                                     intr[:, 2:4])
         l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
 
-    e_theta = np.zeros((B, E, 6)); e_m = np.zeros((B, E, 2)); e_s = np.ones((B, E))
-    e_basis = np.zeros((B, E, 6, 5)); e_info = np.full((B, E, 5, 5), np.nan)
+    e_theta, e_m, e_s = np.zeros((B, E, 6)), np.zeros((B, E, 2)), np.ones((B, E))
+    e_basis, e_info = np.zeros((B, E, 6, 5)), np.full((B, E, 5, 5), np.nan)
     e_from_model = np.ones(E, bool)
     e_sig = np.repeat((noise.ellipse_mm / pix)[:, None], E, 1)
     cols, cf = fit_all("ellipses", ellipse_ids, fit_conic, "an ellipse")
@@ -545,9 +552,12 @@ def jacobian_rows(pr, idx: np.ndarray | slice, cu: np.ndarray, cv: np.ndarray, c
     Qx, Qy, Qz = Q[..., 0], Q[..., 1], Q[..., 2]
     if columns:
         Jt = np.empty(ax.shape[:1] + (6,) + ax.shape[1:])
-        np.multiply(Qy, az, out=Jt[:, 0]); Jt[:, 0] -= Qz * ay
-        np.multiply(Qz, ax, out=Jt[:, 1]); Jt[:, 1] -= Qx * az
-        np.multiply(Qx, ay, out=Jt[:, 2]); Jt[:, 2] -= Qy * ax
+        np.multiply(Qy, az, out=Jt[:, 0])
+        Jt[:, 0] -= Qz * ay
+        np.multiply(Qz, ax, out=Jt[:, 1])
+        Jt[:, 1] -= Qx * az
+        np.multiply(Qx, ay, out=Jt[:, 2])
+        Jt[:, 2] -= Qy * ax
         Jt[:, 3], Jt[:, 4], Jt[:, 5] = ax, ay, az
         return Jt
     J = np.empty(ax.shape + (6,))

@@ -144,9 +144,10 @@ def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: n
     """One synthetic image of ``features`` at pose (R, t) (F → X, mm).
 
     ``segmentation_error_mm``: the paper's uniform error magnitude at the detector, times
-    ``error_factors`` (bead, wire) for beads and for contour points. ``include`` limits the observed feature ids; ``solve_camera`` is the (miscalibrated)
-    camera written into the observation; ``as_coefficients`` reports curves as fitted
-    coefficients from the exact projection instead of contour points.
+    ``error_factors`` (bead, wire) for beads and for contour points. ``include`` limits the
+    observed feature ids; ``solve_camera`` is the (miscalibrated) camera written into the
+    observation; ``as_coefficients`` reports curves as fitted coefficients from the exact
+    projection instead of contour points.
     """
     rng = rng or np.random.default_rng()
     e = segmentation_error_mm
@@ -250,7 +251,7 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
 
     lns = {ln.id: ln for ln in features.lines}
     L = len(line_ids)
-    l_n = np.zeros((Bn, L, 2)); l_m = np.zeros((Bn, L, 2)); l_info = np.zeros((Bn, L, 2, 2))
+    l_n, l_m, l_info = np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2, 2))
     l_sig = np.full((Bn, L), noise.line_mm / pix)
     if L:
         s = np.linspace(0.0, 1.0, contour.line)[:, None]
@@ -267,8 +268,8 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
 
     els = {e.id: e for e in features.ellipses}
     E = len(ellipse_ids)
-    e_theta = np.zeros((Bn, E, 6)); e_m = np.zeros((Bn, E, 2)); e_s = np.ones((Bn, E))
-    e_basis = np.zeros((Bn, E, 6, 5)); e_info = np.zeros((Bn, E, 5, 5))
+    e_theta, e_m, e_s = np.zeros((Bn, E, 6)), np.zeros((Bn, E, 2)), np.ones((Bn, E))
+    e_basis, e_info = np.zeros((Bn, E, 6, 5)), np.zeros((Bn, E, 5, 5))
     e_sig = np.full((Bn, E), noise.ellipse_mm / pix)
     sj = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
     for j, fid in enumerate(ellipse_ids):

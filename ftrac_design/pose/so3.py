@@ -77,7 +77,8 @@ def log(R: np.ndarray) -> np.ndarray:
     near_pi = th > np.pi - 1e-4
     if np.any(near_pi):
         Rp = R[near_pi]
-        B = (Rp + np.swapaxes(Rp, -1, -2)) / 2 - np.eye(3) * ((np.trace(Rp, axis1=-2, axis2=-1) - 1) / 2)[..., None, None]
+        B = ((Rp + np.swapaxes(Rp, -1, -2)) / 2
+             - np.eye(3) * ((np.trace(Rp, axis1=-2, axis2=-1) - 1) / 2)[..., None, None])
         # B = (1 - cos θ) n nᵀ: the column with the largest diagonal gives n up to sign
         k = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
         col = np.take_along_axis(B, k[..., None, None].repeat(3, -2), axis=-1)[..., 0]

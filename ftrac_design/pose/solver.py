@@ -39,8 +39,17 @@ from scipy.special import chdtrc, fdtrc
 from ..features.model import Features
 from . import so3
 from .observation import Observation
-from .problem import ELLIPSE_MODEL_POINTS, NoiseModel, Problem, bead_rows, compile_problem, evaluate, \
-    jacobian_rows, project_points, rows_where
+from .problem import (
+    ELLIPSE_MODEL_POINTS,
+    NoiseModel,
+    Problem,
+    bead_rows,
+    compile_problem,
+    evaluate,
+    jacobian_rows,
+    project_points,
+    rows_where,
+)
 
 FORMAT = "ftrac-pose"
 VERSION = 1
@@ -621,7 +630,8 @@ def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State
             dchi2 = (st2.cost[j] - st2.cost[best]) / max(kappa2, 1.0)
             dang = math.degrees(float(so3.angle(st2.R[j], st2.R[best])))
             dt = float(np.linalg.norm(st2.t[j] - st2.t[best]))
-            if dchi2 < opts.ambiguity_chi2 and (dang > opts.ambiguity_rotation_deg or dt > opts.ambiguity_translation_mm):
+            if dchi2 < opts.ambiguity_chi2 and (dang > opts.ambiguity_rotation_deg
+                                                or dt > opts.ambiguity_translation_mm):
                 pose.converged = False
                 pose.error = (f"ambiguous: another pose {dang:.1f}° and {dt:.1f} mm away fits the image "
                               f"equally well (Δχ² = {dchi2:.2g}); observe more features")

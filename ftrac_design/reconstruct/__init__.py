@@ -30,6 +30,7 @@ def demo_step(out_dir: Path) -> str:
     import numpy as np
 
     from ..design import load_design
+    from ..design.presets import preset_path
     from ..features import compute_features, write_features
     from ..pose import Camera, solve_batch
     from ..pose.io import write_poses
@@ -39,8 +40,7 @@ def demo_step(out_dir: Path) -> str:
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    root = Path(__file__).resolve().parents[2]
-    features = compute_features(load_design(root / "models" / "ftrac_2005.toml"))
+    features = compute_features(load_design(preset_path("ftrac_2005")))
     write_features(out_dir / "features.json", features)
     rng = np.random.default_rng(7)
     cam = Camera()

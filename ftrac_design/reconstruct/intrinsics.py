@@ -99,7 +99,6 @@ def crb(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, noise:
     Bm = basis(params, camera.intrinsics)
     A = np.concatenate([rows[..., :6], rows[..., 6:] @ Bm], -1)
     info = np.swapaxes(A, 1, 2) @ A * images
-    k = len(params)
     # scale to unit diagonal before inverting: fx in px and δ in rad differ by ~10⁸
     d = np.sqrt(np.diagonal(info, axis1=1, axis2=2))
     C = np.linalg.inv(info / (d[:, :, None] * d[:, None, :])) / (d[:, :, None] * d[:, None, :])

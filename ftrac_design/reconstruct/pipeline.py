@@ -18,8 +18,8 @@ from .triangulate import MIN_PARALLAX_DEG, Views, triangulate
 FRAME_KEYS = {"fiducial": None, "template": "template_from_fiducial"}
 
 
-def build_views(poses: list[dict], points: list[dict], camera: Camera | None, noise_px: float | None,
-                poses_file: str, points_file: str) -> tuple[Views, list[int], list[dict], list[str], np.ndarray, np.ndarray]:
+def build_views(poses: list[dict], points: list[dict], camera: Camera | None, noise_px: float | None, poses_file: str,
+                points_file: str) -> tuple[Views, list[int], list[dict], list[str], np.ndarray, np.ndarray]:
     """Views of the usable images, their input indices, the skipped ones (with why), the
     point ids and the pixels (N, n, 2) / seen mask (N, n)."""
     if len(poses) != len(points):
@@ -36,7 +36,9 @@ def build_views(poses: list[dict], points: list[dict], camera: Camera | None, no
             skipped.append({"index": i, "reason": p["why"]})
             continue
         used.append(i)
-        R.append(p["R"]); t.append(p["t"]); intr.append(cam.intrinsics)
+        R.append(p["R"])
+        t.append(p["t"])
+        intr.append(cam.intrinsics)
         # SPEC's default segmentation error (0.25 mm uniform magnitude: σ = 0.102 mm per axis)
         sig.append(noise_px if noise_px is not None else NoiseModel().point_mm / float(np.mean(cam.pixel_size_mm)))
         cov.append(p["cov"] if p["cov"] is not None else np.zeros((6, 6)))
@@ -57,7 +59,8 @@ def build_views(poses: list[dict], points: list[dict], camera: Camera | None, no
 def reconstruct(features: Features, poses: list[dict], points: list[dict], camera: Camera | None = None,
                 to: str = "fiducial", transform: fr.RigidTransform | None = None, noise_px: float | None = None,
                 min_parallax_deg: float = MIN_PARALLAX_DEG, template_sigma_mm: float = 0.0,
-                poses_file: str = "<poses>", points_file: str = "<points>", features_file: str = "<features>") -> dict[str, Any]:
+                poses_file: str = "<poses>", points_file: str = "<points>",
+                features_file: str = "<features>") -> dict[str, Any]:
     """The ``ftrac-reconstruction`` object for parsed inputs (see :mod:`.io`)."""
     views, used, skipped, ids, uv, seen = build_views(poses, points, camera, noise_px, poses_file, points_file)
     if views.N:

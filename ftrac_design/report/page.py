@@ -281,7 +281,8 @@ def _atlas(r: ReportInputs) -> str:
                      _num(w.get("translation_error_mm")), _num(w.get("condition")), _e(who)])
     body = (f"<p>{_num(at.get('directions'))} view directions on a {_num(at.get('sphere_step_deg'))}° grid; "
             f"condition number median {_num(at['condition'].get('median'))}, worst "
-            f"{_num(at['condition'].get('worst'))} (in the workspace cone {_num(at['condition'].get('worst_in_cone'))}).</p>")
+            f"{_num(at['condition'].get('worst'))} "
+            f"(in the workspace cone {_num(at['condition'].get('worst_in_cone'))}).</p>")
     body += _table(["#", "lon, lat", "from nominal", "translation (mm)", "condition", "features blind there"],
                    rows, (3, 4))
     pics = [_img(r.analysis_pictures[n], n, n) for n in ("atlas_sphere.png", "atlas_cone.png")

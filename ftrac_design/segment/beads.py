@@ -17,9 +17,8 @@ unweighted fit, moves toward the wire). All candidates are fitted together (vect
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np

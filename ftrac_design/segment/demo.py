@@ -12,6 +12,7 @@ def demo_step(out_dir: Path, seed: int = 7) -> str:
     model), track the raw image with no initial guess, write ``track_overlay.png`` into
     ``out_dir`` and return the text to print: truth vs estimate."""
     from ..design import load_design
+    from ..design.presets import preset_path
     from ..features import compute_features
     from ..pose import Camera
     from ..pose.simulate import Workspace, pose_errors
@@ -19,8 +20,7 @@ def demo_step(out_dir: Path, seed: int = 7) -> str:
     from .overlay import draw_overlay
     from .pipeline import track_image
 
-    root = Path(__file__).resolve().parents[2]
-    design = load_design(root / "models" / "ftrac_2005.toml")
+    design = load_design(preset_path("ftrac_2005"))
     features = compute_features(design)
     body = Body.from_design(design)
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(seed))

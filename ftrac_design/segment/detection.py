@@ -18,10 +18,10 @@ from ..pose import Camera
 from .beads import Beads, blob_candidates, blob_response, fit_beads
 from .image import NoiseField, derivatives, second_derivative_gain, top_hat
 from .options import TrackOptions
+from .ridges import RidgePoints, ridge_points
 
 #: the blur the ridge scale is sized for (``TrackOptions.blur_px``'s default, px)
 DEFAULT_BLUR_PX = TrackOptions.blur_px
-from .ridges import RidgePoints, ridge_points
 
 
 @dataclass(frozen=True)

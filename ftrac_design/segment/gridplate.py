@@ -57,8 +57,8 @@ class GridImage:
     camera: Camera
 
 
-def plate_pose(rotation_rad: float = 0.0, tilt_rad: tuple[float, float] = (0.0, 0.0),
-               distance_mm: float = 970.0, offset_mm: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+def plate_pose(rotation_rad: float = 0.0, tilt_rad: tuple[float, float] = (0.0, 0.0), distance_mm: float = 970.0,
+               offset_mm: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
     """(R, t) of a plate facing the source: tilted by ``tilt_rad`` about the camera's x then y
     axis, turned by ``rotation_rad`` about the beam, its centre ``distance_mm`` from the source
     (default: taped to the face of an intensifier 1 m from the source) and ``offset_mm`` off the

@@ -18,7 +18,6 @@ faster than scipy's for the same operator).
 from __future__ import annotations
 
 import math
-import warnings
 
 import cv2
 import numpy as np
@@ -139,7 +138,10 @@ def derivatives(img: np.ndarray, sigma: float, first: bool = True) -> dict[str, 
     """Gaussian-smoothed derivatives of ``img`` at scale ``sigma`` px: keys x, y (unless
     ``first`` is False), xx, xy, yy (x = column, y = row)."""
     g0, g1, g2 = gaussian_kernels(sigma)
-    f = lambda kx, ky: cv2.sepFilter2D(img, cv2.CV_32F, kx, ky, borderType=cv2.BORDER_REPLICATE)
+
+    def f(kx, ky):
+        return cv2.sepFilter2D(img, cv2.CV_32F, kx, ky, borderType=cv2.BORDER_REPLICATE)
+
     # sepFilter2D correlates; a derivative kernel must be flipped to convolve (g1 is odd)
     d = {"xx": f(g2, g0), "yy": f(g0, g2), "xy": f(-g1, -g1)}
     if first:

@@ -21,8 +21,14 @@ from . import evidence, identify
 from .beads import Beads
 from .detection import Scene
 from .guided import guided_contours
-from .noise import (calibrated_covariance, clean_contours, distortion_covariance, feature_p_values, measured_noise,
-                    residuals_at)
+from .noise import (
+    calibrated_covariance,
+    clean_contours,
+    distortion_covariance,
+    feature_p_values,
+    measured_noise,
+    residuals_at,
+)
 
 
 @dataclass(frozen=True)

@@ -32,10 +32,11 @@ def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: f
     its own fit) every feature carries a systematic error that does not average away over
     its points — a bead centre pulled by a wire or a bone edge, a wire's contour shifted by
     the background's slope (``TrackOptions.sys_point_px`` / ``sys_curve_px``, measured
-    against the truth on rendered images with anatomy; the curves' grows with the blur²). The solver's noise model is one σ
-    per point of a type, so a curve's systematic part enters as ``n σ_sys²`` per point (n
-    its typical number of points): then a curve's fitted parameters carry σ_sys as they
-    should and the per-feature χ² test does not reject correct curves for a 0.05 px shift.
+    against the truth on rendered images with anatomy; the curves' grows with the blur²). The
+    solver's noise model is one σ per point of a type, so a curve's systematic part enters as
+    ``n σ_sys²`` per point (n its typical number of points): then a curve's fitted parameters
+    carry σ_sys as they should and the per-feature χ² test does not reject correct curves for a
+    0.05 px shift.
 
     Parameters
     ----------
@@ -220,12 +221,12 @@ def distortion_covariance(features: Features, obs: Observation, pose: Pose, nois
                           sigma_mm: float, radius_mm: float = 100.0) -> np.ndarray | None:
     """The pose covariance (6 × 6, SPEC §4 order) that an unmodelled image distortion of
     ``sigma_mm`` (σ of the pincushion and S modes of :func:`distortion_modes`, 0.4 σ of the
-    centre's, at ``radius_mm`` from the principal point) adds: each mode's displacement of the observed features moves the least-squares
-    pose by Δθ = −(JᵀJ)⁻¹ Jᵀ Δρ (whitened residuals ρ, Jacobian J at ``pose``), and the
-    covariance is Σ σ² Δθ Δθᵀ. A pinhole pose from an intensifier's image is biased mostly in
-    depth (a pincushion magnifies the fiducial's image: 3–5 mm at 667 mm for 2 mm at 100 mm),
-    which no residual shows; this term makes the covariance say so. None where the pose's
-    Jacobian is unusable."""
+    centre's, at ``radius_mm`` from the principal point) adds: each mode's displacement of the
+    observed features moves the least-squares pose by Δθ = −(JᵀJ)⁻¹ Jᵀ Δρ (whitened residuals
+    ρ, Jacobian J at ``pose``), and the covariance is Σ σ² Δθ Δθᵀ. A pinhole pose from an
+    intensifier's image is biased mostly in depth (a pincushion magnifies the fiducial's image:
+    3–5 mm at 667 mm for 2 mm at 100 mm), which no residual shows; this term makes the
+    covariance say so. None where the pose's Jacobian is unusable."""
     if sigma_mm <= 0 or not (obs.points or obs.lines or obs.ellipses):
         return None
     R, t = pose.rotation, pose.translation_mm

@@ -24,8 +24,8 @@ from ..features.model import Features
 from ..pose import Camera, so3
 from . import acceptance, identify
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
-from .detection import Scene, detect, fitted_blur, scales
 from .conditioning import FORMATIONS, condition, formation_of
+from .detection import Scene, detect, fitted_blur, scales
 from .image import NoiseField, detect_polarity
 from .labelling import Labelling, evaluate, with_agreement
 from .options import TrackOptions, TrackResult, failed_result

@@ -6,9 +6,10 @@
 - :func:`read_image` / :func:`write_image` — re-exported from :mod:`ftrac_design.images`.
 - :func:`anatomy` — a synthetic anatomy-like background (:mod:`.background`).
 - :func:`.patient.patient` / :func:`seeds` — a patient's line integral (spine, ribs, lungs,
-  pelvis, gas) and brachytherapy seeds (:mod:`.patient`; the package's ``patient`` is that module); :func:`apply_chain` / :func:`n0_for_counts` — a
-  C-arm's detector and display chain (:mod:`.display`); :func:`realistic_image` — a complete
-  test image for a named condition (:mod:`.scenario`).
+  pelvis, gas) and brachytherapy seeds (:mod:`.patient`; the package's ``patient`` is that
+  module); :func:`apply_chain` / :func:`n0_for_counts` — a C-arm's detector and display chain
+  (:mod:`.display`); :func:`realistic_image` — a complete test image for a named condition
+  (:mod:`.scenario`).
 - truth.json (:mod:`.truth`); attenuation coefficients (:mod:`.materials`).
 """
 

@@ -13,16 +13,16 @@ def demo_step(out_dir: Path, seed: int = 2005) -> str:
     background) into ``out_dir``: ``radiograph.png`` (log image, 16-bit, dense = bright) and
     ``radiograph.truth.json``. Returns the lines the demo prints."""
     from ..design import load_design
+    from ..design.presets import preset_path
     from ..features import compute_features
+    from ..images import write_image
     from ..pose.simulate import Workspace
     from .background import anatomy
-    from ..images import write_image
     from .render import render
-    from .scene import _REPO
     from .truth import write_truth
 
     out_dir = Path(out_dir)
-    features = compute_features(load_design(_REPO / "models" / "ftrac_2005.toml"))
+    features = compute_features(load_design(preset_path("ftrac_2005")))
     rng = np.random.default_rng(seed)
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     bg = anatomy(seed=seed)

@@ -22,9 +22,10 @@ In the order the physics puts them (:func:`apply_chain`):
    line integral where nothing saturates); ``display`` — what a monitor or a frame grabber
    shows (DISP): the log signal, unsharp-mask edge enhancement ``s + amount (s − G_σ s)``,
    window ``x = clip((s − c + w/2) / w, 0, 1)`` (centre/width given, or from percentiles of
-   the exposed patient in the central measuring field), gamma ``y = x^γ``, ``polarity`` (dense-dark: ``1 − y``), quantised to
-   8 or 16 bits; outside the round field the lowest value (black), with burned-in text and a
-   crosshair when asked, and the frame grabber's analog noise.
+   the exposed patient in the central measuring field), gamma ``y = x^γ``, ``polarity``
+   (dense-dark: ``1 − y``), quantised to 8 or 16 bits; outside the round field the lowest value
+   (black), with burned-in text and a crosshair when asked, and the frame grabber's analog
+   noise.
 
 Every function is pure; settings are frozen dataclasses; bad settings raise
 :class:`~ftrac_design.errors.InputError`.
@@ -327,7 +328,8 @@ def auto_window(s: np.ndarray, mask: np.ndarray, percentiles: tuple[float, float
     return float(lo) + width / 2, width
 
 
-_TEXT = ("{kv} kV  {ma:.1f} mA", "FL {m:02d}:{s:02d}", "DAP {dap:.2f} Gy cm2", "IMG {i}/{n}", "{d:02d}-{mo:02d}-2024 {h:02d}:{mi:02d}")
+_TEXT = ("{kv} kV  {ma:.1f} mA", "FL {m:02d}:{s:02d}", "DAP {dap:.2f} Gy cm2", "IMG {i}/{n}",
+         "{d:02d}-{mo:02d}-2024 {h:02d}:{mi:02d}")
 
 
 def annotation_mask(shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:

@@ -203,8 +203,8 @@ def _ribs(rng: np.random.Generator, levels: list[dict], half_width: float) -> li
         for s in (-1, 1):
             x_in = s * (lv["a"] + 14.0)
             if k >= 10:                      # floating ribs: short, sloping down and out
-                out.append(_arc_tube(f"rib {k + 1}", (x_in, y), (s * (lv["a"] + 50), y + 14), (s * (lv["a"] + 85), y + 40),
-                                     h, c, 1.0))
+                out.append(_arc_tube(f"rib {k + 1}", (x_in, y), (s * (lv["a"] + 50), y + 14),
+                                     (s * (lv["a"] + 85), y + 40), h, c, 1.0))
                 continue
             drop = _j(rng, 35.0 + 3.0 * k, 0.1)
             p_lat = (s * reach, y + drop)
@@ -370,7 +370,8 @@ def _gas(rng: np.random.Generator, levels: list[dict], half_width: float) -> lis
             if rng.random() < 0.5:         # stool: gas bubbles in a soft mass
                 for _ in range(int(rng.integers(8, 25))):
                     t = float(rng.random())
-                    c = (a[0] + t * (b[0] - a[0]) + rng.normal(0, w / 2), a[1] + t * (b[1] - a[1]) + rng.normal(0, w / 2))
+                    c = (a[0] + t * (b[0] - a[0]) + rng.normal(0, w / 2),
+                         a[1] + t * (b[1] - a[1]) + rng.normal(0, w / 2))
                     r = float(rng.uniform(1.5, 4.5))
                     out.append(gas("stool gas", Ellipsoid(c, (r, r), r)))
     for _ in range(int(rng.integers(0, 6))):  # small-bowel loops around the umbilicus

@@ -6,7 +6,7 @@ Image formation, in order:
    (tube pieces, :mod:`.geometry`), the body (hollow cylinder) and any occluders, evaluated
    only inside the fiducial's bounding box. Wherever ``p`` is not smooth (every pixel a
    wire or bead touches, and body pixels whose 4-neighbour Laplacian exceeds
-   ``_BODY_ROUGHNESS``, with their neighbours) the pixel value is the mean of
+   ``BODY_ROUGHNESS``, with their neighbours) the pixel value is the mean of
    ``supersample²`` sub-samples — pixel integration, so feature centres carry no aliasing
    bias (4 × 4 vs 16 × 16: a blurred bead's centroid moves ≤ 0.005 px, a wire's profile
    centre ≤ 0.007 px); elsewhere the pixel centre (midpoint rule, error ≈ Laplacian / 24
@@ -30,7 +30,6 @@ Image formation, in order:
 from __future__ import annotations
 
 import math
-import weakref
 from typing import Sequence
 
 import numpy as np
@@ -38,42 +37,14 @@ from scipy.ndimage import gaussian_filter1d
 
 from ..features.model import Features
 from ..pose.camera import Camera
-from .geometry import Pieces, body_chord_uv, ellipse_pieces, sphere_chord, straight_pieces, tube_chord_uv
+from .geometry import Pieces, body_chord_uv, sphere_chord, straight_pieces, tube_chord_uv
 from .model import Body, ImagingModel, Occluder, Radiograph
+from .rays import BODY_ROUGHNESS, Rays, capsule_pixels, feature_pieces, project_points, subsample_offsets
 
-#: body pixels whose 4-neighbour Laplacian exceeds this (line-integral units) are
-#: supersampled, with their neighbours: the midpoint rule's error is ≈ Laplacian / 24, so
-#: elsewhere it stays below ~4e-4 (measured ≤ 3e-4 against 8 × 8 supersampling everywhere;
-#: the quantum noise of the default model is 1e-2)
-_BODY_ROUGHNESS = 1e-2
 #: Gaussian counts are used when every expected count is at least this
 _GAUSSIAN_MIN_COUNTS = 100.0
 
 AUTO = "auto"
-
-_scene_cache: dict[int, tuple] = {}
-
-
-def _feature_pieces(features: Features, mu_steel: float) -> tuple[np.ndarray, np.ndarray, Pieces]:
-    """Beads (centres, radii) and wire pieces of ``features`` (pose-independent, cached)."""
-    key = id(features)
-    hit = _scene_cache.get(key)
-    if hit is not None and hit[0]() is features and hit[1] == mu_steel:
-        return hit[2]
-    parts = []
-    for k, ln in enumerate(features.lines):
-        for a, b in features.wire_segments(ln.id):
-            parts.append(straight_pieces(a, b, ln.wire_diameter / 2, mu_steel, k, max_len_mm=3.0))
-    for k, el in enumerate(features.ellipses):
-        parts.append(ellipse_pieces(el, mu_steel, len(features.lines) + k))
-    centers = features.point_centers()
-    radii = np.array([p.diameter / 2 for p in features.points], float)
-    out = (centers, radii, Pieces.concat(parts))
-    if len(_scene_cache) > 64:
-        _scene_cache.clear()
-    _scene_cache[key] = (weakref.ref(features), mu_steel, out)
-    return out
-
 
 def _occluder_pieces(occluders: Sequence[Occluder], imaging: ImagingModel, R: np.ndarray, t: np.ndarray) -> Pieces:
     parts = []
@@ -83,56 +54,6 @@ def _occluder_pieces(occluders: Sequence[Occluder], imaging: ImagingModel, R: np
             a, b = R.T @ (a - t), R.T @ (b - t)
         parts.append(straight_pieces(a, b, oc.diameter / 2, imaging.mu(oc.material), -1 - k))
     return Pieces.concat(parts)
-
-
-class _Rays:
-    """Ray directions in F for image points: d = g0 + u gu + v gv; source at c."""
-
-    def __init__(self, camera: Camera, R: np.ndarray, t: np.ndarray):
-        Rt = np.asarray(R, float).T
-        sx, sy = camera.pixel_size_mm
-        ox, oy = camera.principal_point_px
-        self.gu = Rt[:, 0] * sx
-        self.gv = Rt[:, 1] * sy
-        self.g0 = Rt[:, 2] * camera.focal_length_mm - ox * self.gu - oy * self.gv
-        self.c = -Rt @ np.asarray(t, float)
-
-    def __call__(self, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-        return self.g0 + u[:, None] * self.gu + v[:, None] * self.gv
-
-
-def _capsule_pairs(u0, v0, u1, v1, rad):
-    """(primitive index, row, col) of every pixel whose centre lies within ``rad`` px of the
-    segment (u0, v0)–(u1, v1) of each primitive."""
-    lo_u = np.floor(np.minimum(u0, u1) - rad).astype(int)
-    lo_v = np.floor(np.minimum(v0, v1) - rad).astype(int)
-    hi_u = np.ceil(np.maximum(u0, u1) + rad).astype(int)
-    hi_v = np.ceil(np.maximum(v0, v1) + rad).astype(int)
-    Ku, Kv = int((hi_u - lo_u).max()) + 1, int((hi_v - lo_v).max()) + 1
-    iu = lo_u[:, None, None] + np.arange(Ku)[None, None, :]
-    iv = lo_v[:, None, None] + np.arange(Kv)[None, :, None]
-    du, dv = (u1 - u0)[:, None, None], (v1 - v0)[:, None, None]
-    qu, qv = iu - u0[:, None, None], iv - v0[:, None, None]
-    ll = du * du + dv * dv
-    s = np.clip((qu * du + qv * dv) / np.where(ll > 0, ll, 1.0), 0.0, 1.0)
-    eu, ev = qu - s * du, qv - s * dv
-    mask = (eu * eu + ev * ev <= (rad * rad)[:, None, None]) & (iu <= hi_u[:, None, None]) & (iv <= hi_v[:, None, None])
-    k, jv, ju = np.nonzero(mask)
-    return k, lo_v[k] + jv, lo_u[k] + ju
-
-
-def _subsamples(s: int) -> tuple[np.ndarray, np.ndarray]:
-    o = (np.arange(s) + 0.5) / s - 0.5
-    ou, ov = np.meshgrid(o, o)
-    return ou.ravel(), ov.ravel()
-
-
-def _project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    X = P @ np.asarray(R, float).T + t
-    if np.any(X[:, 2] <= 1.0):
-        raise ValueError("the pose puts part of the fiducial behind the source")
-    uv = camera.project(X)
-    return uv, X[:, 2]
 
 
 def resolve_body(features: Features, body) -> Body | None:
@@ -155,24 +76,24 @@ def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     """
     R, t = np.asarray(R, float), np.asarray(t, float)
     mu_steel = imaging.mu("steel")
-    centers, radii, pieces = _feature_pieces(features, mu_steel)
+    centers, radii, pieces = feature_pieces(features, mu_steel)
     if occluders:
         pieces = Pieces.concat([pieces, _occluder_pieces(occluders, imaging, R, t)])
-    rays = _Rays(camera, R, t)
+    rays = Rays(camera, R, t)
     pix = min(camera.pixel_size_mm)
     s = int(imaging.supersample)
-    ou, ov = _subsamples(s)
+    ou, ov = subsample_offsets(s)
     fdt = np.float32 if imaging.single_precision else np.float64
 
     groups = []          # (rows, cols, values) of supersampled primitives
     lo, hi = [], []
     if len(pieces.L):
         ends = np.concatenate([pieces.a, pieces.a + pieces.L[:, None] * pieces.e])
-        uv, Z = _project(camera, R, t, ends)
+        uv, Z = project_points(camera, R, t, ends)
         M = len(pieces.L)
         zmin = np.minimum(Z[:M], Z[M:]) - pieces.r
         rad = pieces.r * camera.focal_length_mm / np.maximum(zmin, 1.0) / pix * 1.05 + 0.75
-        k, rows, cols = _capsule_pairs(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
+        k, rows, cols = capsule_pixels(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
         if len(k):
             U = cols[:, None] + ou[None, :]
             V = rows[:, None] + ov[None, :]
@@ -182,9 +103,9 @@ def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: 
             lo.append([rows.min(), cols.min()])
             hi.append([rows.max(), cols.max()])
     if len(radii):
-        uv, Z = _project(camera, R, t, centers)
+        uv, Z = project_points(camera, R, t, centers)
         rad = radii * camera.focal_length_mm / np.maximum(Z - radii, 1.0) / pix * 1.05 + 0.75
-        k, rows, cols = _capsule_pairs(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
+        k, rows, cols = capsule_pixels(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
         kk = np.repeat(k, s * s)
         u = np.repeat(cols, s * s) + np.tile(ou, len(k))
         v = np.repeat(rows, s * s) + np.tile(ov, len(k))
@@ -196,7 +117,7 @@ def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     if body is not None:
         ro, h = body.outer_diameter / 2, body.length / 2
         corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
-        uv, _ = _project(camera, R, t, corners)
+        uv, _ = project_points(camera, R, t, corners)
         b_lo = np.floor(uv.min(0)).astype(int) - 1
         b_hi = np.ceil(uv.max(0)).astype(int) + 1
         body_box = (b_lo, b_hi)
@@ -216,14 +137,14 @@ def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     return p, (int(v0), int(u0))
 
 
-def _body_values(rays: _Rays, U: np.ndarray, V: np.ndarray, body: Body, mu: float,
+def _body_values(rays: Rays, U: np.ndarray, V: np.ndarray, body: Body, mu: float,
                  dtype=np.float64) -> np.ndarray:
     c, g0, gu, gv = (np.asarray(x, dtype) for x in (rays.c, rays.g0, rays.gu, rays.gv))
     return mu * body_chord_uv(c, g0, gu, gv, body.outer_diameter / 2, body.bore_diameter / 2, body.length / 2,
                               np.asarray(U, dtype), np.asarray(V, dtype))
 
 
-def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: _Rays, s: int, fdt=np.float32) -> None:
+def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: Rays, s: int, fdt=np.float32) -> None:
     (bu0, bv0), (bu1, bv1) = box
     v0, u0 = origin
     cu = np.arange(bu0, bu1 + 1, dtype=float)
@@ -234,7 +155,7 @@ def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: _Rays, s:
     lap = np.zeros_like(centre)
     lap[1:-1, 1:-1] = (centre[:-2, 1:-1] + centre[2:, 1:-1] + centre[1:-1, :-2] + centre[1:-1, 2:]
                        - 4 * centre[1:-1, 1:-1])
-    rough = np.abs(lap) > _BODY_ROUGHNESS
+    rough = np.abs(lap) > BODY_ROUGHNESS
     flag = rough.copy()
     flag[1:, :] |= rough[:-1, :]
     flag[:-1, :] |= rough[1:, :]
@@ -242,7 +163,7 @@ def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: _Rays, s:
     flag[:, :-1] |= rough[:, 1:]
     jj, ii = np.nonzero(flag)
     if len(jj):
-        ou, ov = _subsamples(s)
+        ou, ov = subsample_offsets(s)
         centre[jj, ii] = _body_values(rays, cu[ii][:, None] + ou, cv[jj][:, None] + ov, body, mu, fdt).mean(1)
     p[bv0 - v0:bv1 - v0 + 1, bu0 - u0:bu1 - u0 + 1] += centre
 

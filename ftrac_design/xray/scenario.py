@@ -56,8 +56,17 @@ from ..features.model import Features
 from ..pose.camera import Camera
 from .display import Detector, Display, Shutter, apply_chain, n0_for_counts
 from .model import ImagingModel, Occluder
-from .patient import (PatientModel, clips, over_body, patient_model, place_at, render_patient, seeds,
-                      structure_center, texture)
+from .patient import (
+    PatientModel,
+    clips,
+    over_body,
+    patient_model,
+    place_at,
+    render_patient,
+    seeds,
+    structure_center,
+    texture,
+)
 from .render import AUTO, blur_sigma_px, resolve_body, transmission_box
 
 Condition = Literal["raw", "log", "display-dark", "display-bright", "round-shutter", "blades", "fluoro-dose",

@@ -15,6 +15,7 @@ import tomllib
 from functools import lru_cache
 from pathlib import Path
 
+from ..design.presets import PRESETS_DIR
 from ..errors import InputError
 from .model import Body
 
@@ -28,7 +29,7 @@ def _candidates(source: str, near: Path | None) -> list[Path]:
         if near is not None:
             out.append(near / p)
         out.append(_REPO / p)
-    out.append(_REPO / "models" / p.name)
+    out.append(PRESETS_DIR / p.name)
     return out
 
 
