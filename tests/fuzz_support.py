@@ -288,3 +288,18 @@ def mutated(draw, doc: Any, toml: bool = True, max_mutations: int = 3) -> tuple[
             cur[draw(st.sampled_from(["extra", "Id", "units", "zz"]))] = draw(scalars(toml))
         done.append(f"{op} {'.'.join(map(str, path))}")
     return doc, done
+
+
+def damage(draw, data: bytes) -> tuple[str, bytes]:
+    """The file's bytes as written (half the time), cut short at a drawn length, or with 1–8
+    drawn bits flipped: ``(what was done, bytes)``. ``draw`` is a Hypothesis draw function."""
+    cut = draw(st.sampled_from(["none", "none", "truncate", "flip"]))
+    if cut == "truncate" and data:
+        data = data[:draw(st.integers(0, len(data) - 1))]
+    elif cut == "flip" and data:
+        b = bytearray(data)
+        for _ in range(draw(st.integers(1, 8))):
+            i = draw(st.integers(0, len(b) - 1))
+            b[i] ^= 1 << draw(st.integers(0, 7))
+        data = bytes(b)
+    return cut, data

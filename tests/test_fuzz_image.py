@@ -16,7 +16,7 @@ import struct
 import zlib
 
 import numpy as np
-from fuzz_support import assert_clean, cases, run_cli, scratch
+from fuzz_support import assert_clean, cases, damage, run_cli, scratch
 from hypothesis import given
 from hypothesis import strategies as st
 from test_fuzz_observation import CAMERA, FEATURE_FILES
@@ -139,15 +139,7 @@ def image_files(draw) -> tuple[str, bytes, list[str]]:
         data = {"png": _png_bytes, "tif": _tiff_bytes, "npy": _npy_bytes, "dcm": _dicom_bytes}[fmt](
             np.zeros((32, 32), np.uint8))
         done.append("writer refused; zeros")
-    cut = draw(st.sampled_from(["none", "none", "truncate", "flip"]))
-    if cut == "truncate" and data:
-        data = data[:draw(st.integers(0, len(data) - 1))]
-    elif cut == "flip" and data:
-        b = bytearray(data)
-        for _ in range(draw(st.integers(1, 8))):
-            i = draw(st.integers(0, len(b) - 1))
-            b[i] ^= 1 << draw(st.integers(0, 7))
-        data = bytes(b)
+    cut, data = damage(draw, data)
     return fmt, data, done + [cut]
 
 

@@ -17,7 +17,7 @@ import warnings
 
 import numpy as np
 import pytest
-from fuzz_support import cases, scratch
+from fuzz_support import cases, damage, scratch
 from hypothesis import given
 from hypothesis import strategies as st
 from images_support import CAM
@@ -110,14 +110,7 @@ def files(draw) -> tuple[str, bytes]:
         data, suffix = _dicom_file(rng, kind, syntax, lie), draw(st.sampled_from([".dcm", ".png", ""]))
     else:
         data, suffix = NAMED[source](rng), SUFFIX[source]
-    cut = draw(st.sampled_from(["none", "none", "truncate", "flip"]))
-    if cut == "truncate" and data:
-        data = data[:draw(st.integers(0, len(data) - 1))]
-    elif cut == "flip" and data:
-        b = bytearray(data)
-        for _ in range(draw(st.integers(1, 8))):
-            b[draw(st.integers(0, len(b) - 1))] ^= 1 << draw(st.integers(0, 7))
-        data = bytes(b)
+    _, data = damage(draw, data)
     return suffix, data
 
 

@@ -36,20 +36,6 @@ def _normals(pts: np.ndarray, closed: bool) -> np.ndarray:
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
-def _outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
-    """Per sample of a closed curve, the outward displacement σ²κ/2 (px, (n, 2)) of a blurred
-    ridge's peak from the centre-line, κ from the samples 4 apart."""
-    a, b = np.roll(pts, 4, 0), np.roll(pts, -4, 0)
-    sag = pts - 0.5 * (a + b)
-    half = 0.5 * np.linalg.norm(b - a, axis=1)
-    sl = np.linalg.norm(sag, axis=1)
-    with np.errstate(all="ignore"):
-        kappa = 2 * sl / (sl * sl + half * half)
-        outward = sag / sl[:, None]
-    shift = np.where(np.isfinite(kappa), 0.5 * var_px2 * kappa, 0.0)
-    return np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
-
-
 def _refine(scene: Scene, q: np.ndarray, n: np.ndarray, iterations: int = 3, max_angle_deg: float = 25.0,
             max_aspect: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points ``q`` (m, 2) moved along their normals ``n`` to the ridge (Steger's step, each
@@ -129,7 +115,7 @@ def guided_contours(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: 
             continue
         q = q[keep]
         if closed and ridge_var_px2 > 0:
-            q = q + _outward_shift(pts, ridge_var_px2)[idx][usable][keep]
+            q = q + identify.outward_shift(pts, ridge_var_px2)[idx][usable][keep]
         (out.lines if kind == "line" else out.ellipses)[fid] = q
         out.snr[fid] = snr[keep]
     return out

@@ -32,6 +32,34 @@ from ..pose import Camera, so3
 from .ridges import RidgePoints
 
 
+def outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
+    """The outward displacement σ²κ/2 of a blurred curved wire's ridge peak from its centre-line.
+
+    Parameters
+    ----------
+    pts : (n, 2) ndarray
+        Samples of a closed curve in the image (px), in order.
+    var_px2 : float
+        The ridge filter's and the image's blur variance σ² (px²).
+
+    Returns
+    -------
+    (n, 2) ndarray
+        Per sample, the displacement (px) away from the centre of curvature; κ from the
+        samples 4 apart (the chord's sagitta); 0 where the curve is straight.
+    """
+    a, b = np.roll(pts, 4, 0), np.roll(pts, -4, 0)
+    sag = pts - 0.5 * (a + b)
+    half = 0.5 * np.linalg.norm(b - a, axis=1)
+    sl = np.linalg.norm(sag, axis=1)
+    with np.errstate(all="ignore"):
+        kappa = 2 * sl / (sl * sl + half * half)
+        outward = sag / sl[:, None]
+    shift = np.where(np.isfinite(kappa), 0.5 * var_px2 * kappa, 0.0)
+    return np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+
+
+
 @dataclass
 class BeadHypothesis:
     """A pose F → X from a bead labelling: ``match`` maps model bead index → detected blob
@@ -338,17 +366,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         if kind == "ellipse":
             # signed curvature from three neighbouring samples; its centre side is where the
             # chord's midpoint bends
-            a2, b2 = pts[(jj - 4) % len(pts)], pts[(jj + 4) % len(pts)]
-            c2 = pts[jj]
-            mid = 0.5 * (a2 + b2)
-            sag = c2 - mid                                   # points away from the centre of curvature
-            half = 0.5 * np.linalg.norm(b2 - a2, axis=1)
-            sl = np.linalg.norm(sag, axis=1)
-            with np.errstate(all="ignore"):
-                kappa = 2 * sl / (sl * sl + half * half)
-                outward = sag / sl[:, None]
-            shift = np.where(np.isfinite(kappa), 0.5 * ridge_var_px2 * kappa, 0.0)
-            corr[k, on] = np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+            corr[k, on] = outward_shift(pts, ridge_var_px2)[jj]
     # beads cover the wire ends they butt against and anything under them (only a point
     # within reach of a curve can be kept, so only those are tested)
     free = np.ones(len(uvr), bool)
