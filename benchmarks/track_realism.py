@@ -21,6 +21,7 @@ the same run — the baseline the conditions' times are compared with.
 
     .venv/bin/python benchmarks/track_realism.py                         # 200 per condition, 3 presets
     .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --conditions raw display-dark
+    .venv/bin/python benchmarks/track_realism.py --plot outputs/track_realism_200.json   # the figure of a run
 """
 
 from __future__ import annotations
@@ -157,6 +158,50 @@ def summarise(rows: list[dict], baseline_ms: float | None) -> str:
     return "\n".join(lines)
 
 
+def plot(rows: list[dict], path: Path) -> Path:
+    """Per condition and preset, the shares tracked, refused and far (honest or confident
+    wrong) as stacked horizontal bars, the confident wrong counted beside them; PNG at ``path``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    presets = list(dict.fromkeys(r["preset"] for r in rows))
+    conds = list(dict.fromkeys(r["condition"] for r in rows))
+    fig, axes = plt.subplots(1, len(presets), figsize=(4.2 * len(presets), 0.42 * len(conds) + 1.4), sharey=True)
+    axes = np.atleast_1d(axes)
+    colours = {"tracked": "#2a9d8f", "far, within its covariance": "#e9c46a", "refused": "#bbbbbb",
+               "confident wrong": "#d62828"}
+    for ax, preset in zip(axes, presets):
+        for y, cond in enumerate(conds):
+            rs = [r for r in rows if r["preset"] == preset and r["condition"] == cond]
+            n = max(len(rs), 1)
+            conv = [r for r in rs if r["converged"]]
+            wrong = sum(r["far"] and r["chi2"] > CHI2_6 for r in conv)
+            parts = {"tracked": sum(not r["far"] for r in conv) / n,
+                     "far, within its covariance": sum(r["far"] and r["chi2"] <= CHI2_6 for r in conv) / n,
+                     "refused": (len(rs) - len(conv)) / n, "confident wrong": wrong / n}
+            left = 0.0
+            for name, share in parts.items():
+                ax.barh(y, 100 * share, left=100 * left, color=colours[name], label=name if y == 0 else None)
+                left += share
+            ax.text(101, y, f"{100 * parts['tracked']:.1f} %" + (f"  {wrong} wrong" if wrong else ""),
+                    va="center", fontsize=7, color="#d62828" if wrong else "black")
+        ax.set_title(f"{preset} ({len(rows) // max(len(presets) * len(conds), 1)} images each)", fontsize=9)
+        ax.set_xlim(0, 135)
+        ax.set_xlabel("share of images (%)")
+        ax.invert_yaxis()
+    axes[0].set_yticks(range(len(conds)), conds, fontsize=8)
+    axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncol=4, fontsize=7, frameon=False)
+    fig.suptitle("track with default options on images as C-arms hand them over (held-out seed)", y=1.0,
+                 fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--n", type=int, default=200, help="images per preset and condition")
@@ -167,7 +212,12 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
     ap.add_argument("--cache", type=Path, default=None,
                     help="a folder to keep the images in (made once, tracked again on later runs)")
+    ap.add_argument("--plot", type=Path, default=None, metavar="RUN.json",
+                    help="draw docs/img/track_realism.png from an earlier run's JSON and stop")
     args = ap.parse_args()
+    if args.plot is not None:
+        print(f"wrote {plot(json.loads(args.plot.read_text()), ROOT / 'docs' / 'img' / 'track_realism.png')}")
+        return
     conds = list(args.conditions)
     if "clean" not in conds:
         conds.insert(0, "clean")
