@@ -11,7 +11,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 from .errors import InputError
 
@@ -85,6 +85,40 @@ def atomic_directory(final: str | Path) -> Iterator[Path]:
     os.replace(tmp, final)
     if old is not None:
         shutil.rmtree(old, ignore_errors=True)
+
+
+def json_format_is(path: str | Path, fmt: str) -> bool:
+    """Whether ``path`` is a readable JSON object whose ``"format"`` is ``fmt``."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8")).get("format") == fmt
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Path], bool],
+                     key: str | None = "--output") -> None:
+    """Refuse an output directory that :func:`atomic_directory` must not replace.
+
+    Parameters
+    ----------
+    out_dir : path
+        Where a command will write its whole output (replaced at once on success).
+    earlier : str
+        What an earlier output of the same command is called in the message ("an earlier build's
+        output").
+    is_earlier : callable
+        Given the directory, whether it holds such an earlier output (it is then replaced).
+    key : str or None
+        The key the error names (the command line's flag, or None).
+
+    Raises :class:`InputError` when ``out_dir`` is a file, or a directory holding anything else.
+    """
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise InputError(out_dir, key, "a directory (a file of that name exists)")
+    if out_dir.is_dir() and any(out_dir.iterdir()) and not is_earlier(out_dir):
+        raise InputError(out_dir, key, f"a new or empty directory, or {earlier} "
+                                       "(this one holds other files; it would be replaced whole)")
 
 
 def _reject_constant(name: str) -> float:

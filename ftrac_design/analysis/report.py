@@ -15,7 +15,6 @@ written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are pr
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -24,7 +23,7 @@ from typing import Any, Protocol
 
 from ..errors import InputError
 from ..features.model import Features
-from ..fileio import atomic_directory, write_json_atomic
+from ..fileio import atomic_directory, check_output_dir, json_format_is, write_json_atomic
 from ..pose.simulate import Workspace
 from .atlas import Atlas, blind_spot_atlas
 from .score import AnalysisSettings, DesignScore, Thresholds, score_design
@@ -120,16 +119,7 @@ def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None,
 
 def _check_output_dir(out_dir: Path) -> None:
     """Refuse to replace anything but an empty directory or an earlier analysis."""
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "--output", "a directory (a file of that name exists)")
-    if out_dir.is_dir() and any(out_dir.iterdir()):
-        try:
-            ok = json.loads((out_dir / "analysis.json").read_text(encoding="utf-8")).get("format") == FORMAT
-        except (OSError, ValueError, AttributeError):
-            ok = False
-        if not ok:
-            raise InputError(out_dir, "--output", "a new or empty directory, or an earlier analysis "
-                             "(this one holds other files; it would be replaced whole)")
+    check_output_dir(out_dir, "an earlier analysis", lambda d: json_format_is(d / "analysis.json", FORMAT))
 
 
 def default_output_dir(features: Features) -> Path:

@@ -7,7 +7,6 @@ only when the whole build succeeded (:func:`ftrac_design.fileio.atomic_directory
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import platform
 import time
@@ -17,9 +16,8 @@ from typing import Any, Iterator
 
 from .. import __version__
 from ..design.schema import Design
-from ..errors import InputError
 from ..features import Features, compute_features, write_features
-from ..fileio import atomic_directory, sha256_file, write_json_atomic
+from ..fileio import atomic_directory, check_output_dir, json_format_is, sha256_file, write_json_atomic
 from .plan import BodyPlan, plan_body, stl_tolerances
 from .profiles import CutSizes, Profile, cut_sizes
 
@@ -50,17 +48,8 @@ def default_output_dir(design: Design) -> Path:
 
 def _check_output_dir(out_dir: Path) -> None:
     """Refuse to replace anything but an empty directory or an earlier build's output."""
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "--output", "a directory (a file of that name exists)")
-    if out_dir.is_dir() and any(out_dir.iterdir()):
-        manifest = out_dir / "manifest.json"
-        try:
-            ok = json.loads(manifest.read_text(encoding="utf-8")).get("format") == MANIFEST_FORMAT
-        except (OSError, ValueError, AttributeError):
-            ok = False
-        if not ok:
-            raise InputError(out_dir, "--output", "a new or empty directory, or an earlier build's "
-                             "output (this one holds other files; it would be replaced whole)")
+    check_output_dir(out_dir, "an earlier build's output",
+                     lambda d: json_format_is(d / "manifest.json", MANIFEST_FORMAT))
 
 
 @contextlib.contextmanager

@@ -112,7 +112,7 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     from tqdm import tqdm
 
     from ..features import load_features
-    from ..fileio import atomic_directory, write_text_atomic
+    from ..fileio import atomic_directory, check_output_dir, write_text_atomic
     from ..images import read_frame, write_image
     from ..pose.camera import Camera
     from ..pose.observation import read_camera
@@ -149,8 +149,7 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     else:
         Rs, ts = Workspace().sample(workspace_sample, features.nominal_beam_direction, rng)
     output = Path(output)
-    if output.exists() and (not output.is_dir() or (any(output.iterdir()) and not (output / "truth.jsonl").exists())):
-        raise InputError(output, None, "a new or empty directory, or a previous radiograph output")
+    check_output_dir(output, "a previous radiograph output", lambda d: (d / "truth.jsonl").exists(), key=None)
     ext = _EXT[fmt]
     lines = []
     try:

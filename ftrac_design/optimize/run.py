@@ -9,7 +9,6 @@ is removed.
 
 from __future__ import annotations
 
-import json
 import math
 import shutil
 import tomllib
@@ -18,7 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..errors import GoalError, InputError
-from ..fileio import atomic_directory
+from ..fileio import atomic_directory, check_output_dir, json_format_is
 from .evaluate import EvalSettings
 from .execution import open_executor
 from .report import FORMAT, write_outputs
@@ -47,16 +46,8 @@ def work_dir(out_dir: Path) -> Path:
 
 
 def _check_output_dir(out_dir: Path) -> None:
-    if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, "--output", "a directory (a file of that name exists)")
-    if out_dir.is_dir() and any(out_dir.iterdir()):
-        try:
-            ok = json.loads((out_dir / "summary.json").read_text(encoding="utf-8")).get("format") == FORMAT
-        except (OSError, ValueError, AttributeError):
-            ok = False
-        if not ok:
-            raise InputError(out_dir, "--output", "a new or empty directory, or an earlier optimize output "
-                                                  "(this one holds other files; it would be replaced whole)")
+    """Refuse to replace anything but an empty directory or an earlier optimize output."""
+    check_output_dir(out_dir, "an earlier optimize output", lambda d: json_format_is(d / "summary.json", FORMAT))
 
 
 def prepare(design_path: str | Path, space_path: str | Path | None = None, poses: int | None = None,
