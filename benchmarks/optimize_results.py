@@ -21,7 +21,7 @@ from _common import machine
 from ftrac_design.analysis.report import Subject, settings_for
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
-from ftrac_design.optimize.report import verify
+from ftrac_design.optimize.verify import verify
 
 
 def main() -> None:

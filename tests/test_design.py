@@ -80,3 +80,19 @@ def test_bad_profile_is_a_usage_error(capsys):
     assert main(["build", str(MODELS / "ftrac_2005.toml"), "--profile", "laser"]) == 2
     err = capsys.readouterr().err
     assert "laser" in err and len(err.strip().splitlines()) == 1
+
+
+def test_to_toml_round_trips_every_preset():
+    """The design writer's TOML reads back to the same mapping and the same design."""
+    import tomllib
+
+    from ftrac_design.design import parse_design
+    from ftrac_design.design.presets import PRESETS_DIR
+    from ftrac_design.design.writer import round_values, to_toml
+
+    for path in sorted(PRESETS_DIR.glob("*.toml")):
+        data = tomllib.loads(path.read_text("utf-8"))
+        text = to_toml(data)
+        assert tomllib.loads(text) == data, path.name
+        assert parse_design(tomllib.loads(text)) == parse_design(data)
+        assert round_values({"a": [0.123456, -0.0], "b": 2}) == {"a": [0.1235, 0.0], "b": 2}

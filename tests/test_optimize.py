@@ -364,7 +364,8 @@ def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(bas
     """A winner sits on its limits: best.toml's 0.1 µm rounding must not push a rule over."""
     from ftrac_design.cad.rules import check_design
     from ftrac_design.design.loader import parse_design
-    from ftrac_design.optimize.report import _round, design_toml
+    from ftrac_design.design.writer import round_values as _round
+    from ftrac_design.optimize.outputs import design_toml
 
     def gap(d):
         return check_design(parse_design(d), "cnc").result("mount.coverage").measured

@@ -70,8 +70,8 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
     """
-    from ..optimize.report import format_summary
     from ..optimize.run import optimize, prepare, read_design
+    from ..optimize.tables import format_summary
 
     profiles = profiles or ("cnc",)
     if print_space:

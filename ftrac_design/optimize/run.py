@@ -20,7 +20,7 @@ from ..errors import GoalError, InputError
 from ..fileio import atomic_directory, check_output_dir, json_format_is
 from .evaluate import EvalSettings
 from .execution import open_executor
-from .report import FORMAT, write_outputs
+from .outputs import FORMAT, write_outputs
 from .search import SearchConfig, run_search
 from .space import SearchSpace, default_space, load_space
 
