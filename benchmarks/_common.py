@@ -28,11 +28,11 @@ def machine() -> str:
 
 
 def load(name: str):
-    """Features of preset ``models/<name>.toml``."""
+    """Features of the preset ``name`` (``ftrac_design/presets/<name>.toml``)."""
     from ftrac_design.design import load_design
     from ftrac_design.features import compute_features
 
-    return compute_features(load_design(ROOT / "models" / f"{name}.toml"))
+    return compute_features(load_design(name))
 
 
 def monte_carlo(features, n: int, e_mm: float, seed: int = 0, calibration=None, noise=None, workspace=None):

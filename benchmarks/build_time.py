@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _common import ROOT, machine
+from _common import machine
 
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 REPEATS = 3
@@ -36,10 +36,10 @@ def main() -> None:
     print(f"machine: {machine()}, CadQuery {cq.__version__}")
     tmp = Path(tempfile.mkdtemp(prefix="ftrac-bench-build-"))
     try:
-        build_fiducial(load_design(ROOT / "models" / "nine_bead.toml"), tmp / "warm")
+        build_fiducial(load_design("nine_bead"), tmp / "warm")
         print(f"\n{'preset':<11} {'total s':>8} {'body':>6} {'exports':>8} {'mount+conn':>10} {'render':>7}")
         for name in PRESETS:
-            res = build_fiducial(load_design(ROOT / "models" / f"{name}.toml"), tmp / name)
+            res = build_fiducial(load_design(name), tmp / name)
             t = res.manifest["timings_s"]
             print(f"{name:<11} {res.manifest['build_time_s']:8.2f} {t['body']:6.2f} "
                   f"{t['export_body'] + t['export_assembly']:8.2f} {t.get('mount_connector', 0.0):10.2f} "
@@ -48,7 +48,7 @@ def main() -> None:
         print(f"\nbody boolean only, best of {REPEATS}: staged (default) vs one boolean with every tool")
         print(f"{'preset':<11} {'staged s':>9} {'single s':>9} {'single/staged':>14}")
         for name in ("ftrac_2005", "ftrac_mini"):
-            d = load_design(ROOT / "models" / f"{name}.toml")
+            d = load_design(name)
             plan = plan_body(d, compute_features(d), cut_sizes(d, "cnc"))
             best = {}
             for strategy in ("staged", "single"):

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -52,7 +51,6 @@ from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import Body, ImagingModel, render
 
-ROOT = Path(__file__).resolve().parents[1]
 PIXEL_MM = 0.44
 
 
@@ -74,7 +72,7 @@ def main() -> None:
     ap.add_argument("--k-mm", type=float, default=2.0)
     ap.add_argument("--s-px", type=float, default=3.0)
     args = ap.parse_args()
-    design = load_design(ROOT / "models" / "ftrac_2005.toml")
+    design = load_design("ftrac_2005")
     features, body = compute_features(design), Body.from_design(design)
     camera, imaging = Camera(), ImagingModel()
     shape = imaging.image_shape

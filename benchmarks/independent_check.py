@@ -86,7 +86,7 @@ def _reusable(png: Path, js: Path, R: np.ndarray, t: np.ndarray, img_seed: int, 
 
 def image_set(preset: str, n: int, seed: int, patient: bool, dose: float, render: bool, camera: Camera):
     """Paths of N rendered images (PNG, JSON) of ``preset``, rendering those missing; render seconds."""
-    design = load_design(ROOT / "models" / f"{preset}.toml")
+    design = load_design(preset)
     feats = compute_features(design)
     R, t = Workspace().sample(n, feats.nominal_beam_direction, np.random.default_rng(seed))
     folder = OUT / preset / ("patient" if patient else "clean")
@@ -151,7 +151,7 @@ def figure(path: Path, preset: str = "ftrac_2005", seed: int = 11) -> None:
 
     from ftrac_design.xray import ImagingModel, anatomy, render
 
-    feats = compute_features(load_design(ROOT / "models" / f"{preset}.toml"))
+    feats = compute_features(load_design(preset))
     R, t = Workspace().sample(1, feats.nominal_beam_direction, np.random.default_rng(seed))
     cam = Camera()
     ours = render(feats, R[0], t[0], cam, ImagingModel(), rng=np.random.default_rng(seed),

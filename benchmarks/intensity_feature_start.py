@@ -31,8 +31,6 @@ from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import Body, ImagingModel, anatomy, render
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def cases(name, n, seed, background, cache: Path):
     """(raw image, feature R, feature t, true R, true t, anatomy or None) for the right
@@ -40,7 +38,7 @@ def cases(name, n, seed, background, cache: Path):
     f = cache / f"{name}_{n}_{seed}_{int(background)}.pkl"
     if f.exists():
         return pickle.loads(f.read_bytes())
-    design = load_design(ROOT / "models" / f"{name}.toml")
+    design = load_design(name)
     features = compute_features(design)
     body = Body.from_design(design)
     cam, imaging = Camera(), ImagingModel()
@@ -82,7 +80,7 @@ def main():
     for o in a.options:
         k, v = o.split("=", 1)
         opts[k] = ast.literal_eval(v)
-    design = load_design(ROOT / "models" / f"{a.name}.toml")
+    design = load_design(a.name)
     features = compute_features(design)
     body = Body.from_design(design)
     cam, imaging = Camera(), ImagingModel()

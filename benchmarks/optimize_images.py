@@ -17,18 +17,18 @@ designs got right, with a bootstrap 95 % interval (poses resampled in pairs): a 
 few hundred images is uncertain by about ±10 %.
 
     .venv/bin/python benchmarks/optimize_images.py --n 300 \\
-        models/ftrac_mini.toml models/ftrac_mini_opt.toml models/ftrac_mini_stock.toml
+        ftrac_mini ftrac_mini_opt ftrac_mini_stock
 """
 
 from __future__ import annotations
 
 import argparse
 import time
-from pathlib import Path
 
 import numpy as np
 from track_accuracy import run
 
+from ftrac_design.design.presets import preset_path, resolve_design
 from ftrac_design.optimize.imagecheck import paired_p95_ratio
 
 
@@ -50,10 +50,9 @@ def paired_ratio(ref: dict, r: dict) -> tuple[np.ndarray, np.ndarray]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    models = Path(__file__).resolve().parents[1] / "models"
-    ap.add_argument("designs", nargs="*", type=Path, help="design files; the first is the reference "
-                    "[default: ftrac_mini, ftrac_mini_opt, ftrac_mini_stock]",
-                    default=[models / f"{n}.toml" for n in ("ftrac_mini", "ftrac_mini_opt", "ftrac_mini_stock")])
+    ap.add_argument("designs", nargs="*", type=resolve_design, help="design files or presets; the first is the "
+                    "reference [default: ftrac_mini, ftrac_mini_opt, ftrac_mini_stock]",
+                    default=[preset_path(n) for n in ("ftrac_mini", "ftrac_mini_opt", "ftrac_mini_stock")])
     ap.add_argument("--n", type=int, default=100, help="images per design and background")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--background", choices=("both", "none", "anatomy"), default="both")

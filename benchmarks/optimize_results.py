@@ -6,27 +6,27 @@ poses (seed ``--seed``, never used by a search), and a Monte-Carlo run of the ro
 Cramér–Rao bound at the same poses (the solver should attain it: actual / bound ≈ 1).
 The same poses and noise seeds for every design (common random numbers).
 
-Run: ``.venv/bin/python benchmarks/optimize_results.py models/ftrac_mini.toml
-models/ftrac_mini_opt.toml [--poses 20000] [--images 1000] [--seed 4242]``
+Run: ``.venv/bin/python benchmarks/optimize_results.py ftrac_mini
+ftrac_mini_opt [--poses 20000] [--images 1000] [--seed 4242]``
 """
 
 from __future__ import annotations
 
 import argparse
 import tomllib
-from pathlib import Path
 
 from _common import machine
 
 from ftrac_design.analysis.report import Subject, settings_for
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import resolve_design
 from ftrac_design.features import compute_features
 from ftrac_design.optimize.verify import verify
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("designs", nargs="+", type=Path)
+    ap.add_argument("designs", nargs="+", type=resolve_design, help="design files or presets")
     ap.add_argument("--poses", type=int, default=20_000)
     ap.add_argument("--images", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=4242)

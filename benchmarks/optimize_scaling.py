@@ -31,9 +31,10 @@ import time
 import tomllib
 
 import numpy as np
-from _common import ROOT, machine
+from _common import machine
 
 from ftrac_design.analysis.score import AnalysisSettings
+from ftrac_design.design.presets import preset_path
 from ftrac_design.optimize import EvalSettings, default_space, evaluate_candidate
 from ftrac_design.optimize.execution import SerialExecutor, local_pool
 
@@ -44,7 +45,7 @@ def _noop(i: int) -> int:
 
 def candidates(n: int, seed: int = 0) -> list[dict]:
     """``n`` candidate designs near the ftrac_mini preset (see module doc)."""
-    base = tomllib.loads((ROOT / "models" / "ftrac_mini.toml").read_text())
+    base = tomllib.loads(preset_path("ftrac_mini").read_text())
     sp = default_space(base)
     rng = np.random.default_rng(seed)
     x0 = sp.start_unit()

@@ -1,6 +1,6 @@
 """What binds an optimised design: a constrained local polish, and each constraint relaxed (issue 16).
 
-From ``--design`` (an optimised layout, e.g. ``models/ftrac_mini_opt.toml``), mapped into the
+From ``--design`` (an optimised layout, e.g. the preset ``ftrac_mini_opt``), mapped into the
 search space of ``--start`` (the preset the search began from) and ``--space``, COBYLA
 (``scipy.optimize.minimize``; derivative-free, inequality constraints) minimises the p95
 translation ratio t/t₀ on the search's own fixed pose sample, subject to every CNC rule
@@ -11,8 +11,8 @@ is relaxed by a little (a rule's normalised margin may go to −``--relax``: 0.0
 what each would buy. If nothing buys much, the design is a local optimum that only a
 different layout (another basin) can beat.
 
-Run: ``.venv/bin/python benchmarks/optimize_sensitivity.py [--design models/ftrac_mini_opt.toml]
-[--start models/ftrac_mini.toml] [--space models/spaces/ftrac_mini_layout.toml] [--seed 1]``
+Run: ``.venv/bin/python benchmarks/optimize_sensitivity.py [--design ftrac_mini_opt]
+[--start ftrac_mini] [--space ftrac_mini_layout] [--seed 1]``
 (~2 min on one core).
 """
 
@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import time
 import tomllib
-from pathlib import Path
 
 import numpy as np
 from _common import machine
@@ -29,13 +28,13 @@ from scipy.optimize import minimize
 
 from ftrac_design.cad.rules import check_design
 from ftrac_design.design.loader import parse_design
+from ftrac_design.design.presets import resolve_design, resolve_space
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
 from ftrac_design.optimize.evaluate import evaluate_candidate, min_ellipse_view_deg, rule_margins, score_figures
 from ftrac_design.optimize.run import prepare
 from ftrac_design.optimize.space import _line_geometry
 
-ROOT = Path(__file__).resolve().parents[1]
 #: "> 0" rules need a hair above 0
 STRICT = ("cnc:mount.coverage", "cnc:wires.crossing_clearance", "cnc:pockets.retention",
           "cnc:connector.template_clearance")
@@ -58,9 +57,9 @@ def unit_point(space, data: dict) -> np.ndarray:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--design", type=Path, default=ROOT / "models/ftrac_mini_opt.toml")
-    ap.add_argument("--start", type=Path, default=ROOT / "models/ftrac_mini.toml")
-    ap.add_argument("--space", type=Path, default=ROOT / "models/spaces/ftrac_mini_layout.toml")
+    ap.add_argument("--design", type=resolve_design, default="ftrac_mini_opt", help="a design file or a preset")
+    ap.add_argument("--start", type=resolve_design, default="ftrac_mini", help="a design file or a preset")
+    ap.add_argument("--space", type=resolve_space, default="ftrac_mini_layout", help="a space file or a shipped space")
     ap.add_argument("--seed", type=int, default=1, help="the search's seed (its pose sample)")
     ap.add_argument("--relax", type=float, default=0.05, help="how far a rule margin may go below 0")
     ap.add_argument("--maxiter", type=int, default=300)

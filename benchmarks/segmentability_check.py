@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import time
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 from tqdm import tqdm
@@ -34,7 +33,6 @@ from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import Body, ImagingModel, anatomy, render
 
-ROOT = Path(__file__).resolve().parents[1]
 BINS = "-inf,-2,0,1,2.5,inf"
 
 
@@ -47,7 +45,7 @@ def main() -> None:
     ap.add_argument("--background", action="store_true", help="add the anatomy-like background")
     a = ap.parse_args()
     bins = [float(x) for x in a.bins.split(",")]
-    design = load_design(ROOT / "models" / f"{a.design}.toml")
+    design = load_design(a.design)
     features = compute_features(design)
     body = Body.from_design(design)
     cam = Camera()

@@ -41,7 +41,6 @@ import argparse
 import math
 import time
 from collections import Counter
-from pathlib import Path
 
 import numpy as np
 from intensity_common import Judge, efficiency
@@ -56,7 +55,6 @@ from ftrac_design.pose.simulate import ContourSampling, Workspace, pose_errors
 from ftrac_design.segment.pipeline import TrackOptions, track_image
 from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, render
 
-ROOT = Path(__file__).resolve().parents[1]
 AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 
 
@@ -91,7 +89,7 @@ def _needle(rng, features):
 
 def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_strength=1.0, needle=False,
         truncate_px=None, label="", intensity=0):
-    design = load_design(name if str(name).endswith(".toml") else ROOT / "models" / f"{name}.toml")
+    design = load_design(name)  # a design file, or a preset by name
     features = compute_features(design)
     body = Body.from_design(design)
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))

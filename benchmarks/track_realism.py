@@ -60,7 +60,7 @@ _CACHE: dict = {}
 
 def _preset(name: str):
     if name not in _CACHE:
-        d = load_design(ROOT / "models" / f"{name}.toml")
+        d = load_design(name)
         _CACHE[name] = (compute_features(d), Body.from_design(d))
     return _CACHE[name]
 

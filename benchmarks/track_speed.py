@@ -20,7 +20,6 @@ from __future__ import annotations
 import argparse
 import os
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -31,18 +30,16 @@ from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import Body, render
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=30, help="workspace poses (images), seed 0")
-    ap.add_argument("--design", default="ftrac_2005", help="a preset in models/ (default ftrac_2005)")
+    ap.add_argument("--design", default="ftrac_2005", help="a preset's name or a design file (default ftrac_2005)")
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--no-hough-ellipse", action="store_true",
                     help="skip the Hough ellipse baseline (70–80 s on the loaded 2-core machine)")
     a = ap.parse_args()
-    design = load_design(ROOT / "models" / f"{a.design}.toml")
+    design = load_design(a.design)
     features = compute_features(design)
     body = Body.from_design(design)
     R, t = Workspace().sample(a.n, features.nominal_beam_direction, np.random.default_rng(0))

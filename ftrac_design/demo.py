@@ -14,10 +14,10 @@ import sys
 from pathlib import Path
 from typing import Any
 
-#: the repository's models/ folder (the package is installed in editable mode by make)
-from .design.presets import PRESETS_DIR as MODELS
+from .design.presets import preset_path
 
-DEFAULT_DESIGN = MODELS / "ftrac_2005.toml"
+#: the paper's fiducial, shipped with the package (ftrac_design/presets/)
+DEFAULT_DESIGN = preset_path("ftrac_2005")
 
 
 def _relative(path: str | Path) -> Path:

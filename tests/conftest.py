@@ -8,12 +8,13 @@ import numpy as np
 import pytest
 
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.features import compute_features
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.xray import Body
 
 ROOT = Path(__file__).resolve().parents[1]
-MODELS = ROOT / "models"
+MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 
 

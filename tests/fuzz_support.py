@@ -28,9 +28,9 @@ from hypothesis import HealthCheck, currently_in_test_context, event, settings
 from hypothesis import strategies as st
 
 from ftrac_design.cli.main import main
+from ftrac_design.design.presets import PRESETS_DIR
 
-ROOT = Path(__file__).resolve().parents[1]
-MODELS = ROOT / "models"
+MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 
 PROFILE = os.environ.get("FTRAC_FUZZ_PROFILE", "ci")

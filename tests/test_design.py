@@ -1,6 +1,7 @@
 """Design files: the presets load, derived values are computed, and every kind of bad design
 stops ``build`` and ``check`` with exit 2, one line naming the file and the key, and no
-output directory (validation runs before CadQuery is imported)."""
+output directory (validation runs before CadQuery is imported). A preset's name works where a
+design file does, and ``ftrac-design presets`` lists them."""
 
 from __future__ import annotations
 
@@ -12,8 +13,9 @@ import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import PRESETS_DIR, SPACES_DIR, resolve_design, resolve_space
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 SOURCE = (MODELS / "ftrac_2005.toml").read_text()
 
 
@@ -96,3 +98,56 @@ def test_to_toml_round_trips_every_preset():
         assert tomllib.loads(text) == data, path.name
         assert parse_design(tomllib.loads(text)) == parse_design(data)
         assert round_values({"a": [0.123456, -0.0], "b": 2}) == {"a": [0.1235, 0.0], "b": 2}
+
+
+ALL_PRESETS = ("ftrac_2005", "ftrac_mini", "ftrac_mini_opt", "ftrac_mini_stock", "nine_bead")
+
+
+def test_a_preset_name_resolves_to_its_shipped_file(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ALL_PRESETS:
+        assert resolve_design(name) == resolve_design(f"{name}.toml") == MODELS / f"{name}.toml"
+        assert load_design(name).name == name
+    assert resolve_space("ftrac_mini_layout") == SPACES_DIR / "ftrac_mini_layout.toml"
+    # a path with a directory part is never a preset, an unknown name stays as given
+    assert resolve_design("sub/ftrac_2005") == Path("sub/ftrac_2005")
+    assert resolve_design("ftrac_2006") == Path("ftrac_2006")
+    # a folder of that name (a build) does not hide the preset; a file of that name wins
+    (tmp_path / "ftrac_2005").mkdir()
+    assert resolve_design("ftrac_2005") == MODELS / "ftrac_2005.toml"
+    (tmp_path / "ftrac_2005.toml").write_text(SOURCE.replace('name = "ftrac_2005"', 'name = "local_copy"'))
+    assert resolve_design("ftrac_2005.toml") == Path("ftrac_2005.toml")
+    assert load_design("ftrac_2005.toml").name == "local_copy"
+
+
+@pytest.mark.parametrize("command", ["build", "check"])
+def test_unknown_preset_exits_2_with_one_line_listing_the_presets(tmp_path, capsys, command):
+    argv = [command, "ftrac_2006"] + (["-o", str(tmp_path / "out")] if command == "build" else [])
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: ftrac_2006: file not found (nor a preset: ")
+    assert all(name in err[0] for name in ALL_PRESETS) and "Traceback" not in err[0]
+    assert not (tmp_path / "out").exists()
+
+
+def test_check_takes_a_preset_name(capsys):
+    assert main(["check", "nine_bead"]) == 0
+    assert capsys.readouterr().out.splitlines()[0].startswith("check nine_bead (cnc):")
+
+
+def test_presets_command_lists_every_preset_and_space(capsys):
+    assert main(["presets"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    for name in ALL_PRESETS:
+        line = next(x for x in lines if x.split()[:1] == [name])
+        assert load_design(name).description[:40] in line
+    spaces = sorted(p.stem for p in SPACES_DIR.glob("*.toml"))
+    assert len(spaces) == 4 and all(any(x.split()[:1] == [s] and len(x.split()) > 3 for x in lines) for s in spaces)
+    assert main(["presets", "--paths"]) == 0
+    assert str(MODELS / "nine_bead.toml") in capsys.readouterr().out
+
+
+def test_presets_command_bad_argument_exits_2_with_one_line(capsys):
+    assert main(["presets", "--colour"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--colour" in err[0] and "Traceback" not in err[0]

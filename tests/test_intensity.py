@@ -214,7 +214,7 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
     from ftrac_design.cli.main import cli
 
     out = tmp_path / "an"
-    r = CliRunner().invoke(cli, ["analyze", "models/ftrac_2005.toml", "--poses", "100", "--atlas-step-deg", "15",
+    r = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15",
                                  "--imaging", "--imaging-poses", "2", "--dose", "2e4", "-o", str(out)])
     assert r.exit_code in (0, 1), r.output
     doc = json.loads((out / "analysis.json").read_text())
@@ -224,7 +224,7 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
     assert all(im["ratio_feature_to_image"]["p50"][a] > 1 for a in im["units"])
     assert "imaging.png" in doc["files"] and (out / "imaging.png").stat().st_size > 0
     assert "features/image p50" in r.output
-    bad = CliRunner().invoke(cli, ["analyze", "models/ftrac_2005.toml", "--imaging", "--dose", "-1",
+    bad = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--imaging", "--dose", "-1",
                                    "-o", str(tmp_path / "b")])
     assert bad.exit_code == 2
 

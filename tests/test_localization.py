@@ -5,18 +5,18 @@ from __future__ import annotations
 
 import dataclasses
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.features.model import Features, PointFeature
 from ftrac_design.pose.camera import Camera
 from ftrac_design.xray.localization import bead_sigma_mm, size_error_factors, wire_sigma_mm
 from ftrac_design.xray.model import ImagingModel
 from ftrac_design.xray.render import expected_transmission
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 DEPTH = 667.0
 
 

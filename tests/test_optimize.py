@@ -12,14 +12,15 @@ import pytest
 from ftrac_design.analysis.score import AnalysisSettings
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import PRESETS_DIR, preset_path
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
-from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, parse_space, run_search
+from ftrac_design.optimize import EvalSettings, SearchConfig, evaluate_candidate, load_space, parse_space, run_search
 from ftrac_design.optimize.execution import SerialExecutor, local_pool, open_executor
 from ftrac_design.optimize.search import objective_values
 from ftrac_design.optimize.space import apply_values, place_beads
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 MINI = MODELS / "ftrac_mini.toml"
 SETTINGS = EvalSettings(("cnc",), AnalysisSettings(poses=200, seed=3))
 
@@ -275,6 +276,17 @@ def test_invalid_space_exits_2_with_one_line(tmp_path, capsys, params, key):
     assert not (tmp_path / "out").exists() and not (tmp_path / "out.partial").exists()
 
 
+def test_optimize_takes_a_preset_and_a_shipped_space_by_name(tmp_path, capsys):
+    assert main(["optimize", "ftrac_mini", "--space", "ftrac_mini_layout", "--print-space"]) == 0
+    out = capsys.readouterr().out
+    assert out == load_space(tomllib.loads(MINI.read_text()), MODELS / "spaces" / "ftrac_mini_layout.toml").to_toml()
+    rc = main(["optimize", "ftrac_mini", "--space", "ftrac_mini_wide", "-o", str(tmp_path / "out"), "--no-build"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1 and "Traceback" not in err[0]
+    assert "ftrac_mini_wide" in err[0] and "nor a shipped space: ftrac_2005_ellipses, ftrac_mini_layout," in err[0]
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.slow
 def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_path, capsys):
     space = tmp_path / "space.toml"
@@ -309,8 +321,6 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
                                                      ("ftrac_mini_size.toml", "ftrac_mini.toml"),
                                                      ("ftrac_2005_ellipses.toml", "ftrac_2005.toml")])
 def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_file):
-    from ftrac_design.optimize import load_space
-
     base = tomllib.loads((MODELS / design_file).read_text())
     sp = load_space(base, MODELS / "spaces" / space_file)
     # the start lies within every bound, so the search begins at the preset itself
@@ -325,7 +335,7 @@ def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_f
 def test_image_check_is_reproducible_and_finds_the_pose(f2005):
     from ftrac_design.optimize.imagecheck import image_check
 
-    data = tomllib.loads((Path(__file__).resolve().parents[1] / "models" / "ftrac_2005.toml").read_text())
+    data = tomllib.loads(preset_path("ftrac_2005").read_text())
     s = AnalysisSettings()
     a = image_check(data, s, 2, seed=7)
     assert a == image_check(data, s, 2, seed=7)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import itertools
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,11 +21,12 @@ from ftrac_design.analysis import analyse_poses
 from ftrac_design.analysis.sampling import workspace_poses
 from ftrac_design.design import load_design
 from ftrac_design.design.loader import parse_design
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.features import compute_features
 from ftrac_design.pose.problem import NoiseModel
 from ftrac_design.pose.simulate import Workspace
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 #: segmentation error at the detector is ~0.02–0.4 mm (README, Table V): a relabelling that
 #: leaves less than this RMS in F would be a practical ambiguity

@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 from fuzz_support import assert_clean, run_cli
 
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.report import SECTIONS, demo_step
 from ftrac_design.report.browser import dump_dom, find_chromium, screenshot
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 # one worker builds the module's fixture once (``make test`` runs -n 2 --dist loadgroup)
 pytestmark = pytest.mark.xdist_group("report")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

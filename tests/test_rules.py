@@ -17,9 +17,10 @@ from ftrac_design.cad.profiles import PROFILES, cut_sizes, rule_limits
 from ftrac_design.cad.rules import RULES, check_design
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design, parse_design
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.errors import InputError
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 
 
 def with_param(preset: str, path: str, value):

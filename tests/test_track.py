@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import preset_path
 from ftrac_design.features import compute_features, write_features
 from ftrac_design.images import write_image
 from ftrac_design.pose import Camera
@@ -17,11 +17,9 @@ from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
 from ftrac_design.xray import Body, render
 
-ROOT = Path(__file__).resolve().parents[1]
-
 
 def _preset(name):
-    d = load_design(ROOT / "models" / f"{name}.toml")
+    d = load_design(preset_path(name))
     return compute_features(d), Body.from_design(d)
 
 
@@ -62,7 +60,7 @@ def _even_helix():
     import tomllib
 
     from ftrac_design.design.loader import parse_design
-    data = tomllib.loads((ROOT / "models" / "nine_bead.toml").read_text())
+    data = tomllib.loads(preset_path("nine_bead").read_text())
     data["beads"] = [{"azimuth_deg": 10.0 + 40.0 * k, "z": -18.0 + 4.5 * k} for k in range(9)]
     d = parse_design(data)
     return compute_features(d), Body.from_design(d)

@@ -4,7 +4,6 @@ and the DXF of the unwrapped surface re-reads with ezdxf."""
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,9 +20,10 @@ from ftrac_design.cad.unwrap import (
     write_grooves_dxf,
 )
 from ftrac_design.design import load_design
+from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.features import compute_features
 
-MODELS = Path(__file__).resolve().parents[1] / "models"
+MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 MICRON = 1e-3
 

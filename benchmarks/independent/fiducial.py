@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
+from ftrac_design.design.presets import resolve_design
 from ftrac_design.features import Features, load_features
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,9 +80,8 @@ class FiducialScene:
 
 
 def design_path(preset: str) -> Path:
-    """``models/<preset>.toml`` of this checkout, or ``preset`` itself when it is a path."""
-    p = Path(preset)
-    return p if p.suffix == ".toml" else ROOT / "models" / f"{preset}.toml"
+    """The design file of ``preset``: a preset's name (``ftrac_design/presets/``) or a design TOML path."""
+    return resolve_design(preset)
 
 
 def cached_build(preset: str) -> Path:
@@ -90,7 +90,7 @@ def cached_build(preset: str) -> Path:
     Parameters
     ----------
     preset : str
-        A design name under ``models/`` or a path to a design TOML.
+        A preset's name (``ftrac-design presets``) or a path to a design TOML.
 
     Returns
     -------
@@ -212,7 +212,7 @@ def load_scene(preset: str, body: bool = True, steel: bool = True) -> FiducialSc
     Parameters
     ----------
     preset : str
-        A design name under ``models/`` or a design TOML path.
+        A preset's name or a design TOML path.
     body, steel : bool
         False leaves the body (acetal) or the balls and wires (steel) out.
 

@@ -189,7 +189,7 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
     Parameters
     ----------
     preset : str
-        Design name under ``models/`` (or a design TOML path); built and cached on first use.
+        A preset's name (or a design TOML path); built and cached on first use.
     R, t : numpy.ndarray
         Pose F → X (SPEC §1): ``P_X = R P_F + t``, mm.
     camera : Camera

@@ -58,8 +58,22 @@ class Subject:
 
 
 def load_subject(path: str | Path) -> Subject:
-    """Features from ``DESIGN.toml`` (computed, with its [analysis] table) or ``FEATURES.json``."""
-    path = Path(path)
+    """What ``path`` names, ready to analyse.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        ``DESIGN.toml`` (features computed, with its [analysis] table), a preset's name
+        (``"ftrac_mini"``) or ``FEATURES.json``.
+
+    Returns
+    -------
+    Subject
+        The features, the design's [analysis] table (None for features.json) and the file.
+    """
+    from ..design.presets import known_presets, resolve_design
+
+    path = resolve_design(path)
     if path.suffix.lower() == ".toml":
         from ..design import load_design
         from ..features import compute_features
@@ -70,7 +84,7 @@ def load_subject(path: str | Path) -> Subject:
         from ..features import load_features
 
         return Subject(load_features(path), None, path)
-    raise InputError(path, None, "a design file (.toml) or a features file (.json)")
+    raise InputError(path, None, f"a design file (.toml), a features file (.json) or a preset ({known_presets()})")
 
 
 def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, Thresholds]:

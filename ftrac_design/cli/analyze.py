@@ -1,4 +1,4 @@
-"""``ftrac-design analyze DESIGN.toml|FEATURES.json [-o DIR]``: score a design over the
+"""``ftrac-design analyze DESIGN.toml|PRESET|FEATURES.json [-o DIR]``: score a design over the
 workspace and map its blind spots (SPEC §5; format in :mod:`ftrac_design.analysis.report`)."""
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
             lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
             no_plots, report=False, max_overlap_share=None, min_clearance_px=None, imaging=False, imaging_poses=60,
             dose=1.0e4, energy_kev=60.0, blur_px=0.7, focal_spot_mm=0.6) -> int:
-    """Score SOURCE (a design or a features.json) over the C-arm workspace.
+    """Score SOURCE (a design file, a preset's name or a features.json) over the C-arm workspace.
 
     Predicted 1σ pose errors (the Cramér–Rao bound of the solver's Jacobian) and the
     condition number at every workspace pose, per feature group and feature, and a

@@ -1,4 +1,4 @@
-"""``ftrac-design build DESIGN.toml [-o DIR] [--profile cnc|fdm] [--force]`` (SPEC §5)."""
+"""``ftrac-design build DESIGN.toml|PRESET [-o DIR] [--profile cnc|fdm] [--force]`` (SPEC §5)."""
 
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ from ..cad.profiles import PROFILES
 @click.option("--report", is_flag=True, default=False,
               help="also write report.html (one self-contained page; runs the analysis at the design's settings)")
 def command(design: Path, output: Path | None, profile: str, force: bool, report: bool) -> int:
-    """Build the fiducial body, wires and beads of DESIGN.toml.
+    """Build the fiducial body, wires and beads of DESIGN (a .toml file or a preset's name,
+    see `ftrac-design presets`).
 
     Writes fiducial.step, fiducial.stl, assembly.step (body, wires, beads as named,
     coloured parts), features.json, manifest.json and render.png into the output

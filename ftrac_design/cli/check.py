@@ -1,4 +1,4 @@
-"""``ftrac-design check DESIGN.toml [--profile cnc|fdm] [--json]`` (SPEC §5): the design-rule
+"""``ftrac-design check DESIGN.toml|PRESET [--profile cnc|fdm] [--json]`` (SPEC §5): the design-rule
 report. Exit 0 when no rule is violated (warnings allowed), 1 on any violation, 2 on bad input.
 """
 
@@ -20,7 +20,7 @@ from ..errors import GoalError
 @click.option("--json", "as_json", is_flag=True, default=False,
               help="print the report as one JSON object instead of a table")
 def command(design: Path, profile: str, as_json: bool) -> int:
-    """Check DESIGN.toml against the manufacturing design rules.
+    """Check DESIGN (a .toml file or a preset's name) against the manufacturing design rules.
 
     Prints one row per rule: the measured value (the worst case over the design), the
     limit, and the verdict — ok, warn (within the limit, short of the recommended value),

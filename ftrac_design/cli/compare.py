@@ -16,7 +16,7 @@ from .analyze import overrides, workspace_options
 @workspace_options
 def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm,
             depth_range_mm, lateral_mm, segmentation_error_mm) -> int:
-    """Score each design (DESIGN.toml or FEATURES.json) over the same workspace and noise.
+    """Score each design (DESIGN.toml, a preset's name or FEATURES.json) over the same workspace and noise.
 
     Prints a side-by-side table of predicted 1σ errors, conditioning and image clearance
     between features (share of poses where they overlap, 5th-percentile clearance) and draws

@@ -28,6 +28,7 @@ COMMANDS = {
     "reconstruct": "reconstruct",
     "report": "report",
     "distortion": "distortion",
+    "presets": "presets",
 }
 
 

@@ -1,4 +1,4 @@
-"""``ftrac-design optimize DESIGN.toml [-o DIR]``: search a design's layout under the design
+"""``ftrac-design optimize DESIGN.toml|PRESET [-o DIR]``: search a design's layout under the design
 rules for the best predicted accuracy (see :mod:`ftrac_design.optimize`)."""
 
 from __future__ import annotations
@@ -17,7 +17,8 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 @click.command("optimize")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=False))
 @click.option("--space", "space", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="search space (TOML: [parameters], optional [search]) [default: the design's layout "
+              help="search space (TOML: [parameters], optional [search], or a shipped space's name: "
+                   "`ftrac-design presets`) [default: the design's layout "
                    "within its envelope; see --print-space]")
 @click.option("--objective", type=click.Choice(OBJECTIVE_CHOICES), default="max", show_default=True,
               help="max/sum/translation/rotation: p95 errors over the start's, CMA-ES; "
@@ -59,7 +60,7 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
             verify_poses: int | None, solver_images: int | None, check_images: int | None,
             min_clearance_px: float | None, min_ellipse_view_deg: float | None, no_build: bool,
             print_space: bool) -> int:
-    """Optimise DESIGN.toml's layout under the design rules.
+    """Optimise the layout of DESIGN (a .toml file or a preset's name) under the design rules.
 
     Every candidate is checked against the rules of the profile(s) first (graded margins);
     feasible ones are scored by their predicted p95 translation and rotation errors over a

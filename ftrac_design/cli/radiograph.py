@@ -99,7 +99,8 @@ def _parse_occluder(text: str, frame: str):
 @click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].")
 @click.option("--design", "design_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="design TOML giving the body when features.json does not (its 'body' key or design.source).")
+              help="design TOML (or a preset's name) giving the body when features.json does not (its 'body' key "
+                   "or design.source).")
 @click.option("--no-body", is_flag=True, default=False, help="wires and beads only.")
 def command(features_path: Path, pose_path: Path | None, workspace_sample: int | None, seed: int, output: Path,
             fmt: str, kind: str, energy_kev: float, dose: float, no_noise: bool, focal_spot_mm: float,

@@ -1,9 +1,9 @@
-"""``ftrac-design report DESIGN.toml|BUILD_DIR [-o report.html]`` (SPEC §5): one
+"""``ftrac-design report DESIGN.toml|PRESET|BUILD_DIR [-o report.html]`` (SPEC §5): one
 self-contained HTML page per design (:mod:`ftrac_design.report`).
 
 A build directory is reported as it is (its files re-hashed against the manifest) with its
 ``analysis/`` if it has one, else an analysis run at the design's settings and not kept.
-A design file is first built, with ``--force`` semantics (a design that breaks a rule is
+A design file (or a preset, by name) is first built, with ``--force`` semantics (a design that breaks a rule is
 still reported, its violations in red), into a temporary directory that is not kept — the
 page then says so; run ``build`` first to keep the files.
 """
@@ -35,8 +35,11 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
 
     Images are embedded and the style is inline: the file opens with no network.
     """
+    from ..design.presets import known_presets, resolve_design
     from ..report import report_for_build
 
+    if not source.is_dir():  # a build directory is reported as it is; anything else may be a preset
+        source = resolve_design(source)
     if analysis_dir is not None and not (analysis_dir / "analysis.json").is_file():
         raise InputError(analysis_dir, "--analysis", "a directory written by `ftrac-design analyze` "
                                                       "(no analysis.json in it)")
@@ -48,7 +51,8 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
     elif source.suffix.lower() == ".toml" or source.is_file():
         path = _report_design(source, output, analysis_dir, poses, profile)
     else:
-        raise InputError(source, None, "a design file (.toml) or a build directory (file not found)")
+        raise InputError(source, None, f"a design file (.toml), a build directory or a preset ({known_presets()}) "
+                                       "(file not found)")
     click.echo(f"wrote {path} ({path.stat().st_size / 1024:.0f} KB)")
     return 0
 

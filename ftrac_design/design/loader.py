@@ -10,6 +10,7 @@ from typing import Any
 from pydantic import ValidationError
 
 from ..errors import InputError
+from .presets import known_presets, resolve_design
 from .schema import Design
 from .validate import geometry_errors
 
@@ -87,15 +88,25 @@ def parse_design(data: dict[str, Any], file: str | Path | None = None) -> Design
 
 
 def load_design(path: str | Path) -> Design:
-    """Load and validate a design file (TOML).
+    """Load and validate a design file (TOML), or a preset given by name.
 
-    Raises :class:`InputError` naming the file, the key and what was expected.
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        A design file, or a preset's name (``"ftrac_2005"``; see
+        :func:`~ftrac_design.design.presets.resolve_design`).
+
+    Returns
+    -------
+    Design
+        The validated parameters; its ``source`` is the file read. Raises :class:`InputError`
+        naming the file, the key and what was expected (a missing file: the preset names too).
     """
-    path = Path(path)
+    path = resolve_design(path)
     try:
         raw = path.read_bytes()
     except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
+        raise InputError(path, None, f"file not found (nor a preset: {known_presets()})") from None
     except IsADirectoryError:
         raise InputError(path, None, "a design file, not a directory") from None
     except OSError as exc:

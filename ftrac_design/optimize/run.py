@@ -37,7 +37,7 @@ def read_design(path: str | Path) -> tuple[dict, object]:
     from ..design import load_design
 
     design = load_design(path)  # InputError for anything wrong, as everywhere
-    return tomllib.loads(Path(path).read_text(encoding="utf-8")), design
+    return tomllib.loads(Path(design.source).read_text(encoding="utf-8")), design
 
 
 def work_dir(out_dir: Path) -> Path:

@@ -73,6 +73,7 @@ from typing import Any
 import numpy as np
 from pydantic import ValidationError
 
+from ..design.presets import known_spaces, resolve_space
 from ..design.schema import Analysis, Design
 from ..errors import InputError
 
@@ -405,12 +406,27 @@ def parse_space(base: dict, data: dict, file: str | Path = "<space>") -> SearchS
 
 
 def load_space(base: dict, path: str | Path) -> SearchSpace:
-    """Read and validate a ``--space`` TOML file."""
-    path = Path(path)
+    """Read and validate a ``--space`` TOML file, or a shipped space given by name.
+
+    Parameters
+    ----------
+    base : dict
+        The start design's TOML data.
+    path : str or pathlib.Path
+        A space file, or a shipped space's name (``"ftrac_mini_layout"``; see
+        :func:`~ftrac_design.design.presets.resolve_space`).
+
+    Returns
+    -------
+    SearchSpace
+        The validated space. Raises :class:`InputError` naming the file, the key and what was
+        expected (a missing file: the shipped space names too).
+    """
+    path = resolve_space(path)
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
-        raise InputError(path, None, "file not found") from None
+        raise InputError(path, None, f"file not found (nor a shipped space: {known_spaces()})") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, None, f"a readable UTF-8 file ({exc})") from None
     except tomllib.TOMLDecodeError as exc:

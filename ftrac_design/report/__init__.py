@@ -44,7 +44,9 @@ def report_for_analysis(source: str | Path, analysis_dir: str | Path, output: st
     """Write ``analysis_dir/report.html`` after ``ftrac-design analyze SOURCE``: with the build
     when SOURCE is a build's ``features.json`` (its ``manifest.json`` beside it), else the
     design's (or the features') own parts only."""
-    source, analysis_dir = Path(source), Path(analysis_dir)
+    from ..design.presets import resolve_design
+
+    source, analysis_dir = resolve_design(source), Path(analysis_dir)
     output = Path(output) if output is not None else analysis_dir / "report.html"
     if source.suffix.lower() == ".json" and (source.parent / "manifest.json").is_file():
         return write_report(collect(source.parent, analysis_dir=analysis_dir), output)

@@ -4,8 +4,9 @@
 an optional ``body`` key of features.json (our addition: ``{"outer_diameter", "length",
 "bore_diameter", "material"}``, mm; readers that do not know it ignore it, SPEC §2), or the
 ``[body]`` table of the design file named in its ``design.source`` (as written, relative to
-the working directory, to the features file's folder, or a packaged ``models/`` file of
-that name).
+the working directory, to the features file's folder, or the shipped preset of that file
+name, :mod:`ftrac_design.design.presets`: a source ``models/ftrac_2005.toml`` from another
+machine's checkout finds the shipped ``ftrac_2005``).
 """
 
 from __future__ import annotations
@@ -19,8 +20,6 @@ from ..design.presets import PRESETS_DIR
 from ..errors import InputError
 from .model import Body
 
-_REPO = Path(__file__).resolve().parents[2]
-
 
 def _candidates(source: str, near: Path | None) -> list[Path]:
     p = Path(source)
@@ -28,7 +27,6 @@ def _candidates(source: str, near: Path | None) -> list[Path]:
     if not p.is_absolute():
         if near is not None:
             out.append(near / p)
-        out.append(_REPO / p)
     out.append(PRESETS_DIR / p.name)
     return out
 
