@@ -198,19 +198,24 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
 
 
 def image_and_beyond_steps(out_dir: Path) -> list:
-    """The later demo steps, each a callable returning the text to print: a radiograph of the
-    built fiducial, tracked from the image with no initial guess (overlay written), a C-arm's
-    Enhanced XA run and an intensifier's distorted frame tracked with ``ftrac-design track``
-    (``carm/``), 3-D reconstruction from two tracked views, a tiny design search, and the
-    one-page report."""
+    """The later demo steps (:mod:`ftrac_design.workflows.demo`), each a callable returning the
+    text to print: the presets' image clearances, a radiograph of the built fiducial tracked
+    from the image with no initial guess (overlay written), the pose refined on its pixels, a
+    C-arm's Enhanced XA run and an intensifier's distorted frame tracked with ``ftrac-design
+    track`` (``carm/``), 3-D reconstruction from two tracked views, a tiny design search, and
+    the one-page report."""
     from .demo_carm import demo_step as carm_step
-    from .optimize import demo_step as optimize_step
-    from .reconstruct import demo_step as reconstruct_step
-    from .report import demo_step as report_step
-    from .xray.demo import demo_step as radiograph_step
+    from .workflows.demo.intensity import demo_step as intensity_step
+    from .workflows.demo.optimize import demo_step as optimize_step
+    from .workflows.demo.radiograph import demo_step as radiograph_step
+    from .workflows.demo.reconstruct import demo_step as reconstruct_step
+    from .workflows.demo.report import demo_step as report_step
+    from .workflows.demo.segmentability import demo_step as segmentability_step
 
     image_dir = out_dir / "radiograph"
-    return [lambda: radiograph_step(image_dir), lambda: demo_track(out_dir / "features.json", image_dir),
+    return [lambda: segmentability_step(out_dir / "segmentability"),
+            lambda: radiograph_step(image_dir), lambda: demo_track(out_dir / "features.json", image_dir),
+            lambda: intensity_step(out_dir / "intensity"),
             lambda: carm_step(out_dir / "carm", out_dir / "features.json"),
             lambda: reconstruct_step(out_dir / "reconstruct"), lambda: optimize_step(out_dir / "optimize_demo"),
             lambda: report_step(out_dir)]

@@ -399,7 +399,7 @@ def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(bas
 
 
 def test_demo_step_runs_a_search_and_its_image_check(tmp_path):
-    from ftrac_design.optimize import demo_step
+    from ftrac_design.workflows.demo.optimize import demo_step
 
     text = demo_step(tmp_path)
     doc = json.loads((tmp_path / "optimize" / "summary.json").read_text())

@@ -15,7 +15,7 @@ from pathlib import Path
 from .inputs import ReportInputs, collect
 from .page import SECTIONS, render_html, write_report
 
-__all__ = ["ReportInputs", "SECTIONS", "collect", "demo_step", "render_html", "report_for_analysis",
+__all__ = ["ReportInputs", "SECTIONS", "collect", "render_html", "report_for_analysis",
            "report_for_build", "write_report"]
 
 
@@ -71,18 +71,3 @@ def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_st
     subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json")
     settings, thresholds = settings_for(subject, poses=poses)
     run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
-
-
-def demo_step(out_dir: Path) -> str:
-    """``make demo``'s report step: write ``out_dir/report.html`` for the build in ``out_dir``
-    (the demo's ``outputs/ftrac_2005/``), using its ``analysis/`` if the demo scored it
-    (else a quick 2,000-pose analysis); returns the lines the demo prints."""
-    import time
-
-    out_dir = Path(out_dir)
-    t0 = time.perf_counter()
-    path = report_for_build(out_dir, poses=2000, atlas_step_deg=4.0)
-    kb = path.stat().st_size / 1024
-    return (f"Report -> {path} ({kb:.0f} KB, one self-contained HTML page: render, parameters, features, "
-            f"design rules cnc + fdm, score, atlas, bill of materials, wire cut list, file hashes; "
-            f"{time.perf_counter() - t0:.1f} s)")

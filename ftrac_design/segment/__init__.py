@@ -10,8 +10,7 @@
   over bead triplets) and contours gathered by prediction; :mod:`.labelling` one labelling
   refined into a pose; :mod:`.noise` the measured noise model, per-feature tests and the
   covariance; :mod:`.body` the body's projection subtracted; :mod:`.acceptance` the tests a
-  pose must pass; :mod:`.region` where to look; :mod:`.overlay` the picture; :mod:`.demo`
-  ``demo_step``.
+  pose must pass; :mod:`.region` where to look; :mod:`.overlay` the picture.
 
 numpy/scipy/OpenCV only (OpenCV for fast morphology, filtering and P3P); never CadQuery.
 """
@@ -19,11 +18,4 @@ numpy/scipy/OpenCV only (OpenCV for fast morphology, filtering and P3P); never C
 from .options import TrackOptions, TrackResult
 from .pipeline import track_image
 
-__all__ = ["TrackOptions", "TrackResult", "track_image", "demo_step"]
-
-
-def __getattr__(name):
-    if name == "demo_step":
-        from .demo import demo_step
-        return demo_step
-    raise AttributeError(name)
+__all__ = ["TrackOptions", "TrackResult", "track_image"]

@@ -22,7 +22,7 @@ __all__ = [
     "Body", "ImagingModel", "Occluder", "Radiograph", "render", "expected_transmission", "line_integral_box",
     "blur_sigma_px", "body_from_design_file", "body_from_features_file", "body_from_source",
     "projected_features", "read_truth", "truth_dict", "write_truth", "read_image", "write_image", "anatomy",
-    "demo_step", "seeds", "apply_chain", "n0_for_counts", "realistic_image",
+    "seeds", "apply_chain", "n0_for_counts", "realistic_image",
 ]
 
 _LAZY = {"seeds": "patient", "apply_chain": "display", "n0_for_counts": "display",
@@ -40,7 +40,4 @@ def __getattr__(name):
     if name in _LAZY:
         import importlib
         return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
-    if name == "demo_step":
-        from .demo import demo_step
-        return demo_step
     raise AttributeError(name)
