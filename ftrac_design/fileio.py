@@ -96,7 +96,7 @@ def json_format_is(path: str | Path, fmt: str) -> bool:
 
 
 def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Path], bool],
-                     key: str | None = "--output") -> None:
+                     parameter: str | None = "output") -> None:
     """Refuse an output directory that :func:`atomic_directory` must not replace.
 
     Parameters
@@ -108,17 +108,17 @@ def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Pa
         output").
     is_earlier : callable
         Given the directory, whether it holds such an earlier output (it is then replaced).
-    key : str or None
-        The key the error names (the command line's flag, or None).
+    parameter : str or None
+        The argument the error names (the command line shows it as its flag), or None.
 
     Raises :class:`InputError` when ``out_dir`` is a file, or a directory holding anything else.
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():
-        raise InputError(out_dir, key, "a directory (a file of that name exists)")
+        raise InputError(out_dir, None, "a directory (a file of that name exists)", parameter=parameter)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not is_earlier(out_dir):
-        raise InputError(out_dir, key, f"a new or empty directory, or {earlier} "
-                                       "(this one holds other files; it would be replaced whole)")
+        raise InputError(out_dir, None, f"a new or empty directory, or {earlier} "
+                         "(this one holds other files; it would be replaced whole)", parameter=parameter)
 
 
 def _reject_constant(name: str) -> float:

@@ -31,15 +31,17 @@ def test_a_directory_holding_something_else_is_refused_naming_the_key(tmp_path, 
     (tmp_path / "summary.json").write_text(content)
     with pytest.raises(InputError) as exc:
         check_output_dir(tmp_path, "an earlier output", _ours)
-    assert exc.value.key == "--output" and "an earlier output" in str(exc.value)
+    assert exc.value.key == "output" and "an earlier output" in str(exc.value)
+    assert ": --output: a new or empty directory" in exc.value.for_command_line()
 
 
-def test_a_file_is_refused_and_the_key_may_be_none(tmp_path):
+def test_a_file_is_refused_and_the_argument_may_be_unnamed(tmp_path):
     f = tmp_path / "out"
     f.write_text("")
     with pytest.raises(InputError) as exc:
-        check_output_dir(f, "an earlier output", _ours, key=None)
+        check_output_dir(f, "an earlier output", _ours, parameter=None)
     assert exc.value.key is None and "a file of that name exists" in str(exc.value)
+    assert exc.value.for_command_line() == str(exc.value)
 
 
 def test_json_format_is(tmp_path):

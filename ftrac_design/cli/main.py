@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         click.echo(f"{cmd}: {_one_line(exc.format_message())} (see --help)", err=True)
         return 2
     except InputError as exc:
-        click.echo(f"error: {_one_line(str(exc))}", err=True)
+        click.echo(f"error: {_one_line(exc.for_command_line())}", err=True)
         return 2
     except GoalError as exc:
         click.echo(f"failed: {_one_line(str(exc))}", err=True)

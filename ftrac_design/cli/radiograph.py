@@ -150,7 +150,7 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     else:
         Rs, ts = Workspace().sample(workspace_sample, features.nominal_beam_direction, rng)
     output = Path(output)
-    check_output_dir(output, "a previous radiograph output", lambda d: (d / "truth.jsonl").exists(), key=None)
+    check_output_dir(output, "a previous radiograph output", lambda d: (d / "truth.jsonl").exists(), parameter=None)
     ext = _EXT[fmt]
     lines = []
     try:

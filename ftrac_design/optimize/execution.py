@@ -62,8 +62,8 @@ def open_executor(scheduler: str | None = None, workers: int | None = None) -> I
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(None, "--scheduler", f"a reachable Dask scheduler address, got {scheduler!r} "
-                                                  f"({type(exc).__name__}: {exc})") from None
+            raise InputError(None, None, f"a reachable Dask scheduler address, got {scheduler!r} "
+                             f"({type(exc).__name__}: {exc})", parameter="scheduler") from None
         try:
             n = sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values())
             yield client.get_executor(), f"Dask cluster {scheduler} ({n} worker threads)"

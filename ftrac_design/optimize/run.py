@@ -99,9 +99,9 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     work = work_dir(out_dir)
     log = work / "evaluations.jsonl"
     if resume and not log.exists():
-        raise InputError(log, "--resume", "an interrupted run's log (none found)")
+        raise InputError(log, None, "an interrupted run's log (none found)", parameter="resume")
     if not resume and work.exists():
-        raise InputError(work, "--resume", "no interrupted run here: pass --resume to continue it, or remove it")
+        raise InputError(work, None, "no interrupted run here: resume it, or remove it", parameter="resume")
     work.mkdir(parents=True, exist_ok=True)
     command_line = command_line or (f"ftrac-design optimize {design_path} --objective {objective} "
                                     f"--evaluations {evaluations} --seed {seed}")

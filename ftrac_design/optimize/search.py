@@ -264,9 +264,9 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     from tqdm import tqdm
 
     if config.objective not in OBJECTIVES:
-        raise InputError(None, "--objective", f"one of {', '.join(OBJECTIVES)}, got {config.objective!r}")
+        raise InputError(None, None, f"one of {', '.join(OBJECTIVES)}, got {config.objective!r}", parameter="objective")
     if config.multi and len(objective_names(config.objective)) != 2:
-        raise InputError(None, "--objective", "two objectives")
+        raise InputError(None, None, "two objectives", parameter="objective")
     log_path = Path(log_path)
     header = {"kind": "run", "format": LOG_FORMAT, "version": LOG_VERSION,
               "design_sha256": design_hash(space.base), "space": [asdict(p) for p in space.parameters],
