@@ -1,5 +1,5 @@
-"""Speed of the conditioning analysis: 50,000 workspace poses of ftrac_2005 (issue 5,
-target ≤ 1 s on the 2-core machine).
+"""Speed of the conditioning analysis: 50,000 workspace poses of ftrac_2005
+(target ≤ 1 s on the 2-core machine).
 
 Timed: :func:`ftrac_design.analysis.analyse_poses` with ``detail=False`` — the information
 of the whole design (the solver's whitened Jacobian rows), the scaled singular values,

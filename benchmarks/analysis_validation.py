@@ -6,7 +6,7 @@ segmentation error (the paper's model: uniform magnitude, random direction — i
 each image solved by the robust solver with no initial guess. Per axis (translation
 x, y, z mm and rotation about x, y, z, camera axes) the Monte-Carlo RMS error is compared
 with the predicted RMS — the root of the mean predicted variance from
-:func:`ftrac_design.analysis.analyse_poses` at the same poses. Target (issue 5): every
+:func:`ftrac_design.analysis.analyse_poses` at the same poses. Target: every
 ratio predicted / actual within 20 % (0.8–1.25). With N = 1,000 the RMS itself carries
 about ±4.5 % (1σ) of sampling error.
 

@@ -1,4 +1,4 @@
-"""Intensity refinement vs the pixel-level Cramér–Rao bound (issue 13, target efficiency ≥ 0.9 per axis).
+"""Intensity refinement vs the pixel-level Cramér–Rao bound (target efficiency ≥ 0.9 per axis).
 
 Rendered workspace images of ftrac_2005 (with its body) at the default imaging model (60 keV,
 0.6 mm focal spot, σ 0.7 px detector blur, 10⁴ quanta/px, 16-bit raw counts). For each

@@ -1,4 +1,4 @@
-"""Why the intensity refinement's depth efficiency is below 1: the checks of issue 13 (second pass).
+"""Why the intensity refinement's depth efficiency is below 1: the checks, one by one.
 
 Two checks on ftrac_2005 workspace images (default imaging model, with its body; the same
 poses, noise seeds and perturbed starts as ``intensity_accuracy.py N plain perturbed``):

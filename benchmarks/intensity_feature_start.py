@@ -6,7 +6,8 @@ The first run tracks the images and caches (image, feature pose, true pose) in
 Prints per axis the efficiency against the pixel bound (as ``track_accuracy.py``), the
 start's distance in bound-σ (Mahalanobis), the background model chosen, renders/iterations,
 CPU per refinement; ``--detail`` one line per image. Options of ``refine_intensity`` as
-``key=value`` (Python literals), e.g. ``scales=(1.0,0.0)`` (the schedule before issue 13's fourth pass).
+``key=value`` (Python literals), e.g. ``scales=(1.0,0.0)`` (a fixed two-pass schedule, 1 px then
+unsmoothed, instead of "auto").
 
     .venv/bin/python benchmarks/intensity_feature_start.py ftrac_mini 30
     .venv/bin/python benchmarks/intensity_feature_start.py ftrac_2005 30 --detail

@@ -1,4 +1,4 @@
-"""Is the pixel-level bound converged in the renderer's sub-sampling? (issue 13)
+"""Is the pixel-level bound converged in the renderer's sub-sampling?
 
 The ROI renderer integrates each pixel a wire, bead or body edge touches as the mean of
 4 × 4 sub-samples (``ImagingModel.supersample``), and the bound's derivative is a 0.15 px

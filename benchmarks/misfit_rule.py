@@ -1,4 +1,4 @@
-"""Does the solver's misfit rule (refuse κ > 3 and p < 1e-12, issue 15) refuse scrambled
+"""Does the solver's misfit rule (refuse κ > 3 and p < 1e-12) refuse scrambled
 images without refusing good ones?
 
 Good images: workspace poses of each preset at 0.25 and 0.05 mm segmentation error, solved
@@ -101,7 +101,7 @@ def main(n: int = 300, scrambled_only: bool = False) -> None:
                 p = solve_pose(f, o, SolverOptions(starts=32))
                 count += 1
                 conv += p.converged
-                # the same image with the misfit rule off (the solver before issue 15)
+                # the same image with the misfit rule off (a solver without it)
                 conv0 += solve_pose(f, o, SolverOptions(starts=32, misfit_noise_scale=math.inf)).converged
                 if not p.converged:
                     key = (p.error or "").split(":")[0].split("(")[0].strip()[:40]

@@ -1,4 +1,4 @@
-"""Check an optimised design against its start on fresh poses and by the solver (issue 16).
+"""Check an optimised design against its start on fresh poses and by the solver.
 
 For each design: predicted p95 and worst 1σ 3-D errors over ``--poses`` fresh workspace
 poses (seed ``--seed``, never used by a search), and a Monte-Carlo run of the robust solver

@@ -1,4 +1,4 @@
-"""How ``ftrac-design optimize``'s evaluations scale over executors (issue 16).
+"""How ``ftrac-design optimize``'s evaluations scale over executors.
 
 One fixed, seeded batch of candidates (``ftrac_mini``'s default layout space, unit points
 drawn around the start with σ = 0.02; about half pass

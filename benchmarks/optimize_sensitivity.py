@@ -1,4 +1,4 @@
-"""What binds an optimised design: a constrained local polish, and each constraint relaxed (issue 16).
+"""What binds an optimised design: a constrained local polish, and each constraint relaxed.
 
 From ``--design`` (an optimised layout, e.g. the preset ``ftrac_mini_opt``), mapped into the
 search space of ``--start`` (the preset the search began from) and ``--space``, COBYLA

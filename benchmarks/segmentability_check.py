@@ -1,4 +1,4 @@
-"""Does the predicted image overlap hurt segmentation? (issue 13, item 3)
+"""Does the predicted image overlap hurt segmentation?
 
 Rendered workspace radiographs of a preset (xray simulator, default imaging model, no
 anatomy background — so that only the geometry differs), each tracked by ``track`` with no

@@ -1,4 +1,4 @@
-"""Segmentability figures (issue 13, item 3): speed, sampling accuracy, and the issue's quick
+"""Segmentability figures: speed, sampling accuracy, and the issue's quick
 study re-measured.
 
 1. Speed: :func:`ftrac_design.analysis.pair_clearances` on N workspace poses of each preset

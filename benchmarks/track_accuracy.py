@@ -19,7 +19,7 @@ initial guess. Reports
   residuals showed: the variance factor) and contour counts;
 - sweeps on ftrac_2005 (where it breaks): dose, detector blur, background strength, a
   needle occluder across the fiducial, truncation (the fiducial partly outside the image);
-- the intensity path (issue 13; ``--intensity N``, default 30, 0 = off) on the first N
+- the intensity path (``--intensity N``, default 30, 0 = off) on the first N
   images of each preset run whose feature-path pose converged and was right:
   ``refine_intensity`` with its defaults from that pose, as ``track --refine intensity``
   does (full resolution, a 1 px scale first only from a far start), and the efficiency per axis, 1 / mean(z²) with

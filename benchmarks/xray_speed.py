@@ -1,4 +1,4 @@
-"""How fast does the radiograph simulator render a 1024 × 1024 image? (issue 12, target ≤ 50 ms)
+"""How fast does the radiograph simulator render a 1024 × 1024 image? (target ≤ 50 ms)
 
 ftrac_2005 with its body at workspace poses, the default imaging model (60 keV, 0.6 mm focal
 spot, σ 0.7 px detector blur, 10⁴ quanta per pixel, 16-bit raw), measured in-process:

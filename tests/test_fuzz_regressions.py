@@ -1,4 +1,4 @@
-"""Crashes the fuzz tests found (and the one reported in issue 15), each kept as a named
+"""Crashes the fuzz tests found (and one a user reported), each kept as a named
 regression test: the boundary refuses the input with exit 2 and one line, and the numerical
 core, given the same numbers without the boundary, refuses instead of raising."""
 
@@ -26,7 +26,7 @@ def _solve_cli(doc: dict, preset: str = "ftrac_2005"):
 
 
 def test_issue15_bead_at_1e300_pixels_exits_2_not_linalgerror():
-    """`solve` printed `numpy.linalg.LinAlgError: Eigenvalues did not converge` (issue 15)."""
+    """`solve` printed `numpy.linalg.LinAlgError: Eigenvalues did not converge`."""
     doc = json.loads(json.dumps(BASE[("ftrac_2005", 0, False)]))
     doc["points"]["B1"] = [1e300, 506.651]
     run, wrote = _solve_cli(doc)

@@ -1,5 +1,5 @@
 """The presets' bead layouts have no self-symmetry, so an image with unlabelled beads has
-one labelling (issue 12: `track` recovers every preset's pose with no initial guess).
+one labelling (`track` recovers every preset's pose with no initial guess).
 
 A rigid motion that maps a bead set onto a relabelling of itself makes two poses give the
 same image. The measure: for every non-identity relabelling π, the RMS left by the best

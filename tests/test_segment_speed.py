@@ -1,4 +1,4 @@
-"""The segmentation's shortcuts give what the plain computation gives (issue 12, speed):
+"""The segmentation's shortcuts give what the plain computation gives:
 the blob peaks tested only at strong pixels equal those of a whole-image dilation, and the
 remembered contour fits and residuals equal fresh ones."""
 

@@ -1,4 +1,4 @@
-"""Segmentability (issue 13 item 3): image-plane clearances between features on closed-form
+"""Segmentability: image-plane clearances between features on closed-form
 cases (beads, crossing and parallel wires, concentric circles, collinear lines of the
 published design), their invariance to a roll about the optical axis, the public
 constraint function, and the analysis integration."""

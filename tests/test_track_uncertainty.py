@@ -1,4 +1,4 @@
-"""The image path's reported uncertainty and its whole-image retry (issue 12): the pose
+"""The image path's reported uncertainty and its whole-image retry: the pose
 covariance is the per-feature-type sandwich of :func:`ftrac_design.segment.noise.calibrated_covariance`
 (components scale it exactly, the estimate does not move, and the z-scores of rendered
 images are near unit), and a region whose answer is limited by the view itself is not

@@ -38,7 +38,7 @@ def _rot_y(deg):
 
 # ----------------------------------------------------------------------------- materials
 def test_attenuation_at_60_kev_matches_the_issue_and_nist():
-    # issue 12: μ_steel ≈ 9.4 /cm, μ_POM ≈ 0.27 /cm at 60 keV; NIST Fe 1.205 cm²/g
+    # μ_steel ≈ 9.4 /cm, μ_POM ≈ 0.27 /cm at 60 keV; NIST Fe 1.205 cm²/g
     assert 0.93 <= linear_attenuation("steel", 60.0) <= 0.97
     assert 0.026 <= linear_attenuation("acetal (POM-C)", 60.0) <= 0.028
     assert linear_attenuation("steel", 80.0) < linear_attenuation("steel", 60.0) < linear_attenuation("steel", 40.0)

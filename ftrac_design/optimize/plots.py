@@ -12,6 +12,13 @@ from ..fileio import atomic_file
 from .search import SearchResult, _ok, objective_names
 
 
+def _save(fig, plt, path: Path) -> None:
+    """Lay ``fig`` out, write it to ``path`` atomically (PNG, 110 dpi) and close it."""
+    fig.tight_layout()
+    with atomic_file(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
 def plot_convergence(res: SearchResult, path: Path) -> None:
     import matplotlib
 
@@ -42,10 +49,7 @@ def plot_convergence(res: SearchResult, path: Path) -> None:
     ax[1].set_ylim(0, 1.02)
     fig.suptitle(f"{res.start.get('name', '')} optimize --objective {res.config.objective} "
                  f"(seed {res.config.seed}, {len(res.entries)} evaluations)", fontsize=10)
-    fig.tight_layout()
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
+    _save(fig, plt, path)
 
 
 def plot_front(res: SearchResult, path: Path) -> None:
@@ -82,10 +86,7 @@ def plot_front(res: SearchResult, path: Path) -> None:
         ax.legend(fontsize=8)
     fig.suptitle(f"optimize --objective {res.config.objective} (seed {res.config.seed}, "
                  f"{len(res.entries)} evaluations)", fontsize=10)
-    fig.tight_layout()
-    with atomic_file(path) as tmp:
-        fig.savefig(tmp, dpi=110)
-    plt.close(fig)
+    _save(fig, plt, path)
 
 
 def replot(log_path: str | Path, out_dir: str | Path) -> list[Path]:
