@@ -21,7 +21,7 @@ from ..fileio import atomic_directory, check_output_dir, json_format_is
 from .evaluate import EvalSettings
 from .execution import open_executor
 from .outputs import FORMAT, write_outputs
-from .search import SearchConfig, run_search
+from .search import SearchConfig, require_search_packages, run_search
 from .space import SearchSpace, default_space, load_space
 
 #: workspace poses of the search sample unless the space file or the caller says otherwise
@@ -96,6 +96,7 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     config = SearchConfig(objective=objective, evaluations=evaluations, seed=seed,
                           sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
                           popsize=popsize or space.search.get("popsize"))
+    require_search_packages(config)
     work = work_dir(out_dir)
     log = work / "evaluations.jsonl"
     if resume and not log.exists():
