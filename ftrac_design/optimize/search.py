@@ -46,6 +46,7 @@ from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -55,16 +56,18 @@ from .space import SearchSpace, design_hash
 
 LOG_FORMAT = "ftrac-optimize-log"
 LOG_VERSION = 1
-SINGLE = ("max", "sum", "translation", "rotation")
-MULTI = ("translation-rotation", "accuracy-diameter")
-OBJECTIVES = SINGLE + MULTI
+Objective = Literal["max", "sum", "translation", "rotation", "translation-rotation", "accuracy-diameter"]
+OBJECTIVES: tuple[Objective, ...] = get_args(Objective)
+#: objectives searched by CMA-ES (one figure) and by NSGA-II (two)
+SINGLE: tuple[Objective, ...] = OBJECTIVES[:4]
+MULTI: tuple[Objective, ...] = OBJECTIVES[4:]
 
 
 @dataclass(frozen=True)
 class SearchConfig:
     """What is searched for and how: objective, budget, seed and optimiser settings."""
 
-    objective: str = "max"
+    objective: Objective = "max"
     evaluations: int = 400
     seed: int = 0
     sigma0: float = 0.1

@@ -16,7 +16,7 @@ from pathlib import Path
 from ..errors import GoalError, InputError
 from ..fileio import atomic_directory, check_output_dir, json_format_is
 from ..optimize.execution import open_executor
-from ..optimize.search import SearchConfig, require_search_packages, run_search
+from ..optimize.search import Objective, SearchConfig, require_search_packages, run_search
 from ..optimize.setup import prepare
 from .optimize_outputs import FORMAT, write_outputs
 
@@ -37,7 +37,7 @@ def _check_output_dir(out_dir: Path) -> None:
 
 
 def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Path | None = None,
-             objective: str = "max", evaluations: int = 400, seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
+             objective: Objective = "max", evaluations: int = 400, seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
              scheduler: str | None = None, workers: int | None = None, executor: Executor | None = None,
              resume: bool = False, poses: int | None = None, verify_poses: int | None = None,
              solver_images: int | None = None, build: bool = True, progress: bool = True,
