@@ -23,6 +23,8 @@ from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "img" / "layers.png"
+#: box colours: the entry points green, the one room that may import CadQuery amber, the rest blue
+COLOURS = {"demo": "#d9ead3", "demo_carm": "#d9ead3", "cli": "#d9ead3", "cad": "#f4d6a0"}
 
 
 def contract_layers(pyproject: Path = ROOT / "pyproject.toml") -> list[list[str]]:
@@ -87,7 +89,7 @@ def draw(layers: list[list[str]], out: Path = OUT) -> Path:
         box_w = (width - 0.2 * (len(layer) - 1)) / len(layer)
         for j, room in enumerate(layer):
             x = 0.3 + j * (box_w + 0.2)
-            colour = "#f4d6a0" if room == "cad" else "#cfe2f3" if room not in ("demo", "demo_carm", "cli") else "#d9ead3"
+            colour = COLOURS.get(room, "#cfe2f3")
             ax.add_patch(FancyBboxPatch((x, y + 0.08), box_w, row_h - 0.2, boxstyle="round,pad=0.02,rounding_size=0.08",
                                         fc=colour, ec="#345", lw=1.0))
             ax.text(x + box_w / 2, y + row_h / 2 - 0.02, room, ha="center", va="center", fontsize=10,
