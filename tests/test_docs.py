@@ -106,6 +106,54 @@ def test_the_code_cites_only_documents_in_the_repository():
     assert not outside, f"these cite files outside the repository: {outside}"
 
 
+def named_in_docs() -> tuple[set[str], set[str]]:
+    """The repository paths (``ftrac_design/…``, ``benchmarks/…``, ``tests/…``, ``docs/…``) and
+    the dotted names (``ftrac_design.…``) that the pages, README.md and benchmarks/README.md
+    name in code spans; placeholders (``<name>``) and globs are left out."""
+    pages = [*DOCS.rglob("*.md"), README, ROOT / "benchmarks" / "README.md"]
+    paths, dotted = set(), set()
+    for page in pages:
+        for span in re.findall(r"`([^`\n]+)`", page.read_text(encoding="utf-8")):
+            if re.fullmatch(r"(ftrac_design|benchmarks|tests|docs)/[\w./-]+", span) and not span.endswith("/."):
+                paths.add(span.rstrip(".,:;"))
+            elif re.fullmatch(r"ftrac_design(\.\w+)+", span):
+                dotted.add(span)
+    return paths, dotted
+
+
+def resolves(dotted: str) -> bool:
+    """Whether ``dotted`` is an importable module or an attribute path from one."""
+    import importlib
+
+    parts = dotted.split(".")
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for attr in parts[i:]:
+                obj = getattr(obj, attr)
+        except AttributeError:
+            return False
+        return True
+    return False
+
+
+def test_the_docs_name_only_files_and_objects_that_exist():
+    paths, dotted = named_in_docs()
+    assert len(paths) > 50 and len(dotted) > 10, (len(paths), len(dotted))
+    missing = sorted(p for p in paths if not (ROOT / p).exists())
+    assert not missing, f"the docs name files that do not exist: {missing}"
+    unknown = sorted(d for d in dotted if not resolves(d))
+    assert not unknown, f"the docs name modules or objects that do not exist: {unknown}"
+
+
+def test_the_name_checker_tells_real_from_made_up_names():
+    assert resolves("ftrac_design.pose.solve_pose") and resolves("ftrac_design.design.presets")
+    assert not resolves("ftrac_design.pose.no_such_solver") and not resolves("ftrac_design.no_such_room")
+
+
 def contract_layers() -> list[list[str]]:
     conf = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
     (layers,) = [c["layers"] for c in conf["tool"]["importlinter"]["contracts"] if c["type"] == "layers"]
