@@ -180,7 +180,8 @@ def test_the_architecture_page_and_its_picture_show_the_contract_layers():
 @pytest.mark.timeout(600)
 def test_the_site_builds_strict_with_no_warning(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT), NO_MKDOCS_2_WARNING="1")
-    res = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-q", "-f", str(ROOT / "mkdocs.yml"),
+    # not -q: mkdocs then drops warnings before --strict counts them
+    res = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
                           "-d", str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
     log = res.stdout + res.stderr
     assert res.returncode == 0, log[-4000:]
