@@ -163,7 +163,7 @@ def test_report_of_a_design_file_builds_in_a_temporary_directory(tmp_path, monke
     assert page.h2 == list(SECTIONS) and len(page.imgs) == 4
     text = out.read_text()
     assert "not kept" in text and "This design has no wires." in text
-    assert "FAIL" in text  # nine_bead fails the default 1 mm translation threshold (README)
+    assert "FAIL" in text  # nine_bead fails the default 1 mm translation threshold (docs/how/score.md)
 
 
 def test_analyze_report_without_a_build(tmp_path):
