@@ -75,10 +75,11 @@ def format_build(summary: dict[str, Any]) -> str:
 
 def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
     """Score the design over its workspace (``ftrac-design analyze``) into ``out_dir``: the
-    image-true score on 50 images per condition, and the paper's model; returns the analysis.json
-    object."""
+    image-true score on 50 images per condition and its atlas on a 45° grid, and the paper's model;
+    returns the analysis.json object."""
     from .analysis.subject import load_subject, settings_for
     from .imagescore import TrialSettings
+    from .imagescore.atlas import AtlasSettings
     from .optimize.execution import open_executor
     from .workflows.analyze import run_analysis
 
@@ -86,7 +87,7 @@ def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
     settings, thresholds = settings_for(subject)
     with open_executor() as (executor, _):
         doc, _ = run_analysis(subject, settings, thresholds, Path(out_dir), trial=TrialSettings(images=50),
-                              executor=executor)
+                              executor=executor, image_atlas_settings=AtlasSettings(step_deg=45.0))
     return doc
 
 

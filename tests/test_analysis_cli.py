@@ -15,7 +15,7 @@ from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.features.io import write_features
 
-FAST = ["--poses", "500", "--atlas-step-deg", "10", "--score-images", "0"]
+FAST = ["--poses", "500", "--atlas-step-deg", "10", "--score-images", "0", "--image-atlas-step-deg", "0"]
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,7 @@ def test_analysis_never_imports_cadquery(tmp_path):
         "import sys\n"
         "from ftrac_design.cli.main import main\n"
         f"rc = main(['analyze', r'{MODELS / 'ftrac_2005.toml'}', '-o', r'{tmp_path / 'a'}', '--poses', '200',"
-        " '--score-images', '2', '--workers', '0', '--atlas-step-deg', '15'])\n"
+        " '--score-images', '2', '--workers', '0', '--atlas-step-deg', '15', '--image-atlas-step-deg', '45'])\n"
         "bad = [m for m in sys.modules if m.split('.')[0] in ('cadquery', 'OCP', 'pyvista', 'trimesh')]\n"
         "assert rc == 0 and not bad, (rc, bad)\n"
     )

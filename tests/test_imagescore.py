@@ -128,7 +128,7 @@ def test_analyze_reports_the_image_true_score_first(tmp_path, capsys):
 
     out = tmp_path / "a"
     assert main(["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15", "--score-images", "3",
-                 "--workers", "0", "-o", str(out)]) == 0
+                 "--workers", "0", "--image-atlas-step-deg", "45", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert text.index("image-true score") < text.index("the paper's model")
     doc = json.loads((out / "analysis.json").read_text())
@@ -137,6 +137,11 @@ def test_analyze_reports_the_image_true_score_first(tmp_path, capsys):
     assert block["figures"] == trial_figures(block["records"], 0)
     assert "image_score.png" in doc["files"] and (out / "image_score.png").read_bytes()[:4] == b"\x89PNG"
     assert "Cramér–Rao" in doc["paper_model"]
+    atlas = doc["image_atlas"]
+    assert len(atlas["right_share"]) == 4 and len(atlas["right_share"][0]) == 8  # a 45° grid: 4 × 8 directions
+    shares = [v for row in atlas["right_share"] for v in row]
+    assert all(v in (0.0, 0.5, 1.0) for v in shares) and atlas["right_share_sphere"] == sum(shares) / len(shares)
+    assert "image_atlas.png" in doc["files"] and "image-true atlas" in text
 
 
 def test_compare_of_a_design_with_itself_gives_ratios_of_exactly_one(tmp_path, capsys):

@@ -179,7 +179,8 @@ def test_nominal_view_of_the_published_design_is_clear(features_2005):
 
 # ---- the analysis: analysis.json, thresholds, compare --------------------------------------
 
-FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots", "--score-images", "0"]
+FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots", "--score-images", "0",
+        "--image-atlas-step-deg", "0"]
 
 
 @pytest.fixture(scope="module")

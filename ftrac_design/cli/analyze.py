@@ -81,6 +81,9 @@ def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, l
               help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
                    "patient); 0 = the paper's feature-level model only")
 @click.option("--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample")
+@click.option("--image-atlas-step-deg", type=click.FloatRange(min=0.0, max=45.0), default=20.0, show_default=True,
+              help="the image-true blind-spot atlas: grid step over the sphere of view directions, each direction "
+                   "imaged (clean) and tracked at 2 rolls; 0 = none")
 @click.option("--workers", type=click.IntRange(min=0), default=None,
               help="processes rendering and tracking the score's images [default: one per core; 0 = this process]")
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
@@ -90,7 +93,7 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
             lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
             no_plots, report=False, max_overlap_share=None, min_clearance_px=None, imaging=False, imaging_poses=60,
             dose=1.0e4, energy_kev=60.0, blur_px=0.7, focal_spot_mm=0.6, score_images=100, score_seed=0,
-            workers=None) -> int:
+            workers=None, image_atlas_step_deg=20.0) -> int:
     """Score SOURCE (a design file, a preset's name or a features.json) over the C-arm workspace.
 
     The image-true score: a seeded sample of workspace poses rendered clean and over a patient,
@@ -136,16 +139,23 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
 
         trial = TrialSettings(images=score_images, seed=score_seed)
         total += score_images * len(trial.conditions)
+    atlas_settings = None
+    if image_atlas_step_deg:
+        from ..imagescore.atlas import AtlasSettings
+
+        atlas_settings = AtlasSettings(step_deg=image_atlas_step_deg, seed=score_seed)
+        total += round(360 / image_atlas_step_deg) * round(180 / image_atlas_step_deg) * atlas_settings.rolls
     with contextlib.ExitStack() as stack:
         executor = None
-        if trial is not None and workers != 0:
+        if (trial is not None or atlas_settings is not None) and workers != 0:
             from ..optimize.execution import open_executor
 
             executor, _ = stack.enter_context(open_executor(None, workers))
         bar = stack.enter_context(tqdm(total=total, unit="step", desc=f"analysing {subject.features.name}",
                                        leave=False, disable=None))
         doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update,
-                                    imaging=pixel_level, trial=trial, executor=executor)
+                                    imaging=pixel_level, trial=trial, executor=executor,
+                                    image_atlas_settings=atlas_settings)
     click.echo(format_summary(doc, format_imaging))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
     if report:

@@ -86,6 +86,40 @@ def _image(features: Features, body, condition: Condition, R: np.ndarray, t: np.
     return img
 
 
+def track_record(image: np.ndarray, features: Features, body, R: np.ndarray, t: np.ndarray,
+                 camera: Camera) -> dict[str, Any]:
+    """Track ``image`` with the default options (time budget lifted) and class the outcome against
+    the true pose (R, t) (F → X, mm).
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        The radiograph.
+    features, body
+        The fiducial and its body (as known to the tracker).
+    R, t : numpy.ndarray
+        The true pose, SPEC §1.
+    camera : Camera
+        The C-arm's intrinsics.
+
+    Returns
+    -------
+    dict
+        ``outcome`` (right / wrong / refused), ``translation_mm`` and ``rotation_deg`` (3-D errors,
+        None when refused).
+    """
+    from ..segment.options import TrackOptions
+    from ..segment.pipeline import track_image
+
+    pose = track_image(image, features, camera, TrackOptions(time_budget_s=math.inf), body=body).pose
+    rec: dict[str, Any] = {"outcome": "refused", "translation_mm": None, "rotation_deg": None}
+    if pose.converged:
+        dr, dt = pose_errors(pose.rotation, pose.translation_mm, R, t)
+        a, d = math.degrees(float(np.linalg.norm(dr))), float(np.linalg.norm(dt))
+        rec.update(outcome="wrong" if a > WRONG_DEG or d > WRONG_MM else "right", translation_mm=d, rotation_deg=a)
+    return rec
+
+
 def run_images(features: Features, body, settings: TrialSettings, condition: Condition,
                indices: Sequence[int]) -> list[dict[str, Any]]:
     """Render and track images ``indices`` of one condition; one record per image.
@@ -109,23 +143,12 @@ def run_images(features: Features, body, settings: TrialSettings, condition: Con
         ``{"condition", "k", "outcome": "right"|"wrong"|"refused", "translation_mm",
         "rotation_deg"}`` — the 3-D errors (None when refused).
     """
-    from ..segment.options import TrackOptions
-    from ..segment.pipeline import track_image
-
-    options = TrackOptions(time_budget_s=math.inf)
     R, t = workspace_poses(settings.workspace, features.nominal_beam_direction, settings.images, settings.seed)
     out = []
     for k in indices:
         img = _image(features, body, condition, R[k], t[k], settings.camera, settings.seed, int(k))
-        pose = track_image(img, features, settings.camera, options, body=body).pose
-        rec: dict[str, Any] = {"condition": condition, "k": int(k), "outcome": "refused",
-                               "translation_mm": None, "rotation_deg": None}
-        if pose.converged:
-            dr, dt = pose_errors(pose.rotation, pose.translation_mm, R[k], t[k])
-            a, d = math.degrees(float(np.linalg.norm(dr))), float(np.linalg.norm(dt))
-            rec.update(outcome="wrong" if a > WRONG_DEG or d > WRONG_MM else "right", translation_mm=d,
-                       rotation_deg=a)
-        out.append(rec)
+        out.append({"condition": condition, "k": int(k),
+                    **track_record(img, features, body, R[k], t[k], settings.camera)})
     return out
 
 

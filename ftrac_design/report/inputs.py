@@ -21,7 +21,7 @@ from ..errors import InputError
 from ..fileio import sha256_file
 
 #: pictures of an analysis directory, in page order (file names as ``ftrac-design analyze`` writes them)
-ANALYSIS_PICTURES = ("image_score.png", "score.png", "atlas_sphere.png", "atlas_cone.png")
+ANALYSIS_PICTURES = ("image_score.png", "score.png", "image_atlas.png", "atlas_sphere.png", "atlas_cone.png")
 
 
 @dataclass(frozen=True)

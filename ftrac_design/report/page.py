@@ -324,7 +324,28 @@ def _atlas(r: ReportInputs) -> str:
                    rows, (3, 4))
     pics = [_img(r.analysis_pictures[n], n, n) for n in ("atlas_sphere.png", "atlas_cone.png")
             if n in r.analysis_pictures]
-    return body + (f'<div class="pics">{"".join(pics)}</div>' if pics else "")
+    return _image_atlas(a.get("image_atlas"), r.analysis_pictures.get("image_atlas.png")) + \
+        "<p><b>The paper's model.</b></p>" + body + (f'<div class="pics">{"".join(pics)}</div>' if pics else "")
+
+
+def _image_atlas(atlas: dict | None, png: bytes | None) -> str:
+    """The image-true atlas: the shares tracked right over the sphere and the workspace cone, the
+    worst directions, and its picture."""
+    if not atlas:
+        return ("<p>No image-true atlas in this analysis (run <code>ftrac-design analyze</code> with "
+                "<code>--image-atlas-step-deg</code> &gt; 0).</p>")
+    s = atlas["settings"]
+    body = (f'<p><b>Image-true atlas.</b> Each direction of a {_num(s["step_deg"])}° grid imaged clean at '
+            f'{_num(s["rolls"])} rolls and tracked: right from '
+            f'{_num(100 * atlas["right_share_sphere"], ".0f")} % of the sphere of view directions'
+            + (f', {_num(100 * atlas["right_share_cone"], ".0f")} % of the workspace cone'
+               if atlas.get("right_share_cone") is not None else "") + ".</p>")
+    rows = [[str(i + 1), f"{w['lon_deg']:.0f}°, {w['lat_deg']:.0f}°", f"{w['angle_from_nominal_deg']:.0f}°",
+             f"{100 * w['right_share']:.0f} %"] for i, w in enumerate(atlas.get("worst", []))]
+    body += _table(["#", "lon, lat", "from nominal", "tracked right"], rows, (3,))
+    if png:
+        body += _img(png, "image-true atlas", "image_atlas.png")
+    return body
 
 
 def _bom(r: ReportInputs) -> str:

@@ -36,12 +36,14 @@ from ..analysis.subject import Subject
 from ..features.model import Features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, write_json_atomic
 from ..imagescore import TrialSettings, run_trial, trial_figures
+from ..imagescore.atlas import AtlasSettings, image_atlas, plot_image_atlas
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
 PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png",
          "segmentability": "segmentability.png"}
 IMAGE_SCORE_PLOT = "image_score.png"
+IMAGE_ATLAS_PLOT = "image_atlas.png"
 #: what the feature-level figures are, in the summary and analysis.json
 PAPER_MODEL = ("the paper's model: feature-level Cramér–Rao bound, uniform segmentation error per feature "
                "(Jain et al. 2005)")
@@ -88,6 +90,15 @@ def default_output_dir(features: Features) -> Path:
     return Path("outputs") / features.name / "analysis"
 
 
+def subject_body(subject: Subject):
+    """The body of what is analysed, as rendered and known to the tracker: the design's, or for a
+    features file the body of the design its ``source`` names when that file exists (else None)."""
+    from ..xray import Body
+    from ..xray.render import AUTO, resolve_body
+
+    return Body.from_design(subject.design) if subject.design is not None else resolve_body(subject.features, AUTO)
+
+
 def image_score_block(trial: TrialSettings, records: list[dict], seconds: float) -> dict[str, Any]:
     """analysis.json's ``image_score`` block: the imaging model, the figures per condition, every
     image's record and the time it took (s)."""
@@ -99,7 +110,8 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
                  atlas_step_deg: float = 2.0, plots: bool = True,
                  progress: Callable[[int], None] | None = None,
                  imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None,
-                 trial: TrialSettings | None = None, executor: Executor | None = None) -> tuple[dict, Path]:
+                 trial: TrialSettings | None = None, executor: Executor | None = None,
+                 image_atlas_settings: AtlasSettings | None = None) -> tuple[dict, Path]:
     """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
 
     Parameters
@@ -123,7 +135,10 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
         The image-true score's sample (None: not computed); its workspace and camera are those
         of ``settings``.
     executor : concurrent.futures.Executor or None
-        Where the trial's images are rendered and tracked (None: in this process).
+        Where the trial's and the image atlas' images are rendered and tracked (None: here).
+    image_atlas_settings : AtlasSettings or None
+        The image-true blind-spot atlas' grid (None: not computed); depth and camera from
+        ``settings``.
 
     Returns
     -------
@@ -135,14 +150,16 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
     t0 = time.perf_counter()
     records = None
     if trial is not None:
-        from ..xray import Body
-        from ..xray.render import AUTO, resolve_body
-
         trial = replace(trial, workspace=settings.workspace, camera=settings.camera)
-        body = Body.from_design(subject.design) if subject.design is not None else resolve_body(subject.features,
-                                                                                                AUTO)
+        body = subject_body(subject)
         records = run_trial(subject.features, body, trial, executor, progress)
         trial_seconds = time.perf_counter() - t0
+    img_atlas = None
+    if image_atlas_settings is not None:
+        body = subject_body(subject)
+        image_atlas_settings = replace(image_atlas_settings, depth_mm=settings.workspace.depth_mm,
+                                       camera=settings.camera)
+        img_atlas = image_atlas(subject.features, body, image_atlas_settings, executor, progress)
     score = score_design(subject.features, settings, thresholds, progress=progress)
     atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
     seg_atlas = segmentability_atlas(subject.features, settings.camera, settings.workspace.depth_mm,
@@ -170,9 +187,13 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
 
                 plot_image_score(records, tmp / IMAGE_SCORE_PLOT, f"{subject.features.name}: image-true score")
                 files.append(IMAGE_SCORE_PLOT)
+            if img_atlas is not None:
+                plot_image_atlas(img_atlas, tmp / IMAGE_ATLAS_PLOT, f"{subject.features.name}: image-true atlas")
+                files.append(IMAGE_ATLAS_PLOT)
         doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
         doc["paper_model"] = PAPER_MODEL
         doc["image_score"] = image_score_block(trial, records, trial_seconds) if records is not None else None
+        doc["image_atlas"] = img_atlas
         if ia is not None:
             doc["imaging"] = ia.to_dict()
         write_json_atomic(tmp / "analysis.json", doc)
@@ -200,6 +221,9 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
     s = doc["settings"]
     if doc.get("image_score"):
         echo(format_image_score(doc["design"]["name"], doc["image_score"]))
+    if doc.get("image_atlas"):
+        echo(format_image_atlas(doc["image_atlas"]))
+    if doc.get("image_score") or doc.get("image_atlas"):
         echo(f"{PAPER_MODEL}:")
     echo(f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
          f"segmentation error {s['segmentation_error_mm']:g} mm"
@@ -257,6 +281,20 @@ def format_image_score(name: str, block: dict) -> str:
                f"focal spot {m['clean']['focal_spot_mm']:g} mm, blur {m['clean']['detector_blur_px']:g} px; "
                f"anatomy: {m['anatomy']['patient']}, {m['anatomy']['quanta_behind_patient'][0]}–"
                f"{m['anatomy']['quanta_behind_patient'][1]} quanta behind the patient, raw counts)")
+    return "\n".join(out)
+
+
+def format_image_atlas(atlas: dict) -> str:
+    """Two lines on an analysis.json ``image_atlas`` block: the shares tracked right and the worst
+    directions."""
+    s = atlas["settings"]
+    cone = atlas["right_share_cone"]
+    out = [f"  image-true atlas ({s['step_deg']:g}° grid, {s['rolls']} rolls, clean): tracked right from "
+           f"{100 * atlas['right_share_sphere']:.0f} % of the sphere of view directions"
+           + (f", {100 * cone:.0f} % of the workspace cone" if cone is not None else "")]
+    worst = "; ".join(f"lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° ({w['angle_from_nominal_deg']:.0f}° from "
+                      f"nominal) {100 * w['right_share']:.0f} % right" for w in atlas["worst"][:3])
+    out.append(f"    worst: {worst}")
     return "\n".join(out)
 
 

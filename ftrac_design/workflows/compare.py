@@ -9,13 +9,7 @@ from typing import Any
 
 from ..analysis.subject import Subject
 from ..imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
-
-
-def _body(subject: Subject):
-    from ..xray import Body
-    from ..xray.render import AUTO, resolve_body
-
-    return Body.from_design(subject.design) if subject.design is not None else resolve_body(subject.features, AUTO)
+from .analyze import subject_body
 
 
 def image_scores(subjects: Sequence[Subject], trial: TrialSettings, executor: Executor | None = None,
@@ -40,7 +34,7 @@ def image_scores(subjects: Sequence[Subject], trial: TrialSettings, executor: Ex
         and ``vs_first`` (per condition, :func:`ftrac_design.imagescore.paired_ratios`; None for the
         first design).
     """
-    records = [run_trial(s.features, _body(s), trial, executor, progress) for s in subjects]
+    records = [run_trial(s.features, subject_body(s), trial, executor, progress) for s in subjects]
     out = []
     for i, (s, rec) in enumerate(zip(subjects, records)):
         out.append({"design": s.features.name, "figures": trial_figures(rec, trial.seed),

@@ -10,18 +10,22 @@ from ..report import collect, write_report
 
 #: images per condition of the image-true score when a report runs the analysis itself
 DEFAULT_SCORE_IMAGES = 100
+#: grid step (degrees) of the image-true atlas when a report runs the analysis itself
+DEFAULT_IMAGE_ATLAS_STEP_DEG = 20.0
 
 
 def report_for_build(build_dir: str | Path, output: str | Path | None = None, analysis_dir: str | Path | None = None,
                      run_analysis_if_missing: bool = True, poses: int | None = None,
                      atlas_step_deg: float = 2.0, build_kept: bool = True, design=None,
-                     score_images: int = DEFAULT_SCORE_IMAGES, workers: int | None = None) -> Path:
+                     score_images: int = DEFAULT_SCORE_IMAGES, workers: int | None = None,
+                     image_atlas_step_deg: float = DEFAULT_IMAGE_ATLAS_STEP_DEG) -> Path:
     """Write the report of ``build_dir`` (default ``build_dir/report.html``); returns its path.
 
     The analysis comes from ``analysis_dir``, else ``build_dir/analysis/``; if neither holds
     one and ``run_analysis_if_missing``, it is run at the design's settings (``poses``
     overrides the number of workspace poses; ``score_images`` per condition for the image-true
-    score, 0 for none, on ``workers`` processes) into a temporary directory that is not kept.
+    score and ``image_atlas_step_deg`` for its atlas, 0 for none, on ``workers`` processes) into a
+    temporary directory that is not kept.
     """
     import tempfile
 
@@ -29,7 +33,8 @@ def report_for_build(build_dir: str | Path, output: str | Path | None = None, an
     output = Path(output) if output is not None else build_dir / "report.html"
     if analysis_dir is None and not (build_dir / "analysis" / "analysis.json").is_file() and run_analysis_if_missing:
         with tempfile.TemporaryDirectory(prefix="ftrac-report-") as tmp:
-            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg, score_images, workers)
+            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg, score_images, workers,
+                     image_atlas_step_deg)
             r = collect(build_dir, design, Path(tmp) / "analysis", build_kept)
             return write_report(r, output)
     return write_report(collect(build_dir, design, analysis_dir, build_kept), output)
@@ -55,7 +60,7 @@ def report_for_analysis(source: str | Path, analysis_dir: str | Path, output: st
 
 
 def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_step_deg: float, score_images: int,
-             workers: int | None) -> None:
+             workers: int | None, image_atlas_step_deg: float) -> None:
     """Run the analysis of a build at its design's settings, with plots and the image-true score."""
     from ..analysis.subject import Subject, settings_for
     from ..design.loader import parse_design
@@ -67,12 +72,15 @@ def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_st
         design = parse_design(read_manifest(build_dir)["design"].get("parameters"), build_dir / "manifest.json")
     subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json", design)
     settings, thresholds = settings_for(subject, poses=poses)
-    if not score_images:
+    if not score_images and not image_atlas_step_deg:
         run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
         return
     from ..imagescore import TrialSettings
+    from ..imagescore.atlas import AtlasSettings
     from ..optimize.execution import open_executor
 
+    trial = TrialSettings(images=score_images) if score_images else None
+    atlas = AtlasSettings(step_deg=image_atlas_step_deg) if image_atlas_step_deg else None
     with open_executor(None, workers) as (executor, _):
-        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True,
-                     trial=TrialSettings(images=score_images), executor=executor)
+        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True, trial=trial, executor=executor,
+                     image_atlas_settings=atlas)
