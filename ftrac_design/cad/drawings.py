@@ -320,8 +320,6 @@ def body_sheet(design: Design, features: Features, plan: BodyPlan, body, profile
     u = np.array([math.cos(c), -math.sin(c)])
     ax.plot([0, (R + 4 / s_end) * u[0]], [0, (R + 4 / s_end) * u[1]], color="k", lw=0.3, ls=(0, (6, 2, 1, 2)))
     datum_flag(ax, tuple(R * u), "C", dx=5 / s_end * u[0], dy=5 / s_end * u[1])
-    if key_slot is not None:
-        dim_line(ax, (-R, -key_slot[0] / 2), (-R, key_slot[0] / 2), (-4 / s_end, 0), D["key_slot.width"], "body")
     # unrolled outer surface: x = R·A (rad), y = z
     _unrolled(sheet, design, features, plan, profile, s_u, D, a_c, unwrap_features)
     x_t = SHEET[0] - MARGIN - 180
@@ -350,6 +348,8 @@ def _feature_rows(plan: BodyPlan, D: dict[str, Dim]) -> list[list[Dim | str | No
     for p in plan.pockets:
         i = p.feature.id
         rows.append([f"{i} pocket", D[f"{i}.A"], D[f"{i}.z"], D[f"{i}.diameter"], D[f"{i}.depth"]])
+    if "key_slot.width" in D:  # across face B, centred on datum C; depth from B
+        rows.append(["key slot", None, None, D["key_slot.width"], D["key_slot.depth"]])
     rows.append(["datum C", D["datum_C.A"], None, None, None])
     return rows
 
@@ -428,6 +428,11 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
     draw_projection(ax, project(solid, ViewFrame("top", (1, 0, 0), (0, 0, 1))))
     sheet.text(ax, 0, -h2 - 9 / s, "TOP (from +z)", ha="center", size=6.5, weight="bold")
     dim_line(ax, (-h2, h2), (h2, h2), (0, 5 / s), D["block.width"], "mount")
+    if m.key.height > 0:  # datum C: the key, flagged at its end on the socket's rim
+        kd = m.key.direction[:2] * mount_part.socket_diameter / 2
+        datum_flag(ax, tuple(kd), "C", dx=float(kd[0]) * 0.3, dy=float(kd[1]) * 0.3 + 4 / s)
+    else:  # datum C: the block's +x face
+        datum_flag(ax, (h2, h2 / 2), "C", dx=6 / s)
     ax.annotate(D["block.chamfer"].text() + " × 45°", xy=(h2 - m.chamfer / 2, -h2 + m.chamfer / 2),
                 xytext=(h2 + 2 / s, -h2 - 6 / s), fontsize=FONT_PT, arrowprops={"arrowstyle": "-", "lw": 0.3},
                 gid="dim.mount.block.chamfer")
@@ -556,3 +561,31 @@ def write_drawings(design: Design, features: Features, plan: BodyPlan, body, fix
             sheet.save(svg, pdf, pic)
             written += [svg, pdf] + ([pic] if pic else [])
     return written
+
+
+def draw_design(design: Design, out_dir: str | Path, profile: Profile = "cnc", png: bool = False,
+                date: str | None = None) -> list[Path]:
+    """Build the solids of ``design`` (body with its key slot, mount, connector — no exports) and
+    write only the drawings into ``out_dir``, atomically (a new or empty directory, or one that
+    holds earlier drawings). Returns the files written."""
+    from ..features import compute_features
+    from ..fileio import atomic_directory, check_output_dir
+    from .body import build_body, single_solid
+    from .build import _occ_errors, require_cad_packages
+    from .fixture import fixture_parts
+    from .mount import key_slot_tool
+    from .plan import plan_body
+
+    require_cad_packages(render=False)
+    out_dir = Path(out_dir)
+    check_output_dir(out_dir, "earlier drawings", lambda d: (d / "drawing_body.svg").is_file())
+    features = compute_features(design)
+    plan = plan_body(design, features, cut_sizes(design, profile))
+    with atomic_directory(out_dir) as tmp, _occ_errors(design.name):
+        body = build_body(plan)
+        slot = key_slot_tool(design, profile)
+        if slot is not None:
+            body = single_solid(body.cut(slot), f"{design.name} key slot")
+        written = write_drawings(design, features, plan, body, fixture_parts(design, features, profile), profile,
+                                 tmp, date=date, png=png)
+    return [out_dir / p.name for p in written]
