@@ -36,9 +36,9 @@ SVG_NS = "{http://www.w3.org/2000/svg}"
 
 
 @functools.cache
-def svg_texts(profile: str, part: str) -> tuple[dict[str, str], list[tuple[str, str]]]:
+def svg_texts(profile: str, part: str, preset: str = PRESET) -> tuple[dict[str, str], list[tuple[str, str]]]:
     """({group id: text} for every id'd text group, [(innermost group id, text)] for all text)."""
-    root = ET.parse(S.build(PRESET, profile).out_dir / f"drawing_{part}.svg").getroot()
+    root = ET.parse(S.build(preset, profile).out_dir / f"drawing_{part}.svg").getroot()
     by_id: dict[str, str] = {}
     every: list[tuple[str, str]] = []
 
@@ -57,9 +57,9 @@ def svg_texts(profile: str, part: str) -> tuple[dict[str, str], list[tuple[str, 
     return by_id, every
 
 
-def printed(profile: str, part: str) -> dict[str, str]:
+def printed(profile: str, part: str, preset: str = PRESET) -> dict[str, str]:
     """{dimension key: printed text} of one sheet."""
-    by_id, _ = svg_texts(profile, part)
+    by_id, _ = svg_texts(profile, part, preset)
     prefix = f"dim.{part}."
     return {k[len(prefix):]: v for k, v in by_id.items() if k.startswith(prefix)}
 
@@ -93,22 +93,24 @@ def _ellipse_extreme(e, sign: float) -> tuple[float, float]:
     return _azimuth(p), float(p[2])
 
 
-def expected_body(profile: str) -> dict[str, float]:
-    d, f, _ = S.design_features_cuts(PRESET, profile)
+def expected_body(preset: str, profile: str) -> dict[str, float]:
+    d, f, _ = S.design_features_cuts(preset, profile)
     R = d.body.outer_diameter / 2
     p = d.manufacturing.cnc if profile == "cnc" else d.manufacturing.fdm
-    groove = d.wire.diameter - p.wire_interference if profile == "cnc" else d.wire.diameter + 2 * p.wire_clearance
+    wire = d.wire.diameter if d.wire else float("nan")  # a design without wires has no grooves
+    groove = wire - p.wire_interference if profile == "cnc" else wire + 2 * p.wire_clearance
     pocket = d.bead.diameter - p.bead_interference if profile == "cnc" else d.bead.diameter + 2 * p.bead_clearance
     out = {"body.length": d.body.length, "body.outer_diameter": d.body.outer_diameter,
-           "body.bore_diameter": d.body.bore_diameter, "datum_C.A": d.lines[0].azimuth_deg % 360}
+           "body.bore_diameter": d.body.bore_diameter,
+           "datum_C.A": d.lines[0].azimuth_deg % 360 if d.lines else _azimuth(f.points[0].center)}
     for e in f.ellipses:
         seat = float(np.hypot(*e.sample(np.array([0.3]))[0, :2]))
         (a_t, z_t), (a_b, z_b) = _ellipse_extreme(e, 1.0), _ellipse_extreme(e, -1.0)
         out |= {f"{e.id}.top.A": a_t, f"{e.id}.top.z": z_t, f"{e.id}.bottom.A": a_b, f"{e.id}.bottom.z": z_b,
-                f"{e.id}.width": groove, f"{e.id}.depth": R - seat + d.wire.diameter / 2}
+                f"{e.id}.width": groove, f"{e.id}.depth": R - seat + wire / 2}
     for ln in f.lines:
         out |= {f"{ln.id}.A": _azimuth(ln.start), f"{ln.id}.start.z": ln.start[2], f"{ln.id}.end.z": ln.end[2],
-                f"{ln.id}.width": groove, f"{ln.id}.depth": R - math.hypot(*ln.start[:2]) + d.wire.diameter / 2}
+                f"{ln.id}.width": groove, f"{ln.id}.depth": R - math.hypot(*ln.start[:2]) + wire / 2}
     for b in f.points:
         out |= {f"{b.id}.A": _azimuth(b.center), f"{b.id}.z": b.center[2], f"{b.id}.diameter": pocket,
                 f"{b.id}.depth": R - math.hypot(*b.center[:2]) + b.diameter / 2}
@@ -154,14 +156,15 @@ def bbox(profile: str, step: str):
 
 # ---- the drawings ---------------------------------------------------------------------------
 
-@pytest.mark.parametrize("profile", ["cnc", "fdm"])
-def test_body_dimensions_equal_features(profile):
-    got = printed(profile, "body")
-    want = expected_body(profile)
+@pytest.mark.parametrize("preset,profile", [(PRESET, "cnc"), (PRESET, "fdm"), ("ftrac_2005", "cnc"),
+                                            ("nine_bead", "cnc")])
+def test_body_dimensions_equal_features(preset, profile):
+    got = printed(profile, "body", preset)
+    want = expected_body(preset, profile)
     assert set(got) == set(want), f"printed but not checked: {set(got) - set(want)}; missing: {set(want) - set(got)}"
     wrong = {k: (got[k], want[k]) for k in want if not agrees(got[k], want[k])}
     assert not wrong, wrong
-    _, f, _ = S.design_features_cuts(PRESET, profile)
+    _, f, _ = S.design_features_cuts(preset, profile)
     for ident in [*(e.id for e in f.ellipses), *(ln.id for ln in f.lines)]:
         assert parse(got[f"{ident}.width"])[3] and parse(got[f"{ident}.depth"])[3], f"{ident} not marked critical"
     for b in f.points:

@@ -88,12 +88,16 @@ def ellipse_extremes(e: EllipseFeature) -> tuple[tuple[float, float], tuple[floa
 
 def datum_c(design: Design, features: Features) -> tuple[str, float]:
     """(what datum C is, its azimuth °): the key slot when the mount has a key, else the
-    first line groove's centre plane, else the +x axis (A = 0)."""
+    first line groove's centre plane, else the first pocket's axis plane, else the +x axis
+    (A = 0; a body with no feature to find its azimuth by)."""
     if design.mount.key_height > 0:
         return "key slot centre plane", design.mount.key_azimuth_deg % 360.0
     if features.lines:
         ln = features.lines[0]
         return f"groove {ln.id} centre plane", azimuth_deg(ln.start)
+    if features.points:
+        p = features.points[0]
+        return f"pocket {p.id} axis plane", azimuth_deg(p.center)
     return "+x axis of F", 0.0
 
 

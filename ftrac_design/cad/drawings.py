@@ -4,8 +4,10 @@ One A3 landscape sheet per part, drawn with matplotlib (Agg) from the CAD solids
 dimension sets of :mod:`ftrac_design.cad.dimensions`:
 
 - orthographic views and a section by hidden-line removal and plane cuts of the solid
-  (:mod:`ftrac_design.cad.views`), at a true scale from the ISO 5455 series printed in the
-  title block (on the PDF and the SVG, 1 mm of paper is 1 mm);
+  (:mod:`ftrac_design.cad.views`; exact for the mount and the connector, on a fine mesh for
+  the body, whose swept grooves make the exact algorithm ~20x slower), at a true scale from
+  the ISO 5455 series printed in the title block (on the PDF and the SVG, 1 mm of paper is
+  1 mm);
 - for the body, the outer surface unrolled (x = arc length R·A on the outer surface, y = z)
   with every groove's edges and every pocket, and a feature table with the azimuth A (°)
   and axial position z (mm) of every feature, groove width and depth, pocket Ø and depth,
@@ -92,13 +94,11 @@ class Sheet:
     """One A3 sheet: a paper axes in mm and view axes placed on it at a true scale."""
 
     def __init__(self, title: str):
-        import matplotlib
+        from matplotlib.figure import Figure
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        self.plt = plt
-        self.fig = plt.figure(figsize=(SHEET[0] / 25.4, SHEET[1] / 25.4))
+        # a bare Figure (no pyplot): no global backend or figure registry is touched
+        self.title = title
+        self.fig = Figure(figsize=(SHEET[0] / 25.4, SHEET[1] / 25.4))
         self.paper = self.fig.add_axes((0, 0, 1, 1))
         self.paper.set_xlim(0, SHEET[0])
         self.paper.set_ylim(0, SHEET[1])
@@ -132,12 +132,18 @@ class Sheet:
         return t
 
     def save(self, svg: Path, pdf: Path, png: Path | None = None, dpi: int = 150) -> None:
-        """Write the sheet as SVG and PDF (and PNG when asked), then free the figure."""
-        self.fig.savefig(svg, format="svg", metadata={"Date": None})
-        self.fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "ModDate": None})
+        """Write the sheet as SVG and PDF (and PNG when asked)."""
+        self.fig.savefig(svg, format="svg", metadata={"Date": None, "Title": self.title})
+        self.fig.savefig(pdf, format="pdf", metadata={"CreationDate": None, "ModDate": None, "Title": self.title})
         if png is not None:
             self.fig.savefig(png, format="png", dpi=dpi)
-        self.plt.close(self.fig)
+
+
+def project_exact(solid, frame):
+    """Exact hidden-line projection (the mount's and the connector's few analytic faces)."""
+    from .views import project
+
+    return project(solid, frame, exact=True)
 
 
 def draw_projection(ax, proj) -> None:
@@ -403,7 +409,7 @@ def _unrolled(sheet: Sheet, design: Design, features: Features, plan: BodyPlan, 
 
 def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBlock) -> Sheet:
     """The mount's sheet: top, front and side views, section through the socket, hole table."""
-    from .views import ViewFrame, project, section
+    from .views import ViewFrame, section
 
     tol = drawing_tolerances(profile)
     D = _dims(mount_dimensions(mount_part, tol))
@@ -419,13 +425,13 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
     yb = 287 - 12 - (m.height + m.width) * s - 2 * gap
     # front (from -y): x right, z up
     ax = sheet.view(20, yb, (-h2, h2, zlo, zhi), s, pad=12)
-    draw_projection(ax, project(solid, ViewFrame("front", (1, 0, 0), (0, -1, 0))))
+    draw_projection(ax, project_exact(solid, ViewFrame("front", (1, 0, 0), (0, -1, 0))))
     sheet.text(ax, 0, zlo - 9 / s, "FRONT (from −y)", ha="center", size=6.5, weight="bold")
     dim_line(ax, (h2, zlo), (h2, zhi), (6 / s, 0), D["block.height"], "mount")
     datum_flag(ax, (0, 0), "B", dx=-h2 - 8 / s, dy=0)
     # top (from +z): x right, y up; above the front view
     ax = sheet.view(20, yb + m.height * s + gap, (-h2, h2, -h2, h2), s, pad=12)
-    draw_projection(ax, project(solid, ViewFrame("top", (1, 0, 0), (0, 0, 1))))
+    draw_projection(ax, project_exact(solid, ViewFrame("top", (1, 0, 0), (0, 0, 1))))
     sheet.text(ax, 0, -h2 - 9 / s, "TOP (from +z)", ha="center", size=6.5, weight="bold")
     dim_line(ax, (-h2, h2), (h2, h2), (0, 5 / s), D["block.width"], "mount")
     if m.key.height > 0:  # datum C: the key, flagged at its end on the socket's rim
@@ -448,7 +454,7 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
     datum_flag(ax, (-r, zhi), "A", dx=-h2 + r - 4 / s, dy=3 / s)
     # side (from +x): y right, z up
     ax = sheet.view(x_sec, yb + m.height * s + gap, (-h2, h2, zlo, zhi), s, pad=12)
-    draw_projection(ax, project(solid, ViewFrame("side", (0, 1, 0), (1, 0, 0))))
+    draw_projection(ax, project_exact(solid, ViewFrame("side", (0, 1, 0), (1, 0, 0))))
     sheet.text(ax, 0, zlo - 9 / s, "SIDE (from +x)", ha="center", size=6.5, weight="bold")
     # hole table and the key
     rows: list[list[Dim | str | None]] = []
@@ -474,7 +480,7 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
 
 def connector_sheet(design: Design, conn_part, solid, profile: Profile, tb: TitleBlock) -> Sheet:
     """The connector's sheet: front (pocket face), side and a section through the pocket."""
-    from .views import ViewFrame, project, section
+    from .views import ViewFrame, section
 
     tol = drawing_tolerances(profile)
     D = _dims(connector_dimensions(conn_part, tol))
@@ -487,7 +493,7 @@ def connector_sheet(design: Design, conn_part, solid, profile: Profile, tb: Titl
                     scale_text(s), tb.date)
     yb = 287 - 16 - sy * s - 20
     ax = sheet.view(22, yb, (x0, x1, y0, y1), s, pad=12)
-    draw_projection(ax, project(solid, ViewFrame("front", (1, 0, 0), (0, 0, 1))))
+    draw_projection(ax, project_exact(solid, ViewFrame("front", (1, 0, 0), (0, 0, 1))))
     sheet.text(ax, (x0 + x1) / 2, y0 - 9 / s, "FRONT (from +z, the pocket face; template face behind)",
                ha="center", size=6.5, weight="bold")
     dim_line(ax, (x0, y1), (x1, y1), (0, 5 / s), D["plate.width"], "connector")
