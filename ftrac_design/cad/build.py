@@ -40,6 +40,7 @@ def output_files(profile: Profile) -> tuple[str, ...]:
     extra = FDM_OUTPUT_FILES if profile == "fdm" else ()
     return (*OUTPUT_FILES[:-1], *extra, OUTPUT_FILES[-1])
 
+
 #: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
 STL_VOLUME_TOLERANCE = 0.005
 
