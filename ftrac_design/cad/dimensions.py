@@ -58,7 +58,8 @@ class Dim:
         d = self.decimals
         deg = "°" if self.unit == "deg" else ""
         prefix = {"diameter": "Ø", "radius": "R"}.get(self.kind, "")
-        s = f"{prefix}{self.value:.{d}f}{deg}"
+        value = 0.0 if abs(self.value) < 0.5 * 10 ** -d else self.value  # no "-0.000"
+        s = f"{prefix}{value:.{d}f}{deg}"
         if self.tolerance is not None:
             s += f" ±{self.tolerance:.{d}f}{deg}"
         if self.critical:
