@@ -19,6 +19,8 @@ from ..design.schema import Design
 from ..errors import require
 from ..features import Features, compute_features, write_features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, sha256_file, write_json_atomic
+from .drawings import DRAWING_FILES
+from .fdm import FDM_FILES
 from .plan import BodyPlan, plan_body, stl_tolerances
 from .profiles import CutSizes, Profile, cut_sizes
 
@@ -27,7 +29,17 @@ MANIFEST_VERSION = 1
 
 #: files every build writes (manifest.json last, it lists the others' hashes)
 OUTPUT_FILES = ("features.json", "fiducial.step", "fiducial.stl", "mount.step", "mount.stl", "connector.step",
-                "connector.stl", "grooves.csv", "grooves.dxf", "assembly.step", "render.png", "manifest.json")
+                "connector.stl", "grooves.csv", "grooves.dxf", "assembly.step", "render.png",
+                *DRAWING_FILES, "manifest.json")
+#: what an fdm build writes besides (the 3MF of the printed parts, the slicer settings)
+FDM_OUTPUT_FILES = FDM_FILES
+
+
+def output_files(profile: Profile) -> tuple[str, ...]:
+    """Every file a build under ``profile`` writes (manifest.json last)."""
+    extra = FDM_OUTPUT_FILES if profile == "fdm" else ()
+    return (*OUTPUT_FILES[:-1], *extra, OUTPUT_FILES[-1])
+
 
 #: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
 STL_VOLUME_TOLERANCE = 0.005
@@ -120,7 +132,9 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
     import cadquery as cq
 
     from .body import CadError, build_body, single_solid, volume
+    from .drawings import write_drawings
     from .export import build_assembly, export_assembly, export_step, export_stl
+    from .fdm import write_fdm_files
     from .fixture import add_to_assembly, fixture_parts
     from .manufacture import enforce_rules, manufacturing_manifest, write_manufacturing_files
     from .mount import key_slot_tool
@@ -157,6 +171,11 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
         clock.lap("mount_connector")
         export_assembly(add_to_assembly(build_assembly(design.name, body, parts), fixture), tmp / "assembly.step")
         clock.lap("export_assembly")
+        write_drawings(design, features, plan, body, fixture, profile, tmp)
+        clock.lap("drawings")
+        if profile == "fdm":
+            write_fdm_files(design, tmp)
+            clock.lap("fdm_files")
         if render:
             from .render import render_png
 
@@ -187,7 +206,7 @@ def _ocp_version() -> str:
 
 def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan, body_volume: float,
               parts: list, stl, stl_tols: tuple[float, float], stl_rel: float, tmp: Path, force: bool,
-              profile: str, cq_version: str) -> dict[str, Any]:
+              profile: Profile, cq_version: str) -> dict[str, Any]:
     import math
 
     blank = math.pi * (plan.outer_radius ** 2 - plan.bore_radius ** 2) * 2 * plan.half_length
@@ -200,7 +219,7 @@ def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan
             pieces.append({"name": f"wire_{ln.id}_{k}", "feature": ln.id,
                            "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4)})
     files = {}
-    for name in OUTPUT_FILES:
+    for name in output_files(profile):
         p = tmp / name
         if p.exists() and name != "manifest.json":
             files[name] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}

@@ -163,3 +163,93 @@ def rule_limits(design: Design, profile: Profile = "cnc") -> RuleLimits:
              "depth": "no depth limit for printed grooves",
              "tolerance": "printparams 'real-world fit': FDM accuracy about +-0.2 mm"})
     raise ValueError(f"unknown profile {profile!r}; expected one of {PROFILES}")
+
+
+#: general tolerance of a milled dimension not called out otherwise: common CNC guides, ±0.13 mm
+CNC_GENERAL_TOLERANCE = 0.13
+
+
+@dataclass(frozen=True)
+class DrawingTolerances:
+    """The ± tolerances a drawing prints under one profile (mm; angles in degrees at the edge).
+
+    ``general``: every dimension not marked otherwise (CNC: ±0.13 mm, common CNC guides;
+    FDM: ±0.2 mm, the process's accuracy). ``critical``: fit-critical sizes and the feature
+    positions the tracker relies on (CNC: ±0.05 mm, :data:`CNC_TOLERANCE`; FDM: ±0.2 mm,
+    nothing tighter is printable). An azimuth A is toleranced so that its arc on the outer
+    surface stays within ``critical``: :meth:`angle_deg`.
+    """
+
+    profile: Profile
+    general: float
+    critical: float
+
+    def angle_deg(self, radius: float) -> float:
+        """± tolerance (degrees) of an azimuth measured on a surface of ``radius`` mm."""
+        import math
+
+        return math.degrees(self.critical / radius)
+
+
+def drawing_tolerances(profile: Profile = "cnc") -> DrawingTolerances:
+    """The tolerances the drawings of ``profile`` state."""
+    if profile == "cnc":
+        return DrawingTolerances("cnc", CNC_GENERAL_TOLERANCE, CNC_TOLERANCE)
+    if profile == "fdm":
+        return DrawingTolerances("fdm", FDM_TOLERANCE, FDM_TOLERANCE)
+    raise ValueError(f"unknown profile {profile!r}; expected one of {PROFILES}")
+
+
+#: FDM print settings the fdm profile's cut sizes and wall rules assume, as fractions or
+#: counts (OrcaSlicer's layer-height guide: layer height 20–80 % of the nozzle, first layer
+#: about 50 %; the wall rules count perimeters of one nozzle width)
+FDM_LAYER_FRACTION = 0.25
+FDM_FIRST_LAYER_FRACTION = 0.5
+
+
+@dataclass(frozen=True)
+class PrintSettings:
+    """What the slicer must be set to for the fdm profile's sizes to hold (mm unless stated).
+
+    ``line_width`` = the nozzle: the wall rules (0.8 mm minimum = 2 perimeters) and the
+    narrowest printable gap assume one nozzle width per line. ``layer_height`` = 25 % of the
+    nozzle, the fine end of the 20–80 % range, because a 0.6 mm groove on a tilted ellipse is
+    resolved in z by the layers. ``perimeters``: enough lines to make the recommended wall
+    (1.2 mm) solid. ``infill_percent`` = 100: the X-ray model takes the body as solid
+    plastic, so partial infill would change its attenuation. ``xy_hole_compensation`` = 0:
+    the CAD already enlarges holes (``hole_allowance``, clearances), the slicer must not
+    do it again.
+    """
+
+    nozzle_diameter: float
+    line_width: float
+    layer_height: float
+    first_layer_height: float
+    perimeters: int
+    infill_percent: int
+    xy_hole_compensation: float
+    sources: dict[str, str]
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain-JSON form."""
+        return {"nozzle_diameter_mm": self.nozzle_diameter, "line_width_mm": self.line_width,
+                "layer_height_mm": self.layer_height, "first_layer_height_mm": self.first_layer_height,
+                "perimeters": self.perimeters, "infill_percent": self.infill_percent,
+                "xy_hole_compensation_mm": self.xy_hole_compensation, "sources": dict(self.sources)}
+
+
+def print_settings(design: Design) -> PrintSettings:
+    """The slicer settings that ``design``'s fdm cut sizes assume."""
+    import math
+
+    nozzle = design.manufacturing.fdm.nozzle_diameter
+    return PrintSettings(
+        nozzle, nozzle, round(FDM_LAYER_FRACTION * nozzle, 4), round(FDM_FIRST_LAYER_FRACTION * nozzle, 4),
+        math.ceil(FDM_WALL_RECOMMENDED / nozzle - 1e-9), 100, 0.0,
+        {"line_width": "one nozzle width per line: the wall rules (printparams, layer-one: 0.8 mm = 2 perimeters "
+                       "of a 0.4 mm nozzle)",
+         "layer_height": "OrcaSlicer layer-height guide: 20-80 % of the nozzle; the fine end for the grooves",
+         "first_layer_height": "OrcaSlicer layer-height guide: first layer about 50 % of the nozzle",
+         "perimeters": "recommended wall 1.2 mm (printparams, layer-one) in whole lines",
+         "infill_percent": "the X-ray model (xray.Body) takes the body as solid plastic",
+         "xy_hole_compensation": "the CAD already adds the fdm profile's hole allowance and clearances"})

@@ -24,8 +24,10 @@ def command(design: Path, output: Path | None, profile: str, force: bool, report
     see `ftrac-design presets`).
 
     Writes fiducial.step, fiducial.stl, assembly.step (body, wires, beads as named,
-    coloured parts), features.json, manifest.json and render.png into the output
-    directory, atomically: a failed build leaves nothing behind.
+    coloured parts), features.json, manifest.json, render.png and the dimensioned drawings
+    drawing_{body,mount,connector}.{svg,pdf} into the output directory; under --profile fdm
+    also fiducial.3mf (the printed parts) and print_settings.json. Atomically: a failed
+    build leaves nothing behind.
     """
     from ..cad.build import build_fiducial
     from ..design import load_design

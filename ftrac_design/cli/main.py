@@ -19,6 +19,7 @@ from ..errors import GoalError, InputError
 COMMANDS = {
     "build": "build",
     "check": "check",
+    "drawings": "drawings",
     "solve": "solve",
     "analyze": "analyze",
     "compare": "compare",
