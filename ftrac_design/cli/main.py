@@ -29,6 +29,9 @@ COMMANDS = {
     "report": "report",
     "distortion": "distortion",
     "presets": "presets",
+    "serve": "serve",
+    "push": "push",
+    "export": "export",
 }
 
 
