@@ -1,0 +1,241 @@
+"""``ftrac-design serve`` and ``push`` with real pyigtl peers on localhost.
+
+300 rendered 512² frames of ftrac_2005 (30 distinct poses, sent ten times over) go to a
+``serve`` subprocess at 30 frames/s: each is answered by a TRANSFORM or counted as dropped,
+exactly, and every pose equals offline ``track`` of the same frame within 1e-6; a client
+disconnects mid-run and another connects; malformed messages get STATUS errors and the server
+goes on; Ctrl-C stops it with a summary and exit 0. ``push`` sends a run to a pyigtl server.
+"""
+
+from __future__ import annotations
+
+import json
+import socket
+import struct
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from igt_support import ROOT, Server, image_message, recording_client, rendered_frames, send_frames, wait_for
+
+from ftrac_design.cli.main import main
+from ftrac_design.igt import link
+from ftrac_design.igt.frames import in_space, pose_matrix
+
+pyigtl = pytest.importorskip("pyigtl")
+
+N_DISTINCT = 30
+HEADER = struct.Struct(">H12s20sIIQQ")
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    return rendered_frames(tmp_path_factory.mktemp("igt"), N_DISTINCT)
+
+
+@pytest.fixture(scope="module")
+def offline(frames, tmp_path_factory):
+    """``ftrac-design track`` of the same frames (a (n, H, W) .npy run, --camera): one pose each."""
+    d = tmp_path_factory.mktemp("offline")
+    np.save(d / "run.npy", frames.pixels)
+    main(["track", "--features", str(frames.features_path), str(d / "run.npy"), "--camera", str(frames.camera_path),
+          "-o", str(d / "poses.jsonl")])
+    return [json.loads(x) for x in (d / "poses.jsonl").read_text().splitlines()]
+
+
+def _camera_metadata(frames) -> dict[str, str]:
+    return {"camera": json.dumps(frames.camera.to_dict())}
+
+
+def _answers(client) -> list:
+    return [m for m in client.incoming_messages.log if m.message_type == "TRANSFORM"]
+
+
+def _stop(server: Server) -> str:
+    rc, out, err = server.interrupt()
+    assert rc == 0 and "Traceback" not in err, err
+    assert out.strip().splitlines()[-1].startswith("stopped: ")
+    return out
+
+
+def test_300_frames_at_30_per_second_answered_or_counted_and_equal_to_offline_track(frames, offline):
+    server = Server(["--features", str(frames.features_path)])
+    try:
+        client = recording_client(server.port)
+        n = 10 * N_DISTINCT
+        t0, stamps = time.perf_counter(), []
+        for k in range(n):
+            wait = t0 + k / 30.0 - time.perf_counter()
+            if wait > 0:
+                time.sleep(wait)
+            stamps.append(1000.0 + k)
+            client.send_message(image_message(frames.pixels[k % N_DISTINCT], frames.camera, stamps[-1],
+                                              _camera_metadata(frames)), wait=False)
+        assert wait_for(lambda: _answers(client) and _answers(client)[-1].timestamp == stamps[-1], 60)
+        client.stop()
+    finally:
+        out = _stop(server)
+    answers = _answers(client)
+    index = [int(m.metadata["frame"]) for m in answers]
+    # answers come in order, one per answered frame; the last frame is always answered and its
+    # answer carries the final drop count: answered + dropped = sent, exactly
+    assert index == sorted(set(index)) and index[-1] == n - 1
+    assert len(answers) + int(answers[-1].metadata["dropped"]) == n
+    assert f"{n} frames received, {len(answers)} answered" in out
+    assert [m.timestamp for m in answers] == [stamps[k] for k in index]
+    for m, k in zip(answers, index):
+        ref = offline[k % N_DISTINCT]
+        assert m.device_name == "FiducialToCArm" and m.metadata["TransformStatus"] == "OK" and ref["converged"]
+        R, t = link.pose_from_metadata(m.metadata)
+        assert np.abs(R - np.array(ref["rotation"])).max() < 1e-6
+        assert np.abs(t - np.array(ref["translation_mm"])).max() < 1e-6
+        assert np.allclose(json.loads(m.metadata["covariance"]), ref["covariance"], rtol=1e-6, atol=1e-12)
+        # the float32 matrix is the RAS form of the same pose
+        want = in_space(pose_matrix(ref["rotation"], ref["translation_mm"]), "ras")
+        assert np.allclose(m.matrix, want, rtol=0, atol=1e-4 * np.abs(want).max())
+        assert m.metadata["space"] == "RAS" and float(m.metadata["latency_ms"]) >= float(m.metadata["track_ms"])
+
+
+def test_a_client_disconnects_mid_run_and_another_connects(frames, offline):
+    server = Server(["--features", str(frames.features_path), "--camera", str(frames.camera_path), "--queue", "1"])
+    try:
+        first = recording_client(server.port)
+        send_frames(first, frames.pixels[:12], frames.camera, 30.0)
+        first.stop()                               # gone mid-run, its last frames unanswered
+        second = recording_client(server.port)
+        stamps = send_frames(second, frames.pixels[12:24], frames.camera, 30.0, start_index=100)
+        assert wait_for(lambda: _answers(second) and _answers(second)[-1].timestamp == stamps[-1], 60)
+        second.stop()
+    finally:
+        out = _stop(server)
+    answers = _answers(second)
+    index = [int(m.metadata["frame"]) for m in answers]
+    # the second connection counts its own frames from 0, exactly accounted for
+    assert index[-1] == 11 and len(answers) + int(answers[-1].metadata["dropped"]) == 12
+    for m, k in zip(answers, index):
+        R, t = link.pose_from_metadata(m.metadata)
+        assert np.abs(t - np.array(offline[12 + k]["translation_mm"])).max() < 1e-6
+    assert "2 connections, 24 frames received" in out and "(connection 2)" in out
+
+
+def _raw(mtype: str, device: str, body: bytes, version: int = 2, crc: int | None = None) -> bytes:
+    from pyigtl.messages import CRC64
+
+    return HEADER.pack(version, mtype.encode(), device.encode(), 1000, 0, len(body),
+                       CRC64(body) if crc is None else crc) + body
+
+
+def _read_reply(sock: socket.socket) -> tuple[str, bytes]:
+    """(type, body) of the next message, decoded by hand from the protocol's header."""
+    def exact(n: int) -> bytes:
+        buf = b""
+        while len(buf) < n:
+            chunk = sock.recv(n - len(buf))
+            assert chunk, "connection closed"
+            buf += chunk
+        return buf
+    version, mtype, _, _, _, size, _ = HEADER.unpack(exact(HEADER.size))
+    body = exact(size)
+    if version == 2:            # skip the extended header and the metadata for the content
+        ext, meta_head, meta_body, _ = struct.unpack(">HHII", body[:12])
+        body = body[ext:len(body) - meta_head - meta_body]
+    return mtype.rstrip(b"\0").decode(), body
+
+
+def _status_code(reply: tuple[str, bytes]) -> tuple[int, str]:
+    mtype, body = reply
+    assert mtype == "STATUS"
+    code = struct.unpack(">H", body[:2])[0]
+    return code, body[30:].split(b"\0")[0].decode()
+
+
+def test_malformed_messages_get_an_error_status_and_the_server_goes_on(frames):
+    server = Server(["--features", str(frames.features_path), "--host", "0.0.0.0"])
+    try:
+        good = image_message(frames.pixels[0], frames.camera, 1000.0, _camera_metadata(frames)).pack()
+        no_camera = image_message(frames.pixels[0], frames.camera, 1000.0, {}).pack()
+        with socket.create_connection(("127.0.0.1", server.port), timeout=30) as s:
+            s.sendall(_raw("IMAGE", "Image", b"\0" * 10))                            # body too short
+            assert _status_code(_read_reply(s))[0] == link.STATUS_INVALID_PACKET
+            s.sendall(good[:50] + struct.pack(">Q", 12345) + good[58:])               # CRC mismatch
+            assert _status_code(_read_reply(s))[0] == link.STATUS_CHECKSUM_ERROR
+            s.sendall(pyigtl.StringMessage("hello", device_name="Text").pack())       # not an IMAGE
+            assert _status_code(_read_reply(s))[0] == link.STATUS_UNKNOWN_INSTRUCTION
+            s.sendall(no_camera)                                                       # no camera anywhere
+            code, text = _status_code(_read_reply(s))
+            assert code == link.STATUS_CONFIGURATION_ERROR and "focal_length_mm" in text
+            s.sendall(good)                                                            # the same link still works
+            mtype, body = _read_reply(s)
+            assert mtype == "TRANSFORM" and len(body) == 48
+            s.sendall(_raw("IMAGE", "Image", b"", version=7))                          # a header not to trust
+            code, text = _status_code(_read_reply(s))
+            assert code == link.STATUS_INVALID_PACKET and "closing" in text
+            assert s.recv(1) == b""
+        client = recording_client(server.port)                                         # and the server listens on
+        client.send_message(image_message(frames.pixels[1], frames.camera, 1001.0, _camera_metadata(frames)))
+        assert wait_for(lambda: _answers(client), 30)
+        client.stop()
+    finally:
+        out = _stop(server)
+    assert "every interface" in out.splitlines()[0] and "5 bad messages" in out
+
+
+def test_push_sends_a_run_to_a_listening_server(offline, tmp_path):
+    from igt_support import _Recorder
+
+    run = offline[:5] + [{"format": "ftrac-pose", "version": 1, "converged": False, "error": "lost"}]
+    path = tmp_path / "run.jsonl"
+    path.write_text("".join(json.dumps(d) + "\n" for d in run))
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    server = pyigtl.OpenIGTLinkServer(port, start_now=False)
+    server.incoming_messages = _Recorder()
+    server.start()
+    try:
+        res = subprocess.run([sys.executable, "-m", "ftrac_design.cli.main", "push", str(path), "--port", str(port),
+                              "--rate", "20"], capture_output=True, text=True, cwd=ROOT, timeout=60,
+                             env={"PYTHONPATH": str(ROOT), "PATH": ""})
+        assert res.returncode == 0, res.stderr
+        assert wait_for(lambda: len(server.incoming_messages.log) == len(run), 10)
+    finally:
+        server.stop()
+        for sig, handler in server._previous_signal_handlers.items():
+            import signal
+            signal.signal(sig, handler)
+    got = server.incoming_messages.log
+    for m, ref in zip(got[:5], run[:5]):
+        R, t = link.pose_from_metadata(m.metadata)
+        assert np.array_equal(t, ref["translation_mm"]) and np.array_equal(R, ref["rotation"])
+        want = in_space(pose_matrix(ref["rotation"], ref["translation_mm"]), "ras")
+        assert np.allclose(m.matrix, want, rtol=0, atol=1e-4 * np.abs(want).max())
+    assert got[5].metadata["TransformStatus"] == "INVALID" and np.array_equal(got[5].matrix, np.eye(4))
+
+
+def test_push_with_no_server_exits_2_with_one_line(tmp_path, offline, capsys):
+    path = tmp_path / "run.jsonl"
+    path.write_text(json.dumps(offline[0]) + "\n")
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    assert main(["push", str(path), "--port", str(port), "--timeout", "0.5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--port" in err
+
+
+def test_the_camera_from_an_image_messages_spacing_and_metadata(frames):
+    msg = image_message(frames.pixels[0], frames.camera, 1000.0,
+                        {"focal_length_mm": "1000", "principal_point_px": "250 260.5"})
+    back = pyigtl.ImageMessage()
+    packed = msg.pack()
+    back.unpack(pyigtl.MessageBase.parse_header(packed[:58]), packed[58:])
+    pix = link.image_pixels(back)
+    cam, source = link.image_camera(back, pix.shape, None)
+    assert pix.shape == (512, 512) and np.array_equal(pix, frames.pixels[0])
+    assert cam.focal_length_mm == 1000 and cam.principal_point_px == (250.0, 260.5)
+    assert np.allclose(cam.pixel_size_mm, (0.44, 0.44), rtol=1e-7) and "spacing" in source
+    back.metadata = {"focal_length_mm": "1000"}
+    assert link.image_camera(back, pix.shape, None)[0].principal_point_px == (255.5, 255.5)
+    assert link.image_camera(back, pix.shape, frames.camera)[0] == frames.camera
