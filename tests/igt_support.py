@@ -105,11 +105,28 @@ class _Recorder(dict):
         super().__setitem__(key, value)
 
 
-def recording_client(port: int, host: str = "127.0.0.1", timeout_s: float = 20.0):
-    """A connected pyigtl client whose ``incoming_messages.log`` keeps every message received."""
+def _patient_client_class():
     from pyigtl import OpenIGTLinkClient
 
-    client = OpenIGTLinkClient(host, port, start_now=False)
+    class PatientClient(OpenIGTLinkClient):
+        """pyigtl's client, whose socket waits 10 ms at most for anything: a 1024² frame (2 MB)
+        cannot leave within that while the receiver is busy, and pyigtl then drops the link
+        mid-message. This one allows a send 10 s, as a blocking sender (PLUS) does."""
+
+        def _send_queued_message_from_socket(self, sock):
+            sock.settimeout(10.0)
+            try:
+                return super()._send_queued_message_from_socket(sock)
+            finally:
+                sock.settimeout(0.01)
+
+    return PatientClient
+
+
+def recording_client(port: int, host: str = "127.0.0.1", timeout_s: float = 20.0):
+    """A connected pyigtl client whose ``incoming_messages.log`` keeps every message received
+    (and whose sends may take up to 10 s, see ``PatientClient``)."""
+    client = _patient_client_class()(host, port, start_now=False)
     client.incoming_messages = _Recorder()
     client.start()
     deadline = time.monotonic() + timeout_s

@@ -48,7 +48,7 @@ def live_module(name: str):
 @click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True,
               help="The TRANSFORM matrix's coordinates: ras for 3D Slicer (our LPS numbers converted), lps for the "
                    "SPEC §4 pose unchanged. The metadata carry the SPEC §4 pose either way.")
-@click.option("--queue", type=click.IntRange(min=1), default=2, show_default=True,
+@click.option("--queue", type=click.IntRange(min=1), default=1, show_default=True,
               help="Frames that may wait for the tracker; a frame arriving at a full queue drops the oldest "
                    "(counted in the metadata 'dropped').")
 @click.option("--valid-only", is_flag=True,

@@ -37,6 +37,7 @@ import signal
 import socket
 import socketserver
 import struct
+import sys
 import threading
 import time
 from dataclasses import dataclass, field
@@ -60,6 +61,11 @@ DEFAULT_PORT = 18944
 HEADER = struct.Struct(">H12s20sIIQQ")
 #: the largest body accepted: a 4096² frame of 8-byte pixels plus room for headers and metadata
 MAX_BODY_BYTES = 4096 * 4096 * 8 + (1 << 20)
+#: the socket's receive buffer asked for (the kernel may cap it)
+RECEIVE_BUFFER_BYTES = 16 << 20
+#: Python's thread switch interval while serving (s): the socket thread waits at most this for
+#: the GIL when the tracker holds it, so reading keeps up with the sender (default 5 ms)
+SWITCH_INTERVAL_S = 0.0005
 #: seconds a started message may stall before the connection is given up
 STALL_S = 5.0
 
@@ -121,7 +127,7 @@ class ServeOptions:
     port: int = DEFAULT_PORT
     name: str = POSE_TRANSFORM
     space: Space = "ras"
-    queue: int = 2
+    queue: int = 1
     camera: Camera | None = None
     valid_only: bool = False
     report_s: float = 10.0
@@ -242,6 +248,9 @@ class _Handler(socketserver.BaseRequestHandler):
         conn = srv.connection_opened(self.client_address)
         sock = self.request
         sock.settimeout(0.01)
+        # a 1024² frame is 2 MB: a large buffer lets one read take a whole frame, so the socket
+        # thread needs the GIL (held by the tracker between its C calls) far less often
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
         try:
             while not srv.communication_thread_stop_requested:
                 try:
@@ -457,6 +466,8 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = fr
     check_transform_name(options.name, "name")
     tracker = factory(setup)
     server = IgtlServer(options, log)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
     if log is not None:
         where = "every interface" if options.host in ("0.0.0.0", "::", "") else options.host
         print(f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
@@ -483,6 +494,7 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = fr
         pass
     finally:
         server.close()
+        sys.setswitchinterval(switch)
     server.summary.dropped = sum(server.inbox.dropped.values())
     return server.summary
 
