@@ -72,6 +72,29 @@ def closed_loop(client, frames, camera, n: int, first_stamp: float) -> float:
     return n / (time.perf_counter() - t0)
 
 
+def transport_ms(frame: np.ndarray, cam, rounds: int = 10) -> tuple[float, float]:
+    """Median ms to pack one frame as an IMAGE (the sender's side) and to check and decode it
+    (CRC, unpack, float32 pixels: the server's side), in this process."""
+    from pyigtl import ImageMessage, MessageBase
+    from pyigtl.messages import CRC64
+
+    from ftrac_design.igt.link import image_pixels
+
+    pack, decode = [], []
+    for _ in range(rounds):
+        t = time.perf_counter()
+        data = image_message(frame, cam, 1.0).pack()
+        t1 = time.perf_counter()
+        CRC64(data[58:])
+        msg = ImageMessage()
+        msg.unpack(MessageBase.parse_header(data[:58]), data[58:])
+        image_pixels(msg)
+        t2 = time.perf_counter()
+        pack.append(1e3 * (t1 - t))
+        decode.append(1e3 * (t2 - t1))
+    return float(np.median(pack)), float(np.median(decode))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", default="ftrac_2005")
@@ -96,6 +119,9 @@ def main() -> None:
         base.append(1e3 * (time.perf_counter() - t))
     base = np.array(base)
     print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
+    pk, dc = transport_ms(fr.pixels[0], cam)
+    print(f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
+          f"CRC + decode {dc:.1f} ms (server)")
     server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path)])
     try:
         client = recording_client(server.port)

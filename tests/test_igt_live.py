@@ -239,3 +239,68 @@ def test_the_camera_from_an_image_messages_spacing_and_metadata(frames):
     back.metadata = {"focal_length_mm": "1000"}
     assert link.image_camera(back, pix.shape, None)[0].principal_point_px == (255.5, 255.5)
     assert link.image_camera(back, pix.shape, frames.camera)[0] == frames.camera
+
+
+def test_the_inbox_drops_the_oldest_and_counts_per_connection():
+    from ftrac_design.workflows.serve import FrameInbox, InboxItem
+
+    inbox = FrameInbox(2)
+    for k in range(5):
+        inbox.put(InboxItem(np.zeros((1, 1)), None, 1000.0 + k, "Image", 1 + (k == 4), k, 0.0))
+    assert inbox.dropped == {1: 3}
+    assert [inbox.get(0).timestamp, inbox.get(0).timestamp, inbox.get(0.01)] == [1003.0, 1004.0, None]
+    inbox.put(InboxItem(np.zeros((1, 1)), None, 2000.0, "Image", 3, 0, 0.0))
+    assert inbox.discard_connection(3) == 1 and inbox.get(0.01) is None
+
+
+def test_a_plugged_in_tracker_gets_each_frame_and_its_errors_become_invalid_answers(frames):
+    """The seam the run tracker uses: the factory's tracker sees every frame in order with its
+    camera and timestamp; a pose it returns is sent, an exception or a malformed pose becomes an
+    INVALID answer saying why, and the server goes on."""
+    import threading
+
+    from ftrac_design.workflows.serve import ServeOptions, serve
+
+    seen, ports = [], []
+    M = in_space(pose_matrix(np.eye(3), [1.0, 2.0, 600.0]), "lps")
+
+    def factory(setup):
+        assert setup == "the setup"
+
+        def track(image, camera, time_s):
+            seen.append((image.shape, image.dtype, camera, time_s))
+            k = len(seen) - 1
+            if k == 1:
+                raise RuntimeError("lost it")
+            if k == 2:
+                return {"converged": True, "rotation": [[1, 0]], "translation_mm": [0, 0, 1]}
+            return {"converged": True, "rotation": M[:3, :3].tolist(), "translation_mm": M[:3, 3].tolist(),
+                    "status": "tracked"}
+        return track
+
+    stop = threading.Event()
+    got: list = []
+
+    def drive():
+        try:
+            wait_for(lambda: ports, 30)
+            client = recording_client(ports[0])
+            for k in range(4):                     # one at a time: none dropped
+                client.send_message(image_message(frames.pixels[k], frames.camera, 1000.0 + k,
+                                                  _camera_metadata(frames)), wait=False)
+                wait_for(lambda n=k + 1: len(_answers(client)) == n, 30)
+            got.extend(_answers(client))
+            client.stop()
+        finally:
+            stop.set()
+
+    threading.Thread(target=drive, daemon=True).start()
+    summary = serve("the setup", ServeOptions(port=0, space="lps"), factory=factory, stop=stop,
+                    on_listen=lambda s: ports.append(s.port))
+    assert [s[3] for s in seen] == [1000.0, 1001.0, 1002.0, 1003.0]
+    assert all(s[0] == (512, 512) and s[1] == np.float32 and s[2] == frames.camera for s in seen)
+    assert [m.metadata["TransformStatus"] for m in got] == ["OK", "INVALID", "INVALID", "OK"]
+    assert "lost it" in got[1].metadata["error"] and got[1].metadata["status"] == "error"
+    assert "the tracker's pose" in got[2].metadata["error"]
+    assert np.allclose(got[0].matrix, M, atol=1e-4) and np.array_equal(got[1].matrix, np.eye(4))
+    assert summary.received == 4 and summary.answered == 4 and summary.tracked == 2

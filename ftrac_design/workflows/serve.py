@@ -375,6 +375,9 @@ class IgtlServer(OpenIGTLinkServer):
             self.reply_error(link.STATUS_CHECKSUM_ERROR, f"{mtype_s} {device_s!r}: CRC mismatch; message ignored",
                              device_s, conn, fields["timestamp"])
             return
+        if mtype_s == "STATUS":
+            # a peer's status is information, not a request: answering it could ping-pong
+            return
         if mtype_s != "IMAGE":
             self.reply_error(link.STATUS_UNKNOWN_INSTRUCTION, f"{mtype_s} {device_s!r}: only IMAGE messages are "
                              "tracked; message ignored", device_s, conn, fields["timestamp"])
@@ -430,19 +433,25 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
     start = time.perf_counter()
     pose = _guarded(tracker, item)
     done = time.perf_counter()
-    ok = bool(pose.get("converged"))
+    try:
+        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
+    except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
+        pose = {**failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
+                "status": "error"}
+        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
+    ok = msg.metadata["TransformStatus"] == "OK"
     with server._lock:
         server.summary.answered += 1
         server.summary.tracked += int(ok)
     if options.valid_only and not ok:
         return
-    extra = {"frame": str(item.index), "image_device": item.device,
-             "dropped": str(server.inbox.dropped[item.connection]),
-             "queue_ms": f"{1e3 * (start - item.received):.3f}", "track_ms": f"{1e3 * (done - start):.3f}"}
-    extra["latency_ms"] = f"{1e3 * (time.perf_counter() - item.received):.3f}"
-    msg = link.transform_message(pose, options.name, options.space, item.timestamp, extra)
+    msg.metadata.update({"frame": str(item.index), "image_device": item.device,
+                         "dropped": str(server.inbox.dropped[item.connection]),
+                         "queue_ms": f"{1e3 * (start - item.received):.3f}",
+                         "track_ms": f"{1e3 * (done - start):.3f}",
+                         "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}"})
     if server.reply(msg, item.connection):
-        server.summary.latencies_ms.append(float(extra["latency_ms"]))
+        server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
 
 
 def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = frame_by_frame_tracker,
