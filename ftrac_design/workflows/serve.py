@@ -371,7 +371,7 @@ class IgtlServer(OpenIGTLinkServer):
         body = bytearray(size)
         _recv_into(sock, memoryview(body), started=True)
         fields = MessageBase.parse_header(bytes(head))
-        if CRC64(bytes(body)) != crc:
+        if CRC64(body) != crc:
             self.reply_error(link.STATUS_CHECKSUM_ERROR, f"{mtype_s} {device_s!r}: CRC mismatch; message ignored",
                              device_s, conn, fields["timestamp"])
             return
@@ -382,9 +382,9 @@ class IgtlServer(OpenIGTLinkServer):
             self.reply_error(link.STATUS_UNKNOWN_INSTRUCTION, f"{mtype_s} {device_s!r}: only IMAGE messages are "
                              "tracked; message ignored", device_s, conn, fields["timestamp"])
             return
-        self._image(fields, bytes(body), conn)
+        self._image(fields, body, conn)
 
-    def _image(self, fields: dict[str, Any], body: bytes, conn: int) -> None:
+    def _image(self, fields: dict[str, Any], body: bytearray, conn: int) -> None:
         from pyigtl import ImageMessage
 
         msg = ImageMessage()
