@@ -304,3 +304,18 @@ def test_a_plugged_in_tracker_gets_each_frame_and_its_errors_become_invalid_answ
     assert "the tracker's pose" in got[2].metadata["error"]
     assert np.allclose(got[0].matrix, M, atol=1e-4) and np.array_equal(got[1].matrix, np.eye(4))
     assert summary.received == 4 and summary.answered == 4 and summary.tracked == 2
+
+
+def test_serve_bad_input_exits_2_with_one_line(frames, tmp_path, capsys):
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        cases = [(["--features", str(tmp_path / "missing.json")], "missing.json"),
+                 (["--features", str(frames.features_path), "--name", "Fiducial-CArm"], "--name"),
+                 (["--features", str(frames.features_path), "--camera", str(frames.features_path)], "camera"),
+                 (["--features", str(frames.features_path), "--port", str(port)], "--port")]
+        for args, words in cases:
+            assert main(["serve", *args]) == 2
+            err = capsys.readouterr().err
+            assert err.count("\n") == 1 and words in err and "Traceback" not in err
