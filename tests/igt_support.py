@@ -78,7 +78,7 @@ class Server:
         for line in self.proc.stdout:
             self.lines.append(line)
 
-    def interrupt(self, timeout_s: float = 30.0) -> tuple[int, str, str]:
+    def interrupt(self, timeout_s: float = 120.0) -> tuple[int, str, str]:
         """Ctrl-C: (exit code, stdout, stderr)."""
         self.proc.send_signal(signal.SIGINT)
         rc = self.proc.wait(timeout_s)

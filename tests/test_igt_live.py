@@ -319,3 +319,31 @@ def test_serve_bad_input_exits_2_with_one_line(frames, tmp_path, capsys):
             assert main(["serve", *args]) == 2
             err = capsys.readouterr().err
             assert err.count("\n") == 1 and words in err and "Traceback" not in err
+
+
+def test_ctrl_c_while_frames_flow_stops_the_server_cleanly(frames):
+    import threading
+
+    server = Server(["--features", str(frames.features_path), "--camera", str(frames.camera_path)])
+    client = recording_client(server.port)
+    flowing = threading.Event()
+
+    def flood():
+        k = 0
+        while not flowing.is_set():
+            client.send_message(image_message(frames.pixels[k % N_DISTINCT], frames.camera, 1000.0 + k), wait=False)
+            k += 1
+            time.sleep(1 / 30)
+
+    sender = threading.Thread(target=flood, daemon=True)
+    sender.start()
+    try:
+        assert wait_for(lambda: len(_answers(client)) >= 2, 60)
+        started = time.monotonic()
+        out = _stop(server)                        # SIGINT mid-stream, the tracker busy
+        assert time.monotonic() - started < 60 and "1 connections" in out
+    finally:
+        flowing.set()
+        sender.join(5)
+        client.stop()
+        server.kill()

@@ -7,8 +7,9 @@ says what it carries). One client at a time; when it leaves, the server waits fo
 - **Threads.** pyigtl's server thread reads the socket: each IMAGE is decoded, checked (pixels,
   camera) and put in the inbox; the calling (main) thread tracks frames from the inbox and
   queues the answers, which the server thread sends between reads. The server is created in
-  the calling thread because pyigtl installs SIGINT/SIGTERM handlers there: Ctrl-C closes the
-  socket and raises KeyboardInterrupt, which ends :func:`serve` with its summary.
+  the calling thread because it installs SIGINT/SIGTERM handlers there (as pyigtl's does): Ctrl-C
+  (or SIGTERM) raises KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the
+  socket and returns its summary.
 - **A bounded inbox.** At most ``queue`` frames wait; a frame arriving at a full inbox pushes
   out the OLDEST, which is never answered and is counted (metadata ``dropped``, per
   connection). The sender is never blocked and nothing grows: the newest frame is always
@@ -299,6 +300,14 @@ class IgtlServer(OpenIGTLinkServer):
         self._thread = threading.Thread(target=self.serve_forever, daemon=True)
         self._thread.start()
 
+    def _signal_handler(self, signum: int, frame: Any) -> None:
+        """SIGINT / SIGTERM: leave :func:`serve`'s loop, which then closes the server.
+
+        pyigtl's own handler shuts the server down inside the handler, i.e. in the main thread
+        at whatever point it was interrupted — possibly holding a lock the socket thread needs
+        to finish, so the shutdown waits forever. Raising here unwinds the main thread first."""
+        raise KeyboardInterrupt
+
     def _say(self, text: str) -> None:
         if self.log is not None:
             print(text, file=self.log, flush=True)
@@ -454,6 +463,28 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
         server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
 
 
+def _answer_until_stopped(server: IgtlServer, tracker: Tracker, log: TextIO | None,
+                          stop: threading.Event | None) -> None:
+    """The tracking loop: answer frames from the inbox until ``stop`` is set (or Ctrl-C), with a
+    progress line every ``report_s`` seconds while frames flow."""
+    report_s = server.options.report_s
+    last_report, reported = time.monotonic(), 0
+    while stop is None or not stop.is_set():
+        item = server.inbox.get(0.2)
+        if item is None:
+            continue
+        if item.connection != server.connection:
+            server.summary.undelivered += 1
+            continue
+        answer_frame(server, tracker, item)
+        if report_s and log is not None and time.monotonic() - last_report > report_s:
+            s = server.summary
+            lat = s.latencies_ms[reported:]
+            print(f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
+                  f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""), file=log, flush=True)
+            last_report, reported = time.monotonic(), len(s.latencies_ms)
+
+
 def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = frame_by_frame_tracker,
           log: TextIO | None = None, stop: threading.Event | None = None,
           on_listen: Callable[[IgtlServer], None] | None = None) -> ServeSummary:
@@ -477,28 +508,14 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = fr
     server = IgtlServer(options, log)
     switch = sys.getswitchinterval()
     sys.setswitchinterval(SWITCH_INTERVAL_S)
-    if log is not None:
-        where = "every interface" if options.host in ("0.0.0.0", "::", "") else options.host
-        print(f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
-              f"({options.space.upper()}); Ctrl-C stops", file=log, flush=True)
-    if on_listen is not None:
-        on_listen(server)
-    last_report, reported = time.monotonic(), 0
     try:
-        while stop is None or not stop.is_set():
-            item = server.inbox.get(0.2)
-            if item is None:
-                continue
-            if item.connection != server.connection:
-                server.summary.undelivered += 1
-                continue
-            answer_frame(server, tracker, item)
-            if options.report_s and log is not None and time.monotonic() - last_report > options.report_s:
-                s = server.summary
-                lat = s.latencies_ms[reported:]
-                print(f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
-                      f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""), file=log, flush=True)
-                last_report, reported = time.monotonic(), len(s.latencies_ms)
+        if log is not None:
+            where = "every interface" if options.host in ("0.0.0.0", "::", "") else options.host
+            print(f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
+                  f"({options.space.upper()}); Ctrl-C stops", file=log, flush=True)
+        if on_listen is not None:
+            on_listen(server)
+        _answer_until_stopped(server, tracker, log, stop)
     except KeyboardInterrupt:
         pass
     finally:
