@@ -121,7 +121,7 @@ def main() -> None:
     print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
     pk, dc = transport_ms(fr.pixels[0], cam)
     print(f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
-          f"CRC + decode {dc:.1f} ms (server)")
+          f"CRC + decode {dc:.1f} ms (server, only for the frames it tracks)")
     server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path)])
     try:
         client = recording_client(server.port)

@@ -246,10 +246,10 @@ def test_the_inbox_drops_the_oldest_and_counts_per_connection():
 
     inbox = FrameInbox(2)
     for k in range(5):
-        inbox.put(InboxItem(np.zeros((1, 1)), None, 1000.0 + k, "Image", 1 + (k == 4), k, 0.0))
+        inbox.put(InboxItem({"timestamp": 1000.0 + k, "device_name": "Image"}, bytearray(), 0, 1 + (k == 4), k, 0.0))
     assert inbox.dropped == {1: 3}
     assert [inbox.get(0).timestamp, inbox.get(0).timestamp, inbox.get(0.01)] == [1003.0, 1004.0, None]
-    inbox.put(InboxItem(np.zeros((1, 1)), None, 2000.0, "Image", 3, 0, 0.0))
+    inbox.put(InboxItem({"timestamp": 2000.0, "device_name": "Image"}, bytearray(), 0, 3, 0, 0.0))
     assert inbox.discard_connection(3) == 1 and inbox.get(0.01) is None
 
 

@@ -4,22 +4,25 @@
 messages; each frame is tracked and answered by a TRANSFORM (:mod:`ftrac_design.igt.link`
 says what it carries). One client at a time; when it leaves, the server waits for the next.
 
-- **Threads.** pyigtl's server thread reads the socket: each IMAGE is decoded, checked (pixels,
-  camera) and put in the inbox; the calling (main) thread tracks frames from the inbox and
-  queues the answers, which the server thread sends between reads. The server is created in
-  the calling thread because it installs SIGINT/SIGTERM handlers there (as pyigtl's does): Ctrl-C
-  (or SIGTERM) raises KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the
-  socket and returns its summary.
-- **A bounded inbox.** At most ``queue`` frames wait; a frame arriving at a full inbox pushes
-  out the OLDEST, which is never answered and is counted (metadata ``dropped``, per
-  connection). The sender is never blocked and nothing grows: the newest frame is always
-  tracked, so the last answer of a run carries its final drop count. A frame of a connection
-  that has closed is dropped unanswered (counted as undelivered).
-- **Bad messages never stop the server.** A message whose body is malformed, fails its CRC,
-  is of another type than IMAGE, or gives no camera is answered by a STATUS error (code, text)
-  and the connection goes on; a header that cannot be trusted (unknown version, absurd body
-  size) is answered by a STATUS error and that connection is closed, the server listens on.
-  A frame whose tracking raises is answered by an INVALID TRANSFORM saying why.
+- **Threads.** pyigtl's server thread reads the socket and puts each IMAGE in the inbox; the
+  calling (main) thread tracks frames from the inbox and queues the answers, which the server
+  thread sends between reads. The server is created in the calling thread because it installs
+  SIGINT/SIGTERM handlers there (as pyigtl's does): Ctrl-C (or SIGTERM) raises
+  KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the socket and
+  returns its summary.
+- **A bounded inbox.** The socket thread only reads: a frame is checked and decoded (CRC,
+  pixels, camera) when the tracker takes it, so a frame that is dropped costs its bytes only.
+  At most ``queue`` frames wait; a frame arriving at a full inbox pushes out the OLDEST, which
+  is never answered and is counted (metadata ``dropped``, per connection). The sender is never
+  blocked by the tracker and nothing grows: the newest frame is always tracked, so the last
+  answer of a run carries its final drop count. A frame of a connection that has closed is
+  dropped unanswered (counted as undelivered).
+- **Bad messages never stop the server.** An IMAGE whose body is malformed, fails its CRC or
+  gives no camera is answered (when its turn comes) by a STATUS error (code, text), a message
+  of another type than IMAGE or STATUS at once, and the connection goes on; a header that
+  cannot be trusted (unknown version, absurd body size) is answered by a STATUS error and that
+  connection is closed, the server listens on. A frame whose tracking raises is answered by an
+  INVALID TRANSFORM saying why.
 
 **The tracker is pluggable**: :data:`TrackerFactory` makes, from the command's
 :class:`~ftrac_design.workflows.track_run.TrackSetup`, a ``track(image, camera, time_s) -> pose``
@@ -62,8 +65,6 @@ DEFAULT_PORT = 18944
 HEADER = struct.Struct(">H12s20sIIQQ")
 #: the largest body accepted: a 4096² frame of 8-byte pixels plus room for headers and metadata
 MAX_BODY_BYTES = 4096 * 4096 * 8 + (1 << 20)
-#: the socket's receive buffer asked for (the kernel may cap it)
-RECEIVE_BUFFER_BYTES = 16 << 20
 #: Python's thread switch interval while serving (s): the socket thread waits at most this for
 #: the GIL when the tracker holds it, so reading keeps up with the sender (default 5 ms)
 SWITCH_INTERVAL_S = 0.0005
@@ -136,15 +137,36 @@ class ServeOptions:
 
 @dataclass
 class InboxItem:
-    """A frame waiting for the tracker."""
+    """An IMAGE message waiting for the tracker, as received: decoded (CRC, pixels, camera) only
+    when its turn comes, so the socket thread does no more than read and frames that are dropped
+    cost nothing but their bytes.
 
-    pixels: np.ndarray
-    camera: Camera
-    timestamp: float
-    device: str
+    Attributes
+    ----------
+    fields : its parsed header (pyigtl's ``parse_header``).
+    body : its body bytes.
+    crc : the CRC its header states.
+    connection, index : the connection it came on and its 0-based index among the IMAGE
+        messages of that connection.
+    received : when it was fully read (``time.perf_counter``).
+    """
+
+    fields: dict[str, Any]
+    body: bytearray
+    crc: int
     connection: int
     index: int
     received: float
+
+    @property
+    def timestamp(self) -> float:
+        """The IMAGE's timestamp (s since 1970)."""
+        return float(self.fields["timestamp"])
+
+    @property
+    def device(self) -> str:
+        """The IMAGE's device name."""
+        return str(self.fields["device_name"])
 
 
 @dataclass
@@ -248,10 +270,9 @@ class _Handler(socketserver.BaseRequestHandler):
         srv = self.server
         conn = srv.connection_opened(self.client_address)
         sock = self.request
+        # short waits: between reads the thread sends the answers queued meanwhile. The receive
+        # buffer is left to the kernel's autotuning (setting it would cap it at rmem_max)
         sock.settimeout(0.01)
-        # a 1024² frame is 2 MB: a large buffer lets one read take a whole frame, so the socket
-        # thread needs the GIL (held by the tracker between its C calls) far less often
-        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, RECEIVE_BUFFER_BYTES)
         try:
             while not srv.communication_thread_stop_requested:
                 try:
@@ -271,8 +292,8 @@ class IgtlServer(OpenIGTLinkServer):
     """pyigtl's OpenIGTLink server bound to any address, with a bounded inbox, counted drops,
     per-connection state and STATUS answers to bad messages (see the module).
 
-    Create it in the main thread (pyigtl installs its signal handlers there); :meth:`close`
-    stops it and puts the previous handlers back.
+    Create it in the main thread: it installs its SIGINT/SIGTERM handlers there (they raise
+    KeyboardInterrupt); :meth:`close` stops it and puts the previous handlers back.
 
     Parameters
     ----------
@@ -363,7 +384,7 @@ class IgtlServer(OpenIGTLinkServer):
 
     def receive_one(self, sock: socket.socket, conn: int) -> None:
         """Read one message (or return after the socket's timeout) and deal with it."""
-        from pyigtl.messages import CRC64, MessageBase
+        from pyigtl.messages import MessageBase
 
         head = bytearray(HEADER.size)
         if not _recv_into(sock, memoryview(head), started=False):
@@ -380,10 +401,6 @@ class IgtlServer(OpenIGTLinkServer):
         body = bytearray(size)
         _recv_into(sock, memoryview(body), started=True)
         fields = MessageBase.parse_header(bytes(head))
-        if CRC64(body) != crc:
-            self.reply_error(link.STATUS_CHECKSUM_ERROR, f"{mtype_s} {device_s!r}: CRC mismatch; message ignored",
-                             device_s, conn, fields["timestamp"])
-            return
         if mtype_s == "STATUS":
             # a peer's status is information, not a request: answering it could ping-pong
             return
@@ -391,42 +408,45 @@ class IgtlServer(OpenIGTLinkServer):
             self.reply_error(link.STATUS_UNKNOWN_INSTRUCTION, f"{mtype_s} {device_s!r}: only IMAGE messages are "
                              "tracked; message ignored", device_s, conn, fields["timestamp"])
             return
-        self._image(fields, body, conn)
-
-    def _image(self, fields: dict[str, Any], body: bytearray, conn: int) -> None:
-        from pyigtl import ImageMessage
-
-        msg = ImageMessage()
-        try:
-            msg.unpack(fields, body)
-            pixels = link.image_pixels(msg)
-        except InputError as exc:
-            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {fields['device_name']!r}: {exc}",
-                             fields["device_name"], conn, fields["timestamp"])
-            return
-        except Exception as exc:  # noqa: BLE001 — any decoding failure of a sender's bytes is its error
-            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {fields['device_name']!r}: malformed "
-                             f"({type(exc).__name__}: {one_line(exc)})", fields["device_name"], conn,
-                             fields["timestamp"])
-            return
-        try:
-            camera, _ = link.image_camera(msg, pixels.shape, self.options.camera)
-        except InputError as exc:
-            self.reply_error(link.STATUS_CONFIGURATION_ERROR, f"IMAGE {fields['device_name']!r}: no camera: {exc}",
-                             fields["device_name"], conn, fields["timestamp"])
-            return
         with self._lock:
             index = self._frames[conn]
             self._frames[conn] += 1
             self.summary.received += 1
-        self.inbox.put(InboxItem(pixels, camera, float(fields["timestamp"]), fields["device_name"], conn, index,
-                                 time.perf_counter()))
+        self.inbox.put(InboxItem(fields, body, crc, conn, index, time.perf_counter()))
+
+    def decode(self, item: InboxItem) -> tuple[np.ndarray, Camera] | None:
+        """The pixels and camera of a queued IMAGE, or None after answering a bad one with a STATUS
+        (CRC mismatch 9, malformed 0, no camera 10)."""
+        from pyigtl import ImageMessage
+        from pyigtl.messages import CRC64
+
+        name, conn, ts = item.device, item.connection, item.timestamp
+        if CRC64(item.body) != item.crc:
+            self.reply_error(link.STATUS_CHECKSUM_ERROR, f"IMAGE {name!r}: CRC mismatch; frame ignored", name, conn, ts)
+            return None
+        msg = ImageMessage()
+        try:
+            msg.unpack(item.fields, item.body)
+            pixels = link.image_pixels(msg)
+        except InputError as exc:
+            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: {exc}", name, conn, ts)
+            return None
+        except Exception as exc:  # noqa: BLE001 — any decoding failure of a sender's bytes is its error
+            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: malformed ({type(exc).__name__}: "
+                             f"{one_line(exc)})", name, conn, ts)
+            return None
+        try:
+            camera, _ = link.image_camera(msg, pixels.shape, self.options.camera)
+        except InputError as exc:
+            self.reply_error(link.STATUS_CONFIGURATION_ERROR, f"IMAGE {name!r}: no camera: {exc}", name, conn, ts)
+            return None
+        return pixels, camera
 
 
-def _guarded(tracker: Tracker, item: InboxItem) -> dict[str, Any]:
+def _guarded(tracker: Tracker, pixels: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
     """The tracker's answer, or a failed pose saying why it raised (the server goes on)."""
     try:
-        pose = tracker(item.pixels, item.camera, item.timestamp)
+        pose = tracker(pixels, camera, time_s)
         if not isinstance(pose, dict):
             raise TypeError(f"the tracker returned {type(pose).__name__}, not a pose object")
         return pose
@@ -440,7 +460,11 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
     """Track one frame from the inbox and queue its TRANSFORM for its connection."""
     options = server.options
     start = time.perf_counter()
-    pose = _guarded(tracker, item)
+    decoded = server.decode(item)
+    if decoded is None:
+        return
+    begin = time.perf_counter()
+    pose = _guarded(tracker, *decoded, item.timestamp)
     done = time.perf_counter()
     try:
         msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
@@ -457,7 +481,7 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
     msg.metadata.update({"frame": str(item.index), "image_device": item.device,
                          "dropped": str(server.inbox.dropped[item.connection]),
                          "queue_ms": f"{1e3 * (start - item.received):.3f}",
-                         "track_ms": f"{1e3 * (done - start):.3f}",
+                         "track_ms": f"{1e3 * (done - begin):.3f}",
                          "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}"})
     if server.reply(msg, item.connection):
         server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
