@@ -347,3 +347,61 @@ def test_ctrl_c_while_frames_flow_stops_the_server_cleanly(frames):
         sender.join(5)
         client.stop()
         server.kill()
+
+
+def test_sigterm_stops_the_server_cleanly(frames):
+    import signal
+
+    server = Server(["--features", str(frames.features_path)])
+    server.proc.send_signal(signal.SIGTERM)
+    rc = server.proc.wait(120)
+    server._reader.join(5)
+    assert rc == 0 and "".join(server.lines).strip().splitlines()[-1].startswith("stopped: 0 connections")
+
+
+def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
+    import threading
+
+    from ftrac_design.workflows.serve import ServeOptions, serve
+
+    servers, got = [], []
+    stop = threading.Event()
+
+    def factory(setup):
+        def track(image, camera, time_s):
+            if time_s == 1000.0:
+                return {"converged": False, "error": "no fiducial"}
+            return {"converged": True, "rotation": np.eye(3).tolist(), "translation_mm": [0.0, 0.0, 600.0]}
+        return track
+
+    def drive():
+        try:
+            wait_for(lambda: servers, 30)
+            client = recording_client(servers[0].port)
+            for k in range(2):
+                client.send_message(image_message(frames.pixels[k], frames.camera, 1000.0 + k,
+                                                  _camera_metadata(frames)), wait=False)
+                wait_for(lambda n=k + 1: servers[0].summary.answered == n, 30)
+            wait_for(lambda: _answers(client), 30)
+            got.extend(_answers(client))
+            client.stop()
+        finally:
+            stop.set()
+
+    threading.Thread(target=drive, daemon=True).start()
+    summary = serve(None, ServeOptions(port=0, valid_only=True), factory=factory, stop=stop,
+                    on_listen=servers.append)
+    assert [m.timestamp for m in got] == [1001.0] and summary.answered == 2 and summary.tracked == 1
+
+
+def test_push_paces_by_time_s_else_the_rate():
+    from ftrac_design.igt.poses import PoseRecord
+    from ftrac_design.workflows.serve import send_times
+
+    def rec(t):
+        return PoseRecord(np.eye(3), np.zeros(3), True, None, t, None, None, None, "x")
+
+    assert send_times([rec(5.0), rec(5.5), rec(7.0)], None) == [5.0, 5.5, 7.0]
+    assert send_times([rec(5.0), rec(5.5)], 4.0) == [0.0, 0.25]
+    assert send_times([rec(5.0), rec(None)], None) == [0.0, 1 / 30]
+    assert send_times([rec(5.0), rec(4.0)], None) == [0.0, 1 / 30]

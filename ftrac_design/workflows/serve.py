@@ -596,7 +596,7 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
                                              f"(none answered within {options.connect_timeout_s:g} s)",
                                  parameter="port")
             time.sleep(0.01)
-        times = _send_times(poses, options.rate_hz)
+        times = send_times(poses, options.rate_hz)
         start, wall0 = times[0], time.monotonic()
         for k, (p, t) in enumerate(zip(poses, times)):
             wait = wall0 + (t - start) - time.monotonic()
@@ -618,7 +618,7 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
         client.stop()
 
 
-def _send_times(poses: list[PoseRecord], rate_hz: float | None) -> list[float]:
+def send_times(poses: list[PoseRecord], rate_hz: float | None) -> list[float]:
     """When each pose is sent (s from the first): ``k / rate_hz``, else the poses' ``time_s``
     when every pose has one and they do not go back, else 30 per second."""
     n = len(poses)
