@@ -17,7 +17,7 @@ import tomllib
 
 from _common import machine
 
-from ftrac_design.analysis.report import Subject, settings_for
+from ftrac_design.analysis.subject import Subject, settings_for
 from ftrac_design.design import load_design
 from ftrac_design.design.presets import resolve_design
 from ftrac_design.features import compute_features

@@ -32,7 +32,7 @@ from ftrac_design.design.presets import resolve_design, resolve_space
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
 from ftrac_design.optimize.evaluate import evaluate_candidate, min_ellipse_view_deg, rule_margins, score_figures
-from ftrac_design.optimize.run import prepare
+from ftrac_design.optimize.setup import prepare
 from ftrac_design.optimize.space import _line_geometry
 
 #: "> 0" rules need a hair above 0

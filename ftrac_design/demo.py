@@ -76,7 +76,8 @@ def format_build(summary: dict[str, Any]) -> str:
 def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
     """Score the design over its workspace (``ftrac-design analyze``) into ``out_dir``;
     returns the analysis.json object."""
-    from .analysis.report import load_subject, run_analysis, settings_for
+    from .analysis.subject import load_subject, settings_for
+    from .workflows.analyze import run_analysis
 
     subject = load_subject(design_path)
     settings, thresholds = settings_for(subject)
@@ -86,7 +87,7 @@ def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
 
 def format_score(doc: dict[str, Any], out_dir: str | Path) -> str:
     """The analysis summary, headed for the demo."""
-    from .analysis.report import format_summary
+    from .workflows.analyze import format_summary
 
     return (f"Scored over the workspace in {doc['time_s']:.1f} s -> {out_dir}/analysis.json, "
             + ", ".join(doc["files"]) + "\n" + format_summary(doc))

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
+from types import ModuleType
 
 
 class InputError(Exception):
@@ -50,3 +52,59 @@ class GoalError(Exception):
 
     The command line exits 1.
     """
+
+
+class MissingDependencyError(InputError):
+    """An optional package that the asked-for work needs is not installed (exit 2).
+
+    The package's optional dependencies are grouped by the room that needs them (the *extras*
+    of ``pyproject.toml``: ``cad``, ``dicom``, ``optimize``, …); ``make`` installs all of them.
+    The message names the missing module, what needed it and the one command that installs it.
+
+    Parameters
+    ----------
+    module : str
+        The import name that failed (``"cma"``).
+    extra : str
+        The extra of ``ftrac_design`` that provides it (``"optimize"``).
+    purpose : str
+        What needed it, in words (``"the CMA-ES design search"``).
+    """
+
+    def __init__(self, module: str, extra: str, purpose: str):
+        self.module = module
+        self.extra = extra
+        self.purpose = purpose
+        super().__init__(None, None, "")
+
+    def _message(self, key: str | None) -> str:
+        return (f"{self.purpose} needs the Python package {self.module!r}, which is not installed: "
+                f"pip install 'ftrac_design[{self.extra}]'")
+
+
+def require(module: str, extra: str, purpose: str) -> ModuleType:
+    """Import an optional dependency, or raise :class:`MissingDependencyError`.
+
+    Parameters
+    ----------
+    module : str
+        The module to import (``"pymoo.algorithms.moo.nsga2"``); the message names its top-level
+        package.
+    extra : str
+        The ``ftrac_design`` extra that installs it.
+    purpose : str
+        What needs it, in words, for the message.
+
+    Returns
+    -------
+    module
+        The imported module.
+    """
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        top = module.split(".")[0]
+        missing = (exc.name or top).split(".")[0]
+        if missing != top:  # the package is there but one of its own imports failed: not ours to hide
+            raise
+        raise MissingDependencyError(top, extra, purpose) from None

@@ -148,7 +148,7 @@ def test_optimiser_charges_a_stock_size_for_its_image():
     assert got["figures"]["translation_p95_mm"] == pytest.approx(float(np.percentile(m.translation_rms_mm, 95)),
                                                                  rel=1e-12)
     # and the design file it becomes carries the factor into `analyze`
-    from ftrac_design.analysis.report import Subject, settings_for
+    from ftrac_design.analysis.subject import Subject, settings_for
 
     settings, _ = settings_for(Subject(f, design.analysis, None))
     assert AnalysisSettings().for_parts(design.analysis).error_factors == settings.error_factors

@@ -375,7 +375,7 @@ def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(bas
     from ftrac_design.cad.rules import check_design
     from ftrac_design.design.loader import parse_design
     from ftrac_design.design.writer import round_values as _round
-    from ftrac_design.optimize.outputs import design_toml
+    from ftrac_design.workflows.optimize_outputs import design_toml
 
     def gap(d):
         return check_design(parse_design(d), "cnc").result("mount.coverage").measured

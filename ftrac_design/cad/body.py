@@ -11,6 +11,7 @@ intersected with the cylinder would be up to 1/cos τ wider at the major-axis en
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import cadquery as cq
 import numpy as np
@@ -211,10 +212,11 @@ def cut(base: cq.Shape, tools: list[cq.Shape], what: str = "body") -> cq.Solid:
 
 
 #: ways to cut the tools; "staged" is the default (see benchmarks/README.md)
-STRATEGIES = ("staged", "single", "sequential")
+Strategy = Literal["staged", "single", "sequential"]
+STRATEGIES: tuple[Strategy, ...] = get_args(Strategy)
 
 
-def build_body(plan: BodyPlan, strategy: str = "staged") -> cq.Solid:
+def build_body(plan: BodyPlan, strategy: Strategy = "staged") -> cq.Solid:
     """The finished body: the blank minus every groove and pocket tool.
 
     ``staged`` (default) cuts the ellipse grooves first, then the line grooves and pockets

@@ -16,6 +16,7 @@ from typing import Any, Iterator
 
 from .. import __version__
 from ..design.schema import Design
+from ..errors import require
 from ..features import Features, compute_features, write_features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, sha256_file, write_json_atomic
 from .plan import BodyPlan, plan_body, stl_tolerances
@@ -88,6 +89,23 @@ class _Clock:
         return time.perf_counter() - self.t0
 
 
+def require_cad_packages(render: bool = True) -> None:
+    """Raise :class:`~ftrac_design.errors.MissingDependencyError` before anything is built when
+    the ``cad`` extra is not installed.
+
+    Parameters
+    ----------
+    render : bool
+        Whether the build renders its picture (pyvista is needed only then).
+    """
+    require("cadquery", "cad", "building the CAD parts")
+    require("OCP", "cad", "building the CAD parts (OpenCascade)")
+    require("trimesh", "cad", "building the CAD parts (the STL check)")
+    require("ezdxf", "cad", "building the CAD parts (the unwrapped DXF)")
+    if render:
+        require("pyvista", "cad", "building the CAD parts (the render)")
+
+
 def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: Profile = "cnc",
                    force: bool = False, render: bool = True) -> BuildResult:
     """Build ``design`` into ``out_dir`` (default :func:`default_output_dir`).
@@ -98,6 +116,7 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
     ``force``. Raises :class:`~ftrac_design.errors.InputError` for a bad output directory and
     :class:`~ftrac_design.cad.body.CadError` (exit 1) when OCC cannot build a part.
     """
+    require_cad_packages(render)
     import cadquery as cq
 
     from .body import CadError, build_body, single_solid, volume

@@ -1,5 +1,5 @@
 """``ftrac-design analyze DESIGN.toml|PRESET|FEATURES.json [-o DIR]``: score a design over the
-workspace and map its blind spots (SPEC §5; format in :mod:`ftrac_design.analysis.report`)."""
+workspace and map its blind spots (SPEC §5; format in :mod:`ftrac_design.workflows.analyze`)."""
 
 from __future__ import annotations
 
@@ -93,7 +93,8 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
     """
     from tqdm import tqdm
 
-    from ..analysis.report import atlas_directions, format_summary, load_subject, run_analysis, settings_for
+    from ..analysis.subject import load_subject, settings_for
+    from ..workflows.analyze import atlas_directions, format_summary, run_analysis
 
     subject = load_subject(source)
     settings, thresholds = settings_for(subject, **overrides(
@@ -124,7 +125,7 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
     click.echo(format_summary(doc, format_imaging))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
     if report:
-        from ..report import report_for_analysis
+        from ..workflows.report import report_for_analysis
 
         click.echo(f"wrote {report_for_analysis(source, out_dir)}")
     if not doc["passed"]:

@@ -41,7 +41,7 @@ def command(design: Path, output: Path | None, profile: str, force: bool, report
     click.echo(f"  body {vol['body']:.1f} mm3, wires {vol['wires']:.2f} mm3, beads {vol['beads']:.2f} mm3; "
                f"wire {m['wires']['total_length_mm']:.1f} mm, {m['beads']['count']} beads")
     if report:
-        from ..report import report_for_build
+        from ..workflows.report import report_for_build
 
         click.echo(f"  wrote {report_for_build(result.out_dir, design=d)}")
     return 0

@@ -25,8 +25,8 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
     """
     from tqdm import tqdm
 
-    from ..analysis.report import Subject, load_subject, settings_for
     from ..analysis.score import score_design
+    from ..analysis.subject import Subject, load_subject, settings_for
     from ..errors import InputError
     from ..fileio import write_json_atomic
 

@@ -71,8 +71,9 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
     """
-    from ..optimize.run import optimize, prepare, read_design
+    from ..optimize.setup import prepare, read_design
     from ..optimize.tables import format_summary
+    from ..workflows.optimize import optimize
 
     profiles = profiles or ("cnc",)
     if print_space:

@@ -36,7 +36,7 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
     Images are embedded and the style is inline: the file opens with no network.
     """
     from ..design.presets import known_presets, resolve_design
-    from ..report import report_for_build
+    from ..workflows.report import report_for_build
 
     if not source.is_dir():  # a build directory is reported as it is; anything else may be a preset
         source = resolve_design(source)
@@ -61,7 +61,7 @@ def _report_design(source: Path, output: Path | None, analysis_dir: Path | None,
                    profile: str) -> Path:
     from ..cad.build import build_fiducial
     from ..design import load_design
-    from ..report import report_for_build
+    from ..workflows.report import report_for_build
 
     design = load_design(source)  # exit 2 before any CAD
     output = output if output is not None else Path(f"report_{design.name}.html")

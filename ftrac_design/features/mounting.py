@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
@@ -70,7 +71,7 @@ class Hole:
     diameter: float
     counterbore_diameter: float = 0.0
     counterbore_depth: float = 0.0
-    kind: str = "clearance"
+    kind: Literal["clearance", "pin", "tapped"] = "clearance"
 
     @property
     def direction(self) -> np.ndarray:

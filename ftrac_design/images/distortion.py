@@ -47,6 +47,8 @@ DIRECTION = "ideal_to_distorted"
 MAX_DEGREE = 10
 
 Interpolation = Literal["linear", "cubic"]
+#: which way a frame is resampled: onto the ideal pinhole grid, or back onto the imaged one
+Direction = Literal["undistort", "distort"]
 
 
 def monomial_exponents(degree: int) -> np.ndarray:
@@ -377,7 +379,7 @@ def combine(*models: DistortionModel) -> DistortionModel:
 
 
 @functools.lru_cache(maxsize=4)
-def _maps(model: DistortionModel, direction: str) -> tuple[np.ndarray, np.ndarray]:
+def _maps(model: DistortionModel, direction: Direction) -> tuple[np.ndarray, np.ndarray]:
     """cv2.remap maps (float32, H × W) giving, for each output pixel, where to read the input.
 
     undistort: the output is on the ideal grid, read at distort(p); distort: the output is on
@@ -399,7 +401,7 @@ def _maps(model: DistortionModel, direction: str) -> tuple[np.ndarray, np.ndarra
     return mx, my
 
 
-def _remap(image: np.ndarray, model: DistortionModel, direction: str, interpolation: Interpolation,
+def _remap(image: np.ndarray, model: DistortionModel, direction: Direction, interpolation: Interpolation,
            fill: float | None) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim != 2 or img.shape != model.image_shape:

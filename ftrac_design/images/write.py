@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -22,7 +22,8 @@ from ..pose.camera import Camera
 from .notes import NOTE_PREFIX
 
 WRITE_SUFFIXES = {".png": "png", ".tif": "tiff", ".tiff": "tiff", ".npy": "npy", ".dcm": "dicom", ".dicom": "dicom"}
-_POLARITIES = ("dense_dark", "dense_bright")
+NotePolarity = Literal["dense_dark", "dense_bright"]
+_POLARITIES: tuple[NotePolarity, ...] = get_args(NotePolarity)
 
 
 def _quantise(image: np.ndarray, bit_depth: int, value_range: tuple[float, float] | None):
@@ -41,7 +42,7 @@ def _quantise(image: np.ndarray, bit_depth: int, value_range: tuple[float, float
 
 
 def write_image(path: str | Path, image: np.ndarray, camera: Camera | None = None, *,
-                polarity: str | None = None, bit_depth: int | None = None,
+                polarity: NotePolarity | None = None, bit_depth: int | None = None,
                 value_range: tuple[float, float] | None = None, quantity: str | None = None) -> Path:
     """Write ``image`` (H, W) atomically; the format comes from the suffix (see the module).
 

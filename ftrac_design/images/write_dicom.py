@@ -18,6 +18,7 @@ from typing import Literal, Sequence
 
 import numpy as np
 
+from ..errors import require
 from ..fileio import atomic_file
 from ..pose.camera import Camera
 from .dicom_geometry import FieldOfView, apply_field_of_view
@@ -242,8 +243,9 @@ def _pixel_data(ds, stored: np.ndarray, syntax: str, bits_stored: int, signed: b
         ds.PixelData = data + (b"\0" if len(data) % 2 else b"")
         return
     if syntax == "jpeg-lossless":
-        import imagecodecs
         from pydicom.encaps import encapsulate
+
+        imagecodecs = require("imagecodecs", "dicom", "writing JPEG Lossless DICOM")
 
         enc = [imagecodecs.jpeg8_encode(f, lossless=True, predictor=1, bitspersample=int(ds.BitsStored)) for f in arr]
         ds.PixelData = encapsulate(enc)

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from scipy.ndimage import gaussian_filter
@@ -46,6 +46,8 @@ from .model import STEP_PX, RoiModel, perturb, roi_around
 
 #: knot spacing (px) of the default spline background (see :func:`refine_intensity`)
 DEFAULT_SPLINE_PX = 12.0
+#: how dense matter shows in the image the refinement reads: bright (a log image) or dark (raw counts)
+RefinePolarity = Literal["dense_bright", "dense_dark"]
 #: χ² per degree of freedom of the smooth-background fit above which ``background="auto"``
 #: takes the image as cluttered (see :func:`refine_intensity`)
 CLUTTER_CHI2 = 3.0
@@ -70,7 +72,7 @@ class IntensityResult:
     message: str = ""
     history: list = field(default_factory=list)
     n_nuisance: int = 7
-    background_model: str = "polynomial"
+    background_model: Literal["polynomial", "spline", "highpass"] = "polynomial"
 
     @property
     def std(self) -> np.ndarray:
@@ -183,7 +185,7 @@ def history_drop(history: list) -> float:
     return history[-2][1] - history[-1][1]
 
 
-def _log_of(image: np.ndarray, polarity: str) -> np.ndarray:
+def _log_of(image: np.ndarray, polarity: RefinePolarity) -> np.ndarray:
     img = np.asarray(image, float)
     if polarity == "dense_bright":
         return img
@@ -197,7 +199,7 @@ class RefineOptions:
     """How :func:`refine_intensity` fits (each option explained in its docstring)."""
 
     #: "dense_bright" (a log image) or "dense_dark" (raw counts)
-    polarity: str = "dense_bright"
+    polarity: RefinePolarity = "dense_bright"
     #: smoothing scales (px, ending at 0) in order, or "auto"
     scales: tuple[float, ...] | str = "auto"
     #: degree of the polynomial background
@@ -217,7 +219,7 @@ class RefineOptions:
     #: every LM step on central differences
     central_steps: bool = False
     #: "auto", "spline", "polynomial" or "highpass"
-    background: str = "auto"
+    background: Literal["auto", "spline", "polynomial", "highpass"] = "auto"
     #: knot spacing of the spline background, px (None: the polynomial)
     background_spline_px: float | None = DEFAULT_SPLINE_PX
     #: χ²/dof at the start above which "auto" takes the image as cluttered

@@ -4,16 +4,20 @@
 - :mod:`.evaluate` — one candidate: design rules as graded margins first, then the score;
 - :mod:`.execution` — where evaluations run (in process, local processes, a Dask cluster);
 - :mod:`.search` — CMA-ES / NSGA-II ask/tell, the evaluation log, resume;
-- :mod:`.report` — verification on fresh poses and by the solver, outputs;
-- :mod:`.run` — :func:`optimize`, a whole run as ``ftrac-design optimize`` does it;
+- :mod:`.setup` — the design read, the space and the evaluation settings of a search;
+- :mod:`.verify`, :mod:`.imagecheck`, :mod:`.tables`, :mod:`.plots` — the winner checked on fresh
+  poses, by the solver and on rendered images, and shown;
+
+A whole run as ``ftrac-design optimize`` does it (log, resume, outputs) is
+:func:`ftrac_design.workflows.optimize.optimize`.
 """
 
 from __future__ import annotations
 
 from .evaluate import EvalSettings, evaluate_candidate
-from .run import optimize, prepare
 from .search import OBJECTIVES, SearchConfig, run_search
+from .setup import prepare, read_design
 from .space import SearchSpace, default_space, load_space, parse_space
 
 __all__ = ["EvalSettings", "OBJECTIVES", "SearchConfig", "SearchSpace", "default_space",
-           "evaluate_candidate", "load_space", "optimize", "parse_space", "prepare", "run_search"]
+           "evaluate_candidate", "load_space", "parse_space", "prepare", "read_design", "run_search"]

@@ -19,7 +19,7 @@ import os
 from collections.abc import Iterator
 from concurrent.futures import Executor, Future, ProcessPoolExecutor
 
-from ..errors import InputError
+from ..errors import InputError, require
 
 
 class SerialExecutor(Executor):
@@ -57,8 +57,7 @@ def open_executor(scheduler: str | None = None, workers: int | None = None) -> I
     """The executor asked for (see the module doc) and a one-line description of it."""
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS") or None
     if scheduler:
-        from distributed import Client
-
+        Client = require("distributed", "optimize", "a Dask cluster (scheduler address)").Client
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError) as exc:

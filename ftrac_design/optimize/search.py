@@ -46,25 +46,28 @@ from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Literal, get_args
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, require
 from .evaluate import EvalSettings, evaluate_candidate
 from .space import SearchSpace, design_hash
 
 LOG_FORMAT = "ftrac-optimize-log"
 LOG_VERSION = 1
-SINGLE = ("max", "sum", "translation", "rotation")
-MULTI = ("translation-rotation", "accuracy-diameter")
-OBJECTIVES = SINGLE + MULTI
+Objective = Literal["max", "sum", "translation", "rotation", "translation-rotation", "accuracy-diameter"]
+OBJECTIVES: tuple[Objective, ...] = get_args(Objective)
+#: objectives searched by CMA-ES (one figure) and by NSGA-II (two)
+SINGLE: tuple[Objective, ...] = OBJECTIVES[:4]
+MULTI: tuple[Objective, ...] = OBJECTIVES[4:]
 
 
 @dataclass(frozen=True)
 class SearchConfig:
     """What is searched for and how: objective, budget, seed and optimiser settings."""
 
-    objective: str = "max"
+    objective: Objective = "max"
     evaluations: int = 400
     seed: int = 0
     sigma0: float = 0.1
@@ -136,8 +139,7 @@ class _Cma:
     bin's centre)."""
 
     def __init__(self, x0: np.ndarray, config: SearchConfig, choices: tuple[int, ...] = ()):
-        import cma
-
+        cma = require("cma", "optimize", "the CMA-ES design search")
         self._rng: dict = {}
         opts = {"bounds": [0.0, 1.0], "seed": config.seed + 1, "verbose": -9, "verb_log": 0, "verb_disp": 0,
                 "tolfun": 0.0, "tolflatfitness": 10_000, "tolfunhist": 0.0, "tolx": 1e-9}
@@ -170,6 +172,7 @@ class _Nsga2:
     """NSGA-II (``pymoo``) on the unit cube, ask/tell; the first population holds the start."""
 
     def __init__(self, x0: np.ndarray, config: SearchConfig):
+        require("pymoo", "optimize", "the NSGA-II design search")
         from pymoo.algorithms.moo.nsga2 import NSGA2
         from pymoo.core.problem import Problem
         from pymoo.core.termination import NoTermination
@@ -248,12 +251,27 @@ def _read_log(path: Path) -> list[dict]:
 
 
 def _front_mask(f: np.ndarray) -> np.ndarray:
+    require("pymoo", "optimize", "the design search's Pareto front")
     from pymoo.util.nds.non_dominated_sorting import NonDominatedSorting
 
     mask = np.zeros(len(f), bool)
     if len(f):
         mask[NonDominatedSorting().do(f, only_non_dominated_front=True)] = True
     return mask
+
+
+def require_search_packages(config: SearchConfig) -> None:
+    """Raise :class:`~ftrac_design.errors.MissingDependencyError` before any work when the
+    ``optimize`` extra that ``config``'s search needs is not installed.
+
+    Parameters
+    ----------
+    config : SearchConfig
+        The search to run: CMA-ES needs ``cma``; every search needs ``pymoo`` (the Pareto front).
+    """
+    require("pymoo", "optimize", "the design search")
+    if not config.multi:
+        require("cma", "optimize", "the CMA-ES design search")
 
 
 def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig, executor: Executor,
@@ -263,6 +281,7 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     to ``log_path`` (appended; with ``resume`` the logged ones are replayed, not re-run)."""
     from tqdm import tqdm
 
+    require_search_packages(config)
     if config.objective not in OBJECTIVES:
         raise InputError(None, None, f"one of {', '.join(OBJECTIVES)}, got {config.objective!r}", parameter="objective")
     if config.multi and len(objective_names(config.objective)) != 2:

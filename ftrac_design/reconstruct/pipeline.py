@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -57,7 +57,8 @@ def build_views(poses: list[dict], points: list[dict], camera: Camera | None, no
 
 
 def reconstruct(features: Features, poses: list[dict], points: list[dict], camera: Camera | None = None,
-                to: str = "fiducial", transform: fr.RigidTransform | None = None, noise_px: float | None = None,
+                to: Literal["fiducial", "template"] = "fiducial", transform: fr.RigidTransform | None = None,
+                noise_px: float | None = None,
                 min_parallax_deg: float = MIN_PARALLAX_DEG, template_sigma_mm: float = 0.0,
                 poses_file: str = "<poses>", points_file: str = "<points>",
                 features_file: str = "<features>") -> dict[str, Any]:

@@ -5,69 +5,13 @@ atlas, bill of materials and wire cut list, output files with their sha256, vers
 :mod:`.inputs` gathers what exists (a build directory, a design, an analysis directory);
 :mod:`.page` writes the HTML (pictures as data URIs, inline CSS: no network needed to view it).
 No CadQuery is imported here; ``report DESIGN.toml`` builds through :mod:`ftrac_design.cad`
-in the command line wrapper.
+in the command line wrapper. Reports that run an analysis first are written by
+:mod:`ftrac_design.workflows.report`.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from .inputs import ReportInputs, collect
 from .page import SECTIONS, render_html, write_report
 
-__all__ = ["ReportInputs", "SECTIONS", "collect", "render_html", "report_for_analysis",
-           "report_for_build", "write_report"]
-
-
-def report_for_build(build_dir: str | Path, output: str | Path | None = None, analysis_dir: str | Path | None = None,
-                     run_analysis_if_missing: bool = True, poses: int | None = None,
-                     atlas_step_deg: float = 2.0, build_kept: bool = True, design=None) -> Path:
-    """Write the report of ``build_dir`` (default ``build_dir/report.html``); returns its path.
-
-    The analysis comes from ``analysis_dir``, else ``build_dir/analysis/``; if neither holds
-    one and ``run_analysis_if_missing``, it is run at the design's settings (``poses``
-    overrides the number of workspace poses) into a temporary directory that is not kept.
-    """
-    import tempfile
-
-    build_dir = Path(build_dir)
-    output = Path(output) if output is not None else build_dir / "report.html"
-    if analysis_dir is None and not (build_dir / "analysis" / "analysis.json").is_file() and run_analysis_if_missing:
-        with tempfile.TemporaryDirectory(prefix="ftrac-report-") as tmp:
-            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg)
-            r = collect(build_dir, design, Path(tmp) / "analysis", build_kept)
-            return write_report(r, output)
-    return write_report(collect(build_dir, design, analysis_dir, build_kept), output)
-
-
-def report_for_analysis(source: str | Path, analysis_dir: str | Path, output: str | Path | None = None) -> Path:
-    """Write ``analysis_dir/report.html`` after ``ftrac-design analyze SOURCE``: with the build
-    when SOURCE is a build's ``features.json`` (its ``manifest.json`` beside it), else the
-    design's (or the features') own parts only."""
-    from ..design.presets import resolve_design
-
-    source, analysis_dir = resolve_design(source), Path(analysis_dir)
-    output = Path(output) if output is not None else analysis_dir / "report.html"
-    if source.suffix.lower() == ".json" and (source.parent / "manifest.json").is_file():
-        return write_report(collect(source.parent, analysis_dir=analysis_dir), output)
-    if source.suffix.lower() == ".toml":
-        from ..design import load_design
-
-        return write_report(collect(design=load_design(source), analysis_dir=analysis_dir), output)
-    from ..features import load_features
-
-    return write_report(collect(features=load_features(source), analysis_dir=analysis_dir), output)
-
-
-def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_step_deg: float) -> None:
-    """Run the conditioning analysis of a build at its design's settings, with plots."""
-    from ..analysis.report import Subject, run_analysis, settings_for
-    from ..design.loader import parse_design
-    from ..features import load_features
-    from .inputs import read_manifest
-
-    if design is None:
-        design = parse_design(read_manifest(build_dir)["design"].get("parameters"), build_dir / "manifest.json")
-    subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json")
-    settings, thresholds = settings_for(subject, poses=poses)
-    run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
+__all__ = ["ReportInputs", "SECTIONS", "collect", "render_html", "write_report"]

@@ -10,7 +10,7 @@ def demo_step(out_dir: Path) -> str:
     process at 300 poses, no CAD build or solver check, 6 rendered radiographs of start and
     best tracked; returns start vs best as text."""
     from ...design.presets import preset_path
-    from ...optimize.run import optimize as _optimize
+    from ..optimize import optimize as _optimize
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -24,10 +24,10 @@ import numpy as np
 
 from ..design.writer import round_values, to_toml
 from ..fileio import write_json_atomic, write_text_atomic
-from .plots import plot_convergence, plot_front
-from .search import SearchResult, objective_names
-from .tables import comparison, front_table, image_rows
-from .verify import verify
+from ..optimize.plots import plot_convergence, plot_front
+from ..optimize.search import SearchResult, objective_names
+from ..optimize.tables import comparison, front_table, image_rows
+from ..optimize.verify import verify
 
 FORMAT = "ftrac-optimize"
 VERSION = 1
@@ -59,7 +59,7 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
                   solver_images: int, build: bool, profile: str, check_images: int = 0,
                   progress: bool = False) -> dict:
     """Write every output of a finished search into ``tmp`` (the caller renames it);
-    ``check_images`` rendered radiographs of start and best are tracked (:mod:`.imagecheck`)."""
+    ``check_images`` rendered radiographs of start and best are tracked (:mod:`ftrac_design.optimize.imagecheck`)."""
     from ..design.loader import parse_design
 
     seed = res.config.seed
@@ -82,7 +82,7 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
     settings = res.settings.analysis
     doc["start"]["verification"] = verify(start_data, settings, verify_poses, solver_images, vseed)
     if check_images:
-        from .imagecheck import image_check
+        from ..optimize.imagecheck import image_check
 
         doc["start"]["verification"]["images"] = image_check(start_data, settings, check_images, vseed + 3, progress)
     if best_data is not None:
@@ -120,7 +120,7 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
             for key in ("translation_p95_mm", "rotation_p95_deg", "translation_median_mm", "rotation_median_deg"):
                 a, b = i0[key], i1[key]
                 change[key.rsplit("_", 1)[0]] = b / a - 1 if a and b is not None else None
-            from .imagecheck import paired_p95_ratio
+            from ..optimize.imagecheck import paired_p95_ratio
 
             change["paired"] = paired_p95_ratio(i0, i1)
             doc["best"]["change_on_images"] = change

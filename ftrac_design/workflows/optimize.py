@@ -9,35 +9,21 @@ is removed.
 
 from __future__ import annotations
 
-import math
 import shutil
-import tomllib
 from concurrent.futures import Executor
-from dataclasses import replace
 from pathlib import Path
 
 from ..errors import GoalError, InputError
 from ..fileio import atomic_directory, check_output_dir, json_format_is
-from .evaluate import EvalSettings
-from .execution import open_executor
-from .outputs import FORMAT, write_outputs
-from .search import SearchConfig, run_search
-from .space import SearchSpace, default_space, load_space
+from ..optimize.execution import open_executor
+from ..optimize.search import Objective, SearchConfig, require_search_packages, run_search
+from ..optimize.setup import prepare
+from .optimize_outputs import FORMAT, write_outputs
 
-#: workspace poses of the search sample unless the space file or the caller says otherwise
-SEARCH_POSES = 2000
 VERIFY_POSES = 20_000
 SOLVER_IMAGES = 1000
-#: rendered radiographs of start and winner tracked end to end (:mod:`.imagecheck`)
+#: rendered radiographs of start and winner tracked end to end (:mod:`ftrac_design.optimize.imagecheck`)
 CHECK_IMAGES = 200
-
-
-def read_design(path: str | Path) -> tuple[dict, object]:
-    """The design file's TOML data and its validated :class:`~ftrac_design.design.Design`."""
-    from ..design import load_design
-
-    design = load_design(path)  # InputError for anything wrong, as everywhere
-    return tomllib.loads(Path(design.source).read_text(encoding="utf-8")), design
 
 
 def work_dir(out_dir: Path) -> Path:
@@ -50,44 +36,17 @@ def _check_output_dir(out_dir: Path) -> None:
     check_output_dir(out_dir, "an earlier optimize output", lambda d: json_format_is(d / "summary.json", FORMAT))
 
 
-def prepare(design_path: str | Path, space_path: str | Path | None = None, poses: int | None = None,
-            seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
-            min_clearance_px: float | None = None,
-            min_ellipse_view_deg: float | None = None) -> tuple[SearchSpace, EvalSettings]:
-    """The search space and evaluation settings of a run: the design's own [analysis]
-    workspace and noise, a sample of ``poses`` (else the space's ``search.poses``, else
-    :data:`SEARCH_POSES`) drawn with ``seed``; ellipses seen no closer to edge-on than
-    ``min_ellipse_view_deg`` (default: as close as the start design's, rounded down to
-    0.1°; 0 switches the constraint off)."""
-    from ..analysis.report import Subject, settings_for
-    from ..features import compute_features
-
-    base, design = read_design(design_path)
-    space = load_space(base, space_path) if space_path is not None else default_space(base)
-    n = poses or space.search.get("poses", SEARCH_POSES)
-    from .evaluate import min_ellipse_view_deg as view_of
-
-    features = compute_features(design)
-    analysis, _ = settings_for(Subject(features, design.analysis, Path(design_path)))
-    analysis = replace(analysis, poses=int(n), seed=int(seed))
-    if min_ellipse_view_deg is None:
-        v = view_of(features, analysis)
-        min_ellipse_view_deg = None if v is None else math.floor(v * 10) / 10
-    return space, EvalSettings(tuple(profiles), analysis, min_clearance_px,
-                               min_ellipse_view_deg=min_ellipse_view_deg or None)
-
-
 def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Path | None = None,
-             objective: str = "max", evaluations: int = 400, seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
+             objective: Objective = "max", evaluations: int = 400, seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
              scheduler: str | None = None, workers: int | None = None, executor: Executor | None = None,
              resume: bool = False, poses: int | None = None, verify_poses: int | None = None,
              solver_images: int | None = None, build: bool = True, progress: bool = True,
              command_line: str | None = None, stop_after: int | None = None, sigma0: float | None = None,
              popsize: int | None = None, min_clearance_px: float | None = None,
              min_ellipse_view_deg: float | None = None, check_images: int | None = None) -> dict:
-    """Run a search and write its outputs into ``out_dir`` (see :mod:`.report`); returns
+    """Run a search and write its outputs into ``out_dir`` (see :mod:`.optimize_outputs`); returns
     ``summary.json``'s content. ``executor`` (any ``concurrent.futures``-style one) wins
-    over ``scheduler`` / ``workers`` (see :mod:`.execution`). Raises
+    over ``scheduler`` / ``workers`` (see :mod:`ftrac_design.optimize.execution`). Raises
     :class:`~ftrac_design.errors.GoalError` when no candidate is feasible."""
     out_dir = Path(out_dir)
     _check_output_dir(out_dir)
@@ -96,6 +55,7 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     config = SearchConfig(objective=objective, evaluations=evaluations, seed=seed,
                           sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
                           popsize=popsize or space.search.get("popsize"))
+    require_search_packages(config)
     work = work_dir(out_dir)
     log = work / "evaluations.jsonl"
     if resume and not log.exists():

@@ -7,7 +7,7 @@ lines, ellipses alone), per-feature figures (own rank ratio, fraction of the wor
 it is blind, smallest view angle, the score without it), the worst workspace poses, the
 atlas summary with the worst view directions and the features responsible, the
 segmentability block (image clearances between features over the workspace and the sphere,
-overlap shares per kind and pair, worst poses; :mod:`.segmentability`), with ``--imaging`` an
+overlap shares per kind and pair, worst poses; :mod:`ftrac_design.analysis.segmentability`), with ``--imaging`` an
 ``imaging`` block (pixel-level vs feature-level predicted errors at a smaller pose sample;
 :mod:`ftrac_design.intensity.workspace`, computed by the caller), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
@@ -17,17 +17,15 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..errors import InputError
+from ..analysis.atlas import Atlas, blind_spot_atlas
+from ..analysis.score import AnalysisSettings, DesignScore, Thresholds, score_design
+from ..analysis.segmentability import SegmentabilityAtlas, segmentability_atlas
+from ..analysis.subject import Subject
 from ..features.model import Features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, write_json_atomic
-from ..pose.simulate import Workspace
-from .atlas import Atlas, blind_spot_atlas
-from .score import AnalysisSettings, DesignScore, Thresholds, score_design
-from .segmentability import SegmentabilityAtlas, segmentability_atlas
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
@@ -45,71 +43,6 @@ class ImagingBlock(Protocol):
     def to_dict(self) -> dict[str, Any]: ...
 
     def plot(self, path: Path) -> Path: ...
-
-
-@dataclass
-class Subject:
-    """What is analysed: the features, and the design's own [analysis] table if it came
-    from a design file (None for features.json)."""
-
-    features: Features
-    spec: Any | None
-    path: Path
-
-
-def load_subject(path: str | Path) -> Subject:
-    """What ``path`` names, ready to analyse.
-
-    Parameters
-    ----------
-    path : str or pathlib.Path
-        ``DESIGN.toml`` (features computed, with its [analysis] table), a preset's name
-        (``"ftrac_mini"``) or ``FEATURES.json``.
-
-    Returns
-    -------
-    Subject
-        The features, the design's [analysis] table (None for features.json) and the file.
-    """
-    from ..design.presets import known_presets, resolve_design
-
-    path = resolve_design(path)
-    if path.suffix.lower() == ".toml":
-        from ..design import load_design
-        from ..features import compute_features
-
-        design = load_design(path)
-        return Subject(compute_features(design), design.analysis, path)
-    if path.suffix.lower() == ".json":
-        from ..features import load_features
-
-        return Subject(load_features(path), None, path)
-    raise InputError(path, None, f"a design file (.toml), a features file (.json) or a preset ({known_presets()})")
-
-
-def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, Thresholds]:
-    """Settings and thresholds: the defaults, then the design's [analysis] table, then the
-    command line's ``overrides`` (None = not given). Keys as :class:`~ftrac_design.design.schema.Analysis`."""
-    vals: dict[str, Any] = {}
-    if subject.spec is not None:
-        vals.update(subject.spec.model_dump())
-    vals.update({k: v for k, v in overrides.items() if v is not None})
-    s, th = AnalysisSettings(), Thresholds()
-    ws = replace(Workspace(), **{k: vals[k2] for k, k2 in (("cone_deg", "cone_deg"), ("depth_mm", "depth"),
-                                                           ("depth_range_mm", "depth_range"),
-                                                           ("lateral_mm", "lateral")) if k2 in vals})
-    if "roll_range_deg" in vals:
-        ws = replace(ws, roll_deg=tuple(float(v) for v in vals["roll_range_deg"]))
-    s = replace(s, workspace=ws, **{k: vals[k2] for k, k2 in (("segmentation_error_mm", "segmentation_error"),
-                                                              ("bead_error_factor", "bead_error_factor"),
-                                                              ("wire_error_factor", "wire_error_factor"),
-                                                              ("poses", "poses"), ("seed", "seed")) if k2 in vals})
-    th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),
-                                                 ("max_rotation_deg", "max_rotation_deg"),
-                                                 ("max_condition", "max_condition"),
-                                                 ("max_overlap_share", "max_overlap_share"),
-                                                 ("min_clearance_px", "min_clearance_px")) if k2 in vals})
-    return s, th
 
 
 def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None, seconds: float,
@@ -166,7 +99,7 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
     with atomic_directory(out_dir) as tmp:
         files = []
         if plots:
-            from .plots import plot_atlas_cone, plot_atlas_sphere, plot_score, plot_segmentability
+            from ..analysis.plots import plot_atlas_cone, plot_atlas_sphere, plot_score, plot_segmentability
 
             plot_score(score, tmp / PLOTS["score"])
             plot_atlas_sphere(atlas, tmp / PLOTS["sphere"])
@@ -185,7 +118,7 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
 
 def atlas_directions(step_deg: float, cone_deg: float) -> int:
     """How many poses :func:`blind_spot_atlas` analyses (for progress bars)."""
-    from .sampling import cone_grid, sphere_grid
+    from ..analysis.sampling import cone_grid, sphere_grid
 
     return sphere_grid(step_deg)[0].size + cone_grid([0.0, 0.0, 1.0], cone_deg)[0].size
 

@@ -1,0 +1,121 @@
+"""The image-true score: its trial (common random numbers, executor-independent, outcomes
+classified against the truth) and its figures (closed forms on known records)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from ftrac_design.design import load_design
+from ftrac_design.design.presets import resolve_design
+from ftrac_design.features import compute_features
+from ftrac_design.imagescore import (
+    TrialSettings,
+    condition_figures,
+    paired_ratios,
+    run_images,
+    run_trial,
+    trial_figures,
+)
+from ftrac_design.imagescore import trial as trial_module
+from ftrac_design.xray import Body
+
+
+@pytest.fixture(scope="module")
+def ftrac_2005():
+    d = load_design(resolve_design("ftrac_2005"))
+    return compute_features(d), Body.from_design(d)
+
+
+def _records(errors_t, errors_r, outcomes, condition="clean"):
+    return [{"condition": condition, "k": k, "outcome": o, "translation_mm": et, "rotation_deg": er}
+            for k, (et, er, o) in enumerate(zip(errors_t, errors_r, outcomes))]
+
+
+def test_condition_figures_are_the_percentiles_of_the_right_images():
+    rng = np.random.default_rng(3)
+    t, r = rng.gamma(2.0, 0.1, 60), rng.gamma(2.0, 0.02, 60)
+    outcomes = ["right"] * 50 + ["wrong"] * 4 + ["refused"] * 6
+    fig = condition_figures(_records(t, r, outcomes))
+    assert (fig["images"], fig["right"], fig["wrong"], fig["refused"]) == (60, 50, 4, 6)
+    assert fig["refused_pct"] == pytest.approx(10.0) and fig["wrong_pct"] == pytest.approx(100 * 4 / 60)
+    assert fig["translation_p95_mm"] == pytest.approx(np.percentile(t[:50], 95))
+    assert fig["rotation_median_deg"] == pytest.approx(np.median(r[:50]))
+    lo, hi = fig["translation_p95_95ci_mm"]
+    assert lo <= fig["translation_p95_mm"] <= hi
+
+
+def test_too_few_right_images_give_no_percentile():
+    fig = condition_figures(_records([0.1] * 10, [0.01] * 10, ["right"] * 10))
+    assert fig["translation_p95_mm"] is None and fig["translation_p95_95ci_mm"] is None
+
+
+def test_paired_ratio_of_a_scaled_trial_is_the_scale_exactly():
+    rng = np.random.default_rng(4)
+    t, r = rng.gamma(2.0, 0.1, 80), rng.gamma(2.0, 0.02, 80)
+    a = _records(t, r, ["right"] * 80)
+    b = _records(1.3 * t, 0.5 * r, ["right"] * 80)
+    p = paired_ratios(a, b, "clean")
+    assert p["images"] == 80
+    assert p["translation_p95_ratio"] == pytest.approx(1.3)
+    assert p["translation_p95_ratio_95ci"] == pytest.approx([1.3] * 2)
+    assert p["rotation_p95_ratio"] == pytest.approx(0.5)
+    assert paired_ratios(a, b, "anatomy") is None
+
+
+def test_trial_is_reproducible_and_independent_of_the_executor(ftrac_2005):
+    from ftrac_design.optimize.execution import SerialExecutor
+
+    f, body = ftrac_2005
+    s = TrialSettings(images=3, seed=11)
+    here = run_trial(f, body, s)
+    assert here == run_trial(f, body, s, SerialExecutor())
+    assert [(r["condition"], r["k"]) for r in here] == [(c, k) for c in ("clean", "anatomy") for k in range(3)]
+    clean = [r for r in here if r["condition"] == "clean"]
+    assert all(r["outcome"] == "right" for r in clean)
+    assert all(r["translation_mm"] < 1.0 and r["rotation_deg"] < 0.3 for r in clean)
+    assert set(trial_figures(here)) == {"clean", "anatomy"}
+
+
+def test_a_pose_far_from_the_truth_is_wrong_and_no_pose_is_refused(ftrac_2005, monkeypatch):
+    from ftrac_design.segment import pipeline
+
+    f, body = ftrac_2005
+    s = TrialSettings(images=2, seed=5, conditions=("clean",))
+    real = pipeline.track_image
+
+    def shifted(image, features, camera, *a, **k):
+        res = real(image, features, camera, *a, **k)
+        res.pose.translation_mm = res.pose.translation_mm + np.array([0.0, 0.0, 4.0])
+        return res
+
+    monkeypatch.setattr(pipeline, "track_image", shifted)
+    recs = run_images(f, body, s, "clean", [0, 1])
+    assert [r["outcome"] for r in recs] == ["wrong", "wrong"]
+    assert all(r["translation_mm"] == pytest.approx(4.0, abs=0.5) for r in recs)
+
+    def refuse(image, features, camera, *a, **k):
+        res = real(image, features, camera, *a, **k)
+        res.pose.converged = False
+        return res
+
+    monkeypatch.setattr(pipeline, "track_image", refuse)
+    assert [r["outcome"] for r in run_images(f, body, s, "clean", [0])] == ["refused"]
+
+
+def test_common_random_numbers_give_two_designs_the_same_poses_and_draws(ftrac_2005, monkeypatch):
+    """Image k's pose and noise do not depend on the design (same nominal beam direction)."""
+    f, body = ftrac_2005
+    mini = compute_features(load_design(resolve_design("ftrac_mini")))
+    seen = []
+
+    def spy(features, body, condition, R, t, camera, seed, k):
+        seen.append((features.name, condition, R.tobytes(), t.tobytes(), seed, k))
+        return np.zeros((8, 8))
+
+    monkeypatch.setattr(trial_module, "_image", spy)
+    s = TrialSettings(images=4, seed=2)
+    for feats in (f, mini):
+        run_images(feats, None, s, "anatomy", [1, 3])
+    a, b = seen[:2], seen[2:]
+    assert [x[1:] for x in a] == [x[1:] for x in b]
