@@ -405,3 +405,11 @@ def test_push_paces_by_time_s_else_the_rate():
     assert send_times([rec(5.0), rec(5.5)], 4.0) == [0.0, 0.25]
     assert send_times([rec(5.0), rec(None)], None) == [0.0, 1 / 30]
     assert send_times([rec(5.0), rec(4.0)], None) == [0.0, 1 / 30]
+
+
+@pytest.mark.parametrize("argv", [["serve", "--features", "F.json"], ["push", "P.jsonl"]])
+def test_without_pyigtl_the_live_commands_stop_with_one_line_naming_the_extra(argv, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "pyigtl", None)
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "ftrac_design[live]" in err and "'pyigtl'" in err

@@ -8,8 +8,6 @@ from pathlib import Path
 
 import click
 
-from .serve import live_module
-
 
 @click.command("push")
 @click.argument("poses_path", metavar="POSES", type=click.Path(dir_okay=False, path_type=Path))
@@ -35,11 +33,13 @@ def command(poses_path: Path, host: str, port: int, name: str, space: str, rate_
     from tqdm import tqdm
 
     from ..igt.frames import check_transform_name
+    from ..igt.link import pyigtl
     from ..igt.poses import read_pose_records
+    from ..workflows import serve as serve_mod
 
+    pyigtl()
     check_transform_name(name, "name")
     poses = read_pose_records(poses_path)
-    serve_mod = live_module("serve")
     options = serve_mod.PushOptions(host=host, port=port, name=name, space=space, rate_hz=rate_hz,
                                     connect_timeout_s=timeout_s)
     with tqdm(total=len(poses), desc="push", unit="pose", file=sys.stderr,

@@ -12,23 +12,9 @@ from pathlib import Path
 
 import click
 
-from ..errors import InputError
 from .track import _setup
 
 _FILE = click.Path(dir_okay=False, path_type=Path)
-
-
-def live_module(name: str):
-    """Import ``ftrac_design.workflows.<name>``; InputError naming the ``live`` extra when pyigtl is missing."""
-    import importlib
-
-    try:
-        return importlib.import_module(f"ftrac_design.workflows.{name}")
-    except ModuleNotFoundError as exc:
-        if exc.name not in ("pyigtl", "crcmod"):
-            raise
-        raise InputError(None, None, "pyigtl, which this installation does not have: pip install "
-                                     "'ftrac_design[live]'", parameter="port") from None
 
 
 @click.command("serve")
@@ -74,8 +60,10 @@ def command(features_path: Path, camera_path: Path | None, port: int, host: str,
     may disconnect and reconnect. Ctrl-C stops it and prints a summary.
     """
     from ..igt.frames import check_transform_name
+    from ..igt.link import pyigtl
+    from ..workflows import serve as serve_mod
 
-    serve_mod = live_module("serve")
+    pyigtl()
     check_transform_name(name, "name")
     setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
     options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue,

@@ -17,23 +17,23 @@ the IMAGE's timestamp. Its matrix is float32 (the protocol's) and by default RAS
 :mod:`ftrac_design.igt`); the metadata (:data:`METADATA_KEYS`) carry the pose at full
 precision in SPEC §4's own terms, its status, covariance and timings.
 
-**STATUS** (the protocol's status message, which pyigtl does not provide): code, sub-code,
+**STATUS** (the protocol's status message, which pyigtl does not provide; :func:`status_message_class`): code, sub-code,
 error name (≤ 20 bytes) and text. Codes used: 0 invalid packet (a malformed message), 9
 checksum error, 12 unknown message type, 10 configuration error (no camera for a frame).
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import struct
+from types import ModuleType
 from typing import Any
 
 import numpy as np
-from pyigtl import ImageMessage, TransformMessage
-from pyigtl.messages import MessageBase
 
-from ..errors import InputError
+from ..errors import InputError, require
 from ..pose import Camera
 from ..pose.observation import camera_from_dict
 from .frames import Space, in_space, pose_matrix
@@ -70,30 +70,58 @@ METADATA_KEYS = {
 }
 
 
-class StatusMessage(MessageBase):
-    """OpenIGTLink STATUS: ``code`` (uint16), ``subcode`` (int64), ``error_name`` (≤ 20
-    bytes) and ``status_string`` (NUL-terminated)."""
-
-    def __init__(self, code: int = STATUS_OK, subcode: int = 0, error_name: str = "", status_string: str = "",
-                 timestamp: float | None = None, device_name: str | None = None):
-        MessageBase.__init__(self, timestamp=timestamp, device_name=device_name)
-        self._message_type = "STATUS"
-        self.code, self.subcode = int(code), int(subcode)
-        self.error_name, self.status_string = error_name, status_string
-        self._valid_message = True
-
-    def _pack_content(self) -> bytes:
-        name = self.error_name.encode("ascii", "replace")[:20]
-        return (struct.pack(">Hq20s", self.code, self.subcode, name)
-                + self.status_string.encode("utf-8", "replace") + b"\0")
-
-    def _unpack_content(self, content: bytes) -> None:
-        self.code, self.subcode, name = struct.unpack(">Hq20s", content[:30])
-        self.error_name = name.rstrip(b"\0").decode("ascii", "replace")
-        self.status_string = content[30:].split(b"\0", 1)[0].decode("utf-8", "replace")
+def pyigtl() -> ModuleType:
+    """The pyigtl package (the ``live`` extra); MissingDependencyError (exit 2) naming it when absent."""
+    return require("pyigtl", "live", "OpenIGTLink (serve, push)")
 
 
-def status_message(code: int, text: str, device_name: str, timestamp: float | None = None) -> StatusMessage:
+@functools.cache
+def status_message_class() -> type:
+    """OpenIGTLink STATUS as a pyigtl message: ``code`` (uint16), ``subcode`` (int64),
+    ``error_name`` (≤ 20 bytes) and ``status_string`` (NUL-terminated)."""
+    MessageBase = pyigtl().MessageBase
+
+    class StatusMessage(MessageBase):
+        def __init__(self, code: int = STATUS_OK, subcode: int = 0, error_name: str = "", status_string: str = "",
+                     timestamp: float | None = None, device_name: str | None = None):
+            MessageBase.__init__(self, timestamp=timestamp, device_name=device_name)
+            self._message_type = "STATUS"
+            self.code, self.subcode = int(code), int(subcode)
+            self.error_name, self.status_string = error_name, status_string
+            self._valid_message = True
+
+        def _pack_content(self) -> bytes:
+            name = self.error_name.encode("ascii", "replace")[:20]
+            return (struct.pack(">Hq20s", self.code, self.subcode, name)
+                    + self.status_string.encode("utf-8", "replace") + b"\0")
+
+        def _unpack_content(self, content: bytes) -> None:
+            self.code, self.subcode, name = struct.unpack(">Hq20s", content[:30])
+            self.error_name = name.rstrip(b"\0").decode("ascii", "replace")
+            self.status_string = content[30:].split(b"\0", 1)[0].decode("utf-8", "replace")
+
+    return StatusMessage
+
+
+def crc64(data: bytes | bytearray) -> int:
+    """OpenIGTLink's CRC-64 of a message body (pyigtl's, in C through crcmod)."""
+    return require("pyigtl.messages", "live", "OpenIGTLink (serve, push)").CRC64(data)
+
+
+def parse_header(head: bytes) -> dict[str, Any]:
+    """pyigtl's parsed fields of a 58-byte OpenIGTLink header (type, device, timestamp, body size)."""
+    return pyigtl().MessageBase.parse_header(bytes(head))
+
+
+def image_message(fields: dict[str, Any], body: bytes | bytearray) -> Any:
+    """The IMAGE message of a received header's ``fields`` and ``body`` (pyigtl's ImageMessage);
+    raises whatever decoding a malformed body raises."""
+    msg = pyigtl().ImageMessage()
+    msg.unpack(fields, body)
+    return msg
+
+
+def status_message(code: int, text: str, device_name: str, timestamp: float | None = None) -> Any:
     """A STATUS reply: ``code``, error name ``"OK"`` or ``"Error"``, ``text`` on one line.
 
     Parameters
@@ -103,8 +131,8 @@ def status_message(code: int, text: str, device_name: str, timestamp: float | No
     device_name : the device the reply is about (≤ 20 bytes; cut).
     timestamp : the message's timestamp (s since 1970), default now.
     """
-    msg = StatusMessage(code, 0, "OK" if code == STATUS_OK else "Error", " ".join(str(text).split()),
-                        timestamp=timestamp, device_name=device_name[:20])
+    msg = status_message_class()(code, 0, "OK" if code == STATUS_OK else "Error", " ".join(str(text).split()),
+                                 timestamp=timestamp, device_name=device_name[:20])
     msg.header_version = 2
     return msg
 
@@ -130,7 +158,7 @@ def _metadata_pair(meta: dict[str, str], key: str) -> list[float]:
     return vals
 
 
-def image_pixels(msg: ImageMessage) -> np.ndarray:
+def image_pixels(msg: Any) -> np.ndarray:
     """The (H, W) pixels of an IMAGE message as float32 (row ``j``, column ``i``).
 
     Raises InputError (named ``IMAGE``) unless the image is one grey slice of a trackable size.
@@ -152,7 +180,7 @@ def image_pixels(msg: ImageMessage) -> np.ndarray:
     return img.astype(np.float32)
 
 
-def image_camera(msg: ImageMessage, shape: tuple[int, int], override: Camera | None) -> tuple[Camera, str]:
+def image_camera(msg: Any, shape: tuple[int, int], override: Camera | None) -> tuple[Camera, str]:
     """The camera of one IMAGE (see the module for the order) and where it came from.
 
     Parameters
@@ -195,7 +223,7 @@ def _json_or_null(a: Any) -> str:
 
 
 def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: float,
-                      extra: dict[str, str]) -> TransformMessage:
+                      extra: dict[str, str]) -> Any:
     """The TRANSFORM answering one frame (header version 2).
 
     Parameters
@@ -212,7 +240,7 @@ def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: 
     """
     ok = bool(pose.get("converged")) and pose.get("rotation") is not None and pose.get("translation_mm") is not None
     M = in_space(pose_matrix(pose["rotation"], pose["translation_mm"]), space) if ok else np.eye(4)
-    msg = TransformMessage(M, timestamp=timestamp, device_name=name)
+    msg = pyigtl().TransformMessage(M, timestamp=timestamp, device_name=name)
     msg.header_version = 2
     rms = pose.get("rms_residual_px")
     meta = {

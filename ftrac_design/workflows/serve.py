@@ -4,12 +4,14 @@
 messages; each frame is tracked and answered by a TRANSFORM (:mod:`ftrac_design.igt.link`
 says what it carries). One client at a time; when it leaves, the server waits for the next.
 
-- **Threads.** pyigtl's server thread reads the socket and puts each IMAGE in the inbox; the
-  calling (main) thread tracks frames from the inbox and queues the answers, which the server
-  thread sends between reads. The server is created in the calling thread because it installs
-  SIGINT/SIGTERM handlers there (as pyigtl's does): Ctrl-C (or SIGTERM) raises
-  KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the socket and
-  returns its summary.
+- **Threads.** The server's thread (a ``socketserver.TCPServer``, one connection at a time)
+  reads the socket and puts each IMAGE in the inbox; the calling (main) thread tracks frames
+  from the inbox and queues the answers, which the server thread sends between reads. pyigtl
+  packs and unpacks the messages. The server is created in the calling thread because it
+  installs SIGINT/SIGTERM handlers there: Ctrl-C (or SIGTERM) raises KeyboardInterrupt in that
+  thread, :func:`serve` leaves its loop, closes the socket and returns its summary (pyigtl's
+  own server shuts down inside its signal handler, where the interrupted thread may hold a lock
+  the socket thread needs).
 - **A bounded inbox.** The socket thread only reads: a frame is checked and decoded (CRC,
   pixels, camera) when the tracker takes it, so a frame that is dropped costs its bytes only.
   At most ``queue`` frames wait; a frame arriving at a full inbox pushes out the OLDEST, which
@@ -48,8 +50,6 @@ from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol, TextIO
 
 import numpy as np
-from pyigtl import OpenIGTLinkServer
-from pyigtl.comm import OpenIGTLinkBase
 
 from ..errors import InputError
 from ..igt import link
@@ -274,7 +274,7 @@ class _Handler(socketserver.BaseRequestHandler):
         # buffer is left to the kernel's autotuning (setting it would cap it at rmem_max)
         sock.settimeout(0.01)
         try:
-            while not srv.communication_thread_stop_requested:
+            while not srv.stop_requested:
                 try:
                     srv.receive_one(sock, conn)
                 except _Framing as exc:
@@ -288,8 +288,8 @@ class _Handler(socketserver.BaseRequestHandler):
             srv.connection_closed(conn)
 
 
-class IgtlServer(OpenIGTLinkServer):
-    """pyigtl's OpenIGTLink server bound to any address, with a bounded inbox, counted drops,
+class IgtlServer(socketserver.TCPServer):
+    """The OpenIGTLink server: one client at a time, a bounded inbox, counted drops,
     per-connection state and STATUS answers to bad messages (see the module).
 
     Create it in the main thread: it installs its SIGINT/SIGTERM handlers there (they raise
@@ -301,17 +301,22 @@ class IgtlServer(OpenIGTLinkServer):
     log : where connection lines go (or None).
     """
 
+    allow_reuse_address = True
+    #: answers waiting to be sent; beyond this the oldest is dropped (a client that does not read)
+    MAX_OUTGOING = 100
+
     def __init__(self, options: ServeOptions, log: TextIO | None = None):
-        OpenIGTLinkBase.__init__(self)
         self.options, self.log = options, log
         self.inbox = FrameInbox(options.queue)
         self.summary = ServeSummary()
         self.connection = 0
+        self.connected = False
+        self.stop_requested = False
+        self.outgoing: collections.deque[Any] = collections.deque(maxlen=self.MAX_OUTGOING)
         self._frames: dict[int, int] = collections.defaultdict(int)
         self._lock = threading.Lock()
-        self.host, self.allow_reuse_address = options.host, True
         try:
-            socketserver.TCPServer.__init__(self, (options.host, options.port), _Handler)
+            super().__init__((options.host, options.port), _Handler)
         except OSError as exc:
             raise InputError(None, None, f"an address and port this machine can listen on: {options.host}:"
                                          f"{options.port}: {exc.strerror or exc}", parameter="port") from None
@@ -322,11 +327,7 @@ class IgtlServer(OpenIGTLinkServer):
         self._thread.start()
 
     def _signal_handler(self, signum: int, frame: Any) -> None:
-        """SIGINT / SIGTERM: leave :func:`serve`'s loop, which then closes the server.
-
-        pyigtl's own handler shuts the server down inside the handler, i.e. in the main thread
-        at whatever point it was interrupted — possibly holding a lock the socket thread needs
-        to finish, so the shutdown waits forever. Raising here unwinds the main thread first."""
+        """SIGINT / SIGTERM: leave :func:`serve`'s loop, which then closes the server."""
         raise KeyboardInterrupt
 
     def _say(self, text: str) -> None:
@@ -335,19 +336,21 @@ class IgtlServer(OpenIGTLinkServer):
 
     def close(self) -> None:
         """Stop serving, close the socket, restore the signal handlers (idempotent)."""
-        if not self.communication_thread_stop_requested:
-            self._close_server()
+        if not self.stop_requested:
+            self.stop_requested = True
+            self.shutdown()
+            self.server_close()
         for s, h in self._previous_signal_handlers.items():
             if signal.getsignal(s) == self._signal_handler:
                 signal.signal(s, h)
 
     def connection_opened(self, address: Any) -> int:
         """A client connected: a new connection number; stale answers are forgotten."""
-        with self._lock, self.lock_outgoing_messages:
+        with self._lock:
             self.connection += 1
-            self.outgoing_messages.clear()
+            self.outgoing.clear()
             self.summary.connections += 1
-            self._connected = True
+            self.connected = True
             conn = self.connection
         self._say(f"client {address[0]}:{address[1]} connected (connection {conn})")
         return conn
@@ -356,23 +359,27 @@ class IgtlServer(OpenIGTLinkServer):
         """The client left: its waiting frames are dropped unanswered (undelivered)."""
         n = self.inbox.discard_connection(conn)
         with self._lock:
-            self._connected = False
+            self.connected = False
             self.summary.undelivered += n
         self._say(f"connection {conn} closed: {self._frames[conn]} frames received, "
                   f"{self.inbox.dropped[conn]} dropped")
 
     def flush(self, sock: socket.socket) -> None:
-        """Send every queued answer."""
-        while self._send_queued_message_from_socket(sock):
-            pass
+        """Send every queued answer (OSError when the client is gone)."""
+        while True:
+            with self._lock:
+                if not self.outgoing:
+                    return
+                msg = self.outgoing.popleft()
+            sock.sendall(msg.pack())
 
     def reply(self, msg: Any, conn: int) -> bool:
         """Queue ``msg`` for connection ``conn``; False (and counted) when it has closed."""
-        with self._lock, self.lock_outgoing_messages:
-            if conn != self.connection or not self._connected:
+        with self._lock:
+            if conn != self.connection or not self.connected:
                 self.summary.undelivered += 1
                 return False
-            self.outgoing_messages.append(msg)
+            self.outgoing.append(msg)
             return True
 
     def reply_error(self, code: int, text: str, device: str, conn: int, timestamp: float | None = None) -> None:
@@ -384,8 +391,6 @@ class IgtlServer(OpenIGTLinkServer):
 
     def receive_one(self, sock: socket.socket, conn: int) -> None:
         """Read one message (or return after the socket's timeout) and deal with it."""
-        from pyigtl.messages import MessageBase
-
         head = bytearray(HEADER.size)
         if not _recv_into(sock, memoryview(head), started=False):
             return
@@ -400,7 +405,7 @@ class IgtlServer(OpenIGTLinkServer):
                            f"(got version {version}, {size} bytes)")
         body = bytearray(size)
         _recv_into(sock, memoryview(body), started=True)
-        fields = MessageBase.parse_header(bytes(head))
+        fields = link.parse_header(head)
         if mtype_s == "STATUS":
             # a peer's status is information, not a request: answering it could ping-pong
             return
@@ -417,16 +422,12 @@ class IgtlServer(OpenIGTLinkServer):
     def decode(self, item: InboxItem) -> tuple[np.ndarray, Camera] | None:
         """The pixels and camera of a queued IMAGE, or None after answering a bad one with a STATUS
         (CRC mismatch 9, malformed 0, no camera 10)."""
-        from pyigtl import ImageMessage
-        from pyigtl.messages import CRC64
-
         name, conn, ts = item.device, item.connection, item.timestamp
-        if CRC64(item.body) != item.crc:
+        if link.crc64(item.body) != item.crc:
             self.reply_error(link.STATUS_CHECKSUM_ERROR, f"IMAGE {name!r}: CRC mismatch; frame ignored", name, conn, ts)
             return None
-        msg = ImageMessage()
         try:
-            msg.unpack(item.fields, item.body)
+            msg = link.image_message(item.fields, item.body)
             pixels = link.image_pixels(msg)
         except InputError as exc:
             self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: {exc}", name, conn, ts)
@@ -525,9 +526,10 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = fr
 
     Returns
     -------
-    ServeSummary : totals. Must run in the main thread (pyigtl's signal handlers).
+    ServeSummary : totals. Must run in the main thread (the server's signal handlers).
     """
     check_transform_name(options.name, "name")
+    link.pyigtl()
     tracker = factory(setup)
     server = IgtlServer(options, log)
     switch = sys.getswitchinterval()
@@ -584,8 +586,7 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
     int : how many were sent. Raises InputError when no server answers at host:port within
     ``connect_timeout_s``.
     """
-    from pyigtl import OpenIGTLinkClient
-
+    OpenIGTLinkClient = link.pyigtl().OpenIGTLinkClient
     check_transform_name(options.name, "name")
     client = OpenIGTLinkClient(options.host, options.port)
     try:
