@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 JOBS ?= 2
 
-.PHONY: demo test install bench clean chromium
+.PHONY: demo test install bench clean chromium docs
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
@@ -30,8 +30,12 @@ chromium:
 		echo "warning: chromium could not be installed; the report's browser test will fail under CI"; \
 	else echo "note: chromium not found and not root; the report's browser tests will skip (fail under CI)"; fi
 
+# the documentation site into site/; --strict: a broken link, reference or docstring fails it
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict -d site
+
 bench: $(STAMP)
 	for f in benchmarks/*.py; do $(BIN)/python $$f || exit 1; done
 
 clean:
-	rm -rf $(VENV) outputs
+	rm -rf $(VENV) outputs site

@@ -92,7 +92,7 @@ def predicted(features, n: int, e_mm: float, seed: int = 0, noise=None, workspac
 
 
 def save_plot(fig, name: str) -> str:
-    """Write ``docs/img/<name>.png`` (the README shows it) and return its path."""
+    """Write ``docs/img/<name>.png`` (the docs show it) and return its path."""
     import matplotlib.pyplot as plt
 
     path = ROOT / "docs" / "img" / f"{name}.png"

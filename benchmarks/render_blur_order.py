@@ -1,5 +1,5 @@
 """The simulator's pixel integration before its blur: how far a thin wire's image depends on
-where the wire falls within a pixel (a limit of the simulator; README, Radiograph simulator).
+where the wire falls within a pixel (a limit of the simulator; docs/how/simulator.md).
 
 Physically the focal-spot and detector blur act on the photons before the pixels integrate
 them; ``xray/render.py`` integrates the line integral over each pixel (s × s sub-samples),

@@ -1,8 +1,11 @@
-"""ftrac_design — design, manufacture and score FTRAC radiographic fiducials.
+"""ftrac_design — design, manufacture and score FTRAC radiographic fiducials, and track a
+C-arm's pose from X-ray images of one.
 
-Data flows one way: ``design`` (validated parameters) → ``features`` (the geometry, the one
-source of truth) → ``cad`` (CadQuery parts), ``pose`` (single-image solver) and
-``analysis`` (Jacobian conditioning). ``pose`` and ``analysis`` never import CadQuery.
+The rooms (sub-packages) import one way, from ``demo`` and ``cli`` at the top down to
+``design``, ``fileio``, ``errors`` and ``presets`` (the layers contract in pyproject.toml,
+drawn in ``docs/architecture.md``). ``pose``, ``analysis`` and everything but ``cad`` never
+import CadQuery. "SPEC §N" in the docstrings is section N of the interface contract,
+``docs/reference/spec.md``.
 """
 
 from importlib.metadata import PackageNotFoundError

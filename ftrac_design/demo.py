@@ -74,14 +74,19 @@ def format_build(summary: dict[str, Any]) -> str:
 
 
 def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
-    """Score the design over its workspace (``ftrac-design analyze``) into ``out_dir``;
-    returns the analysis.json object."""
+    """Score the design over its workspace (``ftrac-design analyze``) into ``out_dir``: the
+    image-true score on 50 images per condition, and the paper's model; returns the analysis.json
+    object."""
     from .analysis.subject import load_subject, settings_for
+    from .imagescore import TrialSettings
+    from .optimize.execution import open_executor
     from .workflows.analyze import run_analysis
 
     subject = load_subject(design_path)
     settings, thresholds = settings_for(subject)
-    doc, _ = run_analysis(subject, settings, thresholds, Path(out_dir))
+    with open_executor() as (executor, _):
+        doc, _ = run_analysis(subject, settings, thresholds, Path(out_dir), trial=TrialSettings(images=50),
+                              executor=executor)
     return doc
 
 

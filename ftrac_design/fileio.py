@@ -111,7 +111,10 @@ def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Pa
     parameter : str or None
         The argument the error names (the command line shows it as its flag), or None.
 
-    Raises :class:`InputError` when ``out_dir`` is a file, or a directory holding anything else.
+    Raises
+    ------
+    InputError
+        When ``out_dir`` is a file, or a directory holding anything else.
     """
     out_dir = Path(out_dir)
     if out_dir.exists() and not out_dir.is_dir():

@@ -45,7 +45,7 @@ settings.register_profile("ci", deadline=None, derandomize=True, database=None, 
 settings.register_profile("long", deadline=None, print_blob=True, suppress_health_check=_QUIET)
 settings.load_profile(PROFILE)
 
-#: generated cases per input kind under the ``ci`` profile (README: *Fuzzing*); ``long`` ×20
+#: generated cases per input kind under the ``ci`` profile (docs/reference/errors.md: *Fuzzing*); ``long`` ×20
 CASES = {
     "design_check": 120,      # mutated design TOML → `check`
     "design_build": 8,        # mutated design TOML that must fail validation → `build` (exit 2 before CAD)

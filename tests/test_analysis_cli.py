@@ -15,7 +15,7 @@ from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.features.io import write_features
 
-FAST = ["--poses", "500", "--atlas-step-deg", "10"]
+FAST = ["--poses", "500", "--atlas-step-deg", "10", "--score-images", "0"]
 
 
 @pytest.fixture(scope="module")
@@ -106,7 +106,7 @@ def test_analyze_refuses_to_replace_a_foreign_directory(tmp_path, capsys, featur
 def test_compare_prints_a_table_and_draws_overlays(tmp_path, capsys):
     out = tmp_path / "cmp.png"
     assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "400",
-                 "-o", str(out)]) == 0
+                 "--score-images", "0", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     rows = {line.split()[0]: line.split() for line in text.splitlines() if line.split()}
     assert rows["ftrac_2005"][-1] == "PASS" and rows["nine_bead"][-1] == "FAIL"
@@ -122,7 +122,7 @@ def test_analysis_never_imports_cadquery(tmp_path):
         "import sys\n"
         "from ftrac_design.cli.main import main\n"
         f"rc = main(['analyze', r'{MODELS / 'ftrac_2005.toml'}', '-o', r'{tmp_path / 'a'}', '--poses', '200',"
-        " '--atlas-step-deg', '15'])\n"
+        " '--score-images', '2', '--workers', '0', '--atlas-step-deg', '15'])\n"
         "bad = [m for m in sys.modules if m.split('.')[0] in ('cadquery', 'OCP', 'pyvista', 'trimesh')]\n"
         "assert rc == 0 and not bad, (rc, bad)\n"
     )

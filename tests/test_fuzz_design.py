@@ -90,7 +90,8 @@ def test_fuzz_analyze_design(case):
         path = tmp / f"{preset}.toml"
         path.write_text(text, encoding="utf-8")
         out = tmp / "analysis"
-        run = run_cli(["analyze", path, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots"])
+        run = run_cli(["analyze", path, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots",
+                       "--score-images", "0"])
         assert_clean(run, [path], tmp)
         if run.code == 2:
             assert not out.exists(), run.describe()

@@ -52,7 +52,8 @@ def test_fuzz_analyze_features(case):
     with scratch() as tmp:
         feats, out = tmp / "features.json", tmp / "analysis"
         feats.write_text(json.dumps(doc), encoding="utf-8")
-        run = run_cli(["analyze", feats, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots"])
+        run = run_cli(["analyze", feats, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots",
+                       "--score-images", "0"])
         assert_clean(run, [feats], tmp)
         if run.code == 2:
             assert not out.exists(), run.describe()

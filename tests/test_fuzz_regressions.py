@@ -131,7 +131,7 @@ def test_features_design_source_that_is_not_a_string_exits_2():
     with scratch() as tmp:
         feats = tmp / "features.json"
         feats.write_text(json.dumps(doc))
-        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots"])
+        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots", "--score-images", "0"])
         assert_clean(run, [feats], tmp)
         assert run.code == 2 and "design.source" in run.err and not (tmp / "a").exists()
 
@@ -146,7 +146,7 @@ def test_features_line_start_at_1e300_exits_2():
     with scratch() as tmp:
         feats = tmp / "features.json"
         feats.write_text(json.dumps(doc))
-        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots"])
+        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots", "--score-images", "0"])
         assert_clean(run, [feats], tmp)
         assert run.code == 2 and "lines[2].start[0]" in run.err and not (tmp / "a").exists()
 

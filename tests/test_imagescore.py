@@ -119,3 +119,62 @@ def test_common_random_numbers_give_two_designs_the_same_poses_and_draws(ftrac_2
         run_images(feats, None, s, "anatomy", [1, 3])
     a, b = seen[:2], seen[2:]
     assert [x[1:] for x in a] == [x[1:] for x in b]
+
+
+def test_analyze_reports_the_image_true_score_first(tmp_path, capsys):
+    import json
+
+    from ftrac_design.cli.main import main
+
+    out = tmp_path / "a"
+    assert main(["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15", "--score-images", "3",
+                 "--workers", "0", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert text.index("image-true score") < text.index("the paper's model")
+    doc = json.loads((out / "analysis.json").read_text())
+    block = doc["image_score"]
+    assert len(block["records"]) == 6 and block["model"]["images_per_condition"] == 3
+    assert block["figures"] == trial_figures(block["records"], 0)
+    assert "image_score.png" in doc["files"] and (out / "image_score.png").read_bytes()[:4] == b"\x89PNG"
+    assert "Cramér–Rao" in doc["paper_model"]
+
+
+def test_compare_of_a_design_with_itself_gives_ratios_of_exactly_one(tmp_path, capsys):
+    """Common random numbers end to end: the same design twice sees the same images and tracks them
+    the same way, so every paired ratio is 1 with a zero-width interval."""
+    import json
+
+    from ftrac_design.cli.main import main
+
+    out = tmp_path / "c.png"
+    assert main(["compare", "ftrac_2005", "ftrac_2005", "--poses", "100", "--score-images", "24", "--workers", "0",
+                 "-o", str(out)]) == 0
+    doc = json.loads(out.with_suffix(".json").read_text())
+    first, second = (d["image_score"] for d in doc["designs"])
+    assert first["figures"] == second["figures"] and first["vs_first"] is None
+    clean = second["vs_first"]["clean"]
+    assert clean["images"] == first["figures"]["clean"]["right"] >= 20
+    assert clean["translation_p95_ratio"] == 1.0 and clean["translation_p95_ratio_95ci"] == [1.0, 1.0]
+    assert clean["rotation_p95_ratio"] == 1.0
+    assert "image-true score" in capsys.readouterr().out
+
+
+def test_the_trial_lifts_the_time_budget(ftrac_2005, monkeypatch):
+    """A score measures the method, not the machine's load: every image is tracked with the default
+    options but an unlimited time budget (a loaded machine would otherwise refuse more images)."""
+    from ftrac_design.segment import TrackOptions, pipeline
+
+    f, body = ftrac_2005
+    seen = []
+    real = pipeline.track_image
+
+    def spy(image, features, camera, options=None, *a, **k):
+        seen.append(options)
+        return real(image, features, camera, options, *a, **k)
+
+    monkeypatch.setattr(pipeline, "track_image", spy)
+    run_images(f, body, TrialSettings(images=1, seed=8, conditions=("clean",)), "clean", [0])
+    (opts,) = seen
+    assert opts.time_budget_s == float("inf")
+    assert {k: v for k, v in vars(opts).items() if k != "time_budget_s"} == \
+        {k: v for k, v in vars(TrackOptions()).items() if k != "time_budget_s"}

@@ -215,7 +215,8 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
 
     out = tmp_path / "an"
     r = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15",
-                                 "--imaging", "--imaging-poses", "2", "--dose", "2e4", "-o", str(out)])
+                                 "--score-images", "0", "--imaging", "--imaging-poses", "2", "--dose", "2e4",
+                                 "-o", str(out)])
     assert r.exit_code in (0, 1), r.output
     doc = json.loads((out / "analysis.json").read_text())
     im = doc["imaging"]

@@ -28,7 +28,7 @@ from ftrac_design.pose.simulate import Workspace
 
 MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
-#: segmentation error at the detector is ~0.02–0.4 mm (README, Table V): a relabelling that
+#: segmentation error at the detector is ~0.02–0.4 mm (docs/paper.md, Table V): a relabelling that
 #: leaves less than this RMS in F would be a practical ambiguity
 MIN_SELF_FIT_RMS_MM = 1.0
 #: nine_bead's layout before it was graded: 40° and 4.5 mm steps, an exact two-fold axis

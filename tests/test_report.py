@@ -35,7 +35,7 @@ def built(tmp_path_factory) -> Path:
     build = root / "ftrac_mini"
     for args in (["build", MODELS / "ftrac_mini.toml", "-o", build],
                  ["analyze", MODELS / "ftrac_mini.toml", "-o", build / "analysis", "--poses", "200",
-                  "--atlas-step-deg", "10"],
+                  "--atlas-step-deg", "10", "--score-images", "24", "--workers", "0"],
                  ["report", build]):
         run = run_cli(args)
         assert run.code == 0, run.describe()
@@ -81,8 +81,8 @@ def test_page_is_self_contained_with_every_section(built):
     page = _parse(html)
     assert page.h2 == list(SECTIONS)
     assert not page.external
-    # render + score + two atlas pictures, each a decodable PNG data URI
-    assert len(page.imgs) == 4
+    # render + image-true score + paper's score + two atlas pictures, each a decodable PNG data URI
+    assert len(page.imgs) == 5
     for src in page.imgs:
         assert src.startswith("data:image/png;base64,")
         assert base64.b64decode(src.split(",", 1)[1]).startswith(PNG_MAGIC)
@@ -90,6 +90,11 @@ def test_page_is_self_contained_with_every_section(built):
     manifest = json.loads((built / "manifest.json").read_text())
     for name, info in manifest["files"].items():  # every output file with its hash, re-checked on disk
         assert name in text and info["sha256"] in text
+    # the image-true score first, with the figures analysis.json holds; the paper's model labelled as such
+    analysis = json.loads((built / "analysis" / "analysis.json").read_text())
+    clean = analysis["image_score"]["figures"]["clean"]
+    assert text.index("Image-true score.") < text.index("The paper's model.")
+    assert f"{clean['translation_p95_mm']:.3g}" in text and "image-true score, anatomy" in text
     assert text.count('<span class="badge ok">ok</span></td></tr>') >= len(manifest["files"])
     for piece in manifest["bom"]["wires"]["pieces"]:
         assert piece["piece"] in text
@@ -136,7 +141,7 @@ def test_page_renders_in_headless_chromium(built, tmp_path):
     dom = dump_dom(built / "report.html")
     for title in SECTIONS:
         assert f">{title}</h2>" in dom, title
-    assert dom.count('src="data:image/png;base64,') == 4
+    assert dom.count('src="data:image/png;base64,') == 5
     png = screenshot(built / "report.html", tmp_path / "shot.png", 1280, 2000)
     im = np.asarray(Image.open(png).convert("RGB"))
     assert im.shape[:2] == (2000, 1280)
@@ -150,7 +155,7 @@ def test_page_renders_in_headless_chromium(built, tmp_path):
 
 def test_report_of_a_design_file_builds_in_a_temporary_directory(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    run = run_cli(["report", MODELS / "nine_bead.toml", "--poses", "200"])
+    run = run_cli(["report", MODELS / "nine_bead.toml", "--poses", "200", "--score-images", "0"])
     assert run.code == 0, run.describe()
     out = tmp_path / "report_nine_bead.html"
     assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
@@ -158,11 +163,11 @@ def test_report_of_a_design_file_builds_in_a_temporary_directory(tmp_path, monke
     assert page.h2 == list(SECTIONS) and len(page.imgs) == 4
     text = out.read_text()
     assert "not kept" in text and "This design has no wires." in text
-    assert "FAIL" in text  # nine_bead fails the default 1 mm translation threshold (README)
+    assert "FAIL" in text  # nine_bead fails the default 1 mm translation threshold (docs/how/score.md)
 
 
 def test_analyze_report_without_a_build(tmp_path):
-    run = run_cli(["analyze", MODELS / "nine_bead.toml", "-o", tmp_path / "a", "--poses", "100",
+    run = run_cli(["analyze", MODELS / "nine_bead.toml", "-o", tmp_path / "a", "--poses", "100", "--score-images", "0",
                    "--atlas-step-deg", "15", "--report"])
     assert run.code == 1, run.describe()  # the analysis fails its threshold; the report is still written
     page = _parse(tmp_path / "a" / "report.html")

@@ -126,7 +126,7 @@ def test_profile_changes_cut_sizes_exactly_as_stated(profile):
     assert (lim.min_wall, lim.recommended_wall) == ((1.0, 1.5) if profile == "cnc" else (0.8, 1.2))
 
 
-# what check says about the presets (quoted in the README)
+# what check says about the presets (quoted in docs/reference/design-rules.md)
 PRESET_VERDICTS = {
     ("ftrac_2005", "cnc"): (set(), {"groove.depth"}),
     ("ftrac_2005", "fdm"): (set(), set()),

@@ -179,7 +179,7 @@ def test_nominal_view_of_the_published_design_is_clear(features_2005):
 
 # ---- the analysis: analysis.json, thresholds, compare --------------------------------------
 
-FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots"]
+FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots", "--score-images", "0"]
 
 
 @pytest.fixture(scope="module")
@@ -251,7 +251,7 @@ def test_compare_shows_segmentability(tmp_path, capsys):
 
     out = tmp_path / "c.png"
     assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "200",
-                 "-o", str(out)]) == 0
+                 "--score-images", "0", "-o", str(out)]) == 0
     text = capsys.readouterr().out
     assert "overlap" in text and "clear p5" in text
     doc = json.loads(out.with_suffix(".json").read_text())

@@ -17,11 +17,13 @@ from .score import AnalysisSettings, Thresholds
 @dataclass
 class Subject:
     """What is analysed: the features, and the design's own [analysis] table if it came
-    from a design file (None for features.json)."""
+    from a design file (None for features.json), and the design itself (None for features.json:
+    its body is then found through the features' ``source`` where that file exists)."""
 
     features: Features
     spec: Any | None
     path: Path
+    design: Any | None = None
 
 
 def load_subject(path: str | Path) -> Subject:
@@ -46,7 +48,7 @@ def load_subject(path: str | Path) -> Subject:
         from ..features import compute_features
 
         design = load_design(path)
-        return Subject(compute_features(design), design.analysis, path)
+        return Subject(compute_features(design), design.analysis, path, design)
     if path.suffix.lower() == ".json":
         from ..features import load_features
 

@@ -34,7 +34,7 @@ Mount and connector (paper §II.A.3, §IV), same two profiles:
   ``hole_allowance`` = 0.2 mm because FDM prints holes undersize.
 
 :func:`rule_limits` gives each profile's design-rule limits (minimum walls, smallest tool,
-depth-to-tool ratio, tolerance) with their sources (``/work/shared/notes/cad-practice.md``).
+depth-to-tool ratio, tolerance) with their sources (``docs/reference/manufacturing.md``).
 """
 
 from __future__ import annotations

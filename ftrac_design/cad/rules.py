@@ -3,7 +3,7 @@
 ``ftrac-design check`` and ``build`` run :func:`check_design`. Every rule measures one
 value on the design — the worst case over all the places it applies — and compares it with
 a limit taken from the profile (:func:`ftrac_design.cad.profiles.rule_limits`, sources in
-``/work/shared/notes/cad-practice.md``). A rule *fails* (a violation: ``check`` exits 1,
+``docs/reference/manufacturing.md``). A rule *fails* (a violation: ``check`` exits 1,
 ``build`` refuses without ``--force``) when the limit is broken, and *warns* when the value
 is within the limit but short of the recommended one (CNC walls between 1.0 and 1.5 mm, FDM
 walls between 0.8 and 1.2 mm, clearances below the process tolerance); a warning never

@@ -3,6 +3,7 @@ workspace and map its blind spots (SPEC §5; format in :mod:`ftrac_design.workfl
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 
 import click
@@ -76,20 +77,30 @@ def overrides(poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, l
               help="imaging: detector line-spread Gaussian σ, pixels")
 @click.option("--focal-spot-mm", type=click.FloatRange(min=0.0), default=0.6, show_default=True,
               help="imaging: focal spot size (FWHM)")
+@click.option("--score-images", type=click.IntRange(min=0), default=100, show_default=True,
+              help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
+                   "patient); 0 = the paper's feature-level model only")
+@click.option("--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample")
+@click.option("--workers", type=click.IntRange(min=0), default=None,
+              help="processes rendering and tracking the score's images [default: one per core; 0 = this process]")
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
 @click.option("--report", is_flag=True, default=False,
               help="also write report.html into the output directory (with the build, for a build's features.json)")
 def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm,
             lateral_mm, segmentation_error_mm, max_translation_mm, max_rotation_deg, max_condition, atlas_step_deg,
             no_plots, report=False, max_overlap_share=None, min_clearance_px=None, imaging=False, imaging_poses=60,
-            dose=1.0e4, energy_kev=60.0, blur_px=0.7, focal_spot_mm=0.6) -> int:
+            dose=1.0e4, energy_kev=60.0, blur_px=0.7, focal_spot_mm=0.6, score_images=100, score_seed=0,
+            workers=None) -> int:
     """Score SOURCE (a design file, a preset's name or a features.json) over the C-arm workspace.
 
-    Predicted 1σ pose errors (the Cramér–Rao bound of the solver's Jacobian) and the
+    The image-true score: a seeded sample of workspace poses rendered clean and over a patient,
+    each image tracked as `track` does — the share refused and wrong, the p95 of the right poses'
+    errors with 95 % intervals. Beside it the paper's model: predicted 1σ pose errors (the
+    Cramér–Rao bound of the solver's Jacobian with a uniform segmentation error) and the
     condition number at every workspace pose, per feature group and feature, and a
     whole-sphere atlas of blind spots; the image clearance between features (segmentability).
-    Writes analysis.json and score.png, atlas_sphere.png, atlas_cone.png, segmentability.png
-    (and imaging.png with --imaging); exits 1 if a threshold is exceeded.
+    Writes analysis.json and image_score.png, score.png, atlas_sphere.png, atlas_cone.png,
+    segmentability.png (and imaging.png with --imaging); exits 1 if a threshold is exceeded.
     """
     from tqdm import tqdm
 
@@ -119,9 +130,22 @@ def command(source: Path, output: Path | None, poses, seed, cone_deg, roll_range
             return bound(progress=progress)
 
         total += imaging_poses
-    with tqdm(total=total, unit="pose", desc=f"analysing {subject.features.name}", leave=False, disable=None) as bar:
+    trial = None
+    if score_images:
+        from ..imagescore import TrialSettings
+
+        trial = TrialSettings(images=score_images, seed=score_seed)
+        total += score_images * len(trial.conditions)
+    with contextlib.ExitStack() as stack:
+        executor = None
+        if trial is not None and workers != 0:
+            from ..optimize.execution import open_executor
+
+            executor, _ = stack.enter_context(open_executor(None, workers))
+        bar = stack.enter_context(tqdm(total=total, unit="step", desc=f"analysing {subject.features.name}",
+                                       leave=False, disable=None))
         doc, out_dir = run_analysis(subject, settings, thresholds, output, atlas_step_deg, not no_plots, bar.update,
-                                    imaging=pixel_level)
+                                    imaging=pixel_level, trial=trial, executor=executor)
     click.echo(format_summary(doc, format_imaging))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))
     if report:

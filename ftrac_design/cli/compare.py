@@ -14,14 +14,23 @@ from .analyze import overrides, workspace_options
 @click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="overlay plot to write [default: outputs/compare.png]; compare.json beside it")
 @workspace_options
+@click.option("--score-images", type=click.IntRange(min=0), default=100, show_default=True,
+              help="the image-true score: workspace poses rendered and tracked per condition, the same images "
+                   "for every design; 0 = the paper's feature-level model only")
+@click.option("--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample")
+@click.option("--workers", type=click.IntRange(min=0), default=None,
+              help="processes rendering and tracking the score's images [default: one per core; 0 = this process]")
 def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_deg, roll_range_deg, depth_mm,
-            depth_range_mm, lateral_mm, segmentation_error_mm) -> int:
+            depth_range_mm, lateral_mm, segmentation_error_mm, score_images: int = 100, score_seed: int = 0,
+            workers: int | None = None) -> int:
     """Score each design (DESIGN.toml, a preset's name or FEATURES.json) over the same workspace and noise.
 
-    Prints a side-by-side table of predicted 1σ errors, conditioning and image clearance
-    between features (share of poses where they overlap, 5th-percentile clearance) and draws
-    their distributions overlaid. Each design is judged by its own thresholds; the workspace
-    is the command line's (or the defaults), the same for all.
+    First the image-true score: the same rendered images (clean and over a patient) for every
+    design, tracked; p95 errors, shares refused and wrong, and each design's paired p95 ratios to
+    the first with 95 % intervals. Then the paper's model: a side-by-side table of predicted 1σ
+    errors, conditioning and image clearance between features (share of poses where they
+    overlap, 5th-percentile clearance), their distributions drawn overlaid. Each design is judged
+    by its own thresholds; the workspace is the command line's (or the defaults), the same for all.
     """
     from tqdm import tqdm
 
@@ -40,6 +49,19 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
         for sub in subjects:
             _, th = settings_for(sub, **common)
             scores.append(score_design(sub.features, base.for_parts(sub.spec), th, progress=bar.update))
+    images = None
+    if score_images:
+        from ..imagescore import TrialSettings
+        from ..optimize.execution import open_executor
+        from ..workflows.compare import image_scores, image_table
+
+        trial = TrialSettings(images=score_images, seed=score_seed, workspace=base.workspace, camera=base.camera)
+        with open_executor(None, workers) as (executor, _), \
+                tqdm(total=score_images * len(trial.conditions) * len(subjects), unit="image", desc="imaging",
+                     leave=False, disable=None) as bar:
+            images = image_scores(subjects, trial, executor, bar.update)
+        click.echo("\n".join(image_table(images, trial)))
+        click.echo("the paper's model (feature-level Cramér–Rao bound):")
     rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "overlap",
              "clear p5 px", "verdict")]
     table = []
@@ -76,6 +98,8 @@ def command(sources: tuple[Path, ...], output: Path | None, poses, seed, cone_de
 
     with atomic_file(out) as tmp:
         plot_compare(scores, tmp)
+    for row, im in zip(table, images or [None] * len(table)):
+        row["image_score"] = im
     write_json_atomic(out.with_suffix(".json"), {"format": "ftrac-compare", "version": 1,
                                                  "settings": base.to_dict(), "designs": table})
     click.echo(f"wrote {out} and {out.with_suffix('.json')}")

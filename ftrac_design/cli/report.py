@@ -29,7 +29,12 @@ from ..errors import InputError
               help="workspace poses when the analysis is run [default: the design's, else 20000]")
 @click.option("--profile", type=click.Choice(["cnc", "fdm"]), default="cnc", show_default=True,
               help="profile of the build made from a design file (the page shows the rules of both)")
-def command(source: Path, output: Path | None, analysis_dir: Path | None, poses: int | None, profile: str) -> int:
+@click.option("--score-images", type=click.IntRange(min=0), default=100, show_default=True,
+              help="when the analysis is run: images per condition of the image-true score (0 = none)")
+@click.option("--workers", type=click.IntRange(min=0), default=None,
+              help="processes for the image-true score [default: one per core; 0 = this process]")
+def command(source: Path, output: Path | None, analysis_dir: Path | None, poses: int | None, profile: str,
+            score_images: int = 100, workers: int | None = None) -> int:
     """Write one HTML page for a design: render, parameters, features, design rules (cnc and
     fdm), score and atlas, bill of materials, wire cut list, output files with sha256, versions.
 
@@ -47,9 +52,9 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
         if not (source / "manifest.json").is_file():
             raise InputError(source, None, "a build directory with manifest.json (written by `ftrac-design build`) "
                                            "or a design file (.toml)")
-        path = report_for_build(source, output, analysis_dir, poses=poses)
+        path = report_for_build(source, output, analysis_dir, poses=poses, score_images=score_images, workers=workers)
     elif source.suffix.lower() == ".toml" or source.is_file():
-        path = _report_design(source, output, analysis_dir, poses, profile)
+        path = _report_design(source, output, analysis_dir, poses, profile, score_images, workers)
     else:
         raise InputError(source, None, f"a design file (.toml), a build directory or a preset ({known_presets()}) "
                                        "(file not found)")
@@ -58,7 +63,7 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
 
 
 def _report_design(source: Path, output: Path | None, analysis_dir: Path | None, poses: int | None,
-                   profile: str) -> Path:
+                   profile: str, score_images: int, workers: int | None) -> Path:
     from ..cad.build import build_fiducial
     from ..design import load_design
     from ..workflows.report import report_for_build
@@ -68,4 +73,5 @@ def _report_design(source: Path, output: Path | None, analysis_dir: Path | None,
     with tempfile.TemporaryDirectory(prefix="ftrac-report-build-") as tmp:
         build = Path(tmp) / design.name
         build_fiducial(design, build, profile=profile, force=True)
-        return report_for_build(build, output, analysis_dir, poses=poses, build_kept=False, design=design)
+        return report_for_build(build, output, analysis_dir, poses=poses, build_kept=False, design=design,
+                                score_images=score_images, workers=workers)

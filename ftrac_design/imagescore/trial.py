@@ -15,6 +15,11 @@ designs that share a nominal beam direction), the same noise draws and the same 
 the design, so two designs' figures differ by the designs, not by the draws; a paired ratio of two
 designs' figures is far tighter than either figure alone.
 
+Every image is tracked with :class:`ftrac_design.segment.TrackOptions`' defaults but for the time
+budget, which is lifted: a score measures the method, not how busy the machine was (with the
+budget, a loaded machine refuses images that an idle one tracks, and the same seed would not give
+the same figures).
+
 An image ends in one of three ways: ``right`` (converged, within :data:`WRONG_DEG` and
 :data:`WRONG_MM` of the truth), ``wrong`` (converged but further off: a confident wrong pose) or
 ``refused`` (the tracker returned no pose). Lengths mm, angles degrees in the records.
@@ -104,13 +109,15 @@ def run_images(features: Features, body, settings: TrialSettings, condition: Con
         ``{"condition", "k", "outcome": "right"|"wrong"|"refused", "translation_mm",
         "rotation_deg"}`` — the 3-D errors (None when refused).
     """
+    from ..segment.options import TrackOptions
     from ..segment.pipeline import track_image
 
+    options = TrackOptions(time_budget_s=math.inf)
     R, t = workspace_poses(settings.workspace, features.nominal_beam_direction, settings.images, settings.seed)
     out = []
     for k in indices:
         img = _image(features, body, condition, R[k], t[k], settings.camera, settings.seed, int(k))
-        pose = track_image(img, features, settings.camera, body=body).pose
+        pose = track_image(img, features, settings.camera, options, body=body).pose
         rec: dict[str, Any] = {"condition": condition, "k": int(k), "outcome": "refused",
                                "translation_mm": None, "rotation_deg": None}
         if pose.converged:

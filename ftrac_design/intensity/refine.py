@@ -273,7 +273,7 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     clutter such as bone edges, recomputed from the residual at the pose each round reached
     (``reweight_rounds`` rounds of iteratively reweighted least squares, the Poisson weights
     with them). ``background="polynomial", robust=None`` is the plain gain + quadratic model.
-    Figures: ``benchmarks/intensity_accuracy.py``, README.
+    Figures: ``benchmarks/intensity_accuracy.py``, ``docs/how/intensity.md``.
 
     Each scale (and round) stops when a step is smaller than ``step_sigma`` of the estimate's
     own σ in the Mahalanobis norm ``√(δᵀ H δ / s²)`` (H the Gauss–Newton information, s² the

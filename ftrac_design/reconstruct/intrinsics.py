@@ -24,7 +24,7 @@ Why one image tells little: under weak perspective (object depth ≪ distance) t
 unchanged when f and t_z scale together, and when the principal point and t_x, t_y shift
 together; only the perspective within the ~5 cm fiducial at ~67 cm separates them. More
 images of the same kind add information only as fast as 1/√N (the ambiguity holds for every
-image's own t_z), see the README's numbers.
+image's own t_z), see the numbers in docs/tutorials/reconstruct.md.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """A real headless browser (Chromium) looking at a report: screenshot and rendered DOM.
 
-Used by the tests (the page must render, not only parse) and to make the README's
+Used by the tests (the page must render, not only parse) and to make the docs'
 screenshots. Chromium comes from the system packages (Debian: ``apt-get install chromium``;
 ``make test`` installs it when missing and the user is root).
 """

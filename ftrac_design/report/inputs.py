@@ -20,8 +20,8 @@ from typing import Any
 from ..errors import InputError
 from ..fileio import sha256_file
 
-#: pictures of an analysis directory, in page order (file names as ``analysis/report.py`` writes them)
-ANALYSIS_PICTURES = ("score.png", "atlas_sphere.png", "atlas_cone.png")
+#: pictures of an analysis directory, in page order (file names as ``ftrac-design analyze`` writes them)
+ANALYSIS_PICTURES = ("image_score.png", "score.png", "atlas_sphere.png", "atlas_cone.png")
 
 
 @dataclass(frozen=True)

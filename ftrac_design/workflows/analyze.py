@@ -11,12 +11,21 @@ overlap shares per kind and pair, worst poses; :mod:`ftrac_design.analysis.segme
 ``imaging`` block (pixel-level vs feature-level predicted errors at a smaller pose sample;
 :mod:`ftrac_design.intensity.workspace`, computed by the caller), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
+
+Two scores, clearly apart: ``image_score`` — the image-true score (:mod:`ftrac_design.imagescore`:
+a seeded sample of workspace poses rendered clean and over a patient and tracked; the share
+refused and wrong, the p95 of the right poses' errors with intervals, its imaging model and every
+image's record), the default and the one to rank designs by; and ``figures``/``checks``/``groups``/
+``features`` — the paper's model (the feature-level Cramér–Rao bound with the paper's uniform
+segmentation error), kept for its per-feature and per-direction insight and its thresholds.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from concurrent.futures import Executor
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -26,11 +35,16 @@ from ..analysis.segmentability import SegmentabilityAtlas, segmentability_atlas
 from ..analysis.subject import Subject
 from ..features.model import Features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, write_json_atomic
+from ..imagescore import TrialSettings, run_trial, trial_figures
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
 PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png",
          "segmentability": "segmentability.png"}
+IMAGE_SCORE_PLOT = "image_score.png"
+#: what the feature-level figures are, in the summary and analysis.json
+PAPER_MODEL = ("the paper's model: feature-level Cramér–Rao bound, uniform segmentation error per feature "
+               "(Jain et al. 2005)")
 #: the segmentability sphere map's grid is no finer than this (~0.1 ms a direction)
 SEGMENTABILITY_ATLAS_STEP_DEG = 3.0
 
@@ -74,19 +88,61 @@ def default_output_dir(features: Features) -> Path:
     return Path("outputs") / features.name / "analysis"
 
 
+def image_score_block(trial: TrialSettings, records: list[dict], seconds: float) -> dict[str, Any]:
+    """analysis.json's ``image_score`` block: the imaging model, the figures per condition, every
+    image's record and the time it took (s)."""
+    return {"name": "image-true score", "model": trial.describe(), "figures": trial_figures(records, trial.seed),
+            "records": records, "time_s": round(seconds, 3)}
+
+
 def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thresholds, out_dir: Path | None,
                  atlas_step_deg: float = 2.0, plots: bool = True,
                  progress: Callable[[int], None] | None = None,
-                 imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None) -> tuple[dict, Path]:
+                 imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None,
+                 trial: TrialSettings | None = None, executor: Executor | None = None) -> tuple[dict, Path]:
     """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
 
-    ``imaging``: a function of the progress callback returning a pixel-level analysis to put
-    beside the feature-level one (the ``imaging`` block and imaging.png), such as
-    :func:`ftrac_design.intensity.workspace.imaging_analysis` with its arguments bound. The
-    caller passes it in, so that the analysis does not depend on the intensity path above it."""
+    Parameters
+    ----------
+    subject, settings, thresholds
+        What is analysed, and how (the paper's model's workspace, noise and thresholds).
+    out_dir : pathlib.Path or None
+        Output directory (default :func:`default_output_dir`); replaced only if it holds an
+        earlier analysis.
+    atlas_step_deg : float
+        Grid step of the whole-sphere atlas, degrees.
+    plots : bool
+        Write the PNGs.
+    progress : callable or None
+        Called with the number of poses, directions or images done.
+    imaging : callable or None
+        A function of the progress callback returning a pixel-level analysis to put beside the
+        feature-level one (the ``imaging`` block and imaging.png), such as
+        :func:`ftrac_design.intensity.workspace.imaging_analysis` with its arguments bound.
+    trial : TrialSettings or None
+        The image-true score's sample (None: not computed); its workspace and camera are those
+        of ``settings``.
+    executor : concurrent.futures.Executor or None
+        Where the trial's images are rendered and tracked (None: in this process).
+
+    Returns
+    -------
+    (dict, pathlib.Path)
+        The analysis.json object and the directory written.
+    """
     out_dir = Path(out_dir) if out_dir is not None else default_output_dir(subject.features)
     _check_output_dir(out_dir)
     t0 = time.perf_counter()
+    records = None
+    if trial is not None:
+        from ..xray import Body
+        from ..xray.render import AUTO, resolve_body
+
+        trial = replace(trial, workspace=settings.workspace, camera=settings.camera)
+        body = Body.from_design(subject.design) if subject.design is not None else resolve_body(subject.features,
+                                                                                                AUTO)
+        records = run_trial(subject.features, body, trial, executor, progress)
+        trial_seconds = time.perf_counter() - t0
     score = score_design(subject.features, settings, thresholds, progress=progress)
     atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
     seg_atlas = segmentability_atlas(subject.features, settings.camera, settings.workspace.depth_mm,
@@ -109,7 +165,14 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
             if ia is not None:
                 ia.plot(tmp / "imaging.png")
                 files.append("imaging.png")
+            if records is not None:
+                from ..imagescore.plots import plot_image_score
+
+                plot_image_score(records, tmp / IMAGE_SCORE_PLOT, f"{subject.features.name}: image-true score")
+                files.append(IMAGE_SCORE_PLOT)
         doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
+        doc["paper_model"] = PAPER_MODEL
+        doc["image_score"] = image_score_block(trial, records, trial_seconds) if records is not None else None
         if ia is not None:
             doc["imaging"] = ia.to_dict()
         write_json_atomic(tmp / "analysis.json", doc)
@@ -135,6 +198,9 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
     echo = lines.append
     f = doc["figures"]
     s = doc["settings"]
+    if doc.get("image_score"):
+        echo(format_image_score(doc["design"]["name"], doc["image_score"]))
+        echo(f"{PAPER_MODEL}:")
     echo(f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
          f"segmentation error {s['segmentation_error_mm']:g} mm"
          + "".join(f", {k} ×{s[k + '_error_factor']:.3g}" for k in ("bead", "wire") if k + "_error_factor" in s)
@@ -169,6 +235,29 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
                  f"({w['angle_from_nominal_deg']:.0f}° from nominal{', in workspace' if w['in_workspace'] else ''}):"
                  f" {_fmt(w['translation_error_mm'])} mm, condition {_fmt(w['condition'])} — {who}")
     return "\n".join(lines)
+
+
+def _interval(ci) -> str:
+    return f" [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else ""
+
+
+def format_image_score(name: str, block: dict) -> str:
+    """A few lines on an analysis.json ``image_score`` block: per condition, the p95 errors of the
+    right poses with their 95 % intervals and the shares refused and wrong."""
+    m = block["model"]
+    out = [f"{name}: image-true score — {m['images_per_condition']} rendered images per condition, seed {m['seed']}, "
+           f"tracked with the defaults (right within {m['wrong_if_beyond']['rotation_deg']:g}° and "
+           f"{m['wrong_if_beyond']['translation_mm']:g} mm)"]
+    for cond, f in block["figures"].items():
+        out.append(f"  {cond:<8} translation p95 {_fmt(f['translation_p95_mm'])} mm"
+                   f"{_interval(f['translation_p95_95ci_mm'])}, rotation p95 {_fmt(f['rotation_p95_deg'])}°"
+                   f"{_interval(f['rotation_p95_95ci_deg'])}; refused {f['refused_pct']:.1f} %, "
+                   f"wrong {f['wrong_pct']:.1f} %")
+    out.append(f"  (clean: {m['clean']['photons_per_px']:g} quanta/px, {m['clean']['energy_kev']:g} keV, "
+               f"focal spot {m['clean']['focal_spot_mm']:g} mm, blur {m['clean']['detector_blur_px']:g} px; "
+               f"anatomy: {m['anatomy']['patient']}, {m['anatomy']['quanta_behind_patient'][0]}–"
+               f"{m['anatomy']['quanta_behind_patient'][1]} quanta behind the patient, raw counts)")
+    return "\n".join(out)
 
 
 def _pct(v) -> str:

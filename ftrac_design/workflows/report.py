@@ -8,15 +8,20 @@ from pathlib import Path
 
 from ..report import collect, write_report
 
+#: images per condition of the image-true score when a report runs the analysis itself
+DEFAULT_SCORE_IMAGES = 100
+
 
 def report_for_build(build_dir: str | Path, output: str | Path | None = None, analysis_dir: str | Path | None = None,
                      run_analysis_if_missing: bool = True, poses: int | None = None,
-                     atlas_step_deg: float = 2.0, build_kept: bool = True, design=None) -> Path:
+                     atlas_step_deg: float = 2.0, build_kept: bool = True, design=None,
+                     score_images: int = DEFAULT_SCORE_IMAGES, workers: int | None = None) -> Path:
     """Write the report of ``build_dir`` (default ``build_dir/report.html``); returns its path.
 
     The analysis comes from ``analysis_dir``, else ``build_dir/analysis/``; if neither holds
     one and ``run_analysis_if_missing``, it is run at the design's settings (``poses``
-    overrides the number of workspace poses) into a temporary directory that is not kept.
+    overrides the number of workspace poses; ``score_images`` per condition for the image-true
+    score, 0 for none, on ``workers`` processes) into a temporary directory that is not kept.
     """
     import tempfile
 
@@ -24,7 +29,7 @@ def report_for_build(build_dir: str | Path, output: str | Path | None = None, an
     output = Path(output) if output is not None else build_dir / "report.html"
     if analysis_dir is None and not (build_dir / "analysis" / "analysis.json").is_file() and run_analysis_if_missing:
         with tempfile.TemporaryDirectory(prefix="ftrac-report-") as tmp:
-            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg)
+            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg, score_images, workers)
             r = collect(build_dir, design, Path(tmp) / "analysis", build_kept)
             return write_report(r, output)
     return write_report(collect(build_dir, design, analysis_dir, build_kept), output)
@@ -49,8 +54,9 @@ def report_for_analysis(source: str | Path, analysis_dir: str | Path, output: st
     return write_report(collect(features=load_features(source), analysis_dir=analysis_dir), output)
 
 
-def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_step_deg: float) -> None:
-    """Run the conditioning analysis of a build at its design's settings, with plots."""
+def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_step_deg: float, score_images: int,
+             workers: int | None) -> None:
+    """Run the analysis of a build at its design's settings, with plots and the image-true score."""
     from ..analysis.subject import Subject, settings_for
     from ..design.loader import parse_design
     from ..features import load_features
@@ -59,6 +65,14 @@ def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_st
 
     if design is None:
         design = parse_design(read_manifest(build_dir)["design"].get("parameters"), build_dir / "manifest.json")
-    subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json")
+    subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json", design)
     settings, thresholds = settings_for(subject, poses=poses)
-    run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
+    if not score_images:
+        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
+        return
+    from ..imagescore import TrialSettings
+    from ..optimize.execution import open_executor
+
+    with open_executor(None, workers) as (executor, _):
+        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True,
+                     trial=TrialSettings(images=score_images), executor=executor)
