@@ -30,6 +30,9 @@ COMMANDS = {
     "report": "report",
     "distortion": "distortion",
     "presets": "presets",
+    "serve": "serve",
+    "push": "push",
+    "export": "export",
 }
 
 

@@ -1,0 +1,151 @@
+"""Live latency of ``ftrac-design serve``: frame in → TRANSFORM out, over OpenIGTLink on localhost.
+
+A pyigtl client sends rendered 1024² raw frames of a design (distinct workspace poses, reused
+in turn) to a ``serve`` subprocess at 15 and 30 frames/s and times each answer on its own
+clock (send → TRANSFORM received: the network, the server's queue and the tracking); frames
+the server dropped (its queue full) are counted. Then the sustained rate without drops: frames
+sent one at a time, the next as soon as the answer arrives (closed loop). Baseline in the same
+run: ``track_image`` on the same frames in this process (the tracking alone), so the ratio of
+the live p50 to it is what the link and the server add. The first answers (warm-up) are left out.
+The target is p99 ≤ 50 ms for ftrac_2005; the default tracker tracks every frame alone.
+
+    .venv/bin/python benchmarks/live_latency.py                     # ftrac_2005, 1024², 10 s a rate
+    .venv/bin/python benchmarks/live_latency.py --design ftrac_mini --seconds 5
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from _common import machine  # noqa: E402
+from igt_support import Server, image_message, recording_client, rendered_frames, wait_for  # noqa: E402
+
+from ftrac_design.segment.pipeline import track_image  # noqa: E402
+from ftrac_design.xray.scene import body_from_features_file  # noqa: E402
+
+
+def _answers(client) -> dict[float, float]:
+    """IMAGE timestamp → arrival time (perf_counter) of its TRANSFORM."""
+    log, times = client.incoming_messages.log, client.incoming_messages.times
+    return {m.timestamp: t for m, t in zip(log, times) if m.message_type == "TRANSFORM"}
+
+
+def _server_latency(client, first: float, last: float) -> np.ndarray:
+    """The server's own latency (IMAGE received → TRANSFORM queued, ms) of the answers to frames
+    stamped ``first`` … ``last``."""
+    return np.array([float(m.metadata["latency_ms"]) for m in client.incoming_messages.log
+                     if m.message_type == "TRANSFORM" and first <= m.timestamp <= last])
+
+
+def open_loop(client, frames, camera, rate: float, n: int, first_stamp: float) -> tuple[np.ndarray, int]:
+    """Send ``n`` frames at ``rate``; (latencies ms of the answered ones, frames dropped)."""
+    sent: dict[float, float] = {}
+    t0 = time.perf_counter()
+    for k in range(n):
+        wait = t0 + k / rate - time.perf_counter()
+        if wait > 0:
+            time.sleep(wait)
+        stamp = first_stamp + k
+        sent[stamp] = time.perf_counter()
+        client.send_message(image_message(frames[k % len(frames)], camera, stamp), wait=False)
+    last = first_stamp + n - 1
+    wait_for(lambda: last in _answers(client), 120)
+    got = _answers(client)
+    lat = np.array([1e3 * (got[s] - sent[s]) for s in sent if s in got])
+    return lat, n - len(lat)
+
+
+def closed_loop(client, frames, camera, n: int, first_stamp: float) -> float:
+    """Frames per second when each frame is sent as soon as the previous answer arrived."""
+    t0 = time.perf_counter()
+    for k in range(n):
+        stamp = first_stamp + k
+        client.send_message(image_message(frames[k % len(frames)], camera, stamp), wait=False)
+        wait_for(lambda s=stamp: s in _answers(client), 60)
+    return n / (time.perf_counter() - t0)
+
+
+def transport_ms(frame: np.ndarray, cam, rounds: int = 10) -> tuple[float, float]:
+    """Median ms to pack one frame as an IMAGE (the sender's side) and to check and decode it
+    (CRC, unpack, float32 pixels: the server's side), in this process."""
+    from pyigtl import ImageMessage, MessageBase
+    from pyigtl.messages import CRC64
+
+    from ftrac_design.igt.link import image_pixels
+
+    pack, decode = [], []
+    for _ in range(rounds):
+        t = time.perf_counter()
+        data = image_message(frame, cam, 1.0).pack()
+        t1 = time.perf_counter()
+        CRC64(data[58:])
+        msg = ImageMessage()
+        msg.unpack(MessageBase.parse_header(data[:58]), data[58:])
+        image_pixels(msg)
+        t2 = time.perf_counter()
+        pack.append(1e3 * (t1 - t))
+        decode.append(1e3 * (t2 - t1))
+    return float(np.median(pack)), float(np.median(decode))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--design", default="ftrac_2005")
+    ap.add_argument("--size", type=int, default=1024, help="frame side, pixels")
+    ap.add_argument("--distinct", type=int, default=20, help="distinct rendered frames, sent in turn")
+    ap.add_argument("--seconds", type=float, default=10.0, help="sending time per rate")
+    ap.add_argument("--warmup", type=int, default=3)
+    a = ap.parse_args()
+    out = Path("outputs/bench_live")
+    fr = rendered_frames(out, a.distinct, (a.size, a.size), a.design)
+    cam = fr.camera
+    print(f"{machine()}; {a.design}, {a.distinct} distinct {a.size}² raw frames; shared 2-core machine: "
+          f"figures are inflated by the other jobs' load")
+    body = body_from_features_file(fr.features_path)
+    from ftrac_design.features import load_features
+    features = load_features(fr.features_path)
+    track_image(fr.pixels[0], features, cam, body=body)
+    base = []
+    for img in fr.pixels:
+        t = time.perf_counter()
+        track_image(img, features, cam, body=body)
+        base.append(1e3 * (time.perf_counter() - t))
+    base = np.array(base)
+    print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
+    pk, dc = transport_ms(fr.pixels[0], cam)
+    print(f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
+          f"CRC + decode {dc:.1f} ms (server, only for the frames it tracks)")
+    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path)])
+    try:
+        client = recording_client(server.port)
+        closed_loop(client, fr.pixels, cam, a.warmup, 0.0)
+        stamp = 10_000.0
+        for rate in (15.0, 30.0):
+            n = int(rate * a.seconds)
+            lat, dropped = open_loop(client, fr.pixels, cam, rate, n, stamp)
+            own = _server_latency(client, stamp, stamp + n)
+            stamp += 10_000.0
+            p50, p99 = np.percentile(lat, [50, 99])
+            print(f"{rate:.0f} frames/s: {n} sent, {len(lat)} answered, {dropped} dropped; latency p50 {p50:.1f} ms, "
+                  f"p99 {p99:.1f} ms, max {lat.max():.1f} ms; p50 / baseline track {p50 / np.median(base):.2f}; "
+                  f"target p99 ≤ 50 ms: {'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → "
+                  f"sent) p50 {np.median(own):.1f} ms, p99 {np.percentile(own, 99):.1f} ms")
+            time.sleep(1.0)
+        rate = closed_loop(client, fr.pixels, cam, max(2 * a.distinct, 20), stamp)
+        print(f"sustained rate without drops (closed loop): {rate:.1f} frames/s "
+              f"(baseline 1 / median track: {1e3 / np.median(base):.1f} frames/s)")
+        client.stop()
+    finally:
+        rc, text, err = server.interrupt()
+    print(text.strip().splitlines()[-1])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,73 @@
+"""``ftrac-design serve``: an OpenIGTLink server, IMAGE messages in, TRANSFORM messages out.
+
+Plumbing only; the server is :mod:`ftrac_design.workflows.serve`, the messages' contents
+:mod:`ftrac_design.igt.link` (metadata keys read and written), the conventions
+:mod:`ftrac_design.igt`. Needs the ``live`` extra (pyigtl).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from .track import _setup
+
+_FILE = click.Path(dir_okay=False, path_type=Path)
+
+
+@click.command("serve")
+@click.option("--features", "features_path", required=True, type=_FILE,
+              help="features.json written by `ftrac-design build`.")
+@click.option("--camera", "camera_path", type=_FILE, default=None,
+              help="SPEC §3 camera object (JSON) for every frame; overrides what a frame's metadata says. Without "
+                   "it each IMAGE must carry metadata 'camera' (JSON) or 'focal_length_mm' (the pixel pitch is then "
+                   "the message's spacing).")
+@click.option("--port", type=click.IntRange(0, 65535), default=18944, show_default=True,
+              help="TCP port (0: any free one, printed).")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to listen on: 127.0.0.1 accepts this machine only; 0.0.0.0 every interface (the "
+                   "C-arm's network: the link is neither authenticated nor encrypted).")
+@click.option("--name", default="FiducialToCArm", show_default=True,
+              help="TRANSFORM device name, PLUS <From>To<To>, at most 20 characters.")
+@click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True,
+              help="The TRANSFORM matrix's coordinates: ras for 3D Slicer (our LPS numbers converted), lps for the "
+                   "SPEC §4 pose unchanged. The metadata carry the SPEC §4 pose either way.")
+@click.option("--queue", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Frames that may wait for the tracker; a frame arriving at a full queue drops the oldest "
+                   "(counted in the metadata 'dropped').")
+@click.option("--valid-only", is_flag=True,
+              help="Send no TRANSFORM for a frame without a pose (PLUS's SendValidTransformsOnly); by default it "
+                   "gets the identity with TransformStatus INVALID and the reason.")
+@click.option("--distortion", "distortion_path", type=_FILE, default=None,
+              help="ftrac-distortion model: every frame is undistorted before tracking (as for `track`); 'none': "
+                   "the detector does not distort.")
+@click.option("--polarity", type=click.Choice(["auto", "dense-dark", "dense-bright"]), default="auto",
+              show_default=True, help="How dense matter looks in the frames (as for `track`).")
+@click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
+              help="intensity: refine each pose on the image intensities (slower).")
+def command(features_path: Path, camera_path: Path | None, port: int, host: str, name: str, space: str, queue: int,
+            valid_only: bool, distortion_path: Path | None, polarity: str, refine: str) -> int:
+    """Track the fiducial in every IMAGE an OpenIGTLink client sends; answer each with a TRANSFORM.
+
+    A client (PLUS Server's OpenIGTLink output, a frame grabber's software, 3D Slicer, a script)
+    connects to HOST:PORT and sends IMAGE messages. Each frame is tracked on its own, as
+    `track` does, and answered by a TRANSFORM named --name (default FiducialToCArm: the pose,
+    fiducial frame F into C-arm frame X), stamped with the IMAGE's timestamp; its header-v2
+    metadata carry TransformStatus, the full-precision pose, covariance, frame index, drops and
+    timings. A malformed message is answered by a STATUS error and the server goes on; a client
+    may disconnect and reconnect. Ctrl-C stops it and prints a summary.
+    """
+    from ..igt.frames import check_transform_name
+    from ..igt.link import pyigtl
+    from ..workflows import serve as serve_mod
+
+    pyigtl()
+    check_transform_name(name, "name")
+    setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
+    options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue,
+                                     camera=setup.camera, valid_only=valid_only)
+    summary = serve_mod.serve(setup, options, log=sys.stdout)
+    click.echo(f"stopped: {summary.line()}")
+    return 0

@@ -1,0 +1,630 @@
+"""``ftrac-design serve`` and ``push``: poses live over OpenIGTLink (pyigtl, the ``live`` extra).
+
+**Server.** A client (PLUS, a frame grabber's software, a script) connects and sends IMAGE
+messages; each frame is tracked and answered by a TRANSFORM (:mod:`ftrac_design.igt.link`
+says what it carries). One client at a time; when it leaves, the server waits for the next.
+
+- **Threads.** The server's thread (a ``socketserver.TCPServer``, one connection at a time)
+  reads the socket and puts each IMAGE in the inbox; the calling (main) thread tracks frames
+  from the inbox and queues the answers, which the server thread sends between reads. pyigtl
+  packs and unpacks the messages. The server is created in the calling thread because it
+  installs SIGINT/SIGTERM handlers there: Ctrl-C (or SIGTERM) raises KeyboardInterrupt in that
+  thread, :func:`serve` leaves its loop, closes the socket and returns its summary (pyigtl's
+  own server shuts down inside its signal handler, where the interrupted thread may hold a lock
+  the socket thread needs).
+- **A bounded inbox.** The socket thread only reads: a frame is checked and decoded (CRC,
+  pixels, camera) when the tracker takes it, so a frame that is dropped costs its bytes only.
+  At most ``queue`` frames wait; a frame arriving at a full inbox pushes out the OLDEST, which
+  is never answered and is counted (metadata ``dropped``, per connection). The sender is never
+  blocked by the tracker and nothing grows: the newest frame is always tracked, so the last
+  answer of a run carries its final drop count. A frame of a connection that has closed is
+  dropped unanswered (counted as undelivered).
+- **Bad messages never stop the server.** An IMAGE whose body is malformed, fails its CRC or
+  gives no camera is answered (when its turn comes) by a STATUS error (code, text), a message
+  of another type than IMAGE or STATUS at once, and the connection goes on; a header that
+  cannot be trusted (unknown version, absurd body size) is answered by a STATUS error and that
+  connection is closed, the server listens on. A frame whose tracking raises is answered by an
+  INVALID TRANSFORM saying why.
+
+**The tracker is pluggable**: :data:`TrackerFactory` makes, from the command's
+:class:`~ftrac_design.workflows.track_run.TrackSetup`, a ``track(image, camera, time_s) -> pose``
+callable (SPEC §4 object) called once per frame, in order, from one thread.
+:func:`frame_by_frame_tracker`, the default, tracks each frame alone exactly as ``track`` does.
+
+**Client** (:func:`push_poses`): the poses of a ``track`` run sent as TRANSFORMs to a listening
+OpenIGTLink server (3D Slicer's OpenIGTLinkIF, port 18944), paced by their ``time_s`` or a rate.
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import signal
+import socket
+import socketserver
+import struct
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Protocol, TextIO
+
+import numpy as np
+
+from ..errors import InputError
+from ..igt import link
+from ..igt.frames import POSE_TRANSFORM, Space, check_transform_name
+from ..igt.poses import PoseRecord
+from ..images import Frame
+from ..pose import Camera
+from .track_run import TrackSetup, failed_pose_dict, one_line, track_pixels
+
+#: OpenIGTLink's default port (3D Slicer's OpenIGTLinkIF and PLUS use it)
+DEFAULT_PORT = 18944
+#: the fixed header of every OpenIGTLink message: version, type, device, timestamp, body size, CRC
+HEADER = struct.Struct(">H12s20sIIQQ")
+#: the largest body accepted: a 4096² frame of 8-byte pixels plus room for headers and metadata
+MAX_BODY_BYTES = 4096 * 4096 * 8 + (1 << 20)
+#: Python's thread switch interval while serving (s): the socket thread waits at most this for
+#: the GIL when the tracker holds it, so reading keeps up with the sender (default 5 ms)
+SWITCH_INTERVAL_S = 0.0005
+#: seconds a started message may stall before the connection is given up
+STALL_S = 5.0
+
+
+class Tracker(Protocol):
+    """Tracks one frame: ``(H, W)`` pixels as received, the frame's camera and its time (s)
+    → the SPEC §4 pose object (``converged`` false with ``error`` when none). Called once per
+    frame, in order, from one thread; it may keep state between frames."""
+
+    def __call__(self, image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]: ...
+
+
+#: makes the server's tracker from the command's setup (features, body, options, --camera)
+TrackerFactory = Callable[[TrackSetup], Tracker]
+
+
+def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
+    """The default tracker: every frame alone, no prior, exactly as ``ftrac-design track`` tracks
+    an image (:func:`~ftrac_design.workflows.track_run.track_pixels`: undistortion, the image
+    path, ``--refine``).
+
+    Parameters
+    ----------
+    setup : features, body, tracking options, distortion model, refinement.
+
+    Returns
+    -------
+    Tracker : returns the frame's SPEC §4 object with ``time_s`` and ``camera``.
+    """
+    def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
+        frame = Frame(pixels=image, camera=camera, camera_source={}, formation=None, polarity=None,
+                      source="OpenIGTLink", index=0, time_s=time_s)
+        _, res = track_pixels(frame, setup)
+        pose = res.pose_dict()
+        pose.update(time_s=time_s, camera=camera.to_dict(), status="tracked" if res.pose.converged else "lost")
+        return pose
+    return track
+
+
+@dataclass(frozen=True)
+class ServeOptions:
+    """Settings of :func:`serve`.
+
+    Attributes
+    ----------
+    host : the address to listen on (``127.0.0.1``: this machine only; ``0.0.0.0``: every
+        interface).
+    port : TCP port (0: any free one, printed).
+    name : the TRANSFORM's device name (PLUS ``<From>To<To>``, ≤ 20 characters).
+    space : the TRANSFORM matrix's coordinates: ``"ras"`` (3D Slicer) or ``"lps"`` (SPEC §4's
+        numbers).
+    queue : how many frames may wait for the tracker (the oldest is dropped beyond).
+    camera : ``--camera``, overriding every frame's own, or None.
+    valid_only : send no TRANSFORM for a frame without a pose (PLUS's SendValidTransformsOnly).
+    report_s : seconds between progress lines while frames flow (0: none).
+    """
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    name: str = POSE_TRANSFORM
+    space: Space = "ras"
+    queue: int = 1
+    camera: Camera | None = None
+    valid_only: bool = False
+    report_s: float = 10.0
+
+
+@dataclass
+class InboxItem:
+    """An IMAGE message waiting for the tracker, as received: decoded (CRC, pixels, camera) only
+    when its turn comes, so the socket thread does no more than read and frames that are dropped
+    cost nothing but their bytes.
+
+    Attributes
+    ----------
+    fields : its parsed header (pyigtl's ``parse_header``).
+    body : its body bytes.
+    crc : the CRC its header states.
+    connection, index : the connection it came on and its 0-based index among the IMAGE
+        messages of that connection.
+    received : when it was fully read (``time.perf_counter``).
+    """
+
+    fields: dict[str, Any]
+    body: bytearray
+    crc: int
+    connection: int
+    index: int
+    received: float
+
+    @property
+    def timestamp(self) -> float:
+        """The IMAGE's timestamp (s since 1970)."""
+        return float(self.fields["timestamp"])
+
+    @property
+    def device(self) -> str:
+        """The IMAGE's device name."""
+        return str(self.fields["device_name"])
+
+
+@dataclass
+class ServeSummary:
+    """What a :func:`serve` session did (totals over all connections)."""
+
+    connections: int = 0
+    received: int = 0
+    answered: int = 0
+    tracked: int = 0
+    dropped: int = 0
+    undelivered: int = 0
+    bad_messages: int = 0
+    latencies_ms: list[float] = field(default_factory=list)
+
+    def line(self) -> str:
+        """One line: the counts and the latency's median and maximum."""
+        lat = (f"; latency median {np.median(self.latencies_ms):.0f} ms, max {max(self.latencies_ms):.0f} ms"
+               if self.latencies_ms else "")
+        return (f"{self.connections} connections, {self.received} frames received, {self.answered} answered "
+                f"({self.tracked} with a pose), {self.dropped} dropped (queue full), {self.undelivered} undelivered "
+                f"(client gone), {self.bad_messages} bad messages{lat}")
+
+
+class FrameInbox:
+    """Bounded, drop-oldest queue of frames between the socket thread and the tracker.
+
+    Parameters
+    ----------
+    size : the most frames held (≥ 1).
+    """
+
+    def __init__(self, size: int):
+        if size < 1:
+            raise InputError(None, None, f"at least 1, got {size}", parameter="queue")
+        self._items: collections.deque[InboxItem] = collections.deque()
+        self._size = size
+        self._cond = threading.Condition()
+        self.dropped: dict[int, int] = collections.defaultdict(int)
+
+    def put(self, item: InboxItem) -> None:
+        """Add ``item``; when full, the oldest frame is removed and counted against its connection."""
+        with self._cond:
+            if len(self._items) >= self._size:
+                old = self._items.popleft()
+                self.dropped[old.connection] += 1
+            self._items.append(item)
+            self._cond.notify()
+
+    def get(self, timeout: float) -> InboxItem | None:
+        """The oldest frame waiting, or None after ``timeout`` seconds."""
+        with self._cond:
+            if not self._items:
+                self._cond.wait(timeout)
+            return self._items.popleft() if self._items else None
+
+    def discard_connection(self, connection: int) -> int:
+        """Remove the waiting frames of ``connection``; returns how many."""
+        with self._cond:
+            keep = [it for it in self._items if it.connection != connection]
+            n = len(self._items) - len(keep)
+            self._items = collections.deque(keep)
+            return n
+
+
+class _Framing(Exception):
+    """The byte stream cannot be trusted any more (bad header): answer, then close."""
+
+
+class _Closed(Exception):
+    """The client closed the connection."""
+
+
+def _recv_into(sock: socket.socket, buf: memoryview, started: bool) -> bool:
+    """Fill ``buf`` from ``sock``. False when nothing arrived within the socket's timeout and
+    ``started`` is False (no message yet); raises _Closed at the end of the stream and _Framing
+    when a started message stalls for :data:`STALL_S`."""
+    got, last = 0, time.monotonic()
+    while got < len(buf):
+        try:
+            n = sock.recv_into(buf[got:])
+        except socket.timeout:
+            if got == 0 and not started:
+                return False
+            if time.monotonic() - last > STALL_S:
+                raise _Framing(f"message stalled for {STALL_S:.0f} s") from None
+            continue
+        if n == 0:
+            raise _Closed()
+        got += n
+        last = time.monotonic()
+    return True
+
+
+class _Handler(socketserver.BaseRequestHandler):
+    """One client connection: read one message, send what is queued, repeat."""
+
+    server: IgtlServer
+
+    def handle(self) -> None:
+        srv = self.server
+        conn = srv.connection_opened(self.client_address)
+        sock = self.request
+        # short waits: between reads the thread sends the answers queued meanwhile. The receive
+        # buffer is left to the kernel's autotuning (setting it would cap it at rmem_max)
+        sock.settimeout(0.01)
+        try:
+            while not srv.stop_requested:
+                try:
+                    srv.receive_one(sock, conn)
+                except _Framing as exc:
+                    srv.reply_error(link.STATUS_INVALID_PACKET, f"{exc}; closing this connection", "", conn)
+                    srv.flush(sock)
+                    break
+                srv.flush(sock)
+        except (_Closed, OSError):
+            pass
+        finally:
+            srv.connection_closed(conn)
+
+
+class IgtlServer(socketserver.TCPServer):
+    """The OpenIGTLink server: one client at a time, a bounded inbox, counted drops,
+    per-connection state and STATUS answers to bad messages (see the module).
+
+    Create it in the main thread: it installs its SIGINT/SIGTERM handlers there (they raise
+    KeyboardInterrupt); :meth:`close` stops it and puts the previous handlers back.
+
+    Parameters
+    ----------
+    options : host, port, queue size, camera override.
+    log : where connection lines go (or None).
+    """
+
+    allow_reuse_address = True
+    #: answers waiting to be sent; beyond this the oldest is dropped (a client that does not read)
+    MAX_OUTGOING = 100
+
+    def __init__(self, options: ServeOptions, log: TextIO | None = None):
+        self.options, self.log = options, log
+        self.inbox = FrameInbox(options.queue)
+        self.summary = ServeSummary()
+        self.connection = 0
+        self.connected = False
+        self.stop_requested = False
+        self.outgoing: collections.deque[Any] = collections.deque(maxlen=self.MAX_OUTGOING)
+        self._frames: dict[int, int] = collections.defaultdict(int)
+        self._lock = threading.Lock()
+        try:
+            super().__init__((options.host, options.port), _Handler)
+        except OSError as exc:
+            raise InputError(None, None, f"an address and port this machine can listen on: {options.host}:"
+                                         f"{options.port}: {exc.strerror or exc}", parameter="port") from None
+        self.port = self.server_address[1]
+        self._previous_signal_handlers = {s: signal.signal(s, self._signal_handler)
+                                          for s in (signal.SIGTERM, signal.SIGINT)}
+        self._thread = threading.Thread(target=self.serve_forever, daemon=True)
+        self._thread.start()
+
+    def _signal_handler(self, signum: int, frame: Any) -> None:
+        """SIGINT / SIGTERM: leave :func:`serve`'s loop, which then closes the server."""
+        raise KeyboardInterrupt
+
+    def _say(self, text: str) -> None:
+        if self.log is not None:
+            print(text, file=self.log, flush=True)
+
+    def close(self) -> None:
+        """Stop serving, close the socket, restore the signal handlers (idempotent)."""
+        if not self.stop_requested:
+            self.stop_requested = True
+            self.shutdown()
+            self.server_close()
+        for s, h in self._previous_signal_handlers.items():
+            if signal.getsignal(s) == self._signal_handler:
+                signal.signal(s, h)
+
+    def connection_opened(self, address: Any) -> int:
+        """A client connected: a new connection number; stale answers are forgotten."""
+        with self._lock:
+            self.connection += 1
+            self.outgoing.clear()
+            self.summary.connections += 1
+            self.connected = True
+            conn = self.connection
+        self._say(f"client {address[0]}:{address[1]} connected (connection {conn})")
+        return conn
+
+    def connection_closed(self, conn: int) -> None:
+        """The client left: its waiting frames are dropped unanswered (undelivered)."""
+        n = self.inbox.discard_connection(conn)
+        with self._lock:
+            self.connected = False
+            self.summary.undelivered += n
+        self._say(f"connection {conn} closed: {self._frames[conn]} frames received, "
+                  f"{self.inbox.dropped[conn]} dropped")
+
+    def flush(self, sock: socket.socket) -> None:
+        """Send every queued answer (OSError when the client is gone)."""
+        while True:
+            with self._lock:
+                if not self.outgoing:
+                    return
+                msg = self.outgoing.popleft()
+            sock.sendall(msg.pack())
+
+    def reply(self, msg: Any, conn: int) -> bool:
+        """Queue ``msg`` for connection ``conn``; False (and counted) when it has closed."""
+        with self._lock:
+            if conn != self.connection or not self.connected:
+                self.summary.undelivered += 1
+                return False
+            self.outgoing.append(msg)
+            return True
+
+    def reply_error(self, code: int, text: str, device: str, conn: int, timestamp: float | None = None) -> None:
+        """Answer a bad message with a STATUS (and count it)."""
+        with self._lock:
+            self.summary.bad_messages += 1
+        self.reply(link.status_message(code, text, device or "ftrac-design", timestamp), conn)
+        self._say(f"connection {conn}: bad message: {one_line(text)}")
+
+    def receive_one(self, sock: socket.socket, conn: int) -> None:
+        """Read one message (or return after the socket's timeout) and deal with it."""
+        head = bytearray(HEADER.size)
+        if not _recv_into(sock, memoryview(head), started=False):
+            return
+        version, mtype, device, sec, frac, size, crc = HEADER.unpack(head)
+        try:
+            mtype_s = mtype.rstrip(b"\0 ").decode("ascii")
+            device_s = device.rstrip(b"\0 ").decode("ascii")
+        except UnicodeDecodeError:
+            raise _Framing("a message header whose type and device name are ASCII") from None
+        if version not in (1, 2) or size > MAX_BODY_BYTES:
+            raise _Framing(f"a message header of version 1 or 2 with a body of at most {MAX_BODY_BYTES} bytes "
+                           f"(got version {version}, {size} bytes)")
+        body = bytearray(size)
+        _recv_into(sock, memoryview(body), started=True)
+        fields = link.parse_header(head)
+        if mtype_s == "STATUS":
+            # a peer's status is information, not a request: answering it could ping-pong
+            return
+        if mtype_s != "IMAGE":
+            self.reply_error(link.STATUS_UNKNOWN_INSTRUCTION, f"{mtype_s} {device_s!r}: only IMAGE messages are "
+                             "tracked; message ignored", device_s, conn, fields["timestamp"])
+            return
+        with self._lock:
+            index = self._frames[conn]
+            self._frames[conn] += 1
+            self.summary.received += 1
+        self.inbox.put(InboxItem(fields, body, crc, conn, index, time.perf_counter()))
+
+    def decode(self, item: InboxItem) -> tuple[np.ndarray, Camera] | None:
+        """The pixels and camera of a queued IMAGE, or None after answering a bad one with a STATUS
+        (CRC mismatch 9, malformed 0, no camera 10)."""
+        name, conn, ts = item.device, item.connection, item.timestamp
+        if link.crc64(item.body) != item.crc:
+            self.reply_error(link.STATUS_CHECKSUM_ERROR, f"IMAGE {name!r}: CRC mismatch; frame ignored", name, conn, ts)
+            return None
+        try:
+            msg = link.image_message(item.fields, item.body)
+            pixels = link.image_pixels(msg)
+        except InputError as exc:
+            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: {exc}", name, conn, ts)
+            return None
+        except Exception as exc:  # noqa: BLE001 — any decoding failure of a sender's bytes is its error
+            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: malformed ({type(exc).__name__}: "
+                             f"{one_line(exc)})", name, conn, ts)
+            return None
+        try:
+            camera, _ = link.image_camera(msg, pixels.shape, self.options.camera)
+        except InputError as exc:
+            self.reply_error(link.STATUS_CONFIGURATION_ERROR, f"IMAGE {name!r}: no camera: {exc}", name, conn, ts)
+            return None
+        return pixels, camera
+
+
+def _guarded(tracker: Tracker, pixels: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
+    """The tracker's answer, or a failed pose saying why it raised (the server goes on)."""
+    try:
+        pose = tracker(pixels, camera, time_s)
+        if not isinstance(pose, dict):
+            raise TypeError(f"the tracker returned {type(pose).__name__}, not a pose object")
+        return pose
+    except Exception as exc:  # noqa: BLE001 — one frame's failure must not stop the live session
+        d = failed_pose_dict(f"internal error: {type(exc).__name__}: {one_line(exc)}")
+        d["status"] = "error"
+        return d
+
+
+def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
+    """Track one frame from the inbox and queue its TRANSFORM for its connection."""
+    options = server.options
+    start = time.perf_counter()
+    decoded = server.decode(item)
+    if decoded is None:
+        return
+    begin = time.perf_counter()
+    pose = _guarded(tracker, *decoded, item.timestamp)
+    done = time.perf_counter()
+    try:
+        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
+    except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
+        pose = {**failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
+                "status": "error"}
+        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
+    ok = msg.metadata["TransformStatus"] == "OK"
+    with server._lock:
+        server.summary.answered += 1
+        server.summary.tracked += int(ok)
+    if options.valid_only and not ok:
+        return
+    msg.metadata.update({"frame": str(item.index), "image_device": item.device,
+                         "dropped": str(server.inbox.dropped[item.connection]),
+                         "queue_ms": f"{1e3 * (start - item.received):.3f}",
+                         "track_ms": f"{1e3 * (done - begin):.3f}",
+                         "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}"})
+    if server.reply(msg, item.connection):
+        server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
+
+
+def _answer_until_stopped(server: IgtlServer, tracker: Tracker, log: TextIO | None,
+                          stop: threading.Event | None) -> None:
+    """The tracking loop: answer frames from the inbox until ``stop`` is set (or Ctrl-C), with a
+    progress line every ``report_s`` seconds while frames flow."""
+    report_s = server.options.report_s
+    last_report, reported = time.monotonic(), 0
+    while stop is None or not stop.is_set():
+        item = server.inbox.get(0.2)
+        if item is None:
+            continue
+        if item.connection != server.connection:
+            server.summary.undelivered += 1
+            continue
+        answer_frame(server, tracker, item)
+        if report_s and log is not None and time.monotonic() - last_report > report_s:
+            s = server.summary
+            lat = s.latencies_ms[reported:]
+            print(f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
+                  f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""), file=log, flush=True)
+            last_report, reported = time.monotonic(), len(s.latencies_ms)
+
+
+def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = frame_by_frame_tracker,
+          log: TextIO | None = None, stop: threading.Event | None = None,
+          on_listen: Callable[[IgtlServer], None] | None = None) -> ServeSummary:
+    """Run the OpenIGTLink server until Ctrl-C (or ``stop``): IMAGE in, TRANSFORM out.
+
+    Parameters
+    ----------
+    setup : what frames are tracked with (features, body, options, distortion, refine).
+    options : address, port, names, queue (see :class:`ServeOptions`).
+    factory : makes the tracker from ``setup`` (default :func:`frame_by_frame_tracker`).
+    log : where the listening line, connection lines and progress go (None: nowhere).
+    stop : an event that ends the session when set (Ctrl-C does too).
+    on_listen : called with the server once it listens (e.g. to read its port).
+
+    Returns
+    -------
+    ServeSummary : totals. Must run in the main thread (the server's signal handlers).
+    """
+    check_transform_name(options.name, "name")
+    link.pyigtl()
+    tracker = factory(setup)
+    server = IgtlServer(options, log)
+    switch = sys.getswitchinterval()
+    sys.setswitchinterval(SWITCH_INTERVAL_S)
+    try:
+        if log is not None:
+            where = "every interface" if options.host in ("0.0.0.0", "::", "") else options.host
+            print(f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
+                  f"({options.space.upper()}); Ctrl-C stops", file=log, flush=True)
+        if on_listen is not None:
+            on_listen(server)
+        _answer_until_stopped(server, tracker, log, stop)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        server.close()
+        sys.setswitchinterval(switch)
+    server.summary.dropped = sum(server.inbox.dropped.values())
+    return server.summary
+
+
+@dataclass(frozen=True)
+class PushOptions:
+    """Settings of :func:`push_poses`.
+
+    Attributes
+    ----------
+    host, port : the OpenIGTLink server (3D Slicer's OpenIGTLinkIF listens on 18944).
+    name : the TRANSFORM's device name.
+    space : ``"ras"`` (3D Slicer) or ``"lps"``.
+    rate_hz : frames per second; None: paced by the poses' ``time_s`` (else 30 per second).
+    connect_timeout_s : how long to wait for the server.
+    """
+
+    host: str = "127.0.0.1"
+    port: int = DEFAULT_PORT
+    name: str = POSE_TRANSFORM
+    space: Space = "ras"
+    rate_hz: float | None = None
+    connect_timeout_s: float = 10.0
+
+
+def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable[[int], None] | None = None) -> int:
+    """Send each pose as a TRANSFORM to a listening OpenIGTLink server, in order, paced.
+
+    Parameters
+    ----------
+    poses : the run (SPEC §4 records); one without a pose is sent INVALID (identity).
+    options : server, names, pace.
+    progress : called with the number sent after each (e.g. a progress bar's update).
+
+    Returns
+    -------
+    int : how many were sent. Raises InputError when no server answers at host:port within
+    ``connect_timeout_s``.
+    """
+    OpenIGTLinkClient = link.pyigtl().OpenIGTLinkClient
+    check_transform_name(options.name, "name")
+    client = OpenIGTLinkClient(options.host, options.port)
+    try:
+        deadline = time.monotonic() + options.connect_timeout_s
+        while not client.is_connected():
+            if time.monotonic() > deadline:
+                raise InputError(None, None, f"an OpenIGTLink server listening at {options.host}:{options.port} "
+                                             f"(none answered within {options.connect_timeout_s:g} s)",
+                                 parameter="port")
+            time.sleep(0.01)
+        times = send_times(poses, options.rate_hz)
+        start, wall0 = times[0], time.monotonic()
+        for k, (p, t) in enumerate(zip(poses, times)):
+            wait = wall0 + (t - start) - time.monotonic()
+            if wait > 0:
+                time.sleep(wait)
+            pose = {"converged": p.converged, "rotation": p.R.tolist() if p.converged else None,
+                    "translation_mm": p.t.tolist() if p.converged else None,
+                    "covariance": None if p.covariance is None else p.covariance.tolist(),
+                    "status": p.status, "error": p.error}
+            extra = {"frame": str(p.frame if p.frame is not None else k)}
+            if p.time_s is not None:
+                extra["time_s"] = repr(p.time_s)
+            client.send_message(link.transform_message(pose, options.name, options.space, time.time(), extra),
+                                wait=True)
+            if progress is not None:
+                progress(k + 1)
+        return len(poses)
+    finally:
+        client.stop()
+
+
+def send_times(poses: list[PoseRecord], rate_hz: float | None) -> list[float]:
+    """When each pose is sent (s from the first): ``k / rate_hz``, else the poses' ``time_s``
+    when every pose has one and they do not go back, else 30 per second."""
+    n = len(poses)
+    ts = [p.time_s for p in poses]
+    if rate_hz is None and all(t is not None for t in ts) and all(b >= a for a, b in zip(ts, ts[1:])):
+        return [float(t) for t in ts]
+    rate = rate_hz if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0 else 30.0
+    return [k / rate for k in range(n)]
