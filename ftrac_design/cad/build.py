@@ -25,8 +25,10 @@ MANIFEST_FORMAT = "ftrac-build-manifest"
 MANIFEST_VERSION = 1
 
 #: files every build writes (manifest.json last, it lists the others' hashes)
+#: (body.ngc: the 4-axis program, cnc profile only; the fanuc post names it body.nc)
 OUTPUT_FILES = ("features.json", "fiducial.step", "fiducial.stl", "mount.step", "mount.stl", "connector.step",
-                "connector.stl", "grooves.csv", "grooves.dxf", "assembly.step", "render.png", "manifest.json")
+                "connector.stl", "grooves.csv", "grooves.dxf", "body.ngc", "assembly.step", "render.png",
+                "manifest.json")
 
 #: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
 STL_VOLUME_TOLERANCE = 0.005
@@ -89,10 +91,12 @@ class _Clock:
 
 
 def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: Profile = "cnc",
-                   force: bool = False, render: bool = True) -> BuildResult:
+                   force: bool = False, render: bool = True, post: str = "linuxcnc") -> BuildResult:
     """Build ``design`` into ``out_dir`` (default :func:`default_output_dir`).
 
     ``render=False`` skips ``render.png`` (benchmarks only; the command always renders).
+    Under the cnc profile the body's 4-axis program is written too, for ``post`` (a key of
+    :data:`ftrac_design.machining.post.POSTS`); ``ftrac-design gcode`` verifies it.
     The design rules of ``profile`` are checked first: a violation raises
     :class:`~ftrac_design.errors.GoalError` (exit 1) before anything is written, unless
     ``force``. Raises :class:`~ftrac_design.errors.InputError` for a bad output directory and
@@ -135,6 +139,7 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
         clock.lap("export_body")
         fixture = fixture_parts(design, features, profile)
         made = write_manufacturing_files(design, features, profile, tmp, parts=fixture)
+        gcode = _write_program(design, profile, post, tmp)
         clock.lap("mount_connector")
         export_assembly(add_to_assembly(build_assembly(design.name, body, parts), fixture), tmp / "assembly.step")
         clock.lap("export_assembly")
@@ -148,6 +153,8 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
         manifest = _manifest(design, features, cuts, plan, body_volume, parts, stl, (stl_tol, stl_ang),
                              stl_rel, tmp, force, profile, cq.__version__)
         manifest["manufacturing"] = manufacturing_manifest(design, features, profile, report, made)
+        if gcode is not None:
+            manifest["manufacturing"]["gcode"] = gcode
         manifest["bom"] = manifest["manufacturing"].pop("bom")
         manifest["build_time_s"] = round(clock.total, 3)
         manifest["timings_s"] = dict(clock.laps)
@@ -156,6 +163,21 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
             _umask_mode(f, 0o666)
     clock.lap("finish")
     return BuildResult(out_dir, manifest, dict(clock.laps))
+
+
+def _write_program(design: Design, profile: Profile, post: str, out_dir: Path) -> dict[str, Any] | None:
+    """Write the body's program (cnc only); its manifest entry, or why there is none."""
+    from ..fileio import write_text_atomic
+    from .gcode import body_program
+
+    if profile != "cnc":
+        return None
+    try:
+        bp = body_program(design, profile, post, check=False)
+    except ValueError as exc:  # a forced build whose grooves are narrower than the end mill
+        return {"skipped": str(exc)}
+    write_text_atomic(out_dir / bp.filename, bp.text)
+    return bp.summary()
 
 
 def _ocp_version() -> str:
@@ -181,7 +203,7 @@ def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan
             pieces.append({"name": f"wire_{ln.id}_{k}", "feature": ln.id,
                            "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4)})
     files = {}
-    for name in OUTPUT_FILES:
+    for name in (*OUTPUT_FILES, "body.nc"):
         p = tmp / name
         if p.exists() and name != "manifest.json":
             files[name] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}

@@ -29,6 +29,7 @@ COMMANDS = {
     "report": "report",
     "distortion": "distortion",
     "presets": "presets",
+    "gcode": "gcode",
 }
 
 
