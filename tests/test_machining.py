@@ -135,6 +135,7 @@ def test_post_reads_back_move_for_move(post):
             assert np.allclose(p.centre, q.centre, atol=1e-4) and p.ccw == q.ccw
     tc = parse_gcode(text).tool_changes
     assert tc == [1, 2]  # one change per tool
+    assert not parse_gcode(text).faults  # the A brake is off whenever A turns
     if post == "fanuc":
         assert text.splitlines()[1].startswith("O1000") and "M10" in text and "M11" in text
         assert text.rstrip().splitlines()[-2].endswith("M30")

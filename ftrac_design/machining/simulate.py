@@ -104,7 +104,7 @@ class Layer:
 
 def _clip(grid: Grid, name: str, keys, lo, hi) -> Layer:
     s = grid.stock
-    ok = np.isfinite(lo) & np.isfinite(hi)
+    ok = np.isfinite(lo) & ~np.isnan(hi)  # hi = inf: a tool reaching out of the stock
     keys, lo, hi = keys[ok], lo[ok], hi[ok]
     lo_c, hi_c = np.maximum(lo, s.bore_radius), np.minimum(hi, s.outer_radius)
     keep = lo_c < hi_c

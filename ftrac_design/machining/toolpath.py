@@ -231,6 +231,7 @@ def _slot(w: _Writer, cut: SlotCut, tool: Tool, tooling: Tooling) -> None:
     w.add(Comment(f"FEATURE {cut.id} axial slot: width {cut.width:.4f}, floor Z{cut.floor_radius:.4f}, "
                   f"X{cut.z0:.4f} to X{cut.z1:.4f}, {len(zs)} levels x {len(offsets)} passes"))
     w.rapid(z=w.safe)
+    w.add(Clamp(False))
     w.rapid(x=cut.z0, y=offsets[0], a=w.index(math.degrees(cut.azimuth)))
     w.add(Clamp(True))
     w.rapid(z=w.surface + w.m.approach)
@@ -265,6 +266,7 @@ def _pocket(w: _Writer, cut: PocketCut, tool: Tool, tooling: Tooling) -> None:
     w.add(Comment(f"FEATURE {cut.id} pocket: diameter {cut.diameter:.4f}, floor Z{cut.floor_radius:.4f}, "
                   + (f"helix radius {rc:.4f}, {turns} turns" if turns else "plunge")))
     w.rapid(z=w.safe)
+    w.add(Clamp(False))
     w.rapid(x=cut.z + rc, y=0.0, a=w.index(math.degrees(cut.azimuth)))
     w.add(Clamp(True))
     w.rapid(z=w.surface + w.m.approach)
