@@ -30,6 +30,7 @@ COMMANDS = {
     "distortion": "distortion",
     "presets": "presets",
     "gcode": "gcode",
+    "coupon": "coupon",
 }
 
 

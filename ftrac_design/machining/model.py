@@ -149,7 +149,10 @@ class EllipseCut:
 
 @dataclass(frozen=True)
 class SlotCut:
-    """An axial slot: tangential ``|t| ≤ width/2``, radial component ``∈ [floor, top]``, ``z ∈ [z0, z1]``."""
+    """An axial slot: radial component ``∈ [floor, top]``; across (tangential ``t``) and along
+    ``z`` the rectangle ``|t| ≤ width/2``, ``z ∈ [z0, z1]``, or with ``end_radius`` > 0 the
+    rounded slot an end mill of that radius leaves when its centre runs from ``z0`` to ``z1``:
+    the rectangle ``|t| ≤ width/2 − end_radius`` dilated by ``end_radius``."""
 
     id: str
     azimuth: float
@@ -158,31 +161,39 @@ class SlotCut:
     width: float
     z0: float
     z1: float
+    end_radius: float = 0.0
 
     def local(self, rho, theta, z):
         d = np.asarray(theta, float) - self.azimuth
         return np.asarray(rho) * np.sin(d), np.asarray(rho) * np.cos(d), np.asarray(z, float)
 
     def sdf(self, rho, theta, z) -> np.ndarray:
-        """Exact signed distance to the box (mm)."""
+        """Exact signed distance to the slot (mm)."""
         t, r, zz = self.local(rho, theta, z)
-        q = np.stack([np.abs(t) - self.width / 2,
-                      np.abs(r - (self.floor_radius + self.top_radius) / 2) - (self.top_radius - self.floor_radius) / 2,
-                      np.abs(zz - (self.z0 + self.z1) / 2) - (self.z1 - self.z0) / 2])
-        out = np.sqrt((np.maximum(q, 0) ** 2).sum(axis=0))
-        return out + np.minimum(q.max(axis=0), 0)
+        e = self.end_radius
+        foot = box_sdf(t, zz - (self.z0 + self.z1) / 2, self.width / 2 - e, (self.z1 - self.z0) / 2) - e
+        rad = np.abs(r - (self.floor_radius + self.top_radius) / 2) - (self.top_radius - self.floor_radius) / 2
+        return np.hypot(np.maximum(foot, 0), np.maximum(rad, 0)) + np.minimum(np.maximum(foot, rad), 0)
+
+    def half_width(self, z) -> np.ndarray:
+        """Half the slot's width at height ``z`` (NaN beyond its ends)."""
+        z = np.asarray(z, float)
+        e = self.end_radius
+        beyond = np.maximum(self.z0 - z, z - self.z1)
+        cap = self.width / 2 - e + np.sqrt(np.maximum(e * e - beyond ** 2, 0.0))
+        return np.where(beyond <= 0, self.width / 2, np.where(beyond <= e, cap, np.nan))
 
     def ray_interval(self, theta, z, rho_max: float) -> tuple[np.ndarray, np.ndarray]:
         """Exact ``(lo, hi)`` of radial rays inside the slot, NaN where they miss."""
         theta, z = np.broadcast_arrays(np.asarray(theta, float), np.asarray(z, float))
         d = theta - self.azimuth
         c, s = np.cos(d), np.abs(np.sin(d))
+        hw = self.half_width(z)
         with np.errstate(divide="ignore", invalid="ignore"):
             lo = np.where(c > 0, self.floor_radius / c, np.inf)
-            hi = np.minimum(np.where(c > 0, self.top_radius / c, -np.inf),
-                            np.where(s > 0, (self.width / 2) / s, np.inf))
+            hi = np.minimum(np.where(c > 0, self.top_radius / c, -np.inf), np.where(s > 0, hw / s, np.inf))
         hi = np.minimum(hi, rho_max)
-        ok = (lo < hi) & (z >= self.z0) & (z <= self.z1)
+        ok = (lo < hi) & np.isfinite(hw)
         return np.where(ok, lo, np.nan), np.where(ok, hi, np.nan)
 
 

@@ -244,7 +244,7 @@ def reference_layer(grid: Grid, cut, margin: float = 2.0) -> Layer:
         lo, hi = cut.ray_interval(grid.theta(ii), grid.z(jj), R)
     else:
         if isinstance(cut, SlotCut):
-            r_lat, z0, z1, floor = cut.width / 2, cut.z0, cut.z1, cut.floor_radius
+            r_lat, z0, z1, floor = cut.width / 2, cut.z0 - cut.end_radius, cut.z1 + cut.end_radius, cut.floor_radius
         else:
             r_lat, floor = cut.diameter / 2, cut.floor_radius
             z0, z1 = cut.z - r_lat, cut.z + r_lat
