@@ -113,7 +113,7 @@ def plan_coupon(design: Design, profile: Profile = "cnc", step: float | None = N
             floor = R - bead_seat - bd / 2
             pockets.append(PocketCut(s.id, az, pocket_z, floor, p, R + 0.2 - floor))
     top = pocket_z + (design.bead.diameter / 2 + 1.5 if design.bead is not None else 0.0)
-    bottom = (z_slot0 - SLOT_LENGTH / 2 if design.wire is not None else 0.0) - GRIP
+    bottom = (z_slot0 - SLOT_LENGTH / 2 - cnc.tool_diameter / 2 if design.wire is not None else 0.0) - GRIP
     half = (top - bottom) / 2
     shift = (top + bottom) / 2  # F's origin at mid-length, as on the body
     slots = [SlotCut(s.id, s.azimuth, s.floor_radius, s.top_radius, s.width, s.z0 - shift, s.z1 - shift,
