@@ -77,5 +77,5 @@ def body_program(design: Design, profile: Profile = "cnc", post: str = DEFAULT_P
     parsed = parse_gcode(text, "body program")
     result = BodyProgram(text, post, plan, cycle_time(parsed, machine))
     if check:
-        result.verification = verify(parsed, plan, machine=machine)
+        result.verification = verify(parsed, plan)
     return result

@@ -91,8 +91,23 @@ def _known(codes: set[str]) -> str:
 
 
 def parse_gcode(text: str, source: str | Path = "<program>") -> ParsedProgram:
-    """Read ``text`` into moves with their modal state; raises :class:`InputError` (naming
-    ``source`` and the line) on a word or code outside the subset."""
+    """Read a program into moves with their modal state.
+
+    Parameters
+    ----------
+    text : str
+        The program (RS-274; the subset in the module docstring).
+    source : str or path
+        What the error messages name (the file).
+
+    Returns
+    -------
+    ParsedProgram
+        Moves in machine coordinates (X, Y, Z mm, A degrees, absolute; inches converted),
+        tool changes, the tool diameters the comments state, and faults.
+
+    Raises :class:`InputError` (naming ``source`` and the line) on a word or code outside the subset.
+    """
     out = ParsedProgram()
     pos = [math.nan] * 4
     motion, absolute, inverse, scale = None, True, False, 1.0

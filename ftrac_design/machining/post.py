@@ -55,7 +55,22 @@ def _clean(text: str, upper: bool) -> str:
 
 
 def emit(program: Program, post: str = DEFAULT_POST, header: list[str] | None = None) -> str:
-    """The program as text for ``post`` (a key of :data:`POSTS`); ``header``: comment lines."""
+    """The program as RS-274 text.
+
+    Parameters
+    ----------
+    program : Program
+        Blocks from :func:`~ftrac_design.machining.toolpath.plan_program` (machine X, Y, Z mm, A deg).
+    post : str
+        A key of :data:`POSTS`.
+    header : list of str, optional
+        Comment lines written after the program start.
+
+    Returns
+    -------
+    str
+        The program, one block per line, ending in a newline.
+    """
     if post not in POSTS:
         raise ValueError(f"unknown post {post!r}; expected one of {', '.join(POSTS)}")
     p = POSTS[post]
@@ -64,7 +79,7 @@ def emit(program: Program, post: str = DEFAULT_POST, header: list[str] | None = 
 
     def line(text: str) -> None:
         if p.line_numbers and not text.startswith("("):
-            n[0] += 10
+            n[0] = n[0] % 99999 + 1  # five-digit sequence numbers, wrapping as Fanuc controls allow
             text = f"N{n[0]} {text}"
         out.append(text)
 

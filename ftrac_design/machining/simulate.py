@@ -37,7 +37,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .gcode import ParsedMove, ParsedProgram
-from .model import CutPlan, EllipseCut, Machine, SlotCut, Stock, cylinder_ray_interval
+from .model import CutPlan, EllipseCut, SlotCut, Stock, cylinder_ray_interval
 
 #: default dexel spacing at the outer surface, mm
 GRID = 0.02
@@ -414,12 +414,31 @@ def _covered_distance(sim: list[Layer], keys: np.ndarray, rho: np.ndarray) -> np
 
 
 def verify(prog: ParsedProgram, plan: CutPlan, tools: dict[int, float] | None = None, grid_mm: float = GRID,
-           scallop_mm: float = SCALLOP, tolerance: float = TOLERANCE, volume_tolerance: float = VOLUME_TOLERANCE,
-           machine: Machine = Machine()) -> Verification:
+           scallop_mm: float = SCALLOP, tolerance: float = TOLERANCE,
+           volume_tolerance: float = VOLUME_TOLERANCE) -> Verification:
     """Sweep the tools of ``prog`` through ``plan``'s stock and compare with ``plan``'s cuts.
 
-    ``tools``: diameter (mm) per tool number; default: what the program's tool comments
-    state (``(T1: 0.4 mm …)``). Raises ``ValueError`` when a cutting tool's size is unknown.
+    Parameters
+    ----------
+    prog : ParsedProgram
+        The program as :func:`~ftrac_design.machining.gcode.parse_gcode` read it (machine frame).
+    plan : CutPlan
+        The stock and the reference cuts (frame F, mm).
+    tools : dict, optional
+        Flat end-mill diameter (mm) per tool number; default: what the program's tool
+        comments state (``(T1: 0.4 mm …)``).
+    grid_mm, scallop_mm : float
+        Dexel spacing at the outer surface, and the largest gap between the swept envelope
+        and the tool placements (mm).
+    tolerance, volume_tolerance : float
+        Largest deviation (mm) and removed-volume difference (fraction) that pass.
+
+    Returns
+    -------
+    Verification
+        Deviations (mm), gouges, volumes (mm³), faults and the run time.
+
+    Raises ``ValueError`` when a cutting tool's diameter is unknown.
     """
     t0 = time.perf_counter()
     tools = dict(prog.tools if tools is None else tools)

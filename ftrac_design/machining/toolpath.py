@@ -285,6 +285,22 @@ def plan_program(plan: CutPlan, tools: Tooling, machine: Machine = Machine(), ti
     """The program that cuts every groove and pocket of ``plan`` (ellipses, then slots with the
     groove end mill; then pockets with the pocket end mill: one tool change per tool).
 
+    Parameters
+    ----------
+    plan : CutPlan
+        Stock and cuts in frame F (mm, rad).
+    tools : Tooling
+        End mills, their speeds and feeds, step-down (mm) and ramp angle (rad).
+    machine : Machine
+        Safe and approach heights above the stock (mm).
+    title : str, optional
+        The program's name (default the plan's).
+
+    Returns
+    -------
+    Program
+        Blocks in machine coordinates (X, Y, Z mm, A degrees; convention in the module docstring).
+
     Raises ``ValueError`` when a groove is narrower than the groove end mill or a pocket than
     the pocket end mill.
     """
