@@ -45,6 +45,16 @@ def test_sizes_step_around_the_profile(preset, profile):
         assert -c.stock.half_length + 5.0 <= z0 + 1e-9 and z1 < c.stock.half_length
 
 
+def test_thinnest_wall_is_checked_against_the_design_rules():
+    d = load_design("ftrac_mini")
+    c = plan_coupon(d, "cnc")
+    n = len(c.plan.slots)
+    slot_wall = 2 * c.plan.slots[0].floor_radius * math.sin(math.pi / n) - max(s.width for s in c.plan.slots)
+    assert c.min_wall <= slot_wall + 1e-12 and c.min_wall >= 1.0
+    with pytest.raises(ValueError, match="thinnest wall"):
+        plan_coupon(d, "cnc", count=15, step=0.001)  # fifteen pockets round a 10 mm cylinder
+
+
 def test_sizes_never_narrower_than_the_end_mill():
     d = load_design("ftrac_mini")  # 0.28 mm grooves, 0.25 mm end mill
     c = plan_coupon(d, "cnc", step=0.02)

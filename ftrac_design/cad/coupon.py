@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from ..design.schema import Design
 from ..machining.model import CutPlan, PocketCut, SlotCut, Stock, pocket_tool_diameter
-from .profiles import Profile, cut_sizes
+from .profiles import Profile, cut_sizes, rule_limits
 
 #: plain length at the −z end for the chuck, mm
 GRIP = 5.0
@@ -64,6 +64,25 @@ class Coupon:
     plan: CutPlan
     step_mm: float
     label_height: float
+    min_wall: float
+
+
+def thinnest_wall(plan: CutPlan) -> float:
+    """The thinnest material (mm) between two neighbouring cuts of a coupon: slots side by side
+    (at their floors, where the ring is smallest), pockets side by side, and the slot band
+    against the pocket ring along z."""
+    walls = [math.inf]
+    for group in (plan.slots, plan.pockets):
+        if len(group) > 1:
+            n = len(group)
+            r = min(c.floor_radius for c in group)
+            size = max(c.width if isinstance(c, SlotCut) else c.diameter for c in group)
+            walls.append(2 * r * math.sin(math.pi / n) - size)
+    if plan.slots and plan.pockets:
+        top = max(s.z1 + s.end_radius for s in plan.slots)
+        bottom = min(p.z - p.diameter / 2 for p in plan.pockets)
+        walls.append(bottom - top)
+    return min(walls)
 
 
 def _sizes(nominal: float, step: float, count: int, smallest: float) -> list[float]:
@@ -121,8 +140,12 @@ def plan_coupon(design: Design, profile: Profile = "cnc", step: float | None = N
     pockets = [PocketCut(p.id, p.azimuth, p.z - shift, p.floor_radius, p.diameter, p.depth) for p in pockets]
     stock = Stock(R, 0.0, half)
     label = min(1.5, 0.8 * 2 * math.pi * 0.6 * R / (2 * n), 0.8 * R / 5.5)
-    return Coupon(design.name, profile, stock, tuple(steps), CutPlan(f"{design.name}_coupon", stock, (),
-                                                                     tuple(slots), tuple(pockets)), step, label)
+    plan = CutPlan(f"{design.name}_coupon", stock, (), tuple(slots), tuple(pockets))
+    wall, limit = thinnest_wall(plan), rule_limits(design, profile).min_wall
+    if wall < limit:  # the design rules' minimum wall (cad.rules, wall rules)
+        raise ValueError(f"the coupon's thinnest wall is {wall:.3f} mm, below the {profile} minimum {limit:g} mm; "
+                         f"use fewer sizes")
+    return Coupon(design.name, profile, stock, tuple(steps), plan, step, label, wall)
 
 
 def coupon_csv(c: Coupon) -> str:

@@ -121,7 +121,7 @@ def _write(c, out: Path, post: str, cnc) -> int:
     click.echo(f"coupon for {c.design} ({c.profile}, step {c.step_mm:g} mm) -> {out}")
     for s in c.steps:
         click.echo(f"  {s.kind:<6} {s.label} mm at A{s.azimuth * 57.29577951308232:7.2f}  fit {s.fit:+.3f}")
-    click.echo(f"  STL {stl.triangles} triangles, watertight {stl.watertight}")
+    click.echo(f"  thinnest wall {c.min_wall:.2f} mm; STL {stl.triangles} triangles, watertight {stl.watertight}")
     if verdict is not None:
         click.echo(f"  program verified: max deviation {verdict.max_deviation_mm * 1000:.2f} um, "
                    f"{verdict.gouges} gouges, volume {verdict.volume_difference:+.3%}")
