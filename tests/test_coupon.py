@@ -126,7 +126,7 @@ def test_coupon_command_builds_a_valid_part(tmp_path):
     out = tmp_path / "c"
     assert main(["coupon", "ftrac_mini", "-o", str(out)]) == 0
     assert sorted(p.name for p in out.iterdir()) == ["coupon.csv", "coupon.ngc", "coupon.ngc.verify.json",
-                                                     "coupon.step", "coupon.stl"]
+                                                     "coupon.png", "coupon.step", "coupon.stl"]
     mesh = trimesh.load(out / "coupon.stl")
     assert mesh.is_volume
     c = plan_coupon(load_design("ftrac_mini"), "cnc")

@@ -46,8 +46,8 @@ def command(design: Path, profile: str, output: Path | None, step: float | None,
     """A press-fit test coupon for DESIGN's wire and balls: groove widths and pocket diameters
     stepped around the profile's values, each engraved with its size.
 
-    Writes coupon.step, coupon.stl, coupon.csv (the steps, with their A position and fit:
-    fill in which holds), and under cnc coupon.ngc with its verification.
+    Writes coupon.step, coupon.stl, coupon.png, coupon.csv (the steps, with their A position
+    and fit: fill in which holds), and under cnc coupon.ngc with its verification.
     """
     from ..design import load_design
     from ..errors import GoalError, InputError
@@ -102,6 +102,9 @@ def _write(c, out: Path, post: str, cnc) -> int:
         export_step(solid, tmp / "coupon.step")
         stl = export_stl(solid, tmp / "coupon.stl", 0.005, 0.1)
         write_text_atomic(tmp / "coupon.csv", coupon_csv(c))
+        from ..cad.render import render_png
+
+        render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
         if c.profile == "cnc":
             pockets = [p.diameter for p in c.plan.pockets]
             tools = tooling(cnc, min(pockets) if pockets else None)
