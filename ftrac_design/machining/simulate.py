@@ -6,7 +6,7 @@ flat end mill removes from a ray is one exact interval of ρ (:func:`.model.cyli
 so nothing is lost across the ray. The tool is placed along every move at steps of at most
 ``δ`` (measured at the outer surface, A and the tip together); between two placements the
 swept envelope is missed by at most the scallop ``δ² / (4 d)`` for an end mill ``d`` wide
-(:func:`scallop`), 0.5 µm by default. Each run of cutting moves between two rapids is one
+(:func:`scallop`), 1 µm by default. Each run of cutting moves between two rapids is one
 layer (its rays' intervals are unions of overlapping placements); the reference cuts are
 cast onto the same rays exactly.
 
