@@ -28,16 +28,18 @@ MANIFEST_FORMAT = "ftrac-build-manifest"
 MANIFEST_VERSION = 1
 
 #: files every build writes (manifest.json last, it lists the others' hashes)
+#: (body.ngc: the 4-axis program, cnc profile only; the fanuc post names it body.nc)
 OUTPUT_FILES = ("features.json", "fiducial.step", "fiducial.stl", "mount.step", "mount.stl", "connector.step",
-                "connector.stl", "grooves.csv", "grooves.dxf", "assembly.step", "render.png",
+                "connector.stl", "grooves.csv", "grooves.dxf", "body.ngc", "assembly.step", "render.png",
                 *DRAWING_FILES, "manifest.json")
 #: what an fdm build writes besides (the 3MF of the printed parts, the slicer settings)
 FDM_OUTPUT_FILES = FDM_FILES
 
 
 def output_files(profile: Profile) -> tuple[str, ...]:
-    """Every file a build under ``profile`` writes (manifest.json last)."""
-    extra = FDM_OUTPUT_FILES if profile == "fdm" else ()
+    """Every file a build under ``profile`` may write (manifest.json last; the program only under
+    cnc, as body.ngc or, with the fanuc post, body.nc)."""
+    extra = FDM_OUTPUT_FILES if profile == "fdm" else ("body.nc",)
     return (*OUTPUT_FILES[:-1], *extra, OUTPUT_FILES[-1])
 
 
@@ -119,10 +121,12 @@ def require_cad_packages(render: bool = True) -> None:
 
 
 def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: Profile = "cnc",
-                   force: bool = False, render: bool = True) -> BuildResult:
+                   force: bool = False, render: bool = True, post: str = "linuxcnc") -> BuildResult:
     """Build ``design`` into ``out_dir`` (default :func:`default_output_dir`).
 
     ``render=False`` skips ``render.png`` (benchmarks only; the command always renders).
+    Under the cnc profile the body's 4-axis program is written too, for ``post`` (a key of
+    :data:`ftrac_design.machining.post.POSTS`); ``ftrac-design gcode`` verifies it.
     The design rules of ``profile`` are checked first: a violation raises
     :class:`~ftrac_design.errors.GoalError` (exit 1) before anything is written, unless
     ``force``. Raises :class:`~ftrac_design.errors.InputError` for a bad output directory and
@@ -168,6 +172,7 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
         clock.lap("export_body")
         fixture = fixture_parts(design, features, profile)
         made = write_manufacturing_files(design, features, profile, tmp, parts=fixture)
+        gcode = _write_program(design, profile, post, tmp)
         clock.lap("mount_connector")
         export_assembly(add_to_assembly(build_assembly(design.name, body, parts), fixture), tmp / "assembly.step")
         clock.lap("export_assembly")
@@ -186,6 +191,8 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
         manifest = _manifest(design, features, cuts, plan, body_volume, parts, stl, (stl_tol, stl_ang),
                              stl_rel, tmp, force, profile, cq.__version__)
         manifest["manufacturing"] = manufacturing_manifest(design, features, profile, report, made)
+        if gcode is not None:
+            manifest["manufacturing"]["gcode"] = gcode
         manifest["bom"] = manifest["manufacturing"].pop("bom")
         manifest["build_time_s"] = round(clock.total, 3)
         manifest["timings_s"] = dict(clock.laps)
@@ -194,6 +201,21 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
             _umask_mode(f, 0o666)
     clock.lap("finish")
     return BuildResult(out_dir, manifest, dict(clock.laps))
+
+
+def _write_program(design: Design, profile: Profile, post: str, out_dir: Path) -> dict[str, Any] | None:
+    """Write the body's program (cnc only); its manifest entry, or why there is none."""
+    from ..fileio import write_text_atomic
+    from .gcode import body_program
+
+    if profile != "cnc":
+        return None
+    try:
+        bp = body_program(design, profile, post, check=False)
+    except ValueError as exc:  # a forced build whose grooves are narrower than the end mill
+        return {"skipped": str(exc)}
+    write_text_atomic(out_dir / bp.filename, bp.text)
+    return bp.summary()
 
 
 def _ocp_version() -> str:

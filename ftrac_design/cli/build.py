@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from ..cad.profiles import PROFILES
+from ..machining.post import DEFAULT_POST, POSTS
 
 
 @click.command("build")
@@ -17,23 +18,26 @@ from ..cad.profiles import PROFILES
               help="manufacturing profile: sets groove widths and pocket diameters")
 @click.option("--force", is_flag=True, default=False,
               help="build even if the design breaks a manufacturing rule")
+@click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True,
+              help="control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for")
 @click.option("--report", is_flag=True, default=False,
               help="also write report.html (one self-contained page; runs the analysis at the design's settings)")
-def command(design: Path, output: Path | None, profile: str, force: bool, report: bool) -> int:
+def command(design: Path, output: Path | None, profile: str, force: bool, post: str, report: bool) -> int:
     """Build the fiducial body, wires and beads of DESIGN (a .toml file or a preset's name,
     see `ftrac-design presets`).
 
     Writes fiducial.step, fiducial.stl, assembly.step (body, wires, beads as named,
     coloured parts), features.json, manifest.json, render.png and the dimensioned drawings
     drawing_{body,mount,connector}.{svg,pdf} into the output directory; under --profile fdm
-    also fiducial.3mf (the printed parts) and print_settings.json. Atomically: a failed
-    build leaves nothing behind.
+    also fiducial.3mf (the printed parts) and print_settings.json, under the cnc profile the
+    body's 4-axis program (body.ngc; see `ftrac-design gcode` to verify it). Atomically: a
+    failed build leaves nothing behind.
     """
     from ..cad.build import build_fiducial
     from ..design import load_design
 
     d = load_design(design)
-    result = build_fiducial(d, output, profile=profile, force=force)
+    result = build_fiducial(d, output, profile=profile, force=force, post=post)
     m = result.manifest
     vol = m["volumes_mm3"]
     click.echo(f"built {d.name} ({profile}) in {m['build_time_s']:.1f} s -> {result.out_dir}")

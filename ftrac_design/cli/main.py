@@ -33,6 +33,8 @@ COMMANDS = {
     "serve": "serve",
     "push": "push",
     "export": "export",
+    "gcode": "gcode",
+    "coupon": "coupon",
 }
 
 

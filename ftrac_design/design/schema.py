@@ -279,6 +279,18 @@ class CncProfile(_Strict):
     pin_interference: NonNeg = Field(default=0.02, description="dowel pin diameter minus its hole in the connector, mm")
     slide_clearance: NonNeg = Field(
         default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
+    # cutting data for the 4-axis program (ftrac_design.machining): engineering-plastics milling
+    # tables give 91-114 m/min and a feed per tooth of 0.0009 in for a 1/8 in end mill (0.0072 x D)
+    pocket_tool_diameter: Pos | None = Field(
+        default=None, description="end mill for the bead pockets, mm; default: the largest stock size "
+                                  "between half and 0.8 of the pocket diameter")
+    flutes: Annotated[int, Field(ge=1, le=8)] = Field(default=2, description="flutes of both end mills")
+    cutting_speed: Pos = Field(default=91.0, description="surface speed, m/min (plastics tables: 91-114)")
+    spindle_max_rpm: Pos = Field(default=24000.0, description="the spindle's top speed, rpm")
+    feed_per_tooth_ratio: Pos = Field(default=0.0072, description="feed per tooth / tool diameter")
+    step_down_ratio: Pos = Field(default=0.5, description="depth of cut per level / tool diameter")
+    ramp_angle_deg: Annotated[float, Field(gt=0.0, le=30.0)] = Field(
+        default=3.0, description="slope of ramped and helical entries, degrees")
 
 
 class FdmProfile(_Strict):

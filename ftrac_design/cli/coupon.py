@@ -1,0 +1,132 @@
+"""``ftrac-design coupon DESIGN [--profile cnc|fdm] [-o DIR]`` (SPEC §5): the press-fit test
+coupon; and ``--interference WIRE,BALL --write-design OUT.toml`` to feed the sizes that held
+back into the design's profile, so every later build cuts them."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..cad.profiles import PROFILES
+from ..machining.post import DEFAULT_POST, POSTS
+
+
+def _pair(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        wire, ball = (float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"two numbers WIRE,BALL in mm, got {value!r}") from None
+    if min(wire, ball) < 0:
+        raise click.BadParameter(f"values >= 0, got {value!r}")
+    return wire, ball
+
+
+@click.command("coupon")
+@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
+@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
+              help="manufacturing profile whose groove width and pocket diameter the steps centre on")
+@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
+              help="output directory [default: outputs/<design name>_coupon/]")
+@click.option("--step", type=click.FloatRange(min=0.001, max=0.5), default=None,
+              help="mm between sizes [default: 0.01 cnc, 0.05 fdm]")
+@click.option("--count", type=click.IntRange(min=1, max=15), default=7, show_default=True,
+              help="sizes of each kind")
+@click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True,
+              help="control the coupon's program is written for (cnc)")
+@click.option("--interference", callback=_pair, default=None, metavar="WIRE,BALL",
+              help="the fit that held on the coupon, mm (cnc: interference; fdm: gap per side): "
+                   "writes DESIGN with it to --write-design instead of making a coupon")
+@click.option("--write-design", "write_design", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="where --interference writes the updated design (TOML)")
+def command(design: Path, profile: str, output: Path | None, step: float | None, count: int, post: str,
+            interference: tuple[float, float] | None, write_design: Path | None) -> int:
+    """A press-fit test coupon for DESIGN's wire and balls: groove widths and pocket diameters
+    stepped around the profile's values, each engraved with its size.
+
+    Writes coupon.step, coupon.stl, coupon.png, coupon.csv (the steps, with their A position
+    and fit: fill in which holds), and under cnc coupon.ngc with its verification.
+    """
+    from ..design import load_design
+    from ..errors import GoalError, InputError
+
+    d = load_design(design)
+    if interference is not None or write_design is not None:
+        if interference is None or write_design is None:
+            raise InputError(None, None, "--interference and --write-design together", parameter="interference")
+        return _feed_back(d, profile, interference, write_design)
+    from ..cad.coupon import plan_coupon
+
+    try:
+        c = plan_coupon(d, profile, step, count)
+    except ValueError as exc:
+        raise GoalError(f"{d.name}: {exc}") from exc
+    out = output or Path("outputs") / f"{d.name}_coupon"
+    return _write(c, out, post, d.manufacturing.cnc)
+
+
+def _feed_back(d, profile: str, fit: tuple[float, float], path: Path) -> int:
+    from ..design.loader import parse_design
+    from ..design.writer import to_toml
+    from ..fileio import write_text_atomic
+
+    data = d.model_dump(mode="json", exclude_defaults=True)
+    keys = ("wire_interference", "bead_interference") if profile == "cnc" else ("wire_clearance", "bead_clearance")
+    prof = data.setdefault("manufacturing", {}).setdefault(profile, {})
+    prof[keys[0]], prof[keys[1]] = fit
+    data["name"], data["nominal_beam_direction"] = d.name, d.nominal_beam_direction
+    parse_design(data, path)  # the written design must load
+    write_text_atomic(path, to_toml(data))
+    click.echo(f"wrote {path}: [manufacturing.{profile}] {keys[0]} = {fit[0]:g}, {keys[1]} = {fit[1]:g}")
+    return 0
+
+
+def _write(c, out: Path, post: str, cnc) -> int:
+    from ..cad.coupon import build_coupon, coupon_csv
+    from ..cad.export import export_step, export_stl
+    from ..errors import GoalError
+    from ..fileio import atomic_directory, check_output_dir, write_json_atomic, write_text_atomic
+    from ..machining.gcode import cycle_time, parse_gcode
+    from ..machining.model import tooling
+    from ..machining.post import emit
+    from ..machining.simulate import verify
+    from ..machining.toolpath import plan_program
+
+    check_output_dir(out, "an earlier coupon", lambda p: (p / "coupon.csv").is_file())
+
+    verdict = None
+    with atomic_directory(out) as tmp:
+        solid = build_coupon(c)
+        export_step(solid, tmp / "coupon.step")
+        stl = export_stl(solid, tmp / "coupon.stl", 0.005, 0.1)
+        write_text_atomic(tmp / "coupon.csv", coupon_csv(c))
+        from ..cad.render import render_png
+
+        render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
+        if c.profile == "cnc":
+            pockets = [p.diameter for p in c.plan.pockets]
+            tools = tooling(cnc, min(pockets) if pockets else None)
+            text = emit(plan_program(c.plan, tools, title=f"{c.design} coupon"), post,
+                        [f"{c.design} press-fit coupon, profile {c.profile}, step {c.step_mm:g} mm",
+                         "sizes and A positions in coupon.csv; machine convention as the body's"])
+            parsed = parse_gcode(text, "the coupon program")
+            v = verify(parsed, c.plan, tools={tools.groove.number: tools.groove.diameter,
+                                              tools.pocket.number: tools.pocket.diameter})
+            name = "coupon" + POSTS[post].suffix
+            write_text_atomic(tmp / name, text)
+            write_json_atomic(tmp / f"{name}.verify.json", {"cycle_time_s": cycle_time(parsed), **v.as_dict()})
+            verdict = v
+        if verdict is not None and not verdict.ok:
+            raise GoalError(f"{c.design} coupon: its program does not cut the coupon (deviation "
+                            f"{verdict.max_deviation_mm:.4f} mm, {verdict.gouges} gouges)")
+    click.echo(f"coupon for {c.design} ({c.profile}, step {c.step_mm:g} mm) -> {out}")
+    for s in c.steps:
+        click.echo(f"  {s.kind:<6} {s.label} mm at A{s.azimuth * 57.29577951308232:7.2f}  fit {s.fit:+.3f}")
+    click.echo(f"  thinnest wall {c.min_wall:.2f} mm; STL {stl.triangles} triangles, watertight {stl.watertight}")
+    if verdict is not None:
+        click.echo(f"  program verified: max deviation {verdict.max_deviation_mm * 1000:.2f} um, "
+                   f"{verdict.gouges} gouges, volume {verdict.volume_difference:+.3%}")
+    return 0
+
