@@ -183,3 +183,31 @@ def test_the_trial_lifts_the_time_budget(ftrac_2005, monkeypatch):
     assert opts.time_budget_s == float("inf")
     assert {k: v for k, v in vars(opts).items() if k != "time_budget_s"} == \
         {k: v for k, v in vars(TrackOptions()).items() if k != "time_budget_s"}
+
+
+def test_the_optimiser_scores_a_candidate_on_images(ftrac_2005):
+    """With an image trial the optimiser's figures are the trial's: pooled p95 of the right poses and
+    the shares refused and wrong; too few right images refuse the candidate rather than score it."""
+    import tomllib
+
+    from ftrac_design.design.presets import preset_path
+    from ftrac_design.optimize.evaluate import EvalSettings, evaluate_candidate
+    from ftrac_design.optimize.search import objective_violation
+
+    data = tomllib.loads(preset_path("ftrac_2005").read_text())
+    f, body = ftrac_2005
+    trial = TrialSettings(images=22, seed=4, conditions=("clean",))
+    e = evaluate_candidate(data, EvalSettings(image_trial=trial))
+    recs = run_trial(f, body, trial)
+    right = [r for r in recs if r["outcome"] == "right"]
+    assert e["feasible"] and len(right) >= 20
+    assert e["figures"]["translation_p95_mm"] == pytest.approx(np.percentile([r["translation_mm"] for r in right], 95))
+    assert e["figures"]["rotation_p95_deg"] == pytest.approx(np.percentile([r["rotation_deg"] for r in right], 95))
+    assert e["figures"]["refused_pct"] == pytest.approx(100 * sum(r["outcome"] == "refused" for r in recs) / 22)
+    assert e["figures"]["clean_translation_p95_mm"] == pytest.approx(trial_figures(recs)["clean"]["translation_p95_mm"])
+    small = evaluate_candidate(data, EvalSettings(image_trial=TrialSettings(images=4, seed=4, conditions=("clean",))))
+    assert not small["feasible"] and "fewer than 20" in small["refused"]
+    ref = {"translation_p95_mm": 1.0, "rotation_p95_deg": 1.0, "wrong_pct": 0.0}
+    worse = {"translation_p95_mm": 0.5, "rotation_p95_deg": 0.5, "wrong_pct": 2.5}
+    assert objective_violation("max", worse, ref) == pytest.approx(2.5)
+    assert objective_violation("max", {**worse, "wrong_pct": 0.0}, ref) == 0.0

@@ -52,6 +52,10 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
               help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
                    "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
                    "3.6 at seed 1]")
+@click.option("--score-images", type=click.IntRange(min=0), default=0, show_default=True,
+              help="score candidates on this many rendered, tracked images per condition (clean, over a patient; "
+                   "the image-true score, the same images for every candidate) instead of the paper's "
+                   "feature-level model; each candidate then costs ~0.2–0.5 s per image")
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
 @click.option("--print-space", is_flag=True, default=False,
               help="print the search space (the default one, or --space's) as a file to edit, and exit")
@@ -59,7 +63,7 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
             scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
             verify_poses: int | None, solver_images: int | None, check_images: int | None,
             min_clearance_px: float | None, min_ellipse_view_deg: float | None, no_build: bool,
-            print_space: bool) -> int:
+            print_space: bool, score_images: int = 0) -> int:
     """Optimise the layout of DESIGN (a .toml file or a preset's name) under the design rules.
 
     Every candidate is checked against the rules of the profile(s) first (graded margins);
@@ -88,7 +92,8 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
         doc = optimize(design, out, space, objective, evaluations, seed, profiles, scheduler, workers,
                        resume=resume, poses=poses, verify_poses=verify_poses, solver_images=solver_images,
                        build=not no_build, command_line=cmd, min_clearance_px=min_clearance_px,
-                       min_ellipse_view_deg=min_ellipse_view_deg, check_images=check_images)
+                       min_ellipse_view_deg=min_ellipse_view_deg, check_images=check_images,
+                       score_images=score_images)
     except KeyboardInterrupt:
         click.echo(f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
                    "run the same command with --resume to continue", err=True)

@@ -31,6 +31,13 @@ process pool, a Dask cluster) can run it and the result does not depend on where
   is scored on the same poses, which each worker draws once and keeps — with the
   candidate's own bead and wire error factors (``[analysis]``; set by the search space when
   it changes stock sizes, :func:`ftrac_design.optimize.space.apply_values`).
+- **Image-true score** (``image_trial`` set): instead, the candidate is rendered at the trial's
+  fixed sample of workspace poses, clean and over a patient, and every image tracked
+  (:mod:`ftrac_design.imagescore`; common random numbers again: every candidate sees the same
+  poses, noise and patients). Its figures are the p95 errors of the right poses over both
+  conditions and the shares of images refused and wrong (:func:`image_figures`); a candidate
+  with more wrong poses than the start breaks the objective's constraint
+  (:func:`ftrac_design.optimize.search.objective_violation`).
 """
 
 from __future__ import annotations
@@ -42,6 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.score import AnalysisSettings
+from ..imagescore import TrialSettings
 from .space import design_hash
 
 #: violation of a candidate the design schema refuses (larger than any sum of rule margins
@@ -62,9 +70,14 @@ class EvalSettings:
     clearance_poses: int = 500
     #: smallest angle (deg) any ellipse may be seen at from edge-on (None: no constraint)
     min_ellipse_view_deg: float | None = None
+    #: score candidates on rendered, tracked images (None: the paper's feature-level model)
+    image_trial: TrialSettings | None = None
 
     def to_dict(self) -> dict:
         d = {"profiles": list(self.profiles), "analysis": self.analysis.to_dict()}
+        if self.image_trial is not None:
+            d.update(image_trial={"images": self.image_trial.images, "seed": self.image_trial.seed,
+                                  "conditions": list(self.image_trial.conditions)})
         if self.min_clearance_px is not None:
             d.update(min_clearance_px=self.min_clearance_px, clearance_poses=self.clearance_poses)
         if self.min_ellipse_view_deg is not None:
@@ -132,6 +145,41 @@ def score_figures(features, settings: AnalysisSettings) -> dict[str, float] | No
             "condition_worst": float(m.condition.max())}
 
 
+def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | None:
+    """The image-true figures of a candidate: p95 translation (mm) and rotation (deg) errors of the
+    right poses over every image of ``trial`` (both conditions), the percentages refused and wrong,
+    and the per-condition p95s; None when fewer than 20 images were right.
+
+    Parameters
+    ----------
+    features, body
+        The candidate fiducial and its body.
+    trial : TrialSettings
+        The sample (the same for every candidate).
+
+    Returns
+    -------
+    dict or None
+        ``translation_p95_mm``, ``rotation_p95_deg``, ``refused_pct``, ``wrong_pct`` and
+        ``<condition>_translation_p95_mm`` / ``<condition>_rotation_p95_deg``.
+    """
+    from ..imagescore import run_trial, trial_figures
+
+    records = run_trial(features, body, trial)
+    right = [r for r in records if r["outcome"] == "right"]
+    if len(right) < 20:
+        return None
+    n = len(records)
+    out = {"translation_p95_mm": float(np.percentile([r["translation_mm"] for r in right], 95)),
+           "rotation_p95_deg": float(np.percentile([r["rotation_deg"] for r in right], 95)),
+           "refused_pct": 100.0 * sum(r["outcome"] == "refused" for r in records) / n,
+           "wrong_pct": 100.0 * sum(r["outcome"] == "wrong" for r in records) / n}
+    for cond, f in trial_figures(records).items():
+        out[f"{cond}_translation_p95_mm"] = f["translation_p95_mm"]
+        out[f"{cond}_rotation_p95_deg"] = f["rotation_p95_deg"]
+    return out
+
+
 def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
     """Rules, then (if they all pass) the score of the candidate design ``data``.
 
@@ -185,10 +233,17 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
         if p5 < lim:
             out["violation"] += -m + 1e-6
     if out["violation"] == 0.0:
-        # the candidate's own parts: stock sizes other than the start's carry their error factors
-        figures = score_figures(features, settings.analysis.for_parts(design.analysis))
+        if settings.image_trial is not None:
+            from ..xray import Body
+
+            figures = image_figures(features, Body.from_design(design), settings.image_trial)
+        else:
+            # the candidate's own parts: stock sizes other than the start's carry their error factors
+            figures = score_figures(features, settings.analysis.for_parts(design.analysis))
         if figures is None:
-            out.update(refused="singular somewhere in the workspace", violation=SINGULAR_VIOLATION)
+            reason = ("tracked right in fewer than 20 of its images" if settings.image_trial is not None
+                      else "singular somewhere in the workspace")
+            out.update(refused=reason, violation=SINGULAR_VIOLATION)
         else:
             figures.update(outer_diameter_mm=float(design.body.outer_diameter), length_mm=float(design.body.length))
             out.update(feasible=True, figures=figures)

@@ -94,7 +94,9 @@ def objective_violation(objective: str, figures: dict, ref: dict) -> float:
     ``translation`` keeps the rotation error within the start's and vice versa."""
     t = figures["translation_p95_mm"] / ref["translation_p95_mm"]
     r = figures["rotation_p95_deg"] / ref["rotation_p95_deg"]
-    return {"translation": max(0.0, r - 1.0), "rotation": max(0.0, t - 1.0)}.get(objective, 0.0)
+    # on images: no more confident wrong poses than the start (percentage points of its images)
+    wrong = max(0.0, figures["wrong_pct"] - ref["wrong_pct"]) if "wrong_pct" in figures and "wrong_pct" in ref else 0.0
+    return {"translation": max(0.0, r - 1.0), "rotation": max(0.0, t - 1.0)}.get(objective, 0.0) + wrong
 
 
 def _ok(e: dict) -> bool:
@@ -327,9 +329,16 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
             from .evaluate import score_figures
 
             d = parse_design(space.base)
-            fig = score_figures(compute_features(d), settings.analysis.for_parts(d.analysis))
+            if settings.image_trial is not None:
+                from ..xray import Body
+                from .evaluate import image_figures
+
+                fig = image_figures(compute_features(d), Body.from_design(d), settings.image_trial)
+            else:
+                fig = score_figures(compute_features(d), settings.analysis.for_parts(d.analysis))
             if fig is None:
-                raise InputError(space.base.get("name"), None, "a start design that is not singular in its workspace")
+                raise InputError(space.base.get("name"), None, "a start design that is not singular in its workspace "
+                                                               "and tracks from at least 20 of the images")
             fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))
             start["figures"] = fig
         write(start)

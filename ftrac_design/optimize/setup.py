@@ -26,12 +26,14 @@ def read_design(path: str | Path) -> tuple[dict, object]:
 def prepare(design_path: str | Path, space_path: str | Path | None = None, poses: int | None = None,
             seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
             min_clearance_px: float | None = None,
-            min_ellipse_view_deg: float | None = None) -> tuple[SearchSpace, EvalSettings]:
+            min_ellipse_view_deg: float | None = None, score_images: int = 0) -> tuple[SearchSpace, EvalSettings]:
     """The search space and evaluation settings of a run: the design's own [analysis]
     workspace and noise, a sample of ``poses`` (else the space's ``search.poses``, else
     :data:`SEARCH_POSES`) drawn with ``seed``; ellipses seen no closer to edge-on than
     ``min_ellipse_view_deg`` (default: as close as the start design's, rounded down to
-    0.1°; 0 switches the constraint off)."""
+    0.1°; 0 switches the constraint off); with ``score_images`` > 0 candidates are scored on that
+    many rendered, tracked images per condition (the image-true score, seed ``seed``) instead of
+    the paper's feature-level model."""
     from ..analysis.subject import Subject, settings_for
     from ..features import compute_features
 
@@ -46,5 +48,11 @@ def prepare(design_path: str | Path, space_path: str | Path | None = None, poses
     if min_ellipse_view_deg is None:
         v = view_of(features, analysis)
         min_ellipse_view_deg = None if v is None else math.floor(v * 10) / 10
+    trial = None
+    if score_images:
+        from ..imagescore import TrialSettings
+
+        trial = TrialSettings(images=int(score_images), seed=int(seed), workspace=analysis.workspace,
+                              camera=analysis.camera)
     return space, EvalSettings(tuple(profiles), analysis, min_clearance_px,
-                               min_ellipse_view_deg=min_ellipse_view_deg or None)
+                               min_ellipse_view_deg=min_ellipse_view_deg or None, image_trial=trial)

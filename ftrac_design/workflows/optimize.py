@@ -43,7 +43,8 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
              solver_images: int | None = None, build: bool = True, progress: bool = True,
              command_line: str | None = None, stop_after: int | None = None, sigma0: float | None = None,
              popsize: int | None = None, min_clearance_px: float | None = None,
-             min_ellipse_view_deg: float | None = None, check_images: int | None = None) -> dict:
+             min_ellipse_view_deg: float | None = None, check_images: int | None = None,
+             score_images: int = 0) -> dict:
     """Run a search and write its outputs into ``out_dir`` (see :mod:`.optimize_outputs`); returns
     ``summary.json``'s content. ``executor`` (any ``concurrent.futures``-style one) wins
     over ``scheduler`` / ``workers`` (see :mod:`ftrac_design.optimize.execution`). Raises
@@ -51,7 +52,7 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     out_dir = Path(out_dir)
     _check_output_dir(out_dir)
     space, settings = prepare(design_path, space_path, poses, seed, profiles, min_clearance_px,
-                              min_ellipse_view_deg)
+                              min_ellipse_view_deg, score_images)
     config = SearchConfig(objective=objective, evaluations=evaluations, seed=seed,
                           sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
                           popsize=popsize or space.search.get("popsize"))
