@@ -25,8 +25,9 @@ def _solve_cli(doc: dict, preset: str = "ftrac_2005"):
         return run, out.exists()
 
 
-def test_issue15_bead_at_1e300_pixels_exits_2_not_linalgerror():
-    """`solve` printed `numpy.linalg.LinAlgError: Eigenvalues did not converge`."""
+def test_bead_at_1e300_pixels_exits_2_not_linalgerror():
+    """A bead at 1e300 px: one line naming the key, not `numpy.linalg.LinAlgError: Eigenvalues did not
+    converge`."""
     doc = json.loads(json.dumps(BASE[("ftrac_2005", 0, False)]))
     doc["points"]["B1"] = [1e300, 506.651]
     run, wrote = _solve_cli(doc)
