@@ -18,6 +18,7 @@ faster than scipy's for the same operator).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -149,8 +150,88 @@ def derivatives(img: np.ndarray, sigma: float, first: bool = True) -> dict[str, 
     return d
 
 
+@dataclass(frozen=True)
+class NoiseLevels:
+    """An image's noise level function at one detector scale: the white-noise pixel σ
+    (density units) at each local background level (see :func:`noise_map`).
+
+    Attributes
+    ----------
+    level : (k,) increasing background levels (density units).
+    sigma : (k,) the pixel σ at each level; interpolated between them, constant beyond.
+    """
+
+    level: np.ndarray
+    sigma: np.ndarray
+
+
+def _background_level(g: np.ndarray, structure_px: int) -> np.ndarray:
+    """The local background level of ``g``: eroded with a disc of radius ``structure_px``
+    (balls and wires narrower than it taken away) and smoothed over 3 px."""
+    base = g
+    if structure_px > 0:
+        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * structure_px + 1, 2 * structure_px + 1))
+        base = cv2.erode(g, disc, borderType=cv2.BORDER_REPLICATE)
+    return cv2.GaussianBlur(base, (0, 0), 3.0, borderType=cv2.BORDER_REPLICATE)
+
+
+def _laplacian(g: np.ndarray, sigma: float) -> tuple[np.ndarray, float]:
+    """The Laplacian of Gaussian of ``g`` at ``sigma`` px and its gain for unit white noise."""
+    g0, _, g2 = gaussian_kernels(sigma)
+    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + \
+        cv2.sepFilter2D(g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
+    k = np.outer(g0.astype(np.float64), g2) + np.outer(g2.astype(np.float64), g0)
+    return lap, float(np.sqrt((k * k).sum()))
+
+
+def _measured_levels(level: np.ndarray, lap: np.ndarray, gain: float, valid: np.ndarray | None,
+                     bins: int) -> NoiseLevels | None:
+    """The noise level function measured on the Laplacian ``lap`` grouped by ``level`` (see
+    :func:`noise_map`), or None with fewer than 64 samples."""
+    H, W = level.shape
+    # ~16 000 samples: each of 32 groups' quartile to ~5 %, the sort under a millisecond
+    step = max(1, int(math.sqrt(H * W / 16384.0)))
+    lv = level[::step, ::step].ravel()
+    r = lap[::step, ::step].ravel()
+    if valid is not None:
+        m = np.asarray(valid, bool)[::step, ::step].ravel()
+        lv, r = lv[m], r[m]
+    nb = int(max(1, min(bins, len(lv) // 256)))
+    if len(lv) < 64:
+        return None
+    order = np.argsort(lv, kind="stable")
+    lv, r = lv[order], r[order]
+    cuts = np.linspace(0, len(lv), nb + 1).astype(int)
+    centre = np.empty(nb)
+    sig = np.empty(nb)
+    for b in range(nb):
+        rb = r[cuts[b]:cuts[b + 1]]
+        centre[b] = float(np.median(lv[cuts[b]:cuts[b + 1]]))
+        # the lower quartile of |r − median| over its Gaussian value (Φ⁻¹(5/8) σ)
+        sig[b] = float(np.percentile(np.abs(rb - np.median(rb)), 25)) / 0.31864 / gain
+    if nb >= 3:
+        low = np.minimum(sig, np.minimum(np.r_[sig[1:], np.inf], np.r_[np.inf, sig[:-1]]))
+        sig = low
+    return NoiseLevels(centre, np.maximum(sig, 1e-9))
+
+
+def noise_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
+                 structure_px: int = 0) -> NoiseLevels | None:
+    """The noise level function of the density image ``g`` at scale ``sigma`` px, as
+    :func:`noise_map` measures it (same arguments); None when ``g`` has too few readable
+    pixels to measure one (fewer than 64 samples).
+
+    Returns
+    -------
+    NoiseLevels or None
+    """
+    g = np.ascontiguousarray(g, dtype=np.float32)
+    lap, gain = _laplacian(g, sigma)
+    return _measured_levels(_background_level(g, structure_px), lap, gain, valid, bins)
+
+
 def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
-              structure_px: int = 0) -> np.ndarray:
+              structure_px: int = 0, levels: NoiseLevels | None = None) -> np.ndarray:
     """Local noise σ (H, W) float32 of the density image ``g``, as the white-noise pixel σ
     that gives the noise the detectors actually see at scale ``sigma`` px.
 
@@ -174,44 +255,21 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     bright balls and wires narrower than it taken away) and smoothed over 3 px: a ball's own
     density must not decide the noise it is judged against (it put a ball in the group of
     the densest bone).
+
+    ``levels``: a noise level function measured before (:func:`noise_levels`, on a larger
+    image of the same imaging chain) used instead of measuring one on ``g``; the clutter
+    term is still measured on ``g``.
     """
     g = np.ascontiguousarray(g, dtype=np.float32)
     H, W = g.shape
-    g0, _, g2 = gaussian_kernels(sigma)
-    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + \
-        cv2.sepFilter2D(g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
-    k = np.outer(g0.astype(np.float64), g2) + np.outer(g2.astype(np.float64), g0)
-    gain = float(np.sqrt((k * k).sum()))
-    base = g
-    if structure_px > 0:
-        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * structure_px + 1, 2 * structure_px + 1))
-        base = cv2.erode(g, disc, borderType=cv2.BORDER_REPLICATE)
-    level = cv2.GaussianBlur(base, (0, 0), 3.0, borderType=cv2.BORDER_REPLICATE)
-    # ~16 000 samples: each of 32 groups' quartile to ~5 %, the sort under a millisecond
-    step = max(1, int(math.sqrt(H * W / 16384.0)))
-    lv = level[::step, ::step].ravel()
-    r = lap[::step, ::step].ravel()
-    if valid is not None:
-        m = np.asarray(valid, bool)[::step, ::step].ravel()
-        lv, r = lv[m], r[m]
-    nb = int(max(1, min(bins, len(lv) // 256)))
-    if len(lv) < 64:
-        return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32)
-    order = np.argsort(lv, kind="stable")
-    lv, r = lv[order], r[order]
-    cuts = np.linspace(0, len(lv), nb + 1).astype(int)
-    centre = np.empty(nb)
-    sig = np.empty(nb)
-    for b in range(nb):
-        rb = r[cuts[b]:cuts[b + 1]]
-        centre[b] = float(np.median(lv[cuts[b]:cuts[b + 1]]))
-        # the lower quartile of |r − median| over its Gaussian value (Φ⁻¹(5/8) σ)
-        sig[b] = float(np.percentile(np.abs(rb - np.median(rb)), 25)) / 0.31864 / gain
-    if nb >= 3:
-        low = np.minimum(sig, np.minimum(np.r_[sig[1:], np.inf], np.r_[np.inf, sig[:-1]]))
-        sig = low
-    sig = np.maximum(sig, 1e-9)
-    if nb == 1 or not np.ptp(centre) > 0:
+    lap, gain = _laplacian(g, sigma)
+    level = _background_level(g, structure_px)
+    if levels is None:
+        levels = _measured_levels(level, lap, gain, valid, bins)
+        if levels is None:
+            return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32)
+    centre, sig = levels.level, levels.sigma
+    if len(centre) == 1 or not np.ptp(centre) > 0:
         out = np.full((H, W), float(np.median(sig)), np.float32)
     elif H * W > 65536:
         # the level is smooth over ~3 px: looked up on every 4th pixel and interpolated
@@ -283,17 +341,22 @@ class NoiseField:
     level function would be measured mostly on the fiducial that fills it."""
 
     def __init__(self, g: np.ndarray, valid: np.ndarray | None, structure_px: int,
-                 box: tuple[int, int, int, int] | None = None, cache: dict | None = None):
+                 box: tuple[int, int, int, int] | None = None, cache: dict | None = None,
+                 levels: dict[float, NoiseLevels] | None = None):
         self._g, self._valid, self._structure = g, valid, int(structure_px)
         self._box = box
         self._cache = {} if cache is None else cache
+        #: noise level functions measured before, by scale (rounded to 1e-3 px): a crop
+        #: that the fiducial fills uses its whole frame's instead of measuring its own
+        self._levels = {round(float(k), 3): v for k, v in (levels or {}).items()}
 
     def at(self, sigma: float) -> np.ndarray:
         """The noise map (float32) at scale ``sigma`` px over this field's box."""
         key = round(float(sigma), 3)
         full = self._cache.get(key)
         if full is None:
-            full = self._cache[key] = noise_map(self._g, sigma, self._valid, structure_px=self._structure)
+            full = self._cache[key] = noise_map(self._g, sigma, self._valid, structure_px=self._structure,
+                                                levels=self._levels.get(key))
         if self._box is None:
             return full
         r0, r1, c0, c1 = self._box
@@ -304,4 +367,4 @@ class NoiseField:
         if self._box is not None:
             br0, _, bc0, _ = self._box
             r0, r1, c0, c1 = r0 + br0, r1 + br0, c0 + bc0, c1 + bc0
-        return NoiseField(self._g, self._valid, self._structure, (r0, r1, c0, c1), self._cache)
+        return NoiseField(self._g, self._valid, self._structure, (r0, r1, c0, c1), self._cache, self._levels)
