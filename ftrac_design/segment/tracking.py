@@ -39,7 +39,6 @@ identification.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -276,7 +275,6 @@ def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndar
     ``diagnostics["moved_px"]`` the balls' RMS move from the prediction. Never raises for
     an image (a failure is a refused pose with its reason).
     """
-    t_start = time.perf_counter()
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
@@ -327,7 +325,6 @@ def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndar
         "variance_factor": lab.variance_factor,
         "rotation_step_deg": round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
         if np.all(np.isfinite(pose.rotation)) else None,
-        "track_ms": round(1000 * (time.perf_counter() - t_start), 2),
     })
     res = TrackResult(pose, lab.obs, _quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
     return shifted(res, camera, c0, r0)
