@@ -240,3 +240,87 @@ def test_a_file_that_is_not_a_video_is_bad_input(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and str(fake) in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "poses.jsonl").exists()
+
+
+# ------------------------------------------------------------------ building blocks of a tracked frame
+def test_bilinear_many_reads_each_map_exactly_as_bilinear_does():
+    from ftrac_design.segment.detection import bilinear, bilinear_many
+
+    rng = np.random.default_rng(0)
+    maps = [rng.random((60, 40)).astype(np.float32) for _ in range(3)]
+    uv = rng.uniform(-3, 63, (500, 2))                         # inside, on the border and beyond it
+    for got, img in zip(bilinear_many(maps, uv), maps):
+        np.testing.assert_array_equal(got, bilinear(img, uv))
+
+
+def test_a_crop_read_with_its_frames_noise_levels_has_the_frames_noise():
+    """The noise level function measured on a whole frame, given to a crop that a bright
+    structure fills (a grid of wires), gives the noise the frame's own map has there; the
+    crop's own function, measured mostly on the wires, is several times too high."""
+    from ftrac_design.segment.image import NoiseField, noise_levels, noise_map
+
+    rng = np.random.default_rng(2)
+    H = W = 512
+    level = np.tile(np.linspace(0.0, 3.0, W, dtype=np.float32), (H, 1))
+    sigma = 0.01 * np.exp(level / 2)
+    g = level + sigma * rng.standard_normal((H, W)).astype(np.float32)
+    crop = (slice(128, 256), slice(192, 320))                  # on the frame's 64-px clutter tiles
+    g[128:256:6, 192:320] += 0.3
+    lv = noise_levels(g, 1.36, structure_px=8)
+    frame_map = noise_map(g, 1.36, structure_px=8)[crop]
+    with_frame = noise_map(g[crop], 1.36, structure_px=8, levels=lv)
+    own = noise_map(g[crop], 1.36, structure_px=8)
+    inner = (slice(16, -16), slice(16, -16))
+    np.testing.assert_allclose(with_frame[inner][::8, ::8], frame_map[inner][::8, ::8], rtol=0.25)
+    assert np.median(own[inner] / frame_map[inner]) > 2.0
+    field = NoiseField(g[crop], None, 8, levels={1.36: lv})
+    np.testing.assert_array_equal(field.at(1.36), with_frame)
+    assert field.levels(1.36) is lv
+    # a field that measured its own: the function it used is kept for the crops that share it
+    whole = NoiseField(g, None, 8)
+    whole.crop(0, 10, 0, 10).at(1.36)
+    np.testing.assert_array_equal(whole.levels(1.36).sigma, lv.sigma)
+
+
+def test_a_crop_is_conditioned_against_the_frames_clip_levels():
+    """A display frame with a saturated corner: the crop's invalid pixels and filled strokes
+    are the frame's, though the crop's own extremes are not clip levels."""
+    from ftrac_design.segment.conditioning import condition
+
+    rng = np.random.default_rng(4)
+    img = np.clip(np.rint(120 + 8 * rng.standard_normal((256, 256))), 0, 255)
+    img[:80, :80] = 255                                          # saturated corner
+    img[150, 100:200] = 0                                        # a burned-in black stroke
+    crop = (slice(40, 200), slice(40, 220))
+    whole = condition(img, "dense-bright", "display", 6)
+    part = condition(img[crop], "dense-bright", "display", 6, levels=(float(img.min()), float(img.max())))
+    inner = (slice(12, -12), slice(12, -12))
+    np.testing.assert_array_equal(part.valid[inner], whole.valid[crop][inner])
+    np.testing.assert_array_equal(part.density[inner], whole.density[crop][inner])
+    assert not part.valid[:20, :20].any() and part.valid[100:140, 100:160].all()
+
+
+def test_the_distortion_covariance_is_the_sum_over_the_modes(run, tracked):
+    """The four displaced observations solved as one batch give Σ σ² Δθ Δθᵀ with each mode's
+    Δθ from its own observation (the closed form, mode by mode)."""
+    from ftrac_design.pose.observation import CurveObservation, Observation
+    from ftrac_design.pose.problem import compile_problem, evaluate
+    from ftrac_design.segment.noise import distortion_covariance, distortion_modes, residuals_at
+
+    a = tracked[-1].result
+    feats, obs, pose, noise = FEATURES["ftrac_2005"], a.observation, a.pose, a.noise
+    got = distortion_covariance(feats, obs, pose, noise, 1.5)
+    R, t = pose.rotation, pose.translation_mm
+    _, ev0 = residuals_at(feats, obs, noise, R, t)
+    J = evaluate(compile_problem(feats, [obs], noise), R[None], t[None], jac=True).J[0]
+    want = np.zeros((6, 6))
+    for k, w in enumerate((1.0, 1.0, 0.4, 0.4)):
+        def mv(uv):
+            return uv + distortion_modes(obs.camera, uv, 100.0)[k]
+        o = Observation(obs.camera, {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
+                        {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
+                        {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()}, obs.origin)
+        drho = evaluate(compile_problem(feats, [o], noise), R[None], t[None], jac=False).rho[0] - ev0.rho[0]
+        dth = -np.linalg.solve(J.T @ J, J.T @ drho)
+        want += (w * 1.5) ** 2 * np.outer(dth, dth)
+    np.testing.assert_allclose(got, want, rtol=1e-6, atol=1e-12)

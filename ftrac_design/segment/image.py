@@ -260,6 +260,14 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     image of the same imaging chain) used instead of measuring one on ``g``; the clutter
     term is still measured on ``g``.
     """
+    return noise_map_and_levels(g, sigma, valid, bins, structure_px, levels)[0]
+
+
+def noise_map_and_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
+                         structure_px: int = 0, levels: NoiseLevels | None = None
+                         ) -> tuple[np.ndarray, NoiseLevels | None]:
+    """:func:`noise_map` and the noise level function it used (``levels`` when given, the
+    one measured on ``g`` otherwise; None where too few pixels could be read to measure one)."""
     g = np.ascontiguousarray(g, dtype=np.float32)
     H, W = g.shape
     lap, gain = _laplacian(g, sigma)
@@ -267,7 +275,7 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     if levels is None:
         levels = _measured_levels(level, lap, gain, valid, bins)
         if levels is None:
-            return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32)
+            return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32), None
     centre, sig = levels.level, levels.sigma
     if len(centre) == 1 or not np.ptp(centre) > 0:
         out = np.full((H, W), float(np.median(sig)), np.float32)
@@ -278,7 +286,7 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     else:
         out = np.interp(level, centre, sig).astype(np.float32)
     clutter = _clutter_map(lap, valid, gain)
-    return out if clutter is None else np.maximum(out, clutter)
+    return (out if clutter is None else np.maximum(out, clutter)), levels
 
 
 def _sorted_median(v: np.ndarray, cnt: np.ndarray) -> np.ndarray:
@@ -338,33 +346,43 @@ def second_derivative_gain(sigma: float) -> float:
 class NoiseField:
     """The local noise of one density image at any detector scale (:func:`noise_map`),
     computed once per scale on the whole image and shared by its crops: a crop's own noise
-    level function would be measured mostly on the fiducial that fills it."""
+    level function would be measured mostly on the fiducial that fills it.
+
+    ``levels``: noise level functions measured before, by scale (px), used instead of
+    measuring them (a crop of a run's frame with the frame's own function)."""
 
     def __init__(self, g: np.ndarray, valid: np.ndarray | None, structure_px: int,
                  box: tuple[int, int, int, int] | None = None, cache: dict | None = None,
                  levels: dict[float, NoiseLevels] | None = None):
         self._g, self._valid, self._structure = g, valid, int(structure_px)
         self._box = box
+        # maps by scale, and ("levels", scale) → the level function: shared with the crops
         self._cache = {} if cache is None else cache
-        #: noise level functions measured before, by scale (rounded to 1e-3 px): a crop
-        #: that the fiducial fills uses its whole frame's instead of measuring its own
-        self._levels = {round(float(k), 3): v for k, v in (levels or {}).items()}
+        for k, v in (levels or {}).items():
+            self._cache[("levels", round(float(k), 3))] = v
 
     def at(self, sigma: float) -> np.ndarray:
         """The noise map (float32) at scale ``sigma`` px over this field's box."""
         key = round(float(sigma), 3)
         full = self._cache.get(key)
         if full is None:
-            full = self._cache[key] = noise_map(self._g, sigma, self._valid, structure_px=self._structure,
-                                                levels=self._levels.get(key))
+            full, used = noise_map_and_levels(self._g, sigma, self._valid, structure_px=self._structure,
+                                              levels=self._cache.get(("levels", key)))
+            self._cache[key] = full
+            self._cache[("levels", key)] = used
         if self._box is None:
             return full
         r0, r1, c0, c1 = self._box
         return full[r0:r1, c0:c1]
+
+    def levels(self, sigma: float) -> NoiseLevels | None:
+        """The noise level function at scale ``sigma`` px: the one given, or the one measured
+        when the map at that scale was made; None before (or where none could be measured)."""
+        return self._cache.get(("levels", round(float(sigma), 3)))
 
     def crop(self, r0: int, r1: int, c0: int, c1: int) -> "NoiseField":
         """The same field over rows r0:r1 and columns c0:c1 (of this field's box)."""
         if self._box is not None:
             br0, _, bc0, _ = self._box
             r0, r1, c0, c1 = r0 + br0, r1 + br0, c0 + bc0, c1 + bc0
-        return NoiseField(self._g, self._valid, self._structure, (r0, r1, c0, c1), self._cache, self._levels)
+        return NoiseField(self._g, self._valid, self._structure, (r0, r1, c0, c1), self._cache)

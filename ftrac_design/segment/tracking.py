@@ -42,6 +42,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Any
 
+import cv2
 import numpy as np
 
 from ..features.model import Features
@@ -103,11 +104,15 @@ def run_context(image: np.ndarray, result: TrackResult, features: Features, came
     blur = float(result.diagnostics.get("blur_px", opts.blur_px))
     sc0 = scales(features, camera, opts)
     sc = scales(features, camera, replace(opts, blur_px=blur))
-    cond = condition(np.asarray(image, np.float32), result.polarity, form, sc0.disc_px)
-    levels = noise_levels(cond.density, sc.ridge_sigma_px, cond.valid, structure_px=sc0.disc_px)
+    levels = result.noise_levels
+    if levels is None:
+        # a result that does not carry its image's noise level function: measured again
+        cond = condition(np.asarray(image, np.float32), result.polarity, form, sc0.disc_px)
+        form = cond.formation
+        levels = noise_levels(cond.density, sc.ridge_sigma_px, cond.valid, structure_px=sc0.disc_px)
     fitted = [q["blur_px"] for q in result.quality.get("points", {}).values() if math.isfinite(q["blur_px"])]
     ball_blur = float(np.median(fitted)) if fitted else blur
-    return RunContext(result.polarity, cond.formation, blur, sc.ridge_sigma_px, levels, ball_blur)
+    return RunContext(result.polarity, form, blur, sc.ridge_sigma_px, levels, ball_blur)
 
 
 def predicted_box(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int],
@@ -275,6 +280,16 @@ def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndar
     ``diagnostics["moved_px"]`` the balls' RMS move from the prediction. Never raises for
     an image (a failure is a refused pose with its reason).
     """
+    try:
+        return _track_near(image, features, camera, R, t, context, options, search_px, body, first_stage)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
+        return failed_result(f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}",
+                             context.polarity)
+
+
+def _track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                context: RunContext, options: TrackOptions | None, search_px: float | None, body,
+                first_stage: int) -> TrackResult:
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
