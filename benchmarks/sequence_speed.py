@@ -9,7 +9,8 @@ is read from the file and tracked twice: by ``RunTracker`` (the default of ``tra
 run) and by ``RunTracker(independent=True)`` (``track --independent``: the full no-guess
 identification on every frame), each with its own reader, so both times include reading the
 frame. Printed per design: median / p95 time per frame (read + track), frames per second
-(frames over the summed time), the ratio of the two, the statuses, and the pose error
+(frames over the summed time), the CPU time per frame (the process's, all threads: less
+inflated by other jobs than the wall time), the ratio of the two, the statuses, and the pose error
 against the truth (p50 / p95 / max of the translation error's norm, mm, and of the rotation
 error's angle, degrees) over the frames each path tracked.
 
@@ -51,9 +52,10 @@ def _write(raw: np.ndarray, cam: Camera, folder: Path, fmt: str) -> Path:
     return path
 
 
-def _errors(answers, run) -> tuple[np.ndarray, np.ndarray]:
-    """Translation error norms (mm) and rotation error angles (deg) of the converged answers."""
-    dt, dr = [], []
+def _errors(answers, run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Of the converged answers: translation error norms (mm), rotation error angles (deg) and
+    the errors' squared Mahalanobis distances under the poses' own covariances (6 dof)."""
+    dt, dr, m2 = [], [], []
     for k, a in enumerate(answers):
         p = a.result.pose
         if p.converged:
@@ -61,7 +63,9 @@ def _errors(answers, run) -> tuple[np.ndarray, np.ndarray]:
                                run.translation_mm[k][None])
             dt.append(float(np.linalg.norm(t)))
             dr.append(float(np.degrees(np.linalg.norm(r))))
-    return np.array(dt), np.array(dr)
+            e = np.concatenate([r[0], t[0]])
+            m2.append(float(e @ np.linalg.solve(p.covariance, e)) if p.covariance is not None else np.nan)
+    return np.array(dt), np.array(dr), np.array(m2)
 
 
 def _q(v: np.ndarray, p: float) -> float:
@@ -69,13 +73,15 @@ def _q(v: np.ndarray, p: float) -> float:
 
 
 def _line(name: str, ms: np.ndarray, answers, run) -> str:
-    dt, dr = _errors(answers, run)
+    dt, dr, m2 = _errors(answers, run)
     st = {s: sum(a.status == s for a in answers) for s in ("tracked", "re-identified", "lost")}
     q = _q
     return (f"  {name:14s} median {np.median(ms):6.1f} ms, p95 {np.percentile(ms, 95):6.1f} ms, "
             f"{1000 * len(ms) / ms.sum():5.1f} frames/s | tracked {st['tracked']}, re-identified "
-            f"{st['re-identified']}, lost {st['lost']} | error t p50/p95/max {q(dt, 50):.3f}/{q(dt, 95):.3f}/"
-            f"{q(dt, 100):.3f} mm, R {q(dr, 50):.3f}/{q(dr, 95):.3f}/{q(dr, 100):.3f}°")
+            f"{st['re-identified']}, lost {st['lost']}\n  {'':14s} error t p50/p95/max {q(dt, 50):.3f}/"
+            f"{q(dt, 95):.3f}/{q(dt, 100):.3f} mm, R {q(dr, 50):.3f}/{q(dr, 95):.3f}/{q(dr, 100):.3f}°; "
+            f"Mahalanobis² median {np.nanmedian(m2):.1f}, p95 {q(m2[np.isfinite(m2)], 95):.1f} "
+            f"(6 dof: 5.3 and 12.6 when the covariance is right)")
 
 
 def run_design(name: str, n: int, fmt: str, seed: int) -> None:
@@ -95,14 +101,16 @@ def run_design(name: str, n: int, fmt: str, seed: int) -> None:
                     "frame by frame": RunTracker(features, cam, body=body, independent=True)}
         readers = {k: read_frames(path) for k in trackers}
         ms = {k: np.zeros(n) for k in trackers}
+        cpu = {k: np.zeros(n) for k in trackers}
         answers: dict[str, list] = {k: [] for k in trackers}
         for k in tqdm(range(n), desc=name, unit="frame", file=sys.stderr):
             for key, tr in trackers.items():           # interleaved: the same load on both
-                t0_ = time.perf_counter()
+                t0_, c0_ = time.perf_counter(), time.process_time()
                 fr = next(readers[key])
                 a = tr.track_frame(fr.pixels, fr.camera, fr.time_s, frame=fr.index, polarity_hint=fr.polarity,
                                    formation_hint=fr.formation)
                 ms[key][k] = 1000 * (time.perf_counter() - t0_)
+                cpu[key][k] = 1000 * (time.process_time() - c0_)
                 answers[key].append(a)
         # reading alone, for the record
         t_read = []
@@ -117,6 +125,8 @@ def run_design(name: str, n: int, fmt: str, seed: int) -> None:
     print(f"  reading a frame alone: median {np.median(t_read):.1f} ms")
     for key in trackers:
         print(_line(key, ms[key], answers[key], run))
+        print(f"  {'':14s} CPU time (all the process's threads) median {np.median(cpu[key]):6.1f} ms, p95 "
+              f"{np.percentile(cpu[key], 95):6.1f} ms")
     tracked = np.array([x.status == "tracked" for x in answers["run tracker"]])
     print(f"  ratio frame-by-frame / run tracker: median {np.median(b) / np.median(a):.1f}×, total "
           f"{b.sum() / a.sum():.1f}×; run tracker's tracked frames alone: median {np.median(a[tracked]):.1f} ms, "
