@@ -88,7 +88,9 @@ def run_design(name: str, n: int, fmt: str, seed: int) -> None:
     design = load_design(name)
     features = compute_features(design)
     body = Body.from_design(design)
-    cam = Camera()
+    # the principal point where DICOM intake puts it without a tag (the image centre), so that the
+    # camera read back from the file is the one the frames were rendered with
+    cam = Camera(1000.0, (0.44, 0.44), (511.5, 511.5))
     R0, t0 = Workspace(cone_deg=10.0, lateral_mm=10.0).sample(1, features.nominal_beam_direction,
                                                              np.random.default_rng(seed))
     t_render = time.perf_counter()
