@@ -307,7 +307,12 @@ def _sorted_quantile(v: np.ndarray, cnt: np.ndarray, q: float) -> np.ndarray:
     return np.take_along_axis(srt, k[..., None], axis=-1)[..., 0]
 
 
-def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = 64) -> np.ndarray | None:
+#: side (px) of the tiles the clutter term of :func:`noise_map` is measured in, from the image's corner
+CLUTTER_TILE_PX = 64
+
+
+def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = CLUTTER_TILE_PX
+                 ) -> np.ndarray | None:
     """The robust spread of the Laplacian response ``lap`` in tiles of ``tile`` px,
     over the white-noise ``gain``, interpolated to every pixel: what the level function
     misses where anatomy rather than quanta makes the clutter at the detectors' scale (the
