@@ -28,7 +28,9 @@ view), the blur the filters are sized for and the balls' fitted blur (the focal 
 detector), and the noise level function (set by the dose and the chain). Each is checked by
 every tracked frame's tests: a wrong polarity or formation leaves no ball or wire to fit,
 a wrong blur or noise level moves the per-feature χ² and the wire evidence — and a refused
-frame is re-identified, which renews them.
+frame is re-identified, which renews them. Where the image cannot be read (collimator
+blades, saturation) is not shared: it moves with the C-arm and the patient, and each
+frame's crop finds it again against the frame's own clip levels.
 
 The tight stage alone (:func:`~ftrac_design.segment.labelling.evaluate` from stage 2) is
 used when the previous tracked frame's prediction was within ``RunOptions.tight_start_px``
