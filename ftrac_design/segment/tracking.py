@@ -7,9 +7,9 @@ frames say where the fiducial is and which ball is which, so :func:`track_near` 
 what confirms that:
 
 1. the model is projected at the predicted pose and the frame cropped to its bounding box
-   and a margin (the top-hat's disc, the derivative filters' reach and the search radius),
-   grown to whole tiles of the noise map's clutter term so that the crop's noise is the
-   whole frame's;
+   and a margin (the top-hat's disc, the derivative filters' reach and the search radius);
+   the noise is measured on that box grown to whole tiles of the noise map's clutter term,
+   so that the crop's noise is the whole frame's;
 2. the crop is conditioned with the run's polarity and formation (:class:`RunContext`),
    its invalid regions found against the whole frame's clip levels, and its local noise
    read from the run's noise level function (:func:`.image.noise_levels`), with the
@@ -144,6 +144,15 @@ def _on_tiles(box: tuple[int, int, int, int], shape: tuple[int, int], tile: int)
     r0, r1, c0, c1 = box
     H, W = shape
     return r0 // tile * tile, min(-(-r1 // tile) * tile, H), c0 // tile * tile, min(-(-c1 // tile) * tile, W)
+
+
+def _clip_levels(img: np.ndarray) -> tuple[float, float]:
+    """The lowest and highest pixel value of a frame (one pass through OpenCV where it can)."""
+    if img.dtype in (np.uint8, np.uint16, np.int16, np.float32, np.float64) and img.ndim == 2 \
+            and img.flags.c_contiguous:
+        lo, hi, _, _ = cv2.minMaxLoc(img)
+        return float(lo), float(hi)
+    return float(img.min()), float(img.max())
 
 
 def _balls_near(T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, uv: np.ndarray, search_px: float,
@@ -313,20 +322,24 @@ def _track_near(image: np.ndarray, features: Features, camera: Camera, R: np.nda
     box = predicted_box(features, camera, R, t, img.shape, margin)
     if box is None:
         return failed_result("the predicted fiducial lies outside the image", context.polarity)
-    # the crop on the clutter term's tiles (:func:`.image.noise_map`): its anatomy clutter is then
-    # measured in the tiles the whole frame's would be (other tiles gave ftrac_mini's depth a
-    # quarter more scatter over a 60-frame run)
-    r0, r1, c0, c1 = _on_tiles(box, img.shape, CLUTTER_TILE_PX)
-    crop = img[r0:r1, c0:c1].astype(np.float32)
-    clip = (float(img.min()), float(img.max()))
-    cond = condition(crop, context.polarity, context.formation, sc0.disc_px, clip)
+    # the noise is measured on the box grown to the clutter term's tiles (:func:`.image.noise_map`):
+    # the anatomy's clutter is then measured in the tiles the whole frame's would be (other tiles
+    # gave ftrac_mini's depth a quarter more scatter over a 60-frame run); the rest works on the box
+    r0, r1, c0, c1 = box
+    a0, a1, b0, b1 = _on_tiles(box, img.shape, CLUTTER_TILE_PX)
+    crop = img[a0:a1, b0:b1].astype(np.float32)
+    cond = condition(crop, context.polarity, context.formation, sc0.disc_px, _clip_levels(img))
     levels = {context.ridge_sigma_px: context.noise} if context.noise is not None else None
-    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels)
+    inner = (slice(r0 - a0, r1 - a0), slice(c0 - b0, c1 - b0))
+    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0,
+                                                                                 c1 - b0)
+    density = np.ascontiguousarray(cond.density[inner])
+    valid = None if cond.valid is None else np.ascontiguousarray(cond.valid[inner])
     crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
                                                    camera.principal_point_px[1] - r0))
     diag: dict[str, Any] = {"path": "tracked", "roi": [int(c0), int(r0), int(c1 - c0), int(r1 - r0)],
                             "formation": cond.formation, "blur_px": opts.blur_px}
-    scene = scene_near(cond.density, features, crop_cam, opts, R, t, search, cond.valid, noise, body,
+    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body,
                        context.ball_blur_px, diag)
     diag["blobs"] = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
