@@ -237,7 +237,11 @@ class RunTracker:
             st.context = None
             return FrameAnswer(res, "lost", index, time_s, 1000 * (time.perf_counter() - start), tracking_error)
         if not self.independent:
-            st.context = run_context(image, res, self.features, cam, opts)
+            try:
+                st.context = run_context(image, res, self.features, cam, opts)
+            except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError):
+                # no context: the next frame is identified from scratch too
+                st.context = None
             self._accept(index, time_s, res)
         return FrameAnswer(res, "re-identified", index, time_s, 1000 * (time.perf_counter() - start),
                            tracking_error)
