@@ -27,7 +27,7 @@ from ftrac_design.images import distort_image, write_dicom, write_distortion, wr
 from ftrac_design.images.distortion import radial
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.workflows import track_run
+from ftrac_design.workflows import run_tracker, track_run
 from ftrac_design.xray import ImagingModel, render
 from ftrac_design.xray.scene import body_from_design_file
 
@@ -219,6 +219,7 @@ def test_frames_are_read_lazily_one_at_a_time(scene, tmp_path, monkeypatch, caps
         raise RuntimeError("spy")
 
     monkeypatch.setattr(track_run, "track_image", spy)
+    monkeypatch.setattr(run_tracker, "track_image", spy)            # a run's frames go through its tracker
     rc, so, se = _run(["track", "--features", FEATS, dcm, "-o", tmp_path / "poses.jsonl"], capsys)
     assert rc == 1 and alive_at_call == [0, 0, 0, 0]
 
@@ -233,6 +234,7 @@ def test_missing_geometry_tags_exit_2_naming_them_and_nothing_is_tracked_or_writ
         omit, named, scene, tmp_path, monkeypatch, capsys):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
     good = write_dicom(tmp_path / "good.dcm", scene["counts"], CAM, kind="xa")
     bad = write_dicom(tmp_path / "bad.dcm", scene["counts"], CAM, kind="xa", omit=omit)
     out = tmp_path / "out" / "poses.jsonl"
@@ -246,6 +248,7 @@ def test_an_unreadable_frame_anywhere_is_bad_input_for_the_whole_command(scene, 
                                                                           capsys):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
     good = tmp_path / "good.npy"
     np.save(good, scene["counts"])
     broken = tmp_path / "broken.npy"
@@ -329,6 +332,7 @@ def test_distortion_model_undoes_an_intensifier_distortion(scene, camera_json, r
 def test_a_distortion_model_of_another_shape_is_bad_input(scene, camera_json, tmp_path, monkeypatch, capsys):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
     mpath = write_distortion(tmp_path / "model.json", radial((512, 512), (4.0, 60.0), 0.44))
     img = tmp_path / "img.npy"
     np.save(img, scene["counts"])
@@ -386,6 +390,7 @@ def test_a_progress_bar_on_a_terminal_for_more_than_three_frames(frames, tty, ba
         raise RuntimeError("spy")
 
     monkeypatch.setattr(track_run, "track_image", spy)
+    monkeypatch.setattr(run_tracker, "track_image", spy)         # a run's frames
     np.save(tmp_path / "run.npy", np.stack([scene["counts"][:64, :64]] * frames))
     err = _Terminal() if tty else io.StringIO()
     monkeypatch.setattr(sys, "stderr", err)

@@ -11,6 +11,7 @@ poses at the end; a frame whose tracking raised has none.
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -91,13 +92,19 @@ def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
                                       "log/display image); overrides the file's. auto: the file's, else found.")
 @click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
               help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
+@click.option("--independent", is_flag=True,
+              help="Track every frame of a run alone with the full identification, no prior (default: each frame "
+                   "from the previous frames' poses, identified from scratch only where that is not confirmed).")
 def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | None, distortion_path: Path | None,
-            output: Path | None, overlay: bool, polarity: str, refine: str) -> int:
+            output: Path | None, overlay: bool, polarity: str, refine: str, independent: bool) -> int:
     """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
 
-    IMAGE is a file (PNG/TIFF/JPEG, NumPy .npy, DICOM: XA, RF, DX, CR, Enhanced XA/XRF) or a
-    directory of them (a run, natural order of names); multi-frame DICOM, multi-page TIFF and
-    (n, H, W) .npy are runs: one pose per frame, in order, with "frame" and "time_s". The
+    IMAGE is a file (PNG/TIFF/JPEG, NumPy .npy, DICOM: XA, RF, DX, CR, Enhanced XA/XRF, a video:
+    MP4/AVI/MKV/MOV/WebM) or a directory of them (a run, natural order of names); multi-frame
+    DICOM, multi-page TIFF, (n, H, W) .npy and video are runs: one pose per frame, in order,
+    with "frame", "time_s", "status" (tracked / re-identified / lost) and "timing". A run's
+    frames are tracked from the previous frames' poses and identified from scratch where that
+    is not confirmed (--independent: every frame from scratch). The
     camera comes from --camera, else from each file (DICOM geometry tags, our own note in
     PNG/TIFF); the polarity and formation from the file where it says (DICOM Pixel Intensity
     Relationship and Sign), --polarity overriding.
@@ -110,6 +117,7 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
     from tqdm import tqdm
 
     from ..images import read_frames
+    from ..workflows.run_tracker import RunTracker
     from ..workflows.track_run import TrackOutputs, overlay_name, track_frame, validate_inputs
 
     setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
@@ -125,8 +133,17 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
             tqdm(total=total, desc="track", unit="frame", file=sys.stderr,
                  disable=total <= 3 or not sys.stderr.isatty()) as bar:
         for inp in inputs:
-            for frame in read_frames(inp.path, setup.camera):
-                outcome, img, res = track_frame(frame, inp, setup, several)
+            # one tracker per run: its frames in order, nothing carried from one IMAGE to the next
+            tracker = RunTracker(setup.features, setup.camera, setup.options, body=setup.body,
+                                 independent=independent) if inp.run else None
+            frames = read_frames(inp.path, setup.camera)
+            while True:
+                t0 = time.perf_counter()
+                frame = next(frames, None)
+                if frame is None:
+                    break
+                read_ms = 1000 * (time.perf_counter() - t0)
+                outcome, img, res = track_frame(frame, inp, setup, several, tracker, read_ms)
                 if overlay and res is not None:
                     title = Path(frame.source).name + (f" frame {frame.index}" if inp.run else "")
                     _draw(outputs, output.with_name(overlay_name(stem, inp, frame)), img, setup, res, title)

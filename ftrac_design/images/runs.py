@@ -4,7 +4,8 @@
 
 A directory is a run: its image files in natural order of their names (``img_2`` before
 ``img_10``), hidden and non-image files skipped, each file's frames in turn, indices
-counted across the run.
+counted across the run. A video file (MP4, AVI, MKV, MOV, WebM; :mod:`.video`) is a run of
+its frames.
 """
 
 from __future__ import annotations
@@ -22,10 +23,11 @@ from .frame import Frame, legacy_hint
 from .numpy_io import npy_frame_count, read_npy_frames
 from .raster import pil_frame_count, read_pil_frames, read_tiff_frames, tiff_frame_count
 from .sniff import image_format, looks_like_image
+from .video import read_video_frames, video_frame_count
 
 _COUNT: dict[str, Callable[[Path], int]] = {"png": pil_frame_count, "jpeg": pil_frame_count,
                                              "tiff": tiff_frame_count, "npy": npy_frame_count,
-                                             "dicom": dicom_frame_count}
+                                             "dicom": dicom_frame_count, "video": video_frame_count}
 
 
 def natural_key(name: str) -> list:
@@ -70,6 +72,8 @@ def _file_frames(f: Path, camera: Camera | None, need_camera: bool, first: int) 
         frames = read_tiff_frames(f, camera, need_camera, first)
     elif fmt == "npy":
         frames = read_npy_frames(f, camera, need_camera, first)
+    elif fmt == "video":
+        frames = read_video_frames(f, camera, need_camera, first)
     else:
         frames = read_pil_frames(f, camera, need_camera, first)
     for fr in frames:
@@ -81,7 +85,7 @@ def _file_frames(f: Path, camera: Camera | None, need_camera: bool, first: int) 
 
 def read_frames(path: str | Path, camera: Camera | None = None, *, need_camera: bool = True) -> Iterator[Frame]:
     """Frames of an image file (single, multi-frame DICOM, multi-page TIFF, ``(n, H, W)``
-    ``.npy``) or of a directory of image files, yielded one at a time.
+    ``.npy``, a video), or of a directory of image files, yielded one at a time.
 
     Parameters
     ----------

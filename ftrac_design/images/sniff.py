@@ -8,10 +8,12 @@ from typing import Literal
 
 from ..errors import InputError
 
-ImageFormat = Literal["png", "tiff", "jpeg", "npy", "dicom"]
+ImageFormat = Literal["png", "tiff", "jpeg", "npy", "dicom", "video"]
 
 SUFFIXES: dict[str, ImageFormat] = {".png": "png", ".tif": "tiff", ".tiff": "tiff", ".jpg": "jpeg",
-                                    ".jpeg": "jpeg", ".npy": "npy", ".dcm": "dicom", ".dicom": "dicom"}
+                                    ".jpeg": "jpeg", ".npy": "npy", ".dcm": "dicom", ".dicom": "dicom",
+                                    ".mp4": "video", ".m4v": "video", ".mov": "video", ".avi": "video",
+                                    ".mkv": "video", ".webm": "video"}
 _MAGIC: tuple[tuple[bytes, ImageFormat], ...] = (
     (b"\x89PNG\r\n\x1a\n", "png"), (b"II*\x00", "tiff"), (b"MM\x00*", "tiff"), (b"II+\x00", "tiff"),
     (b"MM\x00+", "tiff"), (b"\xff\xd8\xff", "jpeg"), (b"\x93NUMPY", "npy"))
@@ -27,6 +29,10 @@ def content_format(head: bytes) -> ImageFormat | Literal["zip"] | None:
             return fmt
     if head.startswith(b"PK\x03\x04") or head.startswith(b"PK\x05\x06"):
         return "zip"
+    # ISO base media (MP4, MOV: an "ftyp" box first), AVI (RIFF … "AVI "), Matroska / WebM (EBML)
+    if head[4:8] == b"ftyp" or (head.startswith(b"RIFF") and head[8:12] == b"AVI ") or \
+            head.startswith(b"\x1a\x45\xdf\xa3"):
+        return "video"
     return None
 
 
@@ -55,8 +61,8 @@ def image_format(path: str | Path) -> tuple[ImageFormat, tuple[str, ...]]:
     if by_content in (None, "zip"):
         if by_suffix is not None and by_content is None:
             return by_suffix, ()
-        raise InputError(path, None, "an image file (PNG, TIFF, JPEG, NumPy .npy or DICOM), found by its "
-                                     "content or suffix")
+        raise InputError(path, None, "an image file (PNG, TIFF, JPEG, NumPy .npy, DICOM) or a video (MP4, AVI, "
+                                     "MKV, MOV, WebM), found by its content or suffix")
     notes = ()
     if by_suffix is not None and by_suffix != by_content:
         notes = (f"suffix {path.suffix} but the content is {by_content.upper()}: read as {by_content.upper()}",)

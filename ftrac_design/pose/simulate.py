@@ -299,3 +299,44 @@ def pose_errors(R_est: np.ndarray, t_est: np.ndarray, R_true: np.ndarray, t_true
     """Rotation error vectors (…, 3) rad — ``log(R_est R_trueᵀ)``, left, camera axes — and
     translation errors (…, 3) mm, camera axes."""
     return so3.log(R_est @ np.swapaxes(R_true, -1, -2)), t_est - t_true
+
+
+def carm_sweep(R0: np.ndarray, t0: np.ndarray, n: int, swing_deg: float = 20.0, period_frames: float = 120.0,
+               tilt_deg: float = 6.0, tilt_period_frames: float = 77.0, isocentre_offset_mm: float = 100.0,
+               drift_mm: tuple[float, float, float] = (8.0, 5.0, 4.0)) -> tuple[np.ndarray, np.ndarray]:
+    """Poses of a fiducial fixed to the patient through a run of a C-arm swinging about its
+    isocentre: frame k sees the fiducial at ``Q_k (X₀ − c) + c + d_k`` (camera frame X),
+    Q_k the C-arm's rotation and c the isocentre on the principal ray.
+
+    The C-arm swings back and forth about the camera's x axis by ``swing_deg`` sin(2πk /
+    ``period_frames``) and tilts about its y axis by ``tilt_deg`` sin(2πk /
+    ``tilt_period_frames``); the table drifts by ``drift_mm`` × sin(2πk / (1.7 ·
+    ``period_frames``)) per axis. Every motion is smooth, its speed changes from frame to
+    frame (a constant-velocity prediction is not exact), and its largest step is about
+    2π ``swing_deg`` / ``period_frames`` degrees per frame.
+
+    Parameters
+    ----------
+    R0, t0 : the pose F → X at frame 0 (rotation (3, 3), translation (3,) mm).
+    n : number of frames.
+    swing_deg, period_frames, tilt_deg, tilt_period_frames : the C-arm's two rotations'
+        amplitudes (degrees, at this edge only) and periods (frames).
+    isocentre_offset_mm : how much farther from the source than the fiducial origin the
+        isocentre lies on the principal ray (mm): the fiducial then moves by about this
+        times the swing's angular step per frame.
+    drift_mm : the table's drift amplitude per camera axis (mm).
+
+    Returns
+    -------
+    R (n, 3, 3), t (n, 3) mm.
+    """
+    R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
+    c = np.array([0.0, 0.0, float(t0[2]) + float(isocentre_offset_mm)])
+    k = np.arange(n, dtype=float)
+    a = np.radians(swing_deg) * np.sin(2 * np.pi * k / period_frames)
+    b = np.radians(tilt_deg) * np.sin(2 * np.pi * k / tilt_period_frames)
+    Q = so3.exp(np.stack([a, np.zeros(n), np.zeros(n)], -1)) @ so3.exp(np.stack([np.zeros(n), b, np.zeros(n)], -1))
+    drift = np.asarray(drift_mm, float)[None] * np.sin(2 * np.pi * k / (1.7 * period_frames))[:, None]
+    R = Q @ R0
+    t = np.einsum("nij,j->ni", Q, t0 - c) + c + drift
+    return R, t

@@ -80,23 +80,29 @@ def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[
     return not (hi[0] < 0 or hi[1] < 0 or lo[0] > W - 1 or lo[1] > H - 1)
 
 
+def wire_mask(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int],
+              half_px: float) -> np.ndarray:
+    """(H, W) bool of an image of ``shape``: True within ``half_px`` of a wire (line piece or
+    ellipse) projected at pose (R, t) — the pixels a ball's fit leaves out."""
+    mask = np.zeros(shape, np.uint8)
+    for kind, pts in identify.curve_samples(features, camera, R, t).values():
+        p = np.round(pts[np.isfinite(pts).all(1)]).astype(np.int32)
+        if len(p) > 1:
+            cv2.polylines(mask, [p.reshape(-1, 1, 2)], kind == "ellipse", 1, thickness=max(1, int(round(2 * half_px))))
+    return mask.astype(bool)
+
+
 def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose) -> Beads:
     """The bead fits again with the pixels of the pose's predicted wires left out (a
     wire passing under a ball biases its centre; two crossing there, by ~0.4 px)."""
     if len(beads) == 0:
         return beads
     sc = scene.scales
-    H, W = T.shape
-    mask = np.zeros((H, W), np.uint8)
-    half = 0.5 * sc.wire_px + 1.5 * float(np.median(beads.blur))
-    for kind, pts in identify.curve_samples(scene.features, scene.camera, pose.rotation,
-                                            pose.translation_mm).values():
-        p = np.round(pts[np.isfinite(pts).all(1)]).astype(np.int32)
-        if len(p) > 1:
-            cv2.polylines(mask, [p.reshape(-1, 1, 2)], kind == "ellipse", 1, thickness=max(1, int(round(2 * half))))
+    mask = wire_mask(scene.features, scene.camera, pose.rotation, pose.translation_mm, T.shape,
+                     0.5 * sc.wire_px + 1.5 * float(np.median(beads.blur)))
     refit = fit_beads(T, beads.uv, sc.bead_radius_px, float(np.median(beads.blur)), scene.noise_at(beads.uv),
                       beads.response,
-                      exclude=mask.astype(bool))
+                      exclude=mask)
     # keep the first fit where the mask left too little of a ball to fit (its centre then
     # comes out far less certain: a 1 mm ball's patch is mostly wire mask, σ 1.5–3 px)
     ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
@@ -106,11 +112,12 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
                    for k in beads.__dataclass_fields__))
 
 
-def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float) -> Scene | None:
+def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float,
+                        find_ridges: bool = True) -> Scene | None:
     """The scene over the body's box again after subtracting the body's modelled projection
     at ``pose`` from the density image ``g``: the background-free image and its second derivatives
-    with that box replaced, and the ridge points found there (those of the box only); None
-    when the body cannot be modelled there."""
+    with that box replaced, and the ridge points found there (those of the box only; none
+    looked for unless ``find_ridges``); None when the body cannot be modelled there."""
     bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, body, blur, clip=g.shape)
     if bd is None:
         return None
@@ -138,7 +145,7 @@ def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: flo
         T2[~scene.valid[box]] = 0.0
     d = derivatives(T2, sc.ridge_sigma_px)
     rp = None
-    if scene.features.lines or scene.features.ellipses:
+    if find_ridges and (scene.features.lines or scene.features.ellipses):
         rp = ridge_points(T2, sc.ridge_sigma_px, scene.noise_map[box], scene.opts.ridge_min_snr, derivs=d)
         rp.uv = rp.uv + np.array([c0, r0], float)
         rp = rp.take(scene.readable(rp.uv))

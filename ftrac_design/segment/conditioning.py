@@ -69,7 +69,8 @@ def to_density(image: np.ndarray, polarity: str, formation: str = "linear") -> n
     return -img
 
 
-def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int) -> np.ndarray | None:
+def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int,
+                    levels: tuple[float, float] | None = None) -> np.ndarray | None:
     """Pixels that hold no information (bool, True = invalid), or None when there are none:
     regions pinned at the image's lowest or highest value (clipped: a shutter, black outside a
     round field, a saturated direct beam, a display window's white or black) wider than the
@@ -78,9 +79,12 @@ def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int) -> np.ndarr
     A display frame's clipped region is noisy around its clip level (quantisation, analogue
     video noise), so it is found on the 5 × 5 mean: within 2 % of the range of an extreme (a
     raw or log image: exactly at it). Holes up to ~24 px across in it — burned-in text and
-    graphics over a saturated corner — are closed: they carry no anatomy either."""
+    graphics over a saturated corner — are closed: they carry no anatomy either.
+
+    ``levels``: the (lowest, highest) pixel value of the whole frame when ``image`` is a crop
+    of it (a crop's own extremes are not the frame's clip levels)."""
     a = np.asarray(image, dtype=np.float32)
-    lo, hi = float(a.min()), float(a.max())
+    lo, hi = (float(a.min()), float(a.max())) if levels is None else (float(levels[0]), float(levels[1]))
     if not hi > lo:
         return None
     display = hi - lo <= 255.0
@@ -99,7 +103,8 @@ def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int) -> np.ndarr
     return cv2.dilate(ext, mk).astype(bool)
 
 
-def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2) -> np.ndarray:
+def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2,
+                 levels: tuple[float, float] | None = None) -> np.ndarray:
     """``image`` (float32) with its pixels at the extreme values (within 1 % of the range of
     the lowest or highest, for 0–255 images; exactly, otherwise) replaced by the nearest
     unclipped values: a high pixel by the highest unclipped pixel within ``radius_px``, a low
@@ -110,9 +115,9 @@ def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2) -> np.n
     contrast against black air is many times a ball's against a patient) and took every
     candidate slot and the region search. Filled in, they vanish into the background around
     them, while a ball or a wire whose core the window clipped keeps its blurred flanks and
-    becomes flat-topped."""
+    becomes flat-topped. ``levels``: as for :func:`invalid_regions`."""
     a = np.array(image, dtype=np.float32, copy=True)
-    lo, hi = float(a.min()), float(a.max())
+    lo, hi = (float(a.min()), float(a.max())) if levels is None else (float(levels[0]), float(levels[1]))
     if not hi > lo:
         return a
     tol = 0.01 * (hi - lo) if hi - lo <= 255.0 else 0.0
@@ -131,7 +136,8 @@ def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2) -> np.n
     return a
 
 
-def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: int) -> Conditioned:
+def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: int,
+              levels: tuple[float, float] | None = None) -> Conditioned:
     """The density image of ``image`` and its valid pixels (see the module).
 
     Parameters
@@ -141,12 +147,14 @@ def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: 
     formation : "linear", "log", "display" or None (found by :func:`formation_of`).
     disc_px : the top-hat's disc radius, px: clipped regions narrower than it are kept, and
         the margin left out beside a clipped region is this wide.
+    levels : the whole frame's (lowest, highest) pixel value when ``image`` is a crop of it
+        (its clip levels); None: ``image``'s own.
 
     Returns
     -------
     Conditioned
     """
     form = formation_of(image, polarity, formation)
-    bad = invalid_regions(image, disc_px, disc_px + 2)
-    filled = fill_clipped(image) if form == "display" else np.asarray(image, np.float32)
+    bad = invalid_regions(image, disc_px, disc_px + 2, levels)
+    filled = fill_clipped(image, levels=levels) if form == "display" else np.asarray(image, np.float32)
     return Conditioned(to_density(filled, polarity, form), None if bad is None else ~bad, polarity, form)

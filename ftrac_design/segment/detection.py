@@ -146,10 +146,11 @@ class Scene:
         of its noise: −∂²T/∂n² at the ridge scale (bilinear), over that filter's response
         to unit white noise. A wire there reads several units; bare background reads about
         zero, whatever its level (a second derivative has none)."""
-        xx, xy, yy = self.derivs["xx"], self.derivs["xy"], self.derivs["yy"]
+        xx, xy, yy, nz = bilinear_many([self.derivs["xx"], self.derivs["xy"], self.derivs["yy"], self.noise_map],
+                                       np.asarray(uv, float).reshape(-1, 2))
         nx, ny = normal[:, 0], normal[:, 1]
-        c = nx * nx * bilinear(xx, uv) + 2 * nx * ny * bilinear(xy, uv) + ny * ny * bilinear(yy, uv)
-        return -c / (second_derivative_gain(self.scales.ridge_sigma_px) * self.noise_at(uv))
+        c = nx * nx * xx + 2 * nx * ny * xy + ny * ny * yy
+        return -c / (second_derivative_gain(self.scales.ridge_sigma_px) * nz)
 
 
 def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
@@ -164,6 +165,76 @@ def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
             + img[v0 + 1, u0] * (1 - fu) * fv + img[v0 + 1, u0 + 1] * fu * fv)
 
 
+def bilinear_many(imgs: list[np.ndarray], uv: np.ndarray) -> list[np.ndarray]:
+    """Each of ``imgs`` (all (H, W)) at points ``uv`` (n, 2) px, as :func:`bilinear` gives
+    them (the same numbers): the cell and weights are found once for all the images."""
+    H, W = imgs[0].shape
+    u = np.clip(uv[:, 0], 0, W - 1.000001)
+    v = np.clip(uv[:, 1], 0, H - 1.000001)
+    u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
+    fu, fv = u - u0, v - v0
+    i = v0 * W + u0
+    gu, gv = 1 - fu, 1 - fv
+    out = []
+    for img in imgs:
+        f = img.reshape(-1)
+        # the products in bilinear's order: the same rounding, the same numbers
+        out.append(f[i] * gu * gv + f[i + 1] * fu * gv + f[i + W] * gu * fv + f[i + W + 1] * fu * fv)
+    return out
+
+
+def ball_fits(T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray,
+              opts: TrackOptions, exclude: np.ndarray | None = None) -> tuple[Beads, np.ndarray]:
+    """The blurred-sphere model fitted at every start (n, 2) px of the background-free image
+    ``T`` (:func:`.beads.fit_beads`, pixels where ``exclude`` is True left out), and which
+    fits look like a ball.
+
+    A fit that ran off (amplitude far from the others', radius or blur at a bound) is redone
+    with priors 25× stronger (σ_prior / 5); a fit looks like a ball when it is finite, its
+    radius within 0.5–2 × ``radius_px``, its blur below 3 px, its amplitude positive and its
+    centre clear of the image's edge by a blurred ball.
+
+    Parameters
+    ----------
+    T : (H, W) background-free density image.
+    starts, response : start centres (n, 2) px and their blob response over its noise (n,).
+    radius_px : the expected ball radius, px.
+    noise : (H, W) local noise σ of ``T``.
+    opts : the image path's options (``blur_px``).
+    exclude : (H, W) bool, pixels no fit uses (a predicted wire), or None.
+
+    Returns
+    -------
+    (Beads (n, every fit, in the order of ``starts``), (n,) bool: the fits that look like a ball)
+    """
+    rb = radius_px
+    b = fit_beads(T, starts, rb, opts.blur_px, bilinear(noise, starts), response, exclude=exclude)
+    if len(b) > 2:
+        med = float(np.median(b.amplitude))
+        bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
+        if bad.any():
+            b2 = fit_beads(T, starts[bad], rb, opts.blur_px, bilinear(noise, starts[bad]), response[bad],
+                           exclude=exclude, prior_scale=25.0)
+            for k in b.__dataclass_fields__:
+                getattr(b, k)[bad] = getattr(b2, k)
+    H, W = T.shape
+    edge = rb + 2 * opts.blur_px + 1
+    with np.errstate(invalid="ignore"):
+        ok = (np.isfinite(b.uv).all(1) & (b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0)
+              & (b.amplitude > 0)
+              & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
+              & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
+    return b, ok
+
+
+def fitted_balls(T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray,
+                 opts: TrackOptions) -> Beads:
+    """The fits of :func:`ball_fits` (no pixels excluded) that look like a ball, in the order
+    of ``starts``."""
+    b, ok = ball_fits(T, starts, response, radius_px, noise, opts)
+    return b.take(ok)
+
+
 def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, opts: TrackOptions) -> Beads:
     rb = sc.bead_radius_px
     P = len(features.points)
@@ -176,23 +247,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
         ref = np.sort(resp)[::-1][: P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
-    b = fit_beads(T, cand, rb, opts.blur_px, bilinear(noise, cand), resp)
-    # a fit that ran off (amplitude far from the others', radius or blur at a bound) is
-    # redone with priors 25× stronger (σ_prior / 5)
-    if len(b) > 2:
-        med = float(np.median(b.amplitude))
-        bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
-        if bad.any():
-            b2 = fit_beads(T, cand[bad], rb, opts.blur_px, bilinear(noise, cand[bad]), resp[bad], prior_scale=25.0)
-            for k in b.__dataclass_fields__:
-                getattr(b, k)[bad] = getattr(b2, k)
-    H, W = T.shape
-    edge = rb + 2 * opts.blur_px + 1
-    ok = (np.isfinite(b.uv).all(1) & (b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0)
-          & (b.amplitude > 0)
-          & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
-          & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
-    b = b.take(ok)
+    b = fitted_balls(T, cand, resp, rb, noise, opts)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
     # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
     # and, loosely, by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×;

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import identify
-from .detection import Scene, bilinear
+from .detection import Scene, bilinear_many
 from .image import second_derivative_gain
 
 #: spacing of the predicted samples (px) that :func:`identify.curve_samples` returns
@@ -47,13 +47,15 @@ def _refine(scene: Scene, q: np.ndarray, n: np.ndarray, iterations: int = 3, max
     nx, ny = n[:, 0], n[:, 1]
     q = q.copy()
     cnn = np.zeros(len(q))
+    maps = [d["x"], d["y"], d["xx"], d["xy"], d["yy"]]
     for _ in range(iterations):
-        gn = nx * bilinear(d["x"], q) + ny * bilinear(d["y"], q)
-        cnn = nx * nx * bilinear(d["xx"], q) + 2 * nx * ny * bilinear(d["xy"], q) + ny * ny * bilinear(d["yy"], q)
+        gx, gy, a, b, c = bilinear_many(maps, q)
+        gn = nx * gx + ny * gy
+        cnn = nx * nx * a + 2 * nx * ny * b + ny * ny * c
         with np.errstate(all="ignore"):
             step = np.where(cnn < 0, -gn / cnn, 0.0)
         q += np.clip(np.nan_to_num(step), -1.0, 1.0)[:, None] * n
-    a, b, c = bilinear(d["xx"], q), bilinear(d["xy"], q), bilinear(d["yy"], q)
+    a, b, c = bilinear_many(maps[2:], q)
     half, disc = 0.5 * (a + c), np.sqrt(0.25 * (a - c) ** 2 + b * b)
     l1, l2 = half - disc, half + disc
     # eigenvector of l1: (b, l1 − a) or (l1 − c, b), whichever is better conditioned

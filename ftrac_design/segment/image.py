@@ -18,6 +18,7 @@ faster than scipy's for the same operator).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -149,8 +150,88 @@ def derivatives(img: np.ndarray, sigma: float, first: bool = True) -> dict[str, 
     return d
 
 
+@dataclass(frozen=True)
+class NoiseLevels:
+    """An image's noise level function at one detector scale: the white-noise pixel σ
+    (density units) at each local background level (see :func:`noise_map`).
+
+    Attributes
+    ----------
+    level : (k,) increasing background levels (density units).
+    sigma : (k,) the pixel σ at each level; interpolated between them, constant beyond.
+    """
+
+    level: np.ndarray
+    sigma: np.ndarray
+
+
+def _background_level(g: np.ndarray, structure_px: int) -> np.ndarray:
+    """The local background level of ``g``: eroded with a disc of radius ``structure_px``
+    (balls and wires narrower than it taken away) and smoothed over 3 px."""
+    base = g
+    if structure_px > 0:
+        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * structure_px + 1, 2 * structure_px + 1))
+        base = cv2.erode(g, disc, borderType=cv2.BORDER_REPLICATE)
+    return cv2.GaussianBlur(base, (0, 0), 3.0, borderType=cv2.BORDER_REPLICATE)
+
+
+def _laplacian(g: np.ndarray, sigma: float) -> tuple[np.ndarray, float]:
+    """The Laplacian of Gaussian of ``g`` at ``sigma`` px and its gain for unit white noise."""
+    g0, _, g2 = gaussian_kernels(sigma)
+    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + \
+        cv2.sepFilter2D(g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
+    k = np.outer(g0.astype(np.float64), g2) + np.outer(g2.astype(np.float64), g0)
+    return lap, float(np.sqrt((k * k).sum()))
+
+
+def _measured_levels(level: np.ndarray, lap: np.ndarray, gain: float, valid: np.ndarray | None,
+                     bins: int) -> NoiseLevels | None:
+    """The noise level function measured on the Laplacian ``lap`` grouped by ``level`` (see
+    :func:`noise_map`), or None with fewer than 64 samples."""
+    H, W = level.shape
+    # ~16 000 samples: each of 32 groups' quartile to ~5 %, the sort under a millisecond
+    step = max(1, int(math.sqrt(H * W / 16384.0)))
+    lv = level[::step, ::step].ravel()
+    r = lap[::step, ::step].ravel()
+    if valid is not None:
+        m = np.asarray(valid, bool)[::step, ::step].ravel()
+        lv, r = lv[m], r[m]
+    nb = int(max(1, min(bins, len(lv) // 256)))
+    if len(lv) < 64:
+        return None
+    order = np.argsort(lv, kind="stable")
+    lv, r = lv[order], r[order]
+    cuts = np.linspace(0, len(lv), nb + 1).astype(int)
+    centre = np.empty(nb)
+    sig = np.empty(nb)
+    for b in range(nb):
+        rb = r[cuts[b]:cuts[b + 1]]
+        centre[b] = float(np.median(lv[cuts[b]:cuts[b + 1]]))
+        # the lower quartile of |r − median| over its Gaussian value (Φ⁻¹(5/8) σ)
+        sig[b] = float(np.percentile(np.abs(rb - np.median(rb)), 25)) / 0.31864 / gain
+    if nb >= 3:
+        low = np.minimum(sig, np.minimum(np.r_[sig[1:], np.inf], np.r_[np.inf, sig[:-1]]))
+        sig = low
+    return NoiseLevels(centre, np.maximum(sig, 1e-9))
+
+
+def noise_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
+                 structure_px: int = 0) -> NoiseLevels | None:
+    """The noise level function of the density image ``g`` at scale ``sigma`` px, as
+    :func:`noise_map` measures it (same arguments); None when ``g`` has too few readable
+    pixels to measure one (fewer than 64 samples).
+
+    Returns
+    -------
+    NoiseLevels or None
+    """
+    g = np.ascontiguousarray(g, dtype=np.float32)
+    lap, gain = _laplacian(g, sigma)
+    return _measured_levels(_background_level(g, structure_px), lap, gain, valid, bins)
+
+
 def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
-              structure_px: int = 0) -> np.ndarray:
+              structure_px: int = 0, levels: NoiseLevels | None = None) -> np.ndarray:
     """Local noise σ (H, W) float32 of the density image ``g``, as the white-noise pixel σ
     that gives the noise the detectors actually see at scale ``sigma`` px.
 
@@ -174,44 +255,29 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     bright balls and wires narrower than it taken away) and smoothed over 3 px: a ball's own
     density must not decide the noise it is judged against (it put a ball in the group of
     the densest bone).
+
+    ``levels``: a noise level function measured before (:func:`noise_levels`, on a larger
+    image of the same imaging chain) used instead of measuring one on ``g``; the clutter
+    term is still measured on ``g``.
     """
+    return noise_map_and_levels(g, sigma, valid, bins, structure_px, levels)[0]
+
+
+def noise_map_and_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
+                         structure_px: int = 0, levels: NoiseLevels | None = None
+                         ) -> tuple[np.ndarray, NoiseLevels | None]:
+    """:func:`noise_map` and the noise level function it used (``levels`` when given, the
+    one measured on ``g`` otherwise; None where too few pixels could be read to measure one)."""
     g = np.ascontiguousarray(g, dtype=np.float32)
     H, W = g.shape
-    g0, _, g2 = gaussian_kernels(sigma)
-    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + \
-        cv2.sepFilter2D(g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
-    k = np.outer(g0.astype(np.float64), g2) + np.outer(g2.astype(np.float64), g0)
-    gain = float(np.sqrt((k * k).sum()))
-    base = g
-    if structure_px > 0:
-        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * structure_px + 1, 2 * structure_px + 1))
-        base = cv2.erode(g, disc, borderType=cv2.BORDER_REPLICATE)
-    level = cv2.GaussianBlur(base, (0, 0), 3.0, borderType=cv2.BORDER_REPLICATE)
-    # ~16 000 samples: each of 32 groups' quartile to ~5 %, the sort under a millisecond
-    step = max(1, int(math.sqrt(H * W / 16384.0)))
-    lv = level[::step, ::step].ravel()
-    r = lap[::step, ::step].ravel()
-    if valid is not None:
-        m = np.asarray(valid, bool)[::step, ::step].ravel()
-        lv, r = lv[m], r[m]
-    nb = int(max(1, min(bins, len(lv) // 256)))
-    if len(lv) < 64:
-        return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32)
-    order = np.argsort(lv, kind="stable")
-    lv, r = lv[order], r[order]
-    cuts = np.linspace(0, len(lv), nb + 1).astype(int)
-    centre = np.empty(nb)
-    sig = np.empty(nb)
-    for b in range(nb):
-        rb = r[cuts[b]:cuts[b + 1]]
-        centre[b] = float(np.median(lv[cuts[b]:cuts[b + 1]]))
-        # the lower quartile of |r − median| over its Gaussian value (Φ⁻¹(5/8) σ)
-        sig[b] = float(np.percentile(np.abs(rb - np.median(rb)), 25)) / 0.31864 / gain
-    if nb >= 3:
-        low = np.minimum(sig, np.minimum(np.r_[sig[1:], np.inf], np.r_[np.inf, sig[:-1]]))
-        sig = low
-    sig = np.maximum(sig, 1e-9)
-    if nb == 1 or not np.ptp(centre) > 0:
+    lap, gain = _laplacian(g, sigma)
+    level = _background_level(g, structure_px)
+    if levels is None:
+        levels = _measured_levels(level, lap, gain, valid, bins)
+        if levels is None:
+            return np.full((H, W), max(noise_sigma(g), 1e-9), np.float32), None
+    centre, sig = levels.level, levels.sigma
+    if len(centre) == 1 or not np.ptp(centre) > 0:
         out = np.full((H, W), float(np.median(sig)), np.float32)
     elif H * W > 65536:
         # the level is smooth over ~3 px: looked up on every 4th pixel and interpolated
@@ -220,7 +286,7 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     else:
         out = np.interp(level, centre, sig).astype(np.float32)
     clutter = _clutter_map(lap, valid, gain)
-    return out if clutter is None else np.maximum(out, clutter)
+    return (out if clutter is None else np.maximum(out, clutter)), levels
 
 
 def _sorted_median(v: np.ndarray, cnt: np.ndarray) -> np.ndarray:
@@ -241,7 +307,12 @@ def _sorted_quantile(v: np.ndarray, cnt: np.ndarray, q: float) -> np.ndarray:
     return np.take_along_axis(srt, k[..., None], axis=-1)[..., 0]
 
 
-def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = 64) -> np.ndarray | None:
+#: side (px) of the tiles the clutter term of :func:`noise_map` is measured in, from the image's corner
+CLUTTER_TILE_PX = 64
+
+
+def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = CLUTTER_TILE_PX
+                 ) -> np.ndarray | None:
     """The robust spread of the Laplacian response ``lap`` in tiles of ``tile`` px,
     over the white-noise ``gain``, interpolated to every pixel: what the level function
     misses where anatomy rather than quanta makes the clutter at the detectors' scale (the
@@ -280,24 +351,39 @@ def second_derivative_gain(sigma: float) -> float:
 class NoiseField:
     """The local noise of one density image at any detector scale (:func:`noise_map`),
     computed once per scale on the whole image and shared by its crops: a crop's own noise
-    level function would be measured mostly on the fiducial that fills it."""
+    level function would be measured mostly on the fiducial that fills it.
+
+    ``levels``: noise level functions measured before, by scale (px), used instead of
+    measuring them (a crop of a run's frame with the frame's own function)."""
 
     def __init__(self, g: np.ndarray, valid: np.ndarray | None, structure_px: int,
-                 box: tuple[int, int, int, int] | None = None, cache: dict | None = None):
+                 box: tuple[int, int, int, int] | None = None, cache: dict | None = None,
+                 levels: dict[float, NoiseLevels] | None = None):
         self._g, self._valid, self._structure = g, valid, int(structure_px)
         self._box = box
+        # maps by scale, and ("levels", scale) → the level function: shared with the crops
         self._cache = {} if cache is None else cache
+        for k, v in (levels or {}).items():
+            self._cache[("levels", round(float(k), 3))] = v
 
     def at(self, sigma: float) -> np.ndarray:
         """The noise map (float32) at scale ``sigma`` px over this field's box."""
         key = round(float(sigma), 3)
         full = self._cache.get(key)
         if full is None:
-            full = self._cache[key] = noise_map(self._g, sigma, self._valid, structure_px=self._structure)
+            full, used = noise_map_and_levels(self._g, sigma, self._valid, structure_px=self._structure,
+                                              levels=self._cache.get(("levels", key)))
+            self._cache[key] = full
+            self._cache[("levels", key)] = used
         if self._box is None:
             return full
         r0, r1, c0, c1 = self._box
         return full[r0:r1, c0:c1]
+
+    def levels(self, sigma: float) -> NoiseLevels | None:
+        """The noise level function at scale ``sigma`` px: the one given, or the one measured
+        when the map at that scale was made; None before (or where none could be measured)."""
+        return self._cache.get(("levels", round(float(sigma), 3)))
 
     def crop(self, r0: int, r1: int, c0: int, c1: int) -> "NoiseField":
         """The same field over rows r0:r1 and columns c0:c1 (of this field's box)."""

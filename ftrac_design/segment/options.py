@@ -10,6 +10,7 @@ import numpy as np
 
 from ..pose import NoiseModel, Observation, Pose
 from .beads import Beads
+from .image import NoiseLevels
 from .ridges import RidgePoints
 
 #: how dense matter looks in an image: "auto" (the header, else the fiducial's own evidence),
@@ -145,6 +146,9 @@ class TrackResult:
     polarity: str
     noise: NoiseModel | None
     diagnostics: dict[str, Any] = field(default_factory=dict)
+    #: the image's noise level function at the ridge scale the pose was found with (not
+    #: written out; a run tracker reuses it for the run's next frames)
+    noise_levels: NoiseLevels | None = field(default=None, repr=False, compare=False)
 
     def pose_dict(self) -> dict[str, Any]:
         """SPEC §4 object plus diagnostics (readers ignore unknown keys)."""

@@ -167,7 +167,8 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
         # the residuals' own scale relative to the noise model (the covariance uses it)
         "variance_factor": best.variance_factor,
     })
-    return TrackResult(best.pose, best.obs, _quality(scene, best), scene.beads, scene.ridges, pol, best.noise, diag)
+    return TrackResult(best.pose, best.obs, _quality(scene, best), scene.beads, scene.ridges, pol, best.noise, diag,
+                       noise_levels=None if noise is None else noise.levels(scene.scales.ridge_sigma_px))
 
 
 def track_image(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None = None,

@@ -25,6 +25,13 @@ ignore keys they do not know):
   ``"--camera"``, ``"ftrac note"`` or ``"image centre"``);
 - ``intake_notes``: what intake did that a user should know (:attr:`Frame.notes`);
 - ``distortion``: the ``--distortion`` model file the frame was undistorted with.
+
+A frame of a run (a directory or a multi-frame file) is tracked by the run's
+:class:`~.run_tracker.RunTracker` and its pose object also carries ``status``
+(``"tracked"``: from the previous frames' poses; ``"re-identified"``: by the full
+identification with no prior; ``"lost"``: no pose), ``timing`` (``read_ms`` reading and
+decoding the frame, ``elapsed_ms`` tracking it, ``path`` the status) and, where a tracked
+pose was tried and refused, ``tracking_error`` (why).
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from ..features import Features
 from ..images import DistortionModel, Frame, read_frames, undistort_image
 from ..pose import Camera, Pose
 from ..segment import TrackOptions, TrackResult, track_image
+from .run_tracker import FrameAnswer, RunTracker
 
 #: the observation written for a frame that has none (nothing segmented)
 EMPTY_OBSERVATION = {"format": "ftrac-observation", "version": 1, "camera": None, "points": {}, "lines": {},
@@ -222,30 +230,41 @@ def summary_line(label: str, result: TrackResult) -> str:
 FLAT_MODALITIES = ("DX", "CR", "MG")
 
 
-def track_pixels(frame: Frame, setup: TrackSetup) -> tuple[np.ndarray, TrackResult]:
+def track_pixels(frame: Frame, setup: TrackSetup, tracker: RunTracker | None = None
+                 ) -> tuple[np.ndarray, TrackResult, FrameAnswer | None]:
     """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
-    frame's polarity and formation as hints (``TrackOptions.polarity`` overrides), then
+    frame's polarity and formation as hints (``TrackOptions.polarity`` overrides) — or, for
+    a frame of a run, the run's ``tracker`` (:class:`~.run_tracker.RunTracker`) — then
     ``setup.refine`` on a converged pose.
 
     Returns
     -------
-    (pixels tracked (H, W), TrackResult). Raises whatever the steps raise.
+    (pixels tracked (H, W), TrackResult, the tracker's FrameAnswer or None). Raises whatever
+    the steps raise.
     """
     img = frame.pixels if setup.distortion is None else undistort_image(frame.pixels, setup.distortion)
     options = setup.options
     if str(frame.meta.get("modality", "")).upper() in FLAT_MODALITIES:
         # a DX or CR image comes from a flat panel or a storage plate: nothing distorts it
         options = replace(options, distortion_prior_mm=0.0)
-    res = track_image(img, setup.features, frame.camera, options, polarity_hint=frame.polarity,
-                      body=setup.body, formation_hint=frame.formation)
+    answer = None
+    if tracker is not None:
+        answer = tracker.track_frame(img, frame.camera, frame.time_s, frame=frame.index, options=options,
+                                     polarity_hint=frame.polarity, formation_hint=frame.formation)
+        res = answer.result
+    else:
+        res = track_image(img, setup.features, frame.camera, options, polarity_hint=frame.polarity,
+                          body=setup.body, formation_hint=frame.formation)
     if setup.refine is not None and res.pose.converged:
         # the converged pose refined on the pixels; the observation stays the segmented one
         res = setup.refine(img, setup.features, frame.camera, res, body=setup.body)
-    return img, res
+        if answer is not None:
+            answer.result = res
+    return img, res, answer
 
 
-def track_frame(frame: Frame, inp: ImageInput, setup: TrackSetup, lines: bool
-                ) -> tuple[FrameOutcome, np.ndarray | None, TrackResult | None]:
+def track_frame(frame: Frame, inp: ImageInput, setup: TrackSetup, lines: bool, tracker: RunTracker | None = None,
+                read_ms: float | None = None) -> tuple[FrameOutcome, np.ndarray | None, TrackResult | None]:
     """Track one frame under a guard: any exception becomes this frame's failed pose.
 
     Parameters
@@ -253,25 +272,35 @@ def track_frame(frame: Frame, inp: ImageInput, setup: TrackSetup, lines: bool
     frame, inp : the frame and the argument it came from.
     setup : what it is tracked with.
     lines : JSON Lines output (True) or a single indented pose.json (False).
+    tracker : the run's :class:`~.run_tracker.RunTracker` (frames of a run), or None (the
+        frame alone). With a tracker the pose object also carries ``status`` ("tracked",
+        "re-identified", "lost") and ``timing`` (``read_ms``, ``elapsed_ms``, ``path``).
+    read_ms : how long reading the frame took (ms), recorded in ``timing``.
 
     Returns
     -------
     (FrameOutcome, pixels tracked, TrackResult); the last two are None when tracking raised
-    (the outcome then says ``internal error: <type>: <message>``).
+    (the outcome then says ``internal error: <type>: <message>``; with a tracker, status "lost").
     """
     extra = provenance(frame, inp, setup)
     label = frame_label(inp, frame)
     try:
-        img, res = track_pixels(frame, setup)
-        pose = {**res.pose_dict(), **extra}
+        img, res, answer = track_pixels(frame, setup, tracker)
+        pose = {**(answer.pose_dict() if answer is not None else res.pose_dict()), **extra}
+        if answer is not None and read_ms is not None:
+            pose["timing"]["read_ms"] = round(read_ms, 3)
         obs = res.observation_dict() or dict(EMPTY_OBSERVATION)
         obs.update({k: extra[k] for k in ("image", "frame") if k in extra})
-        outcome = FrameOutcome(to_json(pose, lines), to_json(obs, lines), bool(res.pose.converged),
-                               summary_line(label, res))
+        line = summary_line(label, res) + (f" [{answer.status}, {answer.elapsed_ms:.0f} ms]" if answer else "")
+        outcome = FrameOutcome(to_json(pose, lines), to_json(obs, lines), bool(res.pose.converged), line)
         return outcome, img, res
     except Exception as exc:  # noqa: BLE001 — one frame's failure of any kind must not lose the batch
         error = f"internal error: {type(exc).__name__}: {one_line(exc)}"
         pose = {**failed_pose_dict(error), **extra}
+        if tracker is not None:
+            # nothing carried past a frame that raised
+            tracker.forget()
+            pose["status"] = "lost"
         obs = {**EMPTY_OBSERVATION, **{k: extra[k] for k in ("image", "frame") if k in extra}}
         return FrameOutcome(to_json(pose, lines), to_json(obs, lines), False, f"{label}: {error}"), None, None
 

@@ -1,0 +1,372 @@
+"""One frame of a run tracked from a predicted pose: measured only where the model projects,
+solved from the prediction, and given out only when the full path's tests pass.
+
+:func:`track_image` finds the fiducial with no prior: regions on a half-size image, every
+bead labelling that the blobs allow, rival labellings refuted. Within a run the previous
+frames say where the fiducial is and which ball is which, so :func:`track_near` does only
+what confirms that:
+
+1. the model is projected at the predicted pose and the frame cropped to its bounding box
+   and a margin (the top-hat's disc, the derivative filters' reach and the search radius);
+   the noise is measured on that box grown to whole tiles of the noise map's clutter term,
+   so that the crop's noise is the whole frame's;
+2. the crop is conditioned with the run's polarity and formation (:class:`RunContext`),
+   its invalid regions found against the whole frame's clip levels, and its local noise
+   read from the run's noise level function (:func:`.image.noise_levels`), with the
+   clutter term measured on the crop;
+3. each ball is looked for as the strongest blob within ``search_px`` of its projection
+   and fitted there with the blurred-sphere model (:func:`.detection.fitted_balls`); the
+   wires' contour points are measured along the projected curves' normals
+   (:mod:`.guided`), exactly as the full path measures them for a labelling;
+4. the labelling's stages and per-feature tests (:func:`.labelling.evaluate`) run from the
+   predicted pose, then the full path's acceptance tests (wire support, evidence; there is
+   no rival labelling to refute — the labels come from the prediction);
+5. the pose is refused unless the balls it projects lie within the stage-one matching
+   tolerance of the predicted ones (RMS): a solution that had to move farther than the
+   labels were matched over did not confirm the prediction.
+
+A refused frame is for the caller to identify from scratch (:func:`track_image`); this
+module never returns a pose that failed a test.
+
+**What a run shares** (:class:`RunContext`, from a frame the full path tracked): the
+polarity and formation (properties of the imaging chain and the file, not of the view),
+the fitted blur (the focal spot and detector; the filters are sized for it) and the noise
+level function at the ridge scale (quantum noise against background level, set by the
+dose and the chain). A change in any of them shows in the tests — a polarity or formation
+no longer right leaves no ball or wire to fit, a wrong noise level moves the per-feature
+χ² and the wire evidence — and the caller renews the context at its next full
+identification.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from ..features.model import Features
+from ..pose import Camera, Pose, so3
+from . import identify
+from .beads import blob_response
+from .body import ridges_without_body, wire_mask
+from .conditioning import condition
+from .detection import Scene, ball_fits, scales
+from .image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
+from .labelling import evaluate
+from .options import TrackOptions, TrackResult, failed_result
+from .pipeline import _accept, _quality
+from .region import shifted
+from .ridges import RidgePoints
+
+
+@dataclass(frozen=True)
+class RunContext:
+    """What the frames of one run share (see the module), found on a tracked frame.
+
+    Attributes
+    ----------
+    polarity : "dense-dark" or "dense-bright".
+    formation : "linear", "log" or "display" (as the frame was conditioned).
+    blur_px : the blur σ the filters are sized for (px).
+    ridge_sigma_px : the ridge scale at that blur (px): the scale of ``noise``.
+    noise : the noise level function at ``ridge_sigma_px``, or None (then measured on each crop).
+    ball_blur_px : the median blur σ the balls were fitted with (px; the pixel's own width
+        included): the body's model and the wire mask are blurred by it.
+    """
+
+    polarity: str
+    formation: str
+    blur_px: float
+    ridge_sigma_px: float
+    noise: NoiseLevels | None
+    ball_blur_px: float
+
+
+def run_context(image: np.ndarray, result: TrackResult, features: Features, camera: Camera,
+                options: TrackOptions | None = None) -> RunContext | None:
+    """The :class:`RunContext` of a frame that :func:`~.pipeline.track_image` tracked.
+
+    Parameters
+    ----------
+    image : (H, W) the frame's pixels as tracked.
+    result : its converged result (polarity, formation and blur in its diagnostics).
+    features, camera, options : what it was tracked with.
+
+    Returns
+    -------
+    RunContext, or None when ``result`` has no converged pose.
+    """
+    if not result.pose.converged or result.polarity not in ("dense-dark", "dense-bright"):
+        return None
+    opts = options or TrackOptions()
+    form = str(result.diagnostics.get("formation", "linear"))
+    blur = float(result.diagnostics.get("blur_px", opts.blur_px))
+    sc0 = scales(features, camera, opts)
+    sc = scales(features, camera, replace(opts, blur_px=blur))
+    levels = result.noise_levels
+    if levels is None:
+        # a result that does not carry its image's noise level function: measured again
+        cond = condition(np.asarray(image, np.float32), result.polarity, form, sc0.disc_px)
+        form = cond.formation
+        levels = noise_levels(cond.density, sc.ridge_sigma_px, cond.valid, structure_px=sc0.disc_px)
+    fitted = [q["blur_px"] for q in result.quality.get("points", {}).values() if math.isfinite(q["blur_px"])]
+    ball_blur = float(np.median(fitted)) if fitted else blur
+    return RunContext(result.polarity, form, blur, sc.ridge_sigma_px, levels, ball_blur)
+
+
+def predicted_box(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int],
+                  margin_px: float) -> tuple[int, int, int, int] | None:
+    """The box ``(row0, row1, col0, col1)`` holding the fiducial's projection at pose (R, t)
+    (balls and wires) and ``margin_px`` around it, clipped to an image of ``shape``; None
+    when the projection is not finite or its box misses the image."""
+    parts = [identify.project(camera, R, t, features.point_centers())[0]] if features.points else []
+    parts += [p for _, p in identify.curve_samples(features, camera, R, t, step_px=4.0).values()]
+    if not parts:
+        return None
+    uv = np.concatenate(parts)
+    if not np.isfinite(uv).all():
+        return None
+    H, W = shape
+    lo, hi = uv.min(0) - margin_px, uv.max(0) + margin_px
+    c0, r0 = max(int(math.floor(lo[0])), 0), max(int(math.floor(lo[1])), 0)
+    c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
+    if c1 - c0 < 16 or r1 - r0 < 16:
+        return None
+    return r0, r1, c0, c1
+
+
+def _on_tiles(box: tuple[int, int, int, int], shape: tuple[int, int], tile: int) -> tuple[int, int, int, int]:
+    """``box`` (row0, row1, col0, col1) grown outward to whole tiles of ``tile`` px counted
+    from the image's corner (clipped to an image of ``shape``)."""
+    r0, r1, c0, c1 = box
+    H, W = shape
+    return r0 // tile * tile, min(-(-r1 // tile) * tile, H), c0 // tile * tile, min(-(-c1 // tile) * tile, W)
+
+
+def _clip_levels(img: np.ndarray) -> tuple[float, float]:
+    """The lowest and highest pixel value of a frame (one pass through OpenCV where it can)."""
+    if img.dtype in (np.uint8, np.uint16, np.int16, np.float32, np.float64) and img.ndim == 2 \
+            and img.flags.c_contiguous:
+        lo, hi, _, _ = cv2.minMaxLoc(img)
+        return float(lo), float(hi)
+    return float(img.min()), float(img.max())
+
+
+def _balls_near(T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, uv: np.ndarray, search_px: float,
+                min_snr: float) -> tuple[np.ndarray, np.ndarray]:
+    """Per predicted ball centre ``uv`` (n, 2), the strongest blob-like pixel (both Hessian
+    eigenvalues of the blob filter negative) within ``search_px``, when its response is at
+    least ``min_snr`` noise units: the starts (m, 2) and their responses (m,)."""
+    H, W = T.shape
+    r = int(math.ceil(search_px))
+    off = np.arange(-r, r + 1)
+    oy, ox = np.meshgrid(off, off, indexing="ij")
+    disc = ox ** 2 + oy ** 2 <= search_px * search_px
+    ox, oy = ox[disc], oy[disc]
+    c = np.rint(uv).astype(int)
+    ok = np.isfinite(uv).all(1) & (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < W) & (c[:, 1] < H)
+    c = c[ok]
+    px = np.clip(c[:, 0:1] + ox[None], 0, W - 1)
+    py = np.clip(c[:, 1:2] + oy[None], 0, H - 1)
+    v = np.where((xx[py, px] < 0) & (yy[py, px] < 0), snr[py, px], -np.inf)
+    k = np.argmax(v, axis=1)
+    best = v[np.arange(len(c)), k]
+    keep = best >= min_snr
+    starts = np.stack([px[np.arange(len(c)), k], py[np.arange(len(c)), k]], -1).astype(float)
+    return starts[keep], best[keep]
+
+
+def _balls(T: np.ndarray, nmap: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, sc,
+           R: np.ndarray, t: np.ndarray, search_px: float, ball_blur_px: float):
+    """The balls near their projections at pose (R, t) (see :func:`scene_near`) and the
+    blob detector's response over its noise (H, W)."""
+    resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap)
+    snr = (resp / nr).astype(np.float32)
+    uv, _ = identify.project(camera, R, t, features.point_centers())
+    starts, val = _balls_near(T, snr, xx, yy, uv, search_px, opts.bead_min_snr)
+    mask = wire_mask(features, camera, R, t, T.shape, 0.5 * sc.wire_px + 1.5 * ball_blur_px) \
+        if features.lines or features.ellipses else None
+    b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, opts, exclude=mask)
+    weak = ~ok | ~(b.sigma_px <= 0.5)
+    if mask is not None and weak.any():
+        # the full path's rule for a ball refitted off the wires: the masked fit is kept
+        # unless the mask left too little of the ball (its centre far less certain than
+        # the plain fit's, or more than a pixel from it)
+        plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, opts)
+        mw = b.take(weak)
+        with np.errstate(invalid="ignore"):
+            keep_masked = ok[weak] & (np.linalg.norm(mw.uv - plain.uv, axis=1) < 1.0) & \
+                ((mw.sigma_px <= 0.5) | (mw.sigma_px <= 3.0 * plain.sigma_px))
+        idx = np.flatnonzero(weak)
+        for k in b.__dataclass_fields__:
+            getattr(b, k)[idx[~keep_masked]] = getattr(plain, k)[~keep_masked]
+        ok[idx] = np.where(keep_masked, ok[idx], ok2)
+    b = b.take(ok)
+    if len(b) > 1:
+        # one fit per blob: two predictions that found the same blob keep it once
+        _, first = np.unique(np.round(b.uv, 1), axis=0, return_index=True)
+        b = b.take(np.sort(first))
+    return b, snr
+
+
+def scene_near(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, R: np.ndarray,
+               t: np.ndarray, search_px: float, valid: np.ndarray | None, noise: NoiseField, body=None,
+               ball_blur_px: float | None = None, diag: dict | None = None) -> Scene:
+    """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
+    only where pose (R, t) puts the fiducial (see the module).
+
+    The body's modelled projection at (R, t) is subtracted first (``body``; :mod:`.body`),
+    then each ball is fitted once, starting at the strongest blob within ``search_px`` of
+    its projection, with the predicted wires' pixels left out (as the full path refits its
+    balls; a ball the mask leaves too little of is fitted without it). No whole-crop ridge
+    search is made (``ridges`` is empty): the contours are measured along the predicted
+    curves (:mod:`.guided`).
+
+    Parameters
+    ----------
+    g : (H, W) density crop (dense = bright); ``valid`` where it can be read; ``noise`` its noise.
+    features, camera, opts : the design, the crop's intrinsics, the options.
+    R, t : the predicted pose F → X.
+    search_px : how far from its projection a ball is looked for (px).
+    body : ``ftrac_design.xray.Body`` or None.
+    ball_blur_px : the balls' fitted blur σ (px) the body and the wire mask are blurred with
+        (default ``opts.blur_px``).
+    diag : a dict that gets ``body_subtracted`` when the body was subtracted.
+
+    Returns
+    -------
+    Scene
+    """
+    sc = scales(features, camera, opts)
+    blur = opts.blur_px if ball_blur_px is None else float(ball_blur_px)
+    T = top_hat(g, sc.disc_px)
+    nmap = noise.at(sc.ridge_sigma_px)
+    if valid is not None:
+        T[~valid] = 0.0
+    empty = np.zeros((0, 2))
+    ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
+    scene = Scene(features, camera, opts, sc, T, nmap, None, ridges, valid, None, None)
+    if body is not None:
+        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), body, blur,
+                                    find_ridges=False)
+        if inner is not None:
+            T = inner.T
+            if diag is not None:
+                diag["body_subtracted"] = True
+    beads, snr = _balls(T, nmap, features, camera, opts, sc, R, t, search_px, blur) if features.points \
+        else (None, None)
+    d = derivatives(T, sc.ridge_sigma_px)
+    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
+
+
+def _moved_px(camera: Camera, features: Features, R0, t0, R1, t1) -> float:
+    """RMS distance (px) between the balls projected at two poses."""
+    if not features.points:
+        return 0.0
+    P = features.point_centers()
+    a = identify.project(camera, R0, t0, P)[0]
+    b = identify.project(camera, R1, t1, P)[0]
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
+
+
+def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+               context: RunContext, options: TrackOptions | None = None, search_px: float | None = None,
+               body=None, first_stage: int = 0) -> TrackResult:
+    """Track one frame of a run from the predicted pose (R, t): see the module.
+
+    Parameters
+    ----------
+    image : (H, W) the frame's pixels as stored.
+    features : the design's features (mm, frame F).
+    camera : the frame's intrinsics (SPEC §1).
+    R, t : the predicted pose F → X (rotation (3, 3), translation (3,) mm).
+    context : what the run shares (:func:`run_context`).
+    options : the image path's settings (default :class:`TrackOptions`); its blur is the context's.
+    search_px : how far from its projection a ball is looked for (px); default the stage-one
+        bead matching tolerance, max(``match_tol_px``, the ball's radius).
+    body : the fiducial's body (``ftrac_design.xray.Body``) or None: its modelled projection
+        at the predicted pose is subtracted before the wires are measured (:mod:`.body`).
+    first_stage : the labelling stage the solve starts at (:func:`.labelling.evaluate`): 0
+        (wide tolerances, then tight and thinned) or 2 (tight and thinned only; for a
+        prediction known to be within a fraction of a pixel).
+
+    Returns
+    -------
+    TrackResult : converged only when every test passed; ``diagnostics["path"] = "tracked"``,
+    ``diagnostics["moved_px"]`` the balls' RMS move from the prediction. Never raises for
+    an image (a failure is a refused pose with its reason).
+    """
+    try:
+        return _track_near(image, features, camera, R, t, context, options, search_px, body, first_stage)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
+        return failed_result(f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}",
+                             context.polarity)
+
+
+def _track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
+                context: RunContext, options: TrackOptions | None, search_px: float | None, body,
+                first_stage: int) -> TrackResult:
+    opts = replace(options or TrackOptions(), blur_px=context.blur_px)
+    R, t = np.asarray(R, float), np.asarray(t, float)
+    if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
+        return failed_result("no finite predicted pose", context.polarity)
+    img = np.asarray(image)
+    sc0 = scales(features, camera, replace(opts, blur_px=(options or TrackOptions()).blur_px))
+    sc = scales(features, camera, opts)
+    capture = max(opts.match_tol_px, sc.bead_radius_px)
+    search = capture if search_px is None else float(search_px)
+    margin = sc.disc_px + 4 * sc.ridge_sigma_px + search + sc.bead_radius_px + 4
+    box = predicted_box(features, camera, R, t, img.shape, margin)
+    if box is None:
+        return failed_result("the predicted fiducial lies outside the image", context.polarity)
+    # the noise is measured on the box grown to the clutter term's tiles (:func:`.image.noise_map`):
+    # the anatomy's clutter is then measured in the tiles the whole frame's would be (other tiles
+    # gave ftrac_mini's depth a quarter more scatter over a 60-frame run); the rest works on the box
+    r0, r1, c0, c1 = box
+    a0, a1, b0, b1 = _on_tiles(box, img.shape, CLUTTER_TILE_PX)
+    crop = img[a0:a1, b0:b1].astype(np.float32)
+    cond = condition(crop, context.polarity, context.formation, sc0.disc_px, _clip_levels(img))
+    levels = {context.ridge_sigma_px: context.noise} if context.noise is not None else None
+    inner = (slice(r0 - a0, r1 - a0), slice(c0 - b0, c1 - b0))
+    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0,
+                                                                                 c1 - b0)
+    density = np.ascontiguousarray(cond.density[inner])
+    valid = None if cond.valid is None else np.ascontiguousarray(cond.valid[inner])
+    crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
+                                                   camera.principal_point_px[1] - r0))
+    diag: dict[str, Any] = {"path": "tracked", "roi": [int(c0), int(r0), int(c1 - c0), int(r1 - r0)],
+                            "formation": cond.formation, "blur_px": opts.blur_px}
+    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body,
+                       context.ball_blur_px, diag)
+    diag["blobs"] = 0 if scene.beads is None else len(scene.beads)
+    if scene.beads is None or len(scene.beads) < 3:
+        return shifted(failed_result(f"tracking lost: {diag['blobs']} balls found near their predicted places",
+                                     context.polarity, scene.beads, None, diag), camera, c0, r0)
+    lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
+    if isinstance(lab, str):
+        return shifted(failed_result(f"tracking lost: {lab}", context.polarity, scene.beads, None, diag),
+                       camera, c0, r0)
+    _accept(scene, lab, [], diag)
+    pose = lab.pose
+    moved = _moved_px(crop_cam, features, R, t, pose.rotation, pose.translation_mm) \
+        if np.all(np.isfinite(pose.rotation)) else math.inf
+    diag["moved_px"] = round(moved, 2) if math.isfinite(moved) else None
+    if pose.converged and moved > capture:
+        pose.converged = False
+        pose.error = (f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
+                      f"put them, more than the {capture:.1f} px they were matched within")
+    diag.update({
+        "beads_matched": len(lab.obs.points),
+        "dropped": lab.dropped,
+        "rejected": lab.removed,
+        "pixel_noise": scene.pixel_noise,
+        "variance_factor": lab.variance_factor,
+        "rotation_step_deg": round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
+        if np.all(np.isfinite(pose.rotation)) else None,
+    })
+    res = TrackResult(pose, lab.obs, _quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
+    return shifted(res, camera, c0, r0)
+
