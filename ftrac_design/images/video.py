@@ -15,7 +15,7 @@ from typing import Any, Iterator
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, require
 from ..pose.camera import Camera
 from .frame import Frame, check_frame_size
 from .raster import make_frame
@@ -25,11 +25,7 @@ LOSSLESS_CODECS = ("ffv1", "rawvideo", "huffyuv", "ffvhuff", "png", "utvideo", "
 
 
 def _av() -> Any:
-    try:
-        import av
-    except ImportError:
-        raise InputError(None, "video", "PyAV to read video files (pip install 'ftrac_design[video]')") from None
-    return av
+    return require("av", "video", "reading video files (PyAV)")
 
 
 def _open(path: Path) -> tuple[Any, Any]:
