@@ -37,11 +37,12 @@ def frames(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def offline(frames, tmp_path_factory):
-    """``ftrac-design track`` of the same frames (a (n, H, W) .npy run, --camera): one pose each."""
+    """``ftrac-design track --independent`` of the same frames (a (n, H, W) .npy run, --camera): one
+    pose each, every frame alone (the workspace poses are unrelated: not a run to track along)."""
     d = tmp_path_factory.mktemp("offline")
     np.save(d / "run.npy", frames.pixels)
     main(["track", "--features", str(frames.features_path), str(d / "run.npy"), "--camera", str(frames.camera_path),
-          "-o", str(d / "poses.jsonl")])
+          "--independent", "-o", str(d / "poses.jsonl")])
     return [json.loads(x) for x in (d / "poses.jsonl").read_text().splitlines()]
 
 
@@ -61,7 +62,7 @@ def _stop(server: Server) -> str:
 
 
 def test_300_frames_at_30_per_second_answered_or_counted_and_equal_to_offline_track(frames, offline):
-    server = Server(["--features", str(frames.features_path)])
+    server = Server(["--features", str(frames.features_path), "--independent"])
     try:
         client = recording_client(server.port)
         n = 10 * N_DISTINCT
@@ -99,7 +100,8 @@ def test_300_frames_at_30_per_second_answered_or_counted_and_equal_to_offline_tr
 
 
 def test_a_client_disconnects_mid_run_and_another_connects(frames, offline):
-    server = Server(["--features", str(frames.features_path), "--camera", str(frames.camera_path), "--queue", "1"])
+    server = Server(["--features", str(frames.features_path), "--camera", str(frames.camera_path), "--queue", "1",
+                     "--independent"])
     try:
         first = recording_client(server.port)
         send_frames(first, frames.pixels[:12], frames.camera, 30.0)
@@ -413,3 +415,57 @@ def test_without_pyigtl_the_live_commands_stop_with_one_line_naming_the_extra(ar
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "ftrac_design[live]" in err and "'pyigtl'" in err
+
+
+def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path):
+    """The default tracker follows the fiducial from frame to frame as `track` does a run: with
+    nothing dropped (each frame sent after the last answer), every served pose equals the run
+    tracker's on the same frames at the same times within 1e-6, and most frames are tracked, not
+    re-identified."""
+    from ftrac_design.design import load_design
+    from ftrac_design.design.presets import PRESETS_DIR
+    from ftrac_design.features import compute_features, write_features
+    from ftrac_design.pose import Camera
+    from ftrac_design.pose.simulate import Workspace
+    from ftrac_design.workflows.run_tracker import RunTracker
+    from ftrac_design.xray import ImagingModel
+    from ftrac_design.xray.scene import body_from_design_file
+    from ftrac_design.xray.sweep import render_sweep
+
+    shape, n = (512, 512), 8
+    cam = Camera(1000.0, (0.44, 0.44), ((shape[1] - 1) / 2, (shape[0] - 1) / 2))
+    features = compute_features(load_design(PRESETS_DIR / "ftrac_2005.toml"))
+    body = body_from_design_file(PRESETS_DIR / "ftrac_2005.toml")
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(1, features.nominal_beam_direction,
+                                                            np.random.default_rng(5))
+    run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=shape), seed=5, body=body,
+                       anatomy_strength=0.6, margin_px=96, swing_deg=8.0, period_frames=60.0, tilt_deg=3.0,
+                       tilt_period_frames=41.0, drift_mm=(4.0, 3.0, 2.0))
+    fpath = write_features(tmp_path / "f.json", features)
+    cpath = tmp_path / "camera.json"
+    cpath.write_text(json.dumps(cam.to_dict()))
+    pixels = np.asarray(run.raw, np.uint16)
+    # 32 frames/s: times exact in OpenIGTLink's 32.32 fixed point, so the server predicts from the
+    # very times the reference does (a run's prediction scales by them)
+    times = [1000.0 + k / 32.0 for k in range(n)]
+    server = Server(["--features", str(fpath), "--camera", str(cpath), "--queue", "4"])
+    try:
+        client = recording_client(server.port)
+        for k in range(n):
+            client.send_message(image_message(pixels[k], cam, times[k]), wait=False)
+            assert wait_for(lambda k=k: len(_answers(client)) == k + 1, 60)
+        client.stop()
+    finally:
+        _stop(server)
+    answers = _answers(client)
+    assert [int(m.metadata["dropped"]) for m in answers] == [0] * n
+    assert [m.timestamp for m in answers] == times
+    offline = RunTracker(features, cam, body=body)
+    ref = [offline.track(pixels[k], cam, times[k]) for k in range(n)]
+    statuses = [r["status"] for r in ref]
+    assert statuses.count("tracked") >= n - 2, statuses
+    for m, r in zip(answers, ref):
+        R, t = link.pose_from_metadata(m.metadata)
+        assert m.metadata["status"] == r["status"]
+        assert np.abs(R - np.array(r["rotation"])).max() < 1e-6
+        assert np.abs(t - np.array(r["translation_mm"])).max() < 1e-6

@@ -47,17 +47,23 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
               show_default=True, help="How dense matter looks in the frames (as for `track`).")
 @click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
               help="intensity: refine each pose on the image intensities (slower).")
+@click.option("--independent", is_flag=True,
+              help="Track every frame alone with the full identification (no prior), as `track --independent`; "
+                   "by default each frame starts from the previous frame's pose.")
 def command(features_path: Path, camera_path: Path | None, port: int, host: str, name: str, space: str, queue: int,
-            valid_only: bool, distortion_path: Path | None, polarity: str, refine: str) -> int:
+            valid_only: bool, distortion_path: Path | None, polarity: str, refine: str,
+            independent: bool = False) -> int:
     """Track the fiducial in every IMAGE an OpenIGTLink client sends; answer each with a TRANSFORM.
 
     A client (PLUS Server's OpenIGTLink output, a frame grabber's software, 3D Slicer, a script)
-    connects to HOST:PORT and sends IMAGE messages. Each frame is tracked on its own, as
-    `track` does, and answered by a TRANSFORM named --name (default FiducialToCArm: the pose,
-    fiducial frame F into C-arm frame X), stamped with the IMAGE's timestamp; its header-v2
-    metadata carry TransformStatus, the full-precision pose, covariance, frame index, drops and
-    timings. A malformed message is answered by a STATUS error and the server goes on; a client
-    may disconnect and reconnect. Ctrl-C stops it and prints a summary.
+    connects to HOST:PORT and sends IMAGE messages. Each frame is tracked from the previous
+    frame's pose as `track` tracks a run (the full identification when the fiducial is lost or
+    jumps; --independent: every frame alone), and answered by a TRANSFORM named --name
+    (default FiducialToCArm: the pose, fiducial frame F into C-arm frame X), stamped with the
+    IMAGE's timestamp; its header-v2 metadata carry TransformStatus, the full-precision pose,
+    covariance, frame index, drops and timings. A malformed message is answered by a STATUS
+    error and the server goes on; a client may disconnect and reconnect. Ctrl-C stops it and
+    prints a summary.
     """
     from ..igt.frames import check_transform_name
     from ..igt.link import pyigtl
@@ -68,6 +74,7 @@ def command(features_path: Path, camera_path: Path | None, port: int, host: str,
     setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
     options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue,
                                      camera=setup.camera, valid_only=valid_only)
-    summary = serve_mod.serve(setup, options, log=sys.stdout)
+    factory = serve_mod.frame_by_frame_tracker if independent else serve_mod.run_tracker
+    summary = serve_mod.serve(setup, options, factory=factory, log=sys.stdout)
     click.echo(f"stopped: {summary.line()}")
     return 0

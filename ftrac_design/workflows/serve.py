@@ -29,7 +29,10 @@ says what it carries). One client at a time; when it leaves, the server waits fo
 **The tracker is pluggable**: :data:`TrackerFactory` makes, from the command's
 :class:`~ftrac_design.workflows.track_run.TrackSetup`, a ``track(image, camera, time_s) -> pose``
 callable (SPEC §4 object) called once per frame, in order, from one thread.
-:func:`frame_by_frame_tracker`, the default, tracks each frame alone exactly as ``track`` does.
+:func:`run_tracker`, the default, tracks each frame from the previous frame's pose as ``track``
+tracks a run (:class:`~ftrac_design.workflows.run_tracker.RunTracker`: the full identification
+when the fiducial is lost, jumps or fails the tests); :func:`frame_by_frame_tracker`
+(``serve --independent``) tracks each frame alone exactly as ``track`` tracks an image.
 
 **Client** (:func:`push_poses`): the poses of a ``track`` run sent as TRANSFORMs to a listening
 OpenIGTLink server (3D Slicer's OpenIGTLinkIF, port 18944), paced by their ``time_s`` or a rate.
@@ -57,6 +60,7 @@ from ..igt.frames import POSE_TRANSFORM, Space, check_transform_name
 from ..igt.poses import PoseRecord
 from ..images import Frame
 from ..pose import Camera
+from .run_tracker import RunTracker
 from .track_run import TrackSetup, failed_pose_dict, one_line, track_pixels
 
 #: OpenIGTLink's default port (3D Slicer's OpenIGTLinkIF and PLUS use it)
@@ -100,9 +104,42 @@ def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
         frame = Frame(pixels=image, camera=camera, camera_source={}, formation=None, polarity=None,
                       source="OpenIGTLink", index=0, time_s=time_s)
-        _, res = track_pixels(frame, setup)
+        _, res, _ = track_pixels(frame, setup)
         pose = res.pose_dict()
         pose.update(time_s=time_s, camera=camera.to_dict(), status="tracked" if res.pose.converged else "lost")
+        return pose
+    return track
+
+
+def run_tracker(setup: TrackSetup) -> Tracker:
+    """The tracker of a live stream: frames in order through one
+    :class:`~ftrac_design.workflows.run_tracker.RunTracker` (each from the previous frame's pose,
+    the full identification when that fails), undistorted and refined as ``track`` does
+    (:func:`~ftrac_design.workflows.track_run.track_pixels`). A dropped frame is simply not seen:
+    the next one is predicted from the poses before it, scaled by the frames' times.
+
+    Parameters
+    ----------
+    setup : features, body, tracking options, distortion model, refinement.
+
+    Returns
+    -------
+    Tracker : returns the frame's SPEC §4 object with ``status``, ``timing``, ``time_s`` and
+        ``camera``.
+    """
+    tracker = RunTracker(setup.features, setup.camera, setup.options, body=setup.body)
+    count = iter(range(1 << 62))  # frames in the order they reach the tracker: the run's own count
+
+    def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
+        frame = Frame(pixels=image, camera=camera, camera_source={}, formation=None, polarity=None,
+                      source="OpenIGTLink", index=next(count), time_s=time_s)
+        try:
+            _, res, answer = track_pixels(frame, setup, tracker)
+        except Exception:
+            tracker.forget()  # nothing half-known is carried to the next frame
+            raise
+        pose = answer.pose_dict()
+        pose.update(time_s=time_s, camera=camera.to_dict())
         return pose
     return track
 
@@ -510,7 +547,7 @@ def _answer_until_stopped(server: IgtlServer, tracker: Tracker, log: TextIO | No
             last_report, reported = time.monotonic(), len(s.latencies_ms)
 
 
-def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = frame_by_frame_tracker,
+def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = run_tracker,
           log: TextIO | None = None, stop: threading.Event | None = None,
           on_listen: Callable[[IgtlServer], None] | None = None) -> ServeSummary:
     """Run the OpenIGTLink server until Ctrl-C (or ``stop``): IMAGE in, TRANSFORM out.
@@ -519,7 +556,7 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = fr
     ----------
     setup : what frames are tracked with (features, body, options, distortion, refine).
     options : address, port, names, queue (see :class:`ServeOptions`).
-    factory : makes the tracker from ``setup`` (default :func:`frame_by_frame_tracker`).
+    factory : makes the tracker from ``setup`` (default :func:`run_tracker`).
     log : where the listening line, connection lines and progress go (None: nowhere).
     stop : an event that ends the session when set (Ctrl-C does too).
     on_listen : called with the server once it listens (e.g. to read its port).
