@@ -1,13 +1,15 @@
 """Live latency of ``ftrac-design serve``: frame in → TRANSFORM out, over OpenIGTLink on localhost.
 
-A pyigtl client sends rendered 1024² raw frames of a design (distinct workspace poses, reused
-in turn) to a ``serve`` subprocess at 15 and 30 frames/s and times each answer on its own
+A pyigtl client sends rendered 1024² raw frames of a design — a C-arm swing
+(:func:`ftrac_design.xray.sweep.render_sweep`, anatomy behind), sent forward then backward so the
+motion stays continuous — to a ``serve`` subprocess at 15 and 30 frames/s and times each answer on its own
 clock (send → TRANSFORM received: the network, the server's queue and the tracking); frames
 the server dropped (its queue full) are counted. Then the sustained rate without drops: frames
 sent one at a time, the next as soon as the answer arrives (closed loop). Baseline in the same
 run: ``track_image`` on the same frames in this process (the tracking alone), so the ratio of
 the live p50 to it is what the link and the server add. The first answers (warm-up) are left out.
-The target is p99 ≤ 50 ms for ftrac_2005; the default tracker tracks every frame alone.
+The target is p99 ≤ 50 ms for ftrac_2005; the server's default tracker follows the run from frame
+to frame (``--independent``: every frame alone, passed through to the server).
 
     .venv/bin/python benchmarks/live_latency.py                     # ftrac_2005, 1024², 10 s a rate
     .venv/bin/python benchmarks/live_latency.py --design ftrac_mini --seconds 5
@@ -25,10 +27,39 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _common import machine  # noqa: E402
-from igt_support import Server, image_message, recording_client, rendered_frames, wait_for  # noqa: E402
+from igt_support import Server, image_message, recording_client, wait_for  # noqa: E402
 
 from ftrac_design.segment.pipeline import track_image  # noqa: E402
 from ftrac_design.xray.scene import body_from_features_file  # noqa: E402
+
+
+def sweep_frames(out: Path, design: str, n: int, size: int):
+    """``n`` frames of a C-arm swing (1024² by default) as :func:`igt_support.rendered_frames` returns
+    frames: pixels (n, H, W) uint16, camera, features and camera files."""
+    import json
+
+    from igt_support import Frames
+
+    from ftrac_design.design import load_design
+    from ftrac_design.design.presets import PRESETS_DIR
+    from ftrac_design.features import compute_features, write_features
+    from ftrac_design.pose import Camera
+    from ftrac_design.pose.simulate import Workspace
+    from ftrac_design.xray import ImagingModel
+    from ftrac_design.xray.scene import body_from_design_file
+    from ftrac_design.xray.sweep import render_sweep
+
+    cam = Camera(1000.0, (0.44, 0.44), ((size - 1) / 2, (size - 1) / 2))
+    features = compute_features(load_design(PRESETS_DIR / f"{design}.toml"))
+    body = body_from_design_file(PRESETS_DIR / f"{design}.toml")
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(1, features.nominal_beam_direction,
+                                                            np.random.default_rng(5))
+    run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=(size, size)), seed=5, body=body)
+    out.mkdir(parents=True, exist_ok=True)
+    fpath = write_features(out / f"{design}.features.json", features)
+    cpath = out / "camera.json"
+    cpath.write_text(json.dumps(cam.to_dict()))
+    return Frames(np.asarray(run.raw, np.uint16), cam, Path(fpath), cpath)
 
 
 def _answers(client) -> dict[float, float]:
@@ -99,14 +130,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--design", default="ftrac_2005")
     ap.add_argument("--size", type=int, default=1024, help="frame side, pixels")
-    ap.add_argument("--distinct", type=int, default=20, help="distinct rendered frames, sent in turn")
+    ap.add_argument("--distinct", type=int, default=60, help="frames of the swing, sent forward then backward")
+    ap.add_argument("--independent", action="store_true", help="the server tracks every frame alone")
     ap.add_argument("--seconds", type=float, default=10.0, help="sending time per rate")
     ap.add_argument("--warmup", type=int, default=3)
     a = ap.parse_args()
     out = Path("outputs/bench_live")
-    fr = rendered_frames(out, a.distinct, (a.size, a.size), a.design)
+    fr = sweep_frames(out, a.design, a.distinct, a.size)
     cam = fr.camera
-    print(f"{machine()}; {a.design}, {a.distinct} distinct {a.size}² raw frames; shared 2-core machine: "
+    print(f"{machine()}; {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
+          f"{'every frame alone' if a.independent else 'run (from the previous pose)'}; shared 2-core machine: "
           f"figures are inflated by the other jobs' load")
     body = body_from_features_file(fr.features_path)
     from ftrac_design.features import load_features
@@ -122,14 +155,18 @@ def main() -> None:
     pk, dc = transport_ms(fr.pixels[0], cam)
     print(f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
           f"CRC + decode {dc:.1f} ms (server, only for the frames it tracks)")
-    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path)])
+    # forward then backward: frame k of the stream is a neighbour of frame k − 1
+    order = list(range(len(fr.pixels))) + list(range(len(fr.pixels) - 2, 0, -1))
+    stream = fr.pixels[order]
+    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path),
+                     *(["--independent"] if a.independent else [])])
     try:
         client = recording_client(server.port)
-        closed_loop(client, fr.pixels, cam, a.warmup, 0.0)
+        closed_loop(client, stream, cam, a.warmup, 0.0)
         stamp = 10_000.0
         for rate in (15.0, 30.0):
             n = int(rate * a.seconds)
-            lat, dropped = open_loop(client, fr.pixels, cam, rate, n, stamp)
+            lat, dropped = open_loop(client, stream, cam, rate, n, stamp)
             own = _server_latency(client, stamp, stamp + n)
             stamp += 10_000.0
             p50, p99 = np.percentile(lat, [50, 99])
@@ -138,7 +175,7 @@ def main() -> None:
                   f"target p99 ≤ 50 ms: {'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → "
                   f"sent) p50 {np.median(own):.1f} ms, p99 {np.percentile(own, 99):.1f} ms")
             time.sleep(1.0)
-        rate = closed_loop(client, fr.pixels, cam, max(2 * a.distinct, 20), stamp)
+        rate = closed_loop(client, stream, cam, max(2 * a.distinct, 20), stamp)
         print(f"sustained rate without drops (closed loop): {rate:.1f} frames/s "
               f"(baseline 1 / median track: {1e3 / np.median(base):.1f} frames/s)")
         client.stop()
