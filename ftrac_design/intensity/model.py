@@ -17,7 +17,7 @@ radians about the fiducial origin, camera axes; δt in mm.
 **Derivative.** ``∂L/∂θ`` is taken by central differences of this model, with steps that
 move the features by ``STEP_PX`` = 0.15 px at the detector. Why not forward-mode through
 the chords: the chord of every solid has a ``1/√`` singular derivative at its silhouette,
-and the 4 × 4 sub-samples that integrate a pixel resolve it poorly, so the exact
+and the s × s sub-samples that integrate a pixel resolve it poorly, so the exact
 derivative *of the sub-sampled model* is a noisy estimate of the derivative of the
 pixel-integrated image that the Fisher information needs (it jumps whenever a sub-sample
 crosses a silhouette); a difference over a step comparable to the sub-sample spacing
