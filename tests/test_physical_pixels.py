@@ -90,16 +90,17 @@ def test_ball_shadow_integral_is_the_closed_form_times_magnification_squared():
     assert _ball_shadow_integral(2 * r, mu) == pytest.approx(closed * M * M / 0.44 ** 2, rel=1e-5)
 
 
-@pytest.mark.parametrize("diameter", [0.8, 1.2, 2.0])
+@pytest.mark.parametrize("diameter", [0.8, 1.0, 1.2, 2.0])
 def test_ball_total_attenuation_is_exact(diameter):
     """Σ over the image of the photons a ball removes = its shadow's integrated attenuation.
 
     Two parts: (1) the blur and the pixels conserve photons — the detected deficit sums to
     the sub-samples' mean deficit to rounding, whatever the blur; (2) the s² sub-samples
-    integrate the shadow, whose attenuation rises as √ from the silhouette, so the rule's
-    error falls as ~s⁻²: within 0.5 % at the default s = 5 and 0.1 % at s = 15, at any
-    sub-pixel position (7 phases)."""
-    for s, tol in ((5, 5e-3), (15, 1e-3)):
+    integrate the shadow, whose attenuation rises as √ from the silhouette: the rule's error
+    is an edge term ~h^1.5 (h = 1/s px) over the perimeter, relative to the area, so the
+    tolerance is the 1 % the issue asks of thin parts at the default s = 5 and (5/15)^1.5 ≈
+    0.19 of it, 0.2 %, at s = 15, at 7 sub-pixel positions."""
+    for s, tol in ((5, 1e-2), (15, 2e-3)):
         im = ImagingModel(image_shape=(128, 128), photons_per_px=None, single_precision=False, supersample=s)
         ref = _ball_shadow_integral(diameter, im.mu("steel"))
         for ph in np.linspace(0.0, 1.0, 7, endpoint=False):
