@@ -54,10 +54,11 @@ AUTO = "auto"
 
 #: body pixels within this many pixels of a rough one (:func:`rough_body_pixels`) are
 #: sub-sampled too. A smooth pixel is detected as if uniform over its area, which ignores
-#: its gradient: next to the body's silhouettes the noise-free log image moves by up to
-#: 2e-3 (ftrac_2005, 667 mm; 0.07 of its quantum noise there) when a second ring is
-#: sub-sampled too, at 1.3× the render time, so one ring it is
+#: its gradient: with one ring, sub-sampling a second moves the noise-free log image next
+#: to the body's silhouettes by up to 3.4e-3 (about 0.3 of its quantum noise there at the
+#: default dose; ftrac_2005, 667 mm); two rings cost 1.2× the render time of one
 BODY_DILATE_PX = 2
+
 
 def _occluder_pieces(occluders: Sequence[Occluder], imaging: ImagingModel, R: np.ndarray, t: np.ndarray) -> Pieces:
     parts = []
@@ -262,8 +263,9 @@ def pixel_kernels(sigma_px: float, offsets: np.ndarray) -> np.ndarray:
     """Weights (len(offsets), 2m + 1) of the detector's response along one axis to a photon
     ``offsets`` px from a pixel centre: the Gaussian blur of σ ``sigma_px`` integrated over
     the receiving pixels, ``K(x) = ½ [erf((x + ½)/(√2 σ)) − erf((x − ½)/(√2 σ))]`` (the pixel
-    box convolved with the Gaussian, exact), for ``scipy.ndimage.correlate1d``: weight ``j``
-    multiplies the source pixel ``m − j`` pixels before the output one (m = ⌈4σ⌉ + 1). Each
+    box convolved with the Gaussian, exact), as correlation weights (``cv2.sepFilter2D``,
+    ``scipy.ndimage.correlate1d``): weight ``j`` multiplies the source pixel ``m − j`` pixels
+    before the output one (m = ⌈4σ⌉ + 1). Each
     row sums to 1 (photons are conserved); σ = 0 is the bare pixel box.
     """
     o = np.asarray(offsets, float)
@@ -289,8 +291,8 @@ def detected_deficit(field: SubsampledField, sigma_u: float, sigma_v: float,
 
     The photons, not the line integrals, are blurred and integrated: each sub-sample's
     transmission ``exp(−p_k)`` (weight 1 / s² of its pixel; a smooth pixel's s² sub-samples
-    all take its centre value) spreads over the receiving pixels by :func:`pixel_kernels` — the Gaussian
-    blur (σ_u, σ_v px) convolved exactly with the pixel box. ``behind`` (h, w), optional:
+    all take its centre value) spreads over the receiving pixels by :func:`pixel_kernels` —
+    the Gaussian blur (σ_u, σ_v px) convolved exactly with the pixel box. ``behind`` (h, w), optional:
     the transmission of what else the photons crossed (a patient), taken as constant over a
     pixel, multiplies the field's transmission before the blur (photon-field product).
     Outside the box the field transmits fully (deficit 0).
