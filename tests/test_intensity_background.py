@@ -78,13 +78,11 @@ def test_spline_background_recovers_the_pose_under_a_smooth_background(features_
     V, U = np.mgrid[0:1024, 0:1024]
     uv = Camera().project((R @ features_2005.point_centers().T).T + t).mean(0)
     bg = 0.8 * np.exp(-((U - uv[0] - 40) ** 2 + (V - uv[1] + 30) ** 2) / (2 * 70.0 ** 2)) + 1e-3 * (U - 512)
-    # the background multiplies the detected image, as the refinement models it (the
-    # renderer multiplies on the photon field, before the blur: a 1e-3° bias here)
-    log_image = render(features_2005, R, t, imaging=im, body=BODY).log_image + bg
+    img = render(features_2005, R, t, imaging=im, body=BODY, background=bg)
     R0, t0 = perturb(R, t, np.array([np.radians(0.05), -np.radians(0.05), np.radians(0.03), 0.02, -0.02, 0.4]))
     kw = dict(body=BODY, scales=(0.0,))
-    spl = refine_intensity(features_2005, log_image, Camera(), R0, t0, im, background="spline", **kw)
-    quad = refine_intensity(features_2005, log_image, Camera(), R0, t0, im, background="polynomial", **kw)
+    spl = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, im, background="spline", **kw)
+    quad = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, im, background="polynomial", **kw)
     err_s = np.r_[so3.angle(spl.rotation, R), np.abs(spl.translation_mm - t)]
     err_q = np.r_[so3.angle(quad.rotation, R), np.abs(quad.translation_mm - t)]
     assert spl.background_model == "spline" and spl.converged

@@ -280,7 +280,11 @@ def _photons(features: Features, R, t, camera: Camera, imaging: ImagingModel, bo
         D = detected_deficit(field, su, sv, window(Tp, (v0, u0), (h, w)))
         H, W = T.shape
         D = D[r0 - v0:min(v0 + h, H) - v0, c0 - u0:min(u0 + w, W) - u0]
+        # the patient detected on its own (pixel grid) and the fiducial's deficit detected
+        # with it on the photon field are two discretisations: where the patient changes
+        # sharply under a dense part the difference can dip below zero photons
         T[r0:r0 + D.shape[0], c0:c0 + D.shape[1]] -= D
+        np.maximum(T, 0.0, out=T)
     return T
 
 
