@@ -1,9 +1,9 @@
 """Is the pixel-level bound converged in the renderer's sub-sampling?
 
-The ROI renderer integrates each pixel a wire, bead or body edge touches as the mean of
-4 × 4 sub-samples (``ImagingModel.supersample``), and the bound's derivative is a 0.15 px
-central difference of that image. Here the bound (gain and a quadratic background unknown,
-ftrac_2005 with its body, default imaging model) is recomputed with 8 × 8 sub-samples (float32
+The ROI renderer samples each pixel a wire, bead or body edge touches at s × s sub-samples
+(``ImagingModel.supersample``, default 5), and the bound's derivative is a 0.15 px central
+difference of that image. Here the bound (gain and a quadratic background unknown, ftrac_2005
+with its body, default imaging model) is computed with 4 × 4 and with 8 × 8 sub-samples (float32
 chords, as the default, and float64) at the first N poses of the 300-image workspace sample
 of ``intensity_accuracy.py``; printed: σ(8 × 8) / σ(4 × 4) − 1 per axis, per pose and summarised.
 

@@ -1,18 +1,16 @@
-"""The simulator's pixel integration before its blur: how far a thin wire's image depends on
-where the wire falls within a pixel (a limit of the simulator; docs/how/simulator.md).
+"""A thin part's image by sub-pixel phase: does the simulated detector conserve photons?
 
 Physically the focal-spot and detector blur act on the photons before the pixels integrate
-them; ``xray/render.py`` integrates the line integral over each pixel (s × s sub-samples),
-takes the exponential and then blurs the pixel grid. For a part much wider than a pixel the
-two orders agree; for a wire about a pixel wide the rendered image depends on where the wire
-falls within a pixel (the exponential of a pixel's mean line integral is not the pixel's mean
-transmission, and the sub-samples resolve the wire's profile coarsely). For each wire (and,
-for comparison, ball) size at the default camera and imaging model, 667 mm from the source,
-the part is moved across one pixel in 32 steps (sub-pixel phases) and the script prints the
-spread of the summed contrast Σ(1 − I) over the phases — the physical image's sum does not
-depend on the phase (the blur and the pixels conserve it) — at the default 4 × 4 sub-samples
-and at 8 × 8, float64 chords — and, for a 0.3 mm wire emulated in 1-D, how much of the spread
-is the exponential of a mean (partial volume) rather than the sub-sampling.
+them, so a part's summed contrast Σ(1 − I) over the image does not depend on where the part
+falls within a pixel. ``xray/render.py`` blurs each sub-sample's transmission and integrates
+it over the pixels (the blur convolved exactly with the pixel box), so the only phase
+dependence left is the sub-samples' quadrature of the part's attenuation across its width.
+For each wire (and ball) size at the default camera and imaging model, 667 mm from the
+source, the part is moved across one pixel in 37 steps (sub-pixel phases) and the script
+prints the spread (max − min over mean) of Σ(1 − I) at the default 5 × 5 sub-samples and at
+8 × 8 (rotated grids, float64 chords) — and, for a 0.3 mm wire emulated in 1-D, the spread
+when each pixel's value is the exponential of its mean line integral (the other order)
+beside the pixel's mean transmission.
 
     .venv/bin/python benchmarks/render_blur_order.py
 """
@@ -29,7 +27,7 @@ from ftrac_design.xray.model import ImagingModel
 from ftrac_design.xray.render import expected_transmission
 
 DEPTH = 667.0
-PHASES = 32
+PHASES = 37
 
 
 def _features(points=(), lines=()) -> Features:
@@ -41,7 +39,7 @@ def sweep(features: Features, supersample: int) -> float:
     """Spread (max − min) of Σ(1 − I) over the phases as a fraction of its mean."""
     cam = Camera()
     im = dataclasses.replace(ImagingModel(), supersample=supersample, single_precision=False)
-    step = cam.pixel_size_mm[1] * DEPTH / cam.focal_length_mm / PHASES    # object mm per 1/32 px
+    step = cam.pixel_size_mm[1] * DEPTH / cam.focal_length_mm / PHASES    # object mm per 1/PHASES px
     images = [expected_transmission(features, np.eye(3), np.array([0.0, k * step, DEPTH]), cam, im, body=None)
               .astype(float) for k in range(PHASES + 1)]
     sums = np.array([np.sum(1.0 - I) for I in images])
@@ -49,7 +47,7 @@ def sweep(features: Features, supersample: int) -> float:
 
 
 def partial_volume(d: float, s: int) -> tuple[float, float]:
-    """1-D emulation of a wire of diameter ``d`` across 32 phases with ``s`` sub-samples per
+    """1-D emulation of a wire of diameter ``d`` across PHASES phases with ``s`` sub-samples per
     pixel: spread of Σ(1 − I) with I the exponential of the pixel's mean line integral (the
     renderer) and with I the pixel's mean transmission (physical, before any blur)."""
     cam, im = Camera(), ImagingModel()
@@ -66,22 +64,22 @@ def partial_volume(d: float, s: int) -> tuple[float, float]:
 
 def main() -> None:
     print(f"depth {DEPTH:g} mm, default camera and imaging; the part moved across one pixel in {PHASES} steps")
-    print(f"{'part':<18}{'image width px':>15}{'Σ(1−I) spread, 4×4 / 8×8':>29}")
+    print(f"{'part':<18}{'image width px':>15}{'Σ(1−I) spread, 5×5 / 8×8':>29}")
     cam = Camera()
     M = cam.focal_length_mm / DEPTH
     for d in (0.2, 0.25, 0.3, 0.4, 0.5):
         f = _features(lines=[LineFeature("L1", np.array([-5.0, 0, 0]), np.array([5.0, 0, 0]), d)])
-        a4, a8 = sweep(f, 4), sweep(f, 8)
-        print(f"{f'wire {d:g} mm':<18}{d * M / cam.pixel_size_mm[0]:>15.2f}{f'{a4:.1%} / {a8:.1%}':>29}")
-    print("why: a 0.3 mm wire emulated across a pixel (1-D), spread of Σ(1 − I) with")
+        a5, a8 = sweep(f, 5), sweep(f, 8)
+        print(f"{f'wire {d:g} mm':<18}{d * M / cam.pixel_size_mm[0]:>15.2f}{f'{a5:.2%} / {a8:.2%}':>29}")
+    print("the other order: a 0.3 mm wire emulated across a pixel (1-D), spread of Σ(1 − I) with")
     for sub in (4, 8, 64):
         e, m = partial_volume(0.3, sub)
         print(f"  {sub:>2} sub-samples: exp of the pixel's mean line integral {e:.1%}, "
               f"pixel's mean transmission {m:.1%}")
     for d in (0.8, 1.0, 1.2):
         f = _features(points=[PointFeature("B1", np.zeros(3), d)])
-        a4, a8 = sweep(f, 4), sweep(f, 8)
-        print(f"{f'ball {d:g} mm':<18}{d * M / cam.pixel_size_mm[0]:>15.2f}{f'{a4:.1%} / {a8:.1%}':>29}")
+        a5, a8 = sweep(f, 5), sweep(f, 8)
+        print(f"{f'ball {d:g} mm':<18}{d * M / cam.pixel_size_mm[0]:>15.2f}{f'{a5:.2%} / {a8:.2%}':>29}")
 
 
 if __name__ == "__main__":

@@ -228,17 +228,20 @@ def test_same_seed_same_image_and_polarities(features_2005):
 
 
 def test_blur_acts_on_intensity_and_matches_its_sigma():
-    """A bead's blurred intensity deficit (1 − I) keeps its integral; blur σ widens its second moment."""
+    """A bead's blurred intensity deficit (1 − I) keeps its integral; blur σ widens its second
+    moment by σ². Compared between two blurred images: the detector's pixels read the second
+    moment of a blurred (smooth) image without bias, but not of the sharp one (there the
+    pixel a sub-sample falls in, not its position, counts: −0.008 px² here)."""
     f = _features(points=[PointFeature("B", np.zeros(3), 2.0)])
     t = np.array([0.0, 0.0, 667.0])
-    sharp = ImagingModel(image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=0.0)
-    blurred = ImagingModel(image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=1.5)
-    a = 1 - np.exp(-render(f, np.eye(3), t, CAM_SMALL, sharp, body=None).line_integral)
-    b = 1 - np.exp(-render(f, np.eye(3), t, CAM_SMALL, blurred, body=None).line_integral)
-    assert b.sum() == pytest.approx(a.sum(), rel=1e-4)
+    images = [1 - np.exp(-render(f, np.eye(3), t, CAM_SMALL, ImagingModel(
+        image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=s), body=None).line_integral)
+        for s in (0.0, 1.0, 2.5)]
+    sharp, a, b = images
+    assert b.sum() == pytest.approx(sharp.sum(), rel=1e-4) and a.sum() == pytest.approx(sharp.sum(), rel=1e-4)
     V, U = np.mgrid[0:256, 0:256]
     var = lambda w: (w * (U - 128.0) ** 2).sum() / w.sum()          # noqa: E731
-    assert var(b) - var(a) == pytest.approx(1.5 ** 2, rel=1e-3)
+    assert var(b) - var(a) == pytest.approx(2.5 ** 2 - 1.0 ** 2, rel=1e-3)
 
 
 def test_needle_occluder_in_camera_frame():

@@ -2,10 +2,13 @@
 
 :class:`RoiModel` renders the noise-free, blurred log image ``L = −ln(I/I0)`` of the
 fiducial (no background) over a fixed rectangle of the image, with the simulator of
-:mod:`ftrac_design.xray` (exact chords, 4 × 4 pixel integration at wires, beads and body
-edges, blur on the intensity). The body pixels that are supersampled are chosen at the
-pose where a derivative is taken (dilated by one pixel) and frozen for its difference
-steps, so that each difference is taken on one smooth function.
+:mod:`ftrac_design.xray` and its pieces (exact chords, s × s sub-samples at wires, beads and
+body edges, each sub-sample's transmission blurred and integrated over the pixels by
+:func:`ftrac_design.xray.render.detected_deficit`): at the same pose it equals the
+renderer's noise-free log image over the rectangle (float rounding). The body pixels that
+are supersampled are chosen as the renderer chooses them (plus ``flag_dilate_px`` rings) at
+the pose where a derivative is taken, and frozen for its difference steps, so that each
+difference is taken on one smooth function.
 
 The pose is perturbed as the solver does (:mod:`ftrac_design.pose.so3`): ``R ← exp([δ]ₓ) R``,
 ``t ← t + δt``, parameters in the covariance order ``(rx, ry, rz, tx, ty, tz)`` — δ in
@@ -14,7 +17,7 @@ radians about the fiducial origin, camera axes; δt in mm.
 **Derivative.** ``∂L/∂θ`` is taken by central differences of this model, with steps that
 move the features by ``STEP_PX`` = 0.15 px at the detector. Why not forward-mode through
 the chords: the chord of every solid has a ``1/√`` singular derivative at its silhouette,
-and the 4 × 4 sub-samples that integrate a pixel resolve it poorly, so the exact
+and the s × s sub-samples that integrate a pixel resolve it poorly, so the exact
 derivative *of the sub-sampled model* is a noisy estimate of the derivative of the
 pixel-integrated image that the Fisher information needs (it jumps whenever a sub-sample
 crosses a silhouette); a difference over a step comparable to the sub-sample spacing
@@ -29,7 +32,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter1d
 
 from ..features.model import Features
 from ..pose import so3
@@ -37,7 +39,14 @@ from ..pose.camera import Camera
 from ..xray.geometry import body_chord_uv, sphere_chord, tube_chord_uv
 from ..xray.model import Body, ImagingModel
 from ..xray.rays import Rays, capsule_pixels, feature_pieces, project_points, subsample_offsets
-from ..xray.render import blur_sigma_px
+from ..xray.render import (
+    BODY_DILATE_PX,
+    SubsampledField,
+    blur_sigma_px,
+    detected_deficit,
+    gather_field,
+    rough_body_pixels,
+)
 
 #: parameter names in covariance order
 PARAMETERS = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -85,7 +94,7 @@ class RoiModel:
     body: Body | None
     roi: tuple[int, int, int, int]
     body_flags: np.ndarray | None = None
-    flag_dilate_px: int = 1
+    flag_dilate_px: int = 0
 
     def __post_init__(self) -> None:
         v0, u0, h, w = self.roi
@@ -93,8 +102,9 @@ class RoiModel:
         self._cv = np.arange(v0, v0 + h, dtype=float)
 
     # ------------------------------------------------------------------ rendering
-    def line_integral(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Un-blurred pixel-integrated line integral (rows, cols) over the ROI at pose (R, t)."""
+    def field(self, R: np.ndarray, t: np.ndarray) -> SubsampledField:
+        """Un-blurred line integral over the ROI at pose (R, t), sub-sampled where the renderer
+        sub-samples it (:class:`~ftrac_design.xray.render.SubsampledField`)."""
         R, t = np.asarray(R, float), np.asarray(t, float)
         v0, u0, h, w = self.roi
         cam, im = self.camera, self.imaging
@@ -103,9 +113,9 @@ class RoiModel:
         s = int(im.supersample)
         ou, ov = subsample_offsets(s)
         pix = min(cam.pixel_size_mm)
-        p = np.zeros(h * w)
         mu_steel = im.mu("steel")
         centers, radii, pieces = feature_pieces(self.features, mu_steel)
+        groups = []
 
         def keep(rows, cols):
             return (rows >= v0) & (rows < v0 + h) & (cols >= u0) & (cols < u0 + w)
@@ -122,7 +132,7 @@ class RoiModel:
             if len(k):
                 ch = tube_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, pieces, k, cols[:, None] + ou,
                                    rows[:, None] + ov, fdt)
-                p += np.bincount((rows - v0) * w + cols - u0, ch.mean(1) * pieces.mu[k], h * w)
+                groups.append((rows, cols, ch * pieces.mu[k][:, None]))
         if len(radii):
             uv, Z = project_points(cam, R, t, centers)
             rad = radii * cam.focal_length_mm / np.maximum(Z - radii, 1.0) / pix * 1.05 + 0.75
@@ -134,21 +144,26 @@ class RoiModel:
                 V = (rows[:, None] + ov).ravel()
                 kk = np.repeat(k, s * s)
                 ch = sphere_chord(rays.c, rays(U, V), centers[kk], radii[kk]).reshape(-1, s * s)
-                p += np.bincount((rows - v0) * w + cols - u0, ch.mean(1) * mu_steel, h * w)
-        p = p.reshape(h, w)
+                groups.append((rows, cols, ch * mu_steel))
+        p = np.zeros((h, w))
         if self.body is not None:
             b = self.body
             mu = im.mu(b.material)
             args = [np.asarray(x, fdt) for x in (rays.c, rays.g0, rays.gu, rays.gv)] + \
                 [b.outer_diameter / 2, b.bore_diameter / 2, b.length / 2]
             centre = mu * body_chord_uv(*args, self._cu.astype(fdt)[None, :], self._cv.astype(fdt)[:, None])
+            p += centre
             flags = self.body_flags if self.body_flags is not None else self._flags(centre)
             jj, ii = np.nonzero(flags)
             if len(jj):
-                centre[jj, ii] = mu * body_chord_uv(*args, (self._cu[ii][:, None] + ou).astype(fdt),
-                                                    (self._cv[jj][:, None] + ov).astype(fdt)).mean(1)
-            p += centre
-        return p
+                sub = mu * body_chord_uv(*args, (self._cu[ii][:, None] + ou).astype(fdt),
+                                         (self._cv[jj][:, None] + ov).astype(fdt))
+                groups.append((jj + v0, ii + u0, sub - centre[jj, ii][:, None]))
+        return gather_field(p, (v0, u0), groups, s)
+
+    def line_integral(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+        """Un-blurred pixel-integrated (sub-sample mean) line integral (rows, cols) over the ROI at pose (R, t)."""
+        return self.field(R, t).p
 
     def freeze(self, R: np.ndarray, t: np.ndarray) -> None:
         """Fix the supersampled body pixels to those of pose (R, t) (see the module)."""
@@ -163,29 +178,13 @@ class RoiModel:
         self.body_flags = self._flags(centre)
 
     def _flags(self, centre: np.ndarray) -> np.ndarray:
-        from ..xray.rays import BODY_ROUGHNESS
-        lap = np.zeros_like(centre)
-        lap[1:-1, 1:-1] = (centre[:-2, 1:-1] + centre[2:, 1:-1] + centre[1:-1, :-2] + centre[1:-1, 2:]
-                           - 4 * centre[1:-1, 1:-1])
-        flag = np.abs(lap) > BODY_ROUGHNESS
-        for _ in range(1 + self.flag_dilate_px):
-            f = flag.copy()
-            f[1:, :] |= flag[:-1, :]
-            f[:-1, :] |= flag[1:, :]
-            f[:, 1:] |= flag[:, :-1]
-            f[:, :-1] |= flag[:, 1:]
-            flag = f
-        return flag
+        return rough_body_pixels(centre, BODY_DILATE_PX + self.flag_dilate_px)
 
     def transmission(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Blurred transmission I/I0 (rows, cols) of the fiducial over the ROI (float64)."""
-        I = np.exp(-self.line_integral(R, t))
+        """Transmission I/I0 (rows, cols) of the fiducial over the ROI as the detector reads it
+        (blurred photons integrated over each pixel, as the renderer; float64)."""
         su, sv = blur_sigma_px(self.camera, self.imaging, float(np.asarray(t, float)[2]))
-        if sv > 0:
-            I = gaussian_filter1d(I, sv, axis=0, mode="nearest", truncate=4.0)
-        if su > 0:
-            I = gaussian_filter1d(I, su, axis=1, mode="nearest", truncate=4.0)
-        return I
+        return 1.0 - detected_deficit(self.field(R, t), su, sv, dtype=np.float64)
 
     def log_image(self, R: np.ndarray, t: np.ndarray) -> np.ndarray:
         """Noise-free log image −ln(I/I0) (rows, cols) of the fiducial over the ROI (the last

@@ -281,7 +281,7 @@ def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: 
     is the step in units of the pixel-level bound), or moves the features by less than
     ``tolerance`` px, or (``ftol`` > 0) lowers the objective by less than ``ftol`` of itself.
     Why 0.3 σ and not tighter: steps on forward differences do not converge much below it —
-    their Jacobian changes with the pose by the 4 × 4 sub-samples' silhouette crossings, so
+    their Jacobian changes with the pose by the sub-samples' silhouette crossings, so
     the iterates wander by ~0.2 σ — and the polishing step below lands within 0.01–0.05 σ RMS
     of where a 0.01 σ rule ends, at 15 % less CPU (120 paired images).
     A coarse scale stops at 0.3 σ or ``step_sigma`` if larger (it only brings the pose into the

@@ -31,9 +31,9 @@ MAX_BOX_SIDE = 2.0
 
 def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
                  margin_px: int = 8, clip: tuple[int, int] | None = None):
-    """The acetal body's modelled density (−ln of its blurred transmission) over its bounding
-    box at pose (R, t): ``(box image, (row0, col0))``; uses the simulator's exact
-    hollow-cylinder chords (:func:`ftrac_design.xray.line_integral_box`).
+    """The acetal body's modelled density (−ln of its transmission as the detector reads it)
+    over its bounding box at pose (R, t): ``(box image, (row0, col0))``; uses the simulator's
+    exact hollow-cylinder chords and detector (:func:`ftrac_design.xray.render.detected_deficit`).
 
     Parameters
     ----------
@@ -48,19 +48,20 @@ def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
     (density (h, w) float64, (row0, col0)), or None when the pose puts the body behind the
     source, outside ``clip`` or wider than :data:`MAX_BOX_SIDE` × its larger side.
     """
-    from scipy.ndimage import gaussian_filter
-
-    from ..xray import ImagingModel, line_integral_box
+    from ..xray import ImagingModel
+    from ..xray.render import detected_deficit, line_integral_field
 
     if not body_box_ok(camera, R, t, body, clip):
         return None
-    p, (v0, u0) = line_integral_box(features.subset(set()), R, t, camera, ImagingModel(supersample=2), body,
-                                    margin_px=margin_px)
+    # 3 × 3 sub-samples at the silhouettes: within 1e-3 of the simulator's 5 × 5 there, at a
+    # third of the cost
+    field = line_integral_field(features.subset(set()), R, t, camera, ImagingModel(supersample=3), body,
+                                margin_px=margin_px)
     # the bead fit's blur includes the pixel's own width (variance 1/12), which the
-    # pixel-integrated line integral already has
+    # detector's pixel integration adds
     s = math.sqrt(max(blur_px ** 2 - 1.0 / 12.0, 0.0))
-    I = gaussian_filter(np.exp(-p), s, mode="nearest") if s > 0 else np.exp(-p)
-    return -np.log(np.maximum(I, 1e-12)), (v0, u0)
+    D = detected_deficit(field, s, s, dtype=np.float64)
+    return -np.log(np.maximum(1.0 - D, 1e-12)), field.origin
 
 
 def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[int, int] | None) -> bool:

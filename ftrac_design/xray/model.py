@@ -29,8 +29,9 @@ class ImagingModel:
     - ``bit_depth``: raw output quantisation (8–16 bits); the flat field sits at 80 % of full scale.
     - ``attenuation_per_mm``: overrides of μ (1/mm) by material name (``steel``, ``acetal``, …);
       the rest come from :mod:`.materials` at ``energy_kev``.
-    - ``supersample``: sub-samples per pixel side where the line integral is not smooth
-      (wires, beads, body edges); the pixel value is their mean (pixel integration).
+    - ``supersample``: s, where the line integral is not smooth (wires, beads, body edges)
+      each pixel is sampled at s² points (a rotated grid); the detector integrates their
+      transmissions (:func:`.render.detected_deficit`).
     - ``single_precision``: evaluate the wire and body chords of the sub-samples in float32
       (about twice as fast; sub-sample chords stay within 2 µm, pixel line integrals within
       2e-3 of the float64 result, < 4e-4 on all but ~0.1 % of the fiducial's pixels);
@@ -44,7 +45,7 @@ class ImagingModel:
     photons_per_px: float | None = 1.0e4
     bit_depth: int = 16
     attenuation_per_mm: Mapping[str, float] | None = None
-    supersample: int = 4
+    supersample: int = 5
     single_precision: bool = True
 
     def __post_init__(self) -> None:

@@ -11,6 +11,7 @@ mm, image coordinates px (SPEC §3 pixel centres).
 
 from __future__ import annotations
 
+import math
 import weakref
 
 import numpy as np
@@ -85,11 +86,37 @@ def capsule_pixels(u0, v0, u1, v1, rad):
     return k, lo_v[k] + jv, lo_u[k] + ju
 
 
+def lattice_generator(n: int) -> int:
+    """Generator g of the rank-1 lattice ``{(k/n, k g/n mod 1)}`` of ``n`` points with the largest
+    smallest spacing (periodic), ties to the smallest g; n = 25 gives g = 7, a square grid
+    turned by atan(3/4) whose spacing equals the 5 × 5 grid's."""
+    best, best_d = 1, -1.0
+    for g in range(1, max(n, 2)):
+        if math.gcd(g, n) != 1:
+            continue
+        k = np.arange(1, n)
+        du = np.minimum(k, n - k)
+        dv = np.minimum(k * g % n, n - k * g % n)
+        d = float(np.min(du * du + dv * dv)) if n > 1 else 0.0
+        if d > best_d:
+            best, best_d = g, d
+    return best
+
+
 def subsample_offsets(s: int) -> tuple[np.ndarray, np.ndarray]:
-    """Offsets (u, v) in px of the s × s sub-samples of a pixel about its centre, each (s²,)."""
-    o = (np.arange(s) + 0.5) / s - 0.5
-    ou, ov = np.meshgrid(o, o)
-    return ou.ravel(), ov.ravel()
+    """Offsets (u, v) in px of the s² sub-samples of a pixel about its centre, each (s²,).
+
+    A rotated grid (the rank-1 lattice of :func:`lattice_generator`): sub-sample k of n = s²
+    sits at ``u = (k + ½)/n − ½``, ``v = ((k g mod n) + ½)/n − ½``, so its n projections on
+    either pixel axis (and, for odd s, on both diagonals) are all distinct and 1/n px apart. A
+    wire along a pixel axis is then integrated across its width with s² samples per pixel
+    rather than s: the summed attenuation of a 0.3 mm wire varies < 1 % with its sub-pixel
+    phase at s = 5 (on a square 5 × 5 grid about 5 %), at the same cost. The offsets average
+    to zero along both axes (the midpoint rule for smooth parts).
+    """
+    n = s * s
+    k = np.arange(n)
+    return (k + 0.5) / n - 0.5, (k * lattice_generator(n) % n + 0.5) / n - 0.5
 
 
 def project_points(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
