@@ -24,7 +24,7 @@ def machine() -> str:
                 cpu = line.split(":", 1)[1].strip()
     except (OSError, subprocess.SubprocessError):
         pass
-    return (f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}")
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
 def load(name: str):
@@ -75,8 +75,10 @@ def rms3(errors):
     """3-D RMS translation (mm) and rotation (deg) of Monte-Carlo errors (k, 6)."""
     import numpy as np
 
-    return (float(np.sqrt(np.mean(np.sum(errors[:, :3] ** 2, 1)))),
-            float(np.sqrt(np.mean(np.sum(errors[:, 3:] ** 2, 1)))))
+    return (
+        float(np.sqrt(np.mean(np.sum(errors[:, :3] ** 2, 1)))),
+        float(np.sqrt(np.mean(np.sum(errors[:, 3:] ** 2, 1)))),
+    )
 
 
 def predicted(features, n: int, e_mm: float, seed: int = 0, noise=None, workspace=None):
@@ -87,8 +89,9 @@ def predicted(features, n: int, e_mm: float, seed: int = 0, noise=None, workspac
     from ftrac_design.pose.simulate import Workspace
 
     R, t = workspace_poses(workspace or Workspace(), features.nominal_beam_direction, n, seed)
-    return analyse_poses(features, R, t, Camera(), noise or NoiseModel.from_segmentation_error(e_mm),
-                         detail=False).overall
+    return analyse_poses(
+        features, R, t, Camera(), noise or NoiseModel.from_segmentation_error(e_mm), detail=False
+    ).overall
 
 
 def save_plot(fig, name: str) -> str:

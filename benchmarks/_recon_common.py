@@ -20,8 +20,9 @@ CAM = Camera()
 PAPER = {"focal_mm": 2.0, "origin_mm": 0.5, "pixel_mm": 0.001}
 
 
-def draw_camera(rng: np.random.Generator, focal_mm: float, origin_mm: float, pixel_mm: float,
-                camera: Camera = CAM) -> Camera:
+def draw_camera(
+    rng: np.random.Generator, focal_mm: float, origin_mm: float, pixel_mm: float, camera: Camera = CAM
+) -> Camera:
     """A miscalibrated camera in the paper's error model: focal length uniform in ±focal_mm;
     principal point moved by a magnitude uniform in [0, origin_mm] (mm at the detector) in a
     uniform direction; each pixel pitch uniform in ±pixel_mm."""
@@ -39,8 +40,12 @@ def solve_images(features, R, t, e_mm, rng, solve_cameras=None, camera: Camera =
     under a miscalibrated camera). Flagged poses are still scored, as in paper_table2.py:
     they are the answer the solver gives, and dropping them would hide calibration error."""
     n = len(R)
-    obs = [simulate_observation(features, camera, R[i], t[i], e_mm, rng,
-                                solve_camera=None if solve_cameras is None else solve_cameras[i]) for i in range(n)]
+    obs = [
+        simulate_observation(
+            features, camera, R[i], t[i], e_mm, rng, solve_camera=None if solve_cameras is None else solve_cameras[i]
+        )
+        for i in range(n)
+    ]
     poses = solve_batch(features, obs, SolverOptions(noise=NoiseModel.from_segmentation_error(max(e_mm, 0.1))))
     Re = np.array([p.rotation for p in poses], float)
     te = np.array([p.translation_mm for p in poses], float)

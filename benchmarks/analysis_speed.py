@@ -68,24 +68,30 @@ def main(n: int = 50_000) -> None:
 
     def api_loop() -> None:
         for i in range(k):
-            analyse_poses(f, R[i:i + 1], t[i:i + 1], detail=False)
+            analyse_poses(f, R[i : i + 1], t[i : i + 1], detail=False)
 
     layout, cam, h = feature_layout(f), Camera(), parameter_scale(f)
 
     def kernel_loop() -> None:
         for i in range(k):
-            pose_metrics(total_information(layout, cam, R[i:i + 1], t[i:i + 1]), h, layout.solver_rows)
+            pose_metrics(total_information(layout, cam, R[i : i + 1], t[i : i + 1]), h, layout.solver_rows)
 
     api = statistics.median(_runs(api_loop, 3)) / k
     kernel = statistics.median(_runs(kernel_loop, 3)) / k
 
     print(f"\n{n} workspace poses, whole-design metrics (detail=False)")
-    print(f"  batched analyse_poses   {batched:8.3f} s   ({batched / n * 1e6:.1f} µs per pose; median of 5, "
-          f"runs {min(runs):.3f}–{max(runs):.3f} s)   target ≤ 1 s: {'met' if batched <= 1.0 else 'NOT met'}")
-    print(f"  per-pose API loop       {api * n:8.1f} s   ({api * 1e6:.0f} µs per pose; timed on {k} poses, "
-          f"extrapolated to {n})")
-    print(f"  per-pose kernel loop    {kernel * n:8.1f} s   ({kernel * 1e6:.0f} µs per pose; timed on {k} poses, "
-          f"extrapolated to {n})")
+    print(
+        f"  batched analyse_poses   {batched:8.3f} s   ({batched / n * 1e6:.1f} µs per pose; median of 5, "
+        f"runs {min(runs):.3f}–{max(runs):.3f} s)   target ≤ 1 s: {'met' if batched <= 1.0 else 'NOT met'}"
+    )
+    print(
+        f"  per-pose API loop       {api * n:8.1f} s   ({api * 1e6:.0f} µs per pose; timed on {k} poses, "
+        f"extrapolated to {n})"
+    )
+    print(
+        f"  per-pose kernel loop    {kernel * n:8.1f} s   ({kernel * 1e6:.0f} µs per pose; timed on {k} poses, "
+        f"extrapolated to {n})"
+    )
     print(f"  API loop / batched      {api * n / batched:8.0f} ×")
     print(f"  kernel loop / batched   {kernel * n / batched:8.0f} ×")
 

@@ -43,10 +43,10 @@ def validate(name: str, n: int, seed: int = 5) -> bool:
     te = np.array([p.translation_mm if p.converged else np.zeros(3) for p in poses])
     dr, dt = pose_errors(Re, te, R, t)
     err = np.concatenate([dt, np.degrees(dr)], 1)[ok]
-    actual = np.sqrt(np.mean(err ** 2, 0))
+    actual = np.sqrt(np.mean(err**2, 0))
     m = analyse_poses(f, R, t, cam, noise, detail=False).overall
     pred_sd = np.concatenate([m.translation_std_mm, np.degrees(m.rotation_std_rad)], 1)[ok]
-    predicted = np.sqrt(np.mean(pred_sd ** 2, 0))
+    predicted = np.sqrt(np.mean(pred_sd**2, 0))
     ratio = predicted / actual
     # share of errors inside the predicted ±1σ per axis (0.683 if Gaussian)
     inside = np.mean(np.abs(err) <= pred_sd, 0)

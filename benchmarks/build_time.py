@@ -41,9 +41,11 @@ def main() -> None:
         for name in PRESETS:
             res = build_fiducial(load_design(name), tmp / name)
             t = res.manifest["timings_s"]
-            print(f"{name:<11} {res.manifest['build_time_s']:8.2f} {t['body']:6.2f} "
-                  f"{t['export_body'] + t['export_assembly']:8.2f} {t.get('mount_connector', 0.0):10.2f} "
-                  f"{t['render']:7.2f}")
+            print(
+                f"{name:<11} {res.manifest['build_time_s']:8.2f} {t['body']:6.2f} "
+                f"{t['export_body'] + t['export_assembly']:8.2f} {t.get('mount_connector', 0.0):10.2f} "
+                f"{t['render']:7.2f}"
+            )
 
         print(f"\nbody boolean only, best of {REPEATS}: staged (default) vs one boolean with every tool")
         print(f"{'preset':<11} {'staged s':>9} {'single s':>9} {'single/staged':>14}")

@@ -60,10 +60,13 @@ def _noisy(trans: np.ndarray, imaging: ImagingModel, rng: np.random.Generator) -
 
 
 def _map_points(obs: Observation, model) -> Observation:
-    return Observation(obs.camera, {k: model.undistort(v[None])[0] for k, v in obs.points.items()},
-                       {k: CurveObservation(points=model.undistort(c.points)) for k, c in obs.lines.items()},
-                       {k: CurveObservation(points=model.undistort(c.points)) for k, c in obs.ellipses.items()},
-                       origin=obs.origin)
+    return Observation(
+        obs.camera,
+        {k: model.undistort(v[None])[0] for k, v in obs.points.items()},
+        {k: CurveObservation(points=model.undistort(c.points)) for k, c in obs.lines.items()},
+        {k: CurveObservation(points=model.undistort(c.points)) for k, c in obs.ellipses.items()},
+        origin=obs.origin,
+    )
 
 
 def main() -> None:
@@ -76,8 +79,9 @@ def main() -> None:
     features, body = compute_features(design), Body.from_design(design)
     camera, imaging = Camera(), ImagingModel()
     shape = imaging.image_shape
-    model = combine(radial(shape, (args.k_mm, 100.0), PIXEL_MM),
-                    s_distortion(shape, args.s_px, radius_px=100 / PIXEL_MM))
+    model = combine(
+        radial(shape, (args.k_mm, 100.0), PIXEL_MM), s_distortion(shape, args.s_px, radius_px=100 / PIXEL_MM)
+    )
     Rs, ts = Workspace().sample(args.n, features.nominal_beam_direction, np.random.default_rng(11))
     quiet = ImagingModel(photons_per_px=None)
     rows: dict[str, list] = {k: [] for k in ("ideal", "distorted", "undistort image", "map points")}
@@ -86,8 +90,10 @@ def main() -> None:
         trans = np.exp(-render(features, R, t, camera, quiet, body=body).line_integral)
         ideal = _noisy(trans, imaging, np.random.default_rng(100 + i))
         warped = _noisy(distort_image(trans, model, fill=1.0), imaging, np.random.default_rng(100 + i))
-        res = {"ideal": track_image(ideal, features, camera, body=body),
-               "distorted": track_image(warped, features, camera, body=body)}
+        res = {
+            "ideal": track_image(ideal, features, camera, body=body),
+            "distorted": track_image(warped, features, camera, body=body),
+        }
         t0 = time.process_time()
         fixed = undistort_image(warped, model)
         times["undistort image"].append(time.process_time() - t0)
@@ -104,8 +110,10 @@ def main() -> None:
         for k in ("ideal", "distorted", "undistort image"):
             p = res[k].pose
             rows[k].append((p.converged, p.rotation, p.translation_mm, R, t))
-    print(f"ftrac_2005, {args.n} workspace poses; distortion {args.k_mm:g} mm at 100 mm + S {args.s_px:g} px "
-          f"(max {model.max_displacement_px:.1f} px over the 1024² image)")
+    print(
+        f"ftrac_2005, {args.n} workspace poses; distortion {args.k_mm:g} mm at 100 mm + S {args.s_px:g} px "
+        f"(max {model.max_displacement_px:.1f} px over the 1024² image)"
+    )
     print(f"{'way':16s} {'conv':>5s} {'rot RMS°':>9s} {'rot max°':>9s} {'txy RMS':>8s} {'tz RMS':>7s} {'t max mm':>9s}")
     for k, r in rows.items():
         ok = [x for x in r if x[0]]
@@ -115,9 +123,11 @@ def main() -> None:
         dr, dt = zip(*(pose_errors(x[1], x[2], x[3], x[4]) for x in ok))
         rot = np.degrees(np.linalg.norm(dr, axis=1))
         dt = np.array(dt)
-        print(f"{k:16s} {len(ok):5d} {np.sqrt(np.mean(rot ** 2)):9.3f} {rot.max():9.3f} "
-              f"{np.sqrt(np.mean(np.sum(dt[:, :2] ** 2, 1))):8.3f} {np.sqrt(np.mean(dt[:, 2] ** 2)):7.3f} "
-              f"{np.linalg.norm(dt, axis=1).max():9.3f}")
+        print(
+            f"{k:16s} {len(ok):5d} {np.sqrt(np.mean(rot**2)):9.3f} {rot.max():9.3f} "
+            f"{np.sqrt(np.mean(np.sum(dt[:, :2] ** 2, 1))):8.3f} {np.sqrt(np.mean(dt[:, 2] ** 2)):7.3f} "
+            f"{np.linalg.norm(dt, axis=1).max():9.3f}"
+        )
     for k, v in times.items():
         if v:
             print(f"CPU time of '{k}' step: median {1e3 * np.median(v):.1f} ms")

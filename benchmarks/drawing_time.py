@@ -33,8 +33,10 @@ def main() -> None:
     frames = [ViewFrame("front", (1, 0, 0), (0, -1, 0)), ViewFrame("end", (1, 0, 0), (0, 0, -1))]
     try:
         build_fiducial(load_design("nine_bead"), tmp / "warm", render=False)
-        print(f"\n{'preset':<11} {'build s':>8} {'drawings s':>11} {'share':>6} {'mesh HLR s':>11} "
-              f"{'exact HLR s':>12} {'exact/mesh':>11}")
+        print(
+            f"\n{'preset':<11} {'build s':>8} {'drawings s':>11} {'share':>6} {'mesh HLR s':>11} "
+            f"{'exact HLR s':>12} {'exact/mesh':>11}"
+        )
         for name in PRESETS:
             res = build_fiducial(load_design(name), tmp / name, render=False)
             total, draw = res.manifest["build_time_s"], res.manifest["timings_s"]["drawings"]
@@ -45,8 +47,10 @@ def main() -> None:
                 for f in frames:
                     project(body, f, exact=exact)
                 t[exact] = time.perf_counter() - t0
-            print(f"{name:<11} {total:8.2f} {draw:11.2f} {draw / total:6.0%} {t[False]:11.2f} {t[True]:12.2f} "
-                  f"{t[True] / t[False]:11.1f}")
+            print(
+                f"{name:<11} {total:8.2f} {draw:11.2f} {draw / total:6.0%} {t[False]:11.2f} {t[True]:12.2f} "
+                f"{t[True] / t[False]:11.1f}"
+            )
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

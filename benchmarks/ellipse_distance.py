@@ -41,18 +41,23 @@ def main(n: int = 2000) -> None:
         noise = NoiseModel.from_segmentation_error(e)
         bound = crlb(features, cam, R, t) * (e / 0.25) ** 2  # crlb() uses the default 0.25 mm model
         print(f"\n{n} images, segmentation error {e} mm; RMS error and efficiency (CRLB var / MSE)")
-        print(f"{'variant':42s} {'tz mm':>7s} {'rx deg':>7s} | {'eff tx':>6s} {'ty':>5s} {'tz':>5s} "
-              f"{'rx':>5s} {'ry':>5s} {'rz':>5s} | not converged")
+        print(
+            f"{'variant':42s} {'tz mm':>7s} {'rx deg':>7s} | {'eff tx':>6s} {'ty':>5s} {'tz':>5s} "
+            f"{'rx':>5s} {'ry':>5s} {'rz':>5s} | not converged"
+        )
         print(f"{'Cramér–Rao bound':42s} {np.sqrt(bound[5]):7.3f} {np.degrees(np.sqrt(bound[0])):7.3f} |")
         for name, distance, scaling in VARIANTS:
             poses = solve_batch(features, obs, SolverOptions(noise=noise, distance=distance, task_scaling=scaling))
-            dr, dt = pose_errors(np.array([p.rotation for p in poses]), np.array([p.translation_mm for p in poses]),
-                                 R, t)
-            mse = np.concatenate([(dr ** 2).mean(0), (dt ** 2).mean(0)])
+            dr, dt = pose_errors(
+                np.array([p.rotation for p in poses]), np.array([p.translation_mm for p in poses]), R, t
+            )
+            mse = np.concatenate([(dr**2).mean(0), (dt**2).mean(0)])
             eff = bound / mse
-            print(f"{name:42s} {np.sqrt(mse[5]):7.3f} {np.degrees(np.sqrt(mse[0])):7.3f} | "
-                  f"{eff[3]:6.3f} {eff[4]:5.3f} {eff[5]:5.3f} {eff[0]:5.3f} {eff[1]:5.3f} {eff[2]:5.3f} | "
-                  f"{sum(not p.converged for p in poses)}")
+            print(
+                f"{name:42s} {np.sqrt(mse[5]):7.3f} {np.degrees(np.sqrt(mse[0])):7.3f} | "
+                f"{eff[3]:6.3f} {eff[4]:5.3f} {eff[5]:5.3f} {eff[0]:5.3f} {eff[1]:5.3f} {eff[2]:5.3f} | "
+                f"{sum(not p.converged for p in poses)}"
+            )
 
 
 if __name__ == "__main__":

@@ -39,9 +39,11 @@ def brep_removed(design, profile: str) -> float:
 def main(grid: float = GRID) -> None:
     print(f"machine: {machine()}")
     print(f"grid {grid} mm at the outer surface; limits: deviation <= 10 um, no gouge, volume within 1 %\n")
-    print("| preset | profile | tools (mm) | lines | cycle time (min) | max deviation (um) | overcut / undercut (um) "
-          "| gouges | removed vs CAD rays (mm3) | volume diff | CAD B-rep (mm3) | removed vs B-rep | plan + post (s) "
-          "| check (s) | check / plan | pass |")
+    print(
+        "| preset | profile | tools (mm) | lines | cycle time (min) | max deviation (um) | overcut / undercut (um) "
+        "| gouges | removed vs CAD rays (mm3) | volume diff | CAD B-rep (mm3) | removed vs B-rep | plan + post (s) "
+        "| check (s) | check / plan | pass |"
+    )
     print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
     for name in PRESETS:
         d = load_design(name)
@@ -54,12 +56,14 @@ def main(grid: float = GRID) -> None:
             sizes = "/".join(f"{parsed.tools[t]:g}" for t in tools)
             v = verify(parsed, bp.plan, grid_mm=grid)
             brep = brep_removed(d, profile)
-            print(f"| `{name}` | {profile} | {sizes} | {len(bp.text.splitlines())} | {bp.cycle['total_s'] / 60:.1f} "
-                  f"| {v.max_deviation_mm * 1000:.2f} | {v.max_overcut_mm * 1000:.2f} / {v.max_undercut_mm * 1000:.2f} "
-                  f"| {v.gouges} | {v.removed_mm3:.3f} vs {v.reference_mm3:.3f} | {v.volume_difference:+.3%} "
-                  f"| {brep:.3f} | {v.removed_mm3 / brep - 1:+.3%} "
-                  f"| {t_plan:.2f} | {v.run_time_s:.1f} | {v.run_time_s / t_plan:.0f}x | {'yes' if v.ok else 'NO'} |",
-                  flush=True)
+            print(
+                f"| `{name}` | {profile} | {sizes} | {len(bp.text.splitlines())} | {bp.cycle['total_s'] / 60:.1f} "
+                f"| {v.max_deviation_mm * 1000:.2f} | {v.max_overcut_mm * 1000:.2f} / {v.max_undercut_mm * 1000:.2f} "
+                f"| {v.gouges} | {v.removed_mm3:.3f} vs {v.reference_mm3:.3f} | {v.volume_difference:+.3%} "
+                f"| {brep:.3f} | {v.removed_mm3 / brep - 1:+.3%} "
+                f"| {t_plan:.2f} | {v.run_time_s:.1f} | {v.run_time_s / t_plan:.0f}x | {'yes' if v.ok else 'NO'} |",
+                flush=True,
+            )
 
 
 if __name__ == "__main__":

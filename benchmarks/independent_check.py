@@ -68,8 +68,11 @@ def track(image: np.ndarray, features, camera: Camera, polarity_hint: str | None
 def physics(seed: int) -> dict:
     """The per-image beam and detector settings drawn from ``seed``."""
     rng = np.random.default_rng(seed)
-    return {"kvp": float(rng.uniform(70, 90)), "spr": float(rng.uniform(0.5, 3.0)),
-            "focal_spot_mm": float(rng.uniform(0.6, 1.0))}
+    return {
+        "kvp": float(rng.uniform(70, 90)),
+        "spr": float(rng.uniform(0.5, 3.0)),
+        "focal_spot_mm": float(rng.uniform(0.6, 1.0)),
+    }
 
 
 def _reusable(png: Path, js: Path, R: np.ndarray, t: np.ndarray, img_seed: int, dose: float) -> bool:
@@ -78,8 +81,12 @@ def _reusable(png: Path, js: Path, R: np.ndarray, t: np.ndarray, img_seed: int, 
         return False
     try:
         tr = json.loads(js.read_text(encoding="utf-8"))
-        return (tr["seed"] == img_seed and tr["dose_behind_patient"] == dose
-                and np.allclose(tr["rotation"], R) and np.allclose(tr["translation_mm"], t))
+        return (
+            tr["seed"] == img_seed
+            and tr["dose_behind_patient"] == dose
+            and np.allclose(tr["rotation"], R)
+            and np.allclose(tr["translation_mm"], t)
+        )
     except (ValueError, KeyError, TypeError):
         return False
 
@@ -97,8 +104,16 @@ def image_set(preset: str, n: int, seed: int, patient: bool, dose: float, render
         img_seed = seed * 100003 + k
         if render or not _reusable(png, js, R[k], t[k], img_seed, dose):
             t0 = time.perf_counter()
-            counts, truth = render_independent(preset, R[k], t[k], camera, dose_behind_patient=dose, patient=patient,
-                                               seed=img_seed, **physics(img_seed))
+            counts, truth = render_independent(
+                preset,
+                R[k],
+                t[k],
+                camera,
+                dose_behind_patient=dose,
+                patient=patient,
+                seed=img_seed,
+                **physics(img_seed),
+            )
             times.append(time.perf_counter() - t0)
             if not cv2.imwrite(str(png), counts):
                 raise OSError(f"could not write {png}")
@@ -125,17 +140,25 @@ def evaluate(feats, items, camera: Camera, polarity_hint: str | None = None) -> 
             continue
         errs.append(np.r_[np.degrees(dr), dt])
     errs = np.array(errs).reshape(-1, 6)
-    return {"n": len(items), "right": len(errs), "wrong": wrong, "not_converged": sum(reasons.values()),
-            "reasons": dict(reasons), "rms": np.sqrt(np.mean(errs ** 2, 0)) if len(errs) else np.full(6, np.nan),
-            "track_s": float(np.median(times)) if times else math.nan}
+    return {
+        "n": len(items),
+        "right": len(errs),
+        "wrong": wrong,
+        "not_converged": sum(reasons.values()),
+        "reasons": dict(reasons),
+        "rms": np.sqrt(np.mean(errs**2, 0)) if len(errs) else np.full(6, np.nan),
+        "track_s": float(np.median(times)) if times else math.nan,
+    }
 
 
 def show(label: str, r: dict, render_times: list[float]) -> None:
     n = r["n"]
-    print(f"\n{label}: {n} images — tracked (≤ {WRONG_DEG:g}°, ≤ {WRONG_MM:g} mm) {r['right']} "
-          f"({100 * r['right'] / max(n, 1):.0f} %); CONFIDENT WRONG {len(r['wrong'])}"
-          f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; "
-          f"not converged {r['not_converged']} {r['reasons'] or ''}")
+    print(
+        f"\n{label}: {n} images — tracked (≤ {WRONG_DEG:g}°, ≤ {WRONG_MM:g} mm) {r['right']} "
+        f"({100 * r['right'] / max(n, 1):.0f} %); CONFIDENT WRONG {len(r['wrong'])}"
+        f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; "
+        f"not converged {r['not_converged']} {r['reasons'] or ''}"
+    )
     print("                        " + "  ".join(f"{a:>8s}" for a in AXES) + "   (° and mm, camera axes)")
     print("  RMS error (tracked) : " + "  ".join(f"{x:8.4f}" for x in r["rms"]))
     rt = f"{np.median(render_times):.2f} s" if render_times else "none (reused)"
@@ -154,21 +177,26 @@ def figure(path: Path, preset: str = "ftrac_2005", seed: int = 11) -> None:
     feats = compute_features(load_design(preset))
     R, t = Workspace().sample(1, feats.nominal_beam_direction, np.random.default_rng(seed))
     cam = Camera()
-    ours = render(feats, R[0], t[0], cam, ImagingModel(), rng=np.random.default_rng(seed),
-                  background=anatomy(seed=seed)).raw.astype(float)
+    ours = render(
+        feats, R[0], t[0], cam, ImagingModel(), rng=np.random.default_rng(seed), background=anatomy(seed=seed)
+    ).raw.astype(float)
     theirs, truth = render_independent(preset, R[0], t[0], cam, dose_behind_patient=1000, patient=True, seed=seed)
     theirs = theirs.astype(float) - truth["detector"]["offset_adu"]
     u, v = cam.project(t[0])
     half = 130
     r0, c0 = int(v) - half, int(u) - half
     fig, ax = plt.subplots(2, 2, figsize=(11, 11))
-    for j, (img, name) in enumerate(((ours, "ftrac_design.xray (ours): one energy, 2-D anatomy"),
-                                     (theirs, "benchmarks/independent: CAD parts, voxel pelvis, 80 kVp"))):
+    for j, (img, name) in enumerate(
+        (
+            (ours, "ftrac_design.xray (ours): one energy, 2-D anatomy"),
+            (theirs, "benchmarks/independent: CAD parts, voxel pelvis, 80 kVp"),
+        )
+    ):
         dens = -np.log(np.maximum(img, 1.0))
         ax[0, j].imshow(dens, cmap="gray", vmin=np.percentile(dens, 0.5), vmax=np.percentile(dens, 99.8))
         ax[0, j].add_patch(plt.Rectangle((c0, r0), 2 * half, 2 * half, fill=False, color="orange", lw=1))
         ax[0, j].set_title(name, fontsize=9)
-        z = dens[max(r0, 0):r0 + 2 * half, max(c0, 0):c0 + 2 * half]
+        z = dens[max(r0, 0) : r0 + 2 * half, max(c0, 0) : c0 + 2 * half]
         ax[1, j].imshow(z, cmap="gray", vmin=np.percentile(z, 0.5), vmax=np.percentile(z, 99.9))
         ax[1, j].set_title("zoom on the fiducial (−log counts)", fontsize=9)
         for a in ax[:, j]:
@@ -186,8 +214,12 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=30, help="workspace poses per preset")
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--dose", type=float, default=1000.0,
-                    help="quanta per pixel behind the patient at the fiducial (patient images)")
+    ap.add_argument(
+        "--dose",
+        type=float,
+        default=1000.0,
+        help="quanta per pixel behind the patient at the fiducial (patient images)",
+    )
     ap.add_argument("--dose-clean", type=float, default=3000.0, help="quanta per pixel in the open field (no patient)")
     ap.add_argument("--render", action="store_true", help="render again even where images exist")
     ap.add_argument("--figure", action="store_true", help="write docs/img/independent_render.png and stop")
@@ -196,17 +228,19 @@ def main() -> None:
         figure(ROOT / "docs" / "img" / "independent_render.png")
         return
     cam = Camera()
-    print(f"independent_check: {a.n} workspace poses per preset, seed {a.seed}; kVp 70–90, SPR 0.5–3, "
-          f"focal spot 0.6–1.0 mm per image; dose {a.dose:g} quanta/px behind the patient, {a.dose_clean:g} "
-          f"in the open field without; tracker defaults")
+    print(
+        f"independent_check: {a.n} workspace poses per preset, seed {a.seed}; kVp 70–90, SPR 0.5–3, "
+        f"focal spot 0.6–1.0 mm per image; dose {a.dose:g} quanta/px behind the patient, {a.dose_clean:g} "
+        f"in the open field without; tracker defaults"
+    )
     for preset in a.presets:
         for patient in (False, True):
-            feats, items, rt = image_set(preset, a.n, a.seed, patient, a.dose if patient else a.dose_clean,
-                                         a.render, cam)
+            feats, items, rt = image_set(
+                preset, a.n, a.seed, patient, a.dose if patient else a.dose_clean, a.render, cam
+            )
             label = f"{preset} {'over the voxel pelvis' if patient else 'no patient'}"
             show(label, evaluate(feats, items, cam), rt)
-            show(f"{label}, told the polarity (raw counts: dense-dark)",
-                 evaluate(feats, items, cam, "dense_dark"), [])
+            show(f"{label}, told the polarity (raw counts: dense-dark)", evaluate(feats, items, cam, "dense_dark"), [])
 
 
 if __name__ == "__main__":

@@ -85,35 +85,50 @@ def main(n: int = 30, background: bool = False, mode: str = "default", perturbed
         z_feat.append(judge.z(tr.pose.rotation, tr.pose.translation_mm, res.background_model))
         std_q.append(judge.quad.std)
         std_s.append(judge.spline.std if res.background_model == "spline" else judge.quad.std)
-        if len(z_int) % 100 == 0:                   # interim figures of a long run
+        if len(z_int) % 100 == 0:  # interim figures of a long run
             tqdm.write(f"after {len(z_int)}: efficiency " + " ".join(f"{x:.2f}" for x in efficiency(z_int)[0]))
     z_int, z_q, z_feat = np.array(z_int), np.array(z_q), np.array(z_feat)
     eff_int, lo, hi = efficiency(z_int)
     eff_feat = efficiency(z_feat)[0]
     sq, ss = np.median(std_q, 0), np.median(std_s, 0)
-    print(f"\nftrac_2005, {n} workspace images{' over anatomy' if background else ''}, {mode} refinement "
-          f"({MODES[mode] or 'refine_intensity defaults'}; background models used {dict(models)}), default imaging "
-          f"model, raw 16-bit; {len(z_int)} started from "
-          + ("the true pose perturbed by feature-path-sized errors" if perturbed else
-             f"the feature path ({skipped} not converged there, skipped)"))
+    print(
+        f"\nftrac_2005, {n} workspace images{' over anatomy' if background else ''}, {mode} refinement "
+        f"({MODES[mode] or 'refine_intensity defaults'}; background models used {dict(models)}), default imaging "
+        f"model, raw 16-bit; {len(z_int)} started from "
+        + (
+            "the true pose perturbed by feature-path-sized errors"
+            if perturbed
+            else f"the feature path ({skipped} not converged there, skipped)"
+        )
+    )
     print(f"machine: {machine()} (shared with other jobs)")
-    print(f"{'axis':6s} {'bound quad':>12s} {'bound used':>12s} {'eff. intensity':>15s} {'95 % interval':>14s} "
-          f"{'eff. start' if perturbed else 'eff. features':>14s} {'RMS z int.':>11s} {'RMS z quad':>11s} "
-          f"{'mean z int.':>12s}")
+    print(
+        f"{'axis':6s} {'bound quad':>12s} {'bound used':>12s} {'eff. intensity':>15s} {'95 % interval':>14s} "
+        f"{'eff. start' if perturbed else 'eff. features':>14s} {'RMS z int.':>11s} {'RMS z quad':>11s} "
+        f"{'mean z int.':>12s}"
+    )
     for j, a in enumerate(AXES):
         unit, f = ("deg", 180 / np.pi) if j < 3 else ("mm", 1.0)
-        print(f"{a:6s} {sq[j] * f:9.5f} {unit:3s}{ss[j] * f:9.5f} {unit:3s} {eff_int[j]:15.2f} "
-              f"{'':3s}{lo[j]:5.2f}–{hi[j]:5.2f} {eff_feat[j]:14.4f} "
-              f"{np.sqrt(np.mean(z_int[:, j] ** 2)):11.2f} {np.sqrt(np.mean(z_q[:, j] ** 2)):11.2f} "
-              f"{np.mean(z_int[:, j]):12.2f}")
-    print(f"\nintensity efficiency ≥ 0.9 on every axis: {'met' if np.all(eff_int >= 0.9) else 'missed'} "
-          f"(min {eff_int.min():.2f}); ended worse than the start: {worse}")
+        print(
+            f"{a:6s} {sq[j] * f:9.5f} {unit:3s}{ss[j] * f:9.5f} {unit:3s} {eff_int[j]:15.2f} "
+            f"{'':3s}{lo[j]:5.2f}–{hi[j]:5.2f} {eff_feat[j]:14.4f} "
+            f"{np.sqrt(np.mean(z_int[:, j] ** 2)):11.2f} {np.sqrt(np.mean(z_q[:, j] ** 2)):11.2f} "
+            f"{np.mean(z_int[:, j]):12.2f}"
+        )
+    print(
+        f"\nintensity efficiency ≥ 0.9 on every axis: {'met' if np.all(eff_int >= 0.9) else 'missed'} "
+        f"(min {eff_int.min():.2f}); ended worse than the start: {worse}"
+    )
     wall, cpu = np.array(times).T
-    print(f"refinement time per 1024² image: median {1e3 * np.median(wall):.0f} ms wall, {1e3 * np.median(cpu):.0f} ms "
-          f"CPU of this process (max {1e3 * wall.max():.0f} / {1e3 * cpu.max():.0f}); target ≤ 1 s")
+    print(
+        f"refinement time per 1024² image: median {1e3 * np.median(wall):.0f} ms wall, {1e3 * np.median(cpu):.0f} ms "
+        f"CPU of this process (max {1e3 * wall.max():.0f} / {1e3 * cpu.max():.0f}); target ≤ 1 s"
+    )
     rc = float(np.median(render_cpu))
-    print(f"baseline, same run: one ROI render {1e3 * rc:.0f} ms CPU (median); refinement = {np.median(cpu) / rc:.0f} "
-          f"renders median, {cpu.max() / rc:.0f} max")
+    print(
+        f"baseline, same run: one ROI render {1e3 * rc:.0f} ms CPU (median); refinement = {np.median(cpu) / rc:.0f} "
+        f"renders median, {cpu.max() / rc:.0f} max"
+    )
 
 
 if __name__ == "__main__":

@@ -17,8 +17,12 @@ AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 #: refinement settings by name: the default ("auto": spline background, high-pass where the
 #: image is cluttered, Huber 3σ), the plain gain + quadratic model, the earlier default
 #: (high-pass 8 px + Huber), the spline always
-MODES = {"default": {}, "plain": {"background": "polynomial", "robust": None},
-         "highpass": {"background": "highpass"}, "spline": {"background": "spline"}}
+MODES = {
+    "default": {},
+    "plain": {"background": "polynomial", "robust": None},
+    "highpass": {"background": "highpass"},
+    "spline": {"background": "spline"},
+}
 
 
 def pose_errors(R, t, R_true, t_true) -> np.ndarray:
@@ -30,7 +34,7 @@ def efficiency(z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per axis 1 / mean(z²) of z (m, 6) and its 95 % interval (if z ~ N(0, 1/E):
     m·mean(z²)·E ~ χ²ₘ)."""
     z = np.asarray(z, float).reshape(-1, 6)
-    m, ms = len(z), np.mean(z ** 2, 0)
+    m, ms = len(z), np.mean(z**2, 0)
     return 1 / ms, chi2.ppf(0.025, m) / (m * ms), chi2.ppf(0.975, m) / (m * ms)
 
 
@@ -44,17 +48,26 @@ class Judge:
     def __init__(self, features, camera, imaging, body, R_true, t_true, background=None):
         self.features, self.camera, self.imaging, self.body = features, camera, imaging, body
         self.R, self.t = R_true, t_true
-        self.quad = pixel_information(features, R_true, t_true, camera, imaging, body, background=background,
-                                      nuisance=True)
+        self.quad = pixel_information(
+            features, R_true, t_true, camera, imaging, body, background=background, nuisance=True
+        )
         self.background = background
         self._spline = None
 
     @property
     def spline(self):
         if self._spline is None:
-            self._spline = pixel_information(self.features, self.R, self.t, self.camera, self.imaging, self.body,
-                                             background=self.background, nuisance=True,
-                                             background_spline_px=DEFAULT_SPLINE_PX)
+            self._spline = pixel_information(
+                self.features,
+                self.R,
+                self.t,
+                self.camera,
+                self.imaging,
+                self.body,
+                background=self.background,
+                nuisance=True,
+                background_spline_px=DEFAULT_SPLINE_PX,
+            )
         return self._spline
 
     def z(self, R, t, model: str = "polynomial") -> np.ndarray:
@@ -70,8 +83,21 @@ class Judge:
         """Refine (R0, t0) on ``raw`` counts: (result, z vs matching bound, z vs quadratic
         bound, (wall s, CPU s))."""
         w0, c0 = time.perf_counter(), time.process_time()
-        res = refine_intensity(self.features, raw, self.camera, R0, t0, self.imaging, body=self.body,
-                               polarity="dense_dark", **{**MODES[mode], **options})
+        res = refine_intensity(
+            self.features,
+            raw,
+            self.camera,
+            R0,
+            t0,
+            self.imaging,
+            body=self.body,
+            polarity="dense_dark",
+            **{**MODES[mode], **options},
+        )
         dt = (time.perf_counter() - w0, time.process_time() - c0)
-        return res, self.z(res.rotation, res.translation_mm, res.background_model), \
-            self.z_quad(res.rotation, res.translation_mm), dt
+        return (
+            res,
+            self.z(res.rotation, res.translation_mm, res.background_model),
+            self.z_quad(res.rotation, res.translation_mm),
+            dt,
+        )

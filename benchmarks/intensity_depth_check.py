@@ -52,8 +52,16 @@ def main(mode: str, n: int, first: int = 0) -> None:
         plain = {"body": body, "scales": (0.0,), "background": "spline"}
     za, zb = [], []
     for k in tqdm(range(first, min(first + n, SAMPLE)), desc=mode, unit="image"):
-        bound = pixel_information(features, R[k], t[k], cam, imaging, body, nuisance=True,
-                                  background_spline_px=12.0 if mode == "stopping" else None)
+        bound = pixel_information(
+            features,
+            R[k],
+            t[k],
+            cam,
+            imaging,
+            body,
+            nuisance=True,
+            background_spline_px=12.0 if mode == "stopping" else None,
+        )
         Rs, ts = perturb(R[k], t[k], X[k])
 
         def z(res):
@@ -67,15 +75,29 @@ def main(mode: str, n: int, first: int = 0) -> None:
             img = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body)
             kw = dict(plain, polarity="dense_dark")
             za.append(z(refine_intensity(features, img.raw, cam, Rs, ts, imaging, **kw)))
-            exact = {"central_steps": True} if mode == "paired" else \
-                {"central_steps": True, "step_sigma": 1e-4, "max_iterations": 40, "tolerance": 0.0, "polish": False}
+            exact = (
+                {"central_steps": True}
+                if mode == "paired"
+                else {
+                    "central_steps": True,
+                    "step_sigma": 1e-4,
+                    "max_iterations": 40,
+                    "tolerance": 0.0,
+                    "polish": False,
+                }
+            )
             zb.append(z(refine_intensity(features, img.raw, cam, Rs, ts, imaging, **exact, **kw)))
     za = np.array(za)
     m = len(za)
-    print(f"\nftrac_2005, images {first}–{first + m - 1} of the {SAMPLE}-image sample, "
-          + ("default (spline) refinement vs the same run to its exact minimum" if mode == "stopping"
-             else "plain refinement")
-          + f"; machine: {machine()} (shared with other jobs)")
+    print(
+        f"\nftrac_2005, images {first}–{first + m - 1} of the {SAMPLE}-image sample, "
+        + (
+            "default (spline) refinement vs the same run to its exact minimum"
+            if mode == "stopping"
+            else "plain refinement"
+        )
+        + f"; machine: {machine()} (shared with other jobs)"
+    )
     if mode == "noisefree":
         print("noise-free images: error / pixel bound at the default dose")
         print(f"{'axis':6s} {'RMS z':>8s} {'mean z':>8s} {'max |z|':>8s}")
@@ -84,19 +106,26 @@ def main(mode: str, n: int, first: int = 0) -> None:
         return
     zb = np.array(zb)
     what = ("default", "exact") if mode == "stopping" else ("forward", "central")
-    print(f"{'axis':6s} {'eff. ' + what[0]:>13s} {'95 % interval':>14s} {'eff. ' + what[1]:>13s} "
-          f"{'Δ mean z² (' + what[0][:3] + ' − ' + what[1][:3] + ')':>22s} {'RMS z diff':>11s}")
+    print(
+        f"{'axis':6s} {'eff. ' + what[0]:>13s} {'95 % interval':>14s} {'eff. ' + what[1]:>13s} "
+        f"{'Δ mean z² (' + what[0][:3] + ' − ' + what[1][:3] + ')':>22s} {'RMS z diff':>11s}"
+    )
     for j, a in enumerate(AXES):
         mf, mc = np.mean(za[:, j] ** 2), np.mean(zb[:, j] ** 2)
         dz2 = za[:, j] ** 2 - zb[:, j] ** 2
-        print(f"{a:6s} {1 / mf:13.3f} {chi2.ppf(0.025, m) / (m * mf):8.2f}–{chi2.ppf(0.975, m) / (m * mf):4.2f} "
-              f"{1 / mc:13.3f} {dz2.mean():13.3f} ± {dz2.std() / np.sqrt(m):5.3f} "
-              f"{np.sqrt(np.mean((za[:, j] - zb[:, j]) ** 2)):11.3f}")
+        print(
+            f"{a:6s} {1 / mf:13.3f} {chi2.ppf(0.025, m) / (m * mf):8.2f}–{chi2.ppf(0.975, m) / (m * mf):4.2f} "
+            f"{1 / mc:13.3f} {dz2.mean():13.3f} ± {dz2.std() / np.sqrt(m):5.3f} "
+            f"{np.sqrt(np.mean((za[:, j] - zb[:, j]) ** 2)):11.3f}"
+        )
 
 
 if __name__ == "__main__":
     args = sys.argv[1:]
     if not args or args[0] not in ("noisefree", "paired", "stopping"):
         sys.exit(__doc__)
-    main(args[0], int(args[1]) if len(args) > 1 else (12 if args[0] == "noisefree" else SAMPLE),
-         int(args[2]) if len(args) > 2 else 0)
+    main(
+        args[0],
+        int(args[1]) if len(args) > 1 else (12 if args[0] == "noisefree" else SAMPLE),
+        int(args[2]) if len(args) > 2 else 0,
+    )

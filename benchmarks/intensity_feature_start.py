@@ -73,11 +73,15 @@ def main():
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--anatomy", action="store_true")
     ap.add_argument("--detail", action="store_true")
-    ap.add_argument("--start", choices=("features", "truth"), default="features",
-                    help="refine from the feature path's pose (default) or from the true pose (a check)")
+    ap.add_argument(
+        "--start",
+        choices=("features", "truth"),
+        default="features",
+        help="refine from the feature path's pose (default) or from the true pose (a check)",
+    )
     ap.add_argument("--cache", type=Path, default=Path("/tmp/ftrac_intensity_feature_start"))
     a = ap.parse_args()
-    opts = {"coarse_scales": (1.0,)}                # as track --refine intensity
+    opts = {"coarse_scales": (1.0,)}  # as track --refine intensity
     for o in a.options:
         k, v = o.split("=", 1)
         opts[k] = ast.literal_eval(v)
@@ -102,23 +106,36 @@ def main():
             dof = max(res.roi[2] * res.roi[3] - 6 - res.n_nuisance, 1)
             zq0 = np.sqrt(np.mean(judge.z_quad(Rf, tf) ** 2))
             zq1 = np.sqrt(np.mean(judge.z_quad(res.rotation, res.translation_mm) ** 2))
-            print(f"{j:3d} χ²/dof {res.cost_end / dof:5.2f} RMS z_quad start {zq0:6.1f} end {zq1:6.1f}  "
-                  f"start {d0:7.1f}σ |z_start|max {np.abs(zf).max():7.1f}  end z " +
-                  " ".join(f"{x:+6.2f}" for x in zi) + f"  {res.background_model:8s} it {res.iterations:2d} "
-                  f"{1e3 * c:5.0f} ms {res.message}")
+            print(
+                f"{j:3d} χ²/dof {res.cost_end / dof:5.2f} RMS z_quad start {zq0:6.1f} end {zq1:6.1f}  "
+                f"start {d0:7.1f}σ |z_start|max {np.abs(zf).max():7.1f}  end z "
+                + " ".join(f"{x:+6.2f}" for x in zi)
+                + f"  {res.background_model:8s} it {res.iterations:2d} "
+                f"{1e3 * c:5.0f} ms {res.message}"
+            )
     e, lo, hi = efficiency(z_i)
-    print(f"{a.name}{' + anatomy' if a.anatomy else ''}, {len(data)} feature-path starts, options {opts}; "
-          f"models {models}")
-    print("  efficiency, intensity: " + " ".join(f"{x:5.2f}" for x in e) + "  (95 %: "
-          + " ".join(f"{x:.2f}–{y:.2f}" for x, y in zip(lo, hi)) + ")")
+    print(
+        f"{a.name}{' + anatomy' if a.anatomy else ''}, {len(data)} feature-path starts, options {opts}; models {models}"
+    )
+    print(
+        "  efficiency, intensity: "
+        + " ".join(f"{x:5.2f}" for x in e)
+        + "  (95 %: "
+        + " ".join(f"{x:.2f}–{y:.2f}" for x, y in zip(lo, hi))
+        + ")"
+    )
     print("  RMS z, intensity     : " + " ".join(f"{x:5.2f}" for x in np.sqrt(np.mean(np.square(z_i), 0))))
     zi = np.array(z_i)
-    print("  mean z ± s.e.        : " + " ".join(f"{m:+.2f}±{s:.2f}" for m, s in
-                                                zip(zi.mean(0), zi.std(0, ddof=1) / np.sqrt(len(zi)))))
+    print(
+        "  mean z ± s.e.        : "
+        + " ".join(f"{m:+.2f}±{s:.2f}" for m, s in zip(zi.mean(0), zi.std(0, ddof=1) / np.sqrt(len(zi))))
+    )
     print("  efficiency, features : " + " ".join(f"{x:.3f}" for x in efficiency(z_f)[0]))
-    print(f"  start distance (bound σ, Mahalanobis): median {np.median(dist):.1f}, max {np.max(dist):.1f}; "
-          f"iterations median {np.median(its):.0f} max {np.max(its)}; CPU median {1e3 * np.median(cpu):.0f} ms "
-          f"max {1e3 * np.max(cpu):.0f} ms; ended above start: {worse}")
+    print(
+        f"  start distance (bound σ, Mahalanobis): median {np.median(dist):.1f}, max {np.max(dist):.1f}; "
+        f"iterations median {np.median(its):.0f} max {np.max(its)}; CPU median {1e3 * np.median(cpu):.0f} ms "
+        f"max {1e3 * np.max(cpu):.0f} ms; ended above start: {worse}"
+    )
 
 
 if __name__ == "__main__":

@@ -32,18 +32,31 @@ def main(n: int = 20) -> None:
     R, t = Workspace().sample(300, features.nominal_beam_direction, np.random.default_rng(1313))
     rel32, rel64 = [], []
     for k in tqdm(range(n), desc="poses", unit="pose"):
-        std = [pixel_information(features, R[k], t[k], cam, replace(ImagingModel(), supersample=s,
-                                                                     single_precision=sp), body, nuisance=True).std
-               for s, sp in ((4, True), (8, True), (8, False))]
+        std = [
+            pixel_information(
+                features,
+                R[k],
+                t[k],
+                cam,
+                replace(ImagingModel(), supersample=s, single_precision=sp),
+                body,
+                nuisance=True,
+            ).std
+            for s, sp in ((4, True), (8, True), (8, False))
+        ]
         rel32.append(std[1] / std[0] - 1)
         rel64.append(std[2] / std[0] - 1)
     rel32, rel64 = 100 * np.array(rel32), 100 * np.array(rel64)
     print(f"\nftrac_2005, {n} workspace poses, bound with gain + quadratic unknown; machine: {machine()}")
     print("σ(8 × 8) / σ(4 × 4) − 1, %:")
     print(f"{'':22s}" + "".join(f"{a:>8s}" for a in AXES))
-    for name, v in (("8×8 float32: mean", rel32.mean(0)), ("             min", rel32.min(0)),
-                    ("             max", rel32.max(0)), ("8×8 float64: mean", rel64.mean(0)),
-                    ("             max |Δ| vs float32", np.abs(rel64 - rel32).max(0))):
+    for name, v in (
+        ("8×8 float32: mean", rel32.mean(0)),
+        ("             min", rel32.min(0)),
+        ("             max", rel32.max(0)),
+        ("8×8 float64: mean", rel64.mean(0)),
+        ("             max |Δ| vs float32", np.abs(rel64 - rel32).max(0)),
+    ):
         print(f"{name:22s}" + "".join(f"{x:+8.2f}" for x in v))
 
 

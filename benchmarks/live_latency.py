@@ -52,8 +52,9 @@ def sweep_frames(out: Path, design: str, n: int, size: int):
     cam = Camera(1000.0, (0.44, 0.44), ((size - 1) / 2, (size - 1) / 2))
     features = compute_features(load_design(PRESETS_DIR / f"{design}.toml"))
     body = body_from_design_file(PRESETS_DIR / f"{design}.toml")
-    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(1, features.nominal_beam_direction,
-                                                            np.random.default_rng(5))
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
+        1, features.nominal_beam_direction, np.random.default_rng(5)
+    )
     run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=(size, size)), seed=5, body=body)
     out.mkdir(parents=True, exist_ok=True)
     fpath = write_features(out / f"{design}.features.json", features)
@@ -71,8 +72,13 @@ def _answers(client) -> dict[float, float]:
 def _server_latency(client, first: float, last: float) -> np.ndarray:
     """The server's own latency (IMAGE received → TRANSFORM queued, ms) of the answers to frames
     stamped ``first`` … ``last``."""
-    return np.array([float(m.metadata["latency_ms"]) for m in client.incoming_messages.log
-                     if m.message_type == "TRANSFORM" and first <= m.timestamp <= last])
+    return np.array(
+        [
+            float(m.metadata["latency_ms"])
+            for m in client.incoming_messages.log
+            if m.message_type == "TRANSFORM" and first <= m.timestamp <= last
+        ]
+    )
 
 
 def open_loop(client, frames, camera, rate: float, n: int, first_stamp: float) -> tuple[np.ndarray, int]:
@@ -138,11 +144,14 @@ def main() -> None:
     out = Path("outputs/bench_live")
     fr = sweep_frames(out, a.design, a.distinct, a.size)
     cam = fr.camera
-    print(f"{machine()}; {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
-          f"{'every frame alone' if a.independent else 'run (from the previous pose)'}; shared 2-core machine: "
-          f"figures are inflated by the other jobs' load")
+    print(
+        f"{machine()}; {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
+        f"{'every frame alone' if a.independent else 'run (from the previous pose)'}; shared 2-core machine: "
+        f"figures are inflated by the other jobs' load"
+    )
     body = body_from_features_file(fr.features_path)
     from ftrac_design.features import load_features
+
     features = load_features(fr.features_path)
     track_image(fr.pixels[0], features, cam, body=body)
     base = []
@@ -153,13 +162,22 @@ def main() -> None:
     base = np.array(base)
     print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
     pk, dc = transport_ms(fr.pixels[0], cam)
-    print(f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
-          f"CRC + decode {dc:.1f} ms (server, only for the frames it tracks)")
+    print(
+        f"the link per frame ({fr.pixels[0].nbytes / 1e6:.1f} MB): pack {pk:.1f} ms (sender), "
+        f"CRC + decode {dc:.1f} ms (server, only for the frames it tracks)"
+    )
     # forward then backward: frame k of the stream is a neighbour of frame k − 1
     order = list(range(len(fr.pixels))) + list(range(len(fr.pixels) - 2, 0, -1))
     stream = fr.pixels[order]
-    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path),
-                     *(["--independent"] if a.independent else [])])
+    server = Server(
+        [
+            "--features",
+            str(fr.features_path),
+            "--camera",
+            str(fr.camera_path),
+            *(["--independent"] if a.independent else []),
+        ]
+    )
     try:
         client = recording_client(server.port)
         closed_loop(client, stream, cam, a.warmup, 0.0)
@@ -170,14 +188,18 @@ def main() -> None:
             own = _server_latency(client, stamp, stamp + n)
             stamp += 10_000.0
             p50, p99 = np.percentile(lat, [50, 99])
-            print(f"{rate:.0f} frames/s: {n} sent, {len(lat)} answered, {dropped} dropped; latency p50 {p50:.1f} ms, "
-                  f"p99 {p99:.1f} ms, max {lat.max():.1f} ms; p50 / baseline track {p50 / np.median(base):.2f}; "
-                  f"target p99 ≤ 50 ms: {'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → "
-                  f"sent) p50 {np.median(own):.1f} ms, p99 {np.percentile(own, 99):.1f} ms")
+            print(
+                f"{rate:.0f} frames/s: {n} sent, {len(lat)} answered, {dropped} dropped; latency p50 {p50:.1f} ms, "
+                f"p99 {p99:.1f} ms, max {lat.max():.1f} ms; p50 / baseline track {p50 / np.median(base):.2f}; "
+                f"target p99 ≤ 50 ms: {'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → "
+                f"sent) p50 {np.median(own):.1f} ms, p99 {np.percentile(own, 99):.1f} ms"
+            )
             time.sleep(1.0)
         rate = closed_loop(client, stream, cam, max(2 * a.distinct, 20), stamp)
-        print(f"sustained rate without drops (closed loop): {rate:.1f} frames/s "
-              f"(baseline 1 / median track: {1e3 / np.median(base):.1f} frames/s)")
+        print(
+            f"sustained rate without drops (closed loop): {rate:.1f} frames/s "
+            f"(baseline 1 / median track: {1e3 / np.median(base):.1f} frames/s)"
+        )
         client.stop()
     finally:
         rc, text, err = server.interrupt()

@@ -23,11 +23,18 @@ from ftrac_design.pose import Camera, SolverOptions, solve_batch, solve_pose
 from ftrac_design.pose.simulate import PAPER_CALIBRATION_ERROR, CalibrationError, Workspace, simulate_observation
 
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
-FIVE_X = CalibrationError(5 * PAPER_CALIBRATION_ERROR.focal_mm, 5 * PAPER_CALIBRATION_ERROR.principal_point_mm,
-                          5 * PAPER_CALIBRATION_ERROR.pixel_mm)
-CONDITIONS = [("0.25 mm, calibrated", None, 0.25), ("0.25 mm, paper's C-arm errors", PAPER_CALIBRATION_ERROR, 0.25),
-              ("0.25 mm, 5x paper's C-arm errors", FIVE_X, 0.25), ("0.05 mm, calibrated", None, 0.05),
-              ("0.05 mm, paper's C-arm errors", PAPER_CALIBRATION_ERROR, 0.05)]
+FIVE_X = CalibrationError(
+    5 * PAPER_CALIBRATION_ERROR.focal_mm,
+    5 * PAPER_CALIBRATION_ERROR.principal_point_mm,
+    5 * PAPER_CALIBRATION_ERROR.pixel_mm,
+)
+CONDITIONS = [
+    ("0.25 mm, calibrated", None, 0.25),
+    ("0.25 mm, paper's C-arm errors", PAPER_CALIBRATION_ERROR, 0.25),
+    ("0.25 mm, 5x paper's C-arm errors", FIVE_X, 0.25),
+    ("0.05 mm, calibrated", None, 0.05),
+    ("0.05 mm, paper's C-arm errors", PAPER_CALIBRATION_ERROR, 0.05),
+]
 
 
 def _line_distance(A: np.ndarray, B: np.ndarray) -> float:
@@ -35,6 +42,7 @@ def _line_distance(A: np.ndarray, B: np.ndarray) -> float:
         c = Q.mean(0)
         n = np.linalg.svd(Q - c)[2][1]
         return float(np.abs((P - c) @ n).mean())
+
     return 0.5 * (one(A, B) + one(B, A))
 
 
@@ -45,7 +53,7 @@ def scramble(obs, how: str, rng: np.random.Generator):
     o = copy.deepcopy(obs)
     ids = sorted(o.points)
     if how == "swap beads":
-        far = [(a, b) for i, a in enumerate(ids) for b in ids[i + 1:] if np.hypot(*(o.points[a] - o.points[b])) > 20]
+        far = [(a, b) for i, a in enumerate(ids) for b in ids[i + 1 :] if np.hypot(*(o.points[a] - o.points[b])) > 20]
         if not far:
             return None
         a, b = far[rng.integers(len(far))]
@@ -78,14 +86,18 @@ def main(n: int = 300, scrambled_only: bool = False) -> None:
         for label, cal, e in CONDITIONS:
             rng = np.random.default_rng(1)
             R, t = Workspace().sample(n, f.nominal_beam_direction, rng)
-            obs = [simulate_observation(f, cam, R[i], t[i], e, rng, solve_camera=cal.draw(cam, rng) if cal else None)
-                   for i in range(n)]
+            obs = [
+                simulate_observation(f, cam, R[i], t[i], e, rng, solve_camera=cal.draw(cam, rng) if cal else None)
+                for i in range(n)
+            ]
             ps = solve_batch(f, obs)
             k = np.array([p.noise_scale for p in ps])
             pv = np.array([p.residual_p_value for p in ps])
             ok = np.mean([p.converged for p in ps])
-            print(f"{preset:11s} {label:34s} {ok:7.1%} {np.nanmax(k):9.2f} {np.nanmin(pv):8.1g} "
-                  f"{np.mean(pv < 1e-12):8.1%}")
+            print(
+                f"{preset:11s} {label:34s} {ok:7.1%} {np.nanmax(k):9.2f} {np.nanmin(pv):8.1g} "
+                f"{np.mean(pv < 1e-12):8.1%}"
+            )
     print()
     print(f"{'preset':11s} {'scramble':12s} {'images':>6s} {'converged':>9s} {'without rule':>12s}  refused by")
     for preset in PRESETS:

@@ -71,7 +71,7 @@ def key(results: list[dict]) -> list:
 
 
 def measure(name: str, executor, workers: int, cands, settings, rounds: int, c0: float | None, ref) -> dict:
-    run_batch(executor, cands[:max(2, workers)], settings)  # warm up: every worker imported and cached
+    run_batch(executor, cands[: max(2, workers)], settings)  # warm up: every worker imported and cached
     walls, rts = [], []
     for _ in range(rounds):
         wall, res = run_batch(executor, cands, settings)
@@ -81,8 +81,14 @@ def measure(name: str, executor, workers: int, cands, settings, rounds: int, c0:
             raise SystemExit(f"{name}: results differ from the in-process baseline")
     wall = min(walls)
     n = len(cands)
-    row = {"executor": name, "workers": workers, "wall_s": wall, "eval_per_s": n / wall,
-           "round_trip_ms": 1e3 * min(rts), "rounds": [round(w, 3) for w in walls]}
+    row = {
+        "executor": name,
+        "workers": workers,
+        "wall_s": wall,
+        "eval_per_s": n / wall,
+        "round_trip_ms": 1e3 * min(rts),
+        "rounds": [round(w, 3) for w in walls],
+    }
     if c0 is not None:
         row["speedup"] = (n / wall) / (1 / c0)
         row["overhead_ms"] = 1e3 * (wall * workers / n - c0)
@@ -104,8 +110,10 @@ def main() -> None:
     ref = key(run_batch(SerialExecutor(), cands, settings)[1])
     c0 = base["wall_s"] / len(cands)
     feas = sum(k[1] for k in ref)
-    print(f"{len(cands)} candidates, {feas} feasible (scored at {args.poses} poses); own cost c0 = "
-          f"{1e3 * c0:.1f} ms per evaluation (in-process, best of {args.rounds} rounds)")
+    print(
+        f"{len(cands)} candidates, {feas} feasible (scored at {args.poses} poses); own cost c0 = "
+        f"{1e3 * c0:.1f} ms per evaluation (in-process, best of {args.rounds} rounds)"
+    )
     rows = [dict(base, speedup=1.0, overhead_ms=0.0)]
     for w in args.workers:
         with local_pool(w) as pool:
@@ -113,20 +121,39 @@ def main() -> None:
     from distributed import Client, LocalCluster
 
     nw = max(args.workers)
-    with LocalCluster(n_workers=nw, threads_per_worker=1, processes=False, dashboard_address=None) as cl, \
-            Client(cl) as client:
-        rows.append(measure("Dask LocalCluster (in-process threads)", client.get_executor(), nw, cands, settings,
-                            args.rounds, c0, ref))
+    with (
+        LocalCluster(n_workers=nw, threads_per_worker=1, processes=False, dashboard_address=None) as cl,
+        Client(cl) as client,
+    ):
+        rows.append(
+            measure(
+                "Dask LocalCluster (in-process threads)",
+                client.get_executor(),
+                nw,
+                cands,
+                settings,
+                args.rounds,
+                c0,
+                ref,
+            )
+        )
     if args.scheduler:
         with Client(args.scheduler) as client:
             n = sum(w.get("nthreads", 1) for w in client.scheduler_info()["workers"].values())
-            rows.append(measure(f"Dask cluster {args.scheduler}", client.get_executor(), n, cands, settings,
-                                args.rounds, c0, ref))
-    print(f"{'executor':40s} {'workers':>7s} {'eval/s':>8s} {'speed-up':>9s} {'overhead ms/eval':>17s} "
-          f"{'no-op round trip ms':>20s}  rounds (s)")
+            rows.append(
+                measure(
+                    f"Dask cluster {args.scheduler}", client.get_executor(), n, cands, settings, args.rounds, c0, ref
+                )
+            )
+    print(
+        f"{'executor':40s} {'workers':>7s} {'eval/s':>8s} {'speed-up':>9s} {'overhead ms/eval':>17s} "
+        f"{'no-op round trip ms':>20s}  rounds (s)"
+    )
     for r in rows:
-        print(f"{r['executor']:40s} {r['workers']:7d} {r['eval_per_s']:8.1f} {r['speedup']:9.2f} "
-              f"{r['overhead_ms']:17.1f} {r['round_trip_ms']:20.2f}  {r['rounds']}")
+        print(
+            f"{r['executor']:40s} {r['workers']:7d} {r['eval_per_s']:8.1f} {r['speedup']:9.2f} "
+            f"{r['overhead_ms']:17.1f} {r['round_trip_ms']:20.2f}  {r['rounds']}"
+        )
     print("every executor returned the baseline's results exactly")
 
 

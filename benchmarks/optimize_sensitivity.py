@@ -36,8 +36,12 @@ from ftrac_design.optimize.setup import prepare
 from ftrac_design.optimize.space import _line_geometry
 
 #: "> 0" rules need a hair above 0
-STRICT = ("cnc:mount.coverage", "cnc:wires.crossing_clearance", "cnc:pockets.retention",
-          "cnc:connector.template_clearance")
+STRICT = (
+    "cnc:mount.coverage",
+    "cnc:wires.crossing_clearance",
+    "cnc:pockets.retention",
+    "cnc:connector.template_clearance",
+)
 
 
 def unit_point(space, data: dict) -> np.ndarray:
@@ -82,16 +86,21 @@ def main() -> None:
             lim = settings.min_ellipse_view_deg
             m["view"] = (min_ellipse_view_deg(f, settings.analysis) - lim) / max(lim, 1.0)
             fig = score_figures(f, settings.analysis)
-            cache[key] = (fig["translation_p95_mm"] / ref["translation_p95_mm"],
-                          fig["rotation_p95_deg"] / ref["rotation_p95_deg"], m)
+            cache[key] = (
+                fig["translation_p95_mm"] / ref["translation_p95_mm"],
+                fig["rotation_p95_deg"] / ref["rotation_p95_deg"],
+                m,
+            )
         return cache[key]
 
     x0 = unit_point(space, tomllib.loads(args.design.read_text()))
     t0, r0, m0 = ev(x0)
     names = sorted(m0)
     binding = sorted((v, k) for k, v in m0.items())[:4]
-    print(f"{args.design.name} on the seed-{args.seed} search sample ({settings.analysis.poses} poses): "
-          f"t/t0 {t0:.5f}, r/r0 {r0:.5f}")
+    print(
+        f"{args.design.name} on the seed-{args.seed} search sample ({settings.analysis.poses} poses): "
+        f"t/t0 {t0:.5f}, r/r0 {r0:.5f}"
+    )
     print("closest constraints (normalised margin): " + ", ".join(f"{k} {v:+.4f}" for v, k in binding))
 
     def polish(relaxed: str | None) -> tuple[float, float, int]:
@@ -102,19 +111,31 @@ def main() -> None:
         r_max = 1.01 if relaxed == "rotation" else 1.0
         cons = [{"type": "ineq", "fun": (lambda x, k=k: (ev(x)[2] or {}).get(k, -1.0) - lims[k])} for k in names]
         cons.append({"type": "ineq", "fun": lambda x: r_max - ev(x)[1]})
-        res = minimize(lambda x: ev(x)[0], x0, method="COBYLA", constraints=cons, bounds=[(0.0, 1.0)] * len(x0),
-                       options={"rhobeg": 0.02, "maxiter": args.maxiter, "tol": 1e-6})
+        res = minimize(
+            lambda x: ev(x)[0],
+            x0,
+            method="COBYLA",
+            constraints=cons,
+            bounds=[(0.0, 1.0)] * len(x0),
+            options={"rhobeg": 0.02, "maxiter": args.maxiter, "tol": 1e-6},
+        )
         t, r, _ = ev(res.x)
         return (t, r, len(cache) - n0) if res.maxcv < 1e-6 else (float("nan"), float("nan"), len(cache) - n0)
 
     print(f"{'relaxed':34s} {'by':>12s} {'t/t0':>9s} {'r/r0':>8s} {'gain, points':>13s} {'evals':>6s}")
-    rows = [(None, "")] + [(k, f"margin -{args.relax:g}") for _, k in binding if k != "view"] + \
-        [("view", "30 %"), ("rotation", "to 1.01")]
+    rows = (
+        [(None, "")]
+        + [(k, f"margin -{args.relax:g}") for _, k in binding if k != "view"]
+        + [("view", "30 %"), ("rotation", "to 1.01")]
+    )
     for k, by in rows:
         tic = time.perf_counter()
         t, r, n = polish(k)
-        print(f"{k or 'nothing (polish only)':34s} {by:>12s} {t:9.5f} {r:8.5f} {100 * (t0 - t):13.3f} {n:6d}"
-              f"   ({time.perf_counter() - tic:.0f} s)", flush=True)
+        print(
+            f"{k or 'nothing (polish only)':34s} {by:>12s} {t:9.5f} {r:8.5f} {100 * (t0 - t):13.3f} {n:6d}"
+            f"   ({time.perf_counter() - tic:.0f} s)",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":

@@ -58,14 +58,15 @@ def main(n: int = 1000) -> None:
     R, t = Workspace().sample(n, features.nominal_beam_direction, rng)
     print(f"machine: {machine()}")
     print(f"{n} images per combination; basic = one local solve from a far random guess")
-    print(f"{'features':10s} | {'paper: t mm':>11s} {'rot deg':>7s} {'fail %':>6s} | "
-          f"{'basic: t mm':>11s} {'rot deg':>7s} {'fail %':>6s} | {'robust: t mm':>12s} {'rot deg':>7s} {'fail %':>6s}")
+    print(
+        f"{'features':10s} | {'paper: t mm':>11s} {'rot deg':>7s} {'fail %':>6s} | "
+        f"{'basic: t mm':>11s} {'rot deg':>7s} {'fail %':>6s} | {'robust: t mm':>12s} {'rot deg':>7s} {'fail %':>6s}"
+    )
     for name, keep in COMBOS.items():
         obs, guesses = [], []
         for i in range(n):
             solve_cam = PAPER_CALIBRATION_ERROR.draw(cam, rng)
-            obs.append(simulate_observation(features, cam, R[i], t[i], 0.25, rng, include=keep,
-                                            solve_camera=solve_cam))
+            obs.append(simulate_observation(features, cam, R[i], t[i], 0.25, rng, include=keep, solve_camera=solve_cam))
             guesses.append(far_guess(R[i], t[i], rng))
         basic = [refine_pose(features, o, g[0], g[1], max_iterations=50) for o, g in zip(obs, guesses)]
         robust = solve_batch(features, obs, SolverOptions())
@@ -78,10 +79,15 @@ def main(n: int = 1000) -> None:
             ang = np.degrees(np.linalg.norm(dr, axis=1))
             dist = np.linalg.norm(dt, axis=1)
             fail = ~ok_rows | (ang > 2.0) | (dist > 5.0)
-            row += [dist[~fail].mean() if (~fail).any() else np.nan,
-                    ang[~fail].mean() if (~fail).any() else np.nan, 100.0 * fail.mean()]
-        print(f"{row[0]:10s} | {row[1]:11.2f} {row[2]:7.2f} {row[3]:6.1f} | {row[4]:11.2f} {row[5]:7.2f} "
-              f"{row[6]:6.1f} | {row[7]:12.2f} {row[8]:7.2f} {row[9]:6.1f}")
+            row += [
+                dist[~fail].mean() if (~fail).any() else np.nan,
+                ang[~fail].mean() if (~fail).any() else np.nan,
+                100.0 * fail.mean(),
+            ]
+        print(
+            f"{row[0]:10s} | {row[1]:11.2f} {row[2]:7.2f} {row[3]:6.1f} | {row[4]:11.2f} {row[5]:7.2f} "
+            f"{row[6]:6.1f} | {row[7]:12.2f} {row[8]:7.2f} {row[9]:6.1f}"
+        )
 
 
 if __name__ == "__main__":

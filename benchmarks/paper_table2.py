@@ -42,8 +42,12 @@ PAPER = {  # e: (tx, ty, tz mm, rx, ry, rz deg) — paper Table II
 def run(features, n, e, contour, rng):
     cam = Camera()
     R, t = Workspace().sample(n, features.nominal_beam_direction, rng)
-    obs = [simulate_observation(features, cam, R[i], t[i], e, rng, contour=contour,
-                                solve_camera=PAPER_CALIBRATION_ERROR.draw(cam, rng)) for i in range(n)]
+    obs = [
+        simulate_observation(
+            features, cam, R[i], t[i], e, rng, contour=contour, solve_camera=PAPER_CALIBRATION_ERROR.draw(cam, rng)
+        )
+        for i in range(n)
+    ]
     poses = solve_batch(features, obs, SolverOptions(noise=NoiseModel.from_segmentation_error(max(e, 0.1))))
     Re = np.array([p.rotation for p in poses])
     te = np.array([p.translation_mm for p in poses])
@@ -59,17 +63,22 @@ def main(n: int = 2000) -> None:
     print(f"machine: {machine()}")
     print(f"{n} images per row; mean |error| per camera axis; flagged = reported not converged")
     head = "tx     ty     tz  |  rx     ry     rz"
-    print(f"{'e mm':>5s} | {'paper: ' + head:42s} | {'ours, 24/12 contour points: ' + head:60s} | "
-          f"{'ours, 96/48: ' + head}")
+    print(
+        f"{'e mm':>5s} | {'paper: ' + head:42s} | {'ours, 24/12 contour points: ' + head:60s} | "
+        f"{'ours, 96/48: ' + head}"
+    )
     for e, paper in PAPER.items():
         cols = []
         for contour in (ContourSampling(24, 12), ContourSampling(96, 48)):
             tm, rm, flagged = run(features, n, e, contour, rng)
-            cols.append(f"{tm[0]:.2f}  {tm[1]:.2f}  {tm[2]:.2f} | {rm[0]:.2f}  {rm[1]:.2f}  {rm[2]:.2f}"
-                        f"  (flagged {flagged})")
+            cols.append(
+                f"{tm[0]:.2f}  {tm[1]:.2f}  {tm[2]:.2f} | {rm[0]:.2f}  {rm[1]:.2f}  {rm[2]:.2f}  (flagged {flagged})"
+            )
         p = paper
-        print(f"{e:5.1f} | {p[0]:.2f}  {p[1]:.2f}  {p[2]:.2f} | {p[3]:.2f}  {p[4]:.2f}  {p[5]:.2f}"
-              f"{'':10s} | {cols[0]:45s} | {cols[1]}")
+        print(
+            f"{e:5.1f} | {p[0]:.2f}  {p[1]:.2f}  {p[2]:.2f} | {p[3]:.2f}  {p[4]:.2f}  {p[5]:.2f}"
+            f"{'':10s} | {cols[0]:45s} | {cols[1]}"
+        )
 
 
 if __name__ == "__main__":

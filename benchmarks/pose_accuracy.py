@@ -36,8 +36,8 @@ def crlb(features, cam, R, t, chunk=2000):
     """Mean CRLB variance per parameter (rx, ry, rz, tx, ty, tz) over the poses."""
     acc = np.zeros(6)
     for a in range(0, len(R), chunk):
-        prob = synthetic_problem(features, cam, R[a:a + chunk], t[a:a + chunk])
-        J = evaluate(prob, R[a:a + chunk], t[a:a + chunk]).J
+        prob = synthetic_problem(features, cam, R[a : a + chunk], t[a : a + chunk])
+        J = evaluate(prob, R[a : a + chunk], t[a : a + chunk]).J
         cov = np.linalg.inv(np.swapaxes(J, 1, 2) @ J)
         acc += np.diagonal(cov, axis1=1, axis2=2).sum(0)
     return acc / len(R)
@@ -65,18 +65,24 @@ def opencv_beads(features, cam, obs):
 
 
 def report(name, dr, dt, bound):
-    mse = np.concatenate([(dr ** 2).mean(0), (dt ** 2).mean(0)])
+    mse = np.concatenate([(dr**2).mean(0), (dt**2).mean(0)])
     eff = bound / mse
     rms_t = np.sqrt(mse[3:])
     rms_r = np.degrees(np.sqrt(mse[:3]))
     print(f"{name}")
-    print(f"  RMS translation x/y/z  {rms_t[0]:.4f} {rms_t[1]:.4f} {rms_t[2]:.4f} mm   "
-          f"(CRLB {np.sqrt(bound[3]):.4f} {np.sqrt(bound[4]):.4f} {np.sqrt(bound[5]):.4f})")
-    print(f"  RMS rotation x/y/z     {rms_r[0]:.4f} {rms_r[1]:.4f} {rms_r[2]:.4f} deg  "
-          f"(CRLB {np.degrees(np.sqrt(bound[0])):.4f} {np.degrees(np.sqrt(bound[1])):.4f} "
-          f"{np.degrees(np.sqrt(bound[2])):.4f})")
-    print(f"  efficiency (CRLB var / MSE): rotation {eff[0]:.3f} {eff[1]:.3f} {eff[2]:.3f}, "
-          f"translation {eff[3]:.3f} {eff[4]:.3f} {eff[5]:.3f}")
+    print(
+        f"  RMS translation x/y/z  {rms_t[0]:.4f} {rms_t[1]:.4f} {rms_t[2]:.4f} mm   "
+        f"(CRLB {np.sqrt(bound[3]):.4f} {np.sqrt(bound[4]):.4f} {np.sqrt(bound[5]):.4f})"
+    )
+    print(
+        f"  RMS rotation x/y/z     {rms_r[0]:.4f} {rms_r[1]:.4f} {rms_r[2]:.4f} deg  "
+        f"(CRLB {np.degrees(np.sqrt(bound[0])):.4f} {np.degrees(np.sqrt(bound[1])):.4f} "
+        f"{np.degrees(np.sqrt(bound[2])):.4f})"
+    )
+    print(
+        f"  efficiency (CRLB var / MSE): rotation {eff[0]:.3f} {eff[1]:.3f} {eff[2]:.3f}, "
+        f"translation {eff[3]:.3f} {eff[4]:.3f} {eff[5]:.3f}"
+    )
     return eff
 
 
@@ -99,11 +105,15 @@ def main(n: int = 10_000) -> None:
     not_conv = sum(not p.converged for p in poses)
 
     print(f"machine: {machine()}")
-    print(f"{n} workspace poses of ftrac_2005, {E_MM} mm segmentation error, no initial guess; "
-          f"solved in {solve_s:.1f} s ({solve_s / n * 1e3:.2f} ms per image, batched)")
-    print(f"failures (> 2 deg or > 5 mm): {failures}; reported not converged: {not_conv}; "
-          f"multi-start used: {sum(p.starts > 1 for p in poses)}; "
-          f"worst error {ang.max():.3f} deg, {dist.max():.3f} mm")
+    print(
+        f"{n} workspace poses of ftrac_2005, {E_MM} mm segmentation error, no initial guess; "
+        f"solved in {solve_s:.1f} s ({solve_s / n * 1e3:.2f} ms per image, batched)"
+    )
+    print(
+        f"failures (> 2 deg or > 5 mm): {failures}; reported not converged: {not_conv}; "
+        f"multi-start used: {sum(p.starts > 1 for p in poses)}; "
+        f"worst error {ang.max():.3f} deg, {dist.max():.3f} mm"
+    )
     eff = report("ftrac_design (points + lines + ellipses)", dr, dt, crlb(features, cam, R, t))
 
     beads = features.subset({p.id for p in features.points})
@@ -117,7 +127,7 @@ def main(n: int = 10_000) -> None:
         fc = int(np.sum((np.degrees(np.linalg.norm(drc, axis=1)) > 2.0) | (np.linalg.norm(dtc, axis=1) > 5.0)))
         print(f"OpenCV solvePnP SQPnP + LM on the 9 beads alone: {ms:.3f} ms median, failures {fc}")
         report("  bead-only baseline", drc, dtc, bound_beads)
-        ratio = np.sqrt(((dtc ** 2).mean(0)) / ((dt ** 2).mean(0)))
+        ratio = np.sqrt(((dtc**2).mean(0)) / ((dt**2).mean(0)))
         print(f"  bead-only RMS / ftrac_design RMS, translation x/y/z: {ratio.round(2)}")
     ok = failures == 0 and eff.min() >= 0.95
     print(f"targets: 0 failures and efficiency >= 0.95: {'met' if ok else 'NOT met'}")

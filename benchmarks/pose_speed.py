@@ -64,8 +64,13 @@ def main() -> None:
 
     # where a single solve spends its time: the phases of the closed-form path, one image at a time
     h, opts = parameter_scale(features), SolverOptions()
-    phases = {"compile (contour fits)": [], "DLT start": [], "bead polish": [], "local solve (LM)": [],
-              "checks + covariance": []}
+    phases = {
+        "compile (contour fits)": [],
+        "DLT start": [],
+        "bead polish": [],
+        "local solve (LM)": [],
+        "checks + covariance": [],
+    }
     for o in obs[:N_SINGLE]:
         marks = [time.perf_counter()]
         prob = compile_problem(features, [o])
@@ -93,8 +98,9 @@ def main() -> None:
             return evaluate(prob, so3.exp(x[None, :3]) @ R0, x[None, 3:], jac=False).rho[0]
 
         x0 = np.concatenate([np.zeros(3), t0_[0]])
-        res = least_squares(fun, x0, jac="2-point", method="lm", x_scale=np.array([0.05] * 3 + [1.0] * 3),
-                            xtol=1e-12, ftol=1e-12)
+        res = least_squares(
+            fun, x0, jac="2-point", method="lm", x_scale=np.array([0.05] * 3 + [1.0] * 3), xtol=1e-12, ftol=1e-12
+        )
         base.append(time.perf_counter() - t0)
         Rb = so3.exp(res.x[None, :3]) @ R0
         dr, dt = pose_errors(Rb[0], res.x[3:], poses[i].rotation, poses[i].translation_mm)
@@ -108,20 +114,32 @@ def main() -> None:
     print(f"{'solver':52s} {'median ms':>10s} {'p90 ms':>8s}")
     print(f"{'ftrac_design robust solve, one image':52s} {np.median(single):10.3f} {np.percentile(single, 90):8.3f}")
     print(f"{'ftrac_design batch of 1000, amortised per image':52s} {batch_ms:10.3f} {'':>8s}")
-    print(f"{'scipy least_squares, numeric Jacobian, same start':52s} {np.median(base):10.3f} "
-          f"{np.percentile(base, 90):8.3f}")
+    print(
+        f"{'scipy least_squares, numeric Jacobian, same start':52s} {np.median(base):10.3f} "
+        f"{np.percentile(base, 90):8.3f}"
+    )
     print(f"{'paper (MATLAB 6.5, P4 2.4 GHz)':52s} {3500.0:10.1f}")
     print("phases of one solve (median ms): " + ", ".join(f"{k} {np.median(v):.3f}" for k, v in phases.items()))
-    print(f"speed-up over the scipy baseline: single {np.median(base) / np.median(single):.1f}x, "
-          f"batch {np.median(base) / batch_ms:.1f}x; over the paper: {3500 / np.median(single):.0f}x")
-    print(f"baseline reaches the same pose: max difference {np.degrees(agree[:, 0].max()):.1e} deg, "
-          f"{agree[:, 1].max():.1e} mm")
-    print(f"rounds (best is reported): single medians {', '.join(f'{np.median(r):.3f}' for r in single_rounds)} ms; "
-          f"batch {', '.join(f'{b:.3f}' for b in batch_rounds)} ms per image")
-    print(f"targets: single <= 2 ms: {'met' if np.median(single) <= 2 else 'NOT met'}; "
-          f"batch <= 0.2 ms: {'met' if batch_ms <= 0.2 else 'NOT met'}")
-    print(f"(sanity) RMS error of the batch: translation {np.sqrt((dt ** 2).mean(0)).round(3)} mm, "
-          f"rotation {np.degrees(np.sqrt((dr ** 2).mean(0))).round(3)} deg")
+    print(
+        f"speed-up over the scipy baseline: single {np.median(base) / np.median(single):.1f}x, "
+        f"batch {np.median(base) / batch_ms:.1f}x; over the paper: {3500 / np.median(single):.0f}x"
+    )
+    print(
+        f"baseline reaches the same pose: max difference {np.degrees(agree[:, 0].max()):.1e} deg, "
+        f"{agree[:, 1].max():.1e} mm"
+    )
+    print(
+        f"rounds (best is reported): single medians {', '.join(f'{np.median(r):.3f}' for r in single_rounds)} ms; "
+        f"batch {', '.join(f'{b:.3f}' for b in batch_rounds)} ms per image"
+    )
+    print(
+        f"targets: single <= 2 ms: {'met' if np.median(single) <= 2 else 'NOT met'}; "
+        f"batch <= 0.2 ms: {'met' if batch_ms <= 0.2 else 'NOT met'}"
+    )
+    print(
+        f"(sanity) RMS error of the batch: translation {np.sqrt((dt**2).mean(0)).round(3)} mm, "
+        f"rotation {np.degrees(np.sqrt((dr**2).mean(0))).round(3)} deg"
+    )
 
 
 if __name__ == "__main__":

@@ -53,24 +53,33 @@ def main() -> None:
         u0, v0, u1, v1 = info["fiducial_box"]
         pad = 25
         box = (max(u0 - pad, 0), max(v0 - pad, 0), min(u1 + pad, img.shape[1]), min(v1 + pad, img.shape[0]))
-        ax.add_patch(plt.Rectangle((box[0], box[1]), box[2] - box[0], box[3] - box[1], fill=False, ec="#f5a623",
-                                   lw=1.0))
+        ax.add_patch(
+            plt.Rectangle((box[0], box[1]), box[2] - box[0], box[3] - box[1], fill=False, ec="#f5a623", lw=1.0)
+        )
         inset = ax.inset_axes([0.60, 0.0, 0.40, 0.40])
-        inset.imshow(im[box[1]:box[3], box[0]:box[2]], cmap="gray", vmin=lo, vmax=hi, interpolation="nearest")
+        inset.imshow(im[box[1] : box[3], box[0] : box[2]], cmap="gray", vmin=lo, vmax=hi, interpolation="nearest")
         inset.set_xticks([])
         inset.set_yticks([])
         for sp in inset.spines.values():
             sp.set_edgecolor("#f5a623")
         p = info["patient"]
-        ax.set_title(f"{cond}: {info['formation']} {img.dtype}, {info['polarity']}\n{p['kind']}, "
-                     f"{p['thickness_mm']:.0f} mm, {info['counts_behind_patient']:.0f} quanta/px behind, "
-                     f"σ {info['blur_sigma_px']:.1f} px", fontsize=10)
+        ax.set_title(
+            f"{cond}: {info['formation']} {img.dtype}, {info['polarity']}\n{p['kind']}, "
+            f"{p['thickness_mm']:.0f} mm, {info['counts_behind_patient']:.0f} quanta/px behind, "
+            f"σ {info['blur_sigma_px']:.1f} px",
+            fontsize=10,
+        )
         ax.set_xticks([])
         ax.set_yticks([])
-        print(f"{cond:15s} {1e3 * times[-1]:6.0f} ms  {info['formation']:8s} {info['polarity']:12s} "
-              f"{p['kind']:8s} line integral {p['line_integral'][0]:.2f}–{p['line_integral'][2]:.2f}")
-    fig.suptitle("ftrac_2005 at one workspace pose, realistic_image for each condition (seed 3); "
-                 "inset: the fiducial's neighbourhood", fontsize=13)
+        print(
+            f"{cond:15s} {1e3 * times[-1]:6.0f} ms  {info['formation']:8s} {info['polarity']:12s} "
+            f"{p['kind']:8s} line integral {p['line_integral'][0]:.2f}–{p['line_integral'][2]:.2f}"
+        )
+    fig.suptitle(
+        "ftrac_2005 at one workspace pose, realistic_image for each condition (seed 3); "
+        "inset: the fiducial's neighbourhood",
+        fontsize=13,
+    )
     fig.tight_layout(rect=(0, 0, 1, 0.96))
     OUT.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(OUT, dpi=72)

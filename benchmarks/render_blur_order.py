@@ -31,17 +31,25 @@ PHASES = 37
 
 
 def _features(points=(), lines=()) -> Features:
-    return Features(name="probe", source=None, sha256="-", nominal_beam_direction=np.array([0.0, -1.0, 0.0]),
-                    points=tuple(points), lines=tuple(lines))
+    return Features(
+        name="probe",
+        source=None,
+        sha256="-",
+        nominal_beam_direction=np.array([0.0, -1.0, 0.0]),
+        points=tuple(points),
+        lines=tuple(lines),
+    )
 
 
 def sweep(features: Features, supersample: int) -> float:
     """Spread (max − min) of Σ(1 − I) over the phases as a fraction of its mean."""
     cam = Camera()
     im = dataclasses.replace(ImagingModel(), supersample=supersample, single_precision=False)
-    step = cam.pixel_size_mm[1] * DEPTH / cam.focal_length_mm / PHASES    # object mm per 1/PHASES px
-    images = [expected_transmission(features, np.eye(3), np.array([0.0, k * step, DEPTH]), cam, im, body=None)
-              .astype(float) for k in range(PHASES + 1)]
+    step = cam.pixel_size_mm[1] * DEPTH / cam.focal_length_mm / PHASES  # object mm per 1/PHASES px
+    images = [
+        expected_transmission(features, np.eye(3), np.array([0.0, k * step, DEPTH]), cam, im, body=None).astype(float)
+        for k in range(PHASES + 1)
+    ]
     sums = np.array([np.sum(1.0 - I) for I in images])
     return float((sums.max() - sums.min()) / sums.mean())
 
@@ -74,8 +82,9 @@ def main() -> None:
     print("the other order: a 0.3 mm wire emulated across a pixel (1-D), spread of Σ(1 − I) with")
     for sub in (4, 8, 64):
         e, m = partial_volume(0.3, sub)
-        print(f"  {sub:>2} sub-samples: exp of the pixel's mean line integral {e:.1%}, "
-              f"pixel's mean transmission {m:.1%}")
+        print(
+            f"  {sub:>2} sub-samples: exp of the pixel's mean line integral {e:.1%}, pixel's mean transmission {m:.1%}"
+        )
     for d in (0.8, 1.0, 1.2):
         f = _features(points=[PointFeature("B1", np.zeros(3), d)])
         a5, a8 = sweep(f, 5), sweep(f, 8)

@@ -82,10 +82,16 @@ def panel() -> dict[str, dict]:
     p["mini_x15"] = _scaled(mini, 1.5, "mini_x15")
     # poor layouts: the two ellipses' planes parallel instead of 60° apart; the three lines bunched on one side
     p["poor_parallel_ellipses"] = _with(base, "poor_parallel_ellipses", ellipses__1__tilt_azimuth_deg=90.0)
-    p["poor_bunched_lines"] = _with(base, "poor_bunched_lines", lines__0__azimuth_deg=280.0,
-                                    lines__1__azimuth_deg=250.0, lines__2__azimuth_deg=265.0)
-    p["poor_mini_bunched"] = _with(mini, "poor_mini_bunched", lines__0__azimuth_deg=280.0,
-                                   lines__1__azimuth_deg=250.0, lines__2__azimuth_deg=265.0)
+    p["poor_bunched_lines"] = _with(
+        base,
+        "poor_bunched_lines",
+        lines__0__azimuth_deg=280.0,
+        lines__1__azimuth_deg=250.0,
+        lines__2__azimuth_deg=265.0,
+    )
+    p["poor_mini_bunched"] = _with(
+        mini, "poor_mini_bunched", lines__0__azimuth_deg=280.0, lines__1__azimuth_deg=250.0, lines__2__azimuth_deg=265.0
+    )
     return p
 
 
@@ -130,13 +136,16 @@ def evaluate(rows: dict[str, dict]) -> dict:
     out: dict = {"spearman": {}, "off_20pct": [], "share_off_3pts": []}
     for cond in ("clean", "anatomy"):
         for key, _ in FIGURES:
-            names = [n for n, r in rows.items() if r["measured"][cond][key] is not None
-                     and r["score"][cond][key] is not None]
+            names = [
+                n for n, r in rows.items() if r["measured"][cond][key] is not None and r["score"][cond][key] is not None
+            ]
             meas = [rows[n]["measured"][cond][key] for n in names]
-            out["spearman"][f"score {cond} {key}"] = float(spearmanr([rows[n]["score"][cond][key] for n in names],
-                                                                     meas).statistic)
-            out["spearman"][f"paper {key} vs {cond}"] = float(spearmanr([rows[n]["paper"][key] for n in names],
-                                                                        meas).statistic)
+            out["spearman"][f"score {cond} {key}"] = float(
+                spearmanr([rows[n]["score"][cond][key] for n in names], meas).statistic
+            )
+            out["spearman"][f"paper {key} vs {cond}"] = float(
+                spearmanr([rows[n]["paper"][key] for n in names], meas).statistic
+            )
             for n in names:
                 ratio = rows[n]["score"][cond][key] / rows[n]["measured"][cond][key]
                 if abs(ratio - 1.0) > 0.20:
@@ -153,8 +162,10 @@ def table(rows: dict[str, dict]) -> str:
     lines = []
     for cond in ("clean", "anatomy"):
         lines.append(f"\n{cond}: score (seed {SCORE_SEED}) vs measured (seed {MEASURE_SEED}, 95 % interval)")
-        lines.append(f"{'design':22s} {'p95 t score':>11s} {'measured':>22s} {'p95 r score':>11s} {'measured':>22s} "
-                     f"{'refused s/m %':>14s} {'wrong s/m %':>12s}")
+        lines.append(
+            f"{'design':22s} {'p95 t score':>11s} {'measured':>22s} {'p95 r score':>11s} {'measured':>22s} "
+            f"{'refused s/m %':>14s} {'wrong s/m %':>12s}"
+        )
         for n, r in rows.items():
             s, m = r["score"][cond], r["measured"][cond]
             ci_t, ci_r = m["translation_p95_95ci_mm"], m["rotation_p95_95ci_deg"]
@@ -163,11 +174,13 @@ def table(rows: dict[str, dict]) -> str:
                 f"{_fmt(m['translation_p95_mm']) + (f' [{ci_t[0]:.3f}, {ci_t[1]:.3f}]' if ci_t else ''):>22s} "
                 f"{_fmt(s['rotation_p95_deg']):>11s} "
                 f"{_fmt(m['rotation_p95_deg']) + (f' [{ci_r[0]:.3f}, {ci_r[1]:.3f}]' if ci_r else ''):>22s} "
-                f"{s['refused_pct']:6.1f}/{m['refused_pct']:<6.1f} {s['wrong_pct']:5.1f}/{m['wrong_pct']:<5.1f}")
+                f"{s['refused_pct']:6.1f}/{m['refused_pct']:<6.1f} {s['wrong_pct']:5.1f}/{m['wrong_pct']:<5.1f}"
+            )
     lines.append("\npaper's model (feature-level CRB, p95 of the RMS error over 20 000 poses):")
     for n, r in rows.items():
-        lines.append(f"  {n:22s} p95 t {r['paper']['translation_p95_mm']:.3f} mm  "
-                     f"p95 r {r['paper']['rotation_p95_deg']:.3f}°")
+        lines.append(
+            f"  {n:22s} p95 t {r['paper']['translation_p95_mm']:.3f} mm  p95 r {r['paper']['rotation_p95_deg']:.3f}°"
+        )
     return "\n".join(lines)
 
 

@@ -53,9 +53,11 @@ def main() -> None:
     R, t = Workspace().sample(20_000, features.nominal_beam_direction, rng)
     pc = pair_clearances(features, cam, R, t)
     m, wp = pc.minimum(), pc.worst_pair()
-    be = pc.kind_minimum("bead-ellipse") < 0          # reported, not counted: does it matter?
-    print(f"segmentability_check: {a.design}, default imaging model ({ImagingModel()}), "
-          f"{'anatomy background' if a.background else 'no background'}; machine shared with other jobs")
+    be = pc.kind_minimum("bead-ellipse") < 0  # reported, not counted: does it matter?
+    print(
+        f"segmentability_check: {a.design}, default imaging model ({ImagingModel()}), "
+        f"{'anatomy background' if a.background else 'no background'}; machine shared with other jobs"
+    )
     print(f"workspace overlap share (20,000 poses, seed {a.seed}): {100 * np.mean(m < 0):.1f} %")
     picks = []
     for lo, hi in zip(bins[:-1], bins[1:]):
@@ -66,8 +68,9 @@ def main() -> None:
     for b, idx in enumerate(picks):
         for k in tqdm(idx, desc=f"bin {b}", leave=False):
             bg = anatomy(seed=int(k)) if a.background else None
-            rad = render(features, R[k], t[k], cam, ImagingModel(), rng=np.random.default_rng(int(k)), background=bg,
-                         body=body)
+            rad = render(
+                features, R[k], t[k], cam, ImagingModel(), rng=np.random.default_rng(int(k)), background=bg, body=body
+            )
             status, err = "ok", np.nan
             try:
                 p = track_image(rad.raw, features, cam, body=body).pose
@@ -84,8 +87,10 @@ def main() -> None:
                     status = "wrong"
             rows.append((b, float(m[k]), pc.kinds[wp[k]], status, err, bool(be[k])))
     print(f"{len(rows)} images in {time.perf_counter() - t0:.0f} s")
-    print("\n| predicted clearance, px | images | failed | not converged (or raised) | wrong confident "
-          "| median |Δt| of the rest, mm |")
+    print(
+        "\n| predicted clearance, px | images | failed | not converged (or raised) | wrong confident "
+        "| median |Δt| of the rest, mm |"
+    )
     print("| --- | --- | --- | --- | --- | --- |")
     for b, (lo, hi) in enumerate(zip(bins[:-1], bins[1:])):
         r = [x for x in rows if x[0] == b]
@@ -94,8 +99,10 @@ def main() -> None:
         nc = sum(x[3].startswith(("not", "raised")) for x in r)
         wr = sum(x[3] == "wrong" for x in r)
         ok = [x[4] for x in r if x[3] == "ok"]
-        print(f"| [{lo:g}, {hi:g}) | {len(r)} | {100 * (nc + wr) / len(r):.0f} % | {nc} | {wr} | "
-              f"{np.median(ok) if ok else float('nan'):.3f} |")
+        print(
+            f"| [{lo:g}, {hi:g}) | {len(r)} | {100 * (nc + wr) / len(r):.0f} % | {nc} | {wr} | "
+            f"{np.median(ok) if ok else float('nan'):.3f} |"
+        )
     over = [x for x in rows if x[1] < 0]
     print("\noverlapping poses by the kind of their worst pair:")
     for kind, n in Counter(x[2] for x in over).most_common():
@@ -107,8 +114,10 @@ def main() -> None:
         r = [x for x in clear if x[5] == flag]
         if r:
             bad = sum(x[3] != "ok" for x in r)
-            print(f"no counted overlap, {label} a bead on an ellipse wire: {len(r)} images, failed {bad} "
-                  f"({100 * bad / len(r):.0f} %)")
+            print(
+                f"no counted overlap, {label} a bead on an ellipse wire: {len(r)} images, failed {bad} "
+                f"({100 * bad / len(r):.0f} %)"
+            )
     print("\nreasons:", dict(Counter(x[3] for x in rows if x[3] != "ok")))
 
 

@@ -56,11 +56,13 @@ def speed(n: int) -> None:
         k = 200
         t0 = time.perf_counter()
         for i in range(k):
-            pair_clearances(f, cam, R[i:i + 1], t[i:i + 1])
+            pair_clearances(f, cam, R[i : i + 1], t[i : i + 1])
         loop = (time.perf_counter() - t0) / k * n
-        print(f"   {name:<11} {min(ts):.3f} / {statistics.median(ts):.3f} s ({min(ts) / n * 1e3:.3f} ms a pose); "
-              f"conditioning of the same poses {min(tc):.3f} s (×{min(ts) / min(tc):.1f}); per-pose loop "
-              f"{loop:.2f} s (extrapolated from {k}; batching ×{loop / min(ts):.0f})")
+        print(
+            f"   {name:<11} {min(ts):.3f} / {statistics.median(ts):.3f} s ({min(ts) / n * 1e3:.3f} ms a pose); "
+            f"conditioning of the same poses {min(tc):.3f} s (×{min(ts) / min(tc):.1f}); per-pose loop "
+            f"{loop:.2f} s (extrapolated from {k}; batching ×{loop / min(ts):.0f})"
+        )
 
 
 def accuracy() -> None:
@@ -72,11 +74,15 @@ def accuracy() -> None:
         ref = pair_clearances(f, cam, R, t, ClearanceSettings(ellipse_samples=512, line_samples=256))
         pc = pair_clearances(f, cam, R, t)
         d = np.abs(pc.clearance_px - ref.clearance_px)
-        worst = {k: round(float(d[:, [i for i, kk in enumerate(pc.kinds) if kk == k]].max()), 3)
-                 for k in dict.fromkeys(pc.kinds)}
+        worst = {
+            k: round(float(d[:, [i for i, kk in enumerate(pc.kinds) if kk == k]].max()), 3)
+            for k in dict.fromkeys(pc.kinds)
+        }
         flips = int(np.sum((pc.minimum() < 0) != (ref.minimum() < 0)))
-        print(f"   {name:<11} largest |difference| px by kind {worst}; poses changing verdict {flips}; "
-              f"polygon sag {pc.sampling_error_px:.3f} px")
+        print(
+            f"   {name:<11} largest |difference| px by kind {worst}; poses changing verdict {flips}; "
+            f"polygon sag {pc.sampling_error_px:.3f} px"
+        )
 
 
 def quick_study() -> None:
@@ -97,8 +103,15 @@ def quick_study() -> None:
 
     L2, L3 = f.line("L2"), f.line("L3")
     a, b = proj(np.array([L2.start, L2.end])), proj(np.array([L3.start, L3.end]))
-    apart = np.max([off_line(b[:, 0], a[:, 0], a[:, 1]), off_line(b[:, 1], a[:, 0], a[:, 1]),
-                    off_line(a[:, 0], b[:, 0], b[:, 1]), off_line(a[:, 1], b[:, 0], b[:, 1])], 0)
+    apart = np.max(
+        [
+            off_line(b[:, 0], a[:, 0], a[:, 1]),
+            off_line(b[:, 1], a[:, 0], a[:, 1]),
+            off_line(a[:, 0], b[:, 0], b[:, 1]),
+            off_line(a[:, 1], b[:, 0], b[:, 1]),
+        ],
+        0,
+    )
     i = pc.pairs.index(("L2", "L3"))
     print("   L2 and L3 on one image line (quick study: 3.7 %):")
     for tol in (1.0, 1.35, 1.7, 2.0):
@@ -111,10 +124,14 @@ def quick_study() -> None:
     print("   two beads within 7 px (quick study: 4.8 %):")
     for tol in (6.8, 7.0):
         print(f"     two bead centres within {tol:g} px: {100 * np.mean(closest < tol):.2f} %")
-    print(f"     ours (discs touch: centres closer than the sum of projected radii, 6.6–7.0 px): "
-          f"{100 * np.mean(pc.kind_minimum('bead-bead') < 0):.2f} %")
-    print(f"   every counted overlap: {100 * np.mean(pc.minimum() < 0):.2f} % (bead on a foreign line "
-          f"{100 * np.mean(pc.kind_minimum('bead-line') < 0):.2f} %)")
+    print(
+        f"     ours (discs touch: centres closer than the sum of projected radii, 6.6–7.0 px): "
+        f"{100 * np.mean(pc.kind_minimum('bead-bead') < 0):.2f} %"
+    )
+    print(
+        f"   every counted overlap: {100 * np.mean(pc.minimum() < 0):.2f} % (bead on a foreign line "
+        f"{100 * np.mean(pc.kind_minimum('bead-line') < 0):.2f} %)"
+    )
 
 
 def main() -> None:

@@ -62,8 +62,9 @@ def _errors(answers, run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     for k, a in enumerate(answers):
         p = a.result.pose
         if p.converged:
-            r, t = pose_errors(p.rotation[None], p.translation_mm[None], run.rotation[k][None],
-                               run.translation_mm[k][None])
+            r, t = pose_errors(
+                p.rotation[None], p.translation_mm[None], run.rotation[k][None], run.translation_mm[k][None]
+            )
             dt.append(float(np.linalg.norm(t)))
             dr.append(float(np.degrees(np.linalg.norm(r))))
             e = np.concatenate([r[0], t[0]])
@@ -79,19 +80,23 @@ def _line(name: str, ms: np.ndarray, answers, run) -> str:
     dt, dr, m2 = _errors(answers, run)
     st = {s: sum(a.status == s for a in answers) for s in ("tracked", "re-identified", "lost")}
     q = _q
-    return (f"  {name:14s} median {np.median(ms):6.1f} ms, p95 {np.percentile(ms, 95):6.1f} ms, "
-            f"{1000 * len(ms) / ms.sum():5.1f} frames/s | tracked {st['tracked']}, re-identified "
-            f"{st['re-identified']}, lost {st['lost']}\n  {'':14s} error t p50/p95/max {q(dt, 50):.3f}/"
-            f"{q(dt, 95):.3f}/{q(dt, 100):.3f} mm, R {q(dr, 50):.3f}/{q(dr, 95):.3f}/{q(dr, 100):.3f}°; "
-            f"Mahalanobis² median {np.nanmedian(m2):.1f}, p95 {q(m2[np.isfinite(m2)], 95):.1f} "
-            f"(6 dof: 5.3 and 12.6 when the covariance is right)")
+    return (
+        f"  {name:14s} median {np.median(ms):6.1f} ms, p95 {np.percentile(ms, 95):6.1f} ms, "
+        f"{1000 * len(ms) / ms.sum():5.1f} frames/s | tracked {st['tracked']}, re-identified "
+        f"{st['re-identified']}, lost {st['lost']}\n  {'':14s} error t p50/p95/max {q(dt, 50):.3f}/"
+        f"{q(dt, 95):.3f}/{q(dt, 100):.3f} mm, R {q(dr, 50):.3f}/{q(dr, 95):.3f}/{q(dr, 100):.3f}°; "
+        f"Mahalanobis² median {np.nanmedian(m2):.1f}, p95 {q(m2[np.isfinite(m2)], 95):.1f} "
+        f"(6 dof: 5.3 and 12.6 when the covariance is right)"
+    )
 
 
 def _round(path: Path, features, cam, body, n: int, desc: str):
     """One pass over the run with both trackers, frame by frame interleaved (the same load on
     both): per path, wall and CPU ms per frame (reading included) and the answers."""
-    trackers = {"run tracker": RunTracker(features, cam, body=body),
-                "frame by frame": RunTracker(features, cam, body=body, independent=True)}
+    trackers = {
+        "run tracker": RunTracker(features, cam, body=body),
+        "frame by frame": RunTracker(features, cam, body=body, independent=True),
+    }
     readers = {k: read_frames(path) for k in trackers}
     ms = {k: np.zeros(n) for k in trackers}
     cpu = {k: np.zeros(n) for k in trackers}
@@ -100,8 +105,9 @@ def _round(path: Path, features, cam, body, n: int, desc: str):
         for key, tr in trackers.items():
             t0, c0 = time.perf_counter(), time.process_time()
             fr = next(readers[key])
-            a = tr.track_frame(fr.pixels, fr.camera, fr.time_s, frame=fr.index, polarity_hint=fr.polarity,
-                               formation_hint=fr.formation)
+            a = tr.track_frame(
+                fr.pixels, fr.camera, fr.time_s, frame=fr.index, polarity_hint=fr.polarity, formation_hint=fr.formation
+            )
             ms[key][k] = 1000 * (time.perf_counter() - t0)
             cpu[key][k] = 1000 * (time.process_time() - c0)
             answers[key].append(a)
@@ -115,14 +121,15 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
     # the principal point where DICOM intake puts it without a tag (the image centre), so that the
     # camera read back from the file is the one the frames were rendered with
     cam = Camera(1000.0, (0.44, 0.44), (511.5, 511.5))
-    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=10.0).sample(1, features.nominal_beam_direction,
-                                                             np.random.default_rng(seed))
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=10.0).sample(
+        1, features.nominal_beam_direction, np.random.default_rng(seed)
+    )
     t_render = time.perf_counter()
     run = render_sweep(features, R0[0], t0[0], n, cam, seed=seed, body=body)
     t_render = time.perf_counter() - t_render
     with tempfile.TemporaryDirectory() as tmp:
         path = _write(run.raw, cam, Path(tmp), fmt)
-        size = path.stat().st_size / 2 ** 20
+        size = path.stat().st_size / 2**20
         results = [_round(path, features, cam, body, n, f"{name} round {r + 1}/{rounds}") for r in range(rounds)]
         # reading alone, for the record
         t_read = []
@@ -132,22 +139,27 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
             next(it)
             t_read.append(1000 * (time.perf_counter() - t1))
     ms, cpu, answers = results[0]
-    same = all([x.status for x in r[2]["run tracker"]] == [x.status for x in answers["run tracker"]]
-               for r in results)
+    same = all([x.status for x in r[2]["run tracker"]] == [x.status for x in answers["run tracker"]] for r in results)
     a, b = ms["run tracker"], ms["frame by frame"]
-    print(f"\n{name}: {n} frames of 1024² ({fmt}, {size:.0f} MiB; rendered in {t_render:.0f} s), load average "
-          f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}")
+    print(
+        f"\n{name}: {n} frames of 1024² ({fmt}, {size:.0f} MiB; rendered in {t_render:.0f} s), load average "
+        f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}"
+    )
     print(f"  reading a frame alone: median {np.median(t_read):.1f} ms")
     print("  round 1:")
     for key in ms:
         print(_line(key, ms[key], answers[key], run))
-        print(f"  {'':14s} CPU time (all the process's threads) median {np.median(cpu[key]):6.1f} ms, p95 "
-              f"{np.percentile(cpu[key], 95):6.1f} ms")
+        print(
+            f"  {'':14s} CPU time (all the process's threads) median {np.median(cpu[key]):6.1f} ms, p95 "
+            f"{np.percentile(cpu[key], 95):6.1f} ms"
+        )
     tracked = np.array([x.status == "tracked" for x in answers["run tracker"]])
     if tracked.any():
-        print(f"  ratio frame-by-frame / run tracker: median {np.median(b) / np.median(a):.1f}×, total "
-              f"{b.sum() / a.sum():.1f}×; run tracker's tracked frames alone: median {np.median(a[tracked]):.1f} ms, "
-              f"p95 {np.percentile(a[tracked], 95):.1f} ms")
+        print(
+            f"  ratio frame-by-frame / run tracker: median {np.median(b) / np.median(a):.1f}×, total "
+            f"{b.sum() / a.sum():.1f}×; run tracker's tracked frames alone: median {np.median(a[tracked]):.1f} ms, "
+            f"p95 {np.percentile(a[tracked], 95):.1f} ms"
+        )
     if rounds > 1:
         # each frame's fastest of the rounds: what the frame costs when the machine's other
         # jobs leave it alone at least once (the statuses are the same every round)
@@ -155,14 +167,18 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
         bcpu = {k: np.min([r[1][k] for r in results], axis=0) for k in ms}
         print(f"  best of {rounds} rounds per frame (same statuses every round: {same}):")
         for key in ms:
-            print(f"    {key:14s} wall median {np.median(best[key]):6.1f} ms, p95 "
-                  f"{np.percentile(best[key], 95):6.1f} ms, {1000 * n / best[key].sum():5.1f} frames/s; "
-                  f"CPU median {np.median(bcpu[key]):6.1f} ms")
+            print(
+                f"    {key:14s} wall median {np.median(best[key]):6.1f} ms, p95 "
+                f"{np.percentile(best[key], 95):6.1f} ms, {1000 * n / best[key].sum():5.1f} frames/s; "
+                f"CPU median {np.median(bcpu[key]):6.1f} ms"
+            )
         a = best["run tracker"]
         print(f"    ratio: median {np.median(best['frame by frame']) / np.median(a):.1f}×")
     how = ", each frame's best of the rounds" if rounds > 1 else ""
-    print(f"  target: median ≤ 33 ms per frame including reading (≥ 30 frames/s): "
-          f"{'met' if np.median(a) <= 33 else 'MISSED'} ({np.median(a):.1f} ms{how})")
+    print(
+        f"  target: median ≤ 33 ms per frame including reading (≥ 30 frames/s): "
+        f"{'met' if np.median(a) <= 33 else 'MISSED'} ({np.median(a):.1f} ms{how})"
+    )
 
 
 def main() -> None:
@@ -171,8 +187,9 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=120, help="frames per run (default 120)")
     ap.add_argument("--format", choices=["dicom", "npy"], default="dicom", help="the run's file (default dicom)")
     ap.add_argument("--seed", type=int, default=3)
-    ap.add_argument("--rounds", type=int, default=3, help="passes over the run; each frame's fastest is also "
-                                                           "reported (default 3)")
+    ap.add_argument(
+        "--rounds", type=int, default=3, help="passes over the run; each frame's fastest is also reported (default 3)"
+    )
     a = ap.parse_args()
     print(machine())
     for name in a.design or ["ftrac_2005", "ftrac_mini"]:

@@ -48,13 +48,18 @@ TU_MM = 1.0
 
 def transforms(features, cnc_mm=CNC_MM, tu_mm=TU_MM):
     s = cnc_mm / np.sqrt(3)
-    FT = fr.RigidTransform(np.asarray(features.frames["template_from_fiducial"], float), "fiducial", "template",
-                           fr.isotropic_covariance(s, np.sqrt(2) * s / PIN_SPACING_MM) if cnc_mm > 0 else None)
+    FT = fr.RigidTransform(
+        np.asarray(features.frames["template_from_fiducial"], float),
+        "fiducial",
+        "template",
+        fr.isotropic_covariance(s, np.sqrt(2) * s / PIN_SPACING_MM) if cnc_mm > 0 else None,
+    )
     # a template → ultrasound registration: any rigid map will do; the budget depends on its error only
     M = np.eye(4)
     M[:3, 3] = [0.0, -30.0, 40.0]
-    TU = fr.RigidTransform(M, "template", "ultrasound",
-                           fr.isotropic_covariance(tu_mm / np.sqrt(3)) if tu_mm > 0 else None)
+    TU = fr.RigidTransform(
+        M, "template", "ultrasound", fr.isotropic_covariance(tu_mm / np.sqrt(3)) if tu_mm > 0 else None
+    )
     return FT, TU
 
 
@@ -71,23 +76,31 @@ def run(features, trials, rng, cnc_mm=CNC_MM, tu_mm=TU_MM, pf_mm=None):
         if not ok[i].all():
             continue
         S = seeds(rng, 5)
-        uv = (np.stack([CAM.project(S @ R[j].T + t[j]) for j in i])
-              + segmentation_noise((k, 5), 0.25, CAM.pixel_size_mm, rng))
+        uv = np.stack([CAM.project(S @ R[j].T + t[j]) for j in i]) + segmentation_noise(
+            (k, 5), 0.25, CAM.pixel_size_mm, rng
+        )
         v = Views.make(Re[i], te[i], np.array([cams[j].intrinsics for j in i]), 0.102 / 0.44, np.nan_to_num(cov[i]))
         tri = triangulate(v, uv)
         if not tri.ok.all():
             continue
         P, C = tri.P, tri.cov
-        if pf_mm is not None:   # the paper's P_F accuracy imposed instead of ours
+        if pf_mm is not None:  # the paper's P_F accuracy imposed instead of ours
             P = S + rng.normal(0, pf_mm / np.sqrt(3), S.shape)
-            C = np.broadcast_to(np.eye(3) * pf_mm ** 2 / 3, C.shape)
+            C = np.broadcast_to(np.eye(3) * pf_mm**2 / 3, C.shape)
         FT_true, TU_true = fr.sample(FT, rng), fr.sample(TU, rng)
         true_T = S @ FT_true[:3, :3].T + FT_true[:3, 3]
         true_U = true_T @ TU_true[:3, :3].T + TU_true[:3, 3]
         PT, CT = fr.apply(FT, P, C)
         PU, CU = fr.apply(TU, PT, CT)
-        errs.append(np.column_stack([np.linalg.norm(P - S, axis=1), np.linalg.norm(PT - true_T, axis=1),
-                                     np.linalg.norm(PU - true_U, axis=1)]))
+        errs.append(
+            np.column_stack(
+                [
+                    np.linalg.norm(P - S, axis=1),
+                    np.linalg.norm(PT - true_T, axis=1),
+                    np.linalg.norm(PU - true_U, axis=1),
+                ]
+            )
+        )
         preds.append(np.column_stack([np.sqrt(np.trace(c, axis1=1, axis2=2)) for c in (C, CT, CU)]))
     return np.concatenate(errs), np.concatenate(preds)
 
@@ -98,18 +111,22 @@ def main(trials: int = 2000) -> None:
     print(f"machine: {machine()} (shared with other jobs)")
     print(f"SIMULATED observations; {trials} trials × 5 seeds 15 cm from the fiducial, 3 images within 20° of AP")
     t0 = time.time()
-    cases = [("ours: P_F reconstructed, CNC 0.25 mm, F_TU 1.0 mm", {}),
-             ("perfect connector (CNC 0), F_TU 1.0 mm", {"cnc_mm": 0.0}),
-             ("the paper's P_F 0.5 mm imposed, CNC 0.25, F_TU 1.0", {"pf_mm": 0.5})]
+    cases = [
+        ("ours: P_F reconstructed, CNC 0.25 mm, F_TU 1.0 mm", {}),
+        ("perfect connector (CNC 0), F_TU 1.0 mm", {"cnc_mm": 0.0}),
+        ("the paper's P_F 0.5 mm imposed, CNC 0.25, F_TU 1.0", {"pf_mm": 0.5}),
+    ]
     out = []
     print(f"{'case':52s} | {'stage':8s} {'mean':>6s} {'RMS':>6s} {'p95':>6s} {'pred. RMS':>9s}  (mm, 3-D)")
     for name, kw in cases:
         e, p = run(features, trials, rng, **kw)
         out.append((name, e, p))
         for j, stage in enumerate(("P_F", "P_T", "P_U")):
-            print(f"{name if j == 0 else '':52s} | {stage:8s} {e[:, j].mean():6.2f} "
-                  f"{np.sqrt(np.mean(e[:, j] ** 2)):6.2f} {np.percentile(e[:, j], 95):6.2f} "
-                  f"{np.sqrt(np.mean(p[:, j] ** 2)):9.2f}")
+            print(
+                f"{name if j == 0 else '':52s} | {stage:8s} {e[:, j].mean():6.2f} "
+                f"{np.sqrt(np.mean(e[:, j] ** 2)):6.2f} {np.percentile(e[:, j], 95):6.2f} "
+                f"{np.sqrt(np.mean(p[:, j] ** 2)):9.2f}"
+            )
     print("paper: F_FT ≈ 0.25 mm, P_F ≈ 0.5 mm, F_TU ≈ 1.0 mm → 'under 2 mm' (linear sum 1.75, quadrature 1.14)")
     print(f"total {time.time() - t0:.0f} s")
     plot(out)
@@ -117,6 +134,7 @@ def main(trials: int = 2000) -> None:
 
 def plot(out) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -124,8 +142,14 @@ def plot(out) -> None:
     for ax, (name, e, p) in zip(axes, out):
         bins = np.linspace(0, 4, 60)
         for j, stage in enumerate(("P_F (fiducial)", "P_T (template)", "P_U (ultrasound)")):
-            ax.hist(e[:, j], bins, histtype="step", lw=1.5, density=True,
-                    label=f"{stage}: RMS {np.sqrt(np.mean(e[:, j] ** 2)):.2f} mm")
+            ax.hist(
+                e[:, j],
+                bins,
+                histtype="step",
+                lw=1.5,
+                density=True,
+                label=f"{stage}: RMS {np.sqrt(np.mean(e[:, j] ** 2)):.2f} mm",
+            )
         ax.axvline(2.0, color="k", ls=":", label="paper's 'under 2 mm'")
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("3-D error (mm)")

@@ -34,19 +34,29 @@ def main(n: int = 20_000) -> None:
     settings = AnalysisSettings(poses=n)
     print(f"machine: {machine()}")
     print(f"\n{n} workspace poses, segmentation error {settings.segmentation_error_mm} mm, predicted 1σ (3-D RMS)")
-    print(f"{'features':9s} | {'paper: t mm':>11s} {'rot °':>6s} {'fail %':>7s} | {'cond median':>11s} {'worst':>7s} "
-          f"{'D-opt':>6s} {'singular':>9s} {'t p95 mm':>9s} {'r p95 °':>8s}")
+    print(
+        f"{'features':9s} | {'paper: t mm':>11s} {'rot °':>6s} {'fail %':>7s} | {'cond median':>11s} {'worst':>7s} "
+        f"{'D-opt':>6s} {'singular':>9s} {'t p95 mm':>9s} {'r p95 °':>8s}"
+    )
     out = {}
     for name, ids in COMBOS.items():
         s = score_design(f.subset(ids), settings)
         figs = s.figures
         sing = float(np.mean(~np.isfinite(s.analysis.overall.condition)))
-        out[name] = (figs["condition"]["median"], figs["condition"]["worst"], figs["d_optimality"]["median"], sing,
-                     figs["translation_mm"]["p95"], figs["rotation_deg"]["p95"])
+        out[name] = (
+            figs["condition"]["median"],
+            figs["condition"]["worst"],
+            figs["d_optimality"]["median"],
+            sing,
+            figs["translation_mm"]["p95"],
+            figs["rotation_deg"]["p95"],
+        )
         p = PAPER[name]
         c = out[name]
-        print(f"{name:9s} | {p[0]:11.2f} {p[1]:6.2f} {p[2]:7.1f} | {c[0]:11.0f} {c[1]:7.0f} {c[2]:6.2f} {c[3]:9.1%} "
-              f"{c[4]:9.3f} {c[5]:8.3f}")
+        print(
+            f"{name:9s} | {p[0]:11.2f} {p[1]:6.2f} {p[2]:7.1f} | {c[0]:11.0f} {c[1]:7.0f} {c[2]:6.2f} {c[3]:9.1%} "
+            f"{c[4]:9.3f} {c[5]:8.3f}"
+        )
     names = list(COMBOS)
 
     def spearman(a, b) -> float:
@@ -58,24 +68,32 @@ def main(n: int = 20_000) -> None:
         return " < ".join(sorted(names, key=lambda k: col(k)))
 
     print(f"\nranked by translation: paper {order(lambda k: PAPER[k][0])}")
-    print(f"                       ours  {order(lambda k: out[k][4])}   (Spearman ρ = "
-          f"{spearman([PAPER[k][0] for k in names], [out[k][4] for k in names]):+.1f})")
+    print(
+        f"                       ours  {order(lambda k: out[k][4])}   (Spearman ρ = "
+        f"{spearman([PAPER[k][0] for k in names], [out[k][4] for k in names]):+.1f})"
+    )
     print(f"ranked by rotation:    paper {order(lambda k: PAPER[k][1])}")
-    print(f"                       ours  {order(lambda k: out[k][5])}   (Spearman ρ = "
-          f"{spearman([PAPER[k][1] for k in names], [out[k][5] for k in names]):+.1f})")
-    print(f"paper failures vs median condition: Spearman ρ = "
-          f"{spearman([PAPER[k][2] for k in names], [out[k][0] for k in names]):+.1f}; "
-          f"singular poses in any combination: {max(out[k][3] for k in names):.1%}")
+    print(
+        f"                       ours  {order(lambda k: out[k][5])}   (Spearman ρ = "
+        f"{spearman([PAPER[k][1] for k in names], [out[k][5] for k in names]):+.1f})"
+    )
+    print(
+        f"paper failures vs median condition: Spearman ρ = "
+        f"{spearman([PAPER[k][2] for k in names], [out[k][0] for k in names]):+.1f}; "
+        f"singular poses in any combination: {max(out[k][3] for k in names):.1%}"
+    )
     print("(ρ over 5 combinations is coarse: only |ρ| = 1.0 is significant at the 5 % level, two-sided)")
-    print("\nreading: no combination is singular anywhere in the workspace and 3L+2E is as well conditioned as "
-          "the full set, so conditioning does not explain the paper's 90.6 % failures for 3L+2E, nor does it "
-          "separate the others (27–31 % failures at condition numbers from 37 to 103). Those failures are "
-          "convergence failures of a single local solve from far guesses — a question of the basin of "
-          "attraction, which the bound at the true pose cannot see (paper_table1.py measures it directly). "
-          "The predicted accuracy does rank the combinations as the paper's errors do: exactly in rotation, "
-          "and in translation except that 3L+2E and 6P+3L swap. The condition number alone does not rank "
-          "accuracy: 6P is well conditioned but weak (lowest D-optimality), and adding the lines to it "
-          "sharpens some directions far more than others (6P+3L has the largest condition number).")
+    print(
+        "\nreading: no combination is singular anywhere in the workspace and 3L+2E is as well conditioned as "
+        "the full set, so conditioning does not explain the paper's 90.6 % failures for 3L+2E, nor does it "
+        "separate the others (27–31 % failures at condition numbers from 37 to 103). Those failures are "
+        "convergence failures of a single local solve from far guesses — a question of the basin of "
+        "attraction, which the bound at the true pose cannot see (paper_table1.py measures it directly). "
+        "The predicted accuracy does rank the combinations as the paper's errors do: exactly in rotation, "
+        "and in translation except that 3L+2E and 6P+3L swap. The condition number alone does not rank "
+        "accuracy: 6P is well conditioned but weak (lowest D-optimality), and adding the lines to it "
+        "sharpens some directions far more than others (6P+3L has the largest condition number)."
+    )
 
     import matplotlib
 

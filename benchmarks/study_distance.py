@@ -59,41 +59,57 @@ def main(n: int = 6000) -> None:
     rows = {}
     for p in DEPTHS_PCT:
         m = predicted(f, n, E_MM, workspace=Workspace(depth_mm=p / 100 * FOCAL_MM))
-        rows[p] = (np.median(m.translation_rms_mm), np.median(m.translation_std_mm[:, 2]),
-                   np.median(m.translation_std_mm[:, 0]), np.median(m.rotation_rms_deg))
+        rows[p] = (
+            np.median(m.translation_rms_mm),
+            np.median(m.translation_std_mm[:, 2]),
+            np.median(m.translation_std_mm[:, 0]),
+            np.median(m.rotation_rms_deg),
+        )
         print(f"{p:15.1f} {100 - p:17.1f} {rows[p][0]:8.3f} {rows[p][1]:8.3f} {rows[p][2]:8.4f} {rows[p][3]:7.3f}")
     k_pred = [exponent(DEPTHS_PCT, [rows[p][i] for p in DEPTHS_PCT]) for i in range(4)]
-    print(f"fitted exponent k (error ∝ depth^k): t {k_pred[0]:.2f}, tz {k_pred[1]:.2f}, tx {k_pred[2]:.2f}, "
-          f"r {k_pred[3]:.2f}   (pinhole expectation: tz 2, tx 1, r 1)")
+    print(
+        f"fitted exponent k (error ∝ depth^k): t {k_pred[0]:.2f}, tz {k_pred[1]:.2f}, tx {k_pred[2]:.2f}, "
+        f"r {k_pred[3]:.2f}   (pinhole expectation: tz 2, tx 1, r 1)"
+    )
     lo, hi = rows[DEPTHS_PCT[0]], rows[DEPTHS_PCT[-1]]
-    print(f"{DEPTHS_PCT[0]} % → {DEPTHS_PCT[-1]} % of f from the source (× {DEPTHS_PCT[-1] / DEPTHS_PCT[0]:.1f} in "
-          f"depth): depth error × {hi[1] / lo[1]:.1f}, lateral × {hi[2] / lo[2]:.1f}, "
-          f"rotation × {hi[3] / lo[3]:.1f}")
+    print(
+        f"{DEPTHS_PCT[0]} % → {DEPTHS_PCT[-1]} % of f from the source (× {DEPTHS_PCT[-1] / DEPTHS_PCT[0]:.1f} in "
+        f"depth): depth error × {hi[1] / lo[1]:.1f}, lateral × {hi[2] / lo[2]:.1f}, "
+        f"rotation × {hi[3] / lo[3]:.1f}"
+    )
 
     print(f"\nMonte-Carlo, {MC_N} images per depth and condition, robust solver, no initial guess (3-D RMS)")
-    print(f"{'from source %f':>15s} {'from detector %f':>17s} | {'seg. only: t mm':>15s} {'r °':>6s} | "
-          f"{'+ paper C-arm errors: t mm':>26s} {'r °':>6s} | {'not solved':>10s}")
+    print(
+        f"{'from source %f':>15s} {'from detector %f':>17s} | {'seg. only: t mm':>15s} {'r °':>6s} | "
+        f"{'+ paper C-arm errors: t mm':>26s} {'r °':>6s} | {'not solved':>10s}"
+    )
     mc = {}
     for p in MC_PCT:
         seg, cal, bad = monte_carlo_pair(f, MC_N, E_MM, seed=int(p), workspace=Workspace(depth_mm=p / 100 * FOCAL_MM))
         mc[p] = (seg, cal)
         print(f"{p:15.1f} {100 - p:17.1f} | {seg[0]:15.3f} {seg[1]:6.3f} | {cal[0]:26.3f} {cal[1]:6.3f} | {bad:10d}")
     k_mc = {(c, j): exponent(MC_PCT, [mc[p][c][j] for p in MC_PCT]) for c in (0, 1) for j in (0, 1)}
-    print(f"fitted exponent k: segmentation only t {k_mc[0, 0]:.2f}, r {k_mc[0, 1]:.2f}; "
-          f"with C-arm errors t {k_mc[1, 0]:.2f}, r {k_mc[1, 1]:.2f}")
+    print(
+        f"fitted exponent k: segmentation only t {k_mc[0, 0]:.2f}, r {k_mc[0, 1]:.2f}; "
+        f"with C-arm errors t {k_mc[1, 0]:.2f}, r {k_mc[1, 1]:.2f}"
+    )
 
-    print("\npaper (Fig. 7f, 6000 poses, x-axis = distance from the image plane): orientation independent of "
-          "placement; translation error drops linearly as the fiducial moves away from the image plane "
-          "(toward the source).")
-    print(f"ours: the same direction for translation — nearer the source is better — but with segmentation "
-          f"error alone the translation (depth) error grows as depth^{k_mc[0, 0]:.1f}, not linearly; with the "
-          f"paper's C-arm errors their bias (∝ depth for a focal-length, pixel-size or principal-point error) "
-          f"adds in and the solver's translation "
-          f"error grows as depth^{k_mc[1, 0]:.1f}, close to the paper's straight line. Orientation is not "
-          f"independent of placement: it grows about ∝ depth (k = {k_mc[0, 1]:.1f} segmentation only, "
-          f"{k_mc[1, 1]:.1f} with C-arm errors; × {mc[90][1][1] / mc[30][1][1]:.1f} from 30 % to 90 %), "
-          f"though it stays small ({min(v[1][1] for v in mc.values()):.2f}–"
-          f"{max(v[1][1] for v in mc.values()):.2f}° with the C-arm errors).")
+    print(
+        "\npaper (Fig. 7f, 6000 poses, x-axis = distance from the image plane): orientation independent of "
+        "placement; translation error drops linearly as the fiducial moves away from the image plane "
+        "(toward the source)."
+    )
+    print(
+        f"ours: the same direction for translation — nearer the source is better — but with segmentation "
+        f"error alone the translation (depth) error grows as depth^{k_mc[0, 0]:.1f}, not linearly; with the "
+        f"paper's C-arm errors their bias (∝ depth for a focal-length, pixel-size or principal-point error) "
+        f"adds in and the solver's translation "
+        f"error grows as depth^{k_mc[1, 0]:.1f}, close to the paper's straight line. Orientation is not "
+        f"independent of placement: it grows about ∝ depth (k = {k_mc[0, 1]:.1f} segmentation only, "
+        f"{k_mc[1, 1]:.1f} with C-arm errors; × {mc[90][1][1] / mc[30][1][1]:.1f} from 30 % to 90 %), "
+        f"though it stays small ({min(v[1][1] for v in mc.values()):.2f}–"
+        f"{max(v[1][1] for v in mc.values()):.2f}° with the C-arm errors)."
+    )
 
     import matplotlib
 
@@ -112,8 +128,9 @@ def main(n: int = 6000) -> None:
         ax.legend(fontsize=7)
     axs[0].set_ylabel("3-D RMS translation error, mm")
     axs[1].set_ylabel("3-D RMS rotation error, deg")
-    fig.suptitle(f"Fig. 7f: error vs region of use (ftrac_2005, 0.25 mm segmentation error, {n} poses per depth)",
-                 fontsize=10)
+    fig.suptitle(
+        f"Fig. 7f: error vs region of use (ftrac_2005, 0.25 mm segmentation error, {n} poses per depth)", fontsize=10
+    )
     print(f"\nplot: {save_plot(fig, 'study_distance')}")
 
 

@@ -59,8 +59,13 @@ SWEEPS = {  # name: (parameter, levels, total poses, unit, paper's words)
     "7b": ("focal_mm", [0.0, 1.0, 2.0, 3.0, 4.0, 5.0], 20_000, "mm", "5 mm → < 2 mm, < 0.1°"),
     "7c": ("origin_mm", [0.0, 1.0, 2.0, 3.0, 4.0, 5.0], 20_000, "mm", "5 mm → < 2 mm, 0.2°"),
     "7d": ("pixel_mm", [0.0, 0.002, 0.004, 0.006, 0.008, 0.010], 20_000, "mm", "10 µm → < 0.5°, linear"),
-    "7d'": ("pixel_mm_origin", [0.0, 0.002, 0.004, 0.006, 0.008, 0.010], 20_000, "mm",
-            "10 µm → < 0.5°, most translation error parallel to the image"),
+    "7d'": (
+        "pixel_mm_origin",
+        [0.0, 0.002, 0.004, 0.006, 0.008, 0.010],
+        20_000,
+        "mm",
+        "10 µm → < 0.5°, most translation error parallel to the image",
+    ),
 }
 
 
@@ -81,8 +86,11 @@ def camera_draw(rng, s):
     if not s["origin_in_mm"]:
         return cam
     from ftrac_design.pose import Camera
-    o_mm = np.array(CAM.principal_point_px) * CAM.pixel_size_mm + (np.array(cam.principal_point_px)
-                                                                  - CAM.principal_point_px) * CAM.pixel_size_mm
+
+    o_mm = (
+        np.array(CAM.principal_point_px) * CAM.pixel_size_mm
+        + (np.array(cam.principal_point_px) - CAM.principal_point_px) * CAM.pixel_size_mm
+    )
     pp = o_mm / np.asarray(cam.pixel_size_mm)
     return Camera(cam.focal_length_mm, cam.pixel_size_mm, (float(pp[0]), float(pp[1])))
 
@@ -93,8 +101,12 @@ def pose_row(features, param, level, n, rng):
     cams = [camera_draw(rng, s) for _ in range(n)]
     Re, te, ok, _, _, flagged = solve_images(features, R, t, s["e_mm"], rng, cams)
     dr, dt = pose_errors(Re[ok], te[ok], R[ok], t[ok])
-    return (float(np.linalg.norm(dt, axis=1).mean()), float(np.abs(dt[:, 2]).mean()),
-            float(np.degrees(np.linalg.norm(dr, axis=1)).mean()), f"{int((~ok).sum())}/{flagged}")
+    return (
+        float(np.linalg.norm(dt, axis=1).mean()),
+        float(np.abs(dt[:, 2]).mean()),
+        float(np.degrees(np.linalg.norm(dr, axis=1)).mean()),
+        f"{int((~ok).sum())}/{flagged}",
+    )
 
 
 def two_views(rng, n, cone_deg=20.0, apart_deg=20.0, nominal=np.array([0.0, -1.0, 0.0])):
@@ -110,7 +122,7 @@ def two_views(rng, n, cone_deg=20.0, apart_deg=20.0, nominal=np.array([0.0, -1.0
         for c, a in zip(centre, turn):
             b.append(cone_directions(c, np.array(half), np.array(a + (0 if sgn > 0 else np.pi))))
         beams.append(np.array(b))
-    R = np.stack([rotations_from_beams(b, rng.uniform(0, 2 * np.pi, n)) for b in beams], 1)   # (n, 2, 3, 3)
+    R = np.stack([rotations_from_beams(b, rng.uniform(0, 2 * np.pi, n)) for b in beams], 1)  # (n, 2, 3, 3)
     t = np.concatenate([rng.uniform(-25, 25, (n, 2, 2)), rng.uniform(642, 692, (n, 2, 1))], -1)
     return R, t
 
@@ -119,8 +131,9 @@ def reconstruction_row(features, param, level, trials, rng):
     s = settings(param, level)
     R, t = two_views(rng, trials)
     cams = [camera_draw(rng, s) for _ in range(trials)]
-    Re, te, ok, cov, obs, _ = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), s["e_mm"], rng,
-                                        [c for c in cams for _ in range(2)])
+    Re, te, ok, cov, obs, _ = solve_images(
+        features, R.reshape(-1, 3, 3), t.reshape(-1, 3), s["e_mm"], rng, [c for c in cams for _ in range(2)]
+    )
     beads = np.array([p.center for p in features.points])
     bead_ids = sorted(p.id for p in features.points)
     beads = np.array([{p.id: p.center for p in features.points}[k] for k in bead_ids])
@@ -131,8 +144,11 @@ def reconstruction_row(features, param, level, trials, rng):
             continue
         S = seeds(rng, 5)
         uv_s = np.stack([CAM.project(S @ R[k, j].T + t[k, j]) for j in range(2)])
-        uv_s += rng.uniform(0, s["e_mm"], (2, 5))[..., None] * np.stack(
-            [np.cos(a := rng.uniform(0, 2 * np.pi, (2, 5))), np.sin(a)], -1) / CAM.pixel_size_mm[0]
+        uv_s += (
+            rng.uniform(0, s["e_mm"], (2, 5))[..., None]
+            * np.stack([np.cos(a := rng.uniform(0, 2 * np.pi, (2, 5))), np.sin(a)], -1)
+            / CAM.pixel_size_mm[0]
+        )
         uv_b = np.stack([[obs[2 * k + j].points[b] for b in bead_ids] for j in range(2)])
         v = Views.make(Re[i], te[i], cams[k].intrinsics, 0.23, np.nan_to_num(cov[i]))
         tri = triangulate(v, np.concatenate([uv_s, uv_b], 1))
@@ -147,13 +163,16 @@ def joint_rows(features, trials, rng, images=5):
     for focal in (0.0, 5.0):
         est_err, tz_before, tz_after, refused = [], [], [], 0
         for _ in tqdm(range(trials), desc=f"joint f, {focal:g} mm", leave=False):
-            beams = cone_directions(features.nominal_beam_direction,
-                                    np.arccos(rng.uniform(np.cos(np.radians(20)), 1, images)),
-                                    rng.uniform(0, 2 * np.pi, images))
+            beams = cone_directions(
+                features.nominal_beam_direction,
+                np.arccos(rng.uniform(np.cos(np.radians(20)), 1, images)),
+                rng.uniform(0, 2 * np.pi, images),
+            )
             R = rotations_from_beams(beams, rng.uniform(0, 2 * np.pi, images))
             t = np.column_stack([rng.uniform(-25, 25, (images, 2)), rng.uniform(642, 692, images)])
             cam = CAM.perturbed(focal * rng.choice([-1.0, 1.0]))
             from ftrac_design.pose.simulate import simulate_observation
+
             obs = [simulate_observation(features, CAM, R[j], t[j], 0.25, rng, solve_camera=cam) for j in range(images)]
             est = ik.estimate(features, obs, params=("f",), max_relative_std=np.inf)
             if not est.ok:
@@ -163,8 +182,15 @@ def joint_rows(features, trials, rng, images=5):
             st = np.array([p.translation_mm for p in est.start])[est.solved]
             tz_before.extend(np.abs(st[:, 2] - t[est.solved, 2]))
             tz_after.extend(np.abs(est.t[:, 2] - t[est.solved, 2]))
-        rows.append((focal, float(np.sqrt(np.mean(np.square(est_err)))), float(np.mean(tz_before)),
-                     float(np.mean(tz_after)), refused))
+        rows.append(
+            (
+                focal,
+                float(np.sqrt(np.mean(np.square(est_err)))),
+                float(np.mean(tz_before)),
+                float(np.mean(tz_after)),
+                refused,
+            )
+        )
     return rows
 
 
@@ -187,40 +213,60 @@ def main(scale: float = 1.0) -> None:
         results[name] = rows_num
         shown = 1000 if param.startswith("pixel_mm") else 1
         print(f"\nFig. {name}: error vs {param} ({n} poses per level, {n * len(levels)} in all); paper: {words}")
-        print(f"{'level':>8s} {'|Δt| mm':>8s} {'|Δtz| mm':>9s} {'rot °':>6s} {'unsolved/flagged':>16s} | "
-              f"{'recon. seeds mm':>15s} {'recon. beads mm':>15s} ({trials} two-view trials)")
+        print(
+            f"{'level':>8s} {'|Δt| mm':>8s} {'|Δtz| mm':>9s} {'rot °':>6s} {'unsolved/flagged':>16s} | "
+            f"{'recon. seeds mm':>15s} {'recon. beads mm':>15s} ({trials} two-view trials)"
+        )
         for lv, dt, dz, rot, bad, es, eb in rows:
             print(f"{lv * shown:8.3g} {dt:8.3f} {dz:9.3f} {rot:6.3f} {bad:>16s} | {es:15.3f} {eb:15.3f}")
     k = max(6, int(20 * scale))
     joint = joint_rows(features, k, rng)
-    print(f"\nJoint focal-length estimation (f only; 5 images within 20° of AP, one C-arm, 0.25 mm segmentation, "
-          f"{k} trials):")
-    print(f"{'focal error':>11s} {'RMS f estimate error':>21s} {'|Δtz| solved with nominal f':>28s} "
-          f"{'|Δtz| jointly':>14s} {'not estimated':>14s}")
+    print(
+        f"\nJoint focal-length estimation (f only; 5 images within 20° of AP, one C-arm, 0.25 mm segmentation, "
+        f"{k} trials):"
+    )
+    print(
+        f"{'focal error':>11s} {'RMS f estimate error':>21s} {'|Δtz| solved with nominal f':>28s} "
+        f"{'|Δtz| jointly':>14s} {'not estimated':>14s}"
+    )
     for focal, ferr, before, after, refused in joint:
         print(f"{focal:9.1f} mm {ferr:18.1f} mm {before:25.2f} mm {after:11.2f} mm {refused:14d}")
     R, t = Workspace().sample(2000, features.nominal_beam_direction, np.random.default_rng(0))
     print("\nCramér–Rao bound of f (σ, mm at 0.44 mm pixels; median over 2,000 workspace poses, 0.25 mm segmentation):")
     for params in (("f",), ("f", "ox", "oy")):
-        sd = [float(np.median(ik.crb(features, CAM, R, t, params=params, images=m).std[:, 0]) * 0.44)
-              for m in (1, 5, 20)]
+        sd = [
+            float(np.median(ik.crb(features, CAM, R, t, params=params, images=m).std[:, 0]) * 0.44) for m in (1, 5, 20)
+        ]
         cz = float(np.median(np.abs(ik.crb(features, CAM, R, t, params=params).corr_tz[:, 0])))
-        print(f"  free {','.join(params):8s}: 1 image {sd[0]:.1f} mm, 5 images {sd[1]:.1f} mm, "
-              f"20 images {sd[2]:.1f} mm; |corr(f, tz)| {cz:.4f}")
+        print(
+            f"  free {','.join(params):8s}: 1 image {sd[0]:.1f} mm, 5 images {sd[1]:.1f} mm, "
+            f"20 images {sd[2]:.1f} mm; |corr(f, tz)| {cz:.4f}"
+        )
     print(f"\ntotal {time.time() - t0:.0f} s")
     plot(results, joint)
 
 
 def plot(results, joint) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(2, 5, figsize=(20, 7))
-    labels = {"7a": "segmentation error (mm)", "7b": "focal-length error (mm)", "7c": "image-origin error (mm)",
-              "7d": "pixel-size error (µm)", "7d'": "pixel-size error (µm), origin known in mm"}
-    paper_pts = {"7a": (0.4, 0.8, 0.1), "7b": (5.0, 2.0, 0.1), "7c": (5.0, 2.0, 0.2), "7d": (10.0, None, 0.5),
-                 "7d'": (10.0, None, 0.5)}
+    labels = {
+        "7a": "segmentation error (mm)",
+        "7b": "focal-length error (mm)",
+        "7c": "image-origin error (mm)",
+        "7d": "pixel-size error (µm)",
+        "7d'": "pixel-size error (µm), origin known in mm",
+    }
+    paper_pts = {
+        "7a": (0.4, 0.8, 0.1),
+        "7b": (5.0, 2.0, 0.1),
+        "7c": (5.0, 2.0, 0.2),
+        "7d": (10.0, None, 0.5),
+        "7d'": (10.0, None, 0.5),
+    }
     for j, (name, rows) in enumerate(results.items()):
         r = np.array(rows, float)
         x = r[:, 0] * (1000 if name.startswith("7d") else 1)

@@ -36,9 +36,14 @@ def bounds(features, e_mm=0.25, n=2000):
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(0))
     noise = NoiseModel.from_segmentation_error(e_mm)
     b = ik.crb(features, CAM, R, t, noise, params=("f", "ox", "oy"))
-    return {"f": np.median(b.std[:, 0]) * PIX, "o": np.median(b.std[:, 1:]) * PIX,
-            "corr": np.median(np.abs(b.corr_tz[:, 0])), "corr_o": np.median(np.abs(b.corr_tz[:, 1:])),
-            "tz_free": np.median(b.pose_std[:, 5]), "tz_known": np.median(b.pose_std_known[:, 5])}
+    return {
+        "f": np.median(b.std[:, 0]) * PIX,
+        "o": np.median(b.std[:, 1:]) * PIX,
+        "corr": np.median(np.abs(b.corr_tz[:, 0])),
+        "corr_o": np.median(np.abs(b.corr_tz[:, 1:])),
+        "tz_free": np.median(b.pose_std[:, 5]),
+        "tz_known": np.median(b.pose_std_known[:, 5]),
+    }
 
 
 def joint(features, e_mm, trials, rng, images=5):
@@ -46,8 +51,10 @@ def joint(features, e_mm, trials, rng, images=5):
     opts = SolverOptions(noise=NoiseModel.from_segmentation_error(e_mm))
     for _ in range(trials):
         R, t = Workspace().sample(images, features.nominal_beam_direction, rng)
-        obs = [simulate_observation(features, CAM, R[j], t[j], e_mm, rng, solve_camera=CAM.perturbed(2.0))
-               for j in range(images)]
+        obs = [
+            simulate_observation(features, CAM, R[j], t[j], e_mm, rng, solve_camera=CAM.perturbed(2.0))
+            for j in range(images)
+        ]
         est = ik.estimate(features, obs, params=("f",), options=opts, max_relative_std=np.inf)
         if est.ok:
             errs.append(est.camera.focal_length_mm - CAM.focal_length_mm)
@@ -58,38 +65,50 @@ def joint(features, e_mm, trials, rng, images=5):
 def main(trials: int = 40) -> None:
     rng = np.random.default_rng(3)
     print(f"machine: {machine()} (shared with other jobs)")
-    print("SIMULATED observations. One image, f, ox, oy free besides the pose; medians over 2,000 workspace poses, "
-          "0.25 mm segmentation error")
+    print(
+        "SIMULATED observations. One image, f, ox, oy free besides the pose; medians over 2,000 workspace poses, "
+        "0.25 mm segmentation error"
+    )
     t0 = time.time()
-    print(f"{'preset':12s} {'σ_f mm':>7s} {'σ_o mm':>7s} {'|corr(f,tz)|':>12s} {'|corr(o,tz)|':>12s} "
-          f"{'σ_tz known → free mm':>22s}")
+    print(
+        f"{'preset':12s} {'σ_f mm':>7s} {'σ_o mm':>7s} {'|corr(f,tz)|':>12s} {'|corr(o,tz)|':>12s} "
+        f"{'σ_tz known → free mm':>22s}"
+    )
     per = {}
     for name in ("ftrac_2005", "ftrac_mini", "nine_bead"):
         f = load(name)
         b = bounds(f)
         per[name] = b
-        print(f"{name:12s} {b['f']:7.1f} {b['o']:7.1f} {b['corr']:12.4f} {b['corr_o']:12.3f} "
-              f"{b['tz_known']:10.2f} → {b['tz_free']:.1f}")
+        print(
+            f"{name:12s} {b['f']:7.1f} {b['o']:7.1f} {b['corr']:12.4f} {b['corr_o']:12.3f} "
+            f"{b['tz_known']:10.2f} → {b['tz_free']:.1f}"
+        )
     f = load("ftrac_2005")
     print(f"\nftrac_2005, joint estimation of f over 5 images (f off by 2 mm, {trials} trials) vs the bound:")
-    print(f"{'seg. error mm':>13s} {'bound σ_f 1 image':>18s} {'bound 5 images':>15s} {'estimate RMS error':>19s} "
-          f"{'reported σ':>11s}")
+    print(
+        f"{'seg. error mm':>13s} {'bound σ_f 1 image':>18s} {'bound 5 images':>15s} {'estimate RMS error':>19s} "
+        f"{'reported σ':>11s}"
+    )
     rows = []
     for e in (0.25, 0.05, 0.01):
         b = bounds(f, e, 500)
         rms, sd, n = joint(f, e, trials, rng)
         rows.append((e, b["f"], b["f"] / np.sqrt(5), rms, sd))
-        print(f"{e:13.2f} {b['f']:15.1f} mm {b['f'] / np.sqrt(5):12.1f} mm {rms:16.2f} mm {sd:8.2f} mm  "
-              f"({n} estimated)")
+        print(
+            f"{e:13.2f} {b['f']:15.1f} mm {b['f'] / np.sqrt(5):12.1f} mm {rms:16.2f} mm {sd:8.2f} mm  ({n} estimated)"
+        )
     need = [(e, b1 / np.sqrt(5)) for e, b1, *_ in rows]
-    print("σ_f scales with the segmentation error: an estimate better than the paper's ±2 mm focal tolerance "
-          f"(σ 1.15 mm) from 5 images needs e ≲ {0.25 * 1.15 / need[0][1]:.3f} mm")
+    print(
+        "σ_f scales with the segmentation error: an estimate better than the paper's ±2 mm focal tolerance "
+        f"(σ 1.15 mm) from 5 images needs e ≲ {0.25 * 1.15 / need[0][1]:.3f} mm"
+    )
     print(f"total {time.time() - t0:.0f} s")
     plot(per, rows)
 
 
 def plot(per, rows) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 

@@ -50,7 +50,7 @@ def kind_errors(e_mm: float) -> dict[str, float]:
 def disparity(e_mm: float) -> NoiseModel:
     """Per-axis σ (uniform magnitude: e/√6) of :func:`kind_errors`."""
     e = kind_errors(e_mm)
-    return NoiseModel(e["point"] / 6 ** 0.5, e["line"] / 6 ** 0.5, e["ellipse"] / 6 ** 0.5)
+    return NoiseModel(e["point"] / 6**0.5, e["line"] / 6**0.5, e["ellipse"] / 6**0.5)
 
 
 def monte_carlo_disparity(features, n: int, e_mm: float, seed: int) -> np.ndarray:
@@ -61,14 +61,16 @@ def monte_carlo_disparity(features, n: int, e_mm: float, seed: int) -> np.ndarra
     cam = Camera()
     R, t = Workspace().sample(n, features.nominal_beam_direction, rng)
     e = kind_errors(e_mm)
-    ids = {"point": {p.id for p in features.points}, "line": {ln.id for ln in features.lines},
-           "ellipse": {el.id for el in features.ellipses}}
+    ids = {
+        "point": {p.id for p in features.points},
+        "line": {ln.id for ln in features.lines},
+        "ellipse": {el.id for el in features.ellipses},
+    }
     obs = []
     for i in range(n):
         o = simulate_observation(features, cam, R[i], t[i], e["point"], rng, include=ids["point"])
         o.lines = simulate_observation(features, cam, R[i], t[i], e["line"], rng, include=ids["line"]).lines
-        o.ellipses = simulate_observation(features, cam, R[i], t[i], e["ellipse"], rng,
-                                          include=ids["ellipse"]).ellipses
+        o.ellipses = simulate_observation(features, cam, R[i], t[i], e["ellipse"], rng, include=ids["ellipse"]).ellipses
         obs.append(o)
     poses = solve_batch(features, obs, SolverOptions(noise=disparity(e_mm)))
     ok = np.array([p.converged for p in poses])
@@ -82,10 +84,14 @@ def main(n: int = 7000) -> None:
     designs = {"ftrac_2005": load("ftrac_2005"), "nine_bead": load("nine_bead")}
     print(f"machine: {machine()}")
     print(f"\npredicted median 1σ (3-D RMS) over {n} workspace poses; seg. error = the beads' maximum error")
-    print(f"{'seg. error mm':>13s} | {'equal: FTRAC t mm':>18s} {'r °':>6s} {'9 beads t':>10s} {'r °':>6s} | "
-          f"{'disparity: FTRAC t':>19s} {'r °':>6s} {'9 beads t':>10s} {'r °':>6s}")
-    print(f"{0.0:13.2f} | {0.0:18.3f} {0.0:6.3f} {0.0:10.3f} {0.0:6.3f} | {0.0:19.3f} {0.0:6.3f} {0.0:10.3f} "
-          f"{0.0:6.3f}   (limit: the bound is linear in σ)")
+    print(
+        f"{'seg. error mm':>13s} | {'equal: FTRAC t mm':>18s} {'r °':>6s} {'9 beads t':>10s} {'r °':>6s} | "
+        f"{'disparity: FTRAC t':>19s} {'r °':>6s} {'9 beads t':>10s} {'r °':>6s}"
+    )
+    print(
+        f"{0.0:13.2f} | {0.0:18.3f} {0.0:6.3f} {0.0:10.3f} {0.0:6.3f} | {0.0:19.3f} {0.0:6.3f} {0.0:10.3f} "
+        f"{0.0:6.3f}   (limit: the bound is linear in σ)"
+    )
     res = {0.0: [0.0] * 8}
     for e in ERRORS_MM:
         row = []
@@ -94,15 +100,20 @@ def main(n: int = 7000) -> None:
                 m = predicted(f, n, e, noise=noise)
                 row += [float(np.median(m.translation_rms_mm)), float(np.median(m.rotation_rms_deg))]
         res[e] = row
-        print(f"{e:13.2f} | {row[0]:18.3f} {row[1]:6.3f} {row[2]:10.3f} {row[3]:6.3f} | "
-              f"{row[4]:19.3f} {row[5]:6.3f} {row[6]:10.3f} {row[7]:6.3f}")
+        print(
+            f"{e:13.2f} | {row[0]:18.3f} {row[1]:6.3f} {row[2]:10.3f} {row[3]:6.3f} | "
+            f"{row[4]:19.3f} {row[5]:6.3f} {row[6]:10.3f} {row[7]:6.3f}"
+        )
     lin = res[3.0][2] / res[0.1][2]
     print(f"linearity: nine beads' translation at 3 mm / at 0.1 mm = {lin:.2f} (exactly linear: 30.00)")
     e1 = res[1.0]
-    print(f"\nat 1 mm: nine beads / FTRAC = × {e1[2] / e1[0]:.1f} in translation, × {e1[3] / e1[1]:.1f} in rotation "
-          f"(equal error); × {e1[6] / e1[4]:.1f} and × {e1[7] / e1[5]:.1f} with the Table V disparity")
+    print(
+        f"\nat 1 mm: nine beads / FTRAC = × {e1[2] / e1[0]:.1f} in translation, × {e1[3] / e1[1]:.1f} in rotation "
+        f"(equal error); × {e1[6] / e1[4]:.1f} and × {e1[7] / e1[5]:.1f} with the Table V disparity"
+    )
     # the bound is linear in e, so the 1 mm / 1° crossing is 1 / (error per mm of segmentation error)
     print("segmentation error (beads, mm) at which the predicted median reaches the paper's 1 mm / 1° mark:")
+
     def cross(per_mm: float) -> str:
         e = 1.0 / per_mm
         return f"{e:5.2f} mm" + (" (beyond the range: extrapolated)" if e > ERRORS_MM[-1] else "")
@@ -110,10 +121,11 @@ def main(n: int = 7000) -> None:
     for label, col in (("FTRAC, equal", 0), ("nine beads", 2), ("FTRAC, disparity", 4)):
         print(f"  {label:17s} 1 mm at {cross(e1[col])},  1° at {cross(e1[col + 1])}")
 
-    print(f"\nMonte-Carlo, {MC_N} images each, robust solver, no initial guess (3-D RMS; predicted medians "
-          f"above)")
-    print(f"{'seg. error mm':>13s} | {'equal: FTRAC t mm':>18s} {'r °':>6s} {'9 beads t mm':>13s} {'r °':>6s} | "
-          f"{'disparity: FTRAC t mm':>22s} {'r °':>6s} | {'not solved':>10s}")
+    print(f"\nMonte-Carlo, {MC_N} images each, robust solver, no initial guess (3-D RMS; predicted medians above)")
+    print(
+        f"{'seg. error mm':>13s} | {'equal: FTRAC t mm':>18s} {'r °':>6s} {'9 beads t mm':>13s} {'r °':>6s} | "
+        f"{'disparity: FTRAC t mm':>22s} {'r °':>6s} | {'not solved':>10s}"
+    )
     mc = {}
     for e in MC_ERRORS:
         seed = int(e * 100)
@@ -121,17 +133,23 @@ def main(n: int = 7000) -> None:
         b, b2 = monte_carlo(designs["nine_bead"], MC_N, e, seed=seed)
         c, b3 = monte_carlo_disparity(designs["ftrac_2005"], MC_N, e, seed=seed)
         mc[e] = rms3(a) + rms3(b) + rms3(c)
-        print(f"{e:13.2f} | {mc[e][0]:18.3f} {mc[e][1]:6.3f} {mc[e][2]:13.3f} {mc[e][3]:6.3f} | {mc[e][4]:22.3f} "
-              f"{mc[e][5]:6.3f} | {b1 + b2 + b3:10d}")
+        print(
+            f"{e:13.2f} | {mc[e][0]:18.3f} {mc[e][1]:6.3f} {mc[e][2]:13.3f} {mc[e][3]:6.3f} | {mc[e][4]:22.3f} "
+            f"{mc[e][5]:6.3f} | {b1 + b2 + b3:10d}"
+        )
 
-    print("\npaper (Fig. 8, >7000 poses): bead errors climb quickly to the 1 mm and 1° mark; FTRAC shows only a "
-          "marginal loss in accuracy even at high segmentation error.")
-    print(f"ours: the beads reach 1 mm at {1.0 / e1[2]:.2f} mm and 1° at {1.0 / e1[3]:.2f} mm of segmentation "
-          f"error, FTRAC (disparity) only at {1.0 / e1[4]:.2f} mm and (extrapolated) {1.0 / e1[5]:.1f} mm — the "
-          f"paper's picture. "
-          f"But no curve flattens: the predicted errors (and the solver's) grow in proportion to the "
-          f"segmentation error for both designs; FTRAC is lower by a constant factor (× {e1[2] / e1[0]:.1f} at "
-          f"equal error, × {e1[6] / e1[4]:.1f} with the disparity), not more robust in shape.")
+    print(
+        "\npaper (Fig. 8, >7000 poses): bead errors climb quickly to the 1 mm and 1° mark; FTRAC shows only a "
+        "marginal loss in accuracy even at high segmentation error."
+    )
+    print(
+        f"ours: the beads reach 1 mm at {1.0 / e1[2]:.2f} mm and 1° at {1.0 / e1[3]:.2f} mm of segmentation "
+        f"error, FTRAC (disparity) only at {1.0 / e1[4]:.2f} mm and (extrapolated) {1.0 / e1[5]:.1f} mm — the "
+        f"paper's picture. "
+        f"But no curve flattens: the predicted errors (and the solver's) grow in proportion to the "
+        f"segmentation error for both designs; FTRAC is lower by a constant factor (× {e1[2] / e1[0]:.1f} at "
+        f"equal error, × {e1[6] / e1[4]:.1f} with the disparity), not more robust in shape."
+    )
 
     import matplotlib
 

@@ -37,9 +37,14 @@ from ftrac_design.pose.simulate import Workspace, rotations_from_beams, segmenta
 from ftrac_design.reconstruct import Views, triangulate
 
 PAPER_TABLE = {  # (trial, images): mean, STD, min, max mm — paper Table IV
-    (1, 2): (0.55, 0.17, 0.20, 1.18), (1, 3): (0.50, 0.14, 0.19, 0.92), (1, 4): (0.48, 0.14, 0.19, 0.75),
-    (1, 5): (0.47, 0.14, 0.23, 0.67), (2, 2): (0.66, 0.25, 0.27, 1.70), (2, 3): (0.55, 0.16, 0.29, 1.13),
-    (2, 4): (0.53, 0.15, 0.30, 0.80), (2, 5): (0.52, 0.14, 0.33, 0.73),
+    (1, 2): (0.55, 0.17, 0.20, 1.18),
+    (1, 3): (0.50, 0.14, 0.19, 0.92),
+    (1, 4): (0.48, 0.14, 0.19, 0.75),
+    (1, 5): (0.47, 0.14, 0.23, 0.67),
+    (2, 2): (0.66, 0.25, 0.27, 1.70),
+    (2, 3): (0.55, 0.16, 0.29, 1.13),
+    (2, 4): (0.53, 0.15, 0.30, 0.80),
+    (2, 5): (0.52, 0.14, 0.33, 0.73),
 }
 E_MM = 0.25
 #: the uniform error whose RMS (e/√3 = 0.43 mm) is the phantom's bead residual (paper Table V)
@@ -54,7 +59,7 @@ def reconstruct_sets(features, R, t, rng, sets, with_seeds=True, e_mm=E_MM):
     ids = sorted(p.id for p in features.points)
     beads = np.array([{p.id: p.center for p in features.points}[i] for i in ids])
     out = {s: {"bead": [], "bead_sigma": [], "seed": [], "seed_sigma": []} for s in sets}
-    unsolved = int((~ok).sum())   # flagged poses (found, not converged) are used, as a user would
+    unsolved = int((~ok).sum())  # flagged poses (found, not converged) are used, as a user would
     for tr in range(T):
         idx = np.arange(tr * k, tr * k + k)
         S = seeds(rng, 5)
@@ -65,8 +70,13 @@ def reconstruct_sets(features, R, t, rng, sets, with_seeds=True, e_mm=E_MM):
             use = idx[list(s)]
             if not ok[use].all():
                 continue
-            v = Views.make(Re[use], te[use], np.array([cams[i].intrinsics for i in use]),
-                           max(e_mm, 0.1) / 6 ** 0.5 / CAM.pixel_size_mm[0], np.nan_to_num(cov[use]))
+            v = Views.make(
+                Re[use],
+                te[use],
+                np.array([cams[i].intrinsics for i in use]),
+                max(e_mm, 0.1) / 6**0.5 / CAM.pixel_size_mm[0],
+                np.nan_to_num(cov[use]),
+            )
             uv = np.concatenate([uv_b[list(s)], uv_s[list(s)]], 1) if with_seeds else uv_b[list(s)]
             tri = triangulate(v, uv)
             truth = np.vstack([beads, S]) if with_seeds else beads
@@ -96,8 +106,9 @@ def orthogonal_poses(features, rng, n, beams_deg):
         b = np.array([c * nominal[0] - s * nominal[1], s * nominal[0] + c * nominal[1], nominal[2]])
         out.append(rotations_from_beams(np.repeat(b[None], n, 0), rng.uniform(0, 2 * np.pi, n)))
     R = np.stack(out, 1)
-    t = np.concatenate([rng.uniform(-25, 25, (n, len(beams_deg), 2)),
-                        rng.uniform(642, 692, (n, len(beams_deg), 1))], -1)
+    t = np.concatenate(
+        [rng.uniform(-25, 25, (n, len(beams_deg), 2)), rng.uniform(642, 692, (n, len(beams_deg), 1))], -1
+    )
     return R, t
 
 
@@ -110,12 +121,13 @@ def main(trials: int = 400) -> None:
     sets = [tuple(range(k)) for k in (2, 3, 4, 5)]
     rows = []
     bad = 0
-    print(f"\n{'images':>24s} | {'paper trial 1':>24s} | {'paper trial 2':>24s} | ours (beads): mean STD min max p95 | "
-          f"σ pred. | ours (seeds 15 cm): mean p95, σ pred.")
+    print(
+        f"\n{'images':>24s} | {'paper trial 1':>24s} | {'paper trial 2':>24s} | ours (beads): mean STD min max p95 | "
+        f"σ pred. | ours (seeds 15 cm): mean p95, σ pred."
+    )
     for e_mm in (E_MM, PHANTOM_E_MM):
         R, t = Workspace(cone_deg=20.0).sample(5 * trials, features.nominal_beam_direction, rng)
-        res, b = reconstruct_sets(features, R.reshape(trials, 5, 3, 3), t.reshape(trials, 5, 3), rng, sets,
-                                  e_mm=e_mm)
+        res, b = reconstruct_sets(features, R.reshape(trials, 5, 3, 3), t.reshape(trials, 5, 3), rng, sets, e_mm=e_mm)
         bad += b
         print(f"segmentation error {e_mm} mm:")
         for s in sets:
@@ -123,43 +135,63 @@ def main(trials: int = 400) -> None:
             st = stats(res[s]["bead"])
             ss = stats(res[s]["seed"])
             p1, p2 = PAPER_TABLE[(1, k)], PAPER_TABLE[(2, k)]
-            rows.append((f"{k} within 20° of AP, e {e_mm}", st, ss, np.mean(res[s]["bead_sigma"]),
-                         np.mean(res[s]["seed_sigma"])))
-            print(f"{k:>3d} images within 20° of AP | {p1[0]:.2f} {p1[1]:.2f} {p1[2]:.2f} {p1[3]:.2f}      | "
-                  f"{p2[0]:.2f} {p2[1]:.2f} {p2[2]:.2f} {p2[3]:.2f}      | {st[0]:.2f} {st[1]:.2f} {st[2]:.2f} "
-                  f"{st[3]:.2f} {st[4]:.2f} | {np.mean(res[s]['bead_sigma']):.2f} | {ss[0]:.2f} {ss[4]:.2f}, "
-                  f"{np.mean(res[s]['seed_sigma']):.2f}")
+            rows.append(
+                (
+                    f"{k} within 20° of AP, e {e_mm}",
+                    st,
+                    ss,
+                    np.mean(res[s]["bead_sigma"]),
+                    np.mean(res[s]["seed_sigma"]),
+                )
+            )
+            print(
+                f"{k:>3d} images within 20° of AP | {p1[0]:.2f} {p1[1]:.2f} {p1[2]:.2f} {p1[3]:.2f}      | "
+                f"{p2[0]:.2f} {p2[1]:.2f} {p2[2]:.2f} {p2[3]:.2f}      | {st[0]:.2f} {st[1]:.2f} {st[2]:.2f} "
+                f"{st[3]:.2f} {st[4]:.2f} | {np.mean(res[s]['bead_sigma']):.2f} | {ss[0]:.2f} {ss[4]:.2f}, "
+                f"{np.mean(res[s]['seed_sigma']):.2f}"
+            )
     print(f"segmentation error {E_MM} mm:")
-    for name, beams in (("±45° (90° apart)", (-45.0, 45.0)), ("AP + lateral", (0.0, 90.0)),
-                        ("±10° (20° apart)", (-10.0, 10.0))):
+    for name, beams in (
+        ("±45° (90° apart)", (-45.0, 45.0)),
+        ("AP + lateral", (0.0, 90.0)),
+        ("±10° (20° apart)", (-10.0, 10.0)),
+    ):
         Ro, to = orthogonal_poses(features, rng, trials, beams)
         r2, b2 = reconstruct_sets(features, Ro, to, rng, [(0, 1)])
         bad += b2
         st, ss = stats(r2[(0, 1)]["bead"]), stats(r2[(0, 1)]["seed"])
         rows.append((f"2, {name}", st, ss, np.mean(r2[(0, 1)]["bead_sigma"]), np.mean(r2[(0, 1)]["seed_sigma"])))
-        print(f"{'2 images, ' + name:>24s} | {'':24s} | {'':24s} | {st[0]:.2f} {st[1]:.2f} {st[2]:.2f} {st[3]:.2f} "
-              f"{st[4]:.2f} | {np.mean(r2[(0, 1)]['bead_sigma']):.2f} | {ss[0]:.2f} {ss[4]:.2f}, "
-              f"{np.mean(r2[(0, 1)]['seed_sigma']):.2f} ({b2} images unsolved)")
+        print(
+            f"{'2 images, ' + name:>24s} | {'':24s} | {'':24s} | {st[0]:.2f} {st[1]:.2f} {st[2]:.2f} {st[3]:.2f} "
+            f"{st[4]:.2f} | {np.mean(r2[(0, 1)]['bead_sigma']):.2f} | {ss[0]:.2f} {ss[4]:.2f}, "
+            f"{np.mean(r2[(0, 1)]['seed_sigma']):.2f} ({b2} images unsolved)"
+        )
     print(f"paper overall: 0.53 mm (STD 0.16). Images not solved: {bad}. total {time.time() - t0:.0f} s")
     plot(rows)
 
 
 def plot(rows) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(10, 4.2))
     x = np.arange(len(rows))
-    ax.bar(x - 0.2, [r[1][0] for r in rows], 0.4, yerr=[r[1][1] for r in rows],
-           label="ours: the nine beads (mean ± STD)")
+    ax.bar(
+        x - 0.2, [r[1][0] for r in rows], 0.4, yerr=[r[1][1] for r in rows], label="ours: the nine beads (mean ± STD)"
+    )
     ax.bar(x + 0.2, [r[2][0] for r in rows], 0.4, yerr=[r[2][1] for r in rows], label="ours: seeds 15 cm away")
-    ax.plot(x - 0.2, [r[3] for r in rows], "k_", ms=20,
-            label="propagated σ (√trace Σ_P), beads")
+    ax.plot(x - 0.2, [r[3] for r in rows], "k_", ms=20, label="propagated σ (√trace Σ_P), beads")
     for off in (0, 4):
         for k in range(4):
-            ax.plot([off + k - 0.35, off + k - 0.05], [PAPER_TABLE[(1, k + 2)][0]] * 2, "r-", lw=2,
-                    label="paper phantom, trial 1 / 2" if k == off == 0 else None)
+            ax.plot(
+                [off + k - 0.35, off + k - 0.05],
+                [PAPER_TABLE[(1, k + 2)][0]] * 2,
+                "r-",
+                lw=2,
+                label="paper phantom, trial 1 / 2" if k == off == 0 else None,
+            )
             ax.plot([off + k - 0.35, off + k - 0.05], [PAPER_TABLE[(2, k + 2)][0]] * 2, "r--", lw=2)
     ax.set_xticks(x, [r[0] for r in rows], rotation=15, fontsize=8)
     ax.set_ylabel("3-D reconstruction error (mm)")

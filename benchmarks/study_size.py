@@ -45,8 +45,14 @@ FOCAL_ONLY = CalibrationError(focal_mm=PAPER_CALIBRATION_ERROR.focal_mm)
 def _summary(m) -> tuple[float, ...]:
     """t median, t p95, tz median, tz p95 (mm), r median, r p95 (deg) of PoseMetrics."""
     t, tz, r = m.translation_rms_mm, m.translation_std_mm[:, 2], m.rotation_rms_deg
-    return (np.median(t), np.percentile(t, 95), np.median(tz), np.percentile(tz, 95),
-            np.median(r), np.percentile(r, 95))
+    return (
+        np.median(t),
+        np.percentile(t, 95),
+        np.median(tz),
+        np.percentile(tz, 95),
+        np.median(r),
+        np.percentile(r, 95),
+    )
 
 
 def _mc(f, seed: int) -> dict[str, tuple[float, float]]:
@@ -63,8 +69,7 @@ def _mc(f, seed: int) -> dict[str, tuple[float, float]]:
 def main(n: int = 8000) -> None:
     base = load("ftrac_2005")
     print(f"machine: {machine()}")
-    print(f"\npredicted 1σ over {n} workspace poses, segmentation error {E_MM} mm "
-          f"(t, r: 3-D RMS; tz: depth, camera z)")
+    print(f"\npredicted 1σ over {n} workspace poses, segmentation error {E_MM} mm (t, r: 3-D RMS; tz: depth, camera z)")
     head = ("t median", "t p95", "tz median", "tz p95", "r median °", "r p95 °")
     print(f"{'fiducial':24s} " + " ".join(f"{h:>10s}" for h in head))
     rows = {}
@@ -74,44 +79,58 @@ def main(n: int = 8000) -> None:
     mini_f = load("ftrac_mini")
     mini = _summary(predicted(mini_f, n, E_MM))
     print(f"{'ftrac_mini (Ø10 × 20)':24s} " + " ".join(f"{v:10.3f}" for v in mini))
-    print(f"\nØ10 vs Ø30 (predicted medians): translation × {rows[10][0] / rows[30][0]:.2f}, depth × "
-          f"{rows[10][2] / rows[30][2]:.2f}, rotation × {rows[10][4] / rows[30][4]:.2f} "
-          f"(1/size would give × 3.00)")
-    print(f"Ø30 vs Ø50 (predicted medians): translation × {rows[30][0] / rows[50][0]:.2f}, depth × "
-          f"{rows[30][2] / rows[50][2]:.2f}, rotation × {rows[30][4] / rows[50][4]:.2f} "
-          f"(1/size would give × 1.67; a plateau × 1.00)")
-    print(f"ftrac_mini vs ftrac_2005: translation × {mini[0] / rows[30][0]:.2f}, rotation × "
-          f"{mini[4] / rows[30][4]:.2f}")
+    print(
+        f"\nØ10 vs Ø30 (predicted medians): translation × {rows[10][0] / rows[30][0]:.2f}, depth × "
+        f"{rows[10][2] / rows[30][2]:.2f}, rotation × {rows[10][4] / rows[30][4]:.2f} "
+        f"(1/size would give × 3.00)"
+    )
+    print(
+        f"Ø30 vs Ø50 (predicted medians): translation × {rows[30][0] / rows[50][0]:.2f}, depth × "
+        f"{rows[30][2] / rows[50][2]:.2f}, rotation × {rows[30][4] / rows[50][4]:.2f} "
+        f"(1/size would give × 1.67; a plateau × 1.00)"
+    )
+    print(
+        f"ftrac_mini vs ftrac_2005: translation × {mini[0] / rows[30][0]:.2f}, rotation × {mini[4] / rows[30][4]:.2f}"
+    )
 
     print(f"\nMonte-Carlo, {MC_N} images per cell, robust solver, no initial guess (3-D RMS, t mm / r °)")
-    print(f"{'fiducial':12s} {'predicted t':>11s} | {'seg. only':>15s} | {'+ paper C-arm errors':>20s} | "
-          f"{'+ focal ±2 mm only':>18s} | {'not solved':>10s}")
+    print(
+        f"{'fiducial':12s} {'predicted t':>11s} | {'seg. only':>15s} | {'+ paper C-arm errors':>20s} | "
+        f"{'+ focal ±2 mm only':>18s} | {'not solved':>10s}"
+    )
     mc = {}
     for key, f, seed in [*((d, base.scaled(d / 30.0), d) for d in MC_DIAMETERS), ("mini", mini_f, 7)]:
         mc[key] = _mc(f, seed)
         pred_t = float(np.sqrt(np.mean(predicted(f, MC_N, E_MM, seed=seed).translation_rms_mm ** 2)))
         label = f"Ø{key}" if key != "mini" else "ftrac_mini"
-        cells = " | ".join(f"{mc[key][k][0]:{w - 8}.3f} / {mc[key][k][1]:5.3f}"
-                           for k, w in (("seg", 15), ("carm", 20), ("focal", 18)))
+        cells = " | ".join(
+            f"{mc[key][k][0]:{w - 8}.3f} / {mc[key][k][1]:5.3f}" for k, w in (("seg", 15), ("carm", 20), ("focal", 18))
+        )
         print(f"{label:12s} {pred_t:11.3f} | {cells} | {mc[key]['refused']:10d}")
     c = {k: mc[k]["carm"] for k in mc}
-    print(f"\nwith the paper's C-arm errors: Ø10 / Ø30 translation × {c[10][0] / c[30][0]:.2f}, rotation × "
-          f"{c[10][1] / c[30][1]:.2f}; Ø30 / Ø50 translation × {c[30][0] / c[50][0]:.2f}, rotation × "
-          f"{c[30][1] / c[50][1]:.2f}; ftrac_mini / Ø30 translation × {c['mini'][0] / c[30][0]:.2f}, "
-          f"rotation × {c['mini'][1] / c[30][1]:.2f}")
+    print(
+        f"\nwith the paper's C-arm errors: Ø10 / Ø30 translation × {c[10][0] / c[30][0]:.2f}, rotation × "
+        f"{c[10][1] / c[30][1]:.2f}; Ø30 / Ø50 translation × {c[30][0] / c[50][0]:.2f}, rotation × "
+        f"{c[30][1] / c[50][1]:.2f}; ftrac_mini / Ø30 translation × {c['mini'][0] / c[30][0]:.2f}, "
+        f"rotation × {c['mini'][1] / c[30][1]:.2f}"
+    )
 
-    print("\npaper (Fig. 7e, 8000 poses, C-arm errors on): the error plateaus at 30 mm, a bigger fiducial does "
-          "not improve it; 1 × 1 × 2 cm loses only marginally.")
+    print(
+        "\npaper (Fig. 7e, 8000 poses, C-arm errors on): the error plateaus at 30 mm, a bigger fiducial does "
+        "not improve it; 1 × 1 × 2 cm loses only marginally."
+    )
     # the calibration floor: what the C-arm errors add on top of segmentation, in quadrature
     floor = np.sqrt(c[50][0] ** 2 - mc[50]["seg"][0] ** 2)
     focal = np.sqrt(max(mc[50]["focal"][0] ** 2 - mc[50]["seg"][0] ** 2, 0.0))
-    print(f"ours: with segmentation error alone the bound and the solver fall as 1/size (depth included) — no "
-          f"plateau, and 1 × 1 × 2 cm is about × {mini[0] / rows[30][0]:.1f} worse than Ø30. The paper's C-arm "
-          f"errors add a size-independent translation floor ({floor:.2f} mm in quadrature at Ø50, of which the "
-          f"focal-length error alone gives {focal:.2f} mm), which flattens the translation curve above 30 mm; "
-          f"rotation keeps improving with size even with them (Ø30 → Ø50: × {c[30][1] / c[50][1]:.2f}), and the "
-          f"small fiducial still costs × {c['mini'][0] / c[30][0]:.1f} in translation and "
-          f"× {c['mini'][1] / c[30][1]:.1f} in rotation.")
+    print(
+        f"ours: with segmentation error alone the bound and the solver fall as 1/size (depth included) — no "
+        f"plateau, and 1 × 1 × 2 cm is about × {mini[0] / rows[30][0]:.1f} worse than Ø30. The paper's C-arm "
+        f"errors add a size-independent translation floor ({floor:.2f} mm in quadrature at Ø50, of which the "
+        f"focal-length error alone gives {focal:.2f} mm), which flattens the translation curve above 30 mm; "
+        f"rotation keeps improving with size even with them (Ø30 → Ø50: × {c[30][1] / c[50][1]:.2f}), and the "
+        f"small fiducial still costs × {c['mini'][0] / c[30][0]:.1f} in translation and "
+        f"× {c['mini'][1] / c[30][1]:.1f} in rotation."
+    )
 
     import matplotlib
 
@@ -121,16 +140,23 @@ def main(n: int = 8000) -> None:
     fig, axs = plt.subplots(1, 2, figsize=(11, 4))
     d = np.array(DIAMETERS)
     for ax, col, k, label in ((axs[0], 0, 0, "translation, mm"), (axs[1], 4, 1, "rotation, deg")):
-        ax.plot(d, [rows[x][col] for x in DIAMETERS], "o-", color="tab:blue",
-                label="predicted median (segmentation only)")
+        ax.plot(
+            d, [rows[x][col] for x in DIAMETERS], "o-", color="tab:blue", label="predicted median (segmentation only)"
+        )
         ax.plot(d, [rows[x][col + 1] for x in DIAMETERS], "o--", color="tab:blue", mfc="none", label="predicted p95")
         ax.plot(MC_DIAMETERS, [mc[x]["seg"][k] for x in MC_DIAMETERS], "ks", label="solver, segmentation only")
         ax.plot(MC_DIAMETERS, [mc[x]["carm"][k] for x in MC_DIAMETERS], "r^-", label="solver, + paper C-arm errors")
-        ax.plot(MC_DIAMETERS, [mc[x]["focal"][k] for x in MC_DIAMETERS], "v:", color="tab:orange",
-                label="solver, + focal ±2 mm only")
+        ax.plot(
+            MC_DIAMETERS,
+            [mc[x]["focal"][k] for x in MC_DIAMETERS],
+            "v:",
+            color="tab:orange",
+            label="solver, + focal ±2 mm only",
+        )
         ax.plot([10], [mini[col]], "D", color="tab:purple", label="ftrac_mini preset (predicted median)")
-        ax.plot([10], [mc["mini"]["carm"][k]], "D", mfc="none", color="tab:red",
-                label="ftrac_mini, solver + C-arm errors")
+        ax.plot(
+            [10], [mc["mini"]["carm"][k]], "D", mfc="none", color="tab:red", label="ftrac_mini, solver + C-arm errors"
+        )
         ax.set_xlabel("fiducial outer diameter, mm (configuration of ftrac_2005 scaled)")
         ax.set_ylabel(f"3-D RMS {label}")
         ax.set_yscale("log")

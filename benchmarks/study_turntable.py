@@ -47,7 +47,7 @@ PAPER_TABLE = {  # trial: (images, tX, tY, tZ mm, rX, rY, rZ deg)
     4: (7, 0.05, 0.02, 0.52, 0.17, 0.17, 0.11),
     5: (13, 0.08, 0.10, 0.60, 0.40, 0.40, 0.15),
 }
-PAPER_MEAN = (0.56, 0.33, 0.33, 0.21)   # translation mean, STD mm; rotation mean, STD deg
+PAPER_MEAN = (0.56, 0.33, 0.33, 0.21)  # translation mean, STD mm; rotation mean, STD deg
 #: (calibration shared by the trial's images, segmentation error mm): the paper's simulation
 #: default; its calibration error drawn per image instead; and 0.75 mm — the uniform error
 #: whose RMS (e/√3 = 0.43 mm) is the phantom's bead residual (paper Table V)
@@ -58,8 +58,9 @@ TRIALS = {
     2: [(0.0, b) for b in _S],
     3: [(a, 0.0) for a in _S],
     4: [(a, a) for a in _S],
-    5: [(0.0, 0.0)] + [(a, b) for a in (-10.0, 0.0, 10.0) for b in (-10.0, 0.0, 10.0) if (a, b) != (0.0, 0.0)]
-       + [(15.0, 0.0), (-15.0, 0.0), (0.0, 15.0), (0.0, -15.0)],
+    5: [(0.0, 0.0)]
+    + [(a, b) for a in (-10.0, 0.0, 10.0) for b in (-10.0, 0.0, 10.0) if (a, b) != (0.0, 0.0)]
+    + [(15.0, 0.0), (-15.0, 0.0), (0.0, 15.0), (0.0, -15.0)],
 }
 
 
@@ -75,8 +76,8 @@ def run_trial(features, angles, reps, rng, shared: bool, e_mm: float):
     G = turntable(angles)
     k = len(angles)
     R0, t0 = Workspace(cone_deg=10.0).sample(reps, features.nominal_beam_direction, rng)
-    R = np.einsum("kij,rjl->rkil", G, R0)                    # (reps, k, 3, 3): R_k = G R_0
-    t = np.repeat(t0[:, None], k, 1)                          # zero displacement of the origin
+    R = np.einsum("kij,rjl->rkil", G, R0)  # (reps, k, 3, 3): R_k = G R_0
+    t = np.repeat(t0[:, None], k, 1)  # zero displacement of the origin
     cams = []
     for _ in range(reps):
         if shared:
@@ -87,8 +88,8 @@ def run_trial(features, angles, reps, rng, shared: bool, e_mm: float):
     Re, te, ok, _, _, flagged = solve_images(features, R.reshape(-1, 3, 3), t.reshape(-1, 3), e_mm, rng, cams)
     Re, te, ok = Re.reshape(reps, k, 3, 3), te.reshape(reps, k, 3), ok.reshape(reps, k)
     G_est = Re[:, 1:] @ np.swapaxes(Re[:, :1], -1, -2)
-    G_rel = G[1:] @ G[0].T                                    # known motion from the trial's first image
-    rot = np.degrees(so3.log(G_est @ np.swapaxes(G_rel[None], -1, -2)))         # (reps, k-1, 3)
+    G_rel = G[1:] @ G[0].T  # known motion from the trial's first image
+    rot = np.degrees(so3.log(G_est @ np.swapaxes(G_rel[None], -1, -2)))  # (reps, k-1, 3)
     tra = te[:, 1:] - te[:, :1]
     good = ok[:, 1:] & ok[:, :1]
     return tra[good], rot[good], f"{int((~ok).sum())}/{flagged}"
@@ -106,35 +107,53 @@ def main(reps: int = 200) -> None:
         rows = []
         for trial, angles in tqdm(TRIALS.items(), desc=f"{'shared' if shared else 'per-image'} calibration, e {e_mm}"):
             tra, rot, bad = run_trial(features, angles, reps, rng, shared, e_mm)
-            rows.append((trial, len(angles), np.abs(tra).mean(0), np.abs(rot).mean(0),
-                         np.linalg.norm(tra, axis=1), np.linalg.norm(rot, axis=1), bad))
+            rows.append(
+                (
+                    trial,
+                    len(angles),
+                    np.abs(tra).mean(0),
+                    np.abs(rot).mean(0),
+                    np.linalg.norm(tra, axis=1),
+                    np.linalg.norm(rot, axis=1),
+                    bad,
+                )
+            )
         out[setting] = rows
     head = f"{'trial':>5s} {'images':>6s} | {'tX':>5s} {'tY':>5s} {'tZ':>5s} mm | {'rX':>5s} {'rY':>5s} {'rZ':>5s} °"
     print(f"\npaper (phantom, real C-arm):\n{head}")
     for trial, (n, *v) in PAPER_TABLE.items():
         print(f"{trial:5d} {n:6d} | {v[0]:5.2f} {v[1]:5.2f} {v[2]:5.2f}    | {v[3]:5.2f} {v[4]:5.2f} {v[5]:5.2f}")
-    print(f"paper overall: translation {PAPER_MEAN[0]:.2f} mm (STD {PAPER_MEAN[1]:.2f}), rotation {PAPER_MEAN[2]:.2f}° "
-          f"(STD {PAPER_MEAN[3]:.2f})")
+    print(
+        f"paper overall: translation {PAPER_MEAN[0]:.2f} mm (STD {PAPER_MEAN[1]:.2f}), rotation {PAPER_MEAN[2]:.2f}° "
+        f"(STD {PAPER_MEAN[3]:.2f})"
+    )
     for (shared, e_mm), rows in out.items():
-        print(f"\nours, segmentation error {e_mm} mm, calibration error "
-              f"{'shared by the trial (one C-arm)' if shared else 'drawn per image'}:\n{head}"
-              f" | 3-D mm  3-D ° | unsolved/flagged")
+        print(
+            f"\nours, segmentation error {e_mm} mm, calibration error "
+            f"{'shared by the trial (one C-arm)' if shared else 'drawn per image'}:\n{head}"
+            f" | 3-D mm  3-D ° | unsolved/flagged"
+        )
         for trial, n, tm, rm, tn, rn, bad in rows:
-            print(f"{trial:5d} {n:6d} | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    "
-                  f"| {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}   | {tn.mean():6.2f} {rn.mean():6.2f} | {bad}")
+            print(
+                f"{trial:5d} {n:6d} | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    "
+                f"| {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}   | {tn.mean():6.2f} {rn.mean():6.2f} | {bad}"
+            )
         tn = np.concatenate([r[4] for r in rows])
         rn = np.concatenate([r[5] for r in rows])
         tm = np.mean([r[2] for r in rows], 0)
         rm = np.mean([r[3] for r in rows], 0)
         print(f" mean        | {tm[0]:5.2f} {tm[1]:5.2f} {tm[2]:5.2f}    | {rm[0]:5.2f} {rm[1]:5.2f} {rm[2]:5.2f}")
-        print(f"overall: translation {tn.mean():.2f} mm (STD {tn.std():.2f}), "
-              f"rotation {rn.mean():.2f}° (STD {rn.std():.2f}); {len(tn)} relative motions")
+        print(
+            f"overall: translation {tn.mean():.2f} mm (STD {tn.std():.2f}), "
+            f"rotation {rn.mean():.2f}° (STD {rn.std():.2f}); {len(tn)} relative motions"
+        )
     print(f"\ntotal {time.time() - t_start:.0f} s")
     plot(out)
 
 
 def plot(out) -> None:
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -142,13 +161,22 @@ def plot(out) -> None:
     x = np.arange(3)
     paper = np.mean([v[1:] for v in PAPER_TABLE.values()], 0)
     for j, (ax, unit, sl) in enumerate(zip(axes, ("mm", "deg"), (slice(0, 3), slice(3, 6)))):
-        ax.bar(x - 0.4 + 0.8 / (len(out) + 1) / 2, paper[sl], 0.8 / (len(out) + 1),
-               label="paper, phantom (Table III mean)", color="0.6")
+        ax.bar(
+            x - 0.4 + 0.8 / (len(out) + 1) / 2,
+            paper[sl],
+            0.8 / (len(out) + 1),
+            label="paper, phantom (Table III mean)",
+            color="0.6",
+        )
         w = 0.8 / (len(out) + 1)
         for k, ((shared, e_mm), rows) in enumerate(out.items()):
             m = np.mean([r[2 + j] for r in rows], 0)
-            ax.bar(x - 0.4 + w * (k + 1.5), m, w,
-                   label=f"ours, e = {e_mm} mm, calibration {'shared' if shared else 'per image'}")
+            ax.bar(
+                x - 0.4 + w * (k + 1.5),
+                m,
+                w,
+                label=f"ours, e = {e_mm} mm, calibration {'shared' if shared else 'per image'}",
+            )
         ax.set_xticks(x, ["X", "Y", "Z"])
         ax.set_ylabel(f"mean |error| ({unit})")
         ax.set_title(f"relative {'translation' if j == 0 else 'rotation'} on the turntable")

@@ -87,8 +87,19 @@ def _needle(rng, features):
     return Occluder(tuple(c - 60 * d), tuple(c + 60 * d))
 
 
-def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_strength=1.0, needle=False,
-        truncate_px=None, label="", intensity=0):
+def run(
+    name,
+    n,
+    seed,
+    background,
+    use_body=True,
+    imaging=ImagingModel(),
+    bg_strength=1.0,
+    needle=False,
+    truncate_px=None,
+    label="",
+    intensity=0,
+):
     design = load_design(name)  # a design file, or a preset by name
     features = compute_features(design)
     body = Body.from_design(design)
@@ -110,15 +121,17 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
         rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg, body=body, occluders=occ)
         t0 = time.perf_counter()
         # the simulator's camera is a pinhole: no distortion term in the covariance
-        tr = track_image(rad.raw, features, cam, TrackOptions(distortion_prior_mm=0.0),
-                         body=body if use_body else None)
+        tr = track_image(rad.raw, features, cam, TrackOptions(distortion_prior_mm=0.0), body=body if use_body else None)
         times.append(time.perf_counter() - t0)
         p = tr.pose
         if tr.observation is not None:
             truth = rad.truth["projected"]
             obs = tr.observation
-            ok = (all(f in truth["points"] for f in obs.points) and all(f in truth["lines"] for f in obs.lines)
-                  and all(f in truth["ellipses"] for f in obs.ellipses))
+            ok = (
+                all(f in truth["points"] for f in obs.points)
+                and all(f in truth["lines"] for f in obs.lines)
+                and all(f in truth["ellipses"] for f in obs.ellipses)
+            )
             if ok:
                 for key, v in residuals(obs, truth, pix).items():
                     res_all[key] += v
@@ -139,8 +152,12 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
         vf = math.sqrt(tr.diagnostics.get("variance_factor") or 1.0)
         noise.append([vf * tr.noise.point_mm, vf * tr.noise.line_mm, vf * tr.noise.ellipse_mm])
         obs = tr.observation
-        counts.append([np.median([len(c.points) for c in obs.lines.values()]) if obs.lines else np.nan,
-                       np.median([len(c.points) for c in obs.ellipses.values()]) if obs.ellipses else np.nan])
+        counts.append(
+            [
+                np.median([len(c.points) for c in obs.lines.values()]) if obs.lines else np.nan,
+                np.median([len(c.points) for c in obs.ellipses.values()]) if obs.ellipses else np.nan,
+            ]
+        )
         n_ell[len(obs.ellipses)] += 1
         conv_idx.append(k)
         if len(inten["cpu"]) < intensity:
@@ -159,41 +176,61 @@ def run(name, n, seed, background, use_body=True, imaging=ImagingModel(), bg_str
     if len(conv_idx) and features.points:
         nm = np.nanmedian(np.array(noise), 0)
         cnt = np.nanmedian(np.array(counts), 0)
-        cs = ContourSampling(ellipse=int(cnt[1]) if np.isfinite(cnt[1]) else 24,
-                             line=int(cnt[0]) if np.isfinite(cnt[0]) else 12)
+        cs = ContourSampling(
+            ellipse=int(cnt[1]) if np.isfinite(cnt[1]) else 24, line=int(cnt[0]) if np.isfinite(cnt[0]) else 12
+        )
         an = analyse_poses(features, R[conv_idx], t[conv_idx], cam, NoiseModel(*nm), cs, detail=False)
         sd = np.c_[np.degrees(an.overall.rotation_std_rad), an.overall.translation_std_mm]
-        cr = np.sqrt(np.mean(sd ** 2, 0))
+        cr = np.sqrt(np.mean(sd**2, 0))
 
     def rms(v):
         return float(np.sqrt(np.mean(np.square(v)))) if len(v) else float("nan")
+
     m = len(perr)
-    return {"n": n, "wrong": wrong, "overconfident": overconf, "not_converged": notconv, "reasons": dict(reasons),
-            "rms_mm": {k: rms(res_all[k]) for k in ("point", "line", "ellipse")},
-            "ellipse_shrink_px": float(np.mean(res_all["ellipse_signed"])) if res_all["ellipse_signed"] else math.nan,
-            "ellipses_used": dict(sorted(n_ell.items())),
-            "pose_errors": perr, "right_index": np.array(conv_idx, int),
-            "pose_rms": np.sqrt(np.mean(perr ** 2, 0)) if m else np.full(6, np.nan),
-            "pose_bias": np.mean(perr, 0) if m else np.full(6, np.nan),
-            "pose_bias_se": np.std(perr, 0, ddof=1) / math.sqrt(m) if m > 1 else np.full(6, np.nan),
-            "pose_sd_pred": np.sqrt(np.mean(psd ** 2, 0)) if m else np.full(6, np.nan),
-            "cr": cr, "noise_mm": np.nanmedian(np.array(noise), 0) if noise else np.full(3, np.nan),
-            "median_ms": 1000 * float(np.median(times)), "converged": m + len(wrong),
-            "intensity": inten if inten["cpu"] else None}
+    return {
+        "n": n,
+        "wrong": wrong,
+        "overconfident": overconf,
+        "not_converged": notconv,
+        "reasons": dict(reasons),
+        "rms_mm": {k: rms(res_all[k]) for k in ("point", "line", "ellipse")},
+        "ellipse_shrink_px": float(np.mean(res_all["ellipse_signed"])) if res_all["ellipse_signed"] else math.nan,
+        "ellipses_used": dict(sorted(n_ell.items())),
+        "pose_errors": perr,
+        "right_index": np.array(conv_idx, int),
+        "pose_rms": np.sqrt(np.mean(perr**2, 0)) if m else np.full(6, np.nan),
+        "pose_bias": np.mean(perr, 0) if m else np.full(6, np.nan),
+        "pose_bias_se": np.std(perr, 0, ddof=1) / math.sqrt(m) if m > 1 else np.full(6, np.nan),
+        "pose_sd_pred": np.sqrt(np.mean(psd**2, 0)) if m else np.full(6, np.nan),
+        "cr": cr,
+        "noise_mm": np.nanmedian(np.array(noise), 0) if noise else np.full(3, np.nan),
+        "median_ms": 1000 * float(np.median(times)),
+        "converged": m + len(wrong),
+        "intensity": inten if inten["cpu"] else None,
+    }
 
 
 def show(label, r):
     w = r["wrong"]
-    print(f"\n{label}: {r['n']} images — WRONG confident poses {len(w)} (target 0){' ' + str(w[:20]) if w else ''}; "
-          f"converged {r['converged']}, not converged {r['not_converged']} {r['reasons'] or ''}")
-    print(f"  overconfident (right but χ²₆ of the error vs its covariance > 25.7): {len(r['overconfident'])}"
-          f"{' ' + str(r['overconfident'][:20]) if r['overconfident'] else ''}")
+    print(
+        f"\n{label}: {r['n']} images — WRONG confident poses {len(w)} (target 0){' ' + str(w[:20]) if w else ''}; "
+        f"converged {r['converged']}, not converged {r['not_converged']} {r['reasons'] or ''}"
+    )
+    print(
+        f"  overconfident (right but χ²₆ of the error vs its covariance > 25.7): {len(r['overconfident'])}"
+        f"{' ' + str(r['overconfident'][:20]) if r['overconfident'] else ''}"
+    )
     m = r["rms_mm"]
-    print(f"  segmentation RMS at the detector, mm: points {m['point']:.3f}  lines {m['line']:.3f}  ellipses "
-          f"{m['ellipse']:.3f}   (paper Table V: 0.43 / 0.19 / 0.13; target ≤ 0.1)")
-    print(f"  ellipses used per converged image {r['ellipses_used']}; mean signed ellipse distance (+ = inside) "
-          f"{r['ellipse_shrink_px']:+.3f} px; noise model × √variance factor (median) point/line/ellipse "
-          + " ".join(f"{x:.3f}" for x in r["noise_mm"]) + " mm")
+    print(
+        f"  segmentation RMS at the detector, mm: points {m['point']:.3f}  lines {m['line']:.3f}  ellipses "
+        f"{m['ellipse']:.3f}   (paper Table V: 0.43 / 0.19 / 0.13; target ≤ 0.1)"
+    )
+    print(
+        f"  ellipses used per converged image {r['ellipses_used']}; mean signed ellipse distance (+ = inside) "
+        f"{r['ellipse_shrink_px']:+.3f} px; noise model × √variance factor (median) point/line/ellipse "
+        + " ".join(f"{x:.3f}" for x in r["noise_mm"])
+        + " mm"
+    )
     print("                                 " + "  ".join(f"{a:>8s}" for a in AXES) + "   (° and mm)")
     print("  pose error RMS               : " + "  ".join(f"{x:8.4f}" for x in r["pose_rms"]))
     print("  pose error mean              : " + "  ".join(f"{x:+8.4f}" for x in r["pose_bias"]))
@@ -207,20 +244,30 @@ def show(label, r):
         e_i, lo, hi = efficiency(it["z_int"])
         e_f, lo_f, hi_f = efficiency(it["z_feat"])
         m = len(it["cpu"])
-        print(f"  intensity path on the first {m} right images (refine_intensity defaults from the feature pose; "
-              f"background models {dict(it['models'])}), vs the pixel-level bound:")
-        print("  efficiency, intensity path   : " + "  ".join(f"{x:8.2f}" for x in e_i)
-              + f"   (target ≥ 0.9: {'met' if np.all(e_i >= 0.9) else 'missed'})")
+        print(
+            f"  intensity path on the first {m} right images (refine_intensity defaults from the feature pose; "
+            f"background models {dict(it['models'])}), vs the pixel-level bound:"
+        )
+        print(
+            "  efficiency, intensity path   : "
+            + "  ".join(f"{x:8.2f}" for x in e_i)
+            + f"   (target ≥ 0.9: {'met' if np.all(e_i >= 0.9) else 'missed'})"
+        )
         print("    95 % interval              : " + " ".join(f"{a:.2g}–{b:.2g}".rjust(9) for a, b in zip(lo, hi)))
         print("  efficiency, feature path     : " + "  ".join(f"{x:8.4f}" for x in e_f))
         print("    95 % interval              : " + " ".join(f"{a:.2g}–{b:.2g}".rjust(9) for a, b in zip(lo_f, hi_f)))
         zq_i, zq_f = np.array(it["zq_int"]), np.array(it["zq_feat"])
-        print("  RMS error / quadratic bound  : intensity "
-              + " ".join(f"{x:.2f}" for x in np.sqrt(np.mean(zq_i ** 2, 0)))
-              + "; features " + " ".join(f"{x:.1f}" for x in np.sqrt(np.mean(zq_f ** 2, 0))))
+        print(
+            "  RMS error / quadratic bound  : intensity "
+            + " ".join(f"{x:.2f}" for x in np.sqrt(np.mean(zq_i**2, 0)))
+            + "; features "
+            + " ".join(f"{x:.1f}" for x in np.sqrt(np.mean(zq_f**2, 0)))
+        )
         cpu = 1e3 * np.array(it["cpu"])
-        print(f"  refinement CPU time per image: median {np.median(cpu):.0f} ms, max {cpu.max():.0f} ms "
-              f"(target ≤ 1 s); ended above its start's objective: {it['worse']}")
+        print(
+            f"  refinement CPU time per image: median {np.median(cpu):.0f} ms, max {cpu.max():.0f} ms "
+            f"(target ≤ 1 s); ended above its start's objective: {it['worse']}"
+        )
 
 
 def main():
@@ -230,18 +277,37 @@ def main():
     ap.add_argument("--n-nine", type=int, default=300)
     ap.add_argument("--n-sweep", type=int, default=20, help="images per sweep setting (0: no sweeps)")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--intensity", type=int, default=30,
-                    help="refine the first N right poses of each preset run on the intensities and compare both "
-                         "paths with the pixel-level bound (0: off)")
-    ap.add_argument("--background", choices=("both", "none", "anatomy"), default="both",
-                    help="the preset runs without / with the anatomy background, or both")
-    ap.add_argument("--only", choices=("all", "presets", "sweeps", "ftrac_2005", "small"), default="all",
-                    help="presets: the three presets; ftrac_2005 / small: that one / ftrac_mini and nine_bead")
+    ap.add_argument(
+        "--intensity",
+        type=int,
+        default=30,
+        help="refine the first N right poses of each preset run on the intensities and compare both "
+        "paths with the pixel-level bound (0: off)",
+    )
+    ap.add_argument(
+        "--background",
+        choices=("both", "none", "anatomy"),
+        default="both",
+        help="the preset runs without / with the anatomy background, or both",
+    )
+    ap.add_argument(
+        "--only",
+        choices=("all", "presets", "sweeps", "ftrac_2005", "small"),
+        default="all",
+        help="presets: the three presets; ftrac_2005 / small: that one / ftrac_mini and nine_bead",
+    )
     a = ap.parse_args()
-    print("track_accuracy: rendered workspace images, default imaging model "
-          f"({ImagingModel()}), machine shared with other jobs")
-    todo = {"all": ("ftrac_2005", "ftrac_mini", "nine_bead"), "presets": ("ftrac_2005", "ftrac_mini", "nine_bead"),
-            "ftrac_2005": ("ftrac_2005",), "small": ("ftrac_mini", "nine_bead"), "sweeps": ()}[a.only]
+    print(
+        "track_accuracy: rendered workspace images, default imaging model "
+        f"({ImagingModel()}), machine shared with other jobs"
+    )
+    todo = {
+        "all": ("ftrac_2005", "ftrac_mini", "nine_bead"),
+        "presets": ("ftrac_2005", "ftrac_mini", "nine_bead"),
+        "ftrac_2005": ("ftrac_2005",),
+        "small": ("ftrac_mini", "nine_bead"),
+        "sweeps": (),
+    }[a.only]
     for name, n in (("ftrac_2005", a.n_2005), ("ftrac_mini", a.n_mini), ("nine_bead", a.n_nine)):
         if n <= 0 or name not in todo:
             continue
@@ -249,24 +315,48 @@ def main():
             lab = f"{name}{' with anatomy background' if bg else ''}"
             show(lab, run(name, n, a.seed, bg, label=lab, intensity=a.intensity))
     if "ftrac_2005" in todo and a.n_2005 > 0 and a.background != "anatomy":
-        show("ftrac_2005 WITHOUT the modelled-body subtraction (blur bias left in)",
-             run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False, label="no body"))
+        show(
+            "ftrac_2005 WITHOUT the modelled-body subtraction (blur bias left in)",
+            run("ftrac_2005", min(a.n_2005, 100), a.seed, False, use_body=False, label="no body"),
+        )
     if a.n_sweep > 0 and a.only in ("all", "sweeps"):
         n = a.n_sweep
         print(f"\nSweeps (ftrac_2005, {n} images each; where it breaks):")
         for dose in (300, 1e3, 3e3, 1e5):
-            show(f"photons/px {dose:g}", run("ftrac_2005", n, a.seed + 1, False,
-                                             imaging=ImagingModel(photons_per_px=dose), label=f"dose {dose:g}"))
+            show(
+                f"photons/px {dose:g}",
+                run(
+                    "ftrac_2005",
+                    n,
+                    a.seed + 1,
+                    False,
+                    imaging=ImagingModel(photons_per_px=dose),
+                    label=f"dose {dose:g}",
+                ),
+            )
         for blur in (1.2, 2.0, 3.0):
-            show(f"detector blur σ {blur} px", run("ftrac_2005", n, a.seed + 2, False,
-                                                   imaging=ImagingModel(detector_blur_px=blur), label=f"blur {blur}"))
+            show(
+                f"detector blur σ {blur} px",
+                run(
+                    "ftrac_2005",
+                    n,
+                    a.seed + 2,
+                    False,
+                    imaging=ImagingModel(detector_blur_px=blur),
+                    label=f"blur {blur}",
+                ),
+            )
         for s in (2.0, 4.0, 8.0):
             show(f"anatomy background × {s:g}", run("ftrac_2005", n, a.seed + 3, True, bg_strength=s, label=f"bg {s}"))
-        show("a steel needle (Ø1.27 mm) across the fiducial", run("ftrac_2005", n, a.seed + 4, False, needle=True,
-                                                                   label="needle"))
+        show(
+            "a steel needle (Ø1.27 mm) across the fiducial",
+            run("ftrac_2005", n, a.seed + 4, False, needle=True, label="needle"),
+        )
         for px in (80, 40, 0):
-            show(f"truncated: fiducial origin {px} px from the image edge",
-                 run("ftrac_2005", n, a.seed + 5, False, truncate_px=px, label=f"trunc {px}"))
+            show(
+                f"truncated: fiducial origin {px} px from the image edge",
+                run("ftrac_2005", n, a.seed + 5, False, truncate_px=px, label=f"trunc {px}"),
+            )
 
 
 if __name__ == "__main__":

@@ -119,16 +119,23 @@ def one(task: tuple) -> dict:
         opts = TrackOptions(distortion_prior_mm=0.0)
     res = track_image(img, features, cam, opts, body=body)
     wall = time.perf_counter() - t0
-    out = {"preset": preset, "condition": condition, "k": k, "time_s": wall,
-           "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-           "converged": bool(res.pose.converged), "error": res.pose.error}
+    out = {
+        "preset": preset,
+        "condition": condition,
+        "k": k,
+        "time_s": wall,
+        "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+        "converged": bool(res.pose.converged),
+        "error": res.pose.error,
+    }
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
         e = np.r_[dr, dt]
         out["err"] = np.r_[np.degrees(dr), dt].tolist()
         out["far"] = bool(math.degrees(float(np.linalg.norm(dr))) > WRONG_DEG or float(np.linalg.norm(dt)) > WRONG_MM)
-        out["chi2"] = float(e @ np.linalg.solve(res.pose.covariance, e)) if res.pose.covariance is not None \
-            else float("inf")
+        out["chi2"] = (
+            float(e @ np.linalg.solve(res.pose.covariance, e)) if res.pose.covariance is not None else float("inf")
+        )
     return out
 
 
@@ -148,11 +155,16 @@ def summarise(rows: list[dict], baseline_ms: float | None) -> str:
         reasons = Counter((r["error"] or "?").split(":")[0][:48] for r in rs if not r["converged"])
         rms = np.sqrt(np.mean(np.square([r["err"] for r in right]), axis=0)) if right else np.full(6, np.nan)
         ratio = f" ({np.median(times) / baseline_ms:.2f}× clean)" if baseline_ms else ""
-        lines.append(f"{preset:10s} {cond:21s} tracked {len(right):4d}/{n:<4d} ({100 * len(right) / n:5.1f} %)  "
-                     f"confident wrong {len(wrong)}  far-but-honest {len(honest)}  "
-                     f"time median {np.median(times):4.0f} ms{ratio} max {times.max():5.0f} ms")
-        lines.append(f"{'':32s} RMS " + "  ".join(f"{a} {v:.3f}" for a, v in zip(AXES, rms))
-                     + ("  wrong: " + ", ".join(str(r["k"]) for r in wrong) if wrong else ""))
+        lines.append(
+            f"{preset:10s} {cond:21s} tracked {len(right):4d}/{n:<4d} ({100 * len(right) / n:5.1f} %)  "
+            f"confident wrong {len(wrong)}  far-but-honest {len(honest)}  "
+            f"time median {np.median(times):4.0f} ms{ratio} max {times.max():5.0f} ms"
+        )
+        lines.append(
+            f"{'':32s} RMS "
+            + "  ".join(f"{a} {v:.3f}" for a, v in zip(AXES, rms))
+            + ("  wrong: " + ", ".join(str(r["k"]) for r in wrong) if wrong else "")
+        )
         if reasons:
             lines.append(f"{'':32s} not converged: " + "; ".join(f"{v} {k}" for k, v in reasons.most_common(4)))
     return "\n".join(lines)
@@ -170,31 +182,43 @@ def plot(rows: list[dict], path: Path) -> Path:
     conds = list(dict.fromkeys(r["condition"] for r in rows))
     fig, axes = plt.subplots(1, len(presets), figsize=(4.2 * len(presets), 0.42 * len(conds) + 1.4), sharey=True)
     axes = np.atleast_1d(axes)
-    colours = {"tracked": "#2a9d8f", "far, within its covariance": "#e9c46a", "refused": "#bbbbbb",
-               "confident wrong": "#d62828"}
+    colours = {
+        "tracked": "#2a9d8f",
+        "far, within its covariance": "#e9c46a",
+        "refused": "#bbbbbb",
+        "confident wrong": "#d62828",
+    }
     for ax, preset in zip(axes, presets):
         for y, cond in enumerate(conds):
             rs = [r for r in rows if r["preset"] == preset and r["condition"] == cond]
             n = max(len(rs), 1)
             conv = [r for r in rs if r["converged"]]
             wrong = sum(r["far"] and r["chi2"] > CHI2_6 for r in conv)
-            parts = {"tracked": sum(not r["far"] for r in conv) / n,
-                     "far, within its covariance": sum(r["far"] and r["chi2"] <= CHI2_6 for r in conv) / n,
-                     "refused": (len(rs) - len(conv)) / n, "confident wrong": wrong / n}
+            parts = {
+                "tracked": sum(not r["far"] for r in conv) / n,
+                "far, within its covariance": sum(r["far"] and r["chi2"] <= CHI2_6 for r in conv) / n,
+                "refused": (len(rs) - len(conv)) / n,
+                "confident wrong": wrong / n,
+            }
             left = 0.0
             for name, share in parts.items():
                 ax.barh(y, 100 * share, left=100 * left, color=colours[name], label=name if y == 0 else None)
                 left += share
-            ax.text(101, y, f"{100 * parts['tracked']:.1f} %" + (f"  {wrong} wrong" if wrong else ""),
-                    va="center", fontsize=7, color="#d62828" if wrong else "black")
+            ax.text(
+                101,
+                y,
+                f"{100 * parts['tracked']:.1f} %" + (f"  {wrong} wrong" if wrong else ""),
+                va="center",
+                fontsize=7,
+                color="#d62828" if wrong else "black",
+            )
         ax.set_title(f"{preset} ({len(rows) // max(len(presets) * len(conds), 1)} images each)", fontsize=9)
         ax.set_xlim(0, 135)
         ax.set_xlabel("share of images (%)")
         ax.invert_yaxis()
     axes[0].set_yticks(range(len(conds)), conds, fontsize=8)
     axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncol=4, fontsize=7, frameon=False)
-    fig.suptitle("track with default options on images as C-arms hand them over (held-out seed)", y=1.0,
-                 fontsize=10)
+    fig.suptitle("track with default options on images as C-arms hand them over (held-out seed)", y=1.0, fontsize=10)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=100, bbox_inches="tight")
@@ -210,10 +234,19 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=21)
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
-    ap.add_argument("--cache", type=Path, default=None,
-                    help="a folder to keep the images in (made once, tracked again on later runs)")
-    ap.add_argument("--plot", type=Path, default=None, metavar="RUN.json",
-                    help="draw docs/img/track_realism.png from an earlier run's JSON and stop")
+    ap.add_argument(
+        "--cache",
+        type=Path,
+        default=None,
+        help="a folder to keep the images in (made once, tracked again on later runs)",
+    )
+    ap.add_argument(
+        "--plot",
+        type=Path,
+        default=None,
+        metavar="RUN.json",
+        help="draw docs/img/track_realism.png from an earlier run's JSON and stop",
+    )
     args = ap.parse_args()
     if args.plot is not None:
         print(f"wrote {plot(json.loads(args.plot.read_text()), ROOT / 'docs' / 'img' / 'track_realism.png')}")
@@ -230,8 +263,10 @@ def main() -> None:
     for p in args.presets:
         base = [r["time_s"] for r in rows if r["preset"] == p and r["condition"] == "clean"]
         print(summarise([r for r in rows if r["preset"] == p], 1000 * float(np.median(base)) if base else None))
-    print(f"largest resident memory of a worker process: {max(r['rss_mb'] for r in rows):.0f} MB; "
-          f"largest time per image: {max(r['time_s'] for r in rows):.2f} s")
+    print(
+        f"largest resident memory of a worker process: {max(r['rss_mb'] for r in rows):.0f} MB; "
+        f"largest time per image: {max(r['time_s'] for r in rows):.2f} s"
+    )
     args.json.parent.mkdir(parents=True, exist_ok=True)
     args.json.write_text(json.dumps(rows))
 

@@ -50,7 +50,7 @@ def baseline_render(features, R, t, cam, imaging, body, rng):
     s = int(imaging.supersample)
     centers, radii, pieces = feature_pieces(features, imaging.mu("steel"))
     su, sv = blur_sigma_px(cam, imaging, float(t[2]))
-    p = np.zeros((H * s, W * s))                 # s × s points per pixel, every pixel
+    p = np.zeros((H * s, W * s))  # s × s points per pixel, every pixel
 
     def box_of(P, pad):
         uv = cam.project(P @ R.T + t)
@@ -63,25 +63,34 @@ def baseline_render(features, R, t, cam, imaging, body, rng):
         fv = (np.arange(lo[1] * s, (hi[1] + 1) * s) + 0.5) / s - 0.5
         U, V = np.meshgrid(fu, fv)
         d = rays(U.ravel(), V.ravel())
-        p[lo[1] * s:(hi[1] + 1) * s, lo[0] * s:(hi[0] + 1) * s] += chord(d).reshape(U.shape)
+        p[lo[1] * s : (hi[1] + 1) * s, lo[0] * s : (hi[0] + 1) * s] += chord(d).reshape(U.shape)
 
     for k in range(len(pieces.L)):
         ends = np.stack([pieces.a[k], pieces.a[k] + pieces.L[k] * pieces.e[k]])
 
         def tube(d, k=k):
             n = len(d)
-            return pieces.mu[k] * tube_chord(rays.c, d, np.broadcast_to(pieces.a[k], (n, 3)),
-                                             np.broadcast_to(pieces.e[k], (n, 3)), np.full(n, pieces.L[k]),
-                                             np.full(n, pieces.r[k]), np.broadcast_to(pieces.n0[k], (n, 3)),
-                                             np.broadcast_to(pieces.n1[k], (n, 3)))
+            return pieces.mu[k] * tube_chord(
+                rays.c,
+                d,
+                np.broadcast_to(pieces.a[k], (n, 3)),
+                np.broadcast_to(pieces.e[k], (n, 3)),
+                np.full(n, pieces.L[k]),
+                np.full(n, pieces.r[k]),
+                np.broadcast_to(pieces.n0[k], (n, 3)),
+                np.broadcast_to(pieces.n1[k], (n, 3)),
+            )
+
         add(*box_of(ends, 4), tube)
     for q, r in zip(centers, radii):
         add(*box_of(q[None], 8), lambda d, q=q, r=r: imaging.mu("steel") * sphere_chord(rays.c, d, q, r))
     ro, h = body.outer_diameter / 2, body.length / 2
     corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
     rb = body.bore_diameter / 2
-    add(*box_of(corners, 2), lambda d: imaging.mu("acetal") * (cylinder_z_chord(rays.c, d, ro, h)
-                                                                - cylinder_z_chord(rays.c, d, rb, h)))
+    add(
+        *box_of(corners, 2),
+        lambda d: imaging.mu("acetal") * (cylinder_z_chord(rays.c, d, ro, h) - cylinder_z_chord(rays.c, d, rb, h)),
+    )
     # the photons blurred on the fine grid, then summed over each pixel
     T = gaussian_filter(np.exp(-p), (sv * s, su * s), mode="constant", cval=1.0)
     I = T.reshape(H, s, W, s).mean((1, 3))
@@ -107,16 +116,18 @@ def main() -> None:
     clean = ImagingModel(photons_per_px=None)
     R, t = Workspace().sample(N_POSES, features.nominal_beam_direction, np.random.default_rng(2026))
     bg = anatomy(seed=1)
-    for k in range(3):                                   # warm caches and allocator
+    for k in range(3):  # warm caches and allocator
         render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body)
 
     cases = {
         "geometry only (line_integral_box)": lambda k: line_integral_box(features, R[k], t[k], cam, imaging, body),
         "noise-free render": lambda k: render(features, R[k], t[k], cam, clean, body=body),
-        "full model (noise, raw, log)": lambda k: render(features, R[k], t[k], cam, imaging,
-                                                         rng=np.random.default_rng(k), body=body),
-        "full model + anatomy background": lambda k: render(features, R[k], t[k], cam, imaging,
-                                                            rng=np.random.default_rng(k), body=body, background=bg),
+        "full model (noise, raw, log)": lambda k: render(
+            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body
+        ),
+        "full model + anatomy background": lambda k: render(
+            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body, background=bg
+        ),
     }
     best = {name: (math.inf, math.inf) for name in cases}
     base = (math.inf, math.inf)
@@ -126,8 +137,9 @@ def main() -> None:
             w, c = timed(fn, N_POSES)
             best[name] = (min(best[name][0], w), min(best[name][1], c))
             line.append(f"{name.split(' (')[0]} {1e3 * w:.1f}")
-        w, c = timed(lambda k: baseline_render(features, R[k], t[k], cam, imaging, body, np.random.default_rng(k)),
-                     N_BASELINE)
+        w, c = timed(
+            lambda k: baseline_render(features, R[k], t[k], cam, imaging, body, np.random.default_rng(k)), N_BASELINE
+        )
         base = (min(base[0], w), min(base[1], c))
         print(f"round {r + 1}: " + ", ".join(line) + f", baseline {1e3 * w:.0f} ms per image")
 
@@ -141,11 +153,12 @@ def main() -> None:
     print(f"{'':36s} {'wall ms':>8s} {'cpu ms':>8s}")
     for name, (w, c) in best.items():
         print(f"{name:36s} {1e3 * w:8.1f} {1e3 * c:8.1f}")
-    print(f"{'baseline (textbook, see module)':36s} {1e3 * base[0]:8.1f} {1e3 * base[1]:8.1f}   "
-          f"({N_BASELINE} poses)")
+    print(f"{'baseline (textbook, see module)':36s} {1e3 * base[0]:8.1f} {1e3 * base[1]:8.1f}   ({N_BASELINE} poses)")
     full = best["full model (noise, raw, log)"][0]
-    print(f"\nfull model: {1e3 * full:.1f} ms per image (target ≤ 50 ms: {'met' if full <= 0.05 else 'missed'}); "
-          f"{base[0] / full:.0f}× faster than the baseline")
+    print(
+        f"\nfull model: {1e3 * full:.1f} ms per image (target ≤ 50 ms: {'met' if full <= 0.05 else 'missed'}); "
+        f"{base[0] / full:.0f}× faster than the baseline"
+    )
     print(f"largest |difference| of the noise-free line integral vs the baseline's: {diff:.2e}")
 
 

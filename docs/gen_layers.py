@@ -90,20 +90,45 @@ def draw(layers: list[list[str]], out: Path = OUT) -> Path:
         for j, room in enumerate(layer):
             x = 0.3 + j * (box_w + 0.2)
             colour = COLOURS.get(room, "#cfe2f3")
-            ax.add_patch(FancyBboxPatch((x, y + 0.08), box_w, row_h - 0.2, boxstyle="round,pad=0.02,rounding_size=0.08",
-                                        fc=colour, ec="#345", lw=1.0))
-            ax.text(x + box_w / 2, y + row_h / 2 - 0.02, room, ha="center", va="center", fontsize=10,
-                    family="monospace")
+            ax.add_patch(
+                FancyBboxPatch(
+                    (x, y + 0.08),
+                    box_w,
+                    row_h - 0.2,
+                    boxstyle="round,pad=0.02,rounding_size=0.08",
+                    fc=colour,
+                    ec="#345",
+                    lw=1.0,
+                )
+            )
+            ax.text(
+                x + box_w / 2, y + row_h / 2 - 0.02, room, ha="center", va="center", fontsize=10, family="monospace"
+            )
         if len(layer) > 1:
-            ax.text(0.3 + width + 0.15, y + row_h / 2 - 0.02, "side by side:\nno imports between", fontsize=7,
-                    va="center", color="#555")
-    ax.add_patch(FancyArrowPatch((10.25, n * row_h - 0.15), (10.25, 0.05), arrowstyle="-|>", mutation_scale=18,
-                                 lw=1.6, color="#a33"))
-    ax.text(10.05, n * row_h / 2, "imports flow down only", rotation=90, ha="center", va="center", fontsize=9,
-            color="#a33")
+            ax.text(
+                0.3 + width + 0.15,
+                y + row_h / 2 - 0.02,
+                "side by side:\nno imports between",
+                fontsize=7,
+                va="center",
+                color="#555",
+            )
+    ax.add_patch(
+        FancyArrowPatch(
+            (10.25, n * row_h - 0.15), (10.25, 0.05), arrowstyle="-|>", mutation_scale=18, lw=1.6, color="#a33"
+        )
+    )
+    ax.text(
+        10.05, n * row_h / 2, "imports flow down only", rotation=90, ha="center", va="center", fontsize=9, color="#a33"
+    )
     note = f"only cad imports {' and '.join(heavy)}" if heavy else ""
-    ax.text(0.3, -0.25, f"The layers contract in pyproject.toml (import-linter, run by make test); {note}.",
-            fontsize=8, color="#333")
+    ax.text(
+        0.3,
+        -0.25,
+        f"The layers contract in pyproject.toml (import-linter, run by make test); {note}.",
+        fontsize=8,
+        color="#333",
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=110, bbox_inches="tight", metadata={"Description": describe(layers)})
     plt.close(fig)

@@ -27,8 +27,9 @@ def _relative(path: str | Path) -> Path:
     return path
 
 
-def demo_build(design_path: str | Path = DEFAULT_DESIGN, out_dir: str | Path | None = None,
-               profile: str = "cnc") -> dict[str, Any]:
+def demo_build(
+    design_path: str | Path = DEFAULT_DESIGN, out_dir: str | Path | None = None, profile: str = "cnc"
+) -> dict[str, Any]:
     """Build ``design_path`` into ``out_dir`` (default ``outputs/<name>/``); return a summary."""
     from .cad.build import build_fiducial
     from .design import load_design
@@ -54,22 +55,32 @@ def demo_build(design_path: str | Path = DEFAULT_DESIGN, out_dir: str | Path | N
 def format_build(summary: dict[str, Any]) -> str:
     """A short human-readable block for :func:`demo_build`'s summary."""
     v = summary["volumes_mm3"]
-    lines = [f"Built {summary['design']} ({summary['profile']} profile) in {summary['build_time_s']:.1f} s "
-             f"-> {summary['out_dir']}/"]
+    lines = [
+        f"Built {summary['design']} ({summary['profile']} profile) in {summary['build_time_s']:.1f} s "
+        f"-> {summary['out_dir']}/"
+    ]
     for name, size in summary["files"].items():
         lines.append(f"  {name:<15} {size / 1024:9.1f} KiB")
     lines.append("  manifest.json   (parameters, sha256 of every file, volumes, timings)")
-    lines.append(f"  volumes: body {v['body']:.1f} mm3 (blank {v['blank']:.1f}, grooves and pockets "
-                 f"{v['removed']:.1f}), wires {v['wires']:.2f}, beads {v['beads']:.2f}")
-    lines.append(f"  wire {summary['wire_length_mm']:.1f} mm in total, {summary['beads']} beads; "
-                 f"STL volume {summary['stl_volume_vs_brep']:+.3%} vs the exact solid")
+    lines.append(
+        f"  volumes: body {v['body']:.1f} mm3 (blank {v['blank']:.1f}, grooves and pockets "
+        f"{v['removed']:.1f}), wires {v['wires']:.2f}, beads {v['beads']:.2f}"
+    )
+    lines.append(
+        f"  wire {summary['wire_length_mm']:.1f} mm in total, {summary['beads']} beads; "
+        f"STL volume {summary['stl_volume_vs_brep']:+.3%} vs the exact solid"
+    )
     r = summary["rules"]
-    lines.append(f"  design rules ({summary['profile']}): {len(r['results'])} checked, "
-                 f"{len(r['violations'])} violated, {len(r['warnings'])} warning(s)"
-                 + "".join(f"\n    warn: {w}" for w in r["warnings"]))
+    lines.append(
+        f"  design rules ({summary['profile']}): {len(r['results'])} checked, "
+        f"{len(r['violations'])} violated, {len(r['warnings'])} warning(s)"
+        + "".join(f"\n    warn: {w}" for w in r["warnings"])
+    )
     t = summary["timings_s"]
-    lines.append("  time: " + ", ".join(f"{k} {t[k]:.1f} s"
-                                        for k in ("body", "export_body", "export_assembly", "render") if k in t))
+    lines.append(
+        "  time: "
+        + ", ".join(f"{k} {t[k]:.1f} s" for k in ("body", "export_body", "export_assembly", "render") if k in t)
+    )
     return "\n".join(lines)
 
 
@@ -86,8 +97,15 @@ def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
     subject = load_subject(design_path)
     settings, thresholds = settings_for(subject)
     with open_executor() as (executor, _):
-        doc, _ = run_analysis(subject, settings, thresholds, Path(out_dir), trial=TrialSettings(images=50),
-                              executor=executor, image_atlas_settings=AtlasSettings(step_deg=45.0))
+        doc, _ = run_analysis(
+            subject,
+            settings,
+            thresholds,
+            Path(out_dir),
+            trial=TrialSettings(images=50),
+            executor=executor,
+            image_atlas_settings=AtlasSettings(step_deg=45.0),
+        )
     return doc
 
 
@@ -95,12 +113,17 @@ def format_score(doc: dict[str, Any], out_dir: str | Path) -> str:
     """The analysis summary, headed for the demo."""
     from .workflows.analyze import format_summary
 
-    return (f"Scored over the workspace in {doc['time_s']:.1f} s -> {out_dir}/analysis.json, "
-            + ", ".join(doc["files"]) + "\n" + format_summary(doc))
+    return (
+        f"Scored over the workspace in {doc['time_s']:.1f} s -> {out_dir}/analysis.json, "
+        + ", ".join(doc["files"])
+        + "\n"
+        + format_summary(doc)
+    )
 
 
-def demo_solve(features_path: str | Path, out_dir: str | Path, segmentation_error_mm: float = 0.25,
-               seed: int = 2005) -> dict[str, Any]:
+def demo_solve(
+    features_path: str | Path, out_dir: str | Path, segmentation_error_mm: float = 0.25, seed: int = 2005
+) -> dict[str, Any]:
     """Simulate one image of the built fiducial at a random workspace pose, solve it with no
     initial guess, and write ``observation.json`` and ``pose.json`` into ``out_dir``.
 
@@ -133,10 +156,16 @@ def demo_solve(features_path: str | Path, out_dir: str | Path, segmentation_erro
     return {
         "segmentation_error_mm": segmentation_error_mm,
         "beam_off_nominal_deg": float(np.degrees(np.arccos(np.clip(beam @ features.nominal_beam_direction, -1, 1)))),
-        "converged": pose.converged, "error": pose.error, "starts": pose.starts, "iterations": pose.iterations,
+        "converged": pose.converged,
+        "error": pose.error,
+        "starts": pose.starts,
+        "iterations": pose.iterations,
         "rms_residual_px": pose.rms_residual_px,
-        "true_t_mm": t[0].tolist(), "est_t_mm": pose.translation_mm.tolist(), "t_err_mm": t_err.tolist(),
-        "t_sd_mm": sd[3:].tolist(), "rot_err_deg": np.degrees(rot_err).tolist(),
+        "true_t_mm": t[0].tolist(),
+        "est_t_mm": pose.translation_mm.tolist(),
+        "t_err_mm": t_err.tolist(),
+        "t_sd_mm": sd[3:].tolist(),
+        "rot_err_deg": np.degrees(rot_err).tolist(),
         "rot_sd_deg": np.degrees(sd[:3]).tolist(),
         "files": [str(out_dir / "observation.json"), str(out_dir / "pose.json")],
     }
@@ -144,19 +173,21 @@ def demo_solve(features_path: str | Path, out_dir: str | Path, segmentation_erro
 
 def format_solve(s: dict[str, Any]) -> str:
     """A short block for :func:`demo_solve`'s summary: truth vs estimate, with 1σ."""
+
     def v3(x, fmt="{:8.3f}"):
         return " ".join(fmt.format(a) for a in x)
-    lines = [f"Solved one synthetic image ({s['segmentation_error_mm']} mm segmentation error, beam "
-             f"{s['beam_off_nominal_deg']:.1f}° off AP), no initial guess: "
-             f"{'converged' if s['converged'] else 'FAILED: ' + str(s['error'])}, "
-             f"{s['starts']} start(s), {s['iterations']} iterations, RMS {s['rms_residual_px']:.3f} px",
-             f"  translation (mm, x y z)  truth    {v3(s['true_t_mm'], '{:9.3f}')}",
-             f"                           estimate {v3(s['est_t_mm'], '{:9.3f}')}",
-             f"                           error    {v3(s['t_err_mm'], '{:9.3f}')}   "
-             f"(1σ {v3(s['t_sd_mm'], '{:.3f}')})",
-             f"  rotation error (deg)              {v3(s['rot_err_deg'], '{:9.3f}')}   "
-             f"(1σ {v3(s['rot_sd_deg'], '{:.3f}')})",
-             "  wrote " + ", ".join(s["files"])]
+
+    lines = [
+        f"Solved one synthetic image ({s['segmentation_error_mm']} mm segmentation error, beam "
+        f"{s['beam_off_nominal_deg']:.1f}° off AP), no initial guess: "
+        f"{'converged' if s['converged'] else 'FAILED: ' + str(s['error'])}, "
+        f"{s['starts']} start(s), {s['iterations']} iterations, RMS {s['rms_residual_px']:.3f} px",
+        f"  translation (mm, x y z)  truth    {v3(s['true_t_mm'], '{:9.3f}')}",
+        f"                           estimate {v3(s['est_t_mm'], '{:9.3f}')}",
+        f"                           error    {v3(s['t_err_mm'], '{:9.3f}')}   (1σ {v3(s['t_sd_mm'], '{:.3f}')})",
+        f"  rotation error (deg)              {v3(s['rot_err_deg'], '{:9.3f}')}   (1σ {v3(s['rot_sd_deg'], '{:.3f}')})",
+        "  wrote " + ", ".join(s["files"]),
+    ]
     return "\n".join(lines)
 
 
@@ -187,19 +218,25 @@ def demo_track(features_path: str | Path, image_dir: str | Path) -> str:
     t0 = time.perf_counter()
     res = track_image(image, features, camera, polarity_hint=meta.get("polarity_hint"))
     ms = (time.perf_counter() - t0) * 1e3
-    png = draw_overlay(image_dir / "track_overlay.png", image, features, res,
-                       title="ftrac_2005: radiograph.png tracked")
+    png = draw_overlay(
+        image_dir / "track_overlay.png", image, features, res, title="ftrac_2005: radiograph.png tracked"
+    )
     p = res.pose
-    lines = [f"track: radiograph.png -> pose with no initial guess in {ms:.0f} ms: "
-             + ("converged" if p.converged else f"NOT converged ({p.error})")]
+    lines = [
+        f"track: radiograph.png -> pose with no initial guess in {ms:.0f} ms: "
+        + ("converged" if p.converged else f"NOT converged ({p.error})")
+    ]
     lines.append(f"  truth     t = ({t[0]:8.3f}, {t[1]:8.3f}, {t[2]:8.3f}) mm")
     if np.all(np.isfinite(p.rotation)):
         dr, dt = pose_errors(p.rotation, p.translation_mm, R, t)
         e, s = p.translation_mm, p.std_mm
-        lines.append(f"  estimate  t = ({e[0]:8.3f}, {e[1]:8.3f}, {e[2]:8.3f}) mm   "
-                     f"(1σ {s[0]:.3f}, {s[1]:.3f}, {s[2]:.3f})")
-        lines.append(f"  error     translation ({dt[0]:+.3f}, {dt[1]:+.3f}, {dt[2]:+.3f}) mm, "
-                     f"rotation {np.degrees(np.linalg.norm(dr)):.3f}°")
+        lines.append(
+            f"  estimate  t = ({e[0]:8.3f}, {e[1]:8.3f}, {e[2]:8.3f}) mm   (1σ {s[0]:.3f}, {s[1]:.3f}, {s[2]:.3f})"
+        )
+        lines.append(
+            f"  error     translation ({dt[0]:+.3f}, {dt[1]:+.3f}, {dt[2]:+.3f}) mm, "
+            f"rotation {np.degrees(np.linalg.norm(dr)):.3f}°"
+        )
     lines.append(f"  overlay: {_relative(png)}")
     return "\n".join(lines)
 
@@ -220,12 +257,16 @@ def image_and_beyond_steps(out_dir: Path) -> list:
     from .workflows.demo.segmentability import demo_step as segmentability_step
 
     image_dir = out_dir / "radiograph"
-    return [lambda: segmentability_step(out_dir / "segmentability"),
-            lambda: radiograph_step(image_dir), lambda: demo_track(out_dir / "features.json", image_dir),
-            lambda: intensity_step(out_dir / "intensity"),
-            lambda: carm_step(out_dir / "carm", out_dir / "features.json"),
-            lambda: reconstruct_step(out_dir / "reconstruct"), lambda: optimize_step(out_dir / "optimize_demo"),
-            lambda: report_step(out_dir)]
+    return [
+        lambda: segmentability_step(out_dir / "segmentability"),
+        lambda: radiograph_step(image_dir),
+        lambda: demo_track(out_dir / "features.json", image_dir),
+        lambda: intensity_step(out_dir / "intensity"),
+        lambda: carm_step(out_dir / "carm", out_dir / "features.json"),
+        lambda: reconstruct_step(out_dir / "reconstruct"),
+        lambda: optimize_step(out_dir / "optimize_demo"),
+        lambda: report_step(out_dir),
+    ]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -239,8 +280,7 @@ def main(argv: list[str] | None = None) -> int:
         score_dir = Path(built["out_dir"]) / "analysis"
         print(format_score(demo_score(_relative(DEFAULT_DESIGN), score_dir), score_dir))
         print()
-        print(format_solve(demo_solve(Path(built["out_dir"]) / "features.json",
-                                      Path(built["out_dir"]) / "synthetic")))
+        print(format_solve(demo_solve(Path(built["out_dir"]) / "features.json", Path(built["out_dir"]) / "synthetic")))
         for step in image_and_beyond_steps(Path(built["out_dir"])):
             print()
             print(step())

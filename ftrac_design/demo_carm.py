@@ -98,8 +98,9 @@ def relative(path: str | Path) -> Path:
     return path
 
 
-def c_arm_orbit(R: np.ndarray, t: np.ndarray, angles_rad: np.ndarray, isocentre_mm: float
-                ) -> tuple[np.ndarray, np.ndarray]:
+def c_arm_orbit(
+    R: np.ndarray, t: np.ndarray, angles_rad: np.ndarray, isocentre_mm: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Poses of a fiducial seen by a C-arm turned by each of ``angles_rad`` about the axis
     through its isocentre (0, 0, ``isocentre_mm``) parallel to the camera's x axis.
 
@@ -118,7 +119,7 @@ def c_arm_orbit(R: np.ndarray, t: np.ndarray, angles_rad: np.ndarray, isocentre_
     Rs, ts = [], []
     for a in np.asarray(angles_rad, float):
         ca, sa = math.cos(a), math.sin(a)
-        Q = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])    # the camera's turn, in X
+        Q = np.array([[1.0, 0.0, 0.0], [0.0, ca, -sa], [0.0, sa, ca]])  # the camera's turn, in X
         Rs.append(Q.T @ R)
         ts.append(Q.T @ (np.asarray(t, float) - c) + c)
     return np.stack(Rs), np.stack(ts)
@@ -161,23 +162,32 @@ def pose_report(pose: dict[str, Any], R_true: np.ndarray, t_true: np.ndarray) ->
     out: dict[str, Any] = {"converged": bool(pose.get("converged")), "error": pose.get("error")}
     if pose.get("rotation") is None or pose.get("translation_mm") is None:
         return out
-    dr, dt = pose_errors(np.asarray(pose["rotation"], float), np.asarray(pose["translation_mm"], float),
-                         np.asarray(R_true, float), np.asarray(t_true, float))
+    dr, dt = pose_errors(
+        np.asarray(pose["rotation"], float),
+        np.asarray(pose["translation_mm"], float),
+        np.asarray(R_true, float),
+        np.asarray(t_true, float),
+    )
     cov = pose.get("covariance")
     sd = np.sqrt(np.diag(np.asarray(cov, float))) if cov is not None else np.full(6, np.nan)
-    out.update(t_err_mm=dt, rot_err_deg=math.degrees(float(np.linalg.norm(dr))), t_sd_mm=sd[3:],
-               rot_sd_deg=np.degrees(sd[:3]))
+    out.update(
+        t_err_mm=dt, rot_err_deg=math.degrees(float(np.linalg.norm(dr))), t_sd_mm=sd[3:], rot_sd_deg=np.degrees(sd[:3])
+    )
     return out
 
 
 def format_errors(r: dict[str, Any]) -> str:
     """``converged: error t (…) mm, rotation …°; 1σ t (…) mm, rotation (…)°`` or why not."""
+
     def v3(x, fmt):
         return "(" + ", ".join(fmt.format(a) for a in x) + ")"
+
     if not r["converged"] or "t_err_mm" not in r:
         return "NOT converged: " + " ".join(str(r.get("error") or "no pose").split())
-    return (f"converged: error t {v3(r['t_err_mm'], '{:+.3f}')} mm, rotation {r['rot_err_deg']:.3f}°; "
-            f"1σ t {v3(r['t_sd_mm'], '{:.3f}')} mm, rotation {v3(r['rot_sd_deg'], '{:.3f}')}°")
+    return (
+        f"converged: error t {v3(r['t_err_mm'], '{:+.3f}')} mm, rotation {r['rot_err_deg']:.3f}°; "
+        f"1σ t {v3(r['t_sd_mm'], '{:.3f}')} mm, rotation {v3(r['rot_sd_deg'], '{:.3f}')}°"
+    )
 
 
 def intake_line(pose: dict[str, Any]) -> str:
@@ -186,9 +196,11 @@ def intake_line(pose: dict[str, Any]) -> str:
     src = pose.get("camera_source") or {}
     seg = pose.get("segmentation") or {}
     notes = "; ".join(pose.get("intake_notes") or []) or "no intake notes"
-    return (f"intake: f from {src.get('focal_length')}, pixel from {src.get('pixel_size')}, principal point from "
-            f"{src.get('principal_point')}; {notes}; tracked as {seg.get('formation', '?')}, "
-            f"{seg.get('polarity', '?')}")
+    return (
+        f"intake: f from {src.get('focal_length')}, pixel from {src.get('pixel_size')}, principal point from "
+        f"{src.get('principal_point')}; {notes}; tracked as {seg.get('formation', '?')}, "
+        f"{seg.get('polarity', '?')}"
+    )
 
 
 def read_jsonl(path: str | Path) -> list[dict[str, Any]]:
@@ -211,7 +223,7 @@ def write_run(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> tuple[
 
     features = load_features(features_path)
     body = body_from_features_file(features_path)
-    cam = CAMERA       # the file's geometry tags give it back to `track`
+    cam = CAMERA  # the file's geometry tags give it back to `track`
     # frame 0 at the workspace pose the demo's radiograph step draws from the same seed
     R0, t0 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(s.pose_seed))
     angles = np.radians(s.step_deg) * np.arange(s.frames)
@@ -221,15 +233,37 @@ def write_run(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> tuple[
         img, info = realistic_image(features, R[k], t[k], cam, s.condition, s.seed, body=body, shape=SHAPE)
         if info["formation"] != "display" or (truth and info["polarity"] != truth[0]["polarity"]):
             # one seed draws one display chain, so every frame shares the file's one sign
-            raise ValueError(f"condition {s.condition!r}: display frames of one polarity expected, got "
-                             f"{info['formation']} {info['polarity']}")
+            raise ValueError(
+                f"condition {s.condition!r}: display frames of one polarity expected, got "
+                f"{info['formation']} {info['polarity']}"
+            )
         frames.append(img)
-        truth.append(truth_object(R[k], t[k], frame=k, time_s=k * s.frame_time_ms / 1e3, condition=s.condition,
-                                  seed=s.seed, polarity=info["polarity"], intensifier=bool(info["intensifier"]),
-                                  c_arm_angle_deg=float(np.degrees(angles[k]))))
-    dcm = write_dicom(out_dir / "run.dcm", np.stack(frames), cam, kind="enhanced-xa", relationship="DISP",
-                      relationship_sign=SIGN[truth[0]["polarity"]], fov_rotation_deg=90, fov_horizontal_flip=True,
-                      frame_time_ms=s.frame_time_ms, bits_stored=8, isocenter_projection_px=cam.principal_point_px)
+        truth.append(
+            truth_object(
+                R[k],
+                t[k],
+                frame=k,
+                time_s=k * s.frame_time_ms / 1e3,
+                condition=s.condition,
+                seed=s.seed,
+                polarity=info["polarity"],
+                intensifier=bool(info["intensifier"]),
+                c_arm_angle_deg=float(np.degrees(angles[k])),
+            )
+        )
+    dcm = write_dicom(
+        out_dir / "run.dcm",
+        np.stack(frames),
+        cam,
+        kind="enhanced-xa",
+        relationship="DISP",
+        relationship_sign=SIGN[truth[0]["polarity"]],
+        fov_rotation_deg=90,
+        fov_horizontal_flip=True,
+        frame_time_ms=s.frame_time_ms,
+        bits_stored=8,
+        isocenter_projection_px=cam.principal_point_px,
+    )
     truth_path = write_text_atomic(out_dir / "run.truth.jsonl", "".join(json.dumps(d) + "\n" for d in truth))
     return dcm, truth_path
 
@@ -242,11 +276,13 @@ def run_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> list[s
     args = ["track", "--features", Path(features_path), dcm, "-o", poses_path, "--overlay"]
     rc, so, se = run_cli(args)
     truth = read_jsonl(truth_path)
-    lines = [f"C-arm run: {s.frames} frames of ftrac_2005 ({s.condition}, seed {s.seed}), the C-arm turning "
-             f"{s.step_deg:g}° a frame about its isocentre -> {relative(dcm)} (Enhanced XA, 8-bit DISP "
-             f"{SIGN[truth[0]['polarity']]:+d}, field of view turned 90° and flipped, frame time "
-             f"{s.frame_time_ms:g} ms) + {relative(truth_path)}",
-             "  " + command_line(args) + f"   (exit {rc})"]
+    lines = [
+        f"C-arm run: {s.frames} frames of ftrac_2005 ({s.condition}, seed {s.seed}), the C-arm turning "
+        f"{s.step_deg:g}° a frame about its isocentre -> {relative(dcm)} (Enhanced XA, 8-bit DISP "
+        f"{SIGN[truth[0]['polarity']]:+d}, field of view turned 90° and flipped, frame time "
+        f"{s.frame_time_ms:g} ms) + {relative(truth_path)}",
+        "  " + command_line(args) + f"   (exit {rc})",
+    ]
     if rc not in (0, 1):
         lines.append("  track refused the run: " + " ".join(se.split()))
         return lines
@@ -260,10 +296,14 @@ def run_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> list[s
     if poses:
         lines.insert(2, "  " + intake_line(poses[0]))
     tracked = sum(bool(d.get("converged")) for d in poses)
-    lines.append(f"  {tracked} of {len(poses)} frames tracked -> {relative(poses_path)} "
-                 f"(+ observations, overlays {relative(out_dir)}/poses_run_<frame>_overlay.png)")
-    lines.append("  (no --distortion given: an XA run may come from an image intensifier, so each 1σ allows for "
-                 "its unmodelled distortion, mostly in depth; these frames were rendered undistorted)")
+    lines.append(
+        f"  {tracked} of {len(poses)} frames tracked -> {relative(poses_path)} "
+        f"(+ observations, overlays {relative(out_dir)}/poses_run_<frame>_overlay.png)"
+    )
+    lines.append(
+        "  (no --distortion given: an XA run may come from an image intensifier, so each 1σ allows for "
+        "its unmodelled distortion, mostly in depth; these frames were rendered undistorted)"
+    )
     return lines
 
 
@@ -285,36 +325,50 @@ def distortion_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) ->
     plate = grid_plate(s.grid_pitch_mm, s.grid_beads, s.grid_beads, 1.5)
     with np.errstate(over="ignore"):
         # the field's soft edge is a logistic whose exp overflows far outside it, to the right 0
-        gi = render_grid(plate, true_model, camera=cam, imaging=ImagingModel(image_shape=SHAPE),
-                         field_radius_px=s.field_radius_px, rng=np.random.default_rng(s.grid_seed))
+        gi = render_grid(
+            plate,
+            true_model,
+            camera=cam,
+            imaging=ImagingModel(image_shape=SHAPE),
+            field_radius_px=s.field_radius_px,
+            rng=np.random.default_rng(s.grid_seed),
+        )
     grid = write_dicom(d_dir / "grid.dcm", gi.raw, cam, kind="xa", relationship="LIN", relationship_sign=1)
     model_path, plot = d_dir / "model.json", d_dir / "fit.png"
     args = ["distortion", grid, "--pitch", f"{s.grid_pitch_mm:g}", "-o", model_path, "--plot", plot]
     rc, so, se = run_cli(args)
-    lines = [f"distortion: a {s.grid_beads}×{s.grid_beads} bead-grid plate ({s.grid_pitch_mm:g} mm pitch) through an "
-             f"intensifier with a {s.pincushion_mm:g} mm-at-100 mm pincushion -> {relative(grid)}",
-             "  " + command_line(args) + f"   (exit {rc})"]
+    lines = [
+        f"distortion: a {s.grid_beads}×{s.grid_beads} bead-grid plate ({s.grid_pitch_mm:g} mm pitch) through an "
+        f"intensifier with a {s.pincushion_mm:g} mm-at-100 mm pincushion -> {relative(grid)}",
+        "  " + command_line(args) + f"   (exit {rc})",
+    ]
     if rc != 0:
         lines.append("  distortion refused the grid: " + " ".join(se.split()))
         return lines
     model = read_distortion(model_path)
     g = model.pixel_grid(8)
     err = np.hypot(*(model.distort(g) - true_model.distort(g)).T)
-    lines.append(f"  model: degree {model.degree}, residual RMS {model.rms_residual_px:.3f} px "
-                 f"(max {model.max_residual_px:.3f} px), max displacement {model.max_displacement_px:.2f} px; "
-                 f"vs the true pincushion {np.sqrt(np.mean(err ** 2)):.3f} px RMS within "
-                 f"{model.support_radius_px:.0f} px of the centre")
+    lines.append(
+        f"  model: degree {model.degree}, residual RMS {model.rms_residual_px:.3f} px "
+        f"(max {model.max_residual_px:.3f} px), max displacement {model.max_displacement_px:.2f} px; "
+        f"vs the true pincushion {np.sqrt(np.mean(err**2)):.3f} px RMS within "
+        f"{model.support_radius_px:.0f} px of the centre"
+    )
 
     features = load_features(features_path)
     body = body_from_features_file(features_path)
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(s.pose_seed + 1))
     raw, _ = realistic_image(features, R[0], t[0], cam, "raw", s.raw_seed, body=body, shape=SHAPE)
-    frame = write_dicom(d_dir / "frame.dcm", distort_image(raw, true_model), cam, kind="xa", relationship="LIN",
-                        relationship_sign=1)
-    write_text_atomic(d_dir / "frame.truth.json", json.dumps(truth_object(R[0], t[0], condition="raw",
-                                                                          seed=s.raw_seed), indent=2) + "\n")
-    lines.append(f"  one raw frame of ftrac_2005 through the same intensifier -> {relative(frame)} "
-                 f"(+ frame.truth.json)")
+    frame = write_dicom(
+        d_dir / "frame.dcm", distort_image(raw, true_model), cam, kind="xa", relationship="LIN", relationship_sign=1
+    )
+    write_text_atomic(
+        d_dir / "frame.truth.json",
+        json.dumps(truth_object(R[0], t[0], condition="raw", seed=s.raw_seed), indent=2) + "\n",
+    )
+    lines.append(
+        f"  one raw frame of ftrac_2005 through the same intensifier -> {relative(frame)} (+ frame.truth.json)"
+    )
     for name, extra in (("uncorrected", []), ("corrected", ["--distortion", model_path])):
         pose_path = d_dir / name / "pose.json"
         args = ["track", "--features", Path(features_path), frame, *extra, "-o", pose_path]

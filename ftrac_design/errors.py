@@ -78,8 +78,10 @@ class MissingDependencyError(InputError):
         super().__init__(None, None, "")
 
     def _message(self, key: str | None) -> str:
-        return (f"{self.purpose} needs the Python package {self.module!r}, which is not installed: "
-                f"pip install 'ftrac_design[{self.extra}]'")
+        return (
+            f"{self.purpose} needs the Python package {self.module!r}, which is not installed: "
+            f"pip install 'ftrac_design[{self.extra}]'"
+        )
 
 
 def require(module: str, extra: str, purpose: str) -> ModuleType:

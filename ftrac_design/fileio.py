@@ -95,8 +95,9 @@ def json_format_is(path: str | Path, fmt: str) -> bool:
         return False
 
 
-def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Path], bool],
-                     parameter: str | None = "output") -> None:
+def check_output_dir(
+    out_dir: str | Path, earlier: str, is_earlier: Callable[[Path], bool], parameter: str | None = "output"
+) -> None:
     """Refuse an output directory that :func:`atomic_directory` must not replace.
 
     Parameters
@@ -120,8 +121,12 @@ def check_output_dir(out_dir: str | Path, earlier: str, is_earlier: Callable[[Pa
     if out_dir.exists() and not out_dir.is_dir():
         raise InputError(out_dir, None, "a directory (a file of that name exists)", parameter=parameter)
     if out_dir.is_dir() and any(out_dir.iterdir()) and not is_earlier(out_dir):
-        raise InputError(out_dir, None, f"a new or empty directory, or {earlier} "
-                         "(this one holds other files; it would be replaced whole)", parameter=parameter)
+        raise InputError(
+            out_dir,
+            None,
+            f"a new or empty directory, or {earlier} (this one holds other files; it would be replaced whole)",
+            parameter=parameter,
+        )
 
 
 def _reject_constant(name: str) -> float:

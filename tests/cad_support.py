@@ -55,6 +55,7 @@ def step_body(preset: str, profile: str = "cnc"):
 
 # ---- analytic volume ------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class VolumeEstimate:
     """Blank minus every groove and pocket, with the overlaps the estimate neglects bounded.
@@ -106,8 +107,8 @@ def _ellipse_groove_volume(e, R: float, w: float) -> float:
     N = P * np.array([1.0, 1.0, 0.0])
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     B = np.cross(T, N)
-    k_n = -(ddP * N).sum(axis=1) / speed ** 2  # normal curvature, positive toward the axis
-    area = w * (h + rw) - w ** 3 * (B[:, :2] ** 2).sum(axis=1) / (24 * R)
+    k_n = -(ddP * N).sum(axis=1) / speed**2  # normal curvature, positive toward the axis
+    area = w * (h + rw) - w**3 * (B[:, :2] ** 2).sum(axis=1) / (24 * R)
     moment = w * (h * h - rw * rw) / 2
     return float(np.trapezoid((area + k_n * moment) * speed, s))
 
@@ -148,8 +149,9 @@ def analytic_volume(design: Design, f: Features, cuts: CutSizes) -> VolumeEstima
     for b in f.points:
         floor = math.hypot(*b.center[:2]) - b.diameter / 2
         v_pock += quad(lambda x: 2 * math.sqrt(p * p - x * x) * (math.sqrt(R * R - x * x) - floor), -p, p)[0]
-    return VolumeEstimate(blank, v_ell, v_line, v_pock, overlap, crossings,
-                          _ellipse_pocket_overlap(design, f, cuts), n_cross)
+    return VolumeEstimate(
+        blank, v_ell, v_line, v_pock, overlap, crossings, _ellipse_pocket_overlap(design, f, cuts), n_cross
+    )
 
 
 def _ellipse_pocket_overlap(design: Design, f: Features, cuts: CutSizes) -> float:
@@ -171,13 +173,14 @@ def _ellipse_pocket_overlap(design: Design, f: Features, cuts: CutSizes) -> floa
             n = 400
             g = np.linspace(-p, p, n)
             X, Y = np.meshgrid(g, g)
-            inside = X ** 2 + Y ** 2 <= p * p
+            inside = X**2 + Y**2 <= p * p
             d, _ = tree.query(np.column_stack([X[inside], Y[inside]]))
             total += float((d <= w / 2).sum()) * (g[1] - g[0]) ** 2 * h_e
     return total
 
 
 # ---- probes ---------------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Probe:
@@ -239,8 +242,9 @@ def _in_cut(q: np.ndarray, c: _Cut, R: float, w: float, p: float, m: float) -> b
     return d @ N[k] >= -rw - m and abs(d @ B[k]) <= w / 2 + m
 
 
-def probes(design: Design, f: Features, cuts: CutSizes, n_ellipse: int = 96,
-           n_line: int = 40) -> tuple[list[Probe], int]:
+def probes(
+    design: Design, f: Features, cuts: CutSizes, n_ellipse: int = 96, n_line: int = 40
+) -> tuple[list[Probe], int]:
     """Probe points at every feature, and how many in-material probes were skipped because
     they fall within another feature's cut (crossings, pockets on a line).
 

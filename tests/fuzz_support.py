@@ -40,26 +40,27 @@ if PROFILE not in _SCALE:
 
 # filter_too_much: the tiny optimize runs keep only the mutated spaces that validate
 _QUIET = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much]
-settings.register_profile("ci", deadline=None, derandomize=True, database=None, print_blob=True,
-                          suppress_health_check=_QUIET)
+settings.register_profile(
+    "ci", deadline=None, derandomize=True, database=None, print_blob=True, suppress_health_check=_QUIET
+)
 settings.register_profile("long", deadline=None, print_blob=True, suppress_health_check=_QUIET)
 settings.load_profile(PROFILE)
 
 #: generated cases per input kind under the ``ci`` profile (docs/reference/errors.md: *Fuzzing*); ``long`` ×20
 CASES = {
-    "design_check": 120,      # mutated design TOML → `check`
-    "design_build": 8,        # mutated design TOML that must fail validation → `build` (exit 2 before CAD)
-    "design_analyze": 15,     # mutated design TOML → `analyze` (100 poses, 15° atlas, no plots)
-    "features_solve": 80,     # mutated features.json → `solve`
-    "features_analyze": 25,   # mutated features.json → `analyze`
+    "design_check": 120,  # mutated design TOML → `check`
+    "design_build": 8,  # mutated design TOML that must fail validation → `build` (exit 2 before CAD)
+    "design_analyze": 15,  # mutated design TOML → `analyze` (100 poses, 15° atlas, no plots)
+    "features_solve": 80,  # mutated features.json → `solve`
+    "features_analyze": 25,  # mutated features.json → `analyze`
     "observation_solve": 150,  # mutated observation.json / .jsonl → `solve`
-    "scrambled_solve": 40,    # simulated observation with swapped ids / moved beads → solver
-    "image_track": 40,        # broken image files → `track`
-    "image_read": 300,        # broken and lying image files → ftrac_design.images readers
-    "radiograph_track": 12,   # a simulated radiograph damaged (NaN, dtype, crop, scale, …) → `track`
-    "space_optimize": 40,     # mutated search-space TOML → `optimize --print-space` (validation only)
+    "scrambled_solve": 40,  # simulated observation with swapped ids / moved beads → solver
+    "image_track": 40,  # broken image files → `track`
+    "image_read": 300,  # broken and lying image files → ftrac_design.images readers
+    "radiograph_track": 12,  # a simulated radiograph damaged (NaN, dtype, crop, scale, …) → `track`
+    "space_optimize": 40,  # mutated search-space TOML → `optimize --print-space` (validation only)
     "space_optimize_run": 2,  # mutated spaces that validate → one tiny in-process `optimize` run
-    "report": 20,             # a build's manifest.json or analysis.json mutated → `report BUILD_DIR`
+    "report": 20,  # a build's manifest.json or analysis.json mutated → `report BUILD_DIR`
 }
 
 
@@ -81,8 +82,10 @@ class Run:
     crash: str | None
 
     def describe(self) -> str:
-        return (f"ftrac-design {' '.join(self.args)}\nexit {self.code}\n--- stdout\n{self.out[-2000:]}"
-                f"\n--- stderr\n{self.err[-2000:]}\n--- crash\n{self.crash or '-'}")
+        return (
+            f"ftrac-design {' '.join(self.args)}\nexit {self.code}\n--- stdout\n{self.out[-2000:]}"
+            f"\n--- stderr\n{self.err[-2000:]}\n--- crash\n{self.crash or '-'}"
+        )
 
 
 def run_cli(args: list[str | Path]) -> Run:
@@ -125,8 +128,7 @@ def assert_clean(run: Run, inputs: list[Path], out_dir: Path) -> None:
         assert 1 <= len(lines) <= 3, "exit 2 must print one to three lines\n" + run.describe()
         text = " ".join(lines)
         names = [str(p) for p in inputs] + [p.name for p in inputs]
-        assert any(n in text for n in names) or "see --help" in text, \
-            "exit 2 must name the file\n" + run.describe()
+        assert any(n in text for n in names) or "see --help" in text, "exit 2 must name the file\n" + run.describe()
         # file: key: expected — at least a colon after the file name and some words
         assert re.search(r":\s*\S.*\S", text), "exit 2 must say what was expected\n" + run.describe()
 
@@ -169,8 +171,9 @@ def _is_table_array(v: Any) -> bool:
 
 def to_toml(d: dict[str, Any], prefix: str = "") -> str:
     """TOML text for a nested mapping (tables as ``[a.b]``, lists of tables as ``[[a]]``)."""
-    lines = [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items()
-             if not isinstance(v, dict) and not _is_table_array(v)]
+    lines = [
+        f"{_toml_key(k)} = {_toml_value(v)}" for k, v in d.items() if not isinstance(v, dict) and not _is_table_array(v)
+    ]
     for k, v in d.items():
         name = f"{prefix}{_toml_key(k)}"
         if isinstance(v, dict):
@@ -215,8 +218,26 @@ def delete_at(obj: Any, path: tuple) -> None:
 
 
 #: numbers at the edges: signs, zero, tiny, huge, non-finite
-EDGE_FLOATS = st.sampled_from([0.0, -0.0, -1.0, 1e-300, -1e-300, 5e-324, 1e-9, 1e300, -1e300, 1e12,
-                               float("inf"), float("-inf"), float("nan"), 0.1, 1e6, -1e6])
+EDGE_FLOATS = st.sampled_from(
+    [
+        0.0,
+        -0.0,
+        -1.0,
+        1e-300,
+        -1e-300,
+        5e-324,
+        1e-9,
+        1e300,
+        -1e300,
+        1e12,
+        float("inf"),
+        float("-inf"),
+        float("nan"),
+        0.1,
+        1e6,
+        -1e6,
+    ]
+)
 
 
 def scalars(toml: bool = True) -> st.SearchStrategy:
@@ -232,9 +253,13 @@ def scalars(toml: bool = True) -> st.SearchStrategy:
 
 def any_values(toml: bool = True) -> st.SearchStrategy:
     """Scalars, lists and tables (a wrong type for almost any key)."""
-    return st.recursive(scalars(toml), lambda inner: st.one_of(
-        st.lists(inner, max_size=4), st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3)),
-        max_leaves=6)
+    return st.recursive(
+        scalars(toml),
+        lambda inner: st.one_of(
+            st.lists(inner, max_size=4), st.dictionaries(st.text(min_size=1, max_size=6), inner, max_size=3)
+        ),
+        max_leaves=6,
+    )
 
 
 @st.composite
@@ -273,7 +298,7 @@ def mutated(draw, doc: Any, toml: bool = True, max_mutations: int = 3) -> tuple[
         elif op == "scale":
             k = draw(st.sampled_from([-300, -12, -6, -3, -1, 1, 3, 6, 12, 300]))
             try:
-                v = cur * 10.0 ** k
+                v = cur * 10.0**k
             except OverflowError:
                 v = math.copysign(1e308, cur)
             set_at(doc, path, v if toml or math.isfinite(v) else 1e308)
@@ -295,7 +320,7 @@ def damage(draw, data: bytes) -> tuple[str, bytes]:
     drawn bits flipped: ``(what was done, bytes)``. ``draw`` is a Hypothesis draw function."""
     cut = draw(st.sampled_from(["none", "none", "truncate", "flip"]))
     if cut == "truncate" and data:
-        data = data[:draw(st.integers(0, len(data) - 1))]
+        data = data[: draw(st.integers(0, len(data) - 1))]
     elif cut == "flip" and data:
         b = bytearray(data)
         for _ in range(draw(st.integers(1, 8))):

@@ -39,16 +39,26 @@ class Frames:
     camera_path: Path
 
 
-def rendered_frames(out_dir: Path, n: int, shape: tuple[int, int] = (512, 512), design: str = "ftrac_2005",
-                    seed: int = 0) -> Frames:
+def rendered_frames(
+    out_dir: Path, n: int, shape: tuple[int, int] = (512, 512), design: str = "ftrac_2005", seed: int = 0
+) -> Frames:
     """``n`` raw radiographs of ``design`` at workspace poses (seed ``seed``), 0.44 mm pixels, f = 1000 mm."""
     d = load_design(PRESETS_DIR / f"{design}.toml")
     features = compute_features(d)
     body = body_from_design_file(PRESETS_DIR / f"{design}.toml")
     cam = Camera(1000.0, (0.44, 0.44), ((shape[1] - 1) / 2, (shape[0] - 1) / 2))
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
-    pix = np.stack([np.asarray(render(features, R[k], t[k], cam, ImagingModel(image_shape=shape),
-                                      rng=np.random.default_rng(k), body=body).raw, np.uint16) for k in range(n)])
+    pix = np.stack(
+        [
+            np.asarray(
+                render(
+                    features, R[k], t[k], cam, ImagingModel(image_shape=shape), rng=np.random.default_rng(k), body=body
+                ).raw,
+                np.uint16,
+            )
+            for k in range(n)
+        ]
+    )
     out_dir.mkdir(parents=True, exist_ok=True)
     fpath = write_features(out_dir / f"{design}.features.json", features)
     cpath = out_dir / "camera.json"
@@ -61,8 +71,14 @@ class Server:
 
     def __init__(self, args: list[str], timeout_s: float = 60.0):
         env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-        self.proc = subprocess.Popen([sys.executable, "-m", "ftrac_design.cli.main", "serve", "--port", "0", *args],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env, cwd=ROOT)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "ftrac_design.cli.main", "serve", "--port", "0", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=ROOT,
+        )
         self.lines: list[str] = []
         first = self.proc.stdout.readline()
         self.lines.append(first)

@@ -11,8 +11,9 @@ from ftrac_design.pose import Camera
 CAM = Camera(1100.0, (0.30, 0.40), (21.25, 13.5))
 
 
-def stored(n: int = 1, shape: tuple[int, int] = (48, 64), bits: int = 12, seed: int = 0,
-           signed: bool = False) -> np.ndarray:
+def stored(
+    n: int = 1, shape: tuple[int, int] = (48, 64), bits: int = 12, seed: int = 0, signed: bool = False
+) -> np.ndarray:
     """(n, H, W) random stored integers of ``bits`` bits (signed: two's-complement range)."""
     rng = np.random.default_rng(seed)
     if signed:

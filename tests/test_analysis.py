@@ -52,7 +52,7 @@ def test_batched_information_is_the_solvers_jacobian(presets, name):
     np.testing.assert_allclose(per.sum(1), total, rtol=1e-10, atol=1e-12 * np.abs(total).max())
     for i in range(len(R)):
         prob = synthetic_problem(f, cam, R[i], t[i])
-        J = evaluate(prob, R[i:i + 1], t[i:i + 1]).J[0]
+        J = evaluate(prob, R[i : i + 1], t[i : i + 1]).J[0]
         scale = np.abs(J.T @ J).max()
         np.testing.assert_allclose(total[i], J.T @ J, rtol=0, atol=1e-9 * scale)
         for fid, rows in prob.row_groups():
@@ -65,7 +65,7 @@ def test_batch_equals_one_pose_at_a_time(presets):
     R, t = workspace_poses(Workspace(), f.nominal_beam_direction, 40, seed=3)
     batch = analyse_poses(f, R, t, detail=True, chunk=16)
     for i in (0, 17, 39):
-        one = analyse_poses(f, R[i:i + 1], t[i:i + 1], detail=True)
+        one = analyse_poses(f, R[i : i + 1], t[i : i + 1], detail=True)
         np.testing.assert_allclose(one.overall.sigma[0], batch.overall.sigma[i], rtol=1e-10)
         np.testing.assert_allclose(one.overall.translation_std_mm[0], batch.overall.translation_std_mm[i], rtol=1e-9)
         np.testing.assert_allclose(one.rank_ratio[0], batch.rank_ratio[i], rtol=1e-8)
@@ -122,8 +122,8 @@ def test_single_ellipse_goes_singular_edge_on_and_the_atlas_names_it(presets):
         pa = analyse_poses(e1, R, t)
         ratios[ang] = pa.rank_ratio[0, 0]
         assert pa.view_angle_deg[0, 0] == pytest.approx(ang, abs=1e-6)
-    assert ratios[0.0] < 1e-6 * ratios[30.0]            # rank lost exactly edge-on
-    assert ratios[0.0] < ratios[1.0] < ratios[30.0]     # and approached continuously
+    assert ratios[0.0] < 1e-6 * ratios[30.0]  # rank lost exactly edge-on
+    assert ratios[0.0] < ratios[1.0] < ratios[30.0]  # and approached continuously
     atlas = blind_spot_atlas(e1, AnalysisSettings(), step_deg=4.0)
     doc = atlas.to_dict()
     assert doc["attainable_rank"] == 5 and doc["singular_fraction_of_sphere"] == 1.0  # 5 numbers, 6 DOF
@@ -142,7 +142,7 @@ def test_full_design_is_not_blind_where_one_ellipse_is(presets):
     doc = blind_spot_atlas(f, AnalysisSettings(), step_deg=4.0).to_dict()
     assert doc["singular_fraction_of_sphere"] == 0.0
     assert doc["condition"]["worst"] < 2 * doc["condition"]["median"]
-    assert doc["blind_fraction_of_sphere"]["E1"] > 0.01   # E1 alone does go blind somewhere
+    assert doc["blind_fraction_of_sphere"]["E1"] > 0.01  # E1 alone does go blind somewhere
     named = {r["id"] for w in doc["worst_directions"] for r in w["responsible"]}
     assert named <= {"E1", "E2"}
 
@@ -223,7 +223,7 @@ def test_workspace_sampler_cone_whole_sphere_and_ranges(presets):
     assert np.all(np.abs(t[:, :2]) <= 25.0) and np.all(np.abs(t[:, 2] - 667.0) <= 25.0)
     Rs, _ = workspace_poses(Workspace(cone_deg=180.0), nb, 4000, seed=2)
     ps, _ = angle_from(nb, Rs[:, 2])
-    assert ps.max() > 170.0 and np.mean(ps > 90.0) == pytest.approx(0.5, abs=0.03)   # whole sphere
+    assert ps.max() > 170.0 and np.mean(ps > 90.0) == pytest.approx(0.5, abs=0.03)  # whole sphere
     # roll range: the camera x axis stays within the allowed roll of the reference frame
     Rr, _ = workspace_poses(Workspace(roll_deg=(0.0, 90.0)), nb, 500, seed=3)
     R0 = rotations_from_beams(Rr[:, 2], np.zeros(len(Rr)))

@@ -45,8 +45,9 @@ def test_analyze_features_json_writes_json_and_plots(tmp_path, capsys, features_
 
 def test_analyze_fails_a_threshold_with_exit_1(tmp_path, capsys, features_json):
     out = tmp_path / "an"
-    assert main(["analyze", str(features_json), "-o", str(out), *FAST, "--max-translation-mm", "0.1",
-                 "--no-plots"]) == 1
+    assert (
+        main(["analyze", str(features_json), "-o", str(out), *FAST, "--max-translation-mm", "0.1", "--no-plots"]) == 1
+    )
     doc = json.loads((out / "analysis.json").read_text())
     assert doc["passed"] is False and doc["thresholds"]["max_translation_mm"] == 0.1
     assert doc["files"] == []
@@ -59,8 +60,21 @@ def test_design_file_thresholds_and_command_line_override(tmp_path):
     # ftrac_mini.toml sets max_translation = 1.5 (it would fail the default 1.0)
     assert main(["analyze", str(MODELS / "ftrac_mini.toml"), "-o", str(out), *FAST, "--no-plots"]) == 0
     assert json.loads((out / "analysis.json").read_text())["thresholds"]["max_translation_mm"] == 1.5
-    assert main(["analyze", str(MODELS / "ftrac_mini.toml"), "-o", str(out), *FAST, "--no-plots",
-                 "--max-translation-mm", "1.0"]) == 1
+    assert (
+        main(
+            [
+                "analyze",
+                str(MODELS / "ftrac_mini.toml"),
+                "-o",
+                str(out),
+                *FAST,
+                "--no-plots",
+                "--max-translation-mm",
+                "1.0",
+            ]
+        )
+        == 1
+    )
 
 
 BAD = [
@@ -71,8 +85,11 @@ BAD = [
     ("bad features", ["analyze", "{tmp}/bad.json"], "bad.json"),
     ("bad analysis key", ["analyze", "{tmp}/bad.toml"], "analysis.cone_deg"),
     ("zero poses", ["analyze", "{models}/ftrac_2005.toml", "--poses", "0"], "--poses"),
-    ("negative error", ["analyze", "{models}/ftrac_2005.toml", "--segmentation-error-mm", "-1"],
-     "--segmentation-error-mm"),
+    (
+        "negative error",
+        ["analyze", "{models}/ftrac_2005.toml", "--segmentation-error-mm", "-1"],
+        "--segmentation-error-mm",
+    ),
     ("compare non-png", ["compare", "{models}/ftrac_2005.toml", "-o", "{tmp}/c.pdf", "--poses", "100"], ".png"),
 ]
 
@@ -105,8 +122,22 @@ def test_analyze_refuses_to_replace_a_foreign_directory(tmp_path, capsys, featur
 
 def test_compare_prints_a_table_and_draws_overlays(tmp_path, capsys):
     out = tmp_path / "cmp.png"
-    assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "400",
-                 "--score-images", "0", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(MODELS / "ftrac_2005.toml"),
+                str(MODELS / "nine_bead.toml"),
+                "--poses",
+                "400",
+                "--score-images",
+                "0",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     rows = {line.split()[0]: line.split() for line in text.splitlines() if line.split()}
     assert rows["ftrac_2005"][-1] == "PASS" and rows["nine_bead"][-1] == "FAIL"

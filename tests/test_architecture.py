@@ -1,6 +1,6 @@
 """The house's rules: rooms import one way (import-linter's contracts in pyproject.toml), only
 ``cad`` imports CadQuery/OCP, no private name crosses from one room into another, and ``ruff
-check`` (its settings in pyproject.toml) finds nothing."""
+check`` and ``ruff format --check`` (their settings in pyproject.toml) find nothing."""
 
 from __future__ import annotations
 
@@ -18,8 +18,9 @@ PACKAGE = ROOT / "ftrac_design"
 LINT_IMPORTS = Path(sys.executable).with_name("lint-imports")
 RUFF = Path(sys.executable).with_name("ruff")
 
-needs_lint_imports = pytest.mark.skipif(not LINT_IMPORTS.exists(),
-                                        reason="import-linter is not installed (make installs it)")
+needs_lint_imports = pytest.mark.skipif(
+    not LINT_IMPORTS.exists(), reason="import-linter is not installed (make installs it)"
+)
 
 
 def _lint(cwd: Path, env_path: Path) -> subprocess.CompletedProcess:
@@ -101,3 +102,11 @@ def test_the_private_name_check_finds_one(tmp_path):
 def test_ruff_finds_nothing():
     res = subprocess.run([str(RUFF), "check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-2000:]
+
+
+@pytest.mark.skipif(not RUFF.exists(), reason="ruff is not installed (make installs it)")
+def test_the_code_is_as_ruff_formats_it():
+    res = subprocess.run(
+        [str(RUFF), "format", "--check", "--no-cache", "."], cwd=ROOT, capture_output=True, text=True, timeout=120
+    )
+    assert res.returncode == 0, "run `ruff format .`:\n" + res.stdout[-3000:] + res.stderr[-2000:]

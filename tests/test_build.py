@@ -31,9 +31,11 @@ def test_every_file_written_and_hashed(preset):
     assert m["profile"] == "cnc" and m["force"] is False
     assert m["design"]["sha256"] == S.design_of(preset).sha256
     assert m["versions"]["ocp"] not in ("", "unknown")
-    assert m["beads"]["count"] == len(S.design_of(preset).lines and
-                                      [b for ln in S.design_of(preset).lines for b in ln.beads_z]
-                                      or S.design_of(preset).beads)
+    assert m["beads"]["count"] == len(
+        S.design_of(preset).lines
+        and [b for ln in S.design_of(preset).lines for b in ln.beads_z]
+        or S.design_of(preset).beads
+    )
     assert m["manufacturing"]["rules"]["ok"] is True
     assert {"stock", "wires", "beads"} <= set(m["bom"])
     assert m["build_time_s"] > 0 and set(m["timings_s"]) >= {"body", "export_body", "render"}
@@ -149,5 +151,5 @@ def test_assembly_step_holds_every_part_named_coloured_and_placed():
     F_from_M = np.linalg.inv(np.asarray(f.frames["mount_from_fiducial"]))
     floor = (F_from_M @ [0.0, 0.0, 0.0, 1.0])[:3]
     assert floor == pytest.approx([0.0, 0.0, -S.design_of("ftrac_2005").half_length], abs=1e-9)
-    assert inside(parts["mount"][0], floor - [0.0, 0.0, 0.5])       # acetal below the floor
-    assert not inside(parts["mount"][0], floor + [0.0, 0.0, 0.5])   # the socket above it
+    assert inside(parts["mount"][0], floor - [0.0, 0.0, 0.5])  # acetal below the floor
+    assert not inside(parts["mount"][0], floor + [0.0, 0.0, 0.5])  # the socket above it

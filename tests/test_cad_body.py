@@ -82,8 +82,9 @@ def test_stl_watertight_and_volume_close_to_step(preset):
     assert abs(mesh.volume / v_step - 1) < 0.005
     # the mesh spans the same envelope as the solid
     d = S.design_of(preset)
-    assert np.allclose(mesh.bounds, [[-d.outer_radius] * 2 + [-d.half_length], [d.outer_radius] * 2 + [d.half_length]],
-                       atol=0.02)
+    assert np.allclose(
+        mesh.bounds, [[-d.outer_radius] * 2 + [-d.half_length], [d.outer_radius] * 2 + [d.half_length]], atol=0.02
+    )
 
 
 def test_stl_resolves_the_grooves(preset):

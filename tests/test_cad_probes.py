@@ -33,8 +33,11 @@ def _check(preset: str, profile: str, n_ellipse: int, n_line: int) -> None:
     d, f, cuts = S.design_features_cuts(preset, profile)
     probes, skipped = S.probes(d, f, cuts, n_ellipse=n_ellipse, n_line=n_line)
     states = S.classify(_body(preset, profile), np.array([p.point for p in probes]))
-    wrong = [f"{p.feature} {p.kind} at {np.round(p.point, 4).tolist()}: {st}, expected {'in' if p.inside else 'out'}"
-             for p, st in zip(probes, states) if (st == "in") != p.inside]
+    wrong = [
+        f"{p.feature} {p.kind} at {np.round(p.point, 4).tolist()}: {st}, expected {'in' if p.inside else 'out'}"
+        for p, st in zip(probes, states)
+        if (st == "in") != p.inside
+    ]
     assert not wrong, f"{len(wrong)} of {len(probes)} probes wrong:\n" + "\n".join(wrong[:20])
     # every feature was probed, both ways, and the skipped neighbourhoods stay small
     for fid in f.ids:
@@ -69,6 +72,11 @@ def test_probe_geometry_is_consistent():
     probes, _ = S.probes(d, f, cuts, n_ellipse=4, n_line=2)
     e = f.ellipses[0]
     P = e.sample(0.0)
-    sides = [p for p in probes if p.feature == e.id and p.kind == "side"
-             and abs(np.linalg.norm(p.point - P) - (d.wire.diameter / 2 + eps)) < 1e-12]
+    sides = [
+        p
+        for p in probes
+        if p.feature == e.id
+        and p.kind == "side"
+        and abs(np.linalg.norm(p.point - P) - (d.wire.diameter / 2 + eps)) < 1e-12
+    ]
     assert len(sides) == 2  # press fit: material from the wire radius (0.25 > 0.24) outward

@@ -40,8 +40,11 @@ def test_sizes_step_around_the_profile(preset, profile):
     rows = list(csv.DictReader(coupon_csv(c).splitlines()))
     assert len(rows) == len(c.steps) and all(r["holds"] == "" for r in rows)
     for cut in (*c.plan.slots, *c.plan.pockets):  # inside the coupon, clear of the grip
-        z0, z1 = (cut.z0 - cut.end_radius, cut.z1 + cut.end_radius) if isinstance(cut, SlotCut) else (
-            cut.z - cut.diameter / 2, cut.z + cut.diameter / 2)
+        z0, z1 = (
+            (cut.z0 - cut.end_radius, cut.z1 + cut.end_radius)
+            if isinstance(cut, SlotCut)
+            else (cut.z - cut.diameter / 2, cut.z + cut.diameter / 2)
+        )
         assert -c.stock.half_length + 5.0 <= z0 + 1e-9 and z1 < c.stock.half_length
 
 
@@ -83,9 +86,13 @@ def test_coupon_program_cuts_the_coupon():
     v = verify(parse_gcode(text), c.plan, tools={1: tools.groove.diameter, 2: tools.pocket.diameter}, grid_mm=0.04)
     assert v.ok and v.gouges == 0 and v.max_deviation_mm < 2e-3
     # a square-ended reference would be gouged by the end mill's round ends
-    square = c.plan.__class__(c.plan.name, c.stock, (), tuple(
-        SlotCut(s.id, s.azimuth, s.floor_radius, s.top_radius, s.width, s.z0, s.z1) for s in c.plan.slots),
-        c.plan.pockets)
+    square = c.plan.__class__(
+        c.plan.name,
+        c.stock,
+        (),
+        tuple(SlotCut(s.id, s.azimuth, s.floor_radius, s.top_radius, s.width, s.z0, s.z1) for s in c.plan.slots),
+        c.plan.pockets,
+    )
     bad = verify(parse_gcode(text), square, tools={1: tools.groove.diameter, 2: tools.pocket.diameter}, grid_mm=0.04)
     # up to the end mill's radius past each square end (sampled on a 0.04 mm grid)
     assert bad.gouges > 0 and 0.15 < bad.max_overcut_mm <= tools.groove.diameter / 2 + 1e-3
@@ -100,18 +107,34 @@ def test_interference_feeds_back_into_the_design(tmp_path, capsys):
     assert cut_sizes(d, "cnc").groove_width == pytest.approx(orig.wire.diameter - 0.03)
     assert cut_sizes(d, "cnc").pocket_diameter == pytest.approx(orig.bead.diameter - 0.01)
     assert d.model_dump(exclude={"manufacturing"}) == orig.model_dump(exclude={"manufacturing"})
-    assert main(["coupon", "ftrac_mini", "--profile", "fdm", "--interference", "0.1,0.12",
-                 "--write-design", str(tmp_path / "f.toml")]) == 0
+    assert (
+        main(
+            [
+                "coupon",
+                "ftrac_mini",
+                "--profile",
+                "fdm",
+                "--interference",
+                "0.1,0.12",
+                "--write-design",
+                str(tmp_path / "f.toml"),
+            ]
+        )
+        == 0
+    )
     assert load_design(tmp_path / "f.toml").manufacturing.fdm.wire_clearance == 0.1
 
 
-@pytest.mark.parametrize("args, where", [
-    (["coupon", "ftrac_mini", "--interference", "0.03"], "--interference"),
-    (["coupon", "ftrac_mini", "--interference", "0.03,0.01"], "--interference"),
-    (["coupon", "ftrac_mini", "--step", "0"], "--step"),
-    (["coupon", "ftrac_mini", "-o", "{tmp}/afile"], "afile"),
-    (["coupon", "nothing_here"], "nothing_here"),
-])
+@pytest.mark.parametrize(
+    "args, where",
+    [
+        (["coupon", "ftrac_mini", "--interference", "0.03"], "--interference"),
+        (["coupon", "ftrac_mini", "--interference", "0.03,0.01"], "--interference"),
+        (["coupon", "ftrac_mini", "--step", "0"], "--step"),
+        (["coupon", "ftrac_mini", "-o", "{tmp}/afile"], "afile"),
+        (["coupon", "nothing_here"], "nothing_here"),
+    ],
+)
 def test_coupon_bad_input_exits_2_with_one_line(tmp_path, capsys, args, where):
     (tmp_path / "afile").write_text("x")
     assert main([a.format(tmp=tmp_path) for a in args]) == 2
@@ -125,13 +148,19 @@ def test_coupon_command_builds_a_valid_part(tmp_path):
 
     out = tmp_path / "c"
     assert main(["coupon", "ftrac_mini", "-o", str(out)]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["coupon.csv", "coupon.ngc", "coupon.ngc.verify.json",
-                                                     "coupon.png", "coupon.step", "coupon.stl"]
+    assert sorted(p.name for p in out.iterdir()) == [
+        "coupon.csv",
+        "coupon.ngc",
+        "coupon.ngc.verify.json",
+        "coupon.png",
+        "coupon.step",
+        "coupon.stl",
+    ]
     mesh = trimesh.load(out / "coupon.stl")
     assert mesh.is_volume
     c = plan_coupon(load_design("ftrac_mini"), "cnc")
-    blank = math.pi * c.stock.outer_radius ** 2 * 2 * c.stock.half_length
+    blank = math.pi * c.stock.outer_radius**2 * 2 * c.stock.half_length
     v = verify(parse_gcode((out / "coupon.ngc").read_text()), c.plan, grid_mm=0.04)
     removed = blank - mesh.volume
-    engraved_max = len(c.steps) * 5 * c.label_height ** 2 * 0.1  # five characters of the label's height, 0.1 deep
+    engraved_max = len(c.steps) * 5 * c.label_height**2 * 0.1  # five characters of the label's height, 0.1 deep
     assert v.reference_mm3 * 0.99 < removed < v.reference_mm3 * 1.01 + engraved_max

@@ -36,8 +36,10 @@ from ftrac_design.xray.scene import body_from_features_file
 
 SETTINGS = CarmDemoSettings()
 NUM = r"[-+]?\d+\.\d+"
-ERRORS = re.compile(rf"converged: error t \(({NUM}), ({NUM}), ({NUM})\) mm, rotation ({NUM})°; "
-                    rf"1σ t \(({NUM}), ({NUM}), ({NUM})\) mm, rotation \(({NUM}), ({NUM}), ({NUM})\)°")
+ERRORS = re.compile(
+    rf"converged: error t \(({NUM}), ({NUM}), ({NUM})\) mm, rotation ({NUM})°; "
+    rf"1σ t \(({NUM}), ({NUM}), ({NUM})\) mm, rotation \(({NUM}), ({NUM}), ({NUM})\)°"
+)
 
 
 @pytest.fixture(scope="module")
@@ -98,8 +100,15 @@ def test_each_frame_of_the_run_is_printed_as_tracked(ran):
 def test_printed_paths_are_relative_and_exist(ran):
     text, root, _ = ran
     assert str(root) not in text
-    for p in ("carm/run.dcm", "carm/run.truth.jsonl", "carm/poses.jsonl", "carm/distortion/grid.dcm",
-              "carm/distortion/model.json", "carm/distortion/frame.dcm", "carm/distortion/corrected/pose.json"):
+    for p in (
+        "carm/run.dcm",
+        "carm/run.truth.jsonl",
+        "carm/poses.jsonl",
+        "carm/distortion/grid.dcm",
+        "carm/distortion/model.json",
+        "carm/distortion/frame.dcm",
+        "carm/distortion/corrected/pose.json",
+    ):
         assert p in text and (root / p).is_file(), p
 
 
@@ -113,12 +122,19 @@ def test_the_run_is_stored_rotated_and_reads_back_as_rendered(ran, features_2005
     assert int(fov.FieldOfViewRotation) == 90 and fov.FieldOfViewHorizontalFlip == "YES"
     # frame 1 as read (detector grid) is the render of the same seed at frame 1's true pose
     true = read_jsonl(root / "carm" / "run.truth.jsonl")[1]
-    img, _ = realistic_image(features_2005, np.array(true["rotation"]), np.array(true["translation_mm"]), CAMERA,
-                             SETTINGS.condition, SETTINGS.seed, body=body_from_features_file(features_path),
-                             shape=SHAPE)
+    img, _ = realistic_image(
+        features_2005,
+        np.array(true["rotation"]),
+        np.array(true["translation_mm"]),
+        CAMERA,
+        SETTINGS.condition,
+        SETTINGS.seed,
+        body=body_from_features_file(features_path),
+        shape=SHAPE,
+    )
     frame = list(read_frames(root / "carm" / "run.dcm"))[1]
     assert np.array_equal(frame.pixels, img) and frame.formation == "display" and frame.polarity == "dense-dark"
-    assert np.array_equal(ds.pixel_array[1], np.rot90(img, -1)[:, ::-1])       # stored turned, then flipped
+    assert np.array_equal(ds.pixel_array[1], np.rot90(img, -1)[:, ::-1])  # stored turned, then flipped
 
 
 def test_the_truth_turns_about_the_isocentre(ran):
@@ -127,7 +143,7 @@ def test_the_truth_turns_about_the_isocentre(ran):
     R = np.array([d["rotation"] for d in truth])
     t = np.array([d["translation_mm"] for d in truth])
     c = np.array([0.0, 0.0, SETTINGS.isocentre_mm])
-    p = R[0].T @ (c - t[0])                                 # the fiducial-frame point at the isocentre
+    p = R[0].T @ (c - t[0])  # the fiducial-frame point at the isocentre
     assert np.allclose(np.einsum("kij,j->ki", R, p) + t, c, atol=1e-9)
     for k in range(1, len(truth)):
         turn = R[k] @ R[k - 1].T

@@ -41,17 +41,28 @@ BEADS_L1 = re.search(r"beads_z = \[[^\]]*\]", SOURCE).group(0)
 
 # (case, design text, the key the message must name, a phrase of what was expected)
 BAD = [
-    ("negative size", _sub("outer_diameter = 30.0", "outer_diameter = -30.0"), "body.outer_diameter",
-     "greater than 0"),
+    ("negative size", _sub("outer_diameter = 30.0", "outer_diameter = -30.0"), "body.outer_diameter", "greater than 0"),
     ("zero wire", _sub("[wire]\ndiameter = 0.5", "[wire]\ndiameter = 0.0"), "wire.diameter", "greater than 0"),
-    ("bore too big", _sub("bore_diameter = 20.0", "bore_diameter = 32.0"), "body.bore_diameter",
-     "smaller than outer_diameter"),
+    (
+        "bore too big",
+        _sub("bore_diameter = 20.0", "bore_diameter = 32.0"),
+        "body.bore_diameter",
+        "smaller than outer_diameter",
+    ),
     ("string for a number", _sub("length = 50.0", 'length = "fifty"'), "body.length", "a number"),
-    ("unknown key", _sub("[wire]\n", "[wire]\ncolour = \"red\"\n"), "wire.colour", "no such key"),
-    ("bead off its line", _sub(BEADS_L1, "beads_z = [-16.0, -1.5, 10.0, 17.0]"), "lines[0].beads_z[3]",
-     "a bead on its line"),
-    ("ellipses crossing", _sub("z_center = -12.5", "z_center = 8.0"), "ellipses[1].z_center",
-     "ellipses that do not cross"),
+    ("unknown key", _sub("[wire]\n", '[wire]\ncolour = "red"\n'), "wire.colour", "no such key"),
+    (
+        "bead off its line",
+        _sub(BEADS_L1, "beads_z = [-16.0, -1.5, 10.0, 17.0]"),
+        "lines[0].beads_z[3]",
+        "a bead on its line",
+    ),
+    (
+        "ellipses crossing",
+        _sub("z_center = -12.5", "z_center = 8.0"),
+        "ellipses[1].z_center",
+        "ellipses that do not cross",
+    ),
     ("not TOML", "name = \n", "", "TOML"),
 ]
 

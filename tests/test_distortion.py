@@ -69,7 +69,7 @@ def test_undistort_refuses_where_there_is_no_inverse():
     m = radial(SHAPE, (-40.0, 100.0), PIXEL_MM)
     a = (40.0 / PIXEL_MM) * (PIXEL_MM / 100.0) ** 3
     r_peak = 1 / np.sqrt(3 * a)
-    d_peak = r_peak * (1 - a * r_peak ** 2)
+    d_peak = r_peak * (1 - a * r_peak**2)
     q = CENTRE + np.array([[0.5 * d_peak, 0.0], [1.05 * d_peak, 0.0], [np.nan, 3.0]])
     p = m.undistort(q)
     assert np.all(np.isfinite(p[0])) and np.allclose(m.distort(p[:1]), q[:1], atol=1e-6)
@@ -83,7 +83,7 @@ def test_radial_displacement_is_k_at_r_and_cubic():
         for r_mm, want_mm in ((100.0, 2.0), (50.0, 0.25)):
             p = CENTRE + d * r_mm / PIXEL_MM
             disp = m.displacement(p[None])[0]
-            assert np.allclose(disp, d * want_mm / PIXEL_MM, atol=1e-9)   # outward, radial
+            assert np.allclose(disp, d * want_mm / PIXEL_MM, atol=1e-9)  # outward, radial
     assert m.displacement(CENTRE[None])[0] == pytest.approx([0.0, 0.0], abs=1e-12)
     assert m.rms_residual_px == 0.0
     barrel = radial(SHAPE, (-1.0, 100.0), PIXEL_MM, centre=(200.0, 300.0))
@@ -93,8 +93,8 @@ def test_radial_displacement_is_k_at_r_and_cubic():
 
 def test_s_distortion_is_a_rotation_growing_with_radius():
     m = s_distortion(SHAPE, 3.0)
-    assert m.max_residual_px < 1e-3                      # the polynomial fit of the rotation
-    for r, want in ((256.0, 3.0), (128.0, 3.0 / 8)):     # tangential displacement ≈ a (r/R)³
+    assert m.max_residual_px < 1e-3  # the polynomial fit of the rotation
+    for r, want in ((256.0, 3.0), (128.0, 3.0 / 8)):  # tangential displacement ≈ a (r/R)³
         for ang in np.radians([10.0, 135.0]):
             d = np.array([np.cos(ang), np.sin(ang)])
             disp = m.displacement((CENTRE + r * d)[None])[0]
@@ -111,27 +111,47 @@ def test_json_round_trip_and_spec_keys(tmp_path, true_model):
     p = tmp_path / "sub" / "model.json"
     write_distortion(p, true_model)
     d = json.loads(p.read_text())
-    for k in ("format", "version", "model", "degree", "image_shape", "centre_px", "scale_px", "coefficients_u",
-              "coefficients_v", "direction", "rms_residual_px", "max_residual_px", "source"):
+    for k in (
+        "format",
+        "version",
+        "model",
+        "degree",
+        "image_shape",
+        "centre_px",
+        "scale_px",
+        "coefficients_u",
+        "coefficients_v",
+        "direction",
+        "rms_residual_px",
+        "max_residual_px",
+        "source",
+    ):
         assert k in d
-    assert (d["format"], d["version"], d["model"], d["direction"]) == \
-        ("ftrac-distortion", 1, "polynomial-2d", "ideal_to_distorted")
+    assert (d["format"], d["version"], d["model"], d["direction"]) == (
+        "ftrac-distortion",
+        1,
+        "polynomial-2d",
+        "ideal_to_distorted",
+    )
     back = read_distortion(p)
     assert back == true_model
     q = np.array([[10.0, 20.0], [400.0, 300.0]])
     assert np.array_equal(back.distort(q), true_model.distort(q))
-    assert [x.name for x in p.parent.iterdir()] == ["model.json"]     # no temporary left behind
+    assert [x.name for x in p.parent.iterdir()] == ["model.json"]  # no temporary left behind
 
 
-@pytest.mark.parametrize("edit, key", [
-    (lambda d: d.pop("coefficients_v"), "coefficients_v"),
-    (lambda d: d.update(coefficients_u=[0.0, 1.0]), "coefficients_u"),
-    (lambda d: d.update(format="ftrac-pose"), "format"),
-    (lambda d: d.update(direction="distorted_to_ideal"), "direction"),
-    (lambda d: d.update(degree=2.5), "degree"),
-    (lambda d: d.update(scale_px=-3), "scale_px"),
-    (lambda d: d.update(image_shape=[512]), "image_shape"),
-])
+@pytest.mark.parametrize(
+    "edit, key",
+    [
+        (lambda d: d.pop("coefficients_v"), "coefficients_v"),
+        (lambda d: d.update(coefficients_u=[0.0, 1.0]), "coefficients_u"),
+        (lambda d: d.update(format="ftrac-pose"), "format"),
+        (lambda d: d.update(direction="distorted_to_ideal"), "direction"),
+        (lambda d: d.update(degree=2.5), "degree"),
+        (lambda d: d.update(scale_px=-3), "scale_px"),
+        (lambda d: d.update(image_shape=[512]), "image_shape"),
+    ],
+)
 def test_bad_file_names_the_file_and_key(tmp_path, true_model, edit, key):
     d = true_model.to_dict()
     edit(d)
@@ -151,26 +171,29 @@ def test_bad_file_names_the_file_and_key(tmp_path, true_model, edit, key):
 def test_distort_image_moves_a_blob_to_the_model_place(true_model):
     v, u = np.mgrid[0:512, 0:512].astype(float)
     ideal = np.array([[400.0, 130.0], [120.0, 200.0]])
-    img = sum(np.exp(-((u - c[0]) ** 2 + (v - c[1]) ** 2) / (2 * 2.0 ** 2)) for c in ideal)
+    img = sum(np.exp(-((u - c[0]) ** 2 + (v - c[1]) ** 2) / (2 * 2.0**2)) for c in ideal)
     out = distort_image(img, true_model)
     assert out.shape == img.shape and out.dtype == img.dtype
     for want in true_model.distort(ideal):
         cu, cv = np.round(want).astype(int)
-        w = out[cv - 8:cv + 9, cu - 8:cu + 9]
-        got = np.array([(w * u[cv - 8:cv + 9, cu - 8:cu + 9]).sum(),
-                        (w * v[cv - 8:cv + 9, cu - 8:cu + 9]).sum()]) / w.sum()
+        w = out[cv - 8 : cv + 9, cu - 8 : cu + 9]
+        got = (
+            np.array([(w * u[cv - 8 : cv + 9, cu - 8 : cu + 9]).sum(), (w * v[cv - 8 : cv + 9, cu - 8 : cu + 9]).sum()])
+            / w.sum()
+        )
         assert np.hypot(*(got - want)) < 0.03
 
 
 def test_undistort_image_undoes_distort_image(true_model):
     rng = np.random.default_rng(3)
     from scipy.ndimage import gaussian_filter
+
     img = gaussian_filter(rng.standard_normal(SHAPE), 3.0).astype(np.float32)
     back = undistort_image(distort_image(img, true_model), true_model)
     g = np.round(_field_points(true_model, 200.0)).astype(int)
     diff = back[g[:, 1], g[:, 0]] - img[g[:, 1], g[:, 0]]
     # two bilinear resamplings of a field with 3 px correlation: small, unbiased differences
-    assert np.sqrt(np.mean(diff ** 2)) < 0.03 * img.std()
+    assert np.sqrt(np.mean(diff**2)) < 0.03 * img.std()
     assert abs(diff.mean()) < 0.005 * img.std()
     with pytest.raises(InputError):
         undistort_image(np.zeros((100, 100)), true_model)
@@ -212,7 +235,7 @@ def test_estimate_is_robust_to_rotation_tilt_missing_and_spurious_beads(true_mod
     assert _field_rms(model, true_model) <= 0.1
     stray_px = gi.distorted_px[[i for i, name in enumerate(gi.ids) if name.startswith("X")]]
     d = np.min(np.hypot(*(report.detected_px[report.used][:, None] - stray_px[None]).transpose(2, 0, 1)), axis=0)
-    assert np.all(d > 3.0)                                  # no stray blob was taken for a grid bead
+    assert np.all(d > 3.0)  # no stray blob was taken for a grid bead
     # the model's grid indices are those of the plate, up to the lattice's symmetry
     assert len(np.unique(report.index[report.used], axis=0)) == report.n_used
 
@@ -261,11 +284,13 @@ def test_cli_writes_the_model(tmp_path, grid_image, true_model, capsys):
 def test_cli_bad_input_exits_2_with_one_line_and_writes_nothing(tmp_path, grid_image, capsys, case):
     img = tmp_path / "grid.png"
     write_image(img, grid_image.raw, grid_image.camera if case != "no-pixel-size" else None)
-    args = {"not-an-image": [str(tmp_path / "junk.png"), "--pitch", "5"],
-            "missing": [str(tmp_path / "absent.png"), "--pitch", "5"],
-            "bad-pitch": [str(img), "--pitch", "-5"],
-            "tiny-pitch": [str(img), "--pitch", "0.5"],
-            "no-pixel-size": [str(img), "--pitch", "5"]}[case]
+    args = {
+        "not-an-image": [str(tmp_path / "junk.png"), "--pitch", "5"],
+        "missing": [str(tmp_path / "absent.png"), "--pitch", "5"],
+        "bad-pitch": [str(img), "--pitch", "-5"],
+        "tiny-pitch": [str(img), "--pitch", "0.5"],
+        "no-pixel-size": [str(img), "--pitch", "5"],
+    }[case]
     (tmp_path / "junk.png").write_text("not a PNG")
     out = tmp_path / "out"
     rc, so, se = _run(["distortion", *args, "-o", str(out / "m.json"), "--plot", str(out / "m.png")], capsys)

@@ -74,7 +74,7 @@ def test_every_relative_link_in_the_readme_resolves():
 
 
 def test_the_link_finder_finds_links_and_skips_urls():
-    text = "[a](docs/x.md) ![p](docs/img/p.png \"t\") [w](https://e.org) [s](#here)"
+    text = '[a](docs/x.md) ![p](docs/img/p.png "t") [w](https://e.org) [s](#here)'
     assert relative_links(text) == ["docs/x.md", "docs/img/p.png"]
     assert github_anchor("Design, build, `check` (CNC)") == "design-build-check-cnc"
 
@@ -91,8 +91,12 @@ def test_the_contract_in_the_repository_has_every_section_the_code_cites():
 
 def test_the_code_cites_only_documents_in_the_repository():
     missing, outside = [], []
-    sources = [*(ROOT / "ftrac_design").rglob("*.py"), *(ROOT / "ftrac_design" / "presets").rglob("*.toml"),
-               *(ROOT / "tests").glob("*.py"), *(ROOT / "benchmarks").rglob("*.py")]
+    sources = [
+        *(ROOT / "ftrac_design").rglob("*.py"),
+        *(ROOT / "ftrac_design" / "presets").rglob("*.toml"),
+        *(ROOT / "tests").glob("*.py"),
+        *(ROOT / "benchmarks").rglob("*.py"),
+    ]
     for path in sources:
         if path == Path(__file__).resolve():
             continue
@@ -172,8 +176,9 @@ def test_the_architecture_page_and_its_picture_show_the_contract_layers():
     from PIL import Image
 
     drawn = Image.open(DOCS / "img" / "layers.png").info.get("Description")
-    assert drawn == " > ".join(" | ".join(layer) for layer in layers), \
+    assert drawn == " > ".join(" | ".join(layer) for layer in layers), (
         "docs/img/layers.png is older than the contract: run docs/gen_layers.py"
+    )
 
 
 @pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None, reason="mkdocs is not installed (make installs it)")
@@ -181,13 +186,35 @@ def test_the_architecture_page_and_its_picture_show_the_contract_layers():
 def test_the_site_builds_strict_with_no_warning(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT), NO_MKDOCS_2_WARNING="1")
     # not -q: mkdocs then drops warnings before --strict counts them
-    res = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
-                          "-d", str(tmp_path / "site")], cwd=ROOT, env=env, capture_output=True, text=True, timeout=600)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mkdocs",
+            "build",
+            "--strict",
+            "-f",
+            str(ROOT / "mkdocs.yml"),
+            "-d",
+            str(tmp_path / "site"),
+        ],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     log = res.stdout + res.stderr
     assert res.returncode == 0, log[-4000:]
     assert "WARNING" not in log, log[-4000:]
-    for page in ("index.html", "reference/spec/index.html", "reference/cli/index.html", "api/pose/index.html",
-                 "benchmarks/index.html", "architecture/index.html"):
+    for page in (
+        "index.html",
+        "reference/spec/index.html",
+        "reference/cli/index.html",
+        "api/pose/index.html",
+        "benchmarks/index.html",
+        "architecture/index.html",
+    ):
         assert (tmp_path / "site" / page).is_file(), page
     cli = (tmp_path / "site" / "reference" / "cli" / "index.html").read_text(encoding="utf-8")
     from ftrac_design.cli.main import COMMANDS

@@ -61,7 +61,7 @@ def printed(profile: str, part: str, preset: str = PRESET) -> dict[str, str]:
     """{dimension key: printed text} of one sheet."""
     by_id, _ = svg_texts(profile, part, preset)
     prefix = f"dim.{part}."
-    return {k[len(prefix):]: v for k, v in by_id.items() if k.startswith(prefix)}
+    return {k[len(prefix) :]: v for k, v in by_id.items() if k.startswith(prefix)}
 
 
 def parse(text: str) -> tuple[float, int, float | None, bool]:
@@ -74,10 +74,11 @@ def parse(text: str) -> tuple[float, int, float | None, bool]:
 
 def agrees(text: str, expected: float) -> bool:
     value, dec, _, _ = parse(text)
-    return abs(value - expected) <= 0.5 * 10 ** -dec + 1e-9
+    return abs(value - expected) <= 0.5 * 10**-dec + 1e-9
 
 
 # ---- values computed here, independently of cad.dimensions ---------------------------------
+
 
 def _azimuth(p) -> float:
     return math.degrees(math.atan2(p[1], p[0])) % 360.0
@@ -87,8 +88,12 @@ def _ellipse_extreme(e, sign: float) -> tuple[float, float]:
     """(A°, z) of the highest (sign = +1) or lowest point of the seated ellipse, by search."""
     s = np.linspace(0, 2 * np.pi, 20001)
     k = int(np.argmax(sign * e.sample(s)[:, 2]))
-    res = minimize_scalar(lambda t: -sign * e.sample(np.array([t]))[0, 2], bounds=(s[k] - 1e-3, s[k] + 1e-3),
-                          method="bounded", options={"xatol": 1e-12})
+    res = minimize_scalar(
+        lambda t: -sign * e.sample(np.array([t]))[0, 2],
+        bounds=(s[k] - 1e-3, s[k] + 1e-3),
+        method="bounded",
+        options={"xatol": 1e-12},
+    )
     p = e.sample(np.array([res.x]))[0]
     return _azimuth(p), float(p[2])
 
@@ -100,20 +105,38 @@ def expected_body(preset: str, profile: str) -> dict[str, float]:
     wire = d.wire.diameter if d.wire else float("nan")  # a design without wires has no grooves
     groove = wire - p.wire_interference if profile == "cnc" else wire + 2 * p.wire_clearance
     pocket = d.bead.diameter - p.bead_interference if profile == "cnc" else d.bead.diameter + 2 * p.bead_clearance
-    out = {"body.length": d.body.length, "body.outer_diameter": d.body.outer_diameter,
-           "body.bore_diameter": d.body.bore_diameter,
-           "datum_C.A": d.lines[0].azimuth_deg % 360 if d.lines else _azimuth(f.points[0].center)}
+    out = {
+        "body.length": d.body.length,
+        "body.outer_diameter": d.body.outer_diameter,
+        "body.bore_diameter": d.body.bore_diameter,
+        "datum_C.A": d.lines[0].azimuth_deg % 360 if d.lines else _azimuth(f.points[0].center),
+    }
     for e in f.ellipses:
         seat = float(np.hypot(*e.sample(np.array([0.3]))[0, :2]))
         (a_t, z_t), (a_b, z_b) = _ellipse_extreme(e, 1.0), _ellipse_extreme(e, -1.0)
-        out |= {f"{e.id}.top.A": a_t, f"{e.id}.top.z": z_t, f"{e.id}.bottom.A": a_b, f"{e.id}.bottom.z": z_b,
-                f"{e.id}.width": groove, f"{e.id}.depth": R - seat + wire / 2}
+        out |= {
+            f"{e.id}.top.A": a_t,
+            f"{e.id}.top.z": z_t,
+            f"{e.id}.bottom.A": a_b,
+            f"{e.id}.bottom.z": z_b,
+            f"{e.id}.width": groove,
+            f"{e.id}.depth": R - seat + wire / 2,
+        }
     for ln in f.lines:
-        out |= {f"{ln.id}.A": _azimuth(ln.start), f"{ln.id}.start.z": ln.start[2], f"{ln.id}.end.z": ln.end[2],
-                f"{ln.id}.width": groove, f"{ln.id}.depth": R - math.hypot(*ln.start[:2]) + wire / 2}
+        out |= {
+            f"{ln.id}.A": _azimuth(ln.start),
+            f"{ln.id}.start.z": ln.start[2],
+            f"{ln.id}.end.z": ln.end[2],
+            f"{ln.id}.width": groove,
+            f"{ln.id}.depth": R - math.hypot(*ln.start[:2]) + wire / 2,
+        }
     for b in f.points:
-        out |= {f"{b.id}.A": _azimuth(b.center), f"{b.id}.z": b.center[2], f"{b.id}.diameter": pocket,
-                f"{b.id}.depth": R - math.hypot(*b.center[:2]) + b.diameter / 2}
+        out |= {
+            f"{b.id}.A": _azimuth(b.center),
+            f"{b.id}.z": b.center[2],
+            f"{b.id}.diameter": pocket,
+            f"{b.id}.depth": R - math.hypot(*b.center[:2]) + b.diameter / 2,
+        }
     return out
 
 
@@ -140,7 +163,7 @@ def has_cylinder(profile: str, step: str, diameter_text: str, point, direction, 
     value, dec, _, _ = parse(diameter_text)
     point, direction = np.asarray(point, float), np.asarray(direction, float)
     for r, q, d in cylinders(profile, step):
-        if abs(2 * r - value) > 0.5 * 10 ** -dec + 1e-9 or abs(abs(d @ direction) - 1) > 1e-9:
+        if abs(2 * r - value) > 0.5 * 10**-dec + 1e-9 or abs(abs(d @ direction) - 1) > 1e-9:
             continue
         v = point - q
         if np.linalg.norm(v - (v @ d) * d) <= slack:
@@ -156,8 +179,10 @@ def bbox(profile: str, step: str):
 
 # ---- the drawings ---------------------------------------------------------------------------
 
-@pytest.mark.parametrize("preset,profile", [(PRESET, "cnc"), (PRESET, "fdm"), ("ftrac_2005", "cnc"),
-                                            ("nine_bead", "cnc")])
+
+@pytest.mark.parametrize(
+    "preset,profile", [(PRESET, "cnc"), (PRESET, "fdm"), ("ftrac_2005", "cnc"), ("nine_bead", "cnc")]
+)
 def test_body_dimensions_equal_features(preset, profile):
     got = printed(profile, "body", preset)
     want = expected_body(preset, profile)
@@ -181,8 +206,9 @@ def test_body_pockets_are_in_the_cad_where_printed():
         a = math.radians(parse(got[f"{b.id}.A"])[0])
         z = parse(got[f"{b.id}.z"])[0]
         slack = 0.5e-3 + R * math.radians(0.005)
-        assert has_cylinder("cnc", "fiducial.step", got[f"{b.id}.diameter"], (0, 0, z), (math.cos(a), math.sin(a), 0),
-                            slack), b.id
+        assert has_cylinder(
+            "cnc", "fiducial.step", got[f"{b.id}.diameter"], (0, 0, z), (math.cos(a), math.sin(a), 0), slack
+        ), b.id
 
 
 def test_every_groove_and_pocket_is_drawn():
@@ -217,16 +243,24 @@ def test_mount_dimensions_equal_the_cad():
     d = S.design_of(PRESET)
     got = printed("cnc", "mount")
     bb = bbox("cnc", "mount.step")
-    want = {"block.width": bb.xlen, "block.height": bb.zlen, "block.base": -bb.zmin,
-            "block.chamfer": BLOCK_CHAMFER, "socket.depth": d.mount.socket_depth,
-            "socket.diameter": d.body.outer_diameter - d.manufacturing.cnc.socket_interference}
+    want = {
+        "block.width": bb.xlen,
+        "block.height": bb.zlen,
+        "block.base": -bb.zmin,
+        "block.chamfer": BLOCK_CHAMFER,
+        "socket.depth": d.mount.socket_depth,
+        "socket.diameter": d.body.outer_diameter - d.manufacturing.cnc.socket_interference,
+    }
     assert bb.xlen == pytest.approx(bb.ylen, abs=1e-6) and bb.zmax == pytest.approx(d.mount.socket_depth, abs=1e-6)
     holes = mount_layout(d).holes
     for h in holes:
         hs = getattr(d.mount, f"holes_{h.name[0]}")
         u, v = [k for k in range(3) if k != h.axis]
-        want |= {f"{h.name}.diameter": hs.diameter, f"{h.name}.cbore_diameter": hs.counterbore_diameter,
-                 f"{h.name}.cbore_depth": hs.counterbore_depth}
+        want |= {
+            f"{h.name}.diameter": hs.diameter,
+            f"{h.name}.cbore_diameter": hs.counterbore_diameter,
+            f"{h.name}.cbore_depth": hs.counterbore_depth,
+        }
         # the position is checked against the solid: a hole of the printed Ø through the printed point
         p = np.zeros(3)
         p[u], p[v] = parse(got[f"{h.name}.{'xyz'[u]}"])[0], parse(got[f"{h.name}.{'xyz'[v]}"])[0]
@@ -246,10 +280,18 @@ def test_connector_dimensions_equal_the_cad():
     got = printed("cnc", "connector")
     bb, mount_bb = bbox("cnc", "connector.step"), bbox("cnc", "mount.step")
     c = d.connector
-    want = {"plate.x0": bb.xmin, "plate.y0": bb.ymin, "plate.width": bb.xlen, "plate.height": bb.ylen,
-            "plate.thickness": bb.zlen, "pocket.x": c.axis_x, "pocket.y": c.axis_height,
-            "pocket.size": mount_bb.xlen + 2 * d.manufacturing.cnc.slide_clearance,
-            "pocket.depth": c.pocket_depth, "pocket.radius": POCKET_CORNER_RADIUS}
+    want = {
+        "plate.x0": bb.xmin,
+        "plate.y0": bb.ymin,
+        "plate.width": bb.xlen,
+        "plate.height": bb.ylen,
+        "plate.thickness": bb.zlen,
+        "pocket.x": c.axis_x,
+        "pocket.y": c.axis_height,
+        "pocket.size": mount_bb.xlen + 2 * d.manufacturing.cnc.slide_clearance,
+        "pocket.depth": c.pocket_depth,
+        "pocket.radius": POCKET_CORNER_RADIUS,
+    }
     for h in connector_layout(d).holes:
         x, y = parse(got[f"{h.name}.x"])[0], parse(got[f"{h.name}.y"])[0]
         assert has_cylinder("cnc", "connector.step", got[f"{h.name}.diameter"], (x, y, 0), (0, 0, 1), 1e-3), h.name
@@ -302,6 +344,7 @@ def test_drawings_in_the_manifest():
 
 
 # ---- FDM ------------------------------------------------------------------------------------
+
 
 def test_3mf_reads_back_like_the_stls():
     import trimesh
@@ -376,6 +419,7 @@ def test_print_settings_state_what_the_profile_assumes():
 
 # ---- the drawings command, on a keyed design -------------------------------------------------
 
+
 def test_drawings_command_keyed_design(tmp_path, capsys):
     """``ftrac-design drawings`` on ftrac_mini with a key: the key slot is dimensioned on the
     body, the key on the mount, and datum C is the key's azimuth; a directory holding other
@@ -396,8 +440,11 @@ def test_drawings_command_keyed_design(tmp_path, capsys):
 
     def dims(part):
         root = ET.parse(out / f"drawing_{part}.svg").getroot()
-        return {g.get("id")[len(f"dim.{part}."):]: "".join(g.itertext()).strip()
-                for g in root.iter(f"{SVG_NS}g") if (g.get("id") or "").startswith(f"dim.{part}.")}
+        return {
+            g.get("id")[len(f"dim.{part}.") :]: "".join(g.itertext()).strip()
+            for g in root.iter(f"{SVG_NS}g")
+            if (g.get("id") or "").startswith(f"dim.{part}.")
+        }
 
     body, mount = dims("body"), dims("mount")
     m = d.mount

@@ -46,8 +46,12 @@ def _required(tree: ast.Module) -> set[tuple[str, str]]:
     """(module, extra) of every ``require("module", "extra", …)`` call in ``tree``."""
     out = set()
     for node in ast.walk(tree):
-        if (isinstance(node, ast.Call) and getattr(node.func, "id", None) == "require" and len(node.args) >= 2
-                and all(isinstance(a, ast.Constant) for a in node.args[:2])):
+        if (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "id", None) == "require"
+            and len(node.args) >= 2
+            and all(isinstance(a, ast.Constant) for a in node.args[:2])
+        ):
             out.add((node.args[0].value.split(".")[0], node.args[1].value))
     return out
 
@@ -105,11 +109,14 @@ def test_require_does_not_hide_a_broken_package(tmp_path, monkeypatch):
         require("brokenpkg_for_test", "none", "a test")
 
 
-@pytest.mark.parametrize("blocked, extra, argv", [
-    ("cma", "optimize", ["optimize", "ftrac_mini", "--evaluations", "4"]),
-    ("pymoo", "optimize", ["optimize", "ftrac_mini", "--evaluations", "4"]),
-    ("cadquery", "cad", ["build", "ftrac_mini"]),
-])
+@pytest.mark.parametrize(
+    "blocked, extra, argv",
+    [
+        ("cma", "optimize", ["optimize", "ftrac_mini", "--evaluations", "4"]),
+        ("pymoo", "optimize", ["optimize", "ftrac_mini", "--evaluations", "4"]),
+        ("cadquery", "cad", ["build", "ftrac_mini"]),
+    ],
+)
 def test_command_stops_with_one_line_and_writes_nothing(blocked, extra, argv, tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, blocked, None)
     out = tmp_path / "out"

@@ -136,7 +136,7 @@ def test_wire_segments_butt_against_beads(features_2005):
 
 def test_wire_segments_without_beads(features_2005):
     f = features_2005.subset({"L3", "E1"})  # drops the beads: L3 runs bare end to end
-    (a, b), = f.wire_segments("L3")
+    ((a, b),) = f.wire_segments("L3")
     assert np.allclose(a, f.line("L3").start) and np.allclose(b, f.line("L3").end)
     assert math.isclose(f.wire_length("E1"), f.ellipses[0].circumference)
 
@@ -149,15 +149,18 @@ def test_wire_pieces_are_every_lines_segments_computed_once(features_2005):
     got = f.wire_pieces
     assert [g[0] for g in got] == [w[0] for w in want]
     assert all(np.array_equal(g[1], w[1]) and np.array_equal(g[2], w[2]) for g, w in zip(got, want))
-    assert f.wire_pieces is got                                   # cached on the instance
+    assert f.wire_pieces is got  # cached on the instance
     # a line its beads cover whole (two 2 mm balls on a 4 mm line): its centre line
     ln = f.lines[0]
     short = dataclasses.replace(ln, end=ln.start + 4.0 * ln.direction)
-    pts = tuple(dataclasses.replace(p, center=short.start + (1.0 + 2.0 * k) * ln.direction, line=ln.id)
-                for k, p in enumerate(q for q in f.points if q.line == ln.id) if k < 2)
+    pts = tuple(
+        dataclasses.replace(p, center=short.start + (1.0 + 2.0 * k) * ln.direction, line=ln.id)
+        for k, p in enumerate(q for q in f.points if q.line == ln.id)
+        if k < 2
+    )
     g = dataclasses.replace(f, lines=(short,), points=pts, ellipses=())
     assert g.wire_segments(ln.id) == []
-    (fid, a, b), = g.wire_pieces
+    ((fid, a, b),) = g.wire_pieces
     assert fid == ln.id and np.array_equal(a, short.start) and np.array_equal(b, short.end)
 
 

@@ -46,8 +46,8 @@ def test_a_file_is_refused_and_the_argument_may_be_unnamed(tmp_path):
 
 def test_json_format_is(tmp_path):
     p = tmp_path / "a.json"
-    assert not json_format_is(p, "x")                      # missing
+    assert not json_format_is(p, "x")  # missing
     p.write_text('{"format": "x"}')
     assert json_format_is(p, "x") and not json_format_is(p, "y")
     p.write_text("[]")
-    assert not json_format_is(p, "x")                      # not an object
+    assert not json_format_is(p, "x")  # not an object

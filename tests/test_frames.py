@@ -27,8 +27,11 @@ EPS = 0.05  # mm: probe distance on either side of a face
 
 def is_rigid(T):
     R = T[:3, :3]
-    return np.allclose(R @ R.T, np.eye(3), atol=1e-12) and math.isclose(np.linalg.det(R), 1.0) and \
-        np.array_equal(T[3], [0, 0, 0, 1])
+    return (
+        np.allclose(R @ R.T, np.eye(3), atol=1e-12)
+        and math.isclose(np.linalg.det(R), 1.0)
+        and np.array_equal(T[3], [0, 0, 0, 1])
+    )
 
 
 @pytest.mark.parametrize("preset", PRESETS)
@@ -77,8 +80,11 @@ def test_template_frame_arithmetic(preset):
     lay = mount_layout(d)
     T = template_from_fiducial(d)
     bottom_F = np.array([0.0, 0.0, -d.half_length - lay.base_height])
-    assert np.allclose(transform_points(T, bottom_F), [d.connector.axis_x, d.connector.axis_height,
-                                                       -d.connector.pocket_depth], atol=1e-12)
+    assert np.allclose(
+        transform_points(T, bottom_F),
+        [d.connector.axis_x, d.connector.axis_height, -d.connector.pocket_depth],
+        atol=1e-12,
+    )
     con = connector_layout(d, lay)
     assert np.allclose(con.pocket_center, transform_points(T, bottom_F))
 
@@ -103,7 +109,8 @@ def assembly(request):
     f = compute_features(d)
     L = d.body.length
     body = cq.Solid.makeCylinder(d.outer_radius, L, cq.Vector(0, 0, -L / 2)).cut(
-        cq.Solid.makeCylinder(d.bore_radius, L + 2, cq.Vector(0, 0, -L / 2 - 1)))
+        cq.Solid.makeCylinder(d.bore_radius, L + 2, cq.Vector(0, 0, -L / 2 - 1))
+    )
     slot = key_slot_tool(d)
     if slot is not None:
         body = body.cut(slot)

@@ -56,8 +56,11 @@ def test_fuzz_check(case, profile, as_json):
 
 
 @cases("design_check")
-@given(data=st.binary(max_size=200) | st.text(max_size=200).map(lambda s: s.encode("utf-8", "surrogatepass")),
-       preset=st.sampled_from(PRESETS), cut=st.integers(0, 4000))
+@given(
+    data=st.binary(max_size=200) | st.text(max_size=200).map(lambda s: s.encode("utf-8", "surrogatepass")),
+    preset=st.sampled_from(PRESETS),
+    cut=st.integers(0, 4000),
+)
 def test_fuzz_check_raw_bytes(data, preset, cut):
     """Truncated presets with garbage appended, and arbitrary bytes."""
     raw = (MODELS / f"{preset}.toml").read_bytes()[:cut] + data
@@ -90,9 +93,23 @@ def test_fuzz_analyze_design(case):
         path = tmp / f"{preset}.toml"
         path.write_text(text, encoding="utf-8")
         out = tmp / "analysis"
-        run = run_cli(["analyze", path, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots",
-                       "--score-images", "0",
-                       "--image-atlas-step-deg", "0"])
+        run = run_cli(
+            [
+                "analyze",
+                path,
+                "-o",
+                out,
+                "--poses",
+                "100",
+                "--atlas-step-deg",
+                "15",
+                "--no-plots",
+                "--score-images",
+                "0",
+                "--image-atlas-step-deg",
+                "0",
+            ]
+        )
         assert_clean(run, [path], tmp)
         if run.code == 2:
             assert not out.exists(), run.describe()

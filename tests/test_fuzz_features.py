@@ -52,9 +52,23 @@ def test_fuzz_analyze_features(case):
     with scratch() as tmp:
         feats, out = tmp / "features.json", tmp / "analysis"
         feats.write_text(json.dumps(doc), encoding="utf-8")
-        run = run_cli(["analyze", feats, "-o", out, "--poses", "100", "--atlas-step-deg", "15", "--no-plots",
-                       "--score-images", "0",
-                       "--image-atlas-step-deg", "0"])
+        run = run_cli(
+            [
+                "analyze",
+                feats,
+                "-o",
+                out,
+                "--poses",
+                "100",
+                "--atlas-step-deg",
+                "15",
+                "--no-plots",
+                "--score-images",
+                "0",
+                "--image-atlas-step-deg",
+                "0",
+            ]
+        )
         assert_clean(run, [feats], tmp)
         if run.code == 2:
             assert not out.exists(), run.describe()

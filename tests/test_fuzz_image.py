@@ -55,8 +55,13 @@ def _png_bytes(a: np.ndarray) -> bytes:
 def _png_huge_header(w: int, h: int) -> bytes:
     def chunk(t: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + t + data + struct.pack(">I", zlib.crc32(t + data) & 0xFFFFFFFF)
-    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
-            + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
+
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 0, 0, 0, 0))
+        + chunk(b"IDAT", zlib.compress(b"\x00" * 64))
+        + chunk(b"IEND", b"")
+    )
 
 
 def _tiff_bytes(a: np.ndarray) -> bytes:
@@ -111,8 +116,25 @@ def image_files(draw) -> tuple[str, bytes, list[str]]:
     fmt = draw(st.sampled_from(["png", "tif", "npy", "dcm"]))
     kind = draw(st.sampled_from(["noise", "constant", "nan", "inf", "huge"]))
     dtype = draw(st.sampled_from(DTYPES))
-    shape = draw(st.sampled_from([(48, 64), (64, 48), (2, 2), (1, 40), (40, 1), (0, 5), (), (7,),
-                                  (24, 24, 3), (24, 24, 4), (24, 24, 2), (3, 16, 16), (2, 2, 8, 8)]))
+    shape = draw(
+        st.sampled_from(
+            [
+                (48, 64),
+                (64, 48),
+                (2, 2),
+                (1, 40),
+                (40, 1),
+                (0, 5),
+                (),
+                (7,),
+                (24, 24, 3),
+                (24, 24, 4),
+                (24, 24, 2),
+                (3, 16, 16),
+                (2, 2, 8, 8),
+            ]
+        )
+    )
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
     a = _array(kind, dtype, shape, rng)
     done = [fmt, kind, dtype, str(shape)]
@@ -120,8 +142,11 @@ def image_files(draw) -> tuple[str, bytes, list[str]]:
     if special == "empty":
         return fmt, b"", done + ["empty"]
     if special == "huge_header" and fmt in ("png", "npy", "dcm"):
-        data = {"png": lambda: _png_huge_header(50000, 50000), "npy": _npy_huge_header,
-                "dcm": lambda: _dicom_bytes(np.zeros((4, 4)), rows=50000)}[fmt]()
+        data = {
+            "png": lambda: _png_huge_header(50000, 50000),
+            "npy": _npy_huge_header,
+            "dcm": lambda: _dicom_bytes(np.zeros((4, 4)), rows=50000),
+        }[fmt]()
         return fmt, data, done + ["huge header"]
     try:
         if fmt == "png":
@@ -131,13 +156,20 @@ def image_files(draw) -> tuple[str, bytes, list[str]]:
         elif fmt == "npy":
             data = _npy_bytes(a)
         else:
-            cam = draw(st.sampled_from([((0.44, 0.44), 1000.0), ((0.0, 0.44), 1000.0), ((0.44, 0.44), -5.0),
-                                        ((1e300, 1e300), 1e300)])) if special == "dicom_bad_camera" \
+            cam = (
+                draw(
+                    st.sampled_from(
+                        [((0.44, 0.44), 1000.0), ((0.0, 0.44), 1000.0), ((0.44, 0.44), -5.0), ((1e300, 1e300), 1e300)]
+                    )
+                )
+                if special == "dicom_bad_camera"
                 else ((0.44, 0.44), 1000.0)
+            )
             data = _dicom_bytes(a, spacing=cam[0], sdd=cam[1])
     except Exception:  # the writer refuses (e.g. a PNG of 4-D data): write a valid 2-D one instead
         data = {"png": _png_bytes, "tif": _tiff_bytes, "npy": _npy_bytes, "dcm": _dicom_bytes}[fmt](
-            np.zeros((32, 32), np.uint8))
+            np.zeros((32, 32), np.uint8)
+        )
         done.append("writer refused; zeros")
     cut, data = damage(draw, data)
     return fmt, data, done + [cut]
@@ -179,19 +211,53 @@ def _radiograph() -> np.ndarray:
         from pathlib import Path
 
         d = Path(tempfile.mkdtemp(prefix="ftrac-fuzz-rg-"))
-        (d / "cam.json").write_text(json.dumps({"focal_length_mm": 1000.0, "pixel_size_mm": [0.44, 0.44],
-                                                "principal_point_px": [192.0, 192.0]}))
-        run = run_cli(["radiograph", "--features", FEATURE_FILES["ftrac_2005"], "--workspace-sample", "1",
-                       "--seed", "3", "-o", d / "rg", "--format", "npy", "--image-size", "384", "384",
-                       "--camera", d / "cam.json"])
+        (d / "cam.json").write_text(
+            json.dumps({"focal_length_mm": 1000.0, "pixel_size_mm": [0.44, 0.44], "principal_point_px": [192.0, 192.0]})
+        )
+        run = run_cli(
+            [
+                "radiograph",
+                "--features",
+                FEATURE_FILES["ftrac_2005"],
+                "--workspace-sample",
+                "1",
+                "--seed",
+                "3",
+                "-o",
+                d / "rg",
+                "--format",
+                "npy",
+                "--image-size",
+                "384",
+                "384",
+                "--camera",
+                d / "cam.json",
+            ]
+        )
         assert run.code == 0, run.describe()
         _RG["img"] = np.load(d / "rg" / "img_0000.npy")
         _RG["cam"] = d / "cam.json"
     return _RG["img"]
 
 
-DAMAGE = ["none", "nan_pixel", "inf_pixel", "huge_pixel", "to_uint8", "to_int64", "to_float16", "to_bool",
-          "crop", "transpose", "rgb", "scale_huge", "scale_tiny", "negate", "constant", "stripe"]
+DAMAGE = [
+    "none",
+    "nan_pixel",
+    "inf_pixel",
+    "huge_pixel",
+    "to_uint8",
+    "to_int64",
+    "to_float16",
+    "to_bool",
+    "crop",
+    "transpose",
+    "rgb",
+    "scale_huge",
+    "scale_tiny",
+    "negate",
+    "constant",
+    "stripe",
+]
 
 
 @cases("radiograph_track")
@@ -230,7 +296,7 @@ def test_fuzz_track_damaged_radiograph(damage, fmt, seed):
         elif damage == "constant":
             a[:] = 1.0
         elif damage == "stripe":
-            a[:, j: j + 20] = a.max()
+            a[:, j : j + 20] = a.max()
     with scratch() as tmp:
         img = tmp / f"image.{fmt}"
         try:

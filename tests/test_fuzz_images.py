@@ -26,12 +26,29 @@ from test_fuzz_image import _dicom_bytes, _npy_bytes, _png_bytes, _tiff_bytes
 from ftrac_design.errors import InputError
 from ftrac_design.images import frame_count, read_frames, write_dicom
 
-LIES = [("Rows", 65535), ("Columns", 3), ("NumberOfFrames", 1000000), ("NumberOfFrames", 7), ("BitsStored", 40),
-        ("BitsAllocated", 12), ("HighBit", 3), ("PixelRepresentation", 5), ("SamplesPerPixel", 3),
-        ("PhotometricInterpretation", "XYZ"), ("ImagerPixelSpacing", [-1, 0.2]), ("ImagerPixelSpacing", ["nan", 1]),
-        ("DistanceSourceToDetector", 0), ("DistanceSourceToDetector", -1e9), ("FieldOfViewRotation", 33),
-        ("FrameTime", -4), ("FrameTimeVector", [1, 2]), ("RescaleSlope", 0), ("RescaleSlope", "1e400"),
-        ("PixelIntensityRelationshipSign", 0), ("PositionOfIsocenterProjection", [1e308, -1e308])]
+LIES = [
+    ("Rows", 65535),
+    ("Columns", 3),
+    ("NumberOfFrames", 1000000),
+    ("NumberOfFrames", 7),
+    ("BitsStored", 40),
+    ("BitsAllocated", 12),
+    ("HighBit", 3),
+    ("PixelRepresentation", 5),
+    ("SamplesPerPixel", 3),
+    ("PhotometricInterpretation", "XYZ"),
+    ("ImagerPixelSpacing", [-1, 0.2]),
+    ("ImagerPixelSpacing", ["nan", 1]),
+    ("DistanceSourceToDetector", 0),
+    ("DistanceSourceToDetector", -1e9),
+    ("FieldOfViewRotation", 33),
+    ("FrameTime", -4),
+    ("FrameTimeVector", [1, 2]),
+    ("RescaleSlope", 0),
+    ("RescaleSlope", "1e400"),
+    ("PixelIntensityRelationshipSign", 0),
+    ("PositionOfIsocenterProjection", [1e308, -1e308]),
+]
 
 
 def _dicom_file(rng: np.random.Generator, kind: str, syntax: str, lie: tuple | None) -> bytes:
@@ -40,9 +57,18 @@ def _dicom_file(rng: np.random.Generator, kind: str, syntax: str, lie: tuple | N
     with scratch() as tmp:
         n = int(rng.integers(1, 4))
         a = rng.integers(0, 4096, (n, 32, 40)).astype(np.uint16)
-        p = write_dicom(tmp / "a.dcm", a, CAM, kind=kind, transfer_syntax=syntax, frame_time_ms=30.0,
-                        relationship="LIN", relationship_sign=1, fov_rotation_deg=int(rng.choice([0, 90])),
-                        bits_stored=12)
+        p = write_dicom(
+            tmp / "a.dcm",
+            a,
+            CAM,
+            kind=kind,
+            transfer_syntax=syntax,
+            frame_time_ms=30.0,
+            relationship="LIN",
+            relationship_sign=1,
+            fov_rotation_deg=int(rng.choice([0, 90])),
+            bits_stored=12,
+        )
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             ds = pydicom.dcmread(p)
@@ -88,15 +114,24 @@ NAMED = {
     "noise": lambda rng: rng.integers(0, 256, int(rng.integers(0, 4000))).astype(np.uint8).tobytes(),
     "npz_as_npy": _npz,
     "two_page_tiff": _two_page_tiff,
-    "int32_tiff": lambda rng: _tiff_bytes(rng.integers(-2**31, 2**31 - 1, (16, 20)).astype(np.int32)),
+    "int32_tiff": lambda rng: _tiff_bytes(rng.integers(-(2**31), 2**31 - 1, (16, 20)).astype(np.int32)),
     "jpeg": _jpeg,
     "rgb_png": lambda rng: _png_bytes(rng.integers(0, 255, (16, 16, 3)).astype(np.uint8)),
     "npy_run": lambda rng: _npy_bytes(rng.normal(size=(3, 10, 12))),
     "npy_4d": lambda rng: _npy_bytes(rng.normal(size=(2, 2, 8, 8))),
     "fuzz_dicom": lambda rng: _dicom_bytes(rng.uniform(0, 999, (20, 20))),
 }
-SUFFIX = {"noise": ".dcm", "npz_as_npy": ".npy", "two_page_tiff": ".tif", "int32_tiff": ".tif", "jpeg": ".jpg",
-          "rgb_png": ".png", "npy_run": ".npy", "npy_4d": ".npy", "fuzz_dicom": ".dcm"}
+SUFFIX = {
+    "noise": ".dcm",
+    "npz_as_npy": ".npy",
+    "two_page_tiff": ".tif",
+    "int32_tiff": ".tif",
+    "jpeg": ".jpg",
+    "rgb_png": ".png",
+    "npy_run": ".npy",
+    "npy_4d": ".npy",
+    "fuzz_dicom": ".dcm",
+}
 
 
 @st.composite
@@ -154,6 +189,7 @@ def test_named_regressions_are_frames_or_input_errors(name):
 def test_every_dicom_lie_is_refused_or_harmless(lie):
     with scratch() as tmp:
         path = tmp / "lie.dcm"
-        path.write_bytes(_dicom_file(np.random.default_rng(1), "enhanced-xa" if "Isocenter" in lie[0] else "xa",
-                                     "explicit", lie))
+        path.write_bytes(
+            _dicom_file(np.random.default_rng(1), "enhanced-xa" if "Isocenter" in lie[0] else "xa", "explicit", lie)
+        )
         _read_all(path, need_camera=True)

@@ -68,8 +68,22 @@ def targeted(draw, doc: dict) -> tuple[dict, list[str]]:
     doc = json.loads(json.dumps(doc))
     done = []
     for _ in range(draw(st.integers(1, 3))):
-        op = draw(st.sampled_from(["huge", "duplicate", "collinear", "few", "unknown", "conic", "line",
-                                   "same_pixel", "camera", "drop_all_but"]))
+        op = draw(
+            st.sampled_from(
+                [
+                    "huge",
+                    "duplicate",
+                    "collinear",
+                    "few",
+                    "unknown",
+                    "conic",
+                    "line",
+                    "same_pixel",
+                    "camera",
+                    "drop_all_but",
+                ]
+            )
+        )
         pts, lines, ells = doc.get("points", {}), doc.get("lines", {}), doc.get("ellipses", {})
         if op == "huge" and pts:
             k = draw(st.sampled_from(sorted(pts)))
@@ -87,7 +101,7 @@ def targeted(draw, doc: dict) -> tuple[dict, list[str]]:
             for sec in (lines, ells):
                 for k, v in sec.items():
                     if "points" in v:
-                        v["points"] = v["points"][:draw(st.integers(0, 6))]
+                        v["points"] = v["points"][: draw(st.integers(0, 6))]
         elif op == "unknown":
             sec = draw(st.sampled_from([s for s in (pts, lines, ells) if s] or [pts]))
             if sec:
@@ -95,22 +109,33 @@ def targeted(draw, doc: dict) -> tuple[dict, list[str]]:
                 sec[draw(st.sampled_from(["X9", "", k + "x", "E1", "L1", "B1"]))] = sec.pop(k)
         elif op == "conic" and ells:
             k = draw(st.sampled_from(sorted(ells)))
-            ells[k] = {"conic": draw(st.sampled_from([
-                [1, 0, 1, 0, 0, 1],            # no real points
-                [1, 0, 1, 0, 0, 0],            # a single point
-                [1, 0, 1, -1024, -1024, 524288 - 1e-9],  # a point (almost)
-                [1, 0, 0, 0, -1, 0],           # parabola
-                [1, 0, -1, 0, 0, -1],          # hyperbola
-                [0, 0, 0, 0, 0, 0],
-                [1e300, 0, 1e300, 0, 0, -1e300],
-                [1e-300, 0, 1e-300, 0, 0, -1e-300],
-                [5e-324, 0, 5e-324, 0, 0, -5e-324],
-                [1, 0, 1e-30, 0, 0, -1],       # an extremely thin ellipse
-            ]))}
+            ells[k] = {
+                "conic": draw(
+                    st.sampled_from(
+                        [
+                            [1, 0, 1, 0, 0, 1],  # no real points
+                            [1, 0, 1, 0, 0, 0],  # a single point
+                            [1, 0, 1, -1024, -1024, 524288 - 1e-9],  # a point (almost)
+                            [1, 0, 0, 0, -1, 0],  # parabola
+                            [1, 0, -1, 0, 0, -1],  # hyperbola
+                            [0, 0, 0, 0, 0, 0],
+                            [1e300, 0, 1e300, 0, 0, -1e300],
+                            [1e-300, 0, 1e-300, 0, 0, -1e-300],
+                            [5e-324, 0, 5e-324, 0, 0, -5e-324],
+                            [1, 0, 1e-30, 0, 0, -1],  # an extremely thin ellipse
+                        ]
+                    )
+                )
+            }
         elif op == "line" and lines:
             k = draw(st.sampled_from(sorted(lines)))
-            lines[k] = {"coefficients": draw(st.sampled_from([
-                [0, 0, 1], [0, 0, 0], [1e-300, 0, 5], [1e300, 1e300, 1e300], [1, 0, -1e300], [5e-324, 0, 0]]))}
+            lines[k] = {
+                "coefficients": draw(
+                    st.sampled_from(
+                        [[0, 0, 1], [0, 0, 0], [1e-300, 0, 5], [1e300, 1e300, 1e300], [1, 0, -1e300], [5e-324, 0, 0]]
+                    )
+                )
+            }
         elif op == "same_pixel":
             for sec in (lines, ells):
                 for v in sec.values():
@@ -185,12 +210,14 @@ def _image_distance(A: np.ndarray, B: np.ndarray, kind: str) -> float:
     """Mean distance (px) of one contour's points from the other curve, symmetrised: from
     the other's total-least-squares line for lines (the solver sees infinite lines), from
     the other's nearest point for ellipses."""
+
     def one(P, Q):
         if kind == "lines":
             c = Q.mean(0)
             n = np.linalg.svd(Q - c)[2][1]
             return float(np.abs((P - c) @ n).mean())
         return float(np.linalg.norm(P[:, None] - Q[None], axis=-1).min(1).mean())
+
     return 0.5 * (one(A, B) + one(B, A))
 
 
@@ -200,8 +227,12 @@ def _scramble(obs: dict, how: str, rng: np.random.Generator, preset: str) -> dic
     ids = sorted(pts)
     if how == "swap_beads":
         # two beads whose images are far enough apart that swapping them changes the image
-        far = [(a, b) for i, a in enumerate(ids) for b in ids[i + 1:]
-               if np.hypot(*np.subtract(pts[a], pts[b])) > BEAD_SWAP_MIN_PX]
+        far = [
+            (a, b)
+            for i, a in enumerate(ids)
+            for b in ids[i + 1 :]
+            if np.hypot(*np.subtract(pts[a], pts[b])) > BEAD_SWAP_MIN_PX
+        ]
         if not far:
             return None
         a, b = far[rng.integers(len(far))]
@@ -233,16 +264,18 @@ def _scramble(obs: dict, how: str, rng: np.random.Generator, preset: str) -> dic
 
 
 @cases("scrambled_solve")
-@given(preset=st.sampled_from(PRESETS), seed=st.integers(0, 2**31 - 1),
-       how=st.sampled_from(["swap_beads", "move_bead", "swap_curves", "rotate_ids"]))
+@given(
+    preset=st.sampled_from(PRESETS),
+    seed=st.integers(0, 2**31 - 1),
+    how=st.sampled_from(["swap_beads", "move_bead", "swap_curves", "rotate_ids"]),
+)
 def test_scrambled_features_never_converge(preset, seed, how):
     obs0, R, t = _simulated(preset, seed, e_mm=0.25)
     rng = np.random.default_rng(seed)
     scrambled = _scramble(obs0.to_dict(), how, rng, preset)
     if scrambled is None:
         return  # e.g. nine_bead has no curves to swap
-    pose = solve_pose(FEATURES[preset], observation_from_dict(scrambled, "scrambled"),
-                      SolverOptions(starts=32))
+    pose = solve_pose(FEATURES[preset], observation_from_dict(scrambled, "scrambled"), SolverOptions(starts=32))
     assert not pose.converged, (how, preset, seed, pose.translation_mm, pose.noise_scale, pose.error)
 
 

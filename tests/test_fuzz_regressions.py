@@ -107,12 +107,17 @@ def test_valid_coefficients_are_scaled_not_changed():
     assert solve_pose(FEATURES["ftrac_2005"], obs).converged
 
 
-@pytest.mark.parametrize("camera,key", [
-    ({"focal_length_mm": 1e300, "pixel_size_mm": [0.44, 0.44], "principal_point_px": [512, 512]}, "camera"),
-    ({"focal_length_mm": 1000, "pixel_size_mm": [1e-300, 0.44], "principal_point_px": [512, 512]}, "camera"),
-    ({"focal_length_mm": 1000, "pixel_size_mm": [0.44, 0.44], "principal_point_px": [1e300, 512]},
-     "camera.principal_point_px"),
-])
+@pytest.mark.parametrize(
+    "camera,key",
+    [
+        ({"focal_length_mm": 1e300, "pixel_size_mm": [0.44, 0.44], "principal_point_px": [512, 512]}, "camera"),
+        ({"focal_length_mm": 1000, "pixel_size_mm": [1e-300, 0.44], "principal_point_px": [512, 512]}, "camera"),
+        (
+            {"focal_length_mm": 1000, "pixel_size_mm": [0.44, 0.44], "principal_point_px": [1e300, 512]},
+            "camera.principal_point_px",
+        ),
+    ],
+)
 def test_absurd_camera_exits_2(camera, key):
     doc = json.loads(json.dumps(BASE[("ftrac_2005", 0, False)]))
     doc["camera"] = camera
@@ -132,8 +137,21 @@ def test_features_design_source_that_is_not_a_string_exits_2():
     with scratch() as tmp:
         feats = tmp / "features.json"
         feats.write_text(json.dumps(doc))
-        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots", "--score-images", "0",
-                       "--image-atlas-step-deg", "0"])
+        run = run_cli(
+            [
+                "analyze",
+                feats,
+                "-o",
+                tmp / "a",
+                "--poses",
+                "100",
+                "--no-plots",
+                "--score-images",
+                "0",
+                "--image-atlas-step-deg",
+                "0",
+            ]
+        )
         assert_clean(run, [feats], tmp)
         assert run.code == 2 and "design.source" in run.err and not (tmp / "a").exists()
 
@@ -148,8 +166,21 @@ def test_features_line_start_at_1e300_exits_2():
     with scratch() as tmp:
         feats = tmp / "features.json"
         feats.write_text(json.dumps(doc))
-        run = run_cli(["analyze", feats, "-o", tmp / "a", "--poses", "100", "--no-plots", "--score-images", "0",
-                       "--image-atlas-step-deg", "0"])
+        run = run_cli(
+            [
+                "analyze",
+                feats,
+                "-o",
+                tmp / "a",
+                "--poses",
+                "100",
+                "--no-plots",
+                "--score-images",
+                "0",
+                "--image-atlas-step-deg",
+                "0",
+            ]
+        )
         assert_clean(run, [feats], tmp)
         assert run.code == 2 and "lines[2].start[0]" in run.err and not (tmp / "a").exists()
 
@@ -209,8 +240,11 @@ def _track_tiny(png: bytes, camera) -> None:
         img, cam = tmp / "tiny.png", tmp / "camera.json"
         img.write_bytes(png)
         cam.write_text(json.dumps(camera.to_dict()))
-        _track(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", cam,
-                "-o", tmp / "out" / "pose.json"], [img], tmp)
+        _track(
+            ["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", cam, "-o", tmp / "out" / "pose.json"],
+            [img],
+            tmp,
+        )
 
 
 @pytest.mark.parametrize("suffix", [".npy", ".png", ".dcm", ".tif"])
@@ -241,15 +275,35 @@ def test_track_radiograph_with_one_absurd_pixel(value, codes):
         img, plain = tmp / "image.npy", tmp / "plain.npy"
         np.save(img, a)
         np.save(plain, _radiograph())
-        run = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], img, "--camera", _RG["cam"],
-                       "-o", tmp / "out" / "pose.json"])
+        run = run_cli(
+            [
+                "track",
+                "--features",
+                FEATURE_FILES["ftrac_2005"],
+                img,
+                "--camera",
+                _RG["cam"],
+                "-o",
+                tmp / "out" / "pose.json",
+            ]
+        )
         assert_clean(run, [img, plain], tmp)
         assert run.code in codes, run.describe()
         if run.code == 2:
             assert "pixels" in run.err and "float32" in run.err
         if run.code == 0:
-            ref = run_cli(["track", "--features", FEATURE_FILES["ftrac_2005"], plain, "--camera", _RG["cam"],
-                           "-o", tmp / "ref" / "pose.json"])
+            ref = run_cli(
+                [
+                    "track",
+                    "--features",
+                    FEATURE_FILES["ftrac_2005"],
+                    plain,
+                    "--camera",
+                    _RG["cam"],
+                    "-o",
+                    tmp / "ref" / "pose.json",
+                ]
+            )
             assert ref.code == 0, ref.describe()
             got = json.loads((tmp / "out" / "pose.json").read_text())
             want = json.loads((tmp / "ref" / "pose.json").read_text())

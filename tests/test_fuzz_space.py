@@ -26,9 +26,15 @@ def _default_space(preset: str) -> dict:
 
 SPACES = {f"default:{p}": (p, _default_space(p)) for p in PRESETS if p != "nine_bead"}
 # A shipped space is named after the preset it searches (``<preset>_<what>.toml``).
-SPACES.update({f"file:{f.stem}": (max((p for p in PRESETS if f.stem.startswith(p + "_")), key=len),
-                                  tomllib.loads(f.read_text()))
-               for f in sorted((MODELS / "spaces").glob("*.toml"))})
+SPACES.update(
+    {
+        f"file:{f.stem}": (
+            max((p for p in PRESETS if f.stem.startswith(p + "_")), key=len),
+            tomllib.loads(f.read_text()),
+        )
+        for f in sorted((MODELS / "spaces").glob("*.toml"))
+    }
+)
 
 
 @st.composite
@@ -76,8 +82,28 @@ def test_fuzz_space_tiny_run(case):
         check = run_cli(["optimize", MODELS / f"{preset}.toml", "--space", space, "--print-space"])
         assume(check.code == 0)  # invalid spaces are the test above's
         out = tmp / "opt"
-        run = run_cli(["optimize", MODELS / f"{preset}.toml", "--space", space, "-o", out, "--evaluations", "1",
-                       "--workers", "0", "--poses", "100", "--verify-poses", "100", "--solver-images", "0",
-                       "--check-images", "0", "--no-build"])
+        run = run_cli(
+            [
+                "optimize",
+                MODELS / f"{preset}.toml",
+                "--space",
+                space,
+                "-o",
+                out,
+                "--evaluations",
+                "1",
+                "--workers",
+                "0",
+                "--poses",
+                "100",
+                "--verify-poses",
+                "100",
+                "--solver-images",
+                "0",
+                "--check-images",
+                "0",
+                "--no-build",
+            ]
+        )
         assert_clean(run, [space], tmp)
         assert run.code in (0, 1), run.describe()

@@ -35,9 +35,16 @@ RX90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 def _pose(R, t, **kw) -> dict:
-    return {"format": "ftrac-pose", "version": 1, "rotation": np.asarray(R).tolist(),
-            "translation_mm": list(map(float, t)), "converged": True, "rms_residual_px": 0.1,
-            "covariance": (np.eye(6) * 1e-4).tolist(), **kw}
+    return {
+        "format": "ftrac-pose",
+        "version": 1,
+        "rotation": np.asarray(R).tolist(),
+        "translation_mm": list(map(float, t)),
+        "converged": True,
+        "rms_residual_px": 0.1,
+        "covariance": (np.eye(6) * 1e-4).tolist(),
+        **kw,
+    }
 
 
 def _random_pose(seed: int) -> np.ndarray:
@@ -62,12 +69,15 @@ def test_tfm_of_a_pose_known_by_hand_holds_its_inverse_in_lps(tmp_path):
     assert np.array_equal(read_tfm(path).point_mapping, M)
 
 
-@pytest.mark.parametrize("R, t, ras_R, ras_t", [
-    # about z (the axis LPS and RAS share) the rotation is the same; the translation's x, y flip
-    (RZ90, [10.0, 20.0, 600.0], RZ90, [-10.0, -20.0, 600.0]),
-    # +90° about L (LPS x) is −90° about R (RAS x)
-    (RX90, [0.0, 0.0, 0.0], RX90.T, [0.0, 0.0, 0.0]),
-])
+@pytest.mark.parametrize(
+    "R, t, ras_R, ras_t",
+    [
+        # about z (the axis LPS and RAS share) the rotation is the same; the translation's x, y flip
+        (RZ90, [10.0, 20.0, 600.0], RZ90, [-10.0, -20.0, 600.0]),
+        # +90° about L (LPS x) is −90° about R (RAS x)
+        (RX90, [0.0, 0.0, 0.0], RX90.T, [0.0, 0.0, 0.0]),
+    ],
+)
 def test_ras_matrix_of_a_pose_known_by_hand(R, t, ras_R, ras_t):
     M = in_space(pose_matrix(R, t), "ras")
     assert np.array_equal(M[:3, :3], np.asarray(ras_R)) and np.array_equal(M[:3, 3], ras_t)
@@ -80,8 +90,9 @@ def test_itk_reads_back_any_pose_and_slicers_ras_to_parent_is_the_openigtlink_ma
     path = write_tfm(tmp_path / "p.tfm", M, "FiducialToCArm", note="frame 3 of run.jsonl")
     tx = sitk.ReadTransform(str(path))
     A = np.array(tx.GetParameters()[:9]).reshape(3, 3)
-    assert np.array_equal(A, M[:3, :3].T) and np.allclose(tx.GetParameters()[9:], -M[:3, :3].T @ M[:3, 3],
-                                                          rtol=0, atol=1e-12)
+    assert np.array_equal(A, M[:3, :3].T) and np.allclose(
+        tx.GetParameters()[9:], -M[:3, :3].T @ M[:3, 3], rtol=0, atol=1e-12
+    )
     # every point: ITK maps X → F, the pose maps F → X
     P = np.random.default_rng(seed).normal(size=(5, 3)) * 40
     X = P @ M[:3, :3].T + M[:3, 3]
@@ -102,11 +113,13 @@ def test_tfm_reader_takes_a_centre_and_refuses_what_is_not_one_affine(tmp_path):
     x = np.array([3.0, 1.0, -2.0])
     assert np.allclose(ours[:3, :3] @ x + ours[:3, 3], tx.TransformPoint(tuple(x)), rtol=0, atol=1e-12)
     good = tfm_text(np.eye(4), "FiducialToCArm")
-    for bad, key in [("no magic\n", None), (good.replace("AffineTransform_double_3_3", "BSplineTransform"),
-                                             "Transform"),
-                     (good.replace("FixedParameters: 0 0 0", "FixedParameters: 0 0"), "FixedParameters"),
-                     (good.replace("Parameters: ", "Parameters: x "), "Parameters"),
-                     (good + good.split("#Transform 0\n")[1], "Transform")]:
+    for bad, key in [
+        ("no magic\n", None),
+        (good.replace("AffineTransform_double_3_3", "BSplineTransform"), "Transform"),
+        (good.replace("FixedParameters: 0 0 0", "FixedParameters: 0 0"), "FixedParameters"),
+        (good.replace("Parameters: ", "Parameters: x "), "Parameters"),
+        (good + good.split("#Transform 0\n")[1], "Transform"),
+    ]:
         (tmp_path / "bad.tfm").write_text(bad)
         with pytest.raises(InputError) as e:
             read_tfm(tmp_path / "bad.tfm")
@@ -116,8 +129,14 @@ def test_tfm_reader_takes_a_centre_and_refuses_what_is_not_one_affine(tmp_path):
 def test_plus_transform_names():
     assert split_transform_name("FiducialToCArm") == ("Fiducial", "CArm")
     assert check_transform_name("ImageToProbe") == "ImageToProbe"
-    for bad in ("fiducialToCArm", "Fiducial2CArm", "FiducialToCArmToTracker", "VeryLongFiducialToCArm", "ToCArm",
-                "FiducialTo"):
+    for bad in (
+        "fiducialToCArm",
+        "Fiducial2CArm",
+        "FiducialToCArmToTracker",
+        "VeryLongFiducialToCArm",
+        "ToCArm",
+        "FiducialTo",
+    ):
         with pytest.raises(InputError):
             check_transform_name(bad)
 
@@ -146,8 +165,12 @@ def test_export_markups_of_a_features_file_and_of_a_reconstruction(features_2005
     assert set(back) == {p.id for p in features_2005.points}
     for p in features_2005.points:
         assert np.array_equal(back[p.id], p.center)
-    rec = {"format": "ftrac-reconstruction", "version": 1, "frame": "template",
-           "points": {"s1": {"position_mm": [1.0, 2.0, 3.0]}, "s2": {"refused": "one view", "views": [0]}}}
+    rec = {
+        "format": "ftrac-reconstruction",
+        "version": 1,
+        "frame": "template",
+        "points": {"s1": {"position_mm": [1.0, 2.0, 3.0]}, "s2": {"refused": "one view", "views": [0]}},
+    }
     (tmp_path / "rec.json").write_text(json.dumps(rec))
     assert main(["export", str(tmp_path / "rec.json"), "-o", str(tmp_path / "rec.mrk.json")]) == 0
     assert [(k, v.tolist()) for k, v in read_markups(tmp_path / "rec.mrk.json")] == [("s1", [1.0, 2.0, 3.0])]
@@ -157,10 +180,21 @@ def test_export_markups_of_a_features_file_and_of_a_reconstruction(features_2005
 def run_file(tmp_path) -> tuple[Path, list[np.ndarray]]:
     """A three-frame run with its middle frame lost."""
     Ms = [_random_pose(s) for s in (1, 2, 3)]
-    lines = [_pose(Ms[0][:3, :3], Ms[0][:3, 3], frame=0, time_s=0.0, status="tracked"),
-             {"format": "ftrac-pose", "version": 1, "rotation": None, "translation_mm": None, "converged": False,
-              "error": "no fiducial", "frame": 1, "time_s": 0.04, "status": "lost"},
-             _pose(Ms[2][:3, :3], Ms[2][:3, 3], frame=2, time_s=0.08, status="tracked")]
+    lines = [
+        _pose(Ms[0][:3, :3], Ms[0][:3, 3], frame=0, time_s=0.0, status="tracked"),
+        {
+            "format": "ftrac-pose",
+            "version": 1,
+            "rotation": None,
+            "translation_mm": None,
+            "converged": False,
+            "error": "no fiducial",
+            "frame": 1,
+            "time_s": 0.04,
+            "status": "lost",
+        },
+        _pose(Ms[2][:3, :3], Ms[2][:3, 3], frame=2, time_s=0.08, status="tracked"),
+    ]
     p = tmp_path / "run.jsonl"
     p.write_text("".join(json.dumps(d) + "\n" for d in lines))
     return p, Ms
@@ -194,8 +228,13 @@ def test_sequence_header_fields(run_file, suffix, space, tmp_path, capsys):
 
 
 def test_sequence_without_times_uses_the_line_index(tmp_path):
-    out = write_sequence(tmp_path / "s.seq.mha", [SequenceFrame(np.eye(4), 0.0), SequenceFrame(None, 1.0)],
-                         "FiducialToCArm", "mha", "ras")
+    out = write_sequence(
+        tmp_path / "s.seq.mha",
+        [SequenceFrame(np.eye(4), 0.0), SequenceFrame(None, 1.0)],
+        "FiducialToCArm",
+        "mha",
+        "ras",
+    )
     f = read_sequence_fields(out)
     assert f["Seq_Frame0001_Timestamp"] == "1.0" and f["Seq_Frame0001_FiducialToCArmTransformStatus"] == "INVALID"
 
@@ -212,18 +251,21 @@ def test_export_tfm_from_a_run_needs_index_and_a_solved_pose(run_file, tmp_path,
         assert err.count("\n") == 1 and words in err and "Traceback" not in err and not out.exists()
 
 
-@pytest.mark.parametrize("text, key", [
-    ("", None),
-    ("{not json\n", None),
-    ('{"format": "ftrac-observation"}\n', "format"),
-    (json.dumps(_pose(np.eye(3), [0, 0, 1])).replace('"rotation"', '"rot"') + "\n", "rotation"),
-    (json.dumps(_pose(np.eye(3) * 2, [0, 0, 1])) + "\n", "rotation"),
-    (json.dumps(_pose(np.eye(3), [0, 0])) + "\n", "translation_mm"),
-    (json.dumps(_pose(np.eye(3), [0, 0, 1])) + "\n" + "[1, 2]\n", None),
-    (json.dumps(_pose(np.eye(3), [0, 0, 1], converged="yes")) + "\n", "converged"),
-    (json.dumps(_pose(np.eye(3), [0, 0, 1], time_s="soon")) + "\n", "time_s"),
-    (json.dumps(_pose(np.eye(3), [0, 0, 1])).replace("0.1", "NaN") + "\n", None),
-])
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("", None),
+        ("{not json\n", None),
+        ('{"format": "ftrac-observation"}\n', "format"),
+        (json.dumps(_pose(np.eye(3), [0, 0, 1])).replace('"rotation"', '"rot"') + "\n", "rotation"),
+        (json.dumps(_pose(np.eye(3) * 2, [0, 0, 1])) + "\n", "rotation"),
+        (json.dumps(_pose(np.eye(3), [0, 0])) + "\n", "translation_mm"),
+        (json.dumps(_pose(np.eye(3), [0, 0, 1])) + "\n" + "[1, 2]\n", None),
+        (json.dumps(_pose(np.eye(3), [0, 0, 1], converged="yes")) + "\n", "converged"),
+        (json.dumps(_pose(np.eye(3), [0, 0, 1], time_s="soon")) + "\n", "time_s"),
+        (json.dumps(_pose(np.eye(3), [0, 0, 1])).replace("0.1", "NaN") + "\n", None),
+    ],
+)
 @pytest.mark.parametrize("suffix", [".tfm", ".seq.mha"])
 def test_malformed_pose_files_exit_2_with_one_line_and_write_nothing(text, key, suffix, tmp_path, capsys):
     src = tmp_path / "poses.jsonl"

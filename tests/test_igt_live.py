@@ -41,8 +41,19 @@ def offline(frames, tmp_path_factory):
     pose each, every frame alone (the workspace poses are unrelated: not a run to track along)."""
     d = tmp_path_factory.mktemp("offline")
     np.save(d / "run.npy", frames.pixels)
-    main(["track", "--features", str(frames.features_path), str(d / "run.npy"), "--camera", str(frames.camera_path),
-          "--independent", "-o", str(d / "poses.jsonl")])
+    main(
+        [
+            "track",
+            "--features",
+            str(frames.features_path),
+            str(d / "run.npy"),
+            "--camera",
+            str(frames.camera_path),
+            "--independent",
+            "-o",
+            str(d / "poses.jsonl"),
+        ]
+    )
     return [json.loads(x) for x in (d / "poses.jsonl").read_text().splitlines()]
 
 
@@ -72,8 +83,10 @@ def test_300_frames_at_30_per_second_answered_or_counted_and_equal_to_offline_tr
             if wait > 0:
                 time.sleep(wait)
             stamps.append(1000.0 + k)
-            client.send_message(image_message(frames.pixels[k % N_DISTINCT], frames.camera, stamps[-1],
-                                              _camera_metadata(frames)), wait=False)
+            client.send_message(
+                image_message(frames.pixels[k % N_DISTINCT], frames.camera, stamps[-1], _camera_metadata(frames)),
+                wait=False,
+            )
         assert wait_for(lambda: _answers(client) and _answers(client)[-1].timestamp == stamps[-1], 60)
         client.stop()
     finally:
@@ -100,12 +113,13 @@ def test_300_frames_at_30_per_second_answered_or_counted_and_equal_to_offline_tr
 
 
 def test_a_client_disconnects_mid_run_and_another_connects(frames, offline):
-    server = Server(["--features", str(frames.features_path), "--camera", str(frames.camera_path), "--queue", "1",
-                     "--independent"])
+    server = Server(
+        ["--features", str(frames.features_path), "--camera", str(frames.camera_path), "--queue", "1", "--independent"]
+    )
     try:
         first = recording_client(server.port)
         send_frames(first, frames.pixels[:12], frames.camera, 30.0)
-        first.stop()                               # gone mid-run, its last frames unanswered
+        first.stop()  # gone mid-run, its last frames unanswered
         second = recording_client(server.port)
         stamps = send_frames(second, frames.pixels[12:24], frames.camera, 30.0, start_index=100)
         assert wait_for(lambda: _answers(second) and _answers(second)[-1].timestamp == stamps[-1], 60)
@@ -125,12 +139,15 @@ def test_a_client_disconnects_mid_run_and_another_connects(frames, offline):
 def _raw(mtype: str, device: str, body: bytes, version: int = 2, crc: int | None = None) -> bytes:
     from pyigtl.messages import CRC64
 
-    return HEADER.pack(version, mtype.encode(), device.encode(), 1000, 0, len(body),
-                       CRC64(body) if crc is None else crc) + body
+    return (
+        HEADER.pack(version, mtype.encode(), device.encode(), 1000, 0, len(body), CRC64(body) if crc is None else crc)
+        + body
+    )
 
 
 def _read_reply(sock: socket.socket) -> tuple[str, bytes]:
     """(type, body) of the next message, decoded by hand from the protocol's header."""
+
     def exact(n: int) -> bytes:
         buf = b""
         while len(buf) < n:
@@ -138,11 +155,12 @@ def _read_reply(sock: socket.socket) -> tuple[str, bytes]:
             assert chunk, "connection closed"
             buf += chunk
         return buf
+
     version, mtype, _, _, _, size, _ = HEADER.unpack(exact(HEADER.size))
     body = exact(size)
-    if version == 2:            # skip the extended header and the metadata for the content
+    if version == 2:  # skip the extended header and the metadata for the content
         ext, meta_head, meta_body, _ = struct.unpack(">HHII", body[:12])
-        body = body[ext:len(body) - meta_head - meta_body]
+        body = body[ext : len(body) - meta_head - meta_body]
     return mtype.rstrip(b"\0").decode(), body
 
 
@@ -159,23 +177,23 @@ def test_malformed_messages_get_an_error_status_and_the_server_goes_on(frames):
         good = image_message(frames.pixels[0], frames.camera, 1000.0, _camera_metadata(frames)).pack()
         no_camera = image_message(frames.pixels[0], frames.camera, 1000.0, {}).pack()
         with socket.create_connection(("127.0.0.1", server.port), timeout=30) as s:
-            s.sendall(_raw("IMAGE", "Image", b"\0" * 10))                            # body too short
+            s.sendall(_raw("IMAGE", "Image", b"\0" * 10))  # body too short
             assert _status_code(_read_reply(s))[0] == link.STATUS_INVALID_PACKET
-            s.sendall(good[:50] + struct.pack(">Q", 12345) + good[58:])               # CRC mismatch
+            s.sendall(good[:50] + struct.pack(">Q", 12345) + good[58:])  # CRC mismatch
             assert _status_code(_read_reply(s))[0] == link.STATUS_CHECKSUM_ERROR
-            s.sendall(pyigtl.StringMessage("hello", device_name="Text").pack())       # not an IMAGE
+            s.sendall(pyigtl.StringMessage("hello", device_name="Text").pack())  # not an IMAGE
             assert _status_code(_read_reply(s))[0] == link.STATUS_UNKNOWN_INSTRUCTION
-            s.sendall(no_camera)                                                       # no camera anywhere
+            s.sendall(no_camera)  # no camera anywhere
             code, text = _status_code(_read_reply(s))
             assert code == link.STATUS_CONFIGURATION_ERROR and "focal_length_mm" in text
-            s.sendall(good)                                                            # the same link still works
+            s.sendall(good)  # the same link still works
             mtype, body = _read_reply(s)
             assert mtype == "TRANSFORM" and len(body) == 48
-            s.sendall(_raw("IMAGE", "Image", b"", version=7))                          # a header not to trust
+            s.sendall(_raw("IMAGE", "Image", b"", version=7))  # a header not to trust
             code, text = _status_code(_read_reply(s))
             assert code == link.STATUS_INVALID_PACKET and "closing" in text
             assert s.recv(1) == b""
-        client = recording_client(server.port)                                         # and the server listens on
+        client = recording_client(server.port)  # and the server listens on
         client.send_message(image_message(frames.pixels[1], frames.camera, 1001.0, _camera_metadata(frames)))
         assert wait_for(lambda: _answers(client), 30)
         client.stop()
@@ -197,15 +215,21 @@ def test_push_sends_a_run_to_a_listening_server(offline, tmp_path):
     server.incoming_messages = _Recorder()
     server.start()
     try:
-        res = subprocess.run([sys.executable, "-m", "ftrac_design.cli.main", "push", str(path), "--port", str(port),
-                              "--rate", "20"], capture_output=True, text=True, cwd=ROOT, timeout=60,
-                             env={"PYTHONPATH": str(ROOT), "PATH": ""})
+        res = subprocess.run(
+            [sys.executable, "-m", "ftrac_design.cli.main", "push", str(path), "--port", str(port), "--rate", "20"],
+            capture_output=True,
+            text=True,
+            cwd=ROOT,
+            timeout=60,
+            env={"PYTHONPATH": str(ROOT), "PATH": ""},
+        )
         assert res.returncode == 0, res.stderr
         assert wait_for(lambda: len(server.incoming_messages.log) == len(run), 10)
     finally:
         server.stop()
         for sig, handler in server._previous_signal_handlers.items():
             import signal
+
             signal.signal(sig, handler)
     got = server.incoming_messages.log
     for m, ref in zip(got[:5], run[:5]):
@@ -228,8 +252,9 @@ def test_push_with_no_server_exits_2_with_one_line(tmp_path, offline, capsys):
 
 
 def test_the_camera_from_an_image_messages_spacing_and_metadata(frames):
-    msg = image_message(frames.pixels[0], frames.camera, 1000.0,
-                        {"focal_length_mm": "1000", "principal_point_px": "250 260.5"})
+    msg = image_message(
+        frames.pixels[0], frames.camera, 1000.0, {"focal_length_mm": "1000", "principal_point_px": "250 260.5"}
+    )
     back = pyigtl.ImageMessage()
     packed = msg.pack()
     back.unpack(pyigtl.MessageBase.parse_header(packed[:58]), packed[58:])
@@ -276,8 +301,13 @@ def test_a_plugged_in_tracker_gets_each_frame_and_its_errors_become_invalid_answ
                 raise RuntimeError("lost it")
             if k == 2:
                 return {"converged": True, "rotation": [[1, 0]], "translation_mm": [0, 0, 1]}
-            return {"converged": True, "rotation": M[:3, :3].tolist(), "translation_mm": M[:3, 3].tolist(),
-                    "status": "tracked"}
+            return {
+                "converged": True,
+                "rotation": M[:3, :3].tolist(),
+                "translation_mm": M[:3, 3].tolist(),
+                "status": "tracked",
+            }
+
         return track
 
     stop = threading.Event()
@@ -287,9 +317,10 @@ def test_a_plugged_in_tracker_gets_each_frame_and_its_errors_become_invalid_answ
         try:
             wait_for(lambda: ports, 30)
             client = recording_client(ports[0])
-            for k in range(4):                     # one at a time: none dropped
-                client.send_message(image_message(frames.pixels[k], frames.camera, 1000.0 + k,
-                                                  _camera_metadata(frames)), wait=False)
+            for k in range(4):  # one at a time: none dropped
+                client.send_message(
+                    image_message(frames.pixels[k], frames.camera, 1000.0 + k, _camera_metadata(frames)), wait=False
+                )
                 wait_for(lambda n=k + 1: len(_answers(client)) == n, 30)
             got.extend(_answers(client))
             client.stop()
@@ -297,8 +328,13 @@ def test_a_plugged_in_tracker_gets_each_frame_and_its_errors_become_invalid_answ
             stop.set()
 
     threading.Thread(target=drive, daemon=True).start()
-    summary = serve("the setup", ServeOptions(port=0, space="lps"), factory=factory, stop=stop,
-                    on_listen=lambda s: ports.append(s.port))
+    summary = serve(
+        "the setup",
+        ServeOptions(port=0, space="lps"),
+        factory=factory,
+        stop=stop,
+        on_listen=lambda s: ports.append(s.port),
+    )
     assert [s[3] for s in seen] == [1000.0, 1001.0, 1002.0, 1003.0]
     assert all(s[0] == (512, 512) and s[1] == np.float32 and s[2] == frames.camera for s in seen)
     assert [m.metadata["TransformStatus"] for m in got] == ["OK", "INVALID", "INVALID", "OK"]
@@ -313,10 +349,12 @@ def test_serve_bad_input_exits_2_with_one_line(frames, tmp_path, capsys):
         busy.bind(("127.0.0.1", 0))
         busy.listen()
         port = busy.getsockname()[1]
-        cases = [(["--features", str(tmp_path / "missing.json")], "missing.json"),
-                 (["--features", str(frames.features_path), "--name", "Fiducial-CArm"], "--name"),
-                 (["--features", str(frames.features_path), "--camera", str(frames.features_path)], "camera"),
-                 (["--features", str(frames.features_path), "--port", str(port)], "--port")]
+        cases = [
+            (["--features", str(tmp_path / "missing.json")], "missing.json"),
+            (["--features", str(frames.features_path), "--name", "Fiducial-CArm"], "--name"),
+            (["--features", str(frames.features_path), "--camera", str(frames.features_path)], "camera"),
+            (["--features", str(frames.features_path), "--port", str(port)], "--port"),
+        ]
         for args, words in cases:
             assert main(["serve", *args]) == 2
             err = capsys.readouterr().err
@@ -342,7 +380,7 @@ def test_ctrl_c_while_frames_flow_stops_the_server_cleanly(frames):
     try:
         assert wait_for(lambda: len(_answers(client)) >= 2, 60)
         started = time.monotonic()
-        out = _stop(server)                        # SIGINT mid-stream, the tracker busy
+        out = _stop(server)  # SIGINT mid-stream, the tracker busy
         assert time.monotonic() - started < 60 and "1 connections" in out
     finally:
         flowing.set()
@@ -374,6 +412,7 @@ def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
             if time_s == 1000.0:
                 return {"converged": False, "error": "no fiducial"}
             return {"converged": True, "rotation": np.eye(3).tolist(), "translation_mm": [0.0, 0.0, 600.0]}
+
         return track
 
     def drive():
@@ -381,8 +420,9 @@ def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
             wait_for(lambda: servers, 30)
             client = recording_client(servers[0].port)
             for k in range(2):
-                client.send_message(image_message(frames.pixels[k], frames.camera, 1000.0 + k,
-                                                  _camera_metadata(frames)), wait=False)
+                client.send_message(
+                    image_message(frames.pixels[k], frames.camera, 1000.0 + k, _camera_metadata(frames)), wait=False
+                )
                 wait_for(lambda n=k + 1: servers[0].summary.answered == n, 30)
             wait_for(lambda: _answers(client), 30)
             got.extend(_answers(client))
@@ -391,8 +431,7 @@ def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
             stop.set()
 
     threading.Thread(target=drive, daemon=True).start()
-    summary = serve(None, ServeOptions(port=0, valid_only=True), factory=factory, stop=stop,
-                    on_listen=servers.append)
+    summary = serve(None, ServeOptions(port=0, valid_only=True), factory=factory, stop=stop, on_listen=servers.append)
     assert [m.timestamp for m in got] == [1001.0] and summary.answered == 2 and summary.tracked == 1
 
 
@@ -436,11 +475,26 @@ def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path
     cam = Camera(1000.0, (0.44, 0.44), ((shape[1] - 1) / 2, (shape[0] - 1) / 2))
     features = compute_features(load_design(PRESETS_DIR / "ftrac_2005.toml"))
     body = body_from_design_file(PRESETS_DIR / "ftrac_2005.toml")
-    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(1, features.nominal_beam_direction,
-                                                            np.random.default_rng(5))
-    run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=shape), seed=5, body=body,
-                       anatomy_strength=0.6, margin_px=96, swing_deg=8.0, period_frames=60.0, tilt_deg=3.0,
-                       tilt_period_frames=41.0, drift_mm=(4.0, 3.0, 2.0))
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
+        1, features.nominal_beam_direction, np.random.default_rng(5)
+    )
+    run = render_sweep(
+        features,
+        R0[0],
+        t0[0],
+        n,
+        cam,
+        ImagingModel(image_shape=shape),
+        seed=5,
+        body=body,
+        anatomy_strength=0.6,
+        margin_px=96,
+        swing_deg=8.0,
+        period_frames=60.0,
+        tilt_deg=3.0,
+        tilt_period_frames=41.0,
+        drift_mm=(4.0, 3.0, 2.0),
+    )
     fpath = write_features(tmp_path / "f.json", features)
     cpath = tmp_path / "camera.json"
     cpath.write_text(json.dumps(cam.to_dict()))

@@ -23,14 +23,24 @@ def _one(path, **kw):
 @pytest.mark.parametrize("kind", ["xa", "rf", "dx", "cr", "enhanced-xa", "enhanced-xrf"])
 def test_every_kind_round_trips_pixels_and_camera(tmp_path, kind):
     a = stored()
-    p = write_dicom(tmp_path / "a.dcm", a, CAM, kind=kind, relationship="LIN", relationship_sign=1,
-                    isocenter_projection_px=CAM.principal_point_px, bits_stored=12)
+    p = write_dicom(
+        tmp_path / "a.dcm",
+        a,
+        CAM,
+        kind=kind,
+        relationship="LIN",
+        relationship_sign=1,
+        isocenter_projection_px=CAM.principal_point_px,
+        bits_stored=12,
+    )
     f = _one(p)
     assert f.pixels.dtype == np.float32 and np.array_equal(f.pixels, a[0])
     assert f.camera == CAM
-    assert f.camera_source == {"focal_length": "DistanceSourceToDetector (0018,1110)",
-                               "pixel_size": "ImagerPixelSpacing (0018,1164)",
-                               "principal_point": "PositionOfIsocenterProjection (0018,9430)"}
+    assert f.camera_source == {
+        "focal_length": "DistanceSourceToDetector (0018,1110)",
+        "pixel_size": "ImagerPixelSpacing (0018,1164)",
+        "principal_point": "PositionOfIsocenterProjection (0018,9430)",
+    }
     assert (f.formation, f.polarity) == ("linear", "dense-dark")
     assert f.meta["enhanced"] == kind.startswith("enhanced") and f.meta["bits"] == 12
 
@@ -65,8 +75,9 @@ def test_relationship_and_sign_give_formation_and_polarity(tmp_path, relationshi
 
 def test_monochrome1_keeps_values_and_the_sign_decides(tmp_path):
     a = stored()
-    p = write_dicom(tmp_path / "a.dcm", a, CAM, kind="dx", photometric="MONOCHROME1", relationship="LOG",
-                    relationship_sign=-1)
+    p = write_dicom(
+        tmp_path / "a.dcm", a, CAM, kind="dx", photometric="MONOCHROME1", relationship="LOG", relationship_sign=-1
+    )
     f = _one(p)
     assert np.array_equal(f.pixels, a[0]) and f.polarity == "dense-bright"
     assert any("MONOCHROME1" in n for n in f.notes)
@@ -77,15 +88,22 @@ def test_monochrome1_keeps_values_and_the_sign_decides(tmp_path):
 @pytest.mark.parametrize("kind", ["dx", "enhanced-xa"])
 def test_field_of_view_rotation_and_flip_are_undone(tmp_path, rotation, flip, kind):
     a = stored(shape=(40, 56))
-    p = write_dicom(tmp_path / "a.dcm", a, CAM, kind=kind, fov_rotation_deg=rotation, fov_horizontal_flip=flip,
-                    isocenter_projection_px=CAM.principal_point_px)
+    p = write_dicom(
+        tmp_path / "a.dcm",
+        a,
+        CAM,
+        kind=kind,
+        fov_rotation_deg=rotation,
+        fov_horizontal_flip=flip,
+        isocenter_projection_px=CAM.principal_point_px,
+    )
     ds = pydicom.dcmread(p)
     assert (ds.Rows, ds.Columns) == ((56, 40) if rotation in (90, 270) else (40, 56))
     if rotation or flip:
-        assert not np.array_equal(ds.pixel_array, a[0])          # stored differently …
+        assert not np.array_equal(ds.pixel_array, a[0])  # stored differently …
     f = _one(p)
-    assert np.array_equal(f.pixels, a[0])                         # … read back on the detector grid
-    assert f.camera == CAM                                        # same pitch axes, same principal point
+    assert np.array_equal(f.pixels, a[0])  # … read back on the detector grid
+    assert f.camera == CAM  # same pitch axes, same principal point
 
 
 def test_rotated_file_without_isocenter_uses_the_detector_grid_centre(tmp_path):
@@ -101,9 +119,10 @@ def test_frame_time_and_frame_time_vector_give_times(tmp_path):
     assert [x.index for x in f] == [0, 1, 2, 3] and all(np.array_equal(x.pixels, a[i]) for i, x in enumerate(f))
     f = list(read_frames(write_dicom(tmp_path / "v.dcm", a, CAM, frame_time_vector_ms=[0, 30, 50, 20])))
     assert [x.time_s for x in f] == pytest.approx([0.0, 0.03, 0.08, 0.10])
-    f = list(read_frames(write_dicom(tmp_path / "e.dcm", a, CAM, kind="enhanced-xa",
-                                     frame_time_vector_ms=[0, 30, 50, 20])))
-    assert [x.time_s for x in f] == pytest.approx([0.0, 0.03, 0.08, 0.10])      # Frame Content DateTimes
+    f = list(
+        read_frames(write_dicom(tmp_path / "e.dcm", a, CAM, kind="enhanced-xa", frame_time_vector_ms=[0, 30, 50, 20]))
+    )
+    assert [x.time_s for x in f] == pytest.approx([0.0, 0.03, 0.08, 0.10])  # Frame Content DateTimes
     assert [x.time_s for x in read_frames(write_dicom(tmp_path / "n.dcm", a, CAM))] == [None] * 4
     assert frame_count(tmp_path / "t.dcm") == 4
 
@@ -117,8 +136,9 @@ def test_compressed_syntaxes_decode_exactly(tmp_path, syntax, kind):
     if syntax == "jpeg2000-lossless":
         pytest.importorskip("openjpeg", reason="pylibjpeg-openjpeg encodes and decodes JPEG 2000")
     a = stored(3, shape=(64, 80))
-    p = write_dicom(tmp_path / "a.dcm", a, CAM, kind=kind, transfer_syntax=syntax, fov_rotation_deg=90,
-                    fov_horizontal_flip=True)
+    p = write_dicom(
+        tmp_path / "a.dcm", a, CAM, kind=kind, transfer_syntax=syntax, fov_rotation_deg=90, fov_horizontal_flip=True
+    )
     f = list(read_frames(p))
     assert pydicom.dcmread(p, stop_before_pixels=True).file_meta.TransferSyntaxUID.is_compressed
     assert all(np.array_equal(x.pixels, a[i]) for i, x in enumerate(f))
@@ -128,16 +148,21 @@ def test_compressed_syntaxes_decode_exactly(tmp_path, syntax, kind):
 def test_a_missing_codec_names_the_transfer_syntax_and_the_package(tmp_path, monkeypatch):
     p = write_dicom(tmp_path / "a.dcm", stored(), CAM, transfer_syntax="rle")
     import pydicom.pixels
+
     monkeypatch.setattr(pydicom.pixels, "get_decoder", lambda uid: (_ for _ in ()).throw(NotImplementedError()))
     with pytest.raises(InputError, match=r"1\.2\.840\.10008\.1\.2\.5 \(RLE Lossless\)"):
         list(read_frames(p))
 
 
 def test_missing_geometry_names_the_tags_and_the_ways_out(tmp_path):
-    p = write_dicom(tmp_path / "a.dcm", stored(), CAM, kind="xa",
-                    omit=("DistanceSourceToDetector", "ImagerPixelSpacing"))
-    with pytest.raises(InputError, match=r"DistanceSourceToDetector \(0018,1110\), ImagerPixelSpacing \(0018,1164\).*"
-                                         r"--camera C\.json.*fiducial"):
+    p = write_dicom(
+        tmp_path / "a.dcm", stored(), CAM, kind="xa", omit=("DistanceSourceToDetector", "ImagerPixelSpacing")
+    )
+    with pytest.raises(
+        InputError,
+        match=r"DistanceSourceToDetector \(0018,1110\), ImagerPixelSpacing \(0018,1164\).*"
+        r"--camera C\.json.*fiducial",
+    ):
         list(read_frames(p))
     assert _one(p, need_camera=False).camera is None
     f = _one(p, camera=Camera(900.0))
@@ -152,11 +177,15 @@ def test_pixel_spacing_and_its_calibration_type(tmp_path, kind):
     a = stored()
     # no calibration type: taken as the detector pitch
     f = _one(write_dicom(tmp_path / "a.dcm", a, CAM, kind=kind, pixel_spacing_only=True, calibration=None))
-    assert (f.camera.pixel_size_mm == pytest.approx(CAM.pixel_size_mm)
-            and "PixelSpacing" in f.camera_source["pixel_size"])
+    assert (
+        f.camera.pixel_size_mm == pytest.approx(CAM.pixel_size_mm) and "PixelSpacing" in f.camera_source["pixel_size"]
+    )
     # calibrated to the object plane: × the magnification factor back to the detector
-    f = _one(write_dicom(tmp_path / "b.dcm", a, CAM, kind=kind, pixel_spacing_only=True, calibration="GEOMETRY",
-                         magnification=1.5))
+    f = _one(
+        write_dicom(
+            tmp_path / "b.dcm", a, CAM, kind=kind, pixel_spacing_only=True, calibration="GEOMETRY", magnification=1.5
+        )
+    )
     assert f.camera.pixel_size_mm == pytest.approx(CAM.pixel_size_mm)
     assert "EstimatedRadiographicMagnificationFactor" in f.camera_source["pixel_size"]
     # calibrated (FIDUCIAL) with no factor: not a pitch → the spacing is missing
@@ -170,8 +199,8 @@ def test_pixel_spacing_and_its_calibration_type(tmp_path, kind):
 def test_isocenter_projection_maps_through_binning_and_field_of_view_origin(tmp_path):
     p = write_dicom(tmp_path / "a.dcm", stored(shape=(40, 50)), CAM, kind="enhanced-xa")
     ds = pydicom.dcmread(p)
-    ds.PositionOfIsocenterProjection = [101.0, 61.0]               # (row, column) in detector elements
-    ds.DetectorElementSpacing = [0.2, 0.15]                         # 2 × 2 binning of CAM's pitch
+    ds.PositionOfIsocenterProjection = [101.0, 61.0]  # (row, column) in detector elements
+    ds.DetectorElementSpacing = [0.2, 0.15]  # 2 × 2 binning of CAM's pitch
     ds.SharedFunctionalGroupsSequence[0].FieldOfViewSequence[0].FieldOfViewOrigin = [20, 10]
     ds.save_as(p)
     f = _one(p)
@@ -184,7 +213,7 @@ def test_signed_12_bit_pixels_with_garbage_above_bits_stored(tmp_path):
     p = write_dicom(tmp_path / "a.dcm", a, CAM, signed=True, bits_stored=12)
     ds = pydicom.dcmread(p)
     raw = np.frombuffer(ds.PixelData, np.uint16).copy()
-    raw = (raw & 0x0FFF) | 0xA000                                    # overlay-like junk in bits 12–15
+    raw = (raw & 0x0FFF) | 0xA000  # overlay-like junk in bits 12–15
     ds.PixelData = raw.tobytes()
     ds.save_as(p)
     assert np.array_equal(_one(p).pixels, a[0])
@@ -192,12 +221,24 @@ def test_signed_12_bit_pixels_with_garbage_above_bits_stored(tmp_path):
 
 def test_modality_lut_and_rescale_give_modality_values(tmp_path):
     a = stored(bits=8)
-    lut = (4000 - 7 * np.arange(256)).astype(np.uint16)              # a decreasing LUT
-    f = _one(write_dicom(tmp_path / "l.dcm", a, CAM, bits_stored=8, modality_lut=lut, relationship="LIN",
-                         relationship_sign=1))
+    lut = (4000 - 7 * np.arange(256)).astype(np.uint16)  # a decreasing LUT
+    f = _one(
+        write_dicom(
+            tmp_path / "l.dcm", a, CAM, bits_stored=8, modality_lut=lut, relationship="LIN", relationship_sign=1
+        )
+    )
     assert np.array_equal(f.pixels, lut[a[0]]) and f.polarity == "dense-bright"
-    f = _one(write_dicom(tmp_path / "r.dcm", a, CAM, kind="enhanced-xa", rescale=(-0.5, 100.0), relationship="LIN",
-                         relationship_sign=-1))
+    f = _one(
+        write_dicom(
+            tmp_path / "r.dcm",
+            a,
+            CAM,
+            kind="enhanced-xa",
+            rescale=(-0.5, 100.0),
+            relationship="LIN",
+            relationship_sign=-1,
+        )
+    )
     assert np.array_equal(f.pixels, a[0] * -0.5 + 100.0) and f.polarity == "dense-dark"
 
 

@@ -23,25 +23,28 @@ def _edit(path, **values):
     return path
 
 
-@pytest.mark.parametrize("values,tag", [
-    ({"Rows": 47}, r"NumberOfFrames \(0028,0008\) / Rows \(0028,0010\) / Columns \(0028,0011\)"),
-    ({"Columns": 65}, r"Rows \(0028,0010\) / Columns"),
-    ({"NumberOfFrames": 3}, r"NumberOfFrames \(0028,0008\)"),
-    ({"NumberOfFrames": 0}, r"NumberOfFrames \(0028,0008\)"),
-    ({"BitsStored": 17}, r"BitsStored \(0028,0101\)"),
-    ({"HighBit": 10}, r"HighBit \(0028,0102\)"),
-    ({"PhotometricInterpretation": "PALETTE COLOR"}, r"PhotometricInterpretation \(0028,0004\)"),
-    ({"PhotometricInterpretation": "NONSENSE"}, r"PhotometricInterpretation \(0028,0004\)"),
-    ({"ImagerPixelSpacing": [-0.3, 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
-    ({"ImagerPixelSpacing": [0, 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
-    ({"ImagerPixelSpacing": ["NaN", 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
-    ({"ImagerPixelSpacing": [0.3]}, r"ImagerPixelSpacing \(0018,1164\)"),
-    ({"DistanceSourceToDetector": -5}, r"DistanceSourceToDetector \(0018,1110\)"),
-    ({"DistanceSourceToDetector": 0}, r"DistanceSourceToDetector \(0018,1110\)"),
-    ({"FieldOfViewRotation": 45, "FieldOfViewHorizontalFlip": "NO"}, r"FieldOfViewRotation \(0018,7032\)"),
-    ({"FrameTimeVector": [0, 10, 20]}, r"FrameTimeVector \(0018,1065\)"),
-    ({"PixelIntensityRelationshipSign": 2}, r"PixelIntensityRelationshipSign \(0028,1041\)"),
-])
+@pytest.mark.parametrize(
+    "values,tag",
+    [
+        ({"Rows": 47}, r"NumberOfFrames \(0028,0008\) / Rows \(0028,0010\) / Columns \(0028,0011\)"),
+        ({"Columns": 65}, r"Rows \(0028,0010\) / Columns"),
+        ({"NumberOfFrames": 3}, r"NumberOfFrames \(0028,0008\)"),
+        ({"NumberOfFrames": 0}, r"NumberOfFrames \(0028,0008\)"),
+        ({"BitsStored": 17}, r"BitsStored \(0028,0101\)"),
+        ({"HighBit": 10}, r"HighBit \(0028,0102\)"),
+        ({"PhotometricInterpretation": "PALETTE COLOR"}, r"PhotometricInterpretation \(0028,0004\)"),
+        ({"PhotometricInterpretation": "NONSENSE"}, r"PhotometricInterpretation \(0028,0004\)"),
+        ({"ImagerPixelSpacing": [-0.3, 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
+        ({"ImagerPixelSpacing": [0, 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
+        ({"ImagerPixelSpacing": ["NaN", 0.4]}, r"ImagerPixelSpacing \(0018,1164\)"),
+        ({"ImagerPixelSpacing": [0.3]}, r"ImagerPixelSpacing \(0018,1164\)"),
+        ({"DistanceSourceToDetector": -5}, r"DistanceSourceToDetector \(0018,1110\)"),
+        ({"DistanceSourceToDetector": 0}, r"DistanceSourceToDetector \(0018,1110\)"),
+        ({"FieldOfViewRotation": 45, "FieldOfViewHorizontalFlip": "NO"}, r"FieldOfViewRotation \(0018,7032\)"),
+        ({"FrameTimeVector": [0, 10, 20]}, r"FrameTimeVector \(0018,1065\)"),
+        ({"PixelIntensityRelationshipSign": 2}, r"PixelIntensityRelationshipSign \(0028,1041\)"),
+    ],
+)
 def test_a_lying_header_names_the_tag(tmp_path, values, tag):
     p = _edit(_file(tmp_path), **values)
     with pytest.raises(InputError, match=tag):
@@ -58,7 +61,7 @@ def test_absurd_sizes_are_refused_before_allocating(tmp_path):
     ds.NumberOfFrames = 500
     ds.PixelData = b""
     ds.save_as(tmp_path / "big.dcm")
-    with pytest.raises(InputError, match="pixel data holds 0 bytes"):        # only the data's length lies
+    with pytest.raises(InputError, match="pixel data holds 0 bytes"):  # only the data's length lies
         frame_count(tmp_path / "big.dcm")
 
 

@@ -21,8 +21,9 @@ def _only(path, **kw):
     return frames[0]
 
 
-@pytest.mark.parametrize("dtype,suffix", [(np.uint8, ".png"), (np.uint16, ".png"), (np.uint8, ".tif"),
-                                          (np.uint16, ".tif")])
+@pytest.mark.parametrize(
+    "dtype,suffix", [(np.uint8, ".png"), (np.uint16, ".png"), (np.uint8, ".tif"), (np.uint16, ".tif")]
+)
 def test_integer_png_and_tiff_keep_values_camera_and_polarity(tmp_path, dtype, suffix):
     a = np.random.default_rng(0).integers(0, np.iinfo(dtype).max, (30, 41)).astype(dtype)
     f = _only(write_image(tmp_path / f"a{suffix}", a, CAM, polarity="dense_bright", quantity="log"))
@@ -117,7 +118,7 @@ def test_a_directory_is_a_run_in_natural_order(tmp_path):
     for k in (10, 2, 1):
         frames[k] = np.full((6, 7), k, np.uint16)
         write_image(tmp_path / f"img_{k}.png", frames[k], CAM)
-    np.save(tmp_path / "img_11.npy", np.full((2, 6, 7), 11.0))          # a 2-frame file inside the run
+    np.save(tmp_path / "img_11.npy", np.full((2, 6, 7), 11.0))  # a 2-frame file inside the run
     (tmp_path / "truth.json").write_text("{}")
     (tmp_path / ".hidden.png").write_bytes(b"junk")
     got = list(read_frames(tmp_path, camera=CAM))

@@ -25,9 +25,18 @@ def test_a_rotated_enhanced_xa_run_tracks_the_true_pose(tmp_path, rotation, flip
     cam = Camera(1000.0, (0.44, 0.44), (500.0, 520.0))
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
     rad = render(features, R[0], t[0], cam, rng=np.random.default_rng(4), body=body)
-    counts = np.clip(np.rint(rad.raw), 0, 65535).astype(np.uint16)        # detector counts: dense = dark
-    p = write_dicom(tmp_path / "run.dcm", counts, cam, kind="enhanced-xa", relationship="LIN", relationship_sign=1,
-                    fov_rotation_deg=rotation, fov_horizontal_flip=flip, isocenter_projection_px=(500.0, 520.0))
+    counts = np.clip(np.rint(rad.raw), 0, 65535).astype(np.uint16)  # detector counts: dense = dark
+    p = write_dicom(
+        tmp_path / "run.dcm",
+        counts,
+        cam,
+        kind="enhanced-xa",
+        relationship="LIN",
+        relationship_sign=1,
+        fov_rotation_deg=rotation,
+        fov_horizontal_flip=flip,
+        isocenter_projection_px=(500.0, 520.0),
+    )
     (frame,) = list(read_frames(p))
     assert np.array_equal(frame.pixels, counts) and frame.camera == cam and frame.polarity == "dense-dark"
     res = track_image(frame.pixels, features, frame.camera, polarity_hint="dense_dark", body=body)

@@ -28,8 +28,10 @@ def ftrac_2005():
 
 
 def _records(errors_t, errors_r, outcomes, condition="clean"):
-    return [{"condition": condition, "k": k, "outcome": o, "translation_mm": et, "rotation_deg": er}
-            for k, (et, er, o) in enumerate(zip(errors_t, errors_r, outcomes))]
+    return [
+        {"condition": condition, "k": k, "outcome": o, "translation_mm": et, "rotation_deg": er}
+        for k, (et, er, o) in enumerate(zip(errors_t, errors_r, outcomes))
+    ]
 
 
 def test_condition_figures_are_the_percentiles_of_the_right_images():
@@ -127,8 +129,27 @@ def test_analyze_reports_the_image_true_score_first(tmp_path, capsys):
     from ftrac_design.cli.main import main
 
     out = tmp_path / "a"
-    assert main(["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15", "--score-images", "3",
-                 "--workers", "0", "--image-atlas-step-deg", "45", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "analyze",
+                "ftrac_2005",
+                "--poses",
+                "100",
+                "--atlas-step-deg",
+                "15",
+                "--score-images",
+                "3",
+                "--workers",
+                "0",
+                "--image-atlas-step-deg",
+                "45",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert text.index("image-true score") < text.index("the paper's model")
     doc = json.loads((out / "analysis.json").read_text())
@@ -152,8 +173,24 @@ def test_compare_of_a_design_with_itself_gives_ratios_of_exactly_one(tmp_path, c
     from ftrac_design.cli.main import main
 
     out = tmp_path / "c.png"
-    assert main(["compare", "ftrac_2005", "ftrac_2005", "--poses", "100", "--score-images", "24", "--workers", "0",
-                 "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                "ftrac_2005",
+                "ftrac_2005",
+                "--poses",
+                "100",
+                "--score-images",
+                "24",
+                "--workers",
+                "0",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     doc = json.loads(out.with_suffix(".json").read_text())
     first, second = (d["image_score"] for d in doc["designs"])
     assert first["figures"] == second["figures"] and first["vs_first"] is None
@@ -181,8 +218,9 @@ def test_the_trial_lifts_the_time_budget(ftrac_2005, monkeypatch):
     run_images(f, body, TrialSettings(images=1, seed=8, conditions=("clean",)), "clean", [0])
     (opts,) = seen
     assert opts.time_budget_s == float("inf")
-    assert {k: v for k, v in vars(opts).items() if k != "time_budget_s"} == \
-        {k: v for k, v in vars(TrackOptions()).items() if k != "time_budget_s"}
+    assert {k: v for k, v in vars(opts).items() if k != "time_budget_s"} == {
+        k: v for k, v in vars(TrackOptions()).items() if k != "time_budget_s"
+    }
 
 
 def test_the_optimiser_scores_a_candidate_on_images(ftrac_2005):

@@ -99,7 +99,7 @@ def test_wire_chord_matches_the_cylinder():
     n = np.cross(d, axis)
     sin_t = np.linalg.norm(n, axis=1)
     dist = np.abs(np.einsum("ij,ij->i", o - a, n)) / sin_t
-    exact = 2 * np.sqrt(r * r - dist ** 2) / sin_t
+    exact = 2 * np.sqrt(r * r - dist**2) / sin_t
     assert chord["unpaired"] == 0
     assert np.max(np.abs(chord["steel"] - exact)) <= 1e-3
 
@@ -118,8 +118,17 @@ def _energy(counts, truth, settings):
 def test_ball_total_attenuation_matches_the_closed_form(build_cache):
     scene = load_scene(PRESET, body=False)
     R, t = _ap_pose(scene.features)
-    counts, truth = render_independent(PRESET, R, t, CAM, mono_kev=MU_KEV, patient=False, noise=False,
-                                       body=False, settings=replace(SMALL, detector=DetectorModel(glare_fraction=0.0)))
+    counts, truth = render_independent(
+        PRESET,
+        R,
+        t,
+        CAM,
+        mono_kev=MU_KEV,
+        patient=False,
+        noise=False,
+        body=False,
+        settings=replace(SMALL, detector=DetectorModel(glare_fraction=0.0)),
+    )
     T = _energy(counts, truth, SMALL)
     uv = np.array(list(truth["points_px"].values()))
     gaps = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9
@@ -132,13 +141,14 @@ def test_ball_total_attenuation_matches_the_closed_form(build_cache):
     X = R @ p.center + t
     D, Z = float(np.linalg.norm(X)), float(X[2])
     r, mu = p.diameter / 2, float(linear_attenuation("steel", MU_KEV))
-    sphere = math.pi / 2 * (2 * r * r - (1 - math.exp(-2 * mu * r) * (1 + 2 * mu * r)) / mu ** 2)  # mm² at the ball
-    expected = sphere * CAM.focal_length_mm ** 2 * D / Z ** 3 / (CAM.pixel_size_mm[0] * CAM.pixel_size_mm[1])
+    sphere = math.pi / 2 * (2 * r * r - (1 - math.exp(-2 * mu * r) * (1 + 2 * mu * r)) / mu**2)  # mm² at the ball
+    expected = sphere * CAM.focal_length_mm**2 * D / Z**3 / (CAM.pixel_size_mm[0] * CAM.pixel_size_mm[1])
     assert measured == pytest.approx(expected, rel=0.005)
 
 
 def _hollow_cylinder_chord(o, d, r_out, r_in, half):
     """Chord (mm) of rays o + s d through {r_in ≤ |xy| ≤ r_out, |z| ≤ half} (F, axis z)."""
+
     def through(r):
         a = d[:, 0] ** 2 + d[:, 1] ** 2
         bq = o[:, 0] * d[:, 0] + o[:, 1] * d[:, 1]
@@ -151,14 +161,16 @@ def _hollow_cylinder_chord(o, d, r_out, r_in, half):
         lo = np.maximum(s1, np.minimum(z1, z2))
         hi = np.minimum(s2, np.maximum(z1, z2))
         return np.where(ok, np.clip(hi - lo, 0.0, None), 0.0)
+
     return through(r_out) - through(r_in)
 
 
 def test_body_alone_matches_the_hollow_cylinder(build_cache):
     scene = load_scene(PRESET, steel=False)
     R, t = _ap_pose(scene.features, roll=0.0)
-    counts, truth = render_independent(PRESET, R, t, CAM, mono_kev=MU_KEV, patient=False, noise=False,
-                                       steel=False, focal_spot_mm=0.0, settings=SHARP)
+    counts, truth = render_independent(
+        PRESET, R, t, CAM, mono_kev=MU_KEV, patient=False, noise=False, steel=False, focal_spot_mm=0.0, settings=SHARP
+    )
     p_mesh = -np.log(_energy(counts, truth, SHARP))
     # the analytic body through the same 4 × 4 sub-samples of every pixel
     s = SHARP.subsample
@@ -166,8 +178,17 @@ def test_body_alone_matches_the_hollow_cylinder(build_cache):
     vv, uu = np.mgrid[0:256, 0:256].astype(float)
     U = np.broadcast_to(uu[..., None, None] + off[None, None, None, :], (256, 256, s, s)).reshape(-1)
     V = np.broadcast_to(vv[..., None, None] + off[None, None, :, None], (256, 256, s, s)).reshape(-1)
-    d = np.stack([(U - CAM.principal_point_px[0]) * CAM.pixel_size_mm[0],
-                  (V - CAM.principal_point_px[1]) * CAM.pixel_size_mm[1], np.full(U.size, CAM.focal_length_mm)], -1) @ R
+    d = (
+        np.stack(
+            [
+                (U - CAM.principal_point_px[0]) * CAM.pixel_size_mm[0],
+                (V - CAM.principal_point_px[1]) * CAM.pixel_size_mm[1],
+                np.full(U.size, CAM.focal_length_mm),
+            ],
+            -1,
+        )
+        @ R
+    )
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     o = np.broadcast_to(-R.T @ t, d.shape)
     r_out, r_in, half = 15.0, 10.0, 25.0

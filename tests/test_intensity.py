@@ -20,11 +20,18 @@ def test_bead_jacobian_matches_the_closed_form():
     """Point-sampled, unblurred bead: L = μ 2√(r² − m²), m the ray's distance from the centre P;
     ∂L/∂P = −2μ P⊥ / √(r² − m²) (P⊥ the part of P across the ray); ∂P/∂δ = δ × (P − t), ∂P/∂t = I."""
     r = 1.0
-    f = Features("b", None, None, np.array([0, -1.0, 0]),
-                 points=(PointFeature("B", np.array([3.0, -2.0, 4.0]), 2 * r),))
+    f = Features(
+        "b", None, None, np.array([0, -1.0, 0]), points=(PointFeature("B", np.array([3.0, -2.0, 4.0]), 2 * r),)
+    )
     cam = Camera(1000.0, (0.44, 0.44), (64.0, 64.0))
-    im = ImagingModel(image_shape=(128, 128), photons_per_px=None, supersample=1, focal_spot_mm=0.0,
-                      detector_blur_px=0.0, single_precision=False)
+    im = ImagingModel(
+        image_shape=(128, 128),
+        photons_per_px=None,
+        supersample=1,
+        focal_spot_mm=0.0,
+        detector_blur_px=0.0,
+        single_precision=False,
+    )
     R = so3.exp(np.array([[0.3, -0.2, 0.5]]))[0]
     t = np.array([1.0, -2.0, 660.0])
     P = R @ f.points[0].center + t
@@ -32,11 +39,11 @@ def test_bead_jacobian_matches_the_closed_form():
     model = RoiModel(f, cam, im, None, roi)
     L, J = model.jacobian(R, t)
     v0, u0, h, w = roi
-    V, U = np.mgrid[v0:v0 + h, u0:u0 + w]
+    V, U = np.mgrid[v0 : v0 + h, u0 : u0 + w]
     D = np.stack([(U - 64.0) * 0.44, (V - 64.0) * 0.44, np.full(U.shape, 1000.0)], -1)
     Dh = D / np.linalg.norm(D, axis=-1, keepdims=True)
     Pp = P - (Dh @ P)[..., None] * Dh
-    m2 = (Pp ** 2).sum(-1)
+    m2 = (Pp**2).sum(-1)
     inside = m2 < (0.8 * r) ** 2
     mu = im.mu("steel")
     np.testing.assert_allclose(L[inside], mu * 2 * np.sqrt(r * r - m2[inside]), rtol=1e-9)
@@ -59,7 +66,7 @@ def test_jacobian_agrees_with_differences_along_any_direction(features_2005, pos
     roi = roi_around(features_2005, R, t, Camera(), im.image_shape, BODY)
     model = RoiModel(features_2005, Camera(), im, BODY, roi)
     L, J = model.jacobian(R, t)
-    x = np.array([0.4, -0.7, 0.3, 0.5, -0.4, 0.6]) * model.steps(t)       # ~0.15 px motion, like the steps
+    x = np.array([0.4, -0.7, 0.3, 0.5, -0.4, 0.6]) * model.steps(t)  # ~0.15 px motion, like the steps
     model.freeze(R, t)
     Lp = model.log_image(*perturb(R, t, x))
     Lm = model.log_image(*perturb(R, t, -x))
@@ -79,13 +86,20 @@ def test_bound_scales_as_one_over_root_dose(features_2005, pose_2005):
     lo = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=2500.0), body=BODY)
     hi = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY)
     np.testing.assert_allclose(lo.std / hi.std, 2.0, rtol=1e-9)
-    assert np.all(lo.std > 0) and lo.std[5] > lo.std[3]               # depth is the weak axis
-    with_bg = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY,
-                                background=np.full((1024, 1024), 1.0))
-    np.testing.assert_allclose(with_bg.std / hi.std, math.exp(0.5), rtol=1e-9)    # e^{-1} of the counts
-    nuis = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY,
-                             nuisance=True)
-    assert np.all(nuis.std >= hi.std * (1 - 1e-9))                      # unknown gain/background cost information
+    assert np.all(lo.std > 0) and lo.std[5] > lo.std[3]  # depth is the weak axis
+    with_bg = pixel_information(
+        features_2005,
+        R,
+        t,
+        imaging=ImagingModel(photons_per_px=10000.0),
+        body=BODY,
+        background=np.full((1024, 1024), 1.0),
+    )
+    np.testing.assert_allclose(with_bg.std / hi.std, math.exp(0.5), rtol=1e-9)  # e^{-1} of the counts
+    nuis = pixel_information(
+        features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY, nuisance=True
+    )
+    assert np.all(nuis.std >= hi.std * (1 - 1e-9))  # unknown gain/background cost information
     with pytest.raises(ValueError):
         pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=None), body=BODY)
 
@@ -97,8 +111,16 @@ def test_noise_free_image_refines_to_the_exact_pose(features_2005, pose_2005):
     ax, d = rng.normal(size=3), rng.normal(size=3)
     x = np.concatenate([np.radians(1.0) * ax / np.linalg.norm(ax), 2.0 * d / np.linalg.norm(d)])
     R0, t0 = perturb(R, t, x)
-    res = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, ImagingModel(photons_per_px=None),
-                           body=BODY, scales=(4.0, 2.0, 0.0))
+    res = refine_intensity(
+        features_2005,
+        img.log_image,
+        Camera(),
+        R0,
+        t0,
+        ImagingModel(photons_per_px=None),
+        body=BODY,
+        scales=(4.0, 2.0, 0.0),
+    )
     assert res.converged and res.cost_end < 1e-6 * res.cost_start
     assert np.degrees(so3.angle(res.rotation, R)) < 1e-3
     assert np.abs(res.translation_mm - t).max() < 2e-3
@@ -115,8 +137,9 @@ def test_refinement_never_ends_worse_than_its_start(features_2005, pose_2005):
     assert np.abs(res.translation_mm - t)[:2].max() < 0.01 and res.covariance is not None
     # from far off (10 mm across the view), with no coarse scale: whatever it does, never worse
     R0, t0 = perturb(R, t, np.array([0, 0, 0, 10.0, -6.0, 0]))
-    far = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark",
-                           scales=(0.0,), max_iterations=3)
+    far = refine_intensity(
+        features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark", scales=(0.0,), max_iterations=3
+    )
     assert far.cost_end <= far.cost_start
 
 
@@ -129,7 +152,7 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     from ftrac_design.pose.solver import Pose
 
     @dataclass
-    class Result:                       # the fields of segment.pipeline.TrackResult it uses
+    class Result:  # the fields of segment.pipeline.TrackResult it uses
         pose: Pose
         polarity: str
         diagnostics: dict = field(default_factory=dict)
@@ -161,7 +184,7 @@ def test_bound_matches_the_spread_of_a_simple_estimator():
     wts = im.photons_per_px * np.exp(-L)
     est = []
     for k in range(200):
-        Y = render(f, R, t, cam, im, rng=np.random.default_rng(100 + k), body=None).log_image[v0:v0 + h, u0:u0 + w]
+        Y = render(f, R, t, cam, im, rng=np.random.default_rng(100 + k), body=None).log_image[v0 : v0 + h, u0 : u0 + w]
         est.append(float(np.sum(wts * J[3] * (Y - L)) / np.sum(wts * J[3] ** 2)))
     assert abs(np.mean(est)) < 3 * sd_tx / math.sqrt(200)
     assert np.std(est, ddof=1) == pytest.approx(sd_tx, rel=0.2)
@@ -170,11 +193,13 @@ def test_bound_matches_the_spread_of_a_simple_estimator():
 def test_track_cli_call_form_is_forwarded(features_2005, pose_2005, monkeypatch):
     """cli/track.py calls refine_intensity(image, features, camera, track_result)."""
     import ftrac_design.intensity.refine as refine_mod
+
     seen = {}
     monkeypatch.setattr(refine_mod, "refine_track_result", lambda *a: seen.setdefault("args", a))
 
     class Res:
         pose = None
+
     image = np.zeros((8, 8))
     res = Res()
     refine_mod.refine_intensity(image, features_2005, Camera(), res)
@@ -214,10 +239,28 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
     from ftrac_design.cli.main import cli
 
     out = tmp_path / "an"
-    r = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--poses", "100", "--atlas-step-deg", "15",
-                                 "--score-images", "0",
-                                 "--image-atlas-step-deg", "0", "--imaging", "--imaging-poses", "2", "--dose", "2e4",
-                                 "-o", str(out)])
+    r = CliRunner().invoke(
+        cli,
+        [
+            "analyze",
+            "ftrac_2005",
+            "--poses",
+            "100",
+            "--atlas-step-deg",
+            "15",
+            "--score-images",
+            "0",
+            "--image-atlas-step-deg",
+            "0",
+            "--imaging",
+            "--imaging-poses",
+            "2",
+            "--dose",
+            "2e4",
+            "-o",
+            str(out),
+        ],
+    )
     assert r.exit_code in (0, 1), r.output
     doc = json.loads((out / "analysis.json").read_text())
     im = doc["imaging"]
@@ -226,8 +269,7 @@ def test_analyze_imaging_cli_writes_the_block(tmp_path):
     assert all(im["ratio_feature_to_image"]["p50"][a] > 1 for a in im["units"])
     assert "imaging.png" in doc["files"] and (out / "imaging.png").stat().st_size > 0
     assert "features/image p50" in r.output
-    bad = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--imaging", "--dose", "-1",
-                                   "-o", str(tmp_path / "b")])
+    bad = CliRunner().invoke(cli, ["analyze", "ftrac_2005", "--imaging", "--dose", "-1", "-o", str(tmp_path / "b")])
     assert bad.exit_code == 2
 
 
@@ -242,7 +284,7 @@ def test_central_differences_from_forward_ones_equal_the_direct_central_ones(fea
     _, Jc = model._differences(R, t, "log", central=True, value=L0)
     Jr = model.central_from_forward(R, t, L0, Jf)
     np.testing.assert_allclose(Jr, Jc, rtol=0, atol=1e-9 * np.abs(Jc).max())
-    assert model.body_flags is None                 # the frozen flags are given back
+    assert model.body_flags is None  # the frozen flags are given back
 
 
 def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
@@ -251,13 +293,24 @@ def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
     R, t = pose_2005
     im = ImagingModel(photons_per_px=None)
     img = render(features_2005, R, t, imaging=im, body=BODY)
-    near = refine_intensity(features_2005, img.log_image, Camera(), *perturb(R, t, np.r_[np.radians([0.005] * 3),
-                                                                                           0.005, -0.005, 0.05]),
-                            im, body=BODY)
+    near = refine_intensity(
+        features_2005,
+        img.log_image,
+        Camera(),
+        *perturb(R, t, np.r_[np.radians([0.005] * 3), 0.005, -0.005, 0.05]),
+        im,
+        body=BODY,
+    )
     assert {h[0] for h in near.history} == {0.0}
-    far = refine_intensity(features_2005, img.log_image, Camera(), *perturb(R, t, np.r_[np.radians([0.3, -0.3, 0.25]),
-                                                                                        0.6, -0.6, 0.5]),
-                           im, body=BODY, coarse_scales=(4.0, 2.0))
+    far = refine_intensity(
+        features_2005,
+        img.log_image,
+        Camera(),
+        *perturb(R, t, np.r_[np.radians([0.3, -0.3, 0.25]), 0.6, -0.6, 0.5]),
+        im,
+        body=BODY,
+        coarse_scales=(4.0, 2.0),
+    )
     assert far.history[0][0] == 4.0 and far.history[-1][0] == 0.0
     for res in (near, far):
         assert np.degrees(so3.angle(res.rotation, R)) < 2e-3 and np.abs(res.translation_mm - t).max() < 5e-3
@@ -276,10 +329,20 @@ def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005,
     R0, t0 = perturb(R, t, np.r_[np.radians([0.02, -0.02, 0.01]), 0.05, -0.05, 0.2])
     opts = RefineOptions(polarity="dense_dark", scales=(0.0,), max_iterations=6)
     a = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, options=opts)
-    b = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark",
-                         scales=(0.0,), max_iterations=6)
-    c = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY,
-                         options=dataclasses.replace(opts, max_iterations=99), max_iterations=6)
+    b = refine_intensity(
+        features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark", scales=(0.0,), max_iterations=6
+    )
+    c = refine_intensity(
+        features_2005,
+        img.raw,
+        Camera(),
+        R0,
+        t0,
+        im,
+        body=BODY,
+        options=dataclasses.replace(opts, max_iterations=99),
+        max_iterations=6,
+    )
     for x in (b, c):
         assert np.array_equal(a.rotation, x.rotation) and np.array_equal(a.translation_mm, x.translation_mm)
     with pytest.raises(TypeError):

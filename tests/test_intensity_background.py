@@ -28,11 +28,11 @@ def test_tensor_spline_products_match_its_explicit_basis():
     np.testing.assert_allclose(S.synthesize(b), b @ D, atol=1e-12)
     ab, C = S.gram_banded(w), (D * w) @ D.T
     band = ab.shape[0] - 1
-    for off in range(band + 1):                      # every stored diagonal, and nothing beyond the band
+    for off in range(band + 1):  # every stored diagonal, and nothing beyond the band
         np.testing.assert_allclose(ab[band - off, off:], np.diagonal(C, off), atol=1e-12)
     assert np.abs(np.triu(C, band + 1)).max() == 0
     v, u = np.mgrid[0:37, 0:29] / 10.0
-    cubic = (u ** 3 * v ** 2 - 2 * u * v ** 3 + v).ravel()
+    cubic = (u**3 * v**2 - 2 * u * v**3 + v).ravel()
     assert np.abs(Nuisance(S, w).project(cubic)).max() < 1e-8 * np.abs(cubic).max()
 
 
@@ -77,7 +77,7 @@ def test_spline_background_recovers_the_pose_under_a_smooth_background(features_
     im = ImagingModel(photons_per_px=None)
     V, U = np.mgrid[0:1024, 0:1024]
     uv = Camera().project((R @ features_2005.point_centers().T).T + t).mean(0)
-    bg = 0.8 * np.exp(-((U - uv[0] - 40) ** 2 + (V - uv[1] + 30) ** 2) / (2 * 70.0 ** 2)) + 1e-3 * (U - 512)
+    bg = 0.8 * np.exp(-((U - uv[0] - 40) ** 2 + (V - uv[1] + 30) ** 2) / (2 * 70.0**2)) + 1e-3 * (U - 512)
     img = render(features_2005, R, t, imaging=im, body=BODY, background=bg)
     R0, t0 = perturb(R, t, np.array([np.radians(0.05), -np.radians(0.05), np.radians(0.03), 0.02, -0.02, 0.4]))
     kw = dict(body=BODY, scales=(0.0,))
@@ -90,8 +90,7 @@ def test_spline_background_recovers_the_pose_under_a_smooth_background(features_
     assert err_q[3] > 3 * err_s[3]
 
 
-def test_auto_background_takes_the_spline_on_a_clean_image_and_the_high_pass_over_clutter(features_2005,
-                                                                                          pose_2005):
+def test_auto_background_takes_the_spline_on_a_clean_image_and_the_high_pass_over_clutter(features_2005, pose_2005):
     """``background="auto"``: clean noisy image → spline (the χ²/dof of its fit is ~1); over an
     anatomy-like background (bone edges, texture) → high-pass; both never worse than the start."""
     R, t = pose_2005
@@ -102,8 +101,9 @@ def test_auto_background_takes_the_spline_on_a_clean_image_and_the_high_pass_ove
     a = refine_intensity(features_2005, clean.raw, Camera(), R0, t0, im, **kw)
     assert a.background_model == "spline" and a.cost_end <= a.cost_start
     assert a.n_nuisance == 1 + len(a.background) and a.to_dict()["intensity"]["background"] == "spline"
-    cluttered = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(5), body=BODY,
-                       background=anatomy(seed=0))
+    cluttered = render(
+        features_2005, R, t, imaging=im, rng=np.random.default_rng(5), body=BODY, background=anatomy(seed=0)
+    )
     b = refine_intensity(features_2005, cluttered.raw, Camera(), R0, t0, im, **kw)
     assert b.background_model == "highpass" and b.cost_end <= b.cost_start
     with pytest.raises(ValueError):

@@ -27,8 +27,11 @@ def poses(n, seed=0, features=None):
 
 
 def with_intr(intr):
-    return Camera(intr[0] * CAM.pixel_size_mm[0], (CAM.pixel_size_mm[0], intr[0] * CAM.pixel_size_mm[0] / intr[1]),
-                  (intr[2], intr[3]))
+    return Camera(
+        intr[0] * CAM.pixel_size_mm[0],
+        (CAM.pixel_size_mm[0], intr[0] * CAM.pixel_size_mm[0] / intr[1]),
+        (intr[2], intr[3]),
+    )
 
 
 def test_information_rows_vs_finite_differences(features_2005):
@@ -42,8 +45,10 @@ def test_information_rows_vs_finite_differences(features_2005):
     P2 = 2 * layout.n_points
     h = 1e-3
     for b in range(3):
+
         def q(intr, X):
             return with_intr(intr).project(X @ R[b].T + t[b])
+
         fd = np.zeros((len(layout.X), 2, 4))
         for j in range(4):
             d = np.zeros(4)
@@ -51,8 +56,9 @@ def test_information_rows_vs_finite_differences(features_2005):
             fd[:, :, j] = (q(CAM.intrinsics + d, layout.X) - q(CAM.intrinsics - d, layout.X)) / (2 * h)
         uvrow = np.tile([0, 1], layout.n_points)
         assert np.allclose(rows[b, :P2], w * fd[np.arange(P2), uvrow], rtol=1e-6, atol=1e-9)
-        tan = (q(CAM.intrinsics, layout.X[P2:] + 1e-4 * layout.T[P2:])
-               - q(CAM.intrinsics, layout.X[P2:] - 1e-4 * layout.T[P2:]))
+        tan = q(CAM.intrinsics, layout.X[P2:] + 1e-4 * layout.T[P2:]) - q(
+            CAM.intrinsics, layout.X[P2:] - 1e-4 * layout.T[P2:]
+        )
         nrm = np.stack([-tan[:, 1], tan[:, 0]], -1) / np.linalg.norm(tan, axis=-1, keepdims=True)
         expect = w * np.einsum("ni,nij->nj", nrm, fd[P2:])
         assert np.allclose(rows[b, P2:], expect, rtol=1e-5, atol=1e-8)
@@ -64,7 +70,7 @@ def test_solver_residual_jacobian_vs_finite_differences(features_2005):
     R, t = poses(1, 4)
     obs = simulate_observation(features_2005, CAM, R[0], t[0], 0.25, rng)
     prob = compile_problem(features_2005, [obs], NoiseModel())
-    t1 = t + [0.3, -0.2, 2.0]                                    # off the solution: residuals ≠ 0
+    t1 = t + [0.3, -0.2, 2.0]  # off the solution: residuals ≠ 0
     rho, _, K, W = ik.residuals(prob, R, t1)
     h = 1e-3
     base = prob.intr.copy()
@@ -119,7 +125,7 @@ def test_joint_estimation_refuses_one_image_and_weak_data(features_2005):
     obs, _, _ = images(features_2005, 3)
     one = ik.estimate(features_2005, obs[:1], options=TINY)
     assert not one.ok and "at least 2" in one.reason
-    weak = ik.estimate(features_2005, obs)                        # the default 0.25 mm noise model
+    weak = ik.estimate(features_2005, obs)  # the default 0.25 mm noise model
     assert not weak.ok and "bound f only" in weak.reason and weak.std[0] > 20
 
 
@@ -127,8 +133,13 @@ def test_joint_estimation_refuses_a_degenerate_set():
     """A plane seen from one direction (however many images) cannot fix f and the principal
     point (a homography has 8 degrees of freedom, pose + f, ox, oy are 9): rank test."""
     g = np.array([[x, 0.0, z] for x in (-15, 0, 15) for z in (-20, 0, 20)])
-    plane = Features("plane", None, None, np.array([0.0, -1.0, 0.0]),
-                     points=tuple(PointFeature(f"B{i}", c, 2.0) for i, c in enumerate(g)))
+    plane = Features(
+        "plane",
+        None,
+        None,
+        np.array([0.0, -1.0, 0.0]),
+        points=tuple(PointFeature(f"B{i}", c, 2.0) for i, c in enumerate(g)),
+    )
     R, t = poses(1, 2)
     obs = [simulate_observation(plane, CAM, R[0], t[0] + [d, -d, 0.0], 0.0) for d in (0.0, 3.0, 6.0)]
     est = ik.estimate(plane, obs, params=ik.PARAMETER_SETS["f,o"], options=TINY)
@@ -139,11 +150,19 @@ def test_cli_solve_estimate_intrinsics(tmp_path, features_2005, capsys):
     write_features(tmp_path / "f.json", features_2005)
     obs, _, _ = images(features_2005, 3, camera_used=CAM.perturbed(3.0, (0, 0), (2.0, 1.0)))
     (tmp_path / "obs.jsonl").write_text("".join(json.dumps(o.to_dict()) + "\n" for o in obs))
-    args = ["solve", "--features", str(tmp_path / "f.json"), str(tmp_path / "obs.jsonl"),
-            "-o", str(tmp_path / "p.jsonl"), "--estimate-intrinsics", "f,o"]
+    args = [
+        "solve",
+        "--features",
+        str(tmp_path / "f.json"),
+        str(tmp_path / "obs.jsonl"),
+        "-o",
+        str(tmp_path / "p.jsonl"),
+        "--estimate-intrinsics",
+        "f,o",
+    ]
     assert main(args + ["--segmentation-error-mm", "1e-5"]) == 0
     lines = [json.loads(s) for s in (tmp_path / "p.jsonl").read_text().splitlines()]
     assert len(lines) == 3 and all(d["camera"]["focal_length_mm"] == pytest.approx(1000.0, abs=1e-6) for d in lines)
-    assert main(args) == 1                                        # default noise: refused, poses still written
+    assert main(args) == 1  # default noise: refused, poses still written
     assert "intrinsics not estimated" in capsys.readouterr().err
     assert all("camera" not in json.loads(s) for s in (tmp_path / "p.jsonl").read_text().splitlines())

@@ -21,8 +21,14 @@ DEPTH = 667.0
 
 
 def _features(points=(), lines=()) -> Features:
-    return Features(name="probe", source=None, sha256="-", nominal_beam_direction=np.array([0.0, -1.0, 0.0]),
-                    points=tuple(points), lines=tuple(lines))
+    return Features(
+        name="probe",
+        source=None,
+        sha256="-",
+        nominal_beam_direction=np.array([0.0, -1.0, 0.0]),
+        points=tuple(points),
+        lines=tuple(lines),
+    )
 
 
 def test_sigma_scales_as_one_over_root_dose():
@@ -66,13 +72,15 @@ def test_wire_information_matches_a_brute_force_shift():
     fine, half, h = 256, 12, 5e-3
     info = []
     for p in range(8):
+
         def lam(s):
             x = (np.arange(2 * half * fine) + 0.5) / fine * pix - half * pix - p / 8 * pix - s
             T = np.exp(-im.mu("steel") * 2 * np.sqrt(np.clip((d / 2) ** 2 - (x / M) ** 2, 0, None)))
             T = gaussian_filter1d(T, blur * fine, mode="constant", cval=1.0, truncate=6.0)
             return T.reshape(2 * half, fine).mean(1)
+
         dl = (lam(h) - lam(-h)) / (2 * h)
-        info.append(im.photons_per_px * np.sum(dl ** 2 / lam(0.0)) / pix)
+        info.append(im.photons_per_px * np.sum(dl**2 / lam(0.0)) / pix)
     assert wire_sigma_mm(d, DEPTH, cam, im) == pytest.approx(1 / np.sqrt(np.mean(info)), rel=0.01)
 
 
@@ -88,9 +96,11 @@ def test_bead_sigma_matches_finite_differences_of_the_renderer():
         t = np.array([ox, oy, DEPTH])
         e = np.array([h, 0.0, 0.0])
         I0 = expected_transmission(f, R, t, cam, im, body=None).astype(float)
-        dI = (expected_transmission(f, R, t + e, cam, im, body=None).astype(float)
-              - expected_transmission(f, R, t - e, cam, im, body=None).astype(float)) / (2 * h)
-        info.append(im.photons_per_px * np.sum(dI ** 2 / I0) / M ** 2)   # object mm → detector mm
+        dI = (
+            expected_transmission(f, R, t + e, cam, im, body=None).astype(float)
+            - expected_transmission(f, R, t - e, cam, im, body=None).astype(float)
+        ) / (2 * h)
+        info.append(im.photons_per_px * np.sum(dI**2 / I0) / M**2)  # object mm → detector mm
     assert bead_sigma_mm(1.0, DEPTH, cam, im) == pytest.approx(1 / np.sqrt(np.mean(info)), rel=0.08)
 
 
@@ -113,11 +123,16 @@ def test_simulated_observation_noise_scales_with_the_factors(f2005):
     one = simulate_observation(features, cam, R, t, 0.25, np.random.default_rng(1))
     two = simulate_observation(features, cam, R, t, 0.25, np.random.default_rng(1), error_factors=(2.0, 0.5))
     for k in clean.points:
-        np.testing.assert_allclose(two.points[k] - clean.points[k], 2.0 * (one.points[k] - clean.points[k]),
-                                   rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            two.points[k] - clean.points[k], 2.0 * (one.points[k] - clean.points[k]), rtol=1e-9, atol=1e-12
+        )
     for k in clean.lines:
-        np.testing.assert_allclose(two.lines[k].points - clean.lines[k].points,
-                                   0.5 * (one.lines[k].points - clean.lines[k].points), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(
+            two.lines[k].points - clean.lines[k].points,
+            0.5 * (one.lines[k].points - clean.lines[k].points),
+            rtol=1e-9,
+            atol=1e-12,
+        )
 
 
 def test_optimiser_charges_a_stock_size_for_its_image():
@@ -145,8 +160,9 @@ def test_optimiser_charges_a_stock_size_for_its_image():
     R, t = workspace_poses(s.workspace, f.nominal_beam_direction, s.poses, s.seed)
     noise = s.noise.scaled(1.0, kw)
     m = analyse_poses(f, R, t, s.camera, noise, s.contour, detail=False).overall
-    assert got["figures"]["translation_p95_mm"] == pytest.approx(float(np.percentile(m.translation_rms_mm, 95)),
-                                                                 rel=1e-12)
+    assert got["figures"]["translation_p95_mm"] == pytest.approx(
+        float(np.percentile(m.translation_rms_mm, 95)), rel=1e-12
+    )
     # and the design file it becomes carries the factor into `analyze`
     from ftrac_design.analysis.subject import Subject, settings_for
 

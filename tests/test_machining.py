@@ -142,19 +142,37 @@ def test_post_reads_back_move_for_move(post):
 
 
 def test_cycle_time_of_hand_timed_moves():
-    text = "\n".join(["G21 G90 G94", "T1 M6", "S1000 M3", "G0 X0 Y0 Z10 A0", "G0 X50",  # 50 mm rapid
-                      "G1 X60 F100",  # 10 mm at 100 mm/min: 6 s
-                      "G93 G1 A90 F2",  # inverse time: 1/2 min = 30 s
-                      "G94 G3 X60 Y0 I-5 J0 F31.41592653589793",  # a full circle of r 5 at π·10 mm/min: 60 s
-                      "M5", "M2"])
+    text = "\n".join(
+        [
+            "G21 G90 G94",
+            "T1 M6",
+            "S1000 M3",
+            "G0 X0 Y0 Z10 A0",
+            "G0 X50",  # 50 mm rapid
+            "G1 X60 F100",  # 10 mm at 100 mm/min: 6 s
+            "G93 G1 A90 F2",  # inverse time: 1/2 min = 30 s
+            "G94 G3 X60 Y0 I-5 J0 F31.41592653589793",  # a full circle of r 5 at π·10 mm/min: 60 s
+            "M5",
+            "M2",
+        ]
+    )
     t = cycle_time(parse_gcode(text), Machine(rapid_linear=3000.0, rapid_a=3600.0, tool_change_s=7.0))
     assert t["feed_s"] == pytest.approx(96.0)
     assert t["rapid_s"] == pytest.approx(60 * (50 / 3000))  # the first rapid starts nowhere known: untimed
     assert t["tool_change_s"] == 7.0
 
 
-@pytest.mark.parametrize("bad", ["G1 X1 Q3", "G18 G1 X1 F10", "G1 X1", "G1 X0 Y0 F10\nG2 X1 Y0 F10",
-                                 "G93 T1 M6 S10 M3 G1 X1 F1\nG1 X2", "(unclosed G0 X1"])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "G1 X1 Q3",
+        "G18 G1 X1 F10",
+        "G1 X1",
+        "G1 X0 Y0 F10\nG2 X1 Y0 F10",
+        "G93 T1 M6 S10 M3 G1 X1 F1\nG1 X2",
+        "(unclosed G0 X1",
+    ],
+)
 def test_reader_refuses_what_it_does_not_know(bad):
     with pytest.raises(InputError) as exc:
         parse_gcode("G21 G90\n" + bad, "p.ngc")
@@ -221,14 +239,17 @@ def test_gcode_command_writes_a_verified_program(tmp_path, capsys):
     assert main(["gcode", "ftrac_mini", "--check", str(out), "--grid", "0.04"]) == 0
 
 
-@pytest.mark.parametrize("args, where", [
-    (["gcode", "no_such_design"], "no_such_design"),
-    (["gcode", "ftrac_mini", "--check", "{tmp}/missing.ngc"], "missing.ngc"),
-    (["gcode", "ftrac_mini", "--check", "{tmp}/bad.ngc"], "bad.ngc: line 2"),
-    (["gcode", "ftrac_mini", "--post", "haas"], "--post"),
-    (["gcode", "ftrac_mini", "--grid", "0"], "--grid"),
-    (["gcode", "ftrac_mini", "-o", "{tmp}"], "{tmp}"),
-])
+@pytest.mark.parametrize(
+    "args, where",
+    [
+        (["gcode", "no_such_design"], "no_such_design"),
+        (["gcode", "ftrac_mini", "--check", "{tmp}/missing.ngc"], "missing.ngc"),
+        (["gcode", "ftrac_mini", "--check", "{tmp}/bad.ngc"], "bad.ngc: line 2"),
+        (["gcode", "ftrac_mini", "--post", "haas"], "--post"),
+        (["gcode", "ftrac_mini", "--grid", "0"], "--grid"),
+        (["gcode", "ftrac_mini", "-o", "{tmp}"], "{tmp}"),
+    ],
+)
 def test_gcode_command_bad_input_exits_2_with_one_line(tmp_path, capsys, args, where):
     (tmp_path / "bad.ngc").write_text("G21 G90\nG1 X1 W2 F10\n")
     args = [a.format(tmp=tmp_path) for a in args]

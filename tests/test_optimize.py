@@ -44,14 +44,15 @@ def _log(path: Path) -> list[dict]:
 
 # ---- space ----------------------------------------------------------------------------------
 
+
 def test_ordered_bead_fractions_keep_beads_apart_and_on_the_line():
     zs = place_beads(-5.0, 5.0, 4, True, True, [0.9, 0.1], 1.0)
     assert zs[0] == -5.0 and zs[-1] == 5.0
     assert all(b - a > 1.0 for a, b in zip(zs, zs[1:]))  # sorted, more than a diameter apart
     # the start design maps to its own fractions and back
-    assert place_beads(-6.4, 6.4, 4, True, True, [(0.0 + 6.4 - 1.001) / (12.8 - 3.003),
-                                                  (4.2 + 6.4 - 2.002) / (12.8 - 3.003)], 1.0) == \
-        pytest.approx([-6.4, 0.0, 4.2, 6.4], abs=1e-12)
+    assert place_beads(
+        -6.4, 6.4, 4, True, True, [(0.0 + 6.4 - 1.001) / (12.8 - 3.003), (4.2 + 6.4 - 2.002) / (12.8 - 3.003)], 1.0
+    ) == pytest.approx([-6.4, 0.0, 4.2, 6.4], abs=1e-12)
 
 
 def test_start_point_reproduces_the_start_design(base):
@@ -69,7 +70,6 @@ def test_body_scale_and_stock_sizes(base):
     assert d["seating"]["line_wire_depth"] == pytest.approx(0.55)
 
 
-
 def test_connector_follows_the_mount_when_the_body_grows(base):
     from ftrac_design.cad.rules import check_design
     from ftrac_design.design.loader import parse_design
@@ -85,15 +85,19 @@ def test_connector_follows_the_mount_when_the_body_grows(base):
         assert check_design(d, "cnc").result("connector.template_clearance").verdict == "ok"
     assert "axis_height" not in apply_values(base, {"body.scale": 1.0}).get("connector", {})
 
+
 # ---- rules as graded margins ----------------------------------------------------------------
+
 
 def test_margins_are_graded_and_the_infeasible_are_not_scored(base):
     ok = evaluate_candidate(base, SETTINGS)
     assert ok["feasible"] and ok["violation"] == 0 and ok["figures"]["translation_p95_mm"] > 0
     # pockets.spacing is 1.22 mm against 1.0: margin (1.22 - 1) / 1
     assert ok["margins"]["cnc:pockets.spacing"] == pytest.approx(0.22, abs=1e-3)
-    closer = [evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": z, "ellipses.E2.z_center": -z}),
-                                 SETTINGS) for z in (-5.6, -5.8)]
+    closer = [
+        evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": z, "ellipses.E2.z_center": -z}), SETTINGS)
+        for z in (-5.6, -5.8)
+    ]
     assert not any(c["feasible"] for c in closer) and all(c["figures"] is None for c in closer)
     assert 0 < closer[0]["violation"] < closer[1]["violation"]  # further out, further from feasible
     refused = evaluate_candidate(apply_values(base, {"ellipses.E1.z_center": -1.0}), SETTINGS)
@@ -122,15 +126,17 @@ def test_segmentability_is_an_optional_graded_constraint(base):
     loose = evaluate_candidate(base, s)
     p5 = loose["clearance_p5_px"]
     assert loose["feasible"] and loose["margins"]["segmentability:clearance_p5"] == pytest.approx((p5 + 10) / 10)
-    tight = evaluate_candidate(base, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5,
-                                                  clearance_poses=100))
+    tight = evaluate_candidate(
+        base, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5, clearance_poses=100)
+    )
     assert not tight["feasible"] and tight["figures"] is None
     assert tight["violation"] == pytest.approx(0.5 / max(abs(p5 + 0.5), 1.0) + 1e-6)
     # a candidate that also breaks a rule carries both violations (they must add up, or the
     # search would rank "just outside a rule" above "inside the rules, short of clearance")
     bad = apply_values(base, {"lines.L1.z_start": -9.499, "lines.L1.z_end": 9.499})
-    both = evaluate_candidate(bad, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5,
-                                                clearance_poses=100))
+    both = evaluate_candidate(
+        bad, EvalSettings(("cnc",), SETTINGS.analysis, min_clearance_px=p5 + 0.5, clearance_poses=100)
+    )
     rules = evaluate_candidate(bad, SETTINGS)
     assert rules["violation"] > 0 and "segmentability:clearance_p5" in both["margins"]
     deficit = max(0.0, -both["margins"]["segmentability:clearance_p5"])
@@ -138,6 +144,7 @@ def test_segmentability_is_an_optional_graded_constraint(base):
 
 
 # ---- the search -----------------------------------------------------------------------------
+
 
 def test_toy_space_finds_the_optimum_of_a_dense_scan(base, tmp_path):
     """One ellipse's tilt, everything else fixed: CMA-ES must land on the best feasible tilt
@@ -178,9 +185,13 @@ def test_stock_sizes_are_searched_and_kept_in_play(base, tmp_path):
     ref = res.start["figures"]
     best_by_size = {}
     for w in sizes:
-        vals = [objective_values("max", e["figures"], ref)[0] if e["feasible"] else np.inf
-                for e in (evaluate_candidate(apply_values(base, {"wire.diameter": w, "ellipses.E1.tilt_deg": t}),
-                                             SETTINGS) for t in np.arange(28.0, 36.01, 1.0))]
+        vals = [
+            objective_values("max", e["figures"], ref)[0] if e["feasible"] else np.inf
+            for e in (
+                evaluate_candidate(apply_values(base, {"wire.diameter": w, "ellipses.E1.tilt_deg": t}), SETTINGS)
+                for t in np.arange(28.0, 36.01, 1.0)
+            )
+        ]
         best_by_size[w] = min(vals)
     best_size = min(best_by_size, key=best_by_size.get)
     assert best_size != 0.3  # the start's size is not the answer: the search had to move
@@ -194,8 +205,14 @@ def test_stock_sizes_are_searched_and_kept_in_play(base, tmp_path):
 
 
 def _small_space(base):
-    return _space(base, {"ellipses.E1.tilt_deg": [25.0, 38.0], "ellipses.E2.z_center": [4.0, 6.0],
-                         "lines.L2.azimuth_deg": [100.0, 140.0]})
+    return _space(
+        base,
+        {
+            "ellipses.E1.tilt_deg": [25.0, 38.0],
+            "ellipses.E2.z_center": [4.0, 6.0],
+            "lines.L2.azimuth_deg": [100.0, 140.0],
+        },
+    )
 
 
 def test_same_seed_same_result_in_process_with_2_workers_and_on_a_dask_cluster(base, tmp_path):
@@ -211,8 +228,10 @@ def test_same_seed_same_result_in_process_with_2_workers_and_on_a_dask_cluster(b
     assert r.best["x"] == res.best["x"]
     logs.append(_log(tmp_path / "pool2.jsonl"))
     # by address, as --scheduler / DASK_SCHEDULER_ADDRESS do (an in-process cluster's inproc:// address)
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
-            open_executor(cluster.scheduler_address) as (executor, name):
+    with (
+        LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster,
+        open_executor(cluster.scheduler_address) as (executor, name),
+    ):
         assert name.startswith("Dask cluster")
         r = run_search(sp, SETTINGS, cfg, executor, tmp_path / "dask.jsonl", progress=False)
     logs.append(_log(tmp_path / "dask.jsonl"))
@@ -257,15 +276,19 @@ def test_nsga2_front_is_non_dominated_and_feasible(base, tmp_path):
 
 # ---- the command ----------------------------------------------------------------------------
 
-@pytest.mark.parametrize("params, key", [
-    ('"ellipses.E1.tilt_deg" = [40.0, 20.0]', "parameters.ellipses.E1.tilt_deg"),
-    ('"ellipses.E9.tilt_deg" = [20.0, 40.0]', "parameters.ellipses.E9.tilt_deg"),
-    ('"lines.L1.colour" = [0.0, 1.0]', "parameters.lines.L1.colour"),
-    ('"ellipses.E1.tilt_deg" = [20.0, 85.0]', "parameters.ellipses.E1.tilt_deg"),
-    ('"body.outer_diameter" = [-1.0, 12.0]', "parameters.body.outer_diameter"),
-    ('"lines.L1.beads" = [0.0, 1.5]', "parameters.lines.L1.beads"),
-    ('"wire.diameter" = {choices = []}', "parameters.wire.diameter"),
-])
+
+@pytest.mark.parametrize(
+    "params, key",
+    [
+        ('"ellipses.E1.tilt_deg" = [40.0, 20.0]', "parameters.ellipses.E1.tilt_deg"),
+        ('"ellipses.E9.tilt_deg" = [20.0, 40.0]', "parameters.ellipses.E9.tilt_deg"),
+        ('"lines.L1.colour" = [0.0, 1.0]', "parameters.lines.L1.colour"),
+        ('"ellipses.E1.tilt_deg" = [20.0, 85.0]', "parameters.ellipses.E1.tilt_deg"),
+        ('"body.outer_diameter" = [-1.0, 12.0]', "parameters.body.outer_diameter"),
+        ('"lines.L1.beads" = [0.0, 1.5]', "parameters.lines.L1.beads"),
+        ('"wire.diameter" = {choices = []}', "parameters.wire.diameter"),
+    ],
+)
 def test_invalid_space_exits_2_with_one_line(tmp_path, capsys, params, key):
     space = tmp_path / "space.toml"
     space.write_text(f"[parameters]\n{params}\n")
@@ -290,15 +313,46 @@ def test_optimize_takes_a_preset_and_a_shipped_space_by_name(tmp_path, capsys):
 @pytest.mark.slow
 def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_path, capsys):
     space = tmp_path / "space.toml"
-    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [30.0, 35.0]\n"ellipses.E2.tilt_deg" = [30.0, 35.0]\n'
-                     "[search]\npopsize = 6\n")
+    space.write_text(
+        '[parameters]\n"ellipses.E1.tilt_deg" = [30.0, 35.0]\n"ellipses.E2.tilt_deg" = [30.0, 35.0]\n'
+        "[search]\npopsize = 6\n"
+    )
     out = tmp_path / "opt"
-    rc = main(["optimize", str(MINI), "--space", str(space), "--evaluations", "12", "--workers", "0",
-               "--poses", "200", "--verify-poses", "500", "--solver-images", "20", "--check-images", "3",
-               "-o", str(out)])
+    rc = main(
+        [
+            "optimize",
+            str(MINI),
+            "--space",
+            str(space),
+            "--evaluations",
+            "12",
+            "--workers",
+            "0",
+            "--poses",
+            "200",
+            "--verify-poses",
+            "500",
+            "--solver-images",
+            "20",
+            "--check-images",
+            "3",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0, capsys.readouterr().err
-    for name in ("best.toml", "summary.json", "comparison.txt", "pareto.json", "pareto.csv", "pareto.png",
-                 "convergence.png", "evaluations.jsonl", "build/fiducial.step", "build/manifest.json"):
+    for name in (
+        "best.toml",
+        "summary.json",
+        "comparison.txt",
+        "pareto.json",
+        "pareto.csv",
+        "pareto.png",
+        "convergence.png",
+        "evaluations.jsonl",
+        "build/fiducial.step",
+        "build/manifest.json",
+    ):
         assert (out / name).exists(), name
     assert not (tmp_path / "opt.partial").exists()
     assert main(["check", str(out / "best.toml")]) == 0
@@ -317,9 +371,14 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
     assert "start: ftrac_mini" in (out / "comparison.txt").read_text()
 
 
-@pytest.mark.parametrize("space_file, design_file", [("ftrac_mini_layout.toml", "ftrac_mini.toml"),
-                                                     ("ftrac_mini_size.toml", "ftrac_mini.toml"),
-                                                     ("ftrac_2005_ellipses.toml", "ftrac_2005.toml")])
+@pytest.mark.parametrize(
+    "space_file, design_file",
+    [
+        ("ftrac_mini_layout.toml", "ftrac_mini.toml"),
+        ("ftrac_mini_size.toml", "ftrac_mini.toml"),
+        ("ftrac_2005_ellipses.toml", "ftrac_2005.toml"),
+    ],
+)
 def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_file):
     base = tomllib.loads((MODELS / design_file).read_text())
     sp = load_space(base, MODELS / "spaces" / space_file)
@@ -328,8 +387,7 @@ def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_f
     values = sp.values(sp.start_unit())
     assert [values[p.key] for p in sp.parameters] == pytest.approx([p.start for p in sp.parameters], abs=1e-9)
     data = sp.candidate(sp.start_unit())
-    assert [ln["beads_z"] for ln in data["lines"]] == \
-        [pytest.approx(ln["beads_z"], abs=1e-9) for ln in base["lines"]]
+    assert [ln["beads_z"] for ln in data["lines"]] == [pytest.approx(ln["beads_z"], abs=1e-9) for ln in base["lines"]]
 
 
 def test_image_check_is_reproducible_and_finds_the_pose(f2005):
@@ -362,12 +420,15 @@ def test_paired_p95_ratio_of_image_checks():
     assert r["translation_p95_ratio_95ci"] == pytest.approx([0.8, 0.8])
     # independent errors of the same law: an interval that holds 1 and is about ±10–25 % wide
     y = rng.gamma(2.0, 0.3, 200)
-    r = paired_p95_ratio(start, {"per_image": {"index": list(range(200)), "translation_mm": list(y),
-                                              "rotation_deg": list(y / 10)}})
+    r = paired_p95_ratio(
+        start, {"per_image": {"index": list(range(200)), "translation_mm": list(y), "rotation_deg": list(y / 10)}}
+    )
     lo, hi = r["translation_p95_ratio_95ci"]
     assert lo < 1.0 < hi and 0.05 < hi - lo < 0.8
-    assert paired_p95_ratio(start, {"per_image": {"index": [1, 2], "translation_mm": [1, 1],
-                                                 "rotation_deg": [1, 1]}}) is None
+    assert (
+        paired_p95_ratio(start, {"per_image": {"index": [1, 2], "translation_mm": [1, 1], "rotation_deg": [1, 1]}})
+        is None
+    )
 
 
 def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(base):

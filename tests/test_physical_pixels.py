@@ -62,9 +62,17 @@ def test_thin_wire_summed_contrast_is_independent_of_its_sub_pixel_phase(diamete
     e = np.array([math.cos(a), math.sin(a), 0.0])
     f = _features(lines=[LineFeature("L", -12.0 * e, 12.0 * e, diameter)])
     normal = np.array([-math.sin(a), math.cos(a), 0.0])
-    step = 0.44 * DEPTH / CAM.focal_length_mm / 17                  # object mm per 1/17 px
-    sums = np.array([_summed_contrast(f, np.array([0.0, 0.0, DEPTH]) + k * step * normal, ImagingModel(
-        image_shape=(128, 128), photons_per_px=None)) for k in range(17)])
+    step = 0.44 * DEPTH / CAM.focal_length_mm / 17  # object mm per 1/17 px
+    sums = np.array(
+        [
+            _summed_contrast(
+                f,
+                np.array([0.0, 0.0, DEPTH]) + k * step * normal,
+                ImagingModel(image_shape=(128, 128), photons_per_px=None),
+            )
+            for k in range(17)
+        ]
+    )
     assert sums.min() > 0
     assert (sums.max() - sums.min()) / sums.mean() <= 0.01
 
@@ -86,8 +94,8 @@ def test_ball_shadow_integral_is_the_closed_form_times_magnification_squared():
     """The reference: in the paraxial limit the integral is M² × (π r² − 2π (1 − e^{−2μr}(1 + 2μr)) / (4μ²))."""
     mu, r = ImagingModel().mu("steel"), 0.6
     M = CAM.focal_length_mm / DEPTH
-    closed = (math.pi * r * r - 2 * math.pi * (1 - math.exp(-2 * mu * r) * (1 + 2 * mu * r)) / (4 * mu * mu))
-    assert _ball_shadow_integral(2 * r, mu) == pytest.approx(closed * M * M / 0.44 ** 2, rel=1e-5)
+    closed = math.pi * r * r - 2 * math.pi * (1 - math.exp(-2 * mu * r) * (1 + 2 * mu * r)) / (4 * mu * mu)
+    assert _ball_shadow_integral(2 * r, mu) == pytest.approx(closed * M * M / 0.44**2, rel=1e-5)
 
 
 @pytest.mark.parametrize("diameter", [0.8, 1.0, 1.2, 2.0])
@@ -107,8 +115,9 @@ def test_ball_total_attenuation_is_exact(diameter):
             off = ph * 0.44 * DEPTH / CAM.focal_length_mm
             f = _features(points=[PointFeature("B", np.array([off, 0.6 * off, 0.0]), diameter)])
             field = line_integral_field(f, np.eye(3), np.array([0.0, 0.0, DEPTH]), CAM, im, None, margin_px=8)
-            quadrature = (np.sum(-np.expm1(-field.sub)) / s ** 2
-                          + np.sum(np.delete(-np.expm1(-field.p).ravel(), field.rough)))
+            quadrature = np.sum(-np.expm1(-field.sub)) / s**2 + np.sum(
+                np.delete(-np.expm1(-field.p).ravel(), field.rough)
+            )
             for sigma in (0.0, 0.7, 1.6):
                 D = detected_deficit(field, sigma, sigma, dtype=np.float64)
                 assert D.sum() == pytest.approx(quadrature, rel=1e-9)
@@ -123,10 +132,10 @@ def test_pixel_kernels_conserve_photons_and_add_the_pixel_box_variance():
     for sigma in (0.76, 1.0, 1.5):
         K = pixel_kernels(sigma, o)
         m = (K.shape[1] - 1) // 2
-        n = m - np.arange(K.shape[1])                         # receiving − source pixel
+        n = m - np.arange(K.shape[1])  # receiving − source pixel
         np.testing.assert_allclose(K.sum(1), 1.0, rtol=1e-12)
         np.testing.assert_allclose(K @ n, o, atol=1e-4)
-        np.testing.assert_allclose(K @ n ** 2 - o ** 2, sigma ** 2 + 1 / 12, rtol=1e-3)
+        np.testing.assert_allclose(K @ n**2 - o**2, sigma**2 + 1 / 12, rtol=1e-3)
     K0 = pixel_kernels(0.0, o)
     np.testing.assert_array_equal(K0[:, (K0.shape[1] - 1) // 2], 1.0)
 
@@ -136,11 +145,12 @@ def test_sub_samples_are_a_rotated_grid():
     for s in (2, 4, 5, 8):
         ou, ov = subsample_offsets(s)
         for o in (ou, ov):
-            np.testing.assert_allclose(np.sort(o), (np.arange(s * s) + 0.5) / s ** 2 - 0.5, atol=1e-12)
+            np.testing.assert_allclose(np.sort(o), (np.arange(s * s) + 0.5) / s**2 - 0.5, atol=1e-12)
 
 
-def _brute_force(features: Features, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-                 fine: int = 20) -> np.ndarray:
+def _brute_force(
+    features: Features, t: np.ndarray, camera: Camera, imaging: ImagingModel, fine: int = 20
+) -> np.ndarray:
     """I/I0 (H, W): transmission at fine × fine points per pixel (textbook chords), the
     Gaussian blur on that grid, then each pixel the mean of its fine × fine block."""
     H, W = imaging.image_shape
@@ -156,9 +166,16 @@ def _brute_force(features: Features, t: np.ndarray, camera: Camera, imaging: Ima
     for ln in features.lines:
         pc = straight_pieces(ln.start, ln.end, ln.wire_diameter / 2, mu, 0, max_len_mm=1e9)
         n = len(d)
-        p += mu * tube_chord(rays.c, d, np.broadcast_to(pc.a[0], (n, 3)), np.broadcast_to(pc.e[0], (n, 3)),
-                             np.full(n, pc.L[0]), np.full(n, pc.r[0]), np.broadcast_to(pc.n0[0], (n, 3)),
-                             np.broadcast_to(pc.n1[0], (n, 3)))
+        p += mu * tube_chord(
+            rays.c,
+            d,
+            np.broadcast_to(pc.a[0], (n, 3)),
+            np.broadcast_to(pc.e[0], (n, 3)),
+            np.full(n, pc.L[0]),
+            np.full(n, pc.r[0]),
+            np.broadcast_to(pc.n0[0], (n, 3)),
+            np.broadcast_to(pc.n1[0], (n, 3)),
+        )
     deficit = -np.expm1(-p).reshape(H * fine, W * fine)
     su, sv = blur_sigma_px(camera, imaging, float(t[2]))
     deficit = gaussian_filter(deficit, (sv * fine, su * fine), mode="constant", cval=0.0, truncate=6.0)
@@ -173,8 +190,10 @@ def test_blur_acts_on_photons_before_the_pixels_like_a_brute_force_render():
     agree within 1e-3 — the formulation is exact; at the default 5 × 5 the renderer itself
     moves by 1.7e-3 against 15 × 15, so within 2e-3. The other order (the exponential of each
     pixel's mean line integral, blurred afterwards) is off by more than 1e-2."""
-    f = _features(points=[PointFeature("B", np.array([1.1, 1.3, 0.0]), 1.2)],
-                  lines=[LineFeature("L", np.array([-6.0, -2.07, 0.0]), np.array([6.0, -1.9, 0.0]), 0.3)])
+    f = _features(
+        points=[PointFeature("B", np.array([1.1, 1.3, 0.0]), 1.2)],
+        lines=[LineFeature("L", np.array([-6.0, -2.07, 0.0]), np.array([6.0, -1.9, 0.0]), 0.3)],
+    )
     t = np.array([0.05, 0.03, DEPTH])
     im = ImagingModel(image_shape=(64, 64), photons_per_px=None, single_precision=False)
     cam = Camera(1000.0, (0.44, 0.44), (32.0, 32.0))
@@ -187,7 +206,7 @@ def test_blur_acts_on_photons_before_the_pixels_like_a_brute_force_render():
     p, (v0, u0) = line_integral_box(f, np.eye(3), t, cam, im, None, margin_px=8)
     su, sv = blur_sigma_px(cam, im, DEPTH)
     I = np.ones((64, 64))
-    I[v0:v0 + p.shape[0], u0:u0 + p.shape[1]] = gaussian_filter(np.exp(-p), (sv, su), mode="nearest", truncate=4.0)
+    I[v0 : v0 + p.shape[0], u0 : u0 + p.shape[1]] = gaussian_filter(np.exp(-p), (sv, su), mode="nearest", truncate=4.0)
     assert np.abs(I - ref).max() > 1e-2
 
 
@@ -201,6 +220,6 @@ def test_intensity_model_renders_what_the_renderer_renders(features_2005):
             roi = roi_around(features_2005, R[k], t[k], Camera(), im.image_shape, BODY)
             v0, u0, h, w = roi
             L = RoiModel(features_2005, Camera(), im, BODY, roi).log_image(R[k], t[k])
-            Y = render(features_2005, R[k], t[k], imaging=im, body=BODY).line_integral[v0:v0 + h, u0:u0 + w]
+            Y = render(features_2005, R[k], t[k], imaging=im, body=BODY).line_integral[v0 : v0 + h, u0 : u0 + w]
             assert np.abs(Y).max() > 1.5
             np.testing.assert_allclose(L, Y, rtol=0, atol=1e-5)

@@ -37,16 +37,17 @@ def test_conic_fit_covariance_matches_monte_carlo():
     ref = fit_conic(pts[None])
     # compare the fitted curves where it matters: Sampson distance of the true points to each fit
     from ftrac_design.pose.fitting import sampson_theta_jacobian
+
     q = (pts - fits.center[:, None]) / fits.scale[:, None, None]
     d, _ = sampson_theta_jacobian(fits.theta, q[..., 0], q[..., 1])
-    d = d * fits.scale[:, None]                                  # px, (n, 24)
+    d = d * fits.scale[:, None]  # px, (n, 24)
     # predicted: G Σ Gᵀ with Σ = σ² Λ⁻¹ at the true conic
     qr = (pts - ref.center[0]) / ref.scale[0]
     _, dd = sampson_theta_jacobian(ref.theta[0], qr[:, 0], qr[:, 1])
     G = dd @ ref.basis[0] * ref.scale[0]
-    pred = sigma ** 2 * np.einsum("ij,jk,ik->i", G, np.linalg.inv(ref.info[0]), G)
+    pred = sigma**2 * np.einsum("ij,jk,ik->i", G, np.linalg.inv(ref.info[0]), G)
     emp = d.var(0)
-    assert np.all(np.abs(emp / pred - 1) < 0.15), (emp / pred)
+    assert np.all(np.abs(emp / pred - 1) < 0.15), emp / pred
 
 
 def test_line_fit_and_its_information():
@@ -62,7 +63,7 @@ def test_line_fit_and_its_information():
     fits = fit_line(noisy)
     ang = np.arctan2(fits.normal[:, 1], fits.normal[:, 0])
     ang = np.unwrap(ang - ang[0]) + ang[0]
-    pred_var_angle = sigma ** 2 / f.info[0, 0, 0]
+    pred_var_angle = sigma**2 / f.info[0, 0, 0]
     assert abs(ang.var() / pred_var_angle - 1) < 0.1
 
 
@@ -73,6 +74,7 @@ def test_conic_from_coefficients_is_the_same_curve():
     s, m = f.scale[0], f.center[0]
     N = np.array([[1 / s, 0, -m[0] / s], [0, 1 / s, -m[1] / s], [0, 0, 1]])
     from ftrac_design.pose.fitting import conic_matrix
+
     C = N.T @ conic_matrix(f.theta[0]) @ N
     g = conic_from_coefficients(conic_vector(C)[None])
     c, a, b = conic_center_and_axes(g.theta[0])
@@ -103,7 +105,7 @@ def test_so3_round_trip_and_spread():
 def test_workspace_stays_in_its_cone():
     beam = np.array([0.0, -1.0, 0.0])
     R, t = Workspace(cone_deg=25).sample(5000, beam, np.random.default_rng(3))
-    beams = R[:, 2, :]       # camera +z in F is the third row of R (F → X)
+    beams = R[:, 2, :]  # camera +z in F is the third row of R (F → X)
     ang = np.degrees(np.arccos(np.clip(beams @ beam, -1, 1)))
     assert ang.max() <= 25.0 + 1e-9 and ang.max() > 24.0
     assert np.all(np.abs(t[:, :2]) <= 25.0) and np.all(np.abs(t[:, 2] - 667) <= 25.0)
@@ -111,8 +113,8 @@ def test_workspace_stays_in_its_cone():
 
 def test_segmentation_noise_is_the_papers_uniform_magnitude():
     rng = np.random.default_rng(4)
-    d = segmentation_noise((200000,), 0.25, (0.5, 0.5), rng) * 0.5     # back to mm
+    d = segmentation_noise((200000,), 0.25, (0.5, 0.5), rng) * 0.5  # back to mm
     mag = np.linalg.norm(d, axis=1)
     assert mag.max() <= 0.25 + 1e-12
-    assert abs(np.mean(mag) - 0.125) < 0.002                           # uniform in [0, e]
-    assert abs(d[:, 0].std() - 0.25 / math.sqrt(6)) < 0.001             # per-axis σ = e/√6
+    assert abs(np.mean(mag) - 0.125) < 0.002  # uniform in [0, e]
+    assert abs(d[:, 0].std() - 0.25 / math.sqrt(6)) < 0.001  # per-axis σ = e/√6

@@ -38,14 +38,23 @@ BAD_CASES = [
     ("string where a number belongs", lambda o: o["points"].__setitem__("B1", [1.0, "x"]), "points.B1[1]"),
     ("unknown feature id", lambda o: o["lines"].__setitem__("L9", o["lines"]["L1"]), "lines.L9"),
     ("bead id given as a line", lambda o: o["lines"].__setitem__("B1", o["lines"]["L1"]), "lines.B1"),
-    ("too few ellipse points", lambda o: o["ellipses"]["E1"].__setitem__("points", o["ellipses"]["E1"]["points"][:4]),
-     "ellipses.E1.points"),
-    ("collinear ellipse points", lambda o: o["ellipses"]["E1"].__setitem__("points", [[i, 2 * i] for i in range(8)]),
-     "ellipses.E1.points"),
+    (
+        "too few ellipse points",
+        lambda o: o["ellipses"]["E1"].__setitem__("points", o["ellipses"]["E1"]["points"][:4]),
+        "ellipses.E1.points",
+    ),
+    (
+        "collinear ellipse points",
+        lambda o: o["ellipses"]["E1"].__setitem__("points", [[i, 2 * i] for i in range(8)]),
+        "ellipses.E1.points",
+    ),
     ("negative focal length", lambda o: o["camera"].__setitem__("focal_length_mm", -5), "camera.focal_length_mm"),
     ("missing camera key", lambda o: o["camera"].pop("pixel_size_mm"), "camera.pixel_size_mm"),
-    ("conic that is no ellipse", lambda o: o["ellipses"].__setitem__("E2", {"conic": [1, 0, -1, 0, 0, -1]}),
-     "ellipses.E2.conic"),
+    (
+        "conic that is no ellipse",
+        lambda o: o["ellipses"].__setitem__("E2", {"conic": [1, 0, -1, 0, 0, -1]}),
+        "ellipses.E2.conic",
+    ),
     ("both points and coefficients", lambda o: o["lines"]["L2"].__setitem__("coefficients", [1, 0, 0]), "lines.L2"),
     ("wrong format", lambda o: o.__setitem__("format", "something-else"), "format"),
 ]
@@ -114,12 +123,15 @@ def test_unsolvable_image_exits_1_and_still_writes(workdir, capsys):
     assert pose["rotation"] is None
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["solve", "obs.json"], "--features"),
-    (["solve", "--features", "missing.json", "obs.json"], "missing.json"),
-    (["solve", "--features", "features.json", "obs.json", "--starts", "0"], "--starts"),
-    (["solve", "--features", "features.json"], "OBSERVATIONS"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["solve", "obs.json"], "--features"),
+        (["solve", "--features", "missing.json", "obs.json"], "missing.json"),
+        (["solve", "--features", "features.json", "obs.json", "--starts", "0"], "--starts"),
+        (["solve", "--features", "features.json"], "OBSERVATIONS"),
+    ],
+)
 def test_usage_errors_exit_2(workdir, capsys, argv, needle):
     assert main(argv) == 2
     err = capsys.readouterr().err
@@ -138,8 +150,12 @@ def test_bad_features_file_is_named(workdir, capsys):
 
 def test_console_entry_runs_as_a_process(workdir):
     tmp, _, _ = workdir
-    r = subprocess.run([sys.executable, "-m", "ftrac_design.cli.main", "solve", "--features", "features.json",
-                        "obs.json", "-o", "-"], capture_output=True, text=True, cwd=tmp)
+    r = subprocess.run(
+        [sys.executable, "-m", "ftrac_design.cli.main", "solve", "--features", "features.json", "obs.json", "-o", "-"],
+        capture_output=True,
+        text=True,
+        cwd=tmp,
+    )
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["converged"] is True
 
@@ -169,7 +185,7 @@ def test_a_noisy_thin_ellipse_is_not_an_input_error(features_2005):
     s = np.linspace(0, 2 * np.pi, 24, endpoint=False)
     pts = np.stack([300 + 80 * np.cos(s), 200 + 1.0 * np.sin(s)], -1) + np.random.default_rng(0).normal(0, 2, (24, 2))
     th = fit_conic(pts[None]).theta[0]
-    assert 4 * th[0] * th[2] - th[1] ** 2 <= 0          # the premise: it fits as a hyperbola
+    assert 4 * th[0] * th[2] - th[1] ** 2 <= 0  # the premise: it fits as a hyperbola
     obs.ellipses["E1"].points = pts
     prob = compile_problem(features_2005, [obs])
     assert prob.e_info.shape[1] == 2

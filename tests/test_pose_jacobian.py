@@ -58,7 +58,7 @@ def test_paper_distance_scale_matches_sampson_on_a_circle():
     """K·PᵀMP (Eq. 8) is the Sampson distance times √2 / … on a circle: check it is proportional."""
     from ftrac_design.pose.problem import paper_k
 
-    theta = np.array([1.0, 0.0, 1.0, 0.0, 0.0, -1.0]) / np.sqrt(3.0)   # unit circle
+    theta = np.array([1.0, 0.0, 1.0, 0.0, 0.0, -1.0]) / np.sqrt(3.0)  # unit circle
     k = paper_k(theta[None])[0]
     # at radius 1 + ε the algebraic value is ≈ 2ε/√3 and the paper's distance is K·Q
     eps = 1e-4

@@ -40,16 +40,19 @@ def test_noise_free_coefficient_observations_are_exact(features_2005):
     assert rot <= 1e-8 and trans <= 1e-6
 
 
-@pytest.mark.parametrize("name, keep", [
-    ("missing ellipse", None),
-    ("missing line", None),
-    ("beads only", ALL_BEADS),
-    ("lines and ellipses, no beads (3L+2E)", {"L1", "L2", "L3", "E1", "E2"}),
-    ("two ellipses", {"E1", "E2"}),
-    ("one ellipse and one bead", {"E1", "B1"}),
-    ("beads on two lines (coplanar)", {"B1", "B2", "B3", "B4", "B5", "B6", "B7"}),
-    ("four beads", {"B1", "B3", "B5", "B8"}),
-])
+@pytest.mark.parametrize(
+    "name, keep",
+    [
+        ("missing ellipse", None),
+        ("missing line", None),
+        ("beads only", ALL_BEADS),
+        ("lines and ellipses, no beads (3L+2E)", {"L1", "L2", "L3", "E1", "E2"}),
+        ("two ellipses", {"E1", "E2"}),
+        ("one ellipse and one bead", {"E1", "B1"}),
+        ("beads on two lines (coplanar)", {"B1", "B2", "B3", "B4", "B5", "B6", "B7"}),
+        ("four beads", {"B1", "B3", "B5", "B8"}),
+    ],
+)
 def test_partial_observations_solve_exactly(features_2005, name, keep):
     if name == "missing ellipse":
         keep = set(features_2005.ids) - {"E2"}
@@ -63,12 +66,15 @@ def test_partial_observations_solve_exactly(features_2005, name, keep):
     assert rot <= 1e-8 and trans <= 1e-6, name
 
 
-@pytest.mark.parametrize("keep, message", [
-    ({"B1", "B5"}, "do not constrain"),
-    ({"L1"}, "do not constrain"),
-    ({"E1"}, "do not constrain"),
-    ({"B1", "B5", "B8"}, "ambiguous"),
-])
+@pytest.mark.parametrize(
+    "keep, message",
+    [
+        ({"B1", "B5"}, "do not constrain"),
+        ({"L1"}, "do not constrain"),
+        ({"E1"}, "do not constrain"),
+        ({"B1", "B5", "B8"}, "ambiguous"),
+    ],
+)
 def test_underconstrained_observations_fail_clearly(features_2005, keep, message):
     R, t = _truth(features_2005, 3)
     obs = simulate_observation(features_2005, Camera(), R[0], t[0], 0.0, include=keep)
@@ -122,8 +128,7 @@ def test_batch_equals_single(features_2005):
 def test_basic_algorithm_from_a_far_guess_can_fail_but_robust_does_not(features_2005):
     """The paper's basic algorithm (one local solve) depends on its start; the robust one does not."""
     R, t = _truth(features_2005, 41)
-    obs = simulate_observation(features_2005, Camera(), R[0], t[0], 0.0,
-                               include={"L1", "L2", "L3", "E1", "E2"})
+    obs = simulate_observation(features_2005, Camera(), R[0], t[0], 0.0, include={"L1", "L2", "L3", "E1", "E2"})
     far = so3.exp(np.array([2.5, 0.0, 0.0])) @ R[0]
     basic = refine_pose(features_2005, obs, far, t[0] + [30.0, -20.0, 100.0])
     robust = solve_pose(features_2005, obs)
@@ -140,8 +145,9 @@ def test_calibration_error_biases_but_does_not_break(features_2005):
     R, t = _truth(features_2005, 51)
     rng = np.random.default_rng(52)
     cam = Camera()
-    obs = simulate_observation(features_2005, cam, R[0], t[0], 0.0, rng,
-                               solve_camera=PAPER_CALIBRATION_ERROR.draw(cam, rng))
+    obs = simulate_observation(
+        features_2005, cam, R[0], t[0], 0.0, rng, solve_camera=PAPER_CALIBRATION_ERROR.draw(cam, rng)
+    )
     pose = solve_pose(features_2005, obs)
     assert pose.converged, pose.error
     rot, trans = _errors(pose, R[0], t[0])
@@ -228,8 +234,7 @@ def test_a_converged_pose_is_never_replaced_by_an_unconverged_one():
     from ftrac_design.pose.solver import Pose, _better
 
     def pose(converged, kappa):
-        return Pose(np.eye(3), np.zeros(3), converged, 1.0, None, {}, 5, None if converged else "x",
-                    noise_scale=kappa)
+        return Pose(np.eye(3), np.zeros(3), converged, 1.0, None, {}, 5, None if converged else "x", noise_scale=kappa)
 
     assert not _better(pose(False, 0.3), pose(True, 0.4))
     assert _better(pose(True, 0.4), pose(False, 0.3))

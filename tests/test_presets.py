@@ -156,8 +156,9 @@ def test_nine_bead_conditioning_close_to_the_even_helix():
 
     def figures(features):
         m = analyse_poses(features, R, t, noise=noise, detail=False).overall
-        return np.array([np.percentile(m.translation_rms_mm, 95), np.percentile(m.rotation_rms_deg, 95),
-                         np.median(m.condition)])
+        return np.array(
+            [np.percentile(m.translation_rms_mm, 95), np.percentile(m.rotation_rms_deg, 95), np.median(m.condition)]
+        )
 
     now = figures(compute_features(load_design(MODELS / "nine_bead.toml")))
     even = figures(_nine_bead_with(EVEN_HELIX))

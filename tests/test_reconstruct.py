@@ -26,8 +26,9 @@ from ftrac_design.reconstruct import frames as fr
 CAM = Camera()
 
 
-def views_around(n: int, spread_deg: float = 20.0, nominal=(0.0, -1.0, 0.0), sigma_px: float = 0.23,
-                 pose_cov=None) -> Views:
+def views_around(
+    n: int, spread_deg: float = 20.0, nominal=(0.0, -1.0, 0.0), sigma_px: float = 0.23, pose_cov=None
+) -> Views:
     """n views of the F origin at 667 mm, beams on a cone of half-angle spread/2 about ``nominal``."""
     az = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     beams = cone_directions(np.array(nominal), np.full(n, np.radians(spread_deg / 2)), az)
@@ -69,9 +70,9 @@ def test_covariance_matches_monte_carlo():
     """Σ_P = (Σ Jᵀ S⁻¹ J)⁻¹ with S = σ²I + C Σθ Cᵀ: poses drawn from their covariance, pixels
     from σ; the sample covariance, whitened by the prediction, has σ's within 15 % of 1."""
     rng = np.random.default_rng(1)
-    pose_cov = np.diag([4e-7, 4e-7, 2e-7, 0.01, 0.01, 0.4])       # ~0.04° and 0.1 / 0.1 / 0.6 mm
+    pose_cov = np.diag([4e-7, 4e-7, 2e-7, 0.01, 0.01, 0.4])  # ~0.04° and 0.1 / 0.1 / 0.6 mm
     v = views_around(3, 25.0, pose_cov=pose_cov)
-    P = np.array([[5.0, -90.0, 20.0]])                              # a seed 9 cm beyond the fiducial
+    P = np.array([[5.0, -90.0, 20.0]])  # a seed 9 cm beyond the fiducial
     uv = project(v, P)
     pred = triangulate(v, uv).cov[0]
     trials = 1500
@@ -81,7 +82,7 @@ def test_covariance_matches_monte_carlo():
         vk = Views(so3.exp(e[:, :3]) @ v.R, v.t + e[:, 3:], v.intr, v.sigma_px, v.pose_cov)
         err[k] = triangulate(vk, uv + rng.normal(0.0, 0.23, uv.shape)).P[0] - P[0]
     L = np.linalg.cholesky(np.linalg.inv(pred))
-    w = err @ L                                                     # whitened by the prediction
+    w = err @ L  # whitened by the prediction
     s = np.sqrt(np.linalg.eigvalsh(np.cov(w.T)))
     assert np.all((s > 0.85) & (s < 1.15)), s
     assert np.abs(err.mean(0)).max() < 0.2 * np.sqrt(np.diag(pred)).max()
@@ -103,7 +104,7 @@ def test_one_view_and_parallel_views_are_refused():
     tri = triangulate(one, uv, seen)
     assert tri.refused[0] is None
     assert "seen in 1 image" in tri.refused[1]
-    near = views_around(2, spread_deg=1.0)                          # beams 1° apart
+    near = views_around(2, spread_deg=1.0)  # beams 1° apart
     tri = triangulate(near, project(near, P))
     assert all(r is not None and "nearly parallel" in r for r in tri.refused)
     assert triangulate(near, project(near, P), min_parallax_deg=0.5).refused == [None, None]
@@ -158,14 +159,26 @@ def files(tmp_path, features_2005):
 
 def write_points(path, v, ids, P):
     uv = project(v, P)
-    path.write_text("".join(json.dumps({k: uv[i, j].tolist() for j, k in enumerate(ids)}) + "\n"
-                            for i in range(v.N)))
+    path.write_text("".join(json.dumps({k: uv[i, j].tolist() for j, k in enumerate(ids)}) + "\n" for i in range(v.N)))
 
 
 def run(tmp, *extra):
-    return main(["reconstruct", "--features", str(tmp / "features.json"), "--poses", str(tmp / "poses.jsonl"),
-                 "--points", str(tmp / "points.jsonl"), "--camera", str(tmp / "camera.json"),
-                 "-o", str(tmp / "out.json"), *extra])
+    return main(
+        [
+            "reconstruct",
+            "--features",
+            str(tmp / "features.json"),
+            "--poses",
+            str(tmp / "poses.jsonl"),
+            "--points",
+            str(tmp / "points.jsonl"),
+            "--camera",
+            str(tmp / "camera.json"),
+            "-o",
+            str(tmp / "out.json"),
+            *extra,
+        ]
+    )
 
 
 def test_cli_frame_chain_F_M_T_as_the_cad_places_the_parts(files, design_2005, capsys):
@@ -181,8 +194,9 @@ def test_cli_frame_chain_F_M_T_as_the_cad_places_the_parts(files, design_2005, c
     assert out["format"] == "ftrac-reconstruction" and out["version"] == 1 and out["frame"] == "template"
     assert out["frame_chain"] == ["fiducial", "template"]
     a = out["points"]["A"]
-    assert np.allclose(a["position_mm"], [d.connector.axis_x, d.connector.axis_height, -d.connector.pocket_depth],
-                       atol=1e-6)
+    assert np.allclose(
+        a["position_mm"], [d.connector.axis_x, d.connector.axis_height, -d.connector.pocket_depth], atol=1e-6
+    )
     chain = template_from_mount(d) @ mount_from_fiducial(d)
     assert np.allclose(chain, template_from_fiducial(d))
     for j, k in enumerate(ids):
@@ -190,8 +204,7 @@ def test_cli_frame_chain_F_M_T_as_the_cad_places_the_parts(files, design_2005, c
         assert np.allclose(e["position_fiducial_mm"], P[j], atol=1e-6)
         assert np.allclose(e["position_mm"], transform_points(chain, P[j]), atol=1e-6)
         R = chain[:3, :3]
-        assert np.allclose(np.array(e["covariance_mm2"]), R @ np.array(e["covariance_fiducial_mm2"]) @ R.T,
-                           atol=1e-8)
+        assert np.allclose(np.array(e["covariance_mm2"]), R @ np.array(e["covariance_fiducial_mm2"]) @ R.T, atol=1e-8)
         assert e["views"] == [0, 1, 2] and e["rms_reprojection_px"] < 1e-6
 
 
@@ -206,13 +219,14 @@ def test_cli_transform_and_refusals(files, capsys):
     (tmp / "points.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
     M = np.eye(4)
     M[:3, 3] = [1.0, 2.0, 3.0]
-    (tmp / "tu.json").write_text(json.dumps({"matrix": M.tolist(), "name": "ultrasound",
-                                             "covariance": np.diag([0, 0, 0, 1.0, 1, 1]).tolist()}))
+    (tmp / "tu.json").write_text(
+        json.dumps({"matrix": M.tolist(), "name": "ultrasound", "covariance": np.diag([0, 0, 0, 1.0, 1, 1]).tolist()})
+    )
     assert run(tmp, "--to", "template", "--transform", str(tmp / "tu.json")) == 0
     out = json.loads((tmp / "out.json").read_text())
     assert out["frame"] == "ultrasound" and out["frame_chain"] == ["fiducial", "template", "ultrasound"]
     assert "seen in 1 image" in out["points"]["B1"]["refused"] and out["refused"] == 1
-    assert min(out["points"]["B2"]["std_mm"]) > 1.0                 # the transform's 1 mm σ is in it
+    assert min(out["points"]["B2"]["std_mm"]) > 1.0  # the transform's 1 mm σ is in it
     assert "B1: refused" in capsys.readouterr().out
 
 
@@ -225,16 +239,19 @@ def test_cli_exits_1_when_nothing_can_be_reconstructed(files, capsys):
     assert out["reconstructed"] == 0
 
 
-@pytest.mark.parametrize("what, key", [
-    ("points_bad_json", "points.jsonl:2"),
-    ("points_not_uv", "points.jsonl:1: B1"),
-    ("points_count", "one line per pose"),
-    ("pose_no_rotation", "poses.jsonl:2: rotation"),
-    ("pose_bad_cov", "poses.jsonl:1: covariance"),
-    ("no_camera", "poses.jsonl:1: camera"),
-    ("transform_not_rigid", "tu.json: matrix"),
-    ("camera_bad", "camera.json: camera.focal_length_mm"),
-])
+@pytest.mark.parametrize(
+    "what, key",
+    [
+        ("points_bad_json", "points.jsonl:2"),
+        ("points_not_uv", "points.jsonl:1: B1"),
+        ("points_count", "one line per pose"),
+        ("pose_no_rotation", "poses.jsonl:2: rotation"),
+        ("pose_bad_cov", "poses.jsonl:1: covariance"),
+        ("no_camera", "poses.jsonl:1: camera"),
+        ("transform_not_rigid", "tu.json: matrix"),
+        ("camera_bad", "camera.json: camera.focal_length_mm"),
+    ],
+)
 def test_cli_malformed_files_exit_2_with_one_line(files, capsys, what, key):
     tmp, v, ids, P = files
     write_points(tmp / "points.jsonl", v, ids, P)
@@ -260,8 +277,19 @@ def test_cli_malformed_files_exit_2_with_one_line(files, capsys, what, key):
     (tmp / "points.jsonl").write_text("\n".join(pts) + "\n")
     (tmp / "poses.jsonl").write_text("\n".join(poses) + "\n")
     if what == "no_camera":
-        rc = main(["reconstruct", "--features", str(tmp / "features.json"), "--poses", str(tmp / "poses.jsonl"),
-                   "--points", str(tmp / "points.jsonl"), "-o", str(tmp / "out.json")])
+        rc = main(
+            [
+                "reconstruct",
+                "--features",
+                str(tmp / "features.json"),
+                "--poses",
+                str(tmp / "poses.jsonl"),
+                "--points",
+                str(tmp / "points.jsonl"),
+                "-o",
+                str(tmp / "out.json"),
+            ]
+        )
     else:
         rc = run(tmp, *extra)
     err = capsys.readouterr().err.strip().splitlines()
@@ -278,8 +306,19 @@ def test_cli_camera_per_line_extension(files):
     for r in rows:
         r["camera"] = CAM.to_dict()
     (tmp / "points.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
-    rc = main(["reconstruct", "--features", str(tmp / "features.json"), "--poses", str(tmp / "poses.jsonl"),
-               "--points", str(tmp / "points.jsonl"), "-o", str(tmp / "out.json")])
+    rc = main(
+        [
+            "reconstruct",
+            "--features",
+            str(tmp / "features.json"),
+            "--poses",
+            str(tmp / "poses.jsonl"),
+            "--points",
+            str(tmp / "points.jsonl"),
+            "-o",
+            str(tmp / "out.json"),
+        ]
+    )
     assert rc == 0
     out = json.loads((tmp / "out.json").read_text())
     assert "camera" not in out["points"] and out["reconstructed"] == len(ids)
@@ -318,5 +357,6 @@ def test_cli_template_tolerance_widens_the_covariance(files):
     loose = json.loads((tmp / "out.json").read_text())["points"]["B1"]
     assert exact["position_mm"] == loose["position_mm"]
     # σ² adds: 0.25 mm² of translation plus the tilt-free part (no rotation σ given)
-    assert np.allclose(np.array(loose["covariance_mm2"]) - np.array(exact["covariance_mm2"]), 0.25 * np.eye(3),
-                       atol=1e-6)
+    assert np.allclose(
+        np.array(loose["covariance_mm2"]) - np.array(exact["covariance_mm2"]), 0.25 * np.eye(3), atol=1e-6
+    )

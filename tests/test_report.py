@@ -33,11 +33,26 @@ def built(tmp_path_factory) -> Path:
     """ftrac_mini built, analysed cheaply into build/analysis, and reported."""
     root = tmp_path_factory.mktemp("report")
     build = root / "ftrac_mini"
-    for args in (["build", MODELS / "ftrac_mini.toml", "-o", build],
-                 ["analyze", MODELS / "ftrac_mini.toml", "-o", build / "analysis", "--poses", "200",
-                  "--atlas-step-deg", "10", "--score-images", "24", "--workers", "0",
-                  "--image-atlas-step-deg", "45"],
-                 ["report", build]):
+    for args in (
+        ["build", MODELS / "ftrac_mini.toml", "-o", build],
+        [
+            "analyze",
+            MODELS / "ftrac_mini.toml",
+            "-o",
+            build / "analysis",
+            "--poses",
+            "200",
+            "--atlas-step-deg",
+            "10",
+            "--score-images",
+            "24",
+            "--workers",
+            "0",
+            "--image-atlas-step-deg",
+            "45",
+        ],
+        ["report", build],
+    ):
         run = run_cli(args)
         assert run.code == 0, run.describe()
     return build
@@ -58,8 +73,9 @@ class _Page(HTMLParser):
             self.h2.append("")
         if tag == "img":
             self.imgs.append(a.get("src", ""))
-        if tag in ("link", "script", "iframe", "object", "embed") or (tag != "a" and any(
-                str(v).startswith(("http:", "https:", "//")) for v in a.values())):
+        if tag in ("link", "script", "iframe", "object", "embed") or (
+            tag != "a" and any(str(v).startswith(("http:", "https:", "//")) for v in a.values())
+        ):
             self.external.append(f"{tag} {a}")
 
     def handle_endtag(self, tag):
@@ -148,16 +164,17 @@ def test_page_renders_in_headless_chromium(built, tmp_path):
     assert im.shape[:2] == (2000, 1280)
     non_white = (im.min(axis=2) < 235).mean()
     colours = len(np.unique(im.reshape(-1, 3)[::7], axis=0))
-    assert non_white > 0.15, non_white      # a blank page is ~0; the report's top is ~0.4
-    assert colours > 500, colours           # the render's shading alone gives thousands
+    assert non_white > 0.15, non_white  # a blank page is ~0; the report's top is ~0.4
+    assert colours > 500, colours  # the render's shading alone gives thousands
     # the header band is the page's dark blue, so the CSS was applied
     assert tuple(im[20, 640]) == (0x1F, 0x3A, 0x5F)
 
 
 def test_report_of_a_design_file_builds_in_a_temporary_directory(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    run = run_cli(["report", MODELS / "nine_bead.toml", "--poses", "200", "--score-images", "0",
-                   "--image-atlas-step-deg", "0"])
+    run = run_cli(
+        ["report", MODELS / "nine_bead.toml", "--poses", "200", "--score-images", "0", "--image-atlas-step-deg", "0"]
+    )
     assert run.code == 0, run.describe()
     out = tmp_path / "report_nine_bead.html"
     assert sorted(p.name for p in tmp_path.iterdir()) == [out.name]
@@ -169,9 +186,23 @@ def test_report_of_a_design_file_builds_in_a_temporary_directory(tmp_path, monke
 
 
 def test_analyze_report_without_a_build(tmp_path):
-    run = run_cli(["analyze", MODELS / "nine_bead.toml", "-o", tmp_path / "a", "--poses", "100",
-                   "--score-images", "0", "--image-atlas-step-deg", "0",
-                   "--atlas-step-deg", "15", "--report"])
+    run = run_cli(
+        [
+            "analyze",
+            MODELS / "nine_bead.toml",
+            "-o",
+            tmp_path / "a",
+            "--poses",
+            "100",
+            "--score-images",
+            "0",
+            "--image-atlas-step-deg",
+            "0",
+            "--atlas-step-deg",
+            "15",
+            "--report",
+        ]
+    )
     assert run.code == 1, run.describe()  # the analysis fails its threshold; the report is still written
     page = _parse(tmp_path / "a" / "report.html")
     assert page.h2 == list(SECTIONS) and len(page.imgs) == 3  # no render without a build
@@ -202,9 +233,11 @@ def test_demo_step_writes_the_report(built):
 
 
 def test_report_room_does_not_import_cadquery(built):
-    code = ("import sys; from ftrac_design.report import collect, render_html; "
-            f"render_html(collect({str(built)!r})); "
-            "print(sorted(m for m in ('cadquery', 'OCP', 'pyvista') if m in sys.modules))")
+    code = (
+        "import sys; from ftrac_design.report import collect, render_html; "
+        f"render_html(collect({str(built)!r})); "
+        "print(sorted(m for m in ('cadquery', 'OCP', 'pyvista') if m in sys.modules))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
 

@@ -96,9 +96,9 @@ def test_measured_values_match_hand_calculations():
     assert r.result("wires.crossing_clearance").measured == pytest.approx(0.3)
     # retention: pocket floor 2.1 mm below the surface, minus the rim's drop R - sqrt(R^2 - rho^2)
     rho = 1.98 / 2
-    assert r.result("pockets.retention").measured == pytest.approx(2.1 - (15 - (15 ** 2 - rho ** 2) ** 0.5))
+    assert r.result("pockets.retention").measured == pytest.approx(2.1 - (15 - (15**2 - rho**2) ** 0.5))
     # coverage: E1's lowest point z_c - r tan(tau) - w/2, socket rim at -25 + 3
-    low = -12.5 - 14.7 * 3 ** -0.5 - 0.25
+    low = -12.5 - 14.7 * 3**-0.5 - 0.25
     assert r.result("mount.coverage").measured == pytest.approx(low + 22)
     # groove depth / tool: (1.1 + 0.25) / 0.4
     assert r.result("groove.depth").measured == pytest.approx(1.35 / 0.4)
@@ -164,9 +164,14 @@ def test_check_cli_exit_codes(preset, profile, capsys):
 def test_check_json(tmp_path, capsys):
     # ftrac_mini with the end balls of L2 back at the paper's +-6.4 mm: 0.9 mm from the ellipse wires
     bad = tmp_path / "mini_long_l2.toml"
-    bad.write_text((MODELS / "ftrac_mini.toml").read_text().replace(
-        "z_start = -5.0\nz_end = 5.0\nbeads_z = [-5.0, -0.8, 5.0]",
-        "z_start = -6.4\nz_end = 6.4\nbeads_z = [-6.4, -0.8, 6.4]"))
+    bad.write_text(
+        (MODELS / "ftrac_mini.toml")
+        .read_text()
+        .replace(
+            "z_start = -5.0\nz_end = 5.0\nbeads_z = [-5.0, -0.8, 5.0]",
+            "z_start = -6.4\nz_end = 6.4\nbeads_z = [-6.4, -0.8, 6.4]",
+        )
+    )
     rc = main(["check", str(bad), "--profile", "fdm", "--json"])
     out, _ = capsys.readouterr()
     assert rc == 1
@@ -183,21 +188,27 @@ def test_check_default_profile_is_cnc(capsys):
     assert "(cnc)" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("extra,key,expected", [
-    ("[mount]\nsocket_depth = 3.0\nbogus = 1", "mount.bogus", "no such key"),
-    ("[mount.holes_z]\npattern = \"triangle\"", "mount.holes_z.pattern", "pair"),
-    ("[mount.holes_x]\ncounterbore_diameter = 4.0", "mount.holes_x.counterbore_diameter", "wider than the hole"),
-    ("[connector]\npins = [[0, 0], [0, 0]]", "connector.pins", "two different grid nodes"),
-    ("[connector]\npins = [[0, 0]]", "connector.pins", "at least 2"),
-    ("[connector]\npins = [[0, 0], [1.5, 0]]", "connector.pins[1][0]", "an integer"),
-    ("[connector]\npins = [[0, 0], [4, 3]]", "connector.pins[1]", "on the template"),
-    ("[connector]\nsource_side = \"left\"", "connector.source_side", "posterior"),
-    ("[connector]\npocket_depth = 20.0", "connector.pocket_depth", "less than thickness"),
-    ("[mount]\nsocket_depth = 3.0\nkey_height = 2.9", "mount.key_height", "inside the socket"),
-    ("[mount]\nsocket_depth = 3.0\nkey_height = 1.0\nkey_width = 30.0", "mount.key_width",
-     "narrower than the cylinder"),
-    ("[mount]\nsocket_depth = 3.0\nwidth = 25.0", "mount.width", "wider than the socket"),
-])
+@pytest.mark.parametrize(
+    "extra,key,expected",
+    [
+        ("[mount]\nsocket_depth = 3.0\nbogus = 1", "mount.bogus", "no such key"),
+        ('[mount.holes_z]\npattern = "triangle"', "mount.holes_z.pattern", "pair"),
+        ("[mount.holes_x]\ncounterbore_diameter = 4.0", "mount.holes_x.counterbore_diameter", "wider than the hole"),
+        ("[connector]\npins = [[0, 0], [0, 0]]", "connector.pins", "two different grid nodes"),
+        ("[connector]\npins = [[0, 0]]", "connector.pins", "at least 2"),
+        ("[connector]\npins = [[0, 0], [1.5, 0]]", "connector.pins[1][0]", "an integer"),
+        ("[connector]\npins = [[0, 0], [4, 3]]", "connector.pins[1]", "on the template"),
+        ('[connector]\nsource_side = "left"', "connector.source_side", "posterior"),
+        ("[connector]\npocket_depth = 20.0", "connector.pocket_depth", "less than thickness"),
+        ("[mount]\nsocket_depth = 3.0\nkey_height = 2.9", "mount.key_height", "inside the socket"),
+        (
+            "[mount]\nsocket_depth = 3.0\nkey_height = 1.0\nkey_width = 30.0",
+            "mount.key_width",
+            "narrower than the cylinder",
+        ),
+        ("[mount]\nsocket_depth = 3.0\nwidth = 25.0", "mount.width", "wider than the socket"),
+    ],
+)
 def test_bad_mount_and_connector_keys(tmp_path, capsys, extra, key, expected):
     src = (MODELS / "ftrac_2005.toml").read_text()
     path = tmp_path / "bad.toml"
@@ -216,8 +227,10 @@ def test_check_bad_profile_is_usage_error(capsys):
 
 
 def test_rules_do_not_import_cadquery():
-    code = ("import sys, ftrac_design.cad.rules as r, ftrac_design.cli.check;"
-            "from ftrac_design.design import load_design;"
-            f"r.check_design(load_design({str(MODELS / 'ftrac_2005.toml')!r}));"
-            "assert 'cadquery' not in sys.modules and 'OCP' not in sys.modules")
+    code = (
+        "import sys, ftrac_design.cad.rules as r, ftrac_design.cli.check;"
+        "from ftrac_design.design import load_design;"
+        f"r.check_design(load_design({str(MODELS / 'ftrac_2005.toml')!r}));"
+        "assert 'cadquery' not in sys.modules and 'OCP' not in sys.modules"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)

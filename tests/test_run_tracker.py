@@ -30,8 +30,13 @@ SHAPE = (512, 512)
 CAM = Camera(1000.0, (0.44, 0.44), ((SHAPE[1] - 1) / 2, (SHAPE[0] - 1) / 2))
 N = 12
 #: a slower swing than the benchmark's, so that the fiducial stays inside a 512² frame
-SWING = {"swing_deg": 8.0, "period_frames": 60.0, "tilt_deg": 3.0, "tilt_period_frames": 41.0,
-         "drift_mm": (4.0, 3.0, 2.0)}
+SWING = {
+    "swing_deg": 8.0,
+    "period_frames": 60.0,
+    "tilt_deg": 3.0,
+    "tilt_period_frames": 41.0,
+    "drift_mm": (4.0, 3.0, 2.0),
+}
 
 
 @pytest.fixture(scope="module")
@@ -42,10 +47,22 @@ def body():
 @pytest.fixture(scope="module")
 def run(body):
     features = FEATURES["ftrac_2005"]
-    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(1, features.nominal_beam_direction,
-                                                            np.random.default_rng(5))
-    return render_sweep(features, R0[0], t0[0], N, CAM, ImagingModel(image_shape=SHAPE), seed=5, body=body,
-                        anatomy_strength=0.6, margin_px=96, **SWING)
+    R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
+        1, features.nominal_beam_direction, np.random.default_rng(5)
+    )
+    return render_sweep(
+        features,
+        R0[0],
+        t0[0],
+        N,
+        CAM,
+        ImagingModel(image_shape=SHAPE),
+        seed=5,
+        body=body,
+        anatomy_strength=0.6,
+        margin_px=96,
+        **SWING,
+    )
 
 
 def _track_all(frames, body, independent=False, times=None):
@@ -94,8 +111,9 @@ def test_a_run_is_tracked_from_frame_to_frame_as_accurately_as_frame_by_frame(ru
     # and each tracked pose's error is what its own covariance says (6-dof Mahalanobis)
     for k, a in enumerate(tracked):
         p = a.result.pose
-        dr, dt = pose_errors(p.rotation[None], p.translation_mm[None], run.rotation[k][None],
-                             run.translation_mm[k][None])
+        dr, dt = pose_errors(
+            p.rotation[None], p.translation_mm[None], run.rotation[k][None], run.translation_mm[k][None]
+        )
         e = np.concatenate([dr[0], dt[0]])
         assert float(e @ np.linalg.solve(p.covariance, e)) < 30.0, (k, e)
 
@@ -119,6 +137,7 @@ def test_the_same_frames_give_the_same_answers(run, body, tracked):
         d = dict(d)
         d.pop("timing")
         return d
+
     assert [strip(a.pose_dict()) for a in again] == [strip(a.pose_dict()) for a in tracked]
 
 
@@ -128,8 +147,9 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body)
     it is identified from scratch; every pose given out is right."""
     features = FEATURES["ftrac_2005"]
     R1, t1 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(77))
-    foreign = render(features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1),
-                     body=body).raw
+    foreign = render(
+        features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1), body=body
+    ).raw
     blank = np.full(SHAPE, int(np.median(run.raw[0])), np.uint16)
     order = [0, 1, 2, 3, 4, 10, "foreign", "blank", 5, 6, 7]
     frames = [foreign if k == "foreign" else blank if k == "blank" else run.raw[k] for k in order]
@@ -138,8 +158,10 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body)
     assert status[5] != "tracked" and status[6] == "re-identified" and status[7] == "lost"
     assert status[8] == "re-identified", status
     assert answers[5].tracking_error and answers[6].tracking_error
-    truth = [(R1[0], t1[0]) if k == "foreign" else (None, None) if k == "blank" else
-             (run.rotation[k], run.translation_mm[k]) for k in order]
+    truth = [
+        (R1[0], t1[0]) if k == "foreign" else (None, None) if k == "blank" else (run.rotation[k], run.translation_mm[k])
+        for k in order
+    ]
     for a, (R, t) in zip(answers, truth):
         if a.result.pose.converged:
             dt, dr = _errors(a, R, t)
@@ -206,25 +228,39 @@ def test_a_video_file_is_a_run(run, tmp_path, capsys):
     pytest.importorskip("av")
     n = 6
     log = -np.log(run.raw[:n].astype(np.float64))
-    disp = np.rint(255 * (log - log.min()) / (log.max() - log.min())).astype(np.uint8)     # dense = bright
+    disp = np.rint(255 * (log - log.min()) / (log.max() - log.min())).astype(np.uint8)  # dense = bright
     video = tmp_path / "run.mkv"
     _write_video(video, disp)
     frames = list(read_frames(video, CAM))
     assert len(frames) == n and all(np.array_equal(f.pixels, disp[k]) for k, f in enumerate(frames))
     # Matroska keeps times in milliseconds
     assert [f.time_s for f in frames] == pytest.approx(np.arange(n) / 30.0, abs=1e-3)
-    assert frames[0].meta["format"] == "video" and not frames[0].notes       # lossless: nothing altered
+    assert frames[0].meta["format"] == "video" and not frames[0].notes  # lossless: nothing altered
     cam = tmp_path / "camera.json"
     cam.write_text(json.dumps(CAM.to_dict()))
-    rc = main(["track", "--features", str(FEATURE_FILES["ftrac_2005"]), str(video), "--camera", str(cam),
-               "-o", str(tmp_path / "poses.jsonl")])
+    rc = main(
+        [
+            "track",
+            "--features",
+            str(FEATURE_FILES["ftrac_2005"]),
+            str(video),
+            "--camera",
+            str(cam),
+            "-o",
+            str(tmp_path / "poses.jsonl"),
+        ]
+    )
     capsys.readouterr()
     poses = _lines(tmp_path / "poses.jsonl")
     assert len(poses) == n and sum(d["status"] == "tracked" for d in poses) >= n - 2
     for k, d in enumerate(poses):
         if d["converged"]:
-            dr, dt = pose_errors(np.array(d["rotation"])[None], np.array(d["translation_mm"])[None],
-                                 run.rotation[k][None], run.translation_mm[k][None])
+            dr, dt = pose_errors(
+                np.array(d["rotation"])[None],
+                np.array(d["translation_mm"])[None],
+                run.rotation[k][None],
+                run.translation_mm[k][None],
+            )
             assert np.linalg.norm(dt) < 2.0 and np.degrees(np.linalg.norm(dr)) < 0.5
     assert rc in (0, 1)
 
@@ -235,8 +271,18 @@ def test_a_file_that_is_not_a_video_is_bad_input(tmp_path, capsys):
     fake.write_bytes(b"\x00\x00\x00\x18ftypisom" + b"\x00" * 200)
     cam = tmp_path / "camera.json"
     cam.write_text(json.dumps(CAM.to_dict()))
-    rc = main(["track", "--features", str(FEATURE_FILES["ftrac_2005"]), str(fake), "--camera", str(cam),
-               "-o", str(tmp_path / "poses.jsonl")])
+    rc = main(
+        [
+            "track",
+            "--features",
+            str(FEATURE_FILES["ftrac_2005"]),
+            str(fake),
+            "--camera",
+            str(cam),
+            "-o",
+            str(tmp_path / "poses.jsonl"),
+        ]
+    )
     err = capsys.readouterr().err
     assert rc == 2 and str(fake) in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "poses.jsonl").exists()
@@ -248,7 +294,7 @@ def test_bilinear_many_reads_each_map_exactly_as_bilinear_does():
 
     rng = np.random.default_rng(0)
     maps = [rng.random((60, 40)).astype(np.float32) for _ in range(3)]
-    uv = rng.uniform(-3, 63, (500, 2))                         # inside, on the border and beyond it
+    uv = rng.uniform(-3, 63, (500, 2))  # inside, on the border and beyond it
     for got, img in zip(bilinear_many(maps, uv), maps):
         np.testing.assert_array_equal(got, bilinear(img, uv))
 
@@ -264,7 +310,7 @@ def test_a_crop_read_with_its_frames_noise_levels_has_the_frames_noise():
     level = np.tile(np.linspace(0.0, 3.0, W, dtype=np.float32), (H, 1))
     sigma = 0.01 * np.exp(level / 2)
     g = level + sigma * rng.standard_normal((H, W)).astype(np.float32)
-    crop = (slice(128, 256), slice(192, 320))                  # on the frame's 64-px clutter tiles
+    crop = (slice(128, 256), slice(192, 320))  # on the frame's 64-px clutter tiles
     g[128:256:6, 192:320] += 0.3
     lv = noise_levels(g, 1.36, structure_px=8)
     frame_map = noise_map(g, 1.36, structure_px=8)[crop]
@@ -289,8 +335,8 @@ def test_a_crop_is_conditioned_against_the_frames_clip_levels():
 
     rng = np.random.default_rng(4)
     img = np.clip(np.rint(120 + 8 * rng.standard_normal((256, 256))), 0, 255)
-    img[:80, :80] = 255                                          # saturated corner
-    img[150, 100:200] = 0                                        # a burned-in black stroke
+    img[:80, :80] = 255  # saturated corner
+    img[150, 100:200] = 0  # a burned-in black stroke
     crop = (slice(40, 200), slice(40, 220))
     whole = condition(img, "dense-bright", "display", 6)
     part = condition(img[crop], "dense-bright", "display", 6, levels=(float(img.min()), float(img.max())))
@@ -315,11 +361,17 @@ def test_the_distortion_covariance_is_the_sum_over_the_modes(run, tracked):
     J = evaluate(compile_problem(feats, [obs], noise), R[None], t[None], jac=True).J[0]
     want = np.zeros((6, 6))
     for k, w in enumerate((1.0, 1.0, 0.4, 0.4)):
+
         def mv(uv):
             return uv + distortion_modes(obs.camera, uv, 100.0)[k]
-        o = Observation(obs.camera, {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
-                        {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
-                        {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()}, obs.origin)
+
+        o = Observation(
+            obs.camera,
+            {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
+            {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
+            {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()},
+            obs.origin,
+        )
         drho = evaluate(compile_problem(feats, [o], noise), R[None], t[None], jac=False).rho[0] - ev0.rho[0]
         dth = -np.linalg.solve(J.T @ J, J.T @ drho)
         want += (w * 1.5) ** 2 * np.outer(dth, dth)

@@ -28,6 +28,7 @@ def test_sphere_profile_closed_forms():
     2√(r² − ρ²) with the Gaussian, and its integral is the ball's volume (4/3)π r³ (blur
     preserves the integral)."""
     from scipy.ndimage import gaussian_filter
+
     r, s, h = 3.0, 0.8, 0.02
     ax = np.arange(-8, 8 + h / 2, h)
     X, Y = np.meshgrid(ax, ax)
@@ -40,7 +41,7 @@ def test_sphere_profile_closed_forms():
     x = np.linspace(0, 12, 4000)
     S = sphere_profile(x, np.array(r), np.array(1.0))
     area = np.trapezoid(S * 2 * np.pi * x, x)
-    assert area == pytest.approx(4 / 3 * np.pi * r ** 3, rel=2e-3)
+    assert area == pytest.approx(4 / 3 * np.pi * r**3, rel=2e-3)
 
 
 def test_bead_fit_recovers_a_synthetic_ball_off_grid():
@@ -111,14 +112,14 @@ def test_track_observation_matches_the_projection(rendered):
         C = conic_matrix(np.array(truth["ellipses"][fid]["conic"]))
         d = _conic_distance(C, c.points)
         cen = np.array([*truth["ellipses"][fid]["center"], 1.0])
-        d *= np.sign(cen @ C @ cen)                                         # + inside
-        assert np.sqrt(np.mean(d ** 2)) < 0.1, fid
+        d *= np.sign(cen @ C @ cen)  # + inside
+        assert np.sqrt(np.mean(d**2)) < 0.1, fid
         assert abs(np.mean(d)) < 0.05, fid
     for fid, c in obs.lines.items():
         a, b = np.array(truth["lines"][fid]["start"]), np.array(truth["lines"][fid]["end"])
         dvec = (b - a) / np.linalg.norm(b - a)
         off = (c.points - a) @ np.array([-dvec[1], dvec[0]])
-        assert np.sqrt(np.mean(off ** 2)) < 0.1, fid
+        assert np.sqrt(np.mean(off**2)) < 0.1, fid
     # per-point quality is reported for every observed feature
     assert set(res.quality["points"]) == set(obs.points)
     assert set(res.quality["ellipses"]) == set(obs.ellipses)
@@ -143,7 +144,7 @@ def test_fast_selections_equal_numpy():
         n = int(rng.integers(1, 60000))
         v = rng.normal(size=n).astype(np.float32)
         if t % 3 == 1:
-            v = np.round(3 * v).astype(np.float32)          # many ties
+            v = np.round(3 * v).astype(np.float32)  # many ties
         if t % 3 == 2:
             v[: n // 2] = 0
             v = np.abs(v) ** 3
@@ -155,4 +156,5 @@ def test_fast_selections_equal_numpy():
     r = rng.normal(size=(50, 3))
     r[0] = 0
     import cv2
+
     assert np.allclose(so3.exp(r), np.array([cv2.Rodrigues(x)[0] for x in r]), atol=1e-14)

@@ -20,10 +20,10 @@ from ftrac_design.xray import render
 
 def test_formation_from_the_pixels():
     assert formation_of(np.array([[0, 255], [3, 7]], np.uint8), "dense-dark") == "display"
-    assert formation_of(np.array([[0.0, 200.0], [3.0, 7.0]]), "dense-bright") == "display"   # integers ≤ 255
+    assert formation_of(np.array([[0.0, 200.0], [3.0, 7.0]]), "dense-bright") == "display"  # integers ≤ 255
     assert formation_of(np.array([[0, 4000]], np.uint16), "dense-dark") == "linear"
     assert formation_of(np.array([[0.1, 2.5]], np.float32), "dense-bright") == "log"
-    assert formation_of(np.array([[0, 4000]], np.uint16), "dense-dark", "log") == "log"      # a header decides
+    assert formation_of(np.array([[0, 4000]], np.uint16), "dense-dark", "log") == "log"  # a header decides
 
 
 def test_density_by_formation():
@@ -42,14 +42,14 @@ def test_invalid_regions_cover_a_round_field_and_spare_a_clipped_ball():
     H = W = 256
     V, U = np.mgrid[0:H, 0:W]
     img = 120 + 10 * rng.standard_normal((H, W))
-    outside = (U - 128) ** 2 + (V - 128) ** 2 > 100 ** 2
-    img[outside] = rng.integers(0, 3, outside.sum())          # black, ±2 grey levels
-    img[(U - 128) ** 2 + (V - 100) ** 2 <= 9] = 0              # a clipped ball, r = 3 px
+    outside = (U - 128) ** 2 + (V - 128) ** 2 > 100**2
+    img[outside] = rng.integers(0, 3, outside.sum())  # black, ±2 grey levels
+    img[(U - 128) ** 2 + (V - 100) ** 2 <= 9] = 0  # a clipped ball, r = 3 px
     img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     bad = invalid_regions(img, disc_px=8, margin_px=10)
     assert bad is not None
     assert bad[outside].mean() > 0.99
-    inside_far = (U - 128) ** 2 + (V - 128) ** 2 < 85 ** 2
+    inside_far = (U - 128) ** 2 + (V - 128) ** 2 < 85**2
     assert not bad[inside_far].any()
     # nothing clipped: nothing invalid
     assert invalid_regions(np.rint(120 + 10 * rng.standard_normal((H, W))).astype(np.uint8), 8, 10) is None
@@ -58,15 +58,15 @@ def test_invalid_regions_cover_a_round_field_and_spare_a_clipped_ball():
 def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
     rng = np.random.default_rng(1)
     img = np.full((64, 64), 100.0) + rng.normal(0, 2, (64, 64))
-    img[20, 5:60] = 255                                         # a 1-px burned-in stroke
+    img[20, 5:60] = 255  # a 1-px burned-in stroke
     yy, xx = np.mgrid[0:64, 0:64]
     r2 = (xx - 40) ** 2 + (yy - 45) ** 2
-    ball = 100 + 200 * np.exp(-r2 / (2 * 3.0 ** 2))             # a blurred ball, clipped at 255
+    ball = 100 + 200 * np.exp(-r2 / (2 * 3.0**2))  # a blurred ball, clipped at 255
     img = np.where(r2 < 100, ball, img)
     img = np.clip(img, 0, 255)
     out = fill_clipped(img)
-    assert np.abs(out[20, 10:55] - 100).max() < 15              # the stroke is gone
-    assert out[45, 40] > 200                                    # the ball stays a bright blob
+    assert np.abs(out[20, 10:55] - 100).max() < 15  # the stroke is gone
+    assert out[45, 40] > 200  # the ball stays a bright blob
     assert np.all(np.isfinite(out))
 
 
@@ -81,7 +81,7 @@ def test_noise_map_is_the_white_noise_sigma_and_follows_the_level():
     g = level + sigma * rng.standard_normal((H, W)).astype(np.float32)
     cols = [40, 256, 470]
     np.testing.assert_allclose(noise_map(g, 1.36, structure_px=8)[200, cols], sigma[200, cols], rtol=0.1)
-    for _ in range(8):                                           # bright thin wires
+    for _ in range(8):  # bright thin wires
         r = rng.integers(10, H - 10)
         g[r, :] += 0.5
     np.testing.assert_allclose(noise_map(g, 1.36, structure_px=8)[200, cols], sigma[200, cols], rtol=0.2)
@@ -99,12 +99,12 @@ def test_noise_field_crops_the_whole_images_map():
 def test_blob_candidates_keep_balls_and_drop_a_ridge_as_wide():
     img = np.zeros((120, 120), np.float32)
     yy, xx = np.mgrid[0:120, 0:120]
-    img += np.exp(-((xx - 30) ** 2 + (yy - 30) ** 2) / (2 * 2.5 ** 2))      # a ball
-    img += np.exp(-((yy - 80.0) ** 2) / (2 * 2.5 ** 2))                   # a band as wide, end to end
+    img += np.exp(-((xx - 30) ** 2 + (yy - 30) ** 2) / (2 * 2.5**2))  # a ball
+    img += np.exp(-((yy - 80.0) ** 2) / (2 * 2.5**2))  # a band as wide, end to end
     cand, _ = blob_candidates(img, 3.5, 0.01, 50, 8.0)
     assert len(cand) == 1 and np.allclose(cand[0], [30, 30])
     loose, _ = blob_candidates(img, 3.5, 0.01, 50, 8.0, min_isotropy=0.0)
-    assert len(loose) > 1                                                  # along the band
+    assert len(loose) > 1  # along the band
 
 
 def test_guided_contours_lie_on_the_true_curves(f2005):
@@ -122,7 +122,7 @@ def test_guided_contours_lie_on_the_true_curves(f2005):
     curves = identify.curve_samples(features, Camera(), R[0], t[0], step_px=0.05)
     for fid, pts in {**cont.lines, **cont.ellipses}.items():
         d = np.min(np.linalg.norm(pts[:, None] - curves[fid][1][None], axis=-1), axis=1)
-        assert np.sqrt(np.mean(d ** 2)) < 0.25, fid
+        assert np.sqrt(np.mean(d**2)) < 0.25, fid
 
 
 def test_no_time_budget_means_one_attempt(f2005):
@@ -131,11 +131,12 @@ def test_no_time_budget_means_one_attempt(f2005):
     features, body = f2005
     rng = np.random.default_rng(5)
     img = rng.uniform(900, 1100, (512, 512)).astype(np.float32)
-    for k in range(40):                               # ball-like clutter in several clusters
+    for k in range(40):  # ball-like clutter in several clusters
         u, v = rng.uniform(20, 490, 2)
         cv2.circle(img, (int(u), int(v)), 3, 300, -1)
-    res = track_image(img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0),
-                      body=body)
+    res = track_image(
+        img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0), body=body
+    )
     assert not res.pose.converged and res.pose.error
 
 
@@ -145,8 +146,11 @@ def test_counts_are_tried_dense_dark_first_and_line_integrals_dense_bright(f2005
     features, body = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(6))
     rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(6), body=body)
-    for img, want in ((rad.raw, "dense-dark"), (rad.log_image, "dense-bright"),
-                      (rad.raw.astype(np.float64) + 0.25, "dense-dark")):       # resampled counts
+    for img, want in (
+        (rad.raw, "dense-dark"),
+        (rad.log_image, "dense-bright"),
+        (rad.raw.astype(np.float64) + 0.25, "dense-dark"),
+    ):  # resampled counts
         res = track_image(img, features, Camera(), body=body)
         assert res.pose.converged and res.polarity == want
         assert "polarity_tried" not in res.diagnostics

@@ -36,7 +36,7 @@ def test_blob_peaks_equal_whole_image_dilation(seed):
     img = rng.normal(size=(120, 150)).astype(np.float32)
     for _ in range(8):  # blobs, some at the border, some touching
         y, x = rng.integers(0, 120), rng.integers(0, 150)
-        img[max(y - 3, 0):y + 3, max(x - 3, 0):x + 3] += rng.uniform(3, 20)
+        img[max(y - 3, 0) : y + 3, max(x - 3, 0) : x + 3] += rng.uniform(3, 20)
     r = float(rng.uniform(1.5, 6))
     snr = float(rng.choice([0.1, 2.0, 8.0]))  # 0.1: most pixels strong, the dilation path
     a = blob_candidates(img, r, 1.0, 40, snr, min_isotropy=0.0)

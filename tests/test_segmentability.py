@@ -13,9 +13,9 @@ from ftrac_design.features.model import EllipseFeature, Features, LineFeature, P
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import rotations_from_beams
 
-CAM = Camera()                     # f = 1000 mm, 0.44 mm pixels: fx = fy = 2272.7 px
+CAM = Camera()  # f = 1000 mm, 0.44 mm pixels: fx = fy = 2272.7 px
 Z = 667.0
-K = CAM.fx / Z                     # px per mm in a plane facing the camera at depth Z
+K = CAM.fx / Z  # px per mm in a plane facing the camera at depth Z
 
 
 def _flat(points=(), lines=(), ellipses=()) -> Features:
@@ -67,7 +67,7 @@ def test_crossing_wires_clear_by_half_the_stretch_times_sin_theta(theta_deg):
     """f = |s| sin θ along either wire from the crossing: the best window of S px is centred
     on it, so the clearance is S/2 · sin θ − both half-widths (flat crossings overlap)."""
     th = np.radians(theta_deg)
-    half = 48 / 2 / K              # 48 px long in the image: 1 px vertex spacing at 48 samples
+    half = 48 / 2 / K  # 48 px long in the image: 1 px vertex spacing at 48 samples
     d = np.array([np.cos(th), np.sin(th), 0.0])
     f = _flat(lines=[_line("A", [-half, 0, 0], [half, 0, 0]), _line("B", -half * d, half * d)])
     R, t = _facing()
@@ -98,9 +98,14 @@ def test_concentric_circles_and_a_bead_at_their_centre():
     """Face-on circles of radii 10 and 14 mm around a bead: every clearance in closed form,
     within the polygon's sag (reported)."""
     ex, ey = np.array([1.0, 0, 0]), np.array([0, 1.0, 0])
-    f = _flat([PointFeature("P", np.zeros(3), 2.0)], [],
-              [EllipseFeature("E1", np.zeros(3), ex, ey, 10.0, 10.0, 0.5),
-               EllipseFeature("E2", np.zeros(3), ex, ey, 14.0, 14.0, 0.5)])
+    f = _flat(
+        [PointFeature("P", np.zeros(3), 2.0)],
+        [],
+        [
+            EllipseFeature("E1", np.zeros(3), ex, ey, 10.0, 10.0, 0.5),
+            EllipseFeature("E2", np.zeros(3), ex, ey, 14.0, 14.0, 0.5),
+        ],
+    )
     R, t = _facing()
     pc = pair_clearances(f, CAM, R, t)
     sag = pc.sampling_error_px
@@ -122,7 +127,7 @@ def test_published_lines_l2_l3_collinear_when_the_source_is_in_their_plane(featu
     L2, L3 = f.line("L2"), f.line("L3")
     b = (L3.start - L2.start) * np.array([1.0, 1.0, 0.0])
     b /= np.linalg.norm(b)
-    C = (L2.start + L2.end) / 2 - 640.0 * b           # the source, in F
+    C = (L2.start + L2.end) / 2 - 640.0 * b  # the source, in F
     R = rotations_from_beams(b[None], np.array([0.3]))
     t = -(R[0] @ C)[None]
     pc = pair_clearances(f, CAM, R, t)
@@ -161,8 +166,9 @@ def test_batch_equals_one_pose_at_a_time(features_2005):
     R, t = workspace_poses(Workspace(), features_2005.nominal_beam_direction, 5, seed=2)
     whole = pair_clearances(features_2005, CAM, R, t, chunk=2).clearance_px
     for k in range(5):
-        np.testing.assert_allclose(pair_clearances(features_2005, CAM, R[k:k + 1], t[k:k + 1]).clearance_px[0],
-                                   whole[k], atol=1e-12)
+        np.testing.assert_allclose(
+            pair_clearances(features_2005, CAM, R[k : k + 1], t[k : k + 1]).clearance_px[0], whole[k], atol=1e-12
+        )
 
 
 def test_nominal_view_of_the_published_design_is_clear(features_2005):
@@ -179,8 +185,7 @@ def test_nominal_view_of_the_published_design_is_clear(features_2005):
 
 # ---- the analysis: analysis.json, thresholds, compare --------------------------------------
 
-FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots", "--score-images", "0",
-        "--image-atlas-step-deg", "0"]
+FAST = ["--poses", "300", "--atlas-step-deg", "15", "--no-plots", "--score-images", "0", "--image-atlas-step-deg", "0"]
 
 
 @pytest.fixture(scope="module")
@@ -201,13 +206,22 @@ def test_analyze_reports_segmentability_and_its_threshold_fails_the_design(tmp_p
     assert main(["analyze", str(features_json), "-o", str(out), *FAST, "--max-overlap-share", "0.01"]) == 1
     doc = json.loads((out / "analysis.json").read_text())
     sg = doc["segmentability"]
-    assert set(sg) >= {"settings", "sampling_error_px", "clearance_px", "overlap_share", "kinds",
-                       "pairs_overlap_share", "worst_poses", "atlas"}
+    assert set(sg) >= {
+        "settings",
+        "sampling_error_px",
+        "clearance_px",
+        "overlap_share",
+        "kinds",
+        "pairs_overlap_share",
+        "worst_poses",
+        "atlas",
+    }
     assert sg["settings"]["poses"] == 300 and set(sg["clearance_px"]) == {"min", "p5", "median"}
     assert sg["kinds"]["bead-ellipse"]["counted"] is False and sg["kinds"]["line-line"]["counted"] is True
     # the overlap share is the mean of the per-pose verdicts and at least every kind's share
-    assert 0.01 < sg["overlap_share"] <= 1 and all(sg["overlap_share"] >= v["overlap_share"]
-                                                    for v in sg["kinds"].values() if v["counted"])
+    assert 0.01 < sg["overlap_share"] <= 1 and all(
+        sg["overlap_share"] >= v["overlap_share"] for v in sg["kinds"].values() if v["counted"]
+    )
     w = sg["worst_poses"][0]
     assert w["clearance_px"] == sg["clearance_px"]["min"] and "-" in w["pair"]
     assert {"overlap_share_of_sphere", "overlap_share_of_cone"} <= set(sg["atlas"])
@@ -251,8 +265,22 @@ def test_compare_shows_segmentability(tmp_path, capsys):
     from ftrac_design.cli.main import main
 
     out = tmp_path / "c.png"
-    assert main(["compare", str(MODELS / "ftrac_2005.toml"), str(MODELS / "nine_bead.toml"), "--poses", "200",
-                 "--score-images", "0", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "compare",
+                str(MODELS / "ftrac_2005.toml"),
+                str(MODELS / "nine_bead.toml"),
+                "--poses",
+                "200",
+                "--score-images",
+                "0",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "overlap" in text and "clear p5" in text
     doc = json.loads(out.with_suffix(".json").read_text())

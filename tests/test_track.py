@@ -60,6 +60,7 @@ def _even_helix():
     import tomllib
 
     from ftrac_design.design.loader import parse_design
+
     data = tomllib.loads(preset_path("nine_bead").read_text())
     data["beads"] = [{"azimuth_deg": 10.0 + 40.0 * k, "z": -18.0 + 4.5 * k} for k in range(9)]
     d = parse_design(data)
@@ -76,8 +77,10 @@ def test_symmetric_helix_is_reported_not_guessed():
     res = track_image(rad.raw, features, Camera(), body=body)
     assert not res.pose.converged and "ambiguous" in res.pose.error
     alts = res.diagnostics["alternatives"]
-    errs = [np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R, t)[0]))
-            for a in alts]
+    errs = [
+        np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R, t)[0]))
+        for a in alts
+    ]
     assert min(errs) < 0.2
 
 
@@ -100,9 +103,11 @@ def test_scrambled_image_is_not_a_confident_pose(f2005):
     from dataclasses import replace
 
     from ftrac_design.features.model import PointFeature
+
     rng = np.random.default_rng(4)
-    moved = tuple(PointFeature(p.id, p.center + np.r_[rng.uniform(-3, 3, 2), 0.0], p.diameter, p.line)
-                  for p in features.points)
+    moved = tuple(
+        PointFeature(p.id, p.center + np.r_[rng.uniform(-3, 3, 2), 0.0], p.diameter, p.line) for p in features.points
+    )
     wrong = replace(features, points=moved)
     R, t = _pose(features, 4)
     rad = render(wrong, R, t, Camera(), rng=np.random.default_rng(4), body=body)
@@ -129,8 +134,9 @@ def test_cli_png_with_overlay_and_jsonl(tmp_path, f2005, features_json, capsys):
         write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
         imgs.append((p, R, t))
     out = tmp_path / "out" / "poses.jsonl"
-    rc, so, se = _run(["track", "--features", str(features_json), *[str(p) for p, _, _ in imgs], "-o", str(out),
-                       "--overlay"], capsys)
+    rc, so, se = _run(
+        ["track", "--features", str(features_json), *[str(p) for p, _, _ in imgs], "-o", str(out), "--overlay"], capsys
+    )
     assert rc == 0, se
     lines = [json.loads(x) for x in out.read_text().splitlines()]
     assert len(lines) == 2 and all(d["converged"] for d in lines)
@@ -155,8 +161,7 @@ def test_cli_no_fiducial_exits_1_with_one_line_and_a_pose_object(tmp_path, featu
     cam = tmp_path / "cam.json"
     cam.write_text(json.dumps(Camera(principal_point_px=(128.0, 128.0)).to_dict()))
     out = tmp_path / "pose.json"
-    rc, so, se = _run(["track", "--features", str(features_json), str(p), "--camera", str(cam), "-o", str(out)],
-                      capsys)
+    rc, so, se = _run(["track", "--features", str(features_json), str(p), "--camera", str(cam), "-o", str(out)], capsys)
     assert rc == 1
     assert len(se.strip().splitlines()) == 1 and "not found" in se
     d = json.loads(out.read_text())
@@ -199,6 +204,7 @@ def test_cli_bad_inputs_exit_2_and_write_nothing(tmp_path, f2005, features_json,
     assert not out.exists()
     # a DICOM without ImagerPixelSpacing
     import pydicom
+
     dcm = tmp_path / "img.dcm"
     write_image(dcm, rad.raw, camera=Camera())
     ds = pydicom.dcmread(dcm)
@@ -207,8 +213,9 @@ def test_cli_bad_inputs_exit_2_and_write_nothing(tmp_path, f2005, features_json,
     # a good image first and the bad DICOM second: still nothing written
     good = tmp_path / "good.png"
     write_image(good, rad.raw, camera=Camera(), polarity="dense_dark")
-    rc, so, se = _run(["track", "--features", str(features_json), str(good), str(dcm), "-o", str(out), "--overlay"],
-                      capsys)
+    rc, so, se = _run(
+        ["track", "--features", str(features_json), str(good), str(dcm), "-o", str(out), "--overlay"], capsys
+    )
     assert rc == 2 and "ImagerPixelSpacing" in se and len(se.strip().splitlines()) == 1
     assert not out.exists() and not any(p.name.endswith(".png") for p in out.parent.glob("*"))
 
@@ -256,8 +263,12 @@ def test_ftrac_mini_near_mirror_labelling_is_not_confident():
         assert np.degrees(np.linalg.norm(dr)) < 1.5 and np.linalg.norm(dt) < 4.0
     else:
         assert "ambiguous" in res.pose.error
-        errs = [np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]),
-                                                      R[19], t[19])[0])) for a in res.diagnostics["alternatives"]]
+        errs = [
+            np.degrees(
+                np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R[19], t[19])[0])
+            )
+            for a in res.diagnostics["alternatives"]
+        ]
         assert min(errs) < 1.5
 
 
@@ -271,8 +282,9 @@ def test_cli_refine_intensity(tmp_path, f2005, features_json, capsys):
     p = tmp_path / "img.png"
     write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
     out = tmp_path / "pose.json"
-    rc, so, se = _run(["track", "--features", str(features_json), str(p), "-o", str(out), "--refine", "intensity"],
-                      capsys)
+    rc, so, se = _run(
+        ["track", "--features", str(features_json), str(p), "-o", str(out), "--refine", "intensity"], capsys
+    )
     assert rc == 0, se
     d = json.loads(out.read_text())
     assert d["converged"] and "intensity" in d["segmentation"]
@@ -286,6 +298,7 @@ def test_strong_anatomy_never_raises_and_is_never_wrong(f2005):
     once raised from inside the bead hypotheses (a degenerate P3P solution's NaN projection).
     track must answer — right, or not converged with a reason."""
     from ftrac_design.xray import anatomy
+
     features, body = f2005
     R, t = Workspace().sample(20, features.nominal_beam_direction, np.random.default_rng(4))
     rng = np.random.default_rng(4000)
@@ -330,8 +343,16 @@ def test_ftrac_mini_over_anatomy_mirror_labelling_is_not_confident(k):
     the right labelling explained the image better but was set aside because one of its
     0.3 mm wires looked absent over the anatomy. The answer is right or not converged."""
     from ftrac_design.xray import anatomy
+
     features, body = _preset("ftrac_mini")
     R, t = Workspace().sample(200, features.nominal_beam_direction, np.random.default_rng(1))
-    rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(1000 + k),
-                 background=anatomy(seed=1000 + k, strength=1.0), body=body)
+    rad = render(
+        features,
+        R[k],
+        t[k],
+        Camera(),
+        rng=np.random.default_rng(1000 + k),
+        background=anatomy(seed=1000 + k, strength=1.0),
+        body=body,
+    )
     _assert_right_or_not_converged(track_image(rad.raw, features, Camera(), body=body), R[k], t[k], 5.0)

@@ -43,11 +43,18 @@ def scene():
     uint16 (dense = bright) of one rendered radiograph."""
     features = FEATURES["ftrac_2005"]
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(0))
-    rad = render(features, R[0], t[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(0),
-                 body=body_from_design_file(MODELS / "ftrac_2005.toml"))
+    rad = render(
+        features,
+        R[0],
+        t[0],
+        CAM,
+        ImagingModel(image_shape=SHAPE),
+        rng=np.random.default_rng(0),
+        body=body_from_design_file(MODELS / "ftrac_2005.toml"),
+    )
     counts = np.asarray(rad.raw, np.uint16)
     log = np.rint((rad.log_image + 0.1) * 20000.0).astype(np.uint16)
-    assert log.min() > 0 and log.max() < 65535          # the quantisation kept every value
+    assert log.min() > 0 and log.max() < 65535  # the quantisation kept every value
     return {"R": R[0], "t": t[0], "counts": counts, "log": log}
 
 
@@ -76,15 +83,29 @@ _REFERENCE: dict = {}
 def reference(scene, camera_json, tmp_path_factory):
     """The pose tracked from a plain .npy of the same pixels with --camera (and the
     polarity the DICOM file states, as --polarity), per (pixels, polarity)."""
+
     def get(pixels: str, polarity: str) -> dict:
         if (pixels, polarity) not in _REFERENCE:
             d = tmp_path_factory.mktemp("ref")
             np.save(d / f"{pixels}.npy", scene[pixels])
-            rc = main(["track", "--features", FEATS, str(d / f"{pixels}.npy"), "--camera", str(camera_json),
-                       "--polarity", polarity, "-o", str(d / "pose.json")])
+            rc = main(
+                [
+                    "track",
+                    "--features",
+                    FEATS,
+                    str(d / f"{pixels}.npy"),
+                    "--camera",
+                    str(camera_json),
+                    "--polarity",
+                    polarity,
+                    "-o",
+                    str(d / "pose.json"),
+                ]
+            )
             assert rc == 0
             (_REFERENCE[(pixels, polarity)],) = _poses(d / "pose.json")
         return _REFERENCE[(pixels, polarity)]
+
     return get
 
 
@@ -103,17 +124,22 @@ DICOM_CASES = {
     "legacy-xa": ("counts", "auto", {"kind": "xa"}),
     "xa-lin": ("counts", "dense-dark", {"kind": "xa", "relationship": "LIN"}),
     "rf": ("counts", "auto", {"kind": "rf", "frame_time_ms": 100.0}),
-    "dx-monochrome1": ("counts", "dense-dark", {"kind": "dx", "photometric": "MONOCHROME1", "relationship": "LIN",
-                                                "relationship_sign": 1}),
+    "dx-monochrome1": (
+        "counts",
+        "dense-dark",
+        {"kind": "dx", "photometric": "MONOCHROME1", "relationship": "LIN", "relationship_sign": 1},
+    ),
     "cr": ("counts", "auto", {"kind": "cr"}),
     "enhanced-xa": ("counts", "dense-dark", {"kind": "enhanced-xa", "relationship": "LIN", "relationship_sign": 1}),
     "enhanced-xrf": ("counts", "dense-dark", {"kind": "enhanced-xrf", "relationship": "LIN"}),
     "xa-log": ("log", "dense-bright", {"kind": "xa", "relationship": "LOG", "relationship_sign": -1}),
-    "enhanced-xa-log": ("log", "dense-bright", {"kind": "enhanced-xa", "relationship": "LOG",
-                                                "relationship_sign": -1}),
+    "enhanced-xa-log": ("log", "dense-bright", {"kind": "enhanced-xa", "relationship": "LOG", "relationship_sign": -1}),
     "rotated-90-flipped": ("counts", "auto", {"kind": "xa", "fov_rotation_deg": 90, "fov_horizontal_flip": True}),
-    "enhanced-rotated-flipped": ("counts", "dense-dark", {"kind": "enhanced-xa", "relationship": "LIN",
-                                                          "fov_rotation_deg": 90, "fov_horizontal_flip": True}),
+    "enhanced-rotated-flipped": (
+        "counts",
+        "dense-dark",
+        {"kind": "enhanced-xa", "relationship": "LIN", "fov_rotation_deg": 90, "fov_horizontal_flip": True},
+    ),
     "rle": ("counts", "auto", {"kind": "xa", "transfer_syntax": "rle"}),
     "jpeg-lossless": ("counts", "auto", {"kind": "xa", "transfer_syntax": "jpeg-lossless"}),
     "jpeg2000-lossless": ("counts", "auto", {"kind": "xa", "transfer_syntax": "jpeg2000-lossless"}),
@@ -144,7 +170,7 @@ def test_each_dicom_case_gives_the_pose_of_the_same_pixels_in_numpy(case, scene,
     assert isinstance(d["intake_notes"], list)
     if kwargs.get("fov_rotation_deg"):
         assert any("undone" in n for n in d["intake_notes"])
-    if case == "rf":                                   # a one-frame file with a Frame Time: its time
+    if case == "rf":  # a one-frame file with a Frame Time: its time
         assert d["time_s"] == 0.0
     obs = json.loads((tmp_path / "out" / "pose.observation.json").read_text())
     assert obs["format"] == "ftrac-observation" and obs["image"] == str(dcm)
@@ -181,12 +207,15 @@ def test_multiframe_dicom_tiff_and_directory_give_one_pose_per_frame_in_order(sc
     t_dcm = _check_run(_poses(tmp_path / "d" / "poses.jsonl"), lambda k: dcm, [0.0, 0.0667, 0.1334, 0.2001])
     assert "4 of 4 tracked" in so
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == [
-        "poses.jsonl", "poses.observations.jsonl", *[f"poses_run_{k}_overlay.png" for k in range(4)]]
+        "poses.jsonl",
+        "poses.observations.jsonl",
+        *[f"poses_run_{k}_overlay.png" for k in range(4)],
+    ]
     obs = [json.loads(x) for x in (tmp_path / "d" / "poses.observations.jsonl").read_text().splitlines()]
     assert [o["frame"] for o in obs] == [0, 1, 2, 3]
 
     tif = tmp_path / "run.tif"
-    tifffile.imwrite(tif, frames, photometric="minisblack")        # 4 pages, not planar RGBA
+    tifffile.imwrite(tif, frames, photometric="minisblack")  # 4 pages, not planar RGBA
     rc, so, se = _run(["track", "--features", FEATS, tif, "--camera", camera_json, "-o", tmp_path / "t.jsonl"], capsys)
     assert rc == 0, se
     t_tif = _check_run(_poses(tmp_path / "t.jsonl"), lambda k: tif)
@@ -198,8 +227,9 @@ def test_multiframe_dicom_tiff_and_directory_give_one_pose_per_frame_in_order(sc
     for name, f in zip(names, frames):
         write_image(folder / name, f)
     (folder / "notes.txt").write_text("not a frame")
-    rc, so, se = _run(["track", "--features", FEATS, folder, "--camera", camera_json, "-o", tmp_path / "p.jsonl"],
-                      capsys)
+    rc, so, se = _run(
+        ["track", "--features", FEATS, folder, "--camera", camera_json, "-o", tmp_path / "p.jsonl"], capsys
+    )
     assert rc == 0, se
     t_png = _check_run(_poses(tmp_path / "p.jsonl"), lambda k: folder / names[k])
     # the same pixels in three containers: the same poses
@@ -219,22 +249,26 @@ def test_frames_are_read_lazily_one_at_a_time(scene, tmp_path, monkeypatch, caps
         raise RuntimeError("spy")
 
     monkeypatch.setattr(track_run, "track_image", spy)
-    monkeypatch.setattr(run_tracker, "track_image", spy)            # a run's frames go through its tracker
+    monkeypatch.setattr(run_tracker, "track_image", spy)  # a run's frames go through its tracker
     rc, so, se = _run(["track", "--features", FEATS, dcm, "-o", tmp_path / "poses.jsonl"], capsys)
     assert rc == 1 and alive_at_call == [0, 0, 0, 0]
 
 
 # ------------------------------------------------------------------------------- bad input
-@pytest.mark.parametrize("omit,named", [
-    (("DistanceSourceToDetector",), ["DistanceSourceToDetector (0018,1110)"]),
-    (("ImagerPixelSpacing",), ["ImagerPixelSpacing (0018,1164)"]),
-    (("DistanceSourceToDetector", "ImagerPixelSpacing"), ["(0018,1110)", "(0018,1164)"]),
-])
+@pytest.mark.parametrize(
+    "omit,named",
+    [
+        (("DistanceSourceToDetector",), ["DistanceSourceToDetector (0018,1110)"]),
+        (("ImagerPixelSpacing",), ["ImagerPixelSpacing (0018,1164)"]),
+        (("DistanceSourceToDetector", "ImagerPixelSpacing"), ["(0018,1110)", "(0018,1164)"]),
+    ],
+)
 def test_missing_geometry_tags_exit_2_naming_them_and_nothing_is_tracked_or_written(
-        omit, named, scene, tmp_path, monkeypatch, capsys):
+    omit, named, scene, tmp_path, monkeypatch, capsys
+):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
-    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))  # a run's frames
     good = write_dicom(tmp_path / "good.dcm", scene["counts"], CAM, kind="xa")
     bad = write_dicom(tmp_path / "bad.dcm", scene["counts"], CAM, kind="xa", omit=omit)
     out = tmp_path / "out" / "poses.jsonl"
@@ -244,24 +278,37 @@ def test_missing_geometry_tags_exit_2_naming_them_and_nothing_is_tracked_or_writ
     assert not calls and not out.parent.exists()
 
 
-def test_an_unreadable_frame_anywhere_is_bad_input_for_the_whole_command(scene, camera_json, tmp_path, monkeypatch,
-                                                                          capsys):
+def test_an_unreadable_frame_anywhere_is_bad_input_for_the_whole_command(
+    scene, camera_json, tmp_path, monkeypatch, capsys
+):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
-    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))  # a run's frames
     good = tmp_path / "good.npy"
     np.save(good, scene["counts"])
     broken = tmp_path / "broken.npy"
     broken.write_bytes(good.read_bytes()[:4000])
-    folder = tmp_path / "run"                       # a run whose third frame is not an image
+    folder = tmp_path / "run"  # a run whose third frame is not an image
     folder.mkdir()
     for k in range(3):
         write_image(folder / f"f{k}.png", scene["counts"])
     (folder / "f2.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
     out = tmp_path / "out" / "poses.jsonl"
     for bad in (broken, folder / "f2.png"):
-        rc, so, se = _run(["track", "--features", FEATS, good, broken if bad == broken else folder, "--camera",
-                           camera_json, "-o", out], capsys)
+        rc, so, se = _run(
+            [
+                "track",
+                "--features",
+                FEATS,
+                good,
+                broken if bad == broken else folder,
+                "--camera",
+                camera_json,
+                "-o",
+                out,
+            ],
+            capsys,
+        )
         assert rc == 2 and len(se.strip().splitlines()) == 1 and str(bad) in se
         assert not calls and not out.parent.exists()
 
@@ -319,8 +366,10 @@ def test_distortion_model_undoes_an_intensifier_distortion(scene, camera_json, r
     else:
         assert rc == 1
 
-    rc, so, se = _run(["track", "--features", FEATS, img, "--camera", camera_json, "--distortion", mpath,
-                       "-o", tmp_path / "c.json"], capsys)
+    rc, so, se = _run(
+        ["track", "--features", FEATS, img, "--camera", camera_json, "--distortion", mpath, "-o", tmp_path / "c.json"],
+        capsys,
+    )
     assert rc == 0, se
     (d,) = _poses(tmp_path / "c.json")
     assert d["distortion"] == str(mpath)
@@ -334,27 +383,35 @@ def test_distortion_model_undoes_an_intensifier_distortion(scene, camera_json, r
 def test_a_distortion_model_of_another_shape_is_bad_input(scene, camera_json, tmp_path, monkeypatch, capsys):
     calls = []
     monkeypatch.setattr(track_run, "track_image", lambda *a, **k: calls.append(1))
-    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))         # a run's frames
+    monkeypatch.setattr(run_tracker, "track_image", lambda *a, **k: calls.append(1))  # a run's frames
     mpath = write_distortion(tmp_path / "model.json", radial((512, 512), (4.0, 60.0), 0.44))
     img = tmp_path / "img.npy"
     np.save(img, scene["counts"])
     out = tmp_path / "out" / "pose.json"
-    rc, so, se = _run(["track", "--features", FEATS, img, "--camera", camera_json, "--distortion", mpath, "-o", out],
-                      capsys)
+    rc, so, se = _run(
+        ["track", "--features", FEATS, img, "--camera", camera_json, "--distortion", mpath, "-o", out], capsys
+    )
     assert rc == 2 and len(se.strip().splitlines()) == 1
     assert str(img) in se and "512 × 512" in se and "384 × 384" in se and str(mpath) in se
     assert not calls and not out.parent.exists()
 
 
-@pytest.mark.parametrize("kwargs,option,want", [
-    ({"kind": "enhanced-xa", "relationship": "LOG", "relationship_sign": -1}, [], ("dense-bright", "log", "auto")),
-    ({"kind": "xa", "relationship": "LIN"}, [], ("dense-dark", "linear", "auto")),
-    ({"kind": "xa"}, [], (None, None, "auto")),
-    ({"kind": "xa", "relationship": "LOG", "relationship_sign": -1}, ["--polarity", "dense-dark"],
-     ("dense-bright", "log", "dense-dark")),
-])
-def test_the_files_polarity_and_formation_are_the_trackers_hints(kwargs, option, want, scene, tmp_path, monkeypatch,
-                                                                 capsys):
+@pytest.mark.parametrize(
+    "kwargs,option,want",
+    [
+        ({"kind": "enhanced-xa", "relationship": "LOG", "relationship_sign": -1}, [], ("dense-bright", "log", "auto")),
+        ({"kind": "xa", "relationship": "LIN"}, [], ("dense-dark", "linear", "auto")),
+        ({"kind": "xa"}, [], (None, None, "auto")),
+        (
+            {"kind": "xa", "relationship": "LOG", "relationship_sign": -1},
+            ["--polarity", "dense-dark"],
+            ("dense-bright", "log", "dense-dark"),
+        ),
+    ],
+)
+def test_the_files_polarity_and_formation_are_the_trackers_hints(
+    kwargs, option, want, scene, tmp_path, monkeypatch, capsys
+):
     """What the header says reaches track_image as hints; --polarity overrides them (the
     tracker's options win over a hint)."""
     seen = []
@@ -386,21 +443,32 @@ class _Terminal:
 
 
 @pytest.mark.parametrize("frames,tty,bar", [(4, True, True), (3, True, False), (4, False, False)])
-def test_a_progress_bar_on_a_terminal_for_more_than_three_frames(frames, tty, bar, scene, camera_json, tmp_path,
-                                                                 monkeypatch, capsys):
+def test_a_progress_bar_on_a_terminal_for_more_than_three_frames(
+    frames, tty, bar, scene, camera_json, tmp_path, monkeypatch, capsys
+):
     def spy(*args, **kwargs):
         raise RuntimeError("spy")
 
     monkeypatch.setattr(track_run, "track_image", spy)
-    monkeypatch.setattr(run_tracker, "track_image", spy)         # a run's frames
+    monkeypatch.setattr(run_tracker, "track_image", spy)  # a run's frames
     np.save(tmp_path / "run.npy", np.stack([scene["counts"][:64, :64]] * frames))
     err = _Terminal() if tty else io.StringIO()
     monkeypatch.setattr(sys, "stderr", err)
-    rc = main(["track", "--features", FEATS, str(tmp_path / "run.npy"), "--camera", str(camera_json),
-               "-o", str(tmp_path / "poses.jsonl")])
+    rc = main(
+        [
+            "track",
+            "--features",
+            FEATS,
+            str(tmp_path / "run.npy"),
+            "--camera",
+            str(camera_json),
+            "-o",
+            str(tmp_path / "poses.jsonl"),
+        ]
+    )
     text = err.buffer.getvalue() if tty else err.getvalue()
     assert rc == 1 and text.count("internal error: RuntimeError: spy") == frames
-    assert (f"| {frames}/{frames} " in text) == bar          # tqdm's "track: 100%|████| 4/4 [..."
+    assert (f"| {frames}/{frames} " in text) == bar  # tqdm's "track: 100%|████| 4/4 [..."
 
 
 def test_an_undistorting_detector_narrows_the_covariance(scene, camera_json, tmp_path, capsys):
@@ -411,8 +479,10 @@ def test_an_undistorting_detector_narrows_the_covariance(scene, camera_json, tmp
     np.save(img, scene["counts"])
     out = {}
     for name, extra in (("unknown", []), ("flat", ["--distortion", "none"])):
-        rc, _, err = _run(["track", "--features", FEATS, img, "--camera", camera_json, "-o", tmp_path / f"{name}.json",
-                           *extra], capsys)
+        rc, _, err = _run(
+            ["track", "--features", FEATS, img, "--camera", camera_json, "-o", tmp_path / f"{name}.json", *extra],
+            capsys,
+        )
         assert rc == 0, err
         out[name] = _poses(tmp_path / f"{name}.json")[0]
     dx = tmp_path / "dx.dcm"

@@ -47,8 +47,9 @@ def _offline_backend() -> bool:
 
 def _run(cmd: list, cwd: Path, env: dict | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
     res = subprocess.run([str(c) for c in cmd], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
-    assert res.returncode == 0, f"{' '.join(map(str, cmd))} -> {res.returncode}\n{res.stdout[-3000:]}\n" \
-                                f"{res.stderr[-3000:]}"
+    assert res.returncode == 0, (
+        f"{' '.join(map(str, cmd))} -> {res.returncode}\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
+    )
     return res
 
 
@@ -69,8 +70,7 @@ def build_wheel(tmp: Path) -> Path:
         The one ``ftrac_design-*.whl`` written to ``tmp/dist``.
     """
     src = tmp / "src"
-    shutil.copytree(ROOT / "ftrac_design", src / "ftrac_design",
-                    ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    shutil.copytree(ROOT / "ftrac_design", src / "ftrac_design", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     for name in ("pyproject.toml", "README.md"):
         shutil.copy2(ROOT / name, src / name)
     isolation = ["--no-build-isolation"] if _offline_backend() else []  # else pip fetches the backend
@@ -115,7 +115,8 @@ def test_the_wheel_ships_the_presets_and_runs_the_demo_from_anywhere(tmp_path):
 
     _run([bindir / "ftrac-design", "build", "ftrac_2005", "-o", work / "built"], work, env)
     assert {"fiducial.step", "fiducial.stl", "features.json", "manifest.json"} <= {
-        p.name for p in (work / "built").iterdir()}
+        p.name for p in (work / "built").iterdir()
+    }
 
     demo = _run([bindir / "python", "-m", "ftrac_design.demo"], work, env, timeout=800)
     out = work / "outputs" / "ftrac_2005"

@@ -27,8 +27,9 @@ BODY_2005 = Body(30.0, 50.0, 20.0, "acetal")
 
 
 def _features(points=(), lines=(), ellipses=()):
-    return Features("t", None, None, np.array([0.0, -1.0, 0.0]), points=tuple(points), lines=tuple(lines),
-                    ellipses=tuple(ellipses))
+    return Features(
+        "t", None, None, np.array([0.0, -1.0, 0.0]), points=tuple(points), lines=tuple(lines), ellipses=tuple(ellipses)
+    )
 
 
 def _rot_y(deg):
@@ -59,10 +60,12 @@ def test_chords_agree_with_point_membership_sampling():
         target = rng.uniform(-12, 12, 3)
         d = (target - c) * 1.5
         s_lo, s_hi = 0.9 / 1.5, 1.1 / 1.5
+
         # hollow cylinder
         def body(p):
             r = np.hypot(p[:, 0], p[:, 1])
             return (r <= 15) & (r >= 10) & (np.abs(p[:, 2]) <= 25)
+
         got = cylinder_z_chord(c, d[None], 15, 25)[0] - cylinder_z_chord(c, d[None], 10, 25)[0]
         assert got == pytest.approx(_sampled_chord(body, c, d, s_lo, s_hi), abs=2e-3)
         # a tube piece with oblique (mitre-like) end planes
@@ -75,6 +78,7 @@ def test_chords_agree_with_point_membership_sampling():
             along = w @ e
             perp = np.linalg.norm(w - along[:, None] * e, axis=1)
             return (perp <= r) & ((p - a) @ n0 >= 0) & ((p - a - L * e) @ n1 <= 0)
+
         target = a + rng.uniform(0, L) * e + rng.uniform(-r, r, 3) * [0, 1, 1]
         d = (target - c) * 1.5
         got = tube_chord(c, d[None], a[None], e[None], np.array([L]), np.array([r]), n0[None], n1[None])[0]
@@ -86,8 +90,11 @@ def test_fast_chords_equal_the_reference_forms():
     t = np.array([3.0, -4.0, 660.0])
     cam = Camera()
     rays = Rays(cam, R, t)
-    pieces = ellipse_pieces(EllipseFeature("E", np.array([0, 0, 3.0]), np.array([1.0, 0, 0]), np.array([0, 0.8, 0.6]),
-                                           17.0, 15.0, 0.5), MU_STEEL, 0)
+    pieces = ellipse_pieces(
+        EllipseFeature("E", np.array([0, 0, 3.0]), np.array([1.0, 0, 0]), np.array([0, 0.8, 0.6]), 17.0, 15.0, 0.5),
+        MU_STEEL,
+        0,
+    )
     rng = np.random.default_rng(0)
     k = rng.integers(0, len(pieces.L), 3000)
     mid = pieces.a[k] + 0.5 * pieces.L[k, None] * pieces.e[k]
@@ -95,8 +102,16 @@ def test_fast_chords_equal_the_reference_forms():
     U, V = uv[:, :1] + rng.uniform(-0.5, 0.5, (len(k), 4)), uv[:, 1:] + rng.uniform(-0.5, 0.5, (len(k), 4))
     fast = tube_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, pieces, k, U, V)
     kk = np.repeat(k, 4)
-    ref = tube_chord(rays.c, rays(U.ravel(), V.ravel()), pieces.a[kk], pieces.e[kk], pieces.L[kk], pieces.r[kk],
-                     pieces.n0[kk], pieces.n1[kk]).reshape(U.shape)
+    ref = tube_chord(
+        rays.c,
+        rays(U.ravel(), V.ravel()),
+        pieces.a[kk],
+        pieces.e[kk],
+        pieces.L[kk],
+        pieces.r[kk],
+        pieces.n0[kk],
+        pieces.n1[kk],
+    ).reshape(U.shape)
     assert np.abs(fast - ref).max() < 1e-8 and (ref > 0).mean() > 0.2
     fast_b = body_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, 15.0, 10.0, 25.0, U, V)
     d = rays(U.ravel(), V.ravel())
@@ -115,13 +130,14 @@ def test_mitred_ellipse_pieces_tile_the_bent_wire():
         phi = rng.uniform(0, 2 * np.pi)
         target = (rho + rng.uniform(-0.8, 0.8) * r) * np.array([np.cos(phi), np.sin(phi), 0.0])
         target[2] = rng.uniform(-0.1, 0.1)
-        d = (target - c) + rng.normal(0, 40, 3) * [1, 1, 0]    # oblique rays too
+        d = (target - c) + rng.normal(0, 40, 3) * [1, 1, 0]  # oblique rays too
         d = d * (1.0 / np.linalg.norm(d)) * 700
         n = len(P.L)
         total = tube_chord(c, np.broadcast_to(d, (n, 3)), P.a, P.e, P.L, P.r, P.n0, P.n1).sum()
 
         def torus(p):
             return (np.hypot(p[:, 0], p[:, 1]) - rho) ** 2 + p[:, 2] ** 2 <= r * r
+
         s_mid = float(-(c @ d) / (d @ d))
         ref = _sampled_chord(torus, c, d, s_mid - 0.01, s_mid + 0.01, n=600_000)
         # the polyline departs from the circle by ≤ 6.7 µm: chords agree to ~1e-2 mm off-centre
@@ -135,7 +151,7 @@ def test_bead_integrated_attenuation_is_mu_volume_magnification_squared():
     f = _features(points=[PointFeature("B", np.zeros(3), 2 * r)])
     p, _ = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, SMALL, None)
     M = CAM_SMALL.focal_length_mm / z0
-    expected = MU_STEEL * 4 / 3 * np.pi * r ** 3 * M ** 2 / (0.44 * 0.44)
+    expected = MU_STEEL * 4 / 3 * np.pi * r**3 * M**2 / (0.44 * 0.44)
     assert p.sum() == pytest.approx(expected, rel=2e-3)
 
 
@@ -149,10 +165,10 @@ def test_straight_wire_profile_is_the_chord_of_a_circle():
     col = p[:, 128 - u0]
     v = v0 + np.arange(len(col))
     Y = (v - 128.0) * 0.44
-    dist = z0 * np.abs(Y) / np.sqrt(Y ** 2 + 1000.0 ** 2)
-    expected = MU_STEEL * 2 * np.sqrt(np.maximum(r * r - dist ** 2, 0))
+    dist = z0 * np.abs(Y) / np.sqrt(Y**2 + 1000.0**2)
+    expected = MU_STEEL * 2 * np.sqrt(np.maximum(r * r - dist**2, 0))
     np.testing.assert_allclose(col, expected, atol=1e-9)
-    assert col.max() == pytest.approx(MU_STEEL * 2 * r, rel=1e-9)      # 0.5 mm wire: ~0.48
+    assert col.max() == pytest.approx(MU_STEEL * 2 * r, rel=1e-9)  # 0.5 mm wire: ~0.48
     # the profile's width at the detector is the wire's, magnified: 2 r f / z0 (± a pixel)
     assert np.count_nonzero(col) == pytest.approx(2 * r * 1000 / z0 / 0.44, abs=1.01)
 
@@ -160,7 +176,7 @@ def test_straight_wire_profile_is_the_chord_of_a_circle():
 def test_body_chord_through_its_axis():
     """Axis across the beam through the principal ray: the central ray crosses the wall twice."""
     f = _features()
-    R = _rot_y(90.0)                       # F's z axis along camera x
+    R = _rot_y(90.0)  # F's z axis along camera x
     im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, single_precision=False)
     p, (v0, u0) = line_integral_box(f, R, np.array([0.0, 0.0, 667.0]), CAM_SMALL, im, BODY_2005)
     assert p[128 - v0, 128 - u0] == pytest.approx(im.mu("acetal") * 2 * (15.0 - 10.0), rel=1e-12)
@@ -181,7 +197,7 @@ def test_bead_centroid_follows_the_projection():
         R = Workspace().sample(1, np.array([0, -1.0, 0]), rng)[0][0]
         t = np.array([*rng.uniform(-8, 8, 2), rng.uniform(640, 690)])
         p, (v0, u0) = line_integral_box(f, R, t, CAM_SMALL, SMALL, None)
-        V, U = np.mgrid[v0:v0 + p.shape[0], u0:u0 + p.shape[1]]
+        V, U = np.mgrid[v0 : v0 + p.shape[0], u0 : u0 + p.shape[1]]
         centroid = np.array([(p * U).sum(), (p * V).sum()]) / p.sum()
         np.testing.assert_allclose(centroid, CAM_SMALL.project(t), atol=0.01)
 
@@ -192,8 +208,14 @@ def test_render_is_pixel_integrated_not_point_sampled():
     t = np.array([0.137, -0.071, 667.0])
     cents = []
     for s in (4, 16):
-        img = render(f, np.eye(3), t, CAM_SMALL, ImagingModel(image_shape=(256, 256), photons_per_px=None,
-                                                              supersample=s), body=None)
+        img = render(
+            f,
+            np.eye(3),
+            t,
+            CAM_SMALL,
+            ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=s),
+            body=None,
+        )
         p = img.line_integral
         V, U = np.mgrid[0:256, 0:256]
         m = (np.abs(U - 128) < 12) & (np.abs(V - 128) < 12)
@@ -205,9 +227,17 @@ def test_render_is_pixel_integrated_not_point_sampled():
 @pytest.mark.parametrize("dose", [2_000.0, 20_000.0])
 def test_log_image_variance_is_one_over_expected_counts(dose):
     im = ImagingModel(image_shape=(256, 256), photons_per_px=dose)
-    bg = np.full((256, 256), 1.0, np.float32)                 # uniform attenuation p = 1
-    img = render(_features(), np.eye(3), np.array([0, 0, 667.0]), CAM_SMALL, im, rng=np.random.default_rng(0),
-                 background=bg, body=None)
+    bg = np.full((256, 256), 1.0, np.float32)  # uniform attenuation p = 1
+    img = render(
+        _features(),
+        np.eye(3),
+        np.array([0, 0, 667.0]),
+        CAM_SMALL,
+        im,
+        rng=np.random.default_rng(0),
+        background=bg,
+        body=None,
+    )
     var = img.log_image.var()
     assert var == pytest.approx(1.0 / (dose * math.exp(-1.0)), rel=0.05)
     assert img.log_image.mean() == pytest.approx(1.0, abs=5 * math.sqrt(var / img.log_image.size) + 1e-3)
@@ -234,29 +264,52 @@ def test_blur_acts_on_intensity_and_matches_its_sigma():
     pixel a sub-sample falls in, not its position, counts: −0.008 px² here)."""
     f = _features(points=[PointFeature("B", np.zeros(3), 2.0)])
     t = np.array([0.0, 0.0, 667.0])
-    images = [1 - np.exp(-render(f, np.eye(3), t, CAM_SMALL, ImagingModel(
-        image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=s), body=None).line_integral)
-        for s in (0.0, 1.0, 2.5)]
+    images = [
+        1
+        - np.exp(
+            -render(
+                f,
+                np.eye(3),
+                t,
+                CAM_SMALL,
+                ImagingModel(image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=s),
+                body=None,
+            ).line_integral
+        )
+        for s in (0.0, 1.0, 2.5)
+    ]
     sharp, a, b = images
     assert b.sum() == pytest.approx(sharp.sum(), rel=1e-4) and a.sum() == pytest.approx(sharp.sum(), rel=1e-4)
     V, U = np.mgrid[0:256, 0:256]
-    var = lambda w: (w * (U - 128.0) ** 2).sum() / w.sum()          # noqa: E731
-    assert var(b) - var(a) == pytest.approx(2.5 ** 2 - 1.0 ** 2, rel=1e-3)
+    var = lambda w: (w * (U - 128.0) ** 2).sum() / w.sum()  # noqa: E731
+    assert var(b) - var(a) == pytest.approx(2.5**2 - 1.0**2, rel=1e-3)
 
 
 def test_needle_occluder_in_camera_frame():
     """A needle across the principal ray in X: the central ray meets its full diameter."""
     occ = Occluder((-40.0, 0.0, 600.0), (40.0, 0.0, 600.0), diameter=1.0, frame="X")
-    im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, focal_spot_mm=0, detector_blur_px=0,
-                      single_precision=False)
+    im = ImagingModel(
+        image_shape=(256, 256),
+        photons_per_px=None,
+        supersample=1,
+        focal_spot_mm=0,
+        detector_blur_px=0,
+        single_precision=False,
+    )
     img = render(_features(), _rot_y(30), np.array([0, 0, 667.0]), CAM_SMALL, im, occluders=[occ], body=None)
     assert img.line_integral[128, 128] == pytest.approx(im.mu("steel") * 1.0, rel=1e-6)
     assert img.truth["occluders"][0]["frame"] == "X"
 
 
 def test_truncated_fiducial_renders_its_visible_part(features_2005):
-    img = render(features_2005, np.eye(3) @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float),
-                 np.array([45.0, 0.0, 667.0]), CAM_SMALL, SMALL, body=BODY_2005)
+    img = render(
+        features_2005,
+        np.eye(3) @ np.array([[1, 0, 0], [0, 0, -1], [0, 1, 0]], float),
+        np.array([45.0, 0.0, 667.0]),
+        CAM_SMALL,
+        SMALL,
+        body=BODY_2005,
+    )
     li = img.line_integral
     assert li[:, -3:].max() > 0.1 and li[:, :20].max() == 0.0
 
@@ -275,7 +328,7 @@ def test_truth_projections_and_conics(features_2005, tmp_path):
         A, B, C, D, E, F = tr["projected"]["ellipses"][el.id]["conic"]
         val = A * uv[:, 0] ** 2 + B * uv[:, 0] * uv[:, 1] + C * uv[:, 1] ** 2 + D * uv[:, 0] + E * uv[:, 1] + F
         grad = np.hypot(2 * A * uv[:, 0] + B * uv[:, 1] + D, B * uv[:, 0] + 2 * C * uv[:, 1] + E)
-        assert np.abs(val / grad).max() < 1e-6                          # on the conic, in pixels
+        assert np.abs(val / grad).max() < 1e-6  # on the conic, in pixels
     write_truth(tmp_path / "t.json", tr)
     back = read_truth(tmp_path / "t.json")
     np.testing.assert_array_equal(back["R"], R[0])
@@ -299,7 +352,7 @@ def test_image_round_trip(tmp_path, suffix, kind):
     path = write_image(tmp_path / f"a{suffix}", arr, cam, polarity="dense_dark")
     img, c, meta = read_image(path)
     assert img.dtype == np.float64 and img.shape == arr.shape
-    values = img                       # the recorded linear map is applied on reading
+    values = img  # the recorded linear map is applied on reading
     if kind == "float":
         # quantised to 16 bits (PNG, DICOM), or float32 (TIFF, and every frame's pixels)
         step = np.ptp(arr) / 65535 if suffix in (".png", ".dcm") else 2e-7 * np.abs(arr).max()
@@ -312,8 +365,9 @@ def test_image_round_trip(tmp_path, suffix, kind):
         assert meta["polarity_hint"] == "dense_dark"
         assert meta["bits"] == (8 if kind == "uint8" else 32 if (kind, suffix) == ("float", ".tif") else 16)
     if suffix == ".dcm":
-        assert c == cam                                                  # tags + noted principal point
+        assert c == cam  # tags + noted principal point
         import pydicom
+
         ds = pydicom.dcmread(path)
         assert [float(x) for x in ds.ImagerPixelSpacing] == [0.31, 0.3] and float(ds.DistanceSourceToDetector) == 1100
     else:
@@ -330,13 +384,14 @@ def test_png_8_bit_float_quantisation(tmp_path):
 
 def test_dicom_without_spacing_names_the_tag(tmp_path):
     import pydicom
+
     path = write_image(tmp_path / "a.dcm", IMAGES["uint16"], Camera())
     ds = pydicom.dcmread(path)
     del ds.ImagerPixelSpacing
     ds.save_as(tmp_path / "b.dcm")
     with pytest.raises(InputError, match=r"ImagerPixelSpacing \(0018,1164\)"):
         read_image(tmp_path / "b.dcm")
-    img, cam, _ = read_image(tmp_path / "b.dcm", camera=Camera(900.0))          # --camera overrides
+    img, cam, _ = read_image(tmp_path / "b.dcm", camera=Camera(900.0))  # --camera overrides
     assert cam == Camera(900.0) and img.shape == (24, 40)
     del ds.DistanceSourceToDetector
     ds.ImagerPixelSpacing = [0.2, 0.2]
@@ -345,8 +400,10 @@ def test_dicom_without_spacing_names_the_tag(tmp_path):
         read_image(tmp_path / "c.dcm")
 
 
-@pytest.mark.parametrize("name,content", [("x.png", b"not a png"), ("x.tif", b"II*\0garbage"), ("x.npy", b"nope"),
-                                          ("x.dcm", b"\0" * 200), ("x.jpg2", b"")])
+@pytest.mark.parametrize(
+    "name,content",
+    [("x.png", b"not a png"), ("x.tif", b"II*\0garbage"), ("x.npy", b"nope"), ("x.dcm", b"\0" * 200), ("x.jpg2", b"")],
+)
 def test_unreadable_image_is_input_error(tmp_path, name, content):
     (tmp_path / name).write_bytes(content)
     with pytest.raises(InputError):
@@ -363,14 +420,35 @@ def test_anatomy_background_is_seeded():
 @pytest.fixture(scope="module")
 def features_json(tmp_path_factory, features_2005):
     path = tmp_path_factory.mktemp("f") / "features.json"
-    write_features(path, features_2005)          # design.source = the preset: the body is found
+    write_features(path, features_2005)  # design.source = the preset: the body is found
     return path
 
 
 def test_radiograph_cli_writes_images_and_truth(tmp_path, features_json):
     out = tmp_path / "rg"
-    assert main(["radiograph", "--features", str(features_json), "--workspace-sample", "2", "--seed", "3", "-o",
-                 str(out), "--format", "dicom", "--output-kind", "raw", "--image-size", "512", "512"]) == 0
+    assert (
+        main(
+            [
+                "radiograph",
+                "--features",
+                str(features_json),
+                "--workspace-sample",
+                "2",
+                "--seed",
+                "3",
+                "-o",
+                str(out),
+                "--format",
+                "dicom",
+                "--output-kind",
+                "raw",
+                "--image-size",
+                "512",
+                "512",
+            ]
+        )
+        == 0
+    )
     names = sorted(p.name for p in out.iterdir())
     assert names == ["img_0000.dcm", "img_0000.truth.json", "img_0001.dcm", "img_0001.truth.json", "truth.jsonl"]
     lines = (out / "truth.jsonl").read_text().splitlines()
@@ -386,28 +464,68 @@ def test_radiograph_cli_writes_images_and_truth(tmp_path, features_json):
     pose = tmp_path / "pose.json"
     pose.write_text(json.dumps({"rotation": R[1].tolist(), "translation_mm": t[1].tolist()}))
     out2 = tmp_path / "rg2"
-    assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out2),
-                 "--no-noise", "--image-size", "256", "256", "--format", "npy"]) == 0
+    assert (
+        main(
+            [
+                "radiograph",
+                "--features",
+                str(features_json),
+                "--pose",
+                str(pose),
+                "-o",
+                str(out2),
+                "--no-noise",
+                "--image-size",
+                "256",
+                "256",
+                "--format",
+                "npy",
+            ]
+        )
+        == 0
+    )
     assert (out2 / "img_0000.npy").exists()
     assert read_truth(out2 / "img_0000.truth.json")["imaging"]["photons_per_px"] is None
     # a background file in line-integral units (a quantised PNG with its rescale) is added in the log domain
     bg = np.full((256, 256), 0.5)
     write_image(tmp_path / "bg.png", bg, value_range=(0.0, 1.0))
     out3 = tmp_path / "rg3"
-    assert main(["radiograph", "--features", str(features_json), "--pose", str(pose), "-o", str(out3),
-                 "--no-noise", "--image-size", "256", "256", "--format", "npy", "--background",
-                 str(tmp_path / "bg.png")]) == 0
+    assert (
+        main(
+            [
+                "radiograph",
+                "--features",
+                str(features_json),
+                "--pose",
+                str(pose),
+                "-o",
+                str(out3),
+                "--no-noise",
+                "--image-size",
+                "256",
+                "256",
+                "--format",
+                "npy",
+                "--background",
+                str(tmp_path / "bg.png"),
+            ]
+        )
+        == 0
+    )
     a, b = np.load(out2 / "img_0000.npy"), np.load(out3 / "img_0000.npy")
     assert np.abs(b - a - 0.5).max() < 1e-4
 
 
-@pytest.mark.parametrize("extra,expect", [
-    (["--pose", "MISSING.json"], "MISSING.json"),
-    (["--pose", "BAD"], "rotation"),
-    (["--workspace-sample", "1", "--pose", "BAD"], "exactly one"),
-    (["--workspace-sample", "1", "--occluder", "1,2,3"], "--occluder"),
-    (["--workspace-sample", "1", "--background", "MISSING.png"], "MISSING.png"),
-])
+@pytest.mark.parametrize(
+    "extra,expect",
+    [
+        (["--pose", "MISSING.json"], "MISSING.json"),
+        (["--pose", "BAD"], "rotation"),
+        (["--workspace-sample", "1", "--pose", "BAD"], "exactly one"),
+        (["--workspace-sample", "1", "--occluder", "1,2,3"], "--occluder"),
+        (["--workspace-sample", "1", "--background", "MISSING.png"], "MISSING.png"),
+    ],
+)
 def test_radiograph_cli_fails_cleanly(tmp_path, features_json, capsys, extra, expect):
     bad = tmp_path / "BAD"
     bad.write_text(json.dumps({"rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 2]], "translation_mm": [0, 0, 600]}))
@@ -421,10 +539,27 @@ def test_radiograph_cli_fails_cleanly(tmp_path, features_json, capsys, extra, ex
 
 def test_radiograph_cli_needs_a_body(tmp_path, features_2005, capsys):
     from dataclasses import replace
+
     path = tmp_path / "features.json"
     write_features(path, replace(features_2005, source=None))
     out = tmp_path / "rg"
     assert main(["radiograph", "--features", str(path), "--workspace-sample", "1", "-o", str(out)]) == 2
     assert "body" in capsys.readouterr().err and not out.exists()
-    assert main(["radiograph", "--features", str(path), "--workspace-sample", "1", "-o", str(out), "--no-body",
-                 "--image-size", "128", "128"]) == 0
+    assert (
+        main(
+            [
+                "radiograph",
+                "--features",
+                str(path),
+                "--workspace-sample",
+                "1",
+                "-o",
+                str(out),
+                "--no-body",
+                "--image-size",
+                "128",
+                "128",
+            ]
+        )
+        == 0
+    )

@@ -49,8 +49,14 @@ _POM_MASS = _ATOMIC_MASS["C"] + 2 * _ATOMIC_MASS["H"] + _ATOMIC_MASS["O"]
 #: material → (density g/cm³, {table entry: mass fraction})
 MATERIALS: dict[str, tuple[float, dict[str, float]]] = {
     "steel": (7.90, {"Fe": 1.0}),
-    "acetal": (1.41, {"C": _ATOMIC_MASS["C"] / _POM_MASS, "H": 2 * _ATOMIC_MASS["H"] / _POM_MASS,
-                      "O": _ATOMIC_MASS["O"] / _POM_MASS}),
+    "acetal": (
+        1.41,
+        {
+            "C": _ATOMIC_MASS["C"] / _POM_MASS,
+            "H": 2 * _ATOMIC_MASS["H"] / _POM_MASS,
+            "O": _ATOMIC_MASS["O"] / _POM_MASS,
+        },
+    ),
     "water": (1.00, {"water": 1.0}),
     "air": (1.205e-3, {"air": 1.0}),
     "soft_tissue": (1.06, {"soft_tissue": 1.0}),

@@ -40,8 +40,9 @@ class DetectorModel:
     scatter_sigma_mm: float = 40.0
 
 
-def otf(shape: tuple[int, int], spacing_mm: tuple[float, float], model: DetectorModel,
-        magnification: float) -> np.ndarray:
+def otf(
+    shape: tuple[int, int], spacing_mm: tuple[float, float], model: DetectorModel, magnification: float
+) -> np.ndarray:
     """Focal-spot OTF × detector MTF on the rfft2 grid of an image of ``shape``.
 
     Parameters
@@ -66,7 +67,7 @@ def otf(shape: tuple[int, int], spacing_mm: tuple[float, float], model: Detector
     focal = np.sinc(a * fx) * np.sinc(a * fy)
     f2 = fx * fx + fy * fy
     g = model.glare_fraction
-    mtf = (1 - g) / (1 + f2 / model.mtf_core_cyc_mm ** 2) + g / (1 + f2 / model.glare_cyc_mm ** 2)
+    mtf = (1 - g) / (1 + f2 / model.mtf_core_cyc_mm**2) + g / (1 + f2 / model.glare_cyc_mm**2)
     return focal * mtf
 
 
@@ -74,11 +75,10 @@ def blur(field: np.ndarray, transfer: np.ndarray, pad: int) -> np.ndarray:
     """``field`` filtered by ``transfer`` (from :func:`otf` for the padded shape), edge-padded."""
     big = np.pad(field, pad, mode="edge")
     out = np.fft.irfft2(np.fft.rfft2(big) * transfer, s=big.shape)
-    return out[pad:pad + field.shape[0], pad:pad + field.shape[1]]
+    return out[pad : pad + field.shape[0], pad : pad + field.shape[1]]
 
 
-def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm: float,
-                  sigma_mm: float) -> np.ndarray:
+def scatter_field(primary: np.ndarray, open_field: float, spr: float, spacing_mm: float, sigma_mm: float) -> np.ndarray:
     """A broad scatter field (same units and grid as ``primary``).
 
     Parameters
@@ -115,8 +115,9 @@ def draw_counts(energy: np.ndarray, mean_quantum_kev: np.ndarray, rng: np.random
     return rng.poisson(q).astype(np.float64) * mean_quantum_kev
 
 
-def read_out(energy: np.ndarray, gain_adu_per_kev: float, model: DetectorModel,
-             rng: np.random.Generator | None) -> np.ndarray:
+def read_out(
+    energy: np.ndarray, gain_adu_per_kev: float, model: DetectorModel, rng: np.random.Generator | None
+) -> np.ndarray:
     """Raw uint16: offset + gain × energy (+ Gaussian read noise when ``rng``), rounded, clipped."""
     adu = model.offset_adu + gain_adu_per_kev * energy
     if rng is not None and model.read_noise_adu > 0:

@@ -83,13 +83,22 @@ def ray_directions(camera: Camera, R: np.ndarray, u: np.ndarray, v: np.ndarray) 
     """
     sx, sy = camera.pixel_size_mm
     ox, oy = camera.principal_point_px
-    d = np.stack([(np.ravel(u) - ox) * sx, (np.ravel(v) - oy) * sy,
-                  np.full(np.size(u), camera.focal_length_mm)], -1) @ np.asarray(R, float)
+    d = np.stack(
+        [(np.ravel(u) - ox) * sx, (np.ravel(v) - oy) * sy, np.full(np.size(u), camera.focal_length_mm)], -1
+    ) @ np.asarray(R, float)
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def line_integrals(basis: np.ndarray, volume: Volume, camera: Camera, R_px: np.ndarray, t_px: np.ndarray,
-                   u: np.ndarray, v: np.ndarray, step_mm: float = 0.5) -> np.ndarray:
+def line_integrals(
+    basis: np.ndarray,
+    volume: Volume,
+    camera: Camera,
+    R_px: np.ndarray,
+    t_px: np.ndarray,
+    u: np.ndarray,
+    v: np.ndarray,
+    step_mm: float = 0.5,
+) -> np.ndarray:
     """Basis line integrals (g/cm²) along the rays through detector points (u, v).
 
     Parameters

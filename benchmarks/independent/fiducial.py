@@ -115,8 +115,8 @@ def cached_build(preset: str) -> Path:
 def _sphere_subdivisions(radius: float) -> int:
     """Icosphere subdivisions whose facets stay within MAX_GAP_MM of a sphere of ``radius``."""
     for k in range(3, 9):
-        edge_angle = 1.1071487 / 2 ** k  # icosahedron edge (63.4°) halved k times
-        if radius * edge_angle ** 2 / 8 <= MAX_GAP_MM:
+        edge_angle = 1.1071487 / 2**k  # icosahedron edge (63.4°) halved k times
+        if radius * edge_angle**2 / 8 <= MAX_GAP_MM:
             return k
     return 8
 
@@ -143,8 +143,7 @@ def _area_radius(radius: float, n: int) -> float:
 def cylinder_mesh(a: np.ndarray, b: np.ndarray, radius: float) -> trimesh.Trimesh:
     """A closed capped cylinder of ``radius`` (mm) from ``a`` to ``b`` (F)."""
     n = _sections(radius)
-    return trimesh.creation.cylinder(radius=_area_radius(radius, n), sections=n,
-                                     segment=np.array([a, b], float))
+    return trimesh.creation.cylinder(radius=_area_radius(radius, n), sections=n, segment=np.array([a, b], float))
 
 
 def ellipse_tube_mesh(e, radius: float) -> trimesh.Trimesh:
@@ -156,7 +155,7 @@ def ellipse_tube_mesh(e, radius: float) -> trimesh.Trimesh:
     n_around = _sections(radius)
     r_poly = _area_radius(radius, n_around)
     # spine points: the curvature radius is at least b²/a; keep the along-spine sagitta small
-    rho = e.semi_minor ** 2 / e.semi_major
+    rho = e.semi_minor**2 / e.semi_major
     step = math.sqrt(8 * rho * MAX_GAP_MM)
     n_along = max(64, int(math.ceil(e.circumference / step)))
     s = np.linspace(0.0, 2 * np.pi, n_along, endpoint=False)
@@ -168,16 +167,17 @@ def ellipse_tube_mesh(e, radius: float) -> trimesh.Trimesh:
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     B = np.cross(T, N)
     phi = np.linspace(0.0, 2 * np.pi, n_around, endpoint=False)
-    verts = (P[:, None, :] + r_poly * (np.cos(phi)[None, :, None] * N[:, None, :]
-                                       + np.sin(phi)[None, :, None] * B[:, None, :])).reshape(-1, 3)
+    verts = (
+        P[:, None, :]
+        + r_poly * (np.cos(phi)[None, :, None] * N[:, None, :] + np.sin(phi)[None, :, None] * B[:, None, :])
+    ).reshape(-1, 3)
     i = np.arange(n_along)[:, None]
     j = np.arange(n_around)[None, :]
     v00 = i * n_around + j
     v01 = i * n_around + (j + 1) % n_around
     v10 = ((i + 1) % n_along) * n_around + j
     v11 = ((i + 1) % n_along) * n_around + (j + 1) % n_around
-    faces = np.concatenate([np.stack([v00, v10, v11], -1).reshape(-1, 3),
-                            np.stack([v00, v11, v01], -1).reshape(-1, 3)])
+    faces = np.concatenate([np.stack([v00, v10, v11], -1).reshape(-1, 3), np.stack([v00, v11, v01], -1).reshape(-1, 3)])
     m = trimesh.Trimesh(verts, faces, process=False)
     if m.volume < 0:
         m.invert()
@@ -195,14 +195,20 @@ def steel_meshes(features: Features) -> list[tuple[str, trimesh.Trimesh]]:
     return out
 
 
-def assemble(features: Features, parts: list[tuple[str, str, trimesh.Trimesh]],
-             build_dir: Path | None = None) -> FiducialScene:
+def assemble(
+    features: Features, parts: list[tuple[str, str, trimesh.Trimesh]], build_dir: Path | None = None
+) -> FiducialScene:
     """One scene from (name, material, mesh) parts; each mesh must be a closed volume."""
     for name, _, m in parts:
         if not m.is_volume:
             raise ValueError(f"{name}: not a closed, consistently oriented volume")
-    return FiducialScene(features, tuple(n for n, _, _ in parts), tuple(mat for _, mat, _ in parts),
-                         tuple(m for _, _, m in parts), build_dir)
+    return FiducialScene(
+        features,
+        tuple(n for n, _, _ in parts),
+        tuple(mat for _, mat, _ in parts),
+        tuple(m for _, _, m in parts),
+        build_dir,
+    )
 
 
 @lru_cache(maxsize=8)

@@ -82,6 +82,7 @@ class _Painter:
             d = [x - c[0], y - c[1], z - c[2]]
             q = [(R[0, k] * d[0] + R[1, k] * d[1] + R[2, k] * d[2]) / r[k] for k in range(3)]
             return q[0] ** 2 + q[1] ** 2 + q[2] ** 2 <= 1.0
+
         self.paint(c - ext, c + ext, inside, value)
 
     def shelled_ellipsoid(self, c, r, shell, outer_hu, inner_hu, rot=None) -> None:
@@ -95,7 +96,8 @@ class _Painter:
 
         def inside(x, y, z):
             s = np.clip(((x - a[0]) * d[0] + (y - a[1]) * d[1] + (z - a[2]) * d[2]) / L2, 0.0, 1.0)
-            return (x - a[0] - s * d[0]) ** 2 + (y - a[1] - s * d[1]) ** 2 + (z - a[2] - s * d[2]) ** 2 <= radius ** 2
+            return (x - a[0] - s * d[0]) ** 2 + (y - a[1] - s * d[1]) ** 2 + (z - a[2] - s * d[2]) ** 2 <= radius**2
+
         self.paint(np.minimum(a, b) - radius, np.maximum(a, b) + radius, inside, value)
 
     def shelled_capsule(self, a, b, radius, shell, outer_hu, inner_hu) -> None:
@@ -105,6 +107,7 @@ class _Painter:
     def elliptic_cylinder(self, c, ax, ay, z0, z1, value) -> None:
         def inside(x, y, z):
             return (((x - c[0]) / ax) ** 2 + ((y - c[1]) / ay) ** 2 <= 1.0) & (z >= z0) & (z <= z1)
+
         self.paint((c[0] - ax, c[1] - ay, z0), (c[0] + ax, c[1] + ay, z1), inside, value)
 
 
@@ -161,7 +164,9 @@ def _pelvis(p: _Painter) -> None:
                 q_out, keep = wing(x, y, z, t=t_out)
                 q_in, _ = wing(x, y, z, t=t_in)
                 return keep & (q_out <= 1.0) & (q_in > 1.0)
+
             return inside
+
         lo = (min(s * 55, s * 150), -25, -55)
         hi = (max(s * 55, s * 150), 80, 95)
         p.paint(lo, hi, shell(0.0, 9.0), HU_CORTICAL)  # iliac wing: cortical faces …

@@ -51,7 +51,7 @@ def _near(mesh, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     rad = 0.5 * float(np.linalg.norm(mesh.bounds[1] - mesh.bounds[0])) + 1e-3
     w = c - origins
     along = np.einsum("ij,ij->i", w, dirs)
-    d2 = np.einsum("ij,ij->i", w, w) - along ** 2
+    d2 = np.einsum("ij,ij->i", w, w) - along**2
     return np.flatnonzero(d2 <= rad * rad)
 
 
@@ -71,7 +71,7 @@ def _object_crossings(mesh, origins, dirs, rng):
         out_t.append(t[good])
         out_s.append(sign[good])
         todo = todo[bad]
-        d = _turn(dirs[todo], rng, 1e-6 * 10 ** attempt)
+        d = _turn(dirs[todo], rng, 1e-6 * 10**attempt)
     return _cat(out_r, np.int64), _cat(out_t, float), _cat(out_s, np.int8), todo
 
 
@@ -115,6 +115,7 @@ def _sweep(ray, t, sign, obj, steel_obj: np.ndarray, n_rays: int) -> tuple[np.nd
     def running(delta):  # open objects after each crossing, counted from the ray's start
         c = np.cumsum(delta)
         return c - np.r_[0, c][first][grp]
+
     n_steel = running(np.where(is_steel, -sign, 0).astype(np.int64))
     n_body = running(np.where(is_steel, 0, -sign).astype(np.int64))
     seg = ray[1:] == ray[:-1]
@@ -131,8 +132,9 @@ def _turn(dirs: np.ndarray, rng: np.random.Generator, angle: float) -> np.ndarra
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def material_chords(scene: FiducialScene, origins: np.ndarray, dirs: np.ndarray,
-                    neighbours: np.ndarray | None = None) -> dict[str, np.ndarray]:
+def material_chords(
+    scene: FiducialScene, origins: np.ndarray, dirs: np.ndarray, neighbours: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
     """Steel and acetal path length (mm) along each ray through the fiducial.
 
     Parameters

@@ -95,8 +95,12 @@ def patient_placement(scene: FiducialScene, rng: np.random.Generator | None) -> 
 
 def _mu_table(spec: Spectrum) -> dict[str, np.ndarray]:
     e = spec.energy_kev
-    return {"steel": linear_attenuation("steel", e), "acetal": linear_attenuation("acetal", e),
-            "soft": mass_attenuation("soft_tissue", e), "bone": mass_attenuation("bone", e)}
+    return {
+        "steel": linear_attenuation("steel", e),
+        "acetal": linear_attenuation("acetal", e),
+        "soft": mass_attenuation("soft_tissue", e),
+        "bone": mass_attenuation("bone", e),
+    }
 
 
 def _spectral_sums(spec: Spectrum, mu: dict, A: np.ndarray | None, steel=None, acetal=None):
@@ -178,12 +182,25 @@ def _feather(shape, margin: int) -> np.ndarray:
     return np.clip(w, 0.0, 1.0)
 
 
-def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(), *,
-                       kvp: float = 80.0, dose_behind_patient: float = 1000.0, patient: bool = True,
-                       seed: int = 0, spr: float = 1.5, focal_spot_mm: float = 0.8,
-                       mono_kev: float | None = None, noise: bool = True, body: bool = True, steel: bool = True,
-                       settings: RenderSettings = RenderSettings(),
-                       patient_pose: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+def render_independent(
+    preset: str,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    *,
+    kvp: float = 80.0,
+    dose_behind_patient: float = 1000.0,
+    patient: bool = True,
+    seed: int = 0,
+    spr: float = 1.5,
+    focal_spot_mm: float = 0.8,
+    mono_kev: float | None = None,
+    noise: bool = True,
+    body: bool = True,
+    steel: bool = True,
+    settings: RenderSettings = RenderSettings(),
+    patient_pose: tuple[np.ndarray, np.ndarray] | None = None,
+) -> tuple[np.ndarray, dict[str, Any]]:
     """A raw C-arm image (uint16, dense = dark) of the built ``preset`` at pose (R, t).
 
     Parameters
@@ -230,8 +247,11 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
     scene = load_scene(preset, body, steel)
     H, W = settings.image_shape
     det = DetectorModel(**{**asdict(settings.detector), "focal_spot_mm": focal_spot_mm})
-    spec = Spectrum(float(mono_kev), np.array([float(mono_kev)]), np.array([1.0])) if mono_kev else \
-        tungsten_spectrum(kvp, settings.al_mm, settings.cu_mm)
+    spec = (
+        Spectrum(float(mono_kev), np.array([float(mono_kev)]), np.array([1.0]))
+        if mono_kev
+        else tungsten_spectrum(kvp, settings.al_mm, settings.cu_mm)
+    )
     mu = _mu_table(spec)
     placement = None
     if patient:
@@ -239,7 +259,7 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
         fld = _patient_field(spec, mu, camera, R, t, placement, settings, det, spr)
     else:
         S_open = float(np.sum(spec.photons * spec.energy_kev))
-        V_open = float(np.sum(spec.photons * spec.energy_kev ** 2))
+        V_open = float(np.sum(spec.photons * spec.energy_kev**2))
         fld = _Field(np.full((H, W), S_open), np.full((H, W), V_open), np.zeros((H, W)), None, (S_open, V_open))
     cast = _add_fiducial(fld, scene, R, t, camera, spec, mu, settings, det)
 
@@ -253,8 +273,27 @@ def render_independent(preset: str, R: np.ndarray, t: np.ndarray, camera: Camera
     energy = n0 * (fld.S + fld.scatter)
     gain = auto_gain(energy, det)
     counts = read_out(draw_counts(energy, e_mean, rng) if noise else energy, gain, det, rng if noise else None)
-    truth = _truth(preset, scene, R, t, camera, spec, kvp, mono_kev, dose_behind_patient, patient, seed, spr,
-                   det, settings, placement, n0, gain, cast, e_mean[iv, iu])
+    truth = _truth(
+        preset,
+        scene,
+        R,
+        t,
+        camera,
+        spec,
+        kvp,
+        mono_kev,
+        dose_behind_patient,
+        patient,
+        seed,
+        spr,
+        det,
+        settings,
+        placement,
+        n0,
+        gain,
+        cast,
+        e_mean[iv, iu],
+    )
     return counts, truth
 
 
@@ -271,8 +310,9 @@ class _Field:
     reference: tuple[float, float]
 
 
-def _patient_field(spec, mu, camera: Camera, R, t, placement, settings: RenderSettings, det: DetectorModel,
-                   spr: float) -> _Field:
+def _patient_field(
+    spec, mu, camera: Camera, R, t, placement, settings: RenderSettings, det: DetectorModel, spr: float
+) -> _Field:
     """The patient-only field: DRR on the coarse grid, spectral sums, pixel-level blur at the
     patient's magnification, and scatter."""
     H, W = settings.image_shape
@@ -295,8 +335,9 @@ def _patient_field(spec, mu, camera: Camera, R, t, placement, settings: RenderSe
     return _Field(S, V, scatter, A, ref)
 
 
-def _add_fiducial(fld: _Field, scene: FiducialScene, R, t, camera: Camera, spec, mu, settings: RenderSettings,
-                  det: DetectorModel):
+def _add_fiducial(
+    fld: _Field, scene: FiducialScene, R, t, camera: Camera, spec, mu, settings: RenderSettings, det: DetectorModel
+):
     """Replace the fiducial's box of ``fld`` by patient × fiducial at sub-sample resolution,
     blurred at the fiducial's magnification and integrated over pixels; returns the cast box."""
     s, c = settings.subsample, settings.coarse
@@ -308,8 +349,12 @@ def _add_fiducial(fld: _Field, scene: FiducialScene, R, t, camera: Camera, spec,
     A_sub = _coarse_sample(fld.A, U, V, c) if fld.A is not None else None
     S_sub, V_sub = _spectral_sums(spec, mu, A_sub, steel, acetal)
     pad = 8 * s
-    tr = otf((S_sub.shape[0] + 2 * pad, S_sub.shape[1] + 2 * pad),
-             (camera.pixel_size_mm[1] / s, camera.pixel_size_mm[0] / s), det, camera.focal_length_mm / float(t[2]))
+    tr = otf(
+        (S_sub.shape[0] + 2 * pad, S_sub.shape[1] + 2 * pad),
+        (camera.pixel_size_mm[1] / s, camera.pixel_size_mm[0] / s),
+        det,
+        camera.focal_length_mm / float(t[2]),
+    )
     S_box = blur(S_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
     V_box = blur(V_sub, tr, pad).reshape(r1 - r0, s, c1 - c0, s).mean((1, 3))
     # with a patient, blend into the pixel-level field over the margin (both are the patient alone there)
@@ -319,25 +364,60 @@ def _add_fiducial(fld: _Field, scene: FiducialScene, R, t, camera: Camera, spec,
     return cast
 
 
-def _truth(preset, scene, R, t, camera, spec, kvp, mono_kev, dose, patient, seed, spr, det, settings,
-           placement, n0, gain, cast, e_ref) -> dict[str, Any]:
+def _truth(
+    preset,
+    scene,
+    R,
+    t,
+    camera,
+    spec,
+    kvp,
+    mono_kev,
+    dose,
+    patient,
+    seed,
+    spr,
+    det,
+    settings,
+    placement,
+    n0,
+    gain,
+    cast,
+    e_ref,
+) -> dict[str, Any]:
     f = scene.features
     X = f.point_centers() @ R.T + t
     uv = camera.project(X) if len(X) else np.zeros((0, 2))
     design = design_path(preset)
     return {
-        "format": TRUTH_FORMAT, "version": 1, "renderer": "benchmarks/independent",
-        "preset": f.name, "design_sha256": hashlib.sha256(design.read_bytes()).hexdigest(),
-        "rotation": R.tolist(), "translation_mm": t.tolist(), "camera": camera.to_dict(),
+        "format": TRUTH_FORMAT,
+        "version": 1,
+        "renderer": "benchmarks/independent",
+        "preset": f.name,
+        "design_sha256": hashlib.sha256(design.read_bytes()).hexdigest(),
+        "rotation": R.tolist(),
+        "translation_mm": t.tolist(),
+        "camera": camera.to_dict(),
         "image_shape": list(settings.image_shape),
-        "spectrum": {"kvp": None if mono_kev else kvp, "mono_kev": mono_kev, "al_mm": settings.al_mm,
-                     "cu_mm": settings.cu_mm, "mean_energy_kev": spec.mean_energy_kev},
-        "dose_behind_patient": dose, "patient": bool(patient), "seed": int(seed),
+        "spectrum": {
+            "kvp": None if mono_kev else kvp,
+            "mono_kev": mono_kev,
+            "al_mm": settings.al_mm,
+            "cu_mm": settings.cu_mm,
+            "mean_energy_kev": spec.mean_energy_kev,
+        },
+        "dose_behind_patient": dose,
+        "patient": bool(patient),
+        "seed": int(seed),
         "scatter_to_primary": spr if patient else 0.0,
-        "detector": asdict(det), "subsample": settings.subsample,
-        "patient_pose_in_F": None if placement is None else {"rotation": placement[0].tolist(),
-                                                             "translation_mm": placement[1].tolist()},
-        "open_field_quanta_per_px": n0, "gain_adu_per_kev": gain,
-        "mean_quantum_kev_at_origin": float(e_ref), "fiducial_box_rows_cols": [int(x) for x in cast],
+        "detector": asdict(det),
+        "subsample": settings.subsample,
+        "patient_pose_in_F": None
+        if placement is None
+        else {"rotation": placement[0].tolist(), "translation_mm": placement[1].tolist()},
+        "open_field_quanta_per_px": n0,
+        "gain_adu_per_kev": gain,
+        "mean_quantum_kev_at_origin": float(e_ref),
+        "fiducial_box_rows_cols": [int(x) for x in cast],
         "points_px": {p.id: [float(a), float(b)] for p, (a, b) in zip(f.points, uv)},
     }

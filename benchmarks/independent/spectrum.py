@@ -66,7 +66,7 @@ def kramers_bins(kvp: float, e_min_kev: float = E_MIN_KEV) -> tuple[np.ndarray, 
     edges = np.append(edges, kvp) if edges[-1] < kvp else edges
     e1, e2 = edges[:-1], edges[1:]
     number = kvp * np.log(e2 / e1) - (e2 - e1)
-    energy_sum = kvp * (e2 - e1) - (e2 ** 2 - e1 ** 2) / 2
+    energy_sum = kvp * (e2 - e1) - (e2**2 - e1**2) / 2
     return energy_sum / number, number / number.sum()
 
 

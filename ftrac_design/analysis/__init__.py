@@ -20,7 +20,22 @@ from .score import AnalysisSettings, DesignScore, Thresholds, score_design
 from .segmentability import ClearanceSettings, PairClearance, image_clearance, pair_clearances
 
 __all__ = [
-    "AnalysisSettings", "Atlas", "ClearanceSettings", "DesignScore", "PairClearance", "PoseAnalysis", "PoseMetrics",
-    "Thresholds", "analyse_poses", "blind_spot_atlas", "feature_information", "feature_layout", "image_clearance",
-    "pair_clearances", "pose_metrics", "score_design", "total_information", "whitened_rows",
+    "AnalysisSettings",
+    "Atlas",
+    "ClearanceSettings",
+    "DesignScore",
+    "PairClearance",
+    "PoseAnalysis",
+    "PoseMetrics",
+    "Thresholds",
+    "analyse_poses",
+    "blind_spot_atlas",
+    "feature_information",
+    "feature_layout",
+    "image_clearance",
+    "pair_clearances",
+    "pose_metrics",
+    "score_design",
+    "total_information",
+    "whitened_rows",
 ]

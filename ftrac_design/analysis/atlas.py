@@ -65,44 +65,75 @@ class Atlas:
         m, c = self.sphere.overall, self.cone.overall
         inside = angle_from(self.nominal_beam, self.sphere.beam_directions())[0] <= self.cone_deg
         rd = self.sphere.rank_deficiency()
-        return {"sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])),
-                "directions": int(m.condition.size),
-                "attainable_rank": self.sphere.attainable_rank(),
-                "rank_ratio": {"median": float(np.median(rd)), "worst": float(np.min(rd))},
-                "condition": {"median": _finite(np.median(m.condition)), "worst": _finite(np.max(m.condition)),
-                              "worst_in_cone": _finite(np.max(c.condition))},
-                "translation_mm": {"median": _finite(np.median(m.translation_rms_mm)),
-                                   "worst": _finite(np.max(m.translation_rms_mm)),
-                                   "worst_in_cone": _finite(np.max(c.translation_rms_mm))},
-                "rotation_deg": {"median": _finite(np.median(m.rotation_rms_deg)),
-                                 "worst": _finite(np.max(m.rotation_rms_deg)),
-                                 "worst_in_cone": _finite(np.max(c.rotation_rms_deg))},
-                "singular_fraction_of_sphere": float(np.mean(~np.isfinite(m.condition))),
-                "fraction_of_sphere_within_cone": float(np.mean(inside)),
-                "blind_fraction_of_sphere": self.blind_fraction,
-                "worst_directions": self.worst}
+        return {
+            "sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])),
+            "directions": int(m.condition.size),
+            "attainable_rank": self.sphere.attainable_rank(),
+            "rank_ratio": {"median": float(np.median(rd)), "worst": float(np.min(rd))},
+            "condition": {
+                "median": _finite(np.median(m.condition)),
+                "worst": _finite(np.max(m.condition)),
+                "worst_in_cone": _finite(np.max(c.condition)),
+            },
+            "translation_mm": {
+                "median": _finite(np.median(m.translation_rms_mm)),
+                "worst": _finite(np.max(m.translation_rms_mm)),
+                "worst_in_cone": _finite(np.max(c.translation_rms_mm)),
+            },
+            "rotation_deg": {
+                "median": _finite(np.median(m.rotation_rms_deg)),
+                "worst": _finite(np.max(m.rotation_rms_deg)),
+                "worst_in_cone": _finite(np.max(c.rotation_rms_deg)),
+            },
+            "singular_fraction_of_sphere": float(np.mean(~np.isfinite(m.condition))),
+            "fraction_of_sphere_within_cone": float(np.mean(inside)),
+            "blind_fraction_of_sphere": self.blind_fraction,
+            "worst_directions": self.worst,
+        }
 
 
 def _finite(x) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def blind_spot_atlas(features: Features, settings: AnalysisSettings = AnalysisSettings(),
-                     step_deg: float = 2.0, n_worst: int = 6, separation_deg: float = 15.0,
-                     progress: Callable[[int], None] | None = None) -> Atlas:
+def blind_spot_atlas(
+    features: Features,
+    settings: AnalysisSettings = AnalysisSettings(),
+    step_deg: float = 2.0,
+    n_worst: int = 6,
+    separation_deg: float = 15.0,
+    progress: Callable[[int], None] | None = None,
+) -> Atlas:
     """Map ``features`` over the whole sphere (``step_deg`` grid) and the workspace cone."""
     lon, lat, d = sphere_grid(step_deg)
     depth = settings.workspace.depth_mm
     R, t = isocentre_poses(d.reshape(-1, 3), depth)
-    sph = analyse_poses(features, R, t, settings.camera, settings.noise, settings.contour,
-                        detail=True, leave_one_out=False, progress=progress)
+    sph = analyse_poses(
+        features,
+        R,
+        t,
+        settings.camera,
+        settings.noise,
+        settings.contour,
+        detail=True,
+        leave_one_out=False,
+        progress=progress,
+    )
     pol, az, dc = cone_grid(features.nominal_beam_direction, settings.workspace.cone_deg)
     Rc, tc = isocentre_poses(dc.reshape(-1, 3), depth)
-    cone = analyse_poses(features, Rc, tc, settings.camera, settings.noise, settings.contour,
-                         detail=True, leave_one_out=False, progress=progress)
+    cone = analyse_poses(
+        features,
+        Rc,
+        tc,
+        settings.camera,
+        settings.noise,
+        settings.contour,
+        detail=True,
+        leave_one_out=False,
+        progress=progress,
+    )
     ref = np.median(sph.rank_ratio, 0)
-    blind = {fid: float(np.mean(sph.rank_ratio[:, f] < BLIND_FACTOR * ref[f]))
-             for f, fid in enumerate(sph.layout.ids)}
+    blind = {fid: float(np.mean(sph.rank_ratio[:, f] < BLIND_FACTOR * ref[f])) for f, fid in enumerate(sph.layout.ids)}
     # worst: closest to losing rank (largest condition number, or for a design that cannot
     # fix all six DOF the smallest σ_r/σ₁), ties by predicted error
     m = sph.overall
@@ -118,14 +149,31 @@ def blind_spot_atlas(features: Features, settings: AnalysisSettings = AnalysisSe
     polar, azim = angle_from(features.nominal_beam_direction, beams[chosen])
     worst = []
     for k, i in enumerate(chosen):
-        worst.append({"beam_direction": [float(v) for v in beams[i]],
-                      "lon_deg": float(lon.flat[i]), "lat_deg": float(lat.flat[i]),
-                      "angle_from_nominal_deg": float(polar[k]), "azimuth_deg": float(azim[k]),
-                      "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
-                      "condition": _finite(m.condition[i]),
-                      "rank_ratio": float(sph.rank_deficiency()[i]),
-                      "translation_error_mm": _finite(m.translation_rms_mm[i]),
-                      "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
-                      "responsible": sph.responsible(i, ref, BLIND_FACTOR)})
-    return Atlas(features.name, lon, lat, sph, pol, az, cone, settings.workspace.cone_deg,
-                 np.asarray(features.nominal_beam_direction, float), worst, blind)
+        worst.append(
+            {
+                "beam_direction": [float(v) for v in beams[i]],
+                "lon_deg": float(lon.flat[i]),
+                "lat_deg": float(lat.flat[i]),
+                "angle_from_nominal_deg": float(polar[k]),
+                "azimuth_deg": float(azim[k]),
+                "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
+                "condition": _finite(m.condition[i]),
+                "rank_ratio": float(sph.rank_deficiency()[i]),
+                "translation_error_mm": _finite(m.translation_rms_mm[i]),
+                "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
+                "responsible": sph.responsible(i, ref, BLIND_FACTOR),
+            }
+        )
+    return Atlas(
+        features.name,
+        lon,
+        lat,
+        sph,
+        pol,
+        az,
+        cone,
+        settings.workspace.cone_deg,
+        np.asarray(features.nominal_beam_direction, float),
+        worst,
+        blind,
+    )

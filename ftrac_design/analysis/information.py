@@ -52,11 +52,11 @@ class FeatureLayout:
 
     ids: tuple[str, ...]
     kinds: tuple[str, ...]
-    X: np.ndarray          # (n, 3) mm in F: the model point of each row
-    T: np.ndarray          # (n, 3) unit tangent in F at each contour sample (0 for beads)
-    owner: np.ndarray      # (n,) index into ids of the feature each row belongs to
+    X: np.ndarray  # (n, 3) mm in F: the model point of each row
+    T: np.ndarray  # (n, 3) unit tangent in F at each contour sample (0 for beads)
+    owner: np.ndarray  # (n,) index into ids of the feature each row belongs to
     n_points: int
-    bounds: np.ndarray     # (F + 1,) rows of feature f are bounds[f]:bounds[f + 1]
+    bounds: np.ndarray  # (F + 1,) rows of feature f are bounds[f]:bounds[f + 1]
 
     @property
     def solver_rows(self) -> int:
@@ -95,8 +95,15 @@ def feature_layout(features: Features, contour: ContourSampling = ContourSamplin
         raise ValueError(f"{features.name} has no features to analyse")
     owner = np.asarray(owner)
     bounds = np.searchsorted(owner, np.arange(len(ids) + 1))
-    return FeatureLayout(tuple(ids), tuple(kinds), np.concatenate(X).astype(float),
-                         np.concatenate(T).astype(float), owner, len(features.points), bounds)
+    return FeatureLayout(
+        tuple(ids),
+        tuple(kinds),
+        np.concatenate(X).astype(float),
+        np.concatenate(T).astype(float),
+        owner,
+        len(features.points),
+        bounds,
+    )
 
 
 def _intrinsics(camera: Camera | np.ndarray, B: int) -> np.ndarray:
@@ -110,8 +117,14 @@ def _sigmas_px(layout: FeatureLayout, camera: Camera, noise: NoiseModel) -> np.n
     return np.array([by_kind[k] / pix for k in layout.kinds])
 
 
-def whitened_rows(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.ndarray,
-                  noise: NoiseModel = NoiseModel(), columns: bool = False) -> np.ndarray:
+def whitened_rows(
+    layout: FeatureLayout,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    noise: NoiseModel = NoiseModel(),
+    columns: bool = False,
+) -> np.ndarray:
     """Rows a (B, n, 6) of the whitened Jacobian at poses (B, 3, 3), (B, 3), one per
     :class:`FeatureLayout` row — per bead two (u, v), per contour sample one (its normal).
 
@@ -124,7 +137,7 @@ def whitened_rows(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.nd
     _, Z, pr = project_points(layout.X, _intrinsics(camera, B), R, t)
     _, x, y, fxz, fyz = pr
     # image tangent of each contour sample: ∂(u, v)/∂P_X applied to the rotated 3-D tangent
-    RT = (R.reshape(3 * B, 3) @ layout.T[P2:].T).reshape(B, 3, -1)             # (B, 3, n-P2)
+    RT = (R.reshape(3 * B, 3) @ layout.T[P2:].T).reshape(B, 3, -1)  # (B, 3, n-P2)
     du = fxz[:, P2:] * (RT[:, 0] - x[:, P2:] * RT[:, 2])
     dv = fyz[:, P2:] * (RT[:, 1] - y[:, P2:] * RT[:, 2])
     norm = np.hypot(du, dv)
@@ -143,8 +156,14 @@ def whitened_rows(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.nd
     return jacobian_rows(pr, slice(None), cu, cv, columns)
 
 
-def total_information(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.ndarray,
-                      noise: NoiseModel = NoiseModel(), chunk: int = CHUNK) -> np.ndarray:
+def total_information(
+    layout: FeatureLayout,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    noise: NoiseModel = NoiseModel(),
+    chunk: int = CHUNK,
+) -> np.ndarray:
     """Fisher information (B, 6, 6) of the whole design: the fast path, JᵀJ in one product."""
     R = np.asarray(R, float).reshape(-1, 3, 3)
     t = np.asarray(t, float).reshape(-1, 3)
@@ -156,8 +175,14 @@ def total_information(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: n
     return out
 
 
-def feature_information(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.ndarray,
-                        noise: NoiseModel = NoiseModel(), chunk: int = CHUNK) -> np.ndarray:
+def feature_information(
+    layout: FeatureLayout,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    noise: NoiseModel = NoiseModel(),
+    chunk: int = CHUNK,
+) -> np.ndarray:
     """Fisher information (B, F, 6, 6) of each feature at poses (B, 3, 3), (B, 3).
 
     Unscaled: rotation in rad, translation in mm, camera axes; ``Σ_f`` of it is the
@@ -172,6 +197,6 @@ def feature_information(layout: FeatureLayout, camera: Camera, R: np.ndarray, t:
         b = min(B, a + chunk)
         cols = whitened_rows(layout, camera, R[a:b], t[a:b], noise, columns=True)
         for f in range(F):
-            c = cols[:, :, bd[f]:bd[f + 1]]
+            c = cols[:, :, bd[f] : bd[f + 1]]
             out[a:b, f] = c @ np.swapaxes(c, 1, 2)
     return out

@@ -32,23 +32,23 @@ RANK_TOL = 1e-13
 class PoseMetrics:
     """Per-pose figures (arrays of length B); see the module docstring for definitions."""
 
-    sigma: np.ndarray          # (B, 6) singular values of the scaled whitened Jacobian, descending
-    condition: np.ndarray      # (B,)
-    sigma_min: np.ndarray      # (B,)
-    d_optimality: np.ndarray   # (B,)
+    sigma: np.ndarray  # (B, 6) singular values of the scaled whitened Jacobian, descending
+    condition: np.ndarray  # (B,)
+    sigma_min: np.ndarray  # (B,)
+    d_optimality: np.ndarray  # (B,)
     noise_amplification: np.ndarray  # (B,)
-    rotation_std_rad: np.ndarray     # (B, 3) about camera x, y, z
-    translation_std_mm: np.ndarray   # (B, 3) along camera x, y, z (z: depth)
+    rotation_std_rad: np.ndarray  # (B, 3) about camera x, y, z
+    translation_std_mm: np.ndarray  # (B, 3) along camera x, y, z (z: depth)
 
     @property
     def rotation_rms_deg(self) -> np.ndarray:
         """3-D RMS rotation error (root of the rotation covariance's trace), degrees."""
-        return np.degrees(np.sqrt(np.sum(self.rotation_std_rad ** 2, -1)))
+        return np.degrees(np.sqrt(np.sum(self.rotation_std_rad**2, -1)))
 
     @property
     def translation_rms_mm(self) -> np.ndarray:
         """3-D RMS translation error (root of the translation covariance's trace), mm."""
-        return np.sqrt(np.sum(self.translation_std_mm ** 2, -1))
+        return np.sqrt(np.sum(self.translation_std_mm**2, -1))
 
 
 def pose_metrics(info: np.ndarray, h: np.ndarray, m: int) -> PoseMetrics:
@@ -56,7 +56,7 @@ def pose_metrics(info: np.ndarray, h: np.ndarray, m: int) -> PoseMetrics:
     and ``m`` solver residual rows."""
     info = np.asarray(info, float)
     Is = info * h[:, None] * h[None, :]
-    lam = np.linalg.eigvalsh(Is)                                  # ascending
+    lam = np.linalg.eigvalsh(Is)  # ascending
     singular = lam[:, 0] <= RANK_TOL * lam[:, -1]
     sigma = np.sqrt(np.clip(lam[:, ::-1], 0.0, None))
     # I⁻¹ = H (H I H)⁻¹ H; singular rows get an identity stand-in and infinite variances

@@ -90,9 +90,12 @@ def plot_score(score: DesignScore, path: str | Path) -> Path:
     ax.set_title("cost of losing one feature", fontsize=10)
     ax.legend(fontsize=8)
     s = score.settings
-    fig.suptitle(f"{score.name}: {s.poses} workspace poses (cone {s.workspace.cone_deg:g}°, depth "
-                 f"{s.workspace.depth_mm:g} ± {s.workspace.depth_range_mm:g} mm), segmentation error "
-                 f"{s.segmentation_error_mm:g} mm — {'PASS' if score.passed else 'FAIL'}", fontsize=11)
+    fig.suptitle(
+        f"{score.name}: {s.poses} workspace poses (cone {s.workspace.cone_deg:g}°, depth "
+        f"{s.workspace.depth_mm:g} ± {s.workspace.depth_range_mm:g} mm), segmentation error "
+        f"{s.segmentation_error_mm:g} mm — {'PASS' if score.passed else 'FAIL'}",
+        fontsize=11,
+    )
     return save_figure(fig, path)
 
 
@@ -105,11 +108,14 @@ def plot_atlas_sphere(atlas: Atlas, path: str | Path) -> Path:
     lon, lat = np.radians(atlas.lon), np.radians(atlas.lat)
     rel = atlas.relative_rank_ratio()
     fig = plt.figure(figsize=(15, 5))
-    panels = [(atlas.grid(m.translation_rms_mm), "predicted 1σ translation error, mm", "viridis"),
-              (atlas.grid(np.log10(m.condition)), "log10 condition number (scaled Jacobian)", "magma")]
+    panels = [
+        (atlas.grid(m.translation_rms_mm), "predicted 1σ translation error, mm", "viridis"),
+        (atlas.grid(np.log10(m.condition)), "log10 condition number (scaled Jacobian)", "magma"),
+    ]
     nb = atlas.nominal_beam / np.linalg.norm(atlas.nominal_beam)
     # the cone boundary, traced as directions at cone_deg from the nominal beam
     from ..pose.simulate import cone_directions
+
     ring = cone_directions(nb, np.radians(atlas.cone_deg), np.linspace(0, 2 * np.pi, 181))
     for k, (val, title, cmap) in enumerate(panels):
         ax = fig.add_subplot(1, 2, k + 1, projection="mollweide")
@@ -128,13 +134,22 @@ def plot_atlas_sphere(atlas: Atlas, path: str | Path) -> Path:
         ax.plot(np.arctan2(nb[1], nb[0]), np.arcsin(nb[2]), "r+", ms=10)
         for i, w in enumerate(atlas.worst):
             ax.plot(np.radians(w["lon_deg"]), np.radians(w["lat_deg"]), "wo", ms=6, mec="k")
-            ax.annotate(str(i + 1), (np.radians(w["lon_deg"]), np.radians(w["lat_deg"])), color="w",
-                        fontsize=8, xytext=(4, 4), textcoords="offset points")
+            ax.annotate(
+                str(i + 1),
+                (np.radians(w["lon_deg"]), np.radians(w["lat_deg"])),
+                color="w",
+                fontsize=8,
+                xytext=(4, 4),
+                textcoords="offset points",
+            )
         ax.grid(True, alpha=0.3)
         ax.tick_params(labelsize=7)
-    fig.suptitle(f"{atlas.name}: every view direction (fiducial at the isocentre); red: the "
-                 f"{atlas.cone_deg:g}° workspace around the nominal beam (+); white curves: where a "
-                 f"feature goes blind; numbered: worst directions", fontsize=10)
+    fig.suptitle(
+        f"{atlas.name}: every view direction (fiducial at the isocentre); red: the "
+        f"{atlas.cone_deg:g}° workspace around the nominal beam (+); white curves: where a "
+        f"feature goes blind; numbered: worst directions",
+        fontsize=10,
+    )
     return save_figure(fig, path)
 
 
@@ -145,9 +160,11 @@ def plot_atlas_cone(atlas: Atlas, path: str | Path) -> Path:
     m = atlas.cone.overall
     th = np.radians(atlas.azimuth)
     fig = plt.figure(figsize=(12, 5))
-    panels = [(atlas.cone_grid(m.translation_rms_mm), "predicted 1σ translation error, mm", "viridis"),
-              (atlas.cone_grid(m.rotation_rms_deg), "predicted 1σ rotation error, deg", "cividis"),
-              (atlas.cone_grid(m.condition), "condition number", "magma")]
+    panels = [
+        (atlas.cone_grid(m.translation_rms_mm), "predicted 1σ translation error, mm", "viridis"),
+        (atlas.cone_grid(m.rotation_rms_deg), "predicted 1σ rotation error, deg", "cividis"),
+        (atlas.cone_grid(m.condition), "condition number", "magma"),
+    ]
     for k, (val, title, cmap) in enumerate(panels):
         ax = fig.add_subplot(1, 3, k + 1, projection="polar")
         pc = ax.pcolormesh(th, atlas.polar, val, cmap=cmap, shading="nearest")
@@ -155,8 +172,11 @@ def plot_atlas_cone(atlas: Atlas, path: str | Path) -> Path:
         ax.set_rlim(0, atlas.cone_deg)
         ax.tick_params(labelsize=7)
         _colorbar(fig, pc, ax, title, 0.1)
-    fig.suptitle(f"{atlas.name}: the {atlas.cone_deg:g}° workspace (radius: degrees from the nominal beam; "
-                 f"up: tilted toward the fiducial's +z)", fontsize=10)
+    fig.suptitle(
+        f"{atlas.name}: the {atlas.cone_deg:g}° workspace (radius: degrees from the nominal beam; "
+        f"up: tilted toward the fiducial's +z)",
+        fontsize=10,
+    )
     return save_figure(fig, path)
 
 
@@ -210,8 +230,14 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
         _cdf(ax, m, "smallest counted", color="k", lw=2)
     for k in PAIR_KINDS:
         if k in pc.kinds:
-            _cdf(ax, pc.kind_minimum(k), k + ("" if k in pc.counted else " (not counted)"), color=colours[k], lw=1,
-                 ls="-" if k in pc.counted else ":")
+            _cdf(
+                ax,
+                pc.kind_minimum(k),
+                k + ("" if k in pc.counted else " (not counted)"),
+                color=colours[k],
+                lw=1,
+                ls="-" if k in pc.counted else ":",
+            )
     ax.axvline(0.0, color="k", lw=0.8)
     if thresholds is not None and thresholds.min_clearance_px is not None:
         ax.axvline(thresholds.min_clearance_px, color="r", ls="--", label="threshold (p5)")
@@ -247,8 +273,14 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     _colorbar(fig, pcm, ax, "smallest clearance, px (black: 0)", 0.08)
     ax.set_title("every view direction (magenta: the workspace cone)", fontsize=10)
     ax = fig.add_subplot(1, 3, 3, projection="polar")
-    pcm = ax.pcolormesh(np.radians(seg_atlas.azimuth), seg_atlas.polar, np.clip(cone, vmin, vmax), cmap="RdYlBu",
-                        norm=norm, shading="nearest")
+    pcm = ax.pcolormesh(
+        np.radians(seg_atlas.azimuth),
+        seg_atlas.polar,
+        np.clip(cone, vmin, vmax),
+        cmap="RdYlBu",
+        norm=norm,
+        shading="nearest",
+    )
     if (cone < 0).any() and (cone > 0).any():
         ax.contour(np.radians(seg_atlas.azimuth), seg_atlas.polar, cone, levels=[0.0], colors="k", linewidths=0.6)
     ax.set_theta_zero_location("N")
@@ -256,6 +288,10 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     ax.tick_params(labelsize=7)
     _colorbar(fig, pcm, ax, "smallest clearance, px", 0.1)
     ax.set_title("the workspace cone\n(radius: ° from nominal; up: tilted toward +z)", fontsize=10, pad=14)
-    fig.suptitle(f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
-                 f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs", fontsize=11, y=1.07)
+    fig.suptitle(
+        f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
+        f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs",
+        fontsize=11,
+        y=1.07,
+    )
     return save_figure(fig, path)

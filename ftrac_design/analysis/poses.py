@@ -72,9 +72,15 @@ class PoseAnalysis:
                 break
             kind = self.layout.kinds[f]
             ang = self.view_angle_deg[i, f] if self.view_angle_deg is not None else np.nan
-            out.append({"id": self.layout.ids[f], "kind": kind, "relative_rank_ratio": float(rel[f]),
-                        "view_angle_deg": None if not np.isfinite(ang) else float(ang),
-                        "reason": _reason(kind, ang)})
+            out.append(
+                {
+                    "id": self.layout.ids[f],
+                    "kind": kind,
+                    "relative_rank_ratio": float(rel[f]),
+                    "view_angle_deg": None if not np.isfinite(ang) else float(ang),
+                    "reason": _reason(kind, ang),
+                }
+            )
         return out
 
     def attainable_rank(self) -> int:
@@ -95,11 +101,11 @@ def _reason(kind: str, angle_deg: float) -> str:
     """Why a feature is blind, from its view angle (see :attr:`PoseAnalysis.view_angle_deg`)."""
     if kind == "ellipse":
         if angle_deg < 10:
-            return "seen edge-on"   # projects to a segment: its shape says nothing of its tilt
+            return "seen edge-on"  # projects to a segment: its shape says nothing of its tilt
         if angle_deg > 80:
-            return "seen face-on"   # a tilt changes the image only to second order
+            return "seen face-on"  # a tilt changes the image only to second order
     if kind == "line" and angle_deg < 10:
-        return "seen end-on"        # projects to a point
+        return "seen end-on"  # projects to a point
     return "weakly seen"
 
 
@@ -138,10 +144,18 @@ def _view_angles(features: Features, layout: FeatureLayout, R: np.ndarray, t: np
     return out
 
 
-def analyse_poses(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
-                  noise: NoiseModel = NoiseModel(), contour: ContourSampling = ContourSampling(),
-                  detail: bool = True, leave_one_out: bool = True, chunk: int = CHUNK,
-                  progress: Callable[[int], None] | None = None) -> PoseAnalysis:
+def analyse_poses(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    noise: NoiseModel = NoiseModel(),
+    contour: ContourSampling = ContourSampling(),
+    detail: bool = True,
+    leave_one_out: bool = True,
+    chunk: int = CHUNK,
+    progress: Callable[[int], None] | None = None,
+) -> PoseAnalysis:
     """Metrics of ``features`` at poses R (B, 3, 3), t (B, 3) mm (F → X).
 
     ``detail=False`` computes the whole design's metrics only (the fast path the speed

@@ -41,8 +41,9 @@ def sphere_grid(step_deg: float = 2.0) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return LON, LAT, d
 
 
-def cone_grid(nominal_beam: np.ndarray, cone_deg: float = 25.0, polar_step_deg: float = 1.0,
-              azimuth_step_deg: float = 5.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def cone_grid(
+    nominal_beam: np.ndarray, cone_deg: float = 25.0, polar_step_deg: float = 1.0, azimuth_step_deg: float = 5.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """A polar grid of beam directions within ``cone_deg`` of the nominal beam.
 
     Azimuth 0 tilts the beam toward the fiducial's ``+z`` (see

@@ -74,8 +74,9 @@ class AnalysisSettings:
     def noise(self) -> NoiseModel:
         """The paper's uniform segmentation error as per-axis σ: beads ×``bead_error_factor``,
         line and ellipse contours ×``wire_error_factor``."""
-        return NoiseModel.from_segmentation_error(self.segmentation_error_mm).scaled(self.bead_error_factor,
-                                                                                     self.wire_error_factor)
+        return NoiseModel.from_segmentation_error(self.segmentation_error_mm).scaled(
+            self.bead_error_factor, self.wire_error_factor
+        )
 
     def for_parts(self, spec) -> "AnalysisSettings":
         """These settings with the (bead, wire) error factors of a design's [analysis] table
@@ -83,8 +84,9 @@ class AnalysisSettings:
         unchanged for None (a features file)."""
         if spec is None:
             return self
-        return replace(self, bead_error_factor=float(spec.bead_error_factor),
-                       wire_error_factor=float(spec.wire_error_factor))
+        return replace(
+            self, bead_error_factor=float(spec.bead_error_factor), wire_error_factor=float(spec.wire_error_factor)
+        )
 
     @property
     def noise_text(self) -> str:
@@ -100,13 +102,23 @@ class AnalysisSettings:
     def to_dict(self) -> dict:
         """Plain values for analysis.json."""
         ws = self.workspace
-        return {"cone_deg": ws.cone_deg, "depth_mm": ws.depth_mm, "depth_range_mm": ws.depth_range_mm,
-                "lateral_mm": ws.lateral_mm, "roll_deg": list(ws.roll_deg),
-                "segmentation_error_mm": self.segmentation_error_mm,
-                **({"bead_error_factor": self.bead_error_factor, "wire_error_factor": self.wire_error_factor}
-                   if self.error_factors != (1.0, 1.0) else {}),
-                "poses": self.poses, "seed": self.seed,
-                "camera": self.camera.to_dict(), "contour_samples": asdict(self.contour)}
+        return {
+            "cone_deg": ws.cone_deg,
+            "depth_mm": ws.depth_mm,
+            "depth_range_mm": ws.depth_range_mm,
+            "lateral_mm": ws.lateral_mm,
+            "roll_deg": list(ws.roll_deg),
+            "segmentation_error_mm": self.segmentation_error_mm,
+            **(
+                {"bead_error_factor": self.bead_error_factor, "wire_error_factor": self.wire_error_factor}
+                if self.error_factors != (1.0, 1.0)
+                else {}
+            ),
+            "poses": self.poses,
+            "seed": self.seed,
+            "camera": self.camera.to_dict(),
+            "contour_samples": asdict(self.contour),
+        }
 
 
 def _finite(x: float) -> float | None:
@@ -133,8 +145,10 @@ def _summary(m: PoseMetrics, t: np.ndarray, r: np.ndarray, stats) -> dict:
         "condition": {"worst": _finite(np.max(m.condition)), "median": _finite(np.median(m.condition))},
         "sigma_min": {"worst": float(np.min(m.sigma_min)), "median": float(np.median(m.sigma_min))},
         "d_optimality": {"worst": float(np.min(m.d_optimality)), "median": float(np.median(m.d_optimality))},
-        "noise_amplification": {"worst": float(np.min(m.noise_amplification)),
-                                "median": float(np.median(m.noise_amplification))},
+        "noise_amplification": {
+            "worst": float(np.min(m.noise_amplification)),
+            "median": float(np.median(m.noise_amplification)),
+        },
     }
 
 
@@ -160,10 +174,16 @@ class DesignScore:
 
     def to_dict(self) -> dict:
         """The score part of analysis.json."""
-        return {"figures": self.figures, "thresholds": asdict(self.thresholds), "checks": self.checks,
-                "passed": self.passed, "groups": self.groups, "features": self.per_feature,
-                "worst_poses": self.worst_poses,
-                "segmentability": self.segmentability.to_dict() if self.segmentability is not None else None}
+        return {
+            "figures": self.figures,
+            "thresholds": asdict(self.thresholds),
+            "checks": self.checks,
+            "passed": self.passed,
+            "groups": self.groups,
+            "features": self.per_feature,
+            "worst_poses": self.worst_poses,
+            "segmentability": self.segmentability.to_dict() if self.segmentability is not None else None,
+        }
 
 
 def _check(name: str, value: float | None, limit: float, unit: str) -> dict:
@@ -179,8 +199,16 @@ def segmentability_checks(seg: Segmentability, thresholds: Thresholds) -> list[d
         out.append(_check("overlap share", seg.overlap_share, thresholds.max_overlap_share, ""))
     if thresholds.min_clearance_px is not None:
         v = seg.clearance_p5_px
-        out.append({"figure": "clearance p5", "value": v, "limit": thresholds.min_clearance_px, "unit": "px",
-                    "at_least": True, "passed": bool(v is None or v >= thresholds.min_clearance_px)})
+        out.append(
+            {
+                "figure": "clearance p5",
+                "value": v,
+                "limit": thresholds.min_clearance_px,
+                "unit": "px",
+                "at_least": True,
+                "passed": bool(v is None or v >= thresholds.min_clearance_px),
+            }
+        )
     return out
 
 
@@ -195,32 +223,46 @@ def _per_feature(pa: PoseAnalysis, ref: np.ndarray) -> list[dict]:
         rr = pa.rank_ratio[:, f]
         ang = pa.view_angle_deg[:, f]
         wt, wr = np.percentile(wo.translation_rms_mm, 95), np.percentile(wo.rotation_rms_deg, 95)
-        out.append({
-            "id": fid, "kind": pa.layout.kinds[f],
-            "rank_ratio": {"median": float(ref[f]), "worst": float(rr.min())},
-            "blind_fraction": float(np.mean(rr < 0.25 * ref[f])),
-            "min_view_angle_deg": _finite(np.nanmin(ang)) if np.isfinite(ang).any() else None,
-            "without": {"translation_p95_mm": _finite(wt), "rotation_p95_deg": _finite(wr),
-                        "translation_loss": _finite(wt / p95_t), "rotation_loss": _finite(wr / p95_r)},
-        })
+        out.append(
+            {
+                "id": fid,
+                "kind": pa.layout.kinds[f],
+                "rank_ratio": {"median": float(ref[f]), "worst": float(rr.min())},
+                "blind_fraction": float(np.mean(rr < 0.25 * ref[f])),
+                "min_view_angle_deg": _finite(np.nanmin(ang)) if np.isfinite(ang).any() else None,
+                "without": {
+                    "translation_p95_mm": _finite(wt),
+                    "rotation_p95_deg": _finite(wr),
+                    "translation_loss": _finite(wt / p95_t),
+                    "rotation_loss": _finite(wr / p95_r),
+                },
+            }
+        )
     return out
 
 
-def score_design(features: Features, settings: AnalysisSettings = AnalysisSettings(),
-                 thresholds: Thresholds = Thresholds(),
-                 progress: Callable[[int], None] | None = None, n_worst: int = 5,
-                 segmentability: bool = True) -> DesignScore:
+def score_design(
+    features: Features,
+    settings: AnalysisSettings = AnalysisSettings(),
+    thresholds: Thresholds = Thresholds(),
+    progress: Callable[[int], None] | None = None,
+    n_worst: int = 5,
+    segmentability: bool = True,
+) -> DesignScore:
     """Score ``features`` over ``settings.poses`` random workspace poses (see module doc);
     ``segmentability`` also measures image clearances at the first
     ``settings.segmentability_poses`` of them (needed for its thresholds)."""
     R, t = workspace_poses(settings.workspace, features.nominal_beam_direction, settings.poses, settings.seed)
-    pa = analyse_poses(features, R, t, settings.camera, settings.noise, settings.contour, detail=True,
-                       progress=progress)
+    pa = analyse_poses(
+        features, R, t, settings.camera, settings.noise, settings.contour, detail=True, progress=progress
+    )
     m = pa.overall
     figures = summarise(m)
-    checks = [_check("worst translation", figures["translation_mm"]["worst"], thresholds.max_translation_mm, "mm"),
-              _check("worst rotation", figures["rotation_deg"]["worst"], thresholds.max_rotation_deg, "deg"),
-              _check("worst condition", figures["condition"]["worst"], thresholds.max_condition, "")]
+    checks = [
+        _check("worst translation", figures["translation_mm"]["worst"], thresholds.max_translation_mm, "mm"),
+        _check("worst rotation", figures["rotation_deg"]["worst"], thresholds.max_rotation_deg, "deg"),
+        _check("worst condition", figures["condition"]["worst"], thresholds.max_condition, ""),
+    ]
     groups = {g: summarise(gm) for g, gm in pa.groups.items()}
     for g, gm in pa.groups.items():
         groups[g]["singular_fraction"] = float(np.mean(~np.isfinite(gm.condition)))
@@ -232,11 +274,18 @@ def score_design(features: Features, settings: AnalysisSettings = AnalysisSettin
     polar, az = angle_from(features.nominal_beam_direction, beams[order])
     worst = []
     for k, i in enumerate(order):
-        worst.append({"beam_direction": [float(v) for v in beams[i]], "angle_from_nominal_deg": float(polar[k]),
-                      "azimuth_deg": float(az[k]), "translation_mm": [float(v) for v in t[i]],
-                      "translation_error_mm": _finite(m.translation_rms_mm[i]),
-                      "rotation_error_deg": _finite(m.rotation_rms_deg[i]), "condition": _finite(m.condition[i]),
-                      "responsible": pa.responsible(i, ref)})
+        worst.append(
+            {
+                "beam_direction": [float(v) for v in beams[i]],
+                "angle_from_nominal_deg": float(polar[k]),
+                "azimuth_deg": float(az[k]),
+                "translation_mm": [float(v) for v in t[i]],
+                "translation_error_mm": _finite(m.translation_rms_mm[i]),
+                "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
+                "condition": _finite(m.condition[i]),
+                "responsible": pa.responsible(i, ref),
+            }
+        )
     seg = None
     if segmentability or thresholds.max_overlap_share is not None or thresholds.min_clearance_px is not None:
         k = min(settings.poses, settings.segmentability_poses)

@@ -142,10 +142,10 @@ def _project(X: np.ndarray, intr: np.ndarray, R: np.ndarray, t: np.ndarray) -> t
 class _Curve:
     id: str
     kind: str
-    target: np.ndarray      # (B, k+1, 2) the curve as a distance target: a segment, or the closed polygon
-    vertices: np.ndarray    # (B, n+1, 2) where distances along the curve are measured (closed: last = first)
+    target: np.ndarray  # (B, k+1, 2) the curve as a distance target: a segment, or the closed polygon
+    vertices: np.ndarray  # (B, n+1, 2) where distances along the curve are measured (closed: last = first)
     half_width: np.ndarray  # (B,) px
-    sag: float              # largest polygon sag, px (0 for a line)
+    sag: float  # largest polygon sag, px (0 for a line)
 
     @property
     def closed(self) -> bool:
@@ -203,9 +203,9 @@ def distance_to_polyline(P: np.ndarray, V: np.ndarray, closed: bool = False) -> 
     Vk = V[:, :k]
     A = np.concatenate([-2.0 * P, np.ones(P.shape[:2] + (1,))], -1)
     W = np.concatenate([Vk, (Vk * Vk).sum(-1, keepdims=True)], -1)
-    j = np.argmin(A @ np.swapaxes(W, 1, 2), -1)                # (B, m) nearest vertex
+    j = np.argmin(A @ np.swapaxes(W, 1, 2), -1)  # (B, m) nearest vertex
     prev = (j - 1) % k if closed else np.maximum(j - 1, 0)
-    nxt = j + 1                                                # V has k + 1 rows
+    nxt = j + 1  # V has k + 1 rows
     take = lambda idx: np.take_along_axis(V, idx[..., None], 1)  # noqa: E731 — (B, m, 2)
     vj = take(j)
     return np.minimum(_segment_distance(P, take(prev), vj), _segment_distance(P, vj, take(nxt)))
@@ -236,7 +236,7 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
     K = f.shape[0]
     s = np.concatenate([np.zeros((B, 1)), np.cumsum(np.hypot(*np.moveaxis(np.diff(P, axis=1), -1, 0)), 1)], 1)
     total = s[:, -1].copy()
-    if closed:                                   # once more round: windows may wrap
+    if closed:  # once more round: windows may wrap
         f = np.concatenate([f, f[..., 1:]], -1)
         s = np.concatenate([s, s[:, 1:] + total[:, None]], 1)
         starts, ends = np.arange(m - 1), np.arange(m - 1, 2 * m - 1)
@@ -264,27 +264,29 @@ def stretch_distance(f: np.ndarray, P: np.ndarray, stretch: float, closed: bool 
     base = (np.arange(K)[:, None, None] * B + rows) * L
     fl, sl = f.ravel(), s.ravel()
 
-    def range_max(lo, hi):                       # inclusive vertex ranges (B, n) → (K, B, n)
+    def range_max(lo, hi):  # inclusive vertex ranges (B, n) → (K, B, n)
         p = log2[hi - lo]
         q = p * (K * B * L) + base
         return np.maximum(table.take(q + lo), table.take(q + hi - (1 << p) + 1))
 
-    def lerp(i, x):                              # f at arc position x in segment i … i+1
+    def lerp(i, x):  # f at arc position x in segment i … i+1
         k = rows * L + i
         s0, s1 = sl.take(k), sl.take(k + 1)
         lam = np.clip((x - s0) / np.where(s1 > s0, s1 - s0, 1.0), 0.0, 1.0)
         f0, f1 = fl.take(base + i), fl.take(base + i + 1)
         return f0 + lam * (f1 - f0)
 
-    ok = j < L                                   # an open curve's windows may run off its end
+    ok = j < L  # an open curve's windows may run off its end
     j = np.clip(j, 1, L - 1)
-    best = np.where(ok, np.maximum(range_max(np.broadcast_to(starts, j.shape), j - 1), lerp(j - 1, end)),
-                    np.inf).min(-1)
+    best = np.where(ok, np.maximum(range_max(np.broadcast_to(starts, j.shape), j - 1), lerp(j - 1, end)), np.inf).min(
+        -1
+    )
     ok = i >= 0
     i = np.clip(i, 0, L - 2)
     jj = np.broadcast_to(ends, i.shape)
-    best = np.minimum(best, np.where(ok, np.maximum(range_max(np.minimum(i + 1, jj), jj), lerp(i, beg)),
-                                     np.inf).min(-1))
+    best = np.minimum(
+        best, np.where(ok, np.maximum(range_max(np.minimum(i + 1, jj), jj), lerp(i, beg)), np.inf).min(-1)
+    )
     return np.where(total < stretch, f[..., :m].max(-1), best).reshape(lead + (B,))
 
 
@@ -324,7 +326,7 @@ def _pair_chunk(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray
     cols: list[np.ndarray] = []
     pts = features.points
     if pts:
-        c, z = _project(features.point_centers(), intr, R, t)          # (B, P, 2), (B, P)
+        c, z = _project(features.point_centers(), intr, R, t)  # (B, P, 2), (B, P)
         r = 0.5 * np.array([p.diameter for p in pts]) * f_px / z
         i, j = np.triu_indices(len(pts), 1)
         if i.size:
@@ -351,8 +353,14 @@ def _pair_chunk(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray
     return pairs, kinds, C, max((cv.sag for cv in curves), default=0.0)
 
 
-def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                    settings: ClearanceSettings = ClearanceSettings(), chunk: int = CHUNK) -> PairClearance:
+def pair_clearances(
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    settings: ClearanceSettings = ClearanceSettings(),
+    chunk: int = CHUNK,
+) -> PairClearance:
     """Clearance (px, beyond both widths) of every pair of distinct ``features`` at poses
     R (B, 3, 3), t (B, 3) mm (F → X), seen by ``camera``. See the module doc.
 
@@ -363,7 +371,7 @@ def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.nda
     starts = list(range(0, R.shape[0], chunk)) or [0]
 
     def one(a: int):
-        return _pair_chunk(features, camera, R[a:a + chunk], t[a:a + chunk], settings)
+        return _pair_chunk(features, camera, R[a : a + chunk], t[a : a + chunk], settings)
 
     if len(starts) == 1:
         parts = [one(starts[0])]
@@ -375,12 +383,14 @@ def pair_clearances(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         with ThreadPoolExecutor(max_workers=_workers()) as pool:
             parts = list(pool.map(one, starts))
     pairs, kinds = parts[0][0], parts[0][1]
-    return PairClearance(pairs, kinds, np.concatenate([p[2] for p in parts]), max(p[3] for p in parts),
-                         tuple(settings.counted))
+    return PairClearance(
+        pairs, kinds, np.concatenate([p[2] for p in parts]), max(p[3] for p in parts), tuple(settings.counted)
+    )
 
 
-def image_clearance(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                    settings: ClearanceSettings = ClearanceSettings()) -> tuple[np.ndarray, np.ndarray]:
+def image_clearance(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, settings: ClearanceSettings = ClearanceSettings()
+) -> tuple[np.ndarray, np.ndarray]:
     """The segmentability constraint at poses R (B, 3, 3), t (B, 3) mm (F → X).
 
     Returns the smallest image-plane clearance between distinct features at each pose (B,),
@@ -398,6 +408,7 @@ def image_clearance(features: Features, camera: Camera, R: np.ndarray, t: np.nda
 
 
 # ---- summaries for the analysis (analysis.json, plots) ---------------------------------------
+
 
 def _stats(a: np.ndarray) -> dict:
     """min / 5th percentile / median (None where infinite: no pair of that kind)."""
@@ -443,8 +454,7 @@ class Segmentability:
             if k not in pc.kinds:
                 continue
             km = pc.kind_minimum(k)
-            kinds[k] = {"counted": k in pc.counted, "overlap_share": float(np.mean(km < 0)),
-                        "clearance_px": _stats(km)}
+            kinds[k] = {"counted": k in pc.counted, "overlap_share": float(np.mean(km < 0)), "clearance_px": _stats(km)}
         share = pc.overlap().mean(0) if pc.clearance_px.size else np.zeros(0)
         pairs = {pc.pair_name(i): float(share[i]) for i in np.argsort(-share, kind="stable") if share[i] > 0}
         m = self.clearance_px
@@ -455,25 +465,49 @@ class Segmentability:
             beams = self.R[order, 2, :]
             polar, az = angle_from(self.nominal_beam, beams)
             for k, i in enumerate(order):
-                worst.append({"beam_direction": [float(v) for v in beams[k]],
-                              "angle_from_nominal_deg": float(polar[k]), "azimuth_deg": float(az[k]),
-                              "translation_mm": [float(v) for v in self.t[i]], "clearance_px": float(m[i]),
-                              "pair": pc.pair_name(int(wp[i])), "kind": pc.kinds[int(wp[i])]})
+                worst.append(
+                    {
+                        "beam_direction": [float(v) for v in beams[k]],
+                        "angle_from_nominal_deg": float(polar[k]),
+                        "azimuth_deg": float(az[k]),
+                        "translation_mm": [float(v) for v in self.t[i]],
+                        "clearance_px": float(m[i]),
+                        "pair": pc.pair_name(int(wp[i])),
+                        "kind": pc.kinds[int(wp[i])],
+                    }
+                )
         s = self.settings
-        return {"settings": {"stretch_px": s.stretch_px, "ellipse_samples": s.ellipse_samples,
-                             "line_samples": s.line_samples, "counted": list(s.counted), "poses": int(m.size)},
-                "sampling_error_px": pc.sampling_error_px,
-                "clearance_px": _stats(m), "overlap_share": self.overlap_share,
-                "kinds": kinds, "pairs_overlap_share": pairs, "worst_poses": worst}
+        return {
+            "settings": {
+                "stretch_px": s.stretch_px,
+                "ellipse_samples": s.ellipse_samples,
+                "line_samples": s.line_samples,
+                "counted": list(s.counted),
+                "poses": int(m.size),
+            },
+            "sampling_error_px": pc.sampling_error_px,
+            "clearance_px": _stats(m),
+            "overlap_share": self.overlap_share,
+            "kinds": kinds,
+            "pairs_overlap_share": pairs,
+            "worst_poses": worst,
+        }
 
 
-def segmentability(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                   settings: ClearanceSettings = ClearanceSettings()) -> Segmentability:
+def segmentability(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, settings: ClearanceSettings = ClearanceSettings()
+) -> Segmentability:
     """Clearances of ``features`` at workspace poses R (B, 3, 3), t (B, 3) mm (F → X)."""
     R = np.asarray(R, float).reshape(-1, 3, 3)
     t = np.asarray(t, float).reshape(-1, 3)
-    return Segmentability(features.name, settings, R, t, pair_clearances(features, camera, R, t, settings),
-                          np.asarray(features.nominal_beam_direction, float))
+    return Segmentability(
+        features.name,
+        settings,
+        R,
+        t,
+        pair_clearances(features, camera, R, t, settings),
+        np.asarray(features.nominal_beam_direction, float),
+    )
 
 
 @dataclass
@@ -511,17 +545,24 @@ class SegmentabilityAtlas:
             kinds[k] = float(np.sum(w * ((ms < 0) & (np.array(self.sphere.kinds)[wp] == k))) / w.sum())
         # the cone grid's cells are equal in polar angle: weight by sin(polar) for area
         wc = np.sin(np.radians(self.polar)).ravel()
-        return {"sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])) if self.lon.shape[1] > 1 else None,
-                "directions": int(ms.size),
-                "overlap_share_of_sphere": float(np.sum(w * (ms < 0)) / w.sum()),
-                "overlap_share_of_sphere_by_worst_kind": kinds,
-                "overlap_share_of_cone": float(np.sum(wc * (mc < 0)) / wc.sum()),
-                "clearance_px_in_cone": _stats(mc)}
+        return {
+            "sphere_step_deg": float(abs(self.lon[0, 1] - self.lon[0, 0])) if self.lon.shape[1] > 1 else None,
+            "directions": int(ms.size),
+            "overlap_share_of_sphere": float(np.sum(w * (ms < 0)) / w.sum()),
+            "overlap_share_of_sphere_by_worst_kind": kinds,
+            "overlap_share_of_cone": float(np.sum(wc * (mc < 0)) / wc.sum()),
+            "clearance_px_in_cone": _stats(mc),
+        }
 
 
-def segmentability_atlas(features: Features, camera: Camera, depth_mm: float, cone_deg: float,
-                         step_deg: float = 3.0,
-                         settings: ClearanceSettings = ClearanceSettings()) -> SegmentabilityAtlas:
+def segmentability_atlas(
+    features: Features,
+    camera: Camera,
+    depth_mm: float,
+    cone_deg: float,
+    step_deg: float = 3.0,
+    settings: ClearanceSettings = ClearanceSettings(),
+) -> SegmentabilityAtlas:
     """Clearances over the whole sphere of view directions (``step_deg`` grid) and the
     workspace cone (1° × 5° polar grid), fiducial origin at ``depth_mm`` on the principal ray."""
     from .sampling import cone_grid, isocentre_poses, sphere_grid

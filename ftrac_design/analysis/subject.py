@@ -64,18 +64,48 @@ def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, 
         vals.update(subject.spec.model_dump())
     vals.update({k: v for k, v in overrides.items() if v is not None})
     s, th = AnalysisSettings(), Thresholds()
-    ws = replace(Workspace(), **{k: vals[k2] for k, k2 in (("cone_deg", "cone_deg"), ("depth_mm", "depth"),
-                                                           ("depth_range_mm", "depth_range"),
-                                                           ("lateral_mm", "lateral")) if k2 in vals})
+    ws = replace(
+        Workspace(),
+        **{
+            k: vals[k2]
+            for k, k2 in (
+                ("cone_deg", "cone_deg"),
+                ("depth_mm", "depth"),
+                ("depth_range_mm", "depth_range"),
+                ("lateral_mm", "lateral"),
+            )
+            if k2 in vals
+        },
+    )
     if "roll_range_deg" in vals:
         ws = replace(ws, roll_deg=tuple(float(v) for v in vals["roll_range_deg"]))
-    s = replace(s, workspace=ws, **{k: vals[k2] for k, k2 in (("segmentation_error_mm", "segmentation_error"),
-                                                              ("bead_error_factor", "bead_error_factor"),
-                                                              ("wire_error_factor", "wire_error_factor"),
-                                                              ("poses", "poses"), ("seed", "seed")) if k2 in vals})
-    th = replace(th, **{k: vals[k2] for k, k2 in (("max_translation_mm", "max_translation"),
-                                                 ("max_rotation_deg", "max_rotation_deg"),
-                                                 ("max_condition", "max_condition"),
-                                                 ("max_overlap_share", "max_overlap_share"),
-                                                 ("min_clearance_px", "min_clearance_px")) if k2 in vals})
+    s = replace(
+        s,
+        workspace=ws,
+        **{
+            k: vals[k2]
+            for k, k2 in (
+                ("segmentation_error_mm", "segmentation_error"),
+                ("bead_error_factor", "bead_error_factor"),
+                ("wire_error_factor", "wire_error_factor"),
+                ("poses", "poses"),
+                ("seed", "seed"),
+            )
+            if k2 in vals
+        },
+    )
+    th = replace(
+        th,
+        **{
+            k: vals[k2]
+            for k, k2 in (
+                ("max_translation_mm", "max_translation"),
+                ("max_rotation_deg", "max_rotation_deg"),
+                ("max_condition", "max_condition"),
+                ("max_overlap_share", "max_overlap_share"),
+                ("min_clearance_px", "min_clearance_px"),
+            )
+            if k2 in vals
+        },
+    )
     return s, th

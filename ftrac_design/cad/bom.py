@@ -29,8 +29,39 @@ from ..features.mounting import connector_layout, mount_layout
 from .profiles import Profile
 
 #: metric acetal rod diameters commonly stocked, mm
-ROD_DIAMETERS = (6, 8, 10, 12, 14, 15, 16, 18, 20, 22, 25, 28, 30, 32, 35, 40, 45, 50, 55, 60, 65, 70, 75,
-                 80, 90, 100, 110, 120, 130, 140, 150)
+ROD_DIAMETERS = (
+    6,
+    8,
+    10,
+    12,
+    14,
+    15,
+    16,
+    18,
+    20,
+    22,
+    25,
+    28,
+    30,
+    32,
+    35,
+    40,
+    45,
+    50,
+    55,
+    60,
+    65,
+    70,
+    75,
+    80,
+    90,
+    100,
+    110,
+    120,
+    130,
+    140,
+    150,
+)
 #: length held in the 4-axis chuck (not machined), mm
 CHUCK_ALLOWANCE = 15.0
 #: ISO 4762 preferred nominal lengths, mm
@@ -75,32 +106,63 @@ def bill_of_materials(design: Design, features: Features, profile: Profile = "cn
         body_stock = {"form": "printed", "diameter": od, "length": L}
     stock = [
         {"part": "body", "material": design.body.material, "finished": {"diameter": od, "length": L}, **body_stock},
-        {"part": "mount", "material": m.material, "finished": [mount.width, mount.width, mount.height],
-         "form": "block" if profile == "cnc" else "printed",
-         "size": _block([mount.width, mount.width, mount.height], profile)},
-        {"part": "connector", "material": c.material, "finished": [float(v) for v in con.size],
-         "form": "plate" if profile == "cnc" else "printed", "size": _block([float(v) for v in con.size], profile)},
+        {
+            "part": "mount",
+            "material": m.material,
+            "finished": [mount.width, mount.width, mount.height],
+            "form": "block" if profile == "cnc" else "printed",
+            "size": _block([mount.width, mount.width, mount.height], profile),
+        },
+        {
+            "part": "connector",
+            "material": c.material,
+            "finished": [float(v) for v in con.size],
+            "form": "plate" if profile == "cnc" else "printed",
+            "size": _block([float(v) for v in con.size], profile),
+        },
     ]
 
     pieces = []
     for e in features.ellipses:
         length = e.circumference
-        pieces.append({"feature": e.id, "piece": f"wire_{e.id}", "shape": "ring", "length": round(length, 3),
-                       "cut_length": round(length + allowance, 1)})
+        pieces.append(
+            {
+                "feature": e.id,
+                "piece": f"wire_{e.id}",
+                "shape": "ring",
+                "length": round(length, 3),
+                "cut_length": round(length + allowance, 1),
+            }
+        )
     for ln in features.lines:
         for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
             length = float(math.dist(a, b))
-            pieces.append({"feature": ln.id, "piece": f"wire_{ln.id}_{k}", "shape": "straight",
-                           "length": round(length, 3), "cut_length": round(length + allowance, 1)})
+            pieces.append(
+                {
+                    "feature": ln.id,
+                    "piece": f"wire_{ln.id}_{k}",
+                    "shape": "straight",
+                    "length": round(length, 3),
+                    "cut_length": round(length + allowance, 1),
+                }
+            )
     wires = None
     if design.wire is not None and pieces:
-        wires = {"diameter": design.wire.diameter, "material": design.wire.material, "cut_allowance": allowance,
-                 "pieces": pieces, "total_cut_length": round(sum(p["cut_length"] for p in pieces), 1)}
+        wires = {
+            "diameter": design.wire.diameter,
+            "material": design.wire.material,
+            "cut_allowance": allowance,
+            "pieces": pieces,
+            "total_cut_length": round(sum(p["cut_length"] for p in pieces), 1),
+        }
 
     beads = None
     if features.points:
-        beads = {"count": len(features.points), "diameter": design.bead.diameter if design.bead else None,
-                 "material": design.bead.material if design.bead else None}
+        beads = {
+            "count": len(features.points),
+            "diameter": design.bead.diameter if design.bead else None,
+            "material": design.bead.material if design.bead else None,
+        }
 
     screws = []
     zs = mount.set("z")
@@ -109,10 +171,15 @@ def bill_of_materials(design: Design, features: Features, profile: Profile = "cn
         d = _thread_d(hz.screw)
         clamp = mount.height - (hz.counterbore_depth if hz.counterbore_diameter else 0.0)
         n = _longest(clamp + c.thickness - c.pocket_depth - 0.5)
-        screws.append({"item": f"ISO 4762 {hz.screw} x {n}" if n else f"ISO 4762 {hz.screw} (no standard length fits)",
-                       "qty": len(zs), "use": "mount to connector (mount's z hole set into the tapped plate)",
-                       "thread_engagement": round(n - clamp, 2) if n else None,
-                       "recommended_engagement": 1.5 * d})
+        screws.append(
+            {
+                "item": f"ISO 4762 {hz.screw} x {n}" if n else f"ISO 4762 {hz.screw} (no standard length fits)",
+                "qty": len(zs),
+                "use": "mount to connector (mount's z hole set into the tapped plate)",
+                "thread_engagement": round(n - clamp, 2) if n else None,
+                "recommended_engagement": 1.5 * d,
+            }
+        )
     for axis, hs in (("x", m.holes_x), ("y", m.holes_y), ("z", m.holes_z)):
         holes = mount.set(axis)
         if not holes:
@@ -120,14 +187,24 @@ def bill_of_materials(design: Design, features: Features, profile: Profile = "cn
         d = _thread_d(hs.screw)
         clamp = holes[0].length - (hs.counterbore_depth if hs.counterbore_diameter else 0.0)
         n = _shortest(clamp + 1.5 * d)
-        screws.append({"item": f"ISO 4762 {hs.screw} x {n}" if n else f"ISO 4762 {hs.screw}",
-                       "qty": len(holes), "use": f"mount to a rotary table tapped {hs.screw} on a "
-                                                 f"{mount.pitches[axis]:g} mm pattern ({axis} hole set; optional)",
-                       "thread_engagement": round(n - clamp, 2) if n else None})
+        screws.append(
+            {
+                "item": f"ISO 4762 {hs.screw} x {n}" if n else f"ISO 4762 {hs.screw}",
+                "qty": len(holes),
+                "use": f"mount to a rotary table tapped {hs.screw} on a "
+                f"{mount.pitches[axis]:g} mm pattern ({axis} hole set; optional)",
+                "thread_engagement": round(n - clamp, 2) if n else None,
+            }
+        )
 
-    pins = [{"item": f"ISO 2338 {c.pin_diameter:g} m6 x {c.pin_length:g}", "qty": len(con.pins),
-             "use": "connector to the template's grid holes",
-             "grid_nodes": [list(p.node) for p in con.pins], "engagement": c.pin_engagement}]
+    pins = [
+        {
+            "item": f"ISO 2338 {c.pin_diameter:g} m6 x {c.pin_length:g}",
+            "qty": len(con.pins),
+            "use": "connector to the template's grid holes",
+            "grid_nodes": [list(p.node) for p in con.pins],
+            "engagement": c.pin_engagement,
+        }
+    ]
 
-    return {"profile": profile, "stock": stock, "wires": wires, "beads": beads, "screws": screws,
-            "dowel_pins": pins}
+    return {"profile": profile, "stock": stock, "wires": wires, "beads": beads, "screws": screws, "dowel_pins": pins}

@@ -29,9 +29,22 @@ MANIFEST_VERSION = 1
 
 #: files every build writes (manifest.json last, it lists the others' hashes)
 #: (body.ngc: the 4-axis program, cnc profile only; the fanuc post names it body.nc)
-OUTPUT_FILES = ("features.json", "fiducial.step", "fiducial.stl", "mount.step", "mount.stl", "connector.step",
-                "connector.stl", "grooves.csv", "grooves.dxf", "body.ngc", "assembly.step", "render.png",
-                *DRAWING_FILES, "manifest.json")
+OUTPUT_FILES = (
+    "features.json",
+    "fiducial.step",
+    "fiducial.stl",
+    "mount.step",
+    "mount.stl",
+    "connector.step",
+    "connector.stl",
+    "grooves.csv",
+    "grooves.dxf",
+    "body.ngc",
+    "assembly.step",
+    "render.png",
+    *DRAWING_FILES,
+    "manifest.json",
+)
 #: what an fdm build writes besides (the 3MF of the printed parts, the slicer settings)
 FDM_OUTPUT_FILES = FDM_FILES
 
@@ -63,8 +76,9 @@ def default_output_dir(design: Design) -> Path:
 
 def _check_output_dir(out_dir: Path) -> None:
     """Refuse to replace anything but an empty directory or an earlier build's output."""
-    check_output_dir(out_dir, "an earlier build's output",
-                     lambda d: json_format_is(d / "manifest.json", MANIFEST_FORMAT))
+    check_output_dir(
+        out_dir, "an earlier build's output", lambda d: json_format_is(d / "manifest.json", MANIFEST_FORMAT)
+    )
 
 
 @contextlib.contextmanager
@@ -120,8 +134,14 @@ def require_cad_packages(render: bool = True) -> None:
         require("pyvista", "cad", "building the CAD parts (the render)")
 
 
-def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: Profile = "cnc",
-                   force: bool = False, render: bool = True, post: str = "linuxcnc") -> BuildResult:
+def build_fiducial(
+    design: Design,
+    out_dir: str | Path | None = None,
+    profile: Profile = "cnc",
+    force: bool = False,
+    render: bool = True,
+    post: str = "linuxcnc",
+) -> BuildResult:
     """Build ``design`` into ``out_dir`` (default :func:`default_output_dir`).
 
     ``render=False`` skips ``render.png`` (benchmarks only; the command always renders).
@@ -185,11 +205,29 @@ def build_fiducial(design: Design, out_dir: str | Path | None = None, profile: P
             from .render import render_png
 
             sizes = [x.diameter for x in (design.wire, design.bead) if x is not None]
-            render_png(body, parts, tmp / "render.png", title=f"{design.name}  ({profile})",
-                       part_size=min(sizes) if sizes else None)
+            render_png(
+                body,
+                parts,
+                tmp / "render.png",
+                title=f"{design.name}  ({profile})",
+                part_size=min(sizes) if sizes else None,
+            )
         clock.lap("render")
-        manifest = _manifest(design, features, cuts, plan, body_volume, parts, stl, (stl_tol, stl_ang),
-                             stl_rel, tmp, force, profile, cq.__version__)
+        manifest = _manifest(
+            design,
+            features,
+            cuts,
+            plan,
+            body_volume,
+            parts,
+            stl,
+            (stl_tol, stl_ang),
+            stl_rel,
+            tmp,
+            force,
+            profile,
+            cq.__version__,
+        )
         manifest["manufacturing"] = manufacturing_manifest(design, features, profile, report, made)
         if gcode is not None:
             manifest["manufacturing"]["gcode"] = gcode
@@ -226,20 +264,37 @@ def _ocp_version() -> str:
     return str(v)
 
 
-def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan, body_volume: float,
-              parts: list, stl, stl_tols: tuple[float, float], stl_rel: float, tmp: Path, force: bool,
-              profile: Profile, cq_version: str) -> dict[str, Any]:
+def _manifest(
+    design: Design,
+    features: Features,
+    cuts: CutSizes,
+    plan: BodyPlan,
+    body_volume: float,
+    parts: list,
+    stl,
+    stl_tols: tuple[float, float],
+    stl_rel: float,
+    tmp: Path,
+    force: bool,
+    profile: Profile,
+    cq_version: str,
+) -> dict[str, Any]:
     import math
 
-    blank = math.pi * (plan.outer_radius ** 2 - plan.bore_radius ** 2) * 2 * plan.half_length
+    blank = math.pi * (plan.outer_radius**2 - plan.bore_radius**2) * 2 * plan.half_length
     wires = [p for p in parts if p.kind == "wire"]
     beads = [p for p in parts if p.kind == "bead"]
     lengths = {f.id: round(features.wire_length(f.id), 4) for f in (*features.ellipses, *features.lines)}
     pieces = []
     for ln in features.lines:
         for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
-            pieces.append({"name": f"wire_{ln.id}_{k}", "feature": ln.id,
-                           "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4)})
+            pieces.append(
+                {
+                    "name": f"wire_{ln.id}_{k}",
+                    "feature": ln.id,
+                    "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4),
+                }
+            )
     files = {}
     for name in output_files(profile):
         p = tmp / name
@@ -248,14 +303,17 @@ def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan
     return {
         "format": MANIFEST_FORMAT,
         "version": MANIFEST_VERSION,
-        "design": {"name": design.name, "source": design.source, "sha256": design.sha256,
-                   "parameters": design.model_dump(mode="json")},
+        "design": {
+            "name": design.name,
+            "source": design.source,
+            "sha256": design.sha256,
+            "parameters": design.model_dump(mode="json"),
+        },
         "profile": profile,
         "cut_sizes": cuts.as_dict(),
         "force": force,
         "files": files,
-        "features": {"points": len(features.points), "lines": len(features.lines),
-                     "ellipses": len(features.ellipses)},
+        "features": {"points": len(features.points), "lines": len(features.lines), "ellipses": len(features.ellipses)},
         "wires": {
             "diameter_mm": design.wire.diameter if design.wire else None,
             "material": design.wire.material if design.wire else None,
@@ -263,16 +321,31 @@ def _manifest(design: Design, features: Features, cuts: CutSizes, plan: BodyPlan
             "total_length_mm": round(sum(lengths.values()), 4),
             "line_pieces": pieces,
         },
-        "beads": {"count": len(features.points),
-                  "diameter_mm": design.bead.diameter if design.bead else None,
-                  "material": design.bead.material if design.bead else None},
-        "volumes_mm3": {"body": round(body_volume, 4), "blank": round(blank, 4),
-                        "removed": round(blank - body_volume, 4),
-                        "wires": round(sum(p.volume for p in wires), 4),
-                        "beads": round(sum(p.volume for p in beads), 4)},
-        "stl": {"chord_tolerance_mm": stl_tols[0], "angular_tolerance_rad": stl_tols[1],
-                "triangles": stl.triangles, "watertight": stl.watertight, "repaired": stl.repaired,
-                "volume_mm3": round(stl.volume, 4), "volume_vs_brep": stl_rel},
-        "versions": {"ftrac_design": __version__, "cadquery": cq_version, "ocp": _ocp_version(),
-                     "python": platform.python_version()},
+        "beads": {
+            "count": len(features.points),
+            "diameter_mm": design.bead.diameter if design.bead else None,
+            "material": design.bead.material if design.bead else None,
+        },
+        "volumes_mm3": {
+            "body": round(body_volume, 4),
+            "blank": round(blank, 4),
+            "removed": round(blank - body_volume, 4),
+            "wires": round(sum(p.volume for p in wires), 4),
+            "beads": round(sum(p.volume for p in beads), 4),
+        },
+        "stl": {
+            "chord_tolerance_mm": stl_tols[0],
+            "angular_tolerance_rad": stl_tols[1],
+            "triangles": stl.triangles,
+            "watertight": stl.watertight,
+            "repaired": stl.repaired,
+            "volume_mm3": round(stl.volume, 4),
+            "volume_vs_brep": stl_rel,
+        },
+        "versions": {
+            "ftrac_design": __version__,
+            "cadquery": cq_version,
+            "ocp": _ocp_version(),
+            "python": platform.python_version(),
+        },
     }

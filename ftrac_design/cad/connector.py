@@ -68,7 +68,7 @@ class ConnectorPart:
         k = self.layout
         sx, sy, t = (float(x) for x in k.size)
         r = k.pocket_corner_radius
-        vol = sx * sy * t - (self.pocket_size ** 2 - (4 - math.pi) * r * r) * k.pocket_depth
+        vol = sx * sy * t - (self.pocket_size**2 - (4 - math.pi) * r * r) * k.pocket_depth
         for h in k.holes:
             rr = self.hole_diameter(h.kind) / 2
             length = t - k.pocket_depth if h.kind == "tapped" else t
@@ -79,17 +79,25 @@ class ConnectorPart:
         k = self.layout
         s = self.pocket_size
         depth = k.pocket_depth + OVERSHOOT
-        return (cq.Workplane("XY").box(s, s, depth, centered=(True, True, False)).edges("|Z")
-                .fillet(k.pocket_corner_radius).val()
-                .translate(cq.Vector(float(k.pocket_center[0]), float(k.pocket_center[1]), -k.pocket_depth)))
+        return (
+            cq.Workplane("XY")
+            .box(s, s, depth, centered=(True, True, False))
+            .edges("|Z")
+            .fillet(k.pocket_corner_radius)
+            .val()
+            .translate(cq.Vector(float(k.pocket_center[0]), float(k.pocket_center[1]), -k.pocket_depth))
+        )
 
     def hole_tools(self) -> list[cq.Solid]:
         out = []
         for h in self.layout.holes:
             p = np.array(h.center, float)
             p[2] = h.lo - OVERSHOOT
-            out.append(cq.Solid.makeCylinder(self.hole_diameter(h.kind) / 2, h.length + 2 * OVERSHOOT, _v(p),
-                                             cq.Vector(0, 0, 1)))
+            out.append(
+                cq.Solid.makeCylinder(
+                    self.hole_diameter(h.kind) / 2, h.length + 2 * OVERSHOOT, _v(p), cq.Vector(0, 0, 1)
+                )
+            )
         return out
 
     def build(self) -> cq.Solid:

@@ -113,16 +113,28 @@ def plan_coupon(design: Design, profile: Profile = "cnc", step: float | None = N
             fit = wd - w if profile == "cnc" else (w - wd) / 2
             s = CouponStep("groove", k, az, w, wd, round(fit, 6))
             steps.append(s)
-            slots.append(SlotCut(s.id, az, R - seat - wd / 2, R + 0.2, w, z_slot0 - SLOT_LENGTH / 2,
-                                 z_slot0 + SLOT_LENGTH / 2, cnc.tool_diameter / 2))
+            slots.append(
+                SlotCut(
+                    s.id,
+                    az,
+                    R - seat - wd / 2,
+                    R + 0.2,
+                    w,
+                    z_slot0 - SLOT_LENGTH / 2,
+                    z_slot0 + SLOT_LENGTH / 2,
+                    cnc.tool_diameter / 2,
+                )
+            )
     pocket_z = 0.0
     if design.bead is not None:
         bd = design.bead.diameter
         sizes = _sizes(cuts.pocket_diameter, step, count, 0.0)
         tool = pocket_tool_diameter(sizes[0], cnc.pocket_tool_diameter)
         if tool < sizes[-1] / 2:
-            raise ValueError(f"one pocket end mill ({tool:g} mm) cannot clear pockets from {sizes[0]:g} to "
-                             f"{sizes[-1]:g} mm; use a smaller step or fewer sizes")
+            raise ValueError(
+                f"one pocket end mill ({tool:g} mm) cannot clear pockets from {sizes[0]:g} to "
+                f"{sizes[-1]:g} mm; use a smaller step or fewer sizes"
+            )
         pocket_z = bd / 2 + 1.0
         for k, p in enumerate(sizes):
             az = 2 * math.pi * (k + 0.5) / n
@@ -135,16 +147,19 @@ def plan_coupon(design: Design, profile: Profile = "cnc", step: float | None = N
     bottom = (z_slot0 - SLOT_LENGTH / 2 - cnc.tool_diameter / 2 if design.wire is not None else 0.0) - GRIP
     half = (top - bottom) / 2
     shift = (top + bottom) / 2  # F's origin at mid-length, as on the body
-    slots = [SlotCut(s.id, s.azimuth, s.floor_radius, s.top_radius, s.width, s.z0 - shift, s.z1 - shift,
-                     s.end_radius) for s in slots]
+    slots = [
+        SlotCut(s.id, s.azimuth, s.floor_radius, s.top_radius, s.width, s.z0 - shift, s.z1 - shift, s.end_radius)
+        for s in slots
+    ]
     pockets = [PocketCut(p.id, p.azimuth, p.z - shift, p.floor_radius, p.diameter, p.depth) for p in pockets]
     stock = Stock(R, 0.0, half)
     label = min(1.5, 0.8 * 2 * math.pi * 0.6 * R / (2 * n), 0.8 * R / 5.5)
     plan = CutPlan(f"{design.name}_coupon", stock, (), tuple(slots), tuple(pockets))
     wall, limit = thinnest_wall(plan), rule_limits(design, profile).min_wall
     if wall < limit:  # the design rules' minimum wall (cad.rules, wall rules)
-        raise ValueError(f"the coupon's thinnest wall is {wall:.3f} mm, below the {profile} minimum {limit:g} mm; "
-                         f"use fewer sizes")
+        raise ValueError(
+            f"the coupon's thinnest wall is {wall:.3f} mm, below the {profile} minimum {limit:g} mm; use fewer sizes"
+        )
     return Coupon(design.name, profile, stock, tuple(steps), plan, step, label, wall)
 
 
@@ -182,8 +197,11 @@ def build_coupon(c: Coupon):
             axis = cq.Vector(u[0], u[1], 0)
             for side in (-1, 1):
                 for zc in (g.z0, g.z1):
-                    base = cq.Vector(u[0] * g.floor_radius + t[0] * side * (g.width / 2 - e),
-                                     u[1] * g.floor_radius + t[1] * side * (g.width / 2 - e), zc)
+                    base = cq.Vector(
+                        u[0] * g.floor_radius + t[0] * side * (g.width / 2 - e),
+                        u[1] * g.floor_radius + t[1] * side * (g.width / 2 - e),
+                        zc,
+                    )
                     tools.append(cq.Solid.makeCylinder(e, hgt, base, axis))
     for p in c.plan.pockets:
         u = cq.Vector(math.cos(p.azimuth), math.sin(p.azimuth), 0)
@@ -192,8 +210,12 @@ def build_coupon(c: Coupon):
     for st in c.steps:
         r0 = 0.92 * s.outer_radius - 3.2 * h  # five characters reading outward, ending near the rim
         x, y = r0 * math.cos(st.azimuth), r0 * math.sin(st.azimuth)
-        txt = (cq.Workplane("XY").workplane(offset=s.half_length).center(x, y)
-               .transformed(rotate=(0, 0, math.degrees(st.azimuth)))
-               .text(st.label, h, -ENGRAVE_DEPTH, combine=False, halign="left", valign="center"))
+        txt = (
+            cq.Workplane("XY")
+            .workplane(offset=s.half_length)
+            .center(x, y)
+            .transformed(rotate=(0, 0, math.degrees(st.azimuth)))
+            .text(st.label, h, -ENGRAVE_DEPTH, combine=False, halign="left", valign="center")
+        )
         tools.extend(txt.vals())
     return cut(blank, tools, f"{c.design} coupon")

@@ -58,7 +58,7 @@ class Dim:
         d = self.decimals
         deg = "°" if self.unit == "deg" else ""
         prefix = {"diameter": "Ø", "radius": "R"}.get(self.kind, "")
-        value = 0.0 if abs(self.value) < 0.5 * 10 ** -d else self.value  # no "-0.000"
+        value = 0.0 if abs(self.value) < 0.5 * 10**-d else self.value  # no "-0.000"
         s = f"{prefix}{value:.{d}f}{deg}"
         if self.tolerance is not None:
             s += f" ±{self.tolerance:.{d}f}{deg}"
@@ -70,7 +70,7 @@ class Dim:
 def azimuth_deg(p: np.ndarray) -> float:
     """Azimuth of ``p`` about +z from +x, degrees in [0, 360)."""
     a = math.degrees(math.atan2(float(p[1]), float(p[0]))) % 360.0
-    return 0.0 if a >= 360.0 - 0.5 * 10 ** -DEG_DECIMALS else a
+    return 0.0 if a >= 360.0 - 0.5 * 10**-DEG_DECIMALS else a
 
 
 def ellipse_extremes(e: EllipseFeature) -> tuple[tuple[float, float], tuple[float, float]]:
@@ -102,16 +102,23 @@ def datum_c(design: Design, features: Features) -> tuple[str, float]:
     return "+x axis of F", 0.0
 
 
-def body_dimensions(design: Design, features: Features, plan: BodyPlan, tol: DrawingTolerances,
-                    key_slot: tuple[float, float] | None = None) -> list[Dim]:
+def body_dimensions(
+    design: Design,
+    features: Features,
+    plan: BodyPlan,
+    tol: DrawingTolerances,
+    key_slot: tuple[float, float] | None = None,
+) -> list[Dim]:
     """The body's dimensions: size, bore, datum C, and every groove and pocket.
 
     ``key_slot``: (width, depth) of the slot across the ``z = −L/2`` end, mm, when cut.
     """
     R = plan.outer_radius
     g, c, ang = tol.general, tol.critical, tol.angle_deg(R)
-    out = [Dim("body.length", 2 * plan.half_length, "mm", "length", g, label="length (B to far end)"),
-           Dim("body.outer_diameter", 2 * R, "mm", "diameter", c, True, "outer Ø (datum A; press fit in the mount)")]
+    out = [
+        Dim("body.length", 2 * plan.half_length, "mm", "length", g, label="length (B to far end)"),
+        Dim("body.outer_diameter", 2 * R, "mm", "diameter", c, True, "outer Ø (datum A; press fit in the mount)"),
+    ]
     if plan.bore_radius > 0:
         out.append(Dim("body.bore_diameter", 2 * plan.bore_radius, "mm", "diameter", g, label="bore Ø"))
     what, a_c = datum_c(design, features)
@@ -122,27 +129,33 @@ def body_dimensions(design: Design, features: Features, plan: BodyPlan, tol: Dra
     for grv in plan.ellipse_grooves:
         e = grv.feature
         (a_t, z_t), (a_b, z_b) = ellipse_extremes(e)
-        out += [Dim(f"{e.id}.top.A", a_t, "deg", "angle", ang, label=f"{e.id} highest point"),
-                Dim(f"{e.id}.top.z", z_t, "mm", "length", c),
-                Dim(f"{e.id}.bottom.A", a_b, "deg", "angle", ang, label=f"{e.id} lowest point"),
-                Dim(f"{e.id}.bottom.z", z_b, "mm", "length", c),
-                Dim(f"{e.id}.width", grv.width, "mm", "length", c, True, "groove width"),
-                Dim(f"{e.id}.depth", R - grv.seat_radius + grv.floor_depth, "mm", "length", c, True, "groove depth")]
+        out += [
+            Dim(f"{e.id}.top.A", a_t, "deg", "angle", ang, label=f"{e.id} highest point"),
+            Dim(f"{e.id}.top.z", z_t, "mm", "length", c),
+            Dim(f"{e.id}.bottom.A", a_b, "deg", "angle", ang, label=f"{e.id} lowest point"),
+            Dim(f"{e.id}.bottom.z", z_b, "mm", "length", c),
+            Dim(f"{e.id}.width", grv.width, "mm", "length", c, True, "groove width"),
+            Dim(f"{e.id}.depth", R - grv.seat_radius + grv.floor_depth, "mm", "length", c, True, "groove depth"),
+        ]
     for grv in plan.line_grooves:
         ln = grv.feature
         a = azimuth_deg(ln.start)
-        out += [Dim(f"{ln.id}.A", a, "deg", "angle", ang, label=f"{ln.id} (parallel to the axis)"),
-                Dim(f"{ln.id}.start.z", grv.z0, "mm", "length", c),
-                Dim(f"{ln.id}.end.z", grv.z1, "mm", "length", c),
-                Dim(f"{ln.id}.width", grv.width, "mm", "length", c, True, "groove width"),
-                Dim(f"{ln.id}.depth", R - grv.floor_radius, "mm", "length", c, True, "groove depth")]
+        out += [
+            Dim(f"{ln.id}.A", a, "deg", "angle", ang, label=f"{ln.id} (parallel to the axis)"),
+            Dim(f"{ln.id}.start.z", grv.z0, "mm", "length", c),
+            Dim(f"{ln.id}.end.z", grv.z1, "mm", "length", c),
+            Dim(f"{ln.id}.width", grv.width, "mm", "length", c, True, "groove width"),
+            Dim(f"{ln.id}.depth", R - grv.floor_radius, "mm", "length", c, True, "groove depth"),
+        ]
     for pk in plan.pockets:
         p = pk.feature
         floor_r = math.hypot(float(pk.floor[0]), float(pk.floor[1]))
-        out += [Dim(f"{p.id}.A", azimuth_deg(p.center), "deg", "angle", ang, label=f"pocket {p.id}"),
-                Dim(f"{p.id}.z", float(p.center[2]), "mm", "length", c),
-                Dim(f"{p.id}.diameter", pk.diameter, "mm", "diameter", c, True, "pocket Ø"),
-                Dim(f"{p.id}.depth", R - floor_r, "mm", "length", c, True, "pocket depth")]
+        out += [
+            Dim(f"{p.id}.A", azimuth_deg(p.center), "deg", "angle", ang, label=f"pocket {p.id}"),
+            Dim(f"{p.id}.z", float(p.center[2]), "mm", "length", c),
+            Dim(f"{p.id}.diameter", pk.diameter, "mm", "diameter", c, True, "pocket Ø"),
+            Dim(f"{p.id}.depth", R - floor_r, "mm", "length", c, True, "pocket depth"),
+        ]
     return out
 
 
@@ -150,24 +163,32 @@ def mount_dimensions(mount, tol: DrawingTolerances) -> list[Dim]:
     """The mount's dimensions (frame M) from a :class:`~ftrac_design.cad.mount.MountPart`."""
     m = mount.layout
     g, c = tol.general, tol.critical
-    out = [Dim("block.width", m.width, "mm", "length", g, label="block side (x and y)"),
-           Dim("block.height", m.height, "mm", "length", g, label="block height"),
-           Dim("block.base", m.base_height, "mm", "length", c, True, "bottom face to socket floor (datum B)"),
-           Dim("block.chamfer", m.chamfer, "mm", "length", g, label="chamfer 45° on vertical edges"),
-           Dim("socket.diameter", mount.socket_diameter, "mm", "diameter", c, True, "socket Ø (press fit, datum A)"),
-           Dim("socket.depth", m.socket_depth, "mm", "length", g, label="socket depth")]
+    out = [
+        Dim("block.width", m.width, "mm", "length", g, label="block side (x and y)"),
+        Dim("block.height", m.height, "mm", "length", g, label="block height"),
+        Dim("block.base", m.base_height, "mm", "length", c, True, "bottom face to socket floor (datum B)"),
+        Dim("block.chamfer", m.chamfer, "mm", "length", g, label="chamfer 45° on vertical edges"),
+        Dim("socket.diameter", mount.socket_diameter, "mm", "diameter", c, True, "socket Ø (press fit, datum A)"),
+        Dim("socket.depth", m.socket_depth, "mm", "length", g, label="socket depth"),
+    ]
     if m.key.height > 0:
-        out += [Dim("key.width", m.key.width, "mm", "length", c, True, "key width (sliding fit, datum C)"),
-                Dim("key.height", m.key.height, "mm", "length", g, label="key height"),
-                Dim("key.A", azimuth_deg(m.key.direction), "deg", "angle", None, label="key direction")]
+        out += [
+            Dim("key.width", m.key.width, "mm", "length", c, True, "key width (sliding fit, datum C)"),
+            Dim("key.height", m.key.height, "mm", "length", g, label="key height"),
+            Dim("key.A", azimuth_deg(m.key.direction), "deg", "angle", None, label="key direction"),
+        ]
     for h in m.holes:
         u, v = [k for k in range(3) if k != h.axis]
-        out += [Dim(f"{h.name}.{'xyz'[u]}", float(h.center[u]), "mm", "length", g, label=f"hole {h.name}"),
-                Dim(f"{h.name}.{'xyz'[v]}", float(h.center[v]), "mm", "length", g),
-                Dim(f"{h.name}.diameter", mount.hole_diameters[h.name], "mm", "diameter", g)]
+        out += [
+            Dim(f"{h.name}.{'xyz'[u]}", float(h.center[u]), "mm", "length", g, label=f"hole {h.name}"),
+            Dim(f"{h.name}.{'xyz'[v]}", float(h.center[v]), "mm", "length", g),
+            Dim(f"{h.name}.diameter", mount.hole_diameters[h.name], "mm", "diameter", g),
+        ]
         if h.name in mount.counterbore_diameters:
-            out += [Dim(f"{h.name}.cbore_diameter", mount.counterbore_diameters[h.name], "mm", "diameter", g),
-                    Dim(f"{h.name}.cbore_depth", h.counterbore_depth, "mm", "length", g)]
+            out += [
+                Dim(f"{h.name}.cbore_diameter", mount.counterbore_diameters[h.name], "mm", "diameter", g),
+                Dim(f"{h.name}.cbore_depth", h.counterbore_depth, "mm", "length", g),
+            ]
     return out
 
 
@@ -176,19 +197,23 @@ def connector_dimensions(conn, tol: DrawingTolerances) -> list[Dim]:
     k = conn.layout
     g, c = tol.general, tol.critical
     sx, sy, t = (float(x) for x in k.size)
-    out = [Dim("plate.x0", float(k.lo[0]), "mm", "length", g, label="plate corner from the reference hole"),
-           Dim("plate.y0", float(k.lo[1]), "mm", "length", g),
-           Dim("plate.width", sx, "mm", "length", g, label="plate width (x)"),
-           Dim("plate.height", sy, "mm", "length", g, label="plate height (y)"),
-           Dim("plate.thickness", t, "mm", "length", g, label="plate thickness"),
-           Dim("pocket.x", float(k.pocket_center[0]), "mm", "length", c, label="pocket centre (fiducial axis)"),
-           Dim("pocket.y", float(k.pocket_center[1]), "mm", "length", c),
-           Dim("pocket.size", conn.pocket_size, "mm", "length", c, True, "pocket side (sliding fit)"),
-           Dim("pocket.depth", k.pocket_depth, "mm", "length", c, True, "pocket depth (locates the mount in z)"),
-           Dim("pocket.radius", k.pocket_corner_radius, "mm", "radius", g, label="pocket corner radius")]
+    out = [
+        Dim("plate.x0", float(k.lo[0]), "mm", "length", g, label="plate corner from the reference hole"),
+        Dim("plate.y0", float(k.lo[1]), "mm", "length", g),
+        Dim("plate.width", sx, "mm", "length", g, label="plate width (x)"),
+        Dim("plate.height", sy, "mm", "length", g, label="plate height (y)"),
+        Dim("plate.thickness", t, "mm", "length", g, label="plate thickness"),
+        Dim("pocket.x", float(k.pocket_center[0]), "mm", "length", c, label="pocket centre (fiducial axis)"),
+        Dim("pocket.y", float(k.pocket_center[1]), "mm", "length", c),
+        Dim("pocket.size", conn.pocket_size, "mm", "length", c, True, "pocket side (sliding fit)"),
+        Dim("pocket.depth", k.pocket_depth, "mm", "length", c, True, "pocket depth (locates the mount in z)"),
+        Dim("pocket.radius", k.pocket_corner_radius, "mm", "radius", g, label="pocket corner radius"),
+    ]
     for h in k.holes:
         crit = h.kind == "pin"
-        out += [Dim(f"{h.name}.x", float(h.center[0]), "mm", "length", c if crit else g, label=f"hole {h.name}"),
-                Dim(f"{h.name}.y", float(h.center[1]), "mm", "length", c if crit else g),
-                Dim(f"{h.name}.diameter", conn.hole_diameter(h.kind), "mm", "diameter", c if crit else g, crit)]
+        out += [
+            Dim(f"{h.name}.x", float(h.center[0]), "mm", "length", c if crit else g, label=f"hole {h.name}"),
+            Dim(f"{h.name}.y", float(h.center[1]), "mm", "length", c if crit else g),
+            Dim(f"{h.name}.diameter", conn.hole_diameter(h.kind), "mm", "diameter", c if crit else g, crit),
+        ]
     return out

@@ -90,6 +90,7 @@ class TitleBlock:
 
 # ---- drawing primitives ------------------------------------------------------------------
 
+
 class Sheet:
     """One A3 sheet: a paper axes in mm and view axes placed on it at a true scale."""
 
@@ -173,16 +174,27 @@ def dim_line(ax, a, b, offset, dim: Dim, part: str, text_side: float = 1.0) -> N
     n = off / (np.linalg.norm(off) or 1.0)
     for p, q in ((a, a2), (b, b2)):
         ax.plot(*zip(p + 0.1 * n, q + 0.3 * n), color="k", lw=0.25)
-    ax.annotate("", xy=tuple(b2), xytext=tuple(a2),
-                arrowprops={"arrowstyle": "<|-|>", "lw": 0.35, "color": "k", "mutation_scale": 5,
-                            "shrinkA": 0, "shrinkB": 0})
+    ax.annotate(
+        "",
+        xy=tuple(b2),
+        xytext=tuple(a2),
+        arrowprops={"arrowstyle": "<|-|>", "lw": 0.35, "color": "k", "mutation_scale": 5, "shrinkA": 0, "shrinkB": 0},
+    )
     d = b2 - a2
     angle = math.degrees(math.atan2(d[1], d[0]))
     if angle > 90 or angle <= -90:
         angle += 180
     mid = (a2 + b2) / 2
-    t = Sheet.text(ax, *mid, dim.text(), gid=f"dim.{part}.{dim.key}", rotation=angle, ha="center",
-                   va="bottom" if text_side > 0 else "top", rotation_mode="anchor")
+    t = Sheet.text(
+        ax,
+        *mid,
+        dim.text(),
+        gid=f"dim.{part}.{dim.key}",
+        rotation=angle,
+        ha="center",
+        va="bottom" if text_side > 0 else "top",
+        rotation_mode="anchor",
+    )
     if dim.critical:
         t.set_bbox({"boxstyle": "square,pad=0.15", "fc": "white", "ec": "k", "lw": 0.3})
 
@@ -191,14 +203,30 @@ def datum_flag(ax, xy, letter: str, dx: float = 0.0, dy: float = 0.0, gid: str |
     """A datum feature symbol: the letter boxed, a leader to a filled triangle on the feature."""
     x, y = xy
     ax.plot([x, x + dx], [y, y + dy], color="k", lw=0.3)
-    ax.plot([x], [y], marker="v" if dy > 0 else "^" if dy < 0 else ">" if dx < 0 else "<", color="k",
-            markersize=3)
-    Sheet.text(ax, x + dx, y + dy, letter, gid=gid or f"datum.{letter}", size=7, ha="center", va="center",
-               weight="bold", bbox={"boxstyle": "square,pad=0.25", "fc": "white", "ec": "k", "lw": 0.4})
+    ax.plot([x], [y], marker="v" if dy > 0 else "^" if dy < 0 else ">" if dx < 0 else "<", color="k", markersize=3)
+    Sheet.text(
+        ax,
+        x + dx,
+        y + dy,
+        letter,
+        gid=gid or f"datum.{letter}",
+        size=7,
+        ha="center",
+        va="center",
+        weight="bold",
+        bbox={"boxstyle": "square,pad=0.25", "fc": "white", "ec": "k", "lw": 0.4},
+    )
 
 
-def table(sheet: Sheet, x: float, y_top: float, widths: list[float], header: list[str],
-          rows: list[list[Dim | str | None]], part: str) -> float:
+def table(
+    sheet: Sheet,
+    x: float,
+    y_top: float,
+    widths: list[float],
+    header: list[str],
+    rows: list[list[Dim | str | None]],
+    part: str,
+) -> float:
     """A table drawn on the paper (mm); a Dim cell prints its text under its own id.
     Returns the y of the table's bottom edge."""
     ax = sheet.paper
@@ -227,32 +255,53 @@ def title_block(sheet: Sheet, tb: TitleBlock) -> None:
     """The title block in the lower right corner (180 × 36 mm)."""
     ax = sheet.paper
     x0, y0, w = SHEET[0] - MARGIN - 180, MARGIN, 180.0
-    rows = [("design", tb.design, "tb.design"), ("part", tb.part, "tb.part"),
-            ("design file sha256", tb.sha256, "tb.sha256"), ("material", tb.material, "tb.material"),
-            ("profile", tb.profile, "tb.profile"), ("units", tb.units, "tb.units"),
-            ("scale", tb.scale, "tb.scale"), ("date", tb.date, "tb.date")]
+    rows = [
+        ("design", tb.design, "tb.design"),
+        ("part", tb.part, "tb.part"),
+        ("design file sha256", tb.sha256, "tb.sha256"),
+        ("material", tb.material, "tb.material"),
+        ("profile", tb.profile, "tb.profile"),
+        ("units", tb.units, "tb.units"),
+        ("scale", tb.scale, "tb.scale"),
+        ("date", tb.date, "tb.date"),
+    ]
     h = 4.5
     ax.add_patch(sheet._rect(x0, y0, w, h * len(rows), lw=0.7))
     for k, (label, value, gid) in enumerate(rows):
         y = y0 + h * (len(rows) - 1 - k)
         ax.plot([x0, x0 + w], [y, y], color="k", lw=0.25)
         sheet.text(ax, x0 + 1.5, y + 1.3, label, size=5.5, color="0.3")
-        sheet.text(ax, x0 + 30, y + 1.3, value, gid=gid, size=5.5 if label.endswith("sha256") else 7,
-                   family="monospace" if label.endswith("sha256") else None)
+        sheet.text(
+            ax,
+            x0 + 30,
+            y + 1.3,
+            value,
+            gid=gid,
+            size=5.5 if label.endswith("sha256") else 7,
+            family="monospace" if label.endswith("sha256") else None,
+        )
     ax.plot([x0 + 28, x0 + 28], [y0, y0 + h * len(rows)], color="k", lw=0.25)
 
 
-def notes(sheet: Sheet, x: float, y_top: float, tol: DrawingTolerances, lines: list[str],
-          angle_radius: float | None = None) -> float:
+def notes(
+    sheet: Sheet, x: float, y_top: float, tol: DrawingTolerances, lines: list[str], angle_radius: float | None = None
+) -> float:
     """The general notes: tolerances (each under its own id), the ◆ legend, then ``lines``."""
     ax = sheet.paper
     y = y_top - ROW_MM
     sheet.text(ax, x, y, "NOTES", weight="bold")
-    rows = [("tolerance unless stated (mm)", f"±{tol.general:.3f}", "tol.general"),
-            (f"fit-critical {CRITICAL_MARK} and feature positions (mm)", f"±{tol.critical:.3f}", "tol.critical")]
+    rows = [
+        ("tolerance unless stated (mm)", f"±{tol.general:.3f}", "tol.general"),
+        (f"fit-critical {CRITICAL_MARK} and feature positions (mm)", f"±{tol.critical:.3f}", "tol.critical"),
+    ]
     if angle_radius is not None:
-        rows.append(("azimuths A: the critical tolerance as an arc on the outer Ø",
-                     f"±{tol.angle_deg(angle_radius):.2f}°", "tol.angle"))
+        rows.append(
+            (
+                "azimuths A: the critical tolerance as an arc on the outer Ø",
+                f"±{tol.angle_deg(angle_radius):.2f}°",
+                "tol.angle",
+            )
+        )
     for label, value, gid in rows:
         y -= ROW_MM
         sheet.text(ax, x, y, label)
@@ -269,12 +318,20 @@ def _today() -> str:
 
 # ---- the three sheets --------------------------------------------------------------------
 
+
 def _dims(dims: list[Dim]) -> dict[str, Dim]:
     return {d.key: d for d in dims}
 
 
-def body_sheet(design: Design, features: Features, plan: BodyPlan, body, profile: Profile, tb: TitleBlock,
-               key_slot: tuple[float, float] | None = None) -> Sheet:
+def body_sheet(
+    design: Design,
+    features: Features,
+    plan: BodyPlan,
+    body,
+    profile: Profile,
+    tb: TitleBlock,
+    key_slot: tuple[float, float] | None = None,
+) -> Sheet:
     """The body's sheet: front view, section through datum C, end view on B, unrolled surface
     and the feature table."""
     from .unwrap import unwrap_features
@@ -293,8 +350,15 @@ def body_sheet(design: Design, features: Features, plan: BodyPlan, body, profile
     s_u = pick_scale(2 * math.pi * R, 2 * L2, 195, 105)
     sheet = Sheet(f"{design.name} — body")
     scales = f"views {scale_text(s)}" + (f", end view {scale_text(s_end)}" if s_end != s else "")
-    tb = TitleBlock(tb.design, tb.sha256, "body (fiducial.step)", design.body.material, profile,
-                    f"{scales}, unrolled {scale_text(s_u)}", tb.date)
+    tb = TitleBlock(
+        tb.design,
+        tb.sha256,
+        "body (fiducial.step)",
+        design.body.material,
+        profile,
+        f"{scales}, unrolled {scale_text(s_u)}",
+        tb.date,
+    )
     # front view from -y (x right, z up)
     front = project(body, ViewFrame("front", (1, 0, 0), (0, -1, 0)))
     y0 = 287 - 6 - 2 * L2 * s - 24
@@ -311,8 +375,7 @@ def body_sheet(design: Design, features: Features, plan: BodyPlan, body, profile
     x1 = 20 + 2 * R * s + 24 + 20
     ax = sheet.view(x1, y0, (-R, R, -L2, L2), s, pad=12)
     draw_section(ax, section(body, cut))
-    sheet.text(ax, 0, -L2 - 9 / s, "SECTION C–C (plane through datums A and C)", ha="center", size=6.5,
-               weight="bold")
+    sheet.text(ax, 0, -L2 - 9 / s, "SECTION C–C (plane through datums A and C)", ha="center", size=6.5, weight="bold")
     if "body.bore_diameter" in D:
         dim_line(ax, (-plan.bore_radius, 0), (plan.bore_radius, 0), (0, 0), D["body.bore_diameter"], "body")
     # end view from -z (the B face), in the right column under the feature table
@@ -329,13 +392,27 @@ def body_sheet(design: Design, features: Features, plan: BodyPlan, body, profile
     # unrolled outer surface: x = R·A (rad), y = z
     _unrolled(sheet, design, features, plan, profile, s_u, D, a_c, unwrap_features)
     x_t = SHEET[0] - MARGIN - 180
-    table(sheet, x_t, 287, [20, 38, 38, 42, 42],
-          ["feature", "A (°)", "z (mm)", "width / Ø (mm)", "depth (mm)"], rows, "body")
-    notes(sheet, x_t, NOTES_TOP, tol,
-          [f"datum A: the axis (outer Ø); B: the end face at z = −L/2 (seats in the mount); C: {what_c}",
-           "A about +z from +x toward +y (4-axis A axis); z from mid-length; depth radially from the outer Ø",
-           "groove width normal to the wire; ellipse grooves planar through their top and bottom points"],
-          angle_radius=R)
+    table(
+        sheet,
+        x_t,
+        287,
+        [20, 38, 38, 42, 42],
+        ["feature", "A (°)", "z (mm)", "width / Ø (mm)", "depth (mm)"],
+        rows,
+        "body",
+    )
+    notes(
+        sheet,
+        x_t,
+        NOTES_TOP,
+        tol,
+        [
+            f"datum A: the axis (outer Ø); B: the end face at z = −L/2 (seats in the mount); C: {what_c}",
+            "A about +z from +x toward +y (4-axis A axis); z from mid-length; depth radially from the outer Ø",
+            "groove width normal to the wire; ellipse grooves planar through their top and bottom points",
+        ],
+        angle_radius=R,
+    )
     title_block(sheet, tb)
     return sheet
 
@@ -360,8 +437,17 @@ def _feature_rows(plan: BodyPlan, D: dict[str, Dim]) -> list[list[Dim | str | No
     return rows
 
 
-def _unrolled(sheet: Sheet, design: Design, features: Features, plan: BodyPlan, profile: Profile, s_u: float,
-              D: dict[str, Dim], a_c: float, unwrap_features) -> None:
+def _unrolled(
+    sheet: Sheet,
+    design: Design,
+    features: Features,
+    plan: BodyPlan,
+    profile: Profile,
+    s_u: float,
+    D: dict[str, Dim],
+    a_c: float,
+    unwrap_features,
+) -> None:
     from matplotlib.patches import Circle
 
     R, L2 = plan.outer_radius, plan.half_length
@@ -416,11 +502,13 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
     m = mount_part.layout
     h2 = m.width / 2
     zlo, zhi = -m.base_height, m.socket_depth
-    s = next((k for k in SCALES if 2 * (m.width * k + 24) + 20 <= 210 and (m.width + m.height) * k + 80 <= 270),
-             SCALES[-1])
+    s = next(
+        (k for k in SCALES if 2 * (m.width * k + 24) + 20 <= 210 and (m.width + m.height) * k + 80 <= 270), SCALES[-1]
+    )
     sheet = Sheet(f"{design.name} — mount")
-    tb = TitleBlock(tb.design, tb.sha256, "mount (mount.step, frame M)", design.mount.material, profile,
-                    scale_text(s), tb.date)
+    tb = TitleBlock(
+        tb.design, tb.sha256, "mount (mount.step, frame M)", design.mount.material, profile, scale_text(s), tb.date
+    )
     gap = 26
     yb = 287 - 12 - (m.height + m.width) * s - 2 * gap
     # front (from -y): x right, z up
@@ -439,9 +527,14 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
         datum_flag(ax, tuple(kd), "C", dx=float(kd[0]) * 0.3, dy=float(kd[1]) * 0.3 + 4 / s)
     else:  # datum C: the block's +x face
         datum_flag(ax, (h2, h2 / 2), "C", dx=6 / s)
-    ax.annotate(D["block.chamfer"].text() + " × 45°", xy=(h2 - m.chamfer / 2, -h2 + m.chamfer / 2),
-                xytext=(h2 + 2 / s, -h2 - 6 / s), fontsize=FONT_PT, arrowprops={"arrowstyle": "-", "lw": 0.3},
-                gid="dim.mount.block.chamfer")
+    ax.annotate(
+        D["block.chamfer"].text() + " × 45°",
+        xy=(h2 - m.chamfer / 2, -h2 + m.chamfer / 2),
+        xytext=(h2 + 2 / s, -h2 - 6 / s),
+        fontsize=FONT_PT,
+        arrowprops={"arrowstyle": "-", "lw": 0.3},
+        gid="dim.mount.block.chamfer",
+    )
     # section through the socket axis, plane y = 0, seen from -y
     x_sec = 20 + m.width * s + 24 + 20
     ax = sheet.view(x_sec, yb, (-h2, h2, zlo, zhi), s, pad=12)
@@ -460,20 +553,49 @@ def mount_sheet(design: Design, mount_part, solid, profile: Profile, tb: TitleBl
     rows: list[list[Dim | str | None]] = []
     for h in m.holes:
         u, v = [k for k in range(3) if k != h.axis]
-        rows.append([h.name, "xyz"[h.axis], D[f"{h.name}.{'xyz'[u]}"], D[f"{h.name}.{'xyz'[v]}"],
-                     D[f"{h.name}.diameter"], D.get(f"{h.name}.cbore_diameter"), D.get(f"{h.name}.cbore_depth")])
+        rows.append(
+            [
+                h.name,
+                "xyz"[h.axis],
+                D[f"{h.name}.{'xyz'[u]}"],
+                D[f"{h.name}.{'xyz'[v]}"],
+                D[f"{h.name}.diameter"],
+                D.get(f"{h.name}.cbore_diameter"),
+                D.get(f"{h.name}.cbore_depth"),
+            ]
+        )
     x_t = SHEET[0] - MARGIN - 180
-    y = table(sheet, x_t, 287, [12, 10, 30, 30, 32, 34, 32],
-              ["hole", "axis", "position 1", "position 2", "Ø (through)", "counterbore Ø", "cbore depth"],
-              rows, "mount")
+    y = table(
+        sheet,
+        x_t,
+        287,
+        [12, 10, 30, 30, 32, 34, 32],
+        ["hole", "axis", "position 1", "position 2", "Ø (through)", "counterbore Ø", "cbore depth"],
+        rows,
+        "mount",
+    )
     if m.key.height > 0:
-        table(sheet, x_t, y - 4, [40, 45, 45, 50], ["key (datum C)", "width", "height", "direction A"],
-              [["key", D["key.width"], D["key.height"], D["key.A"]]], "mount")
-    c_line = ("C: the key" if m.key.height > 0 else "C: the +x face of the block (no key)")
-    notes(sheet, x_t, NOTES_TOP, tol,
-          [f"datum A: the socket axis; B: the socket floor (the body's end face seats here); {c_line}",
-           "positions in frame M: origin on A at B, axes parallel to the fiducial's F",
-           "holes counterbored on the + face of their axis; screws ISO 4762, clearance ISO 273"])
+        table(
+            sheet,
+            x_t,
+            y - 4,
+            [40, 45, 45, 50],
+            ["key (datum C)", "width", "height", "direction A"],
+            [["key", D["key.width"], D["key.height"], D["key.A"]]],
+            "mount",
+        )
+    c_line = "C: the key" if m.key.height > 0 else "C: the +x face of the block (no key)"
+    notes(
+        sheet,
+        x_t,
+        NOTES_TOP,
+        tol,
+        [
+            f"datum A: the socket axis; B: the socket floor (the body's end face seats here); {c_line}",
+            "positions in frame M: origin on A at B, axes parallel to the fiducial's F",
+            "holes counterbored on the + face of their axis; screws ISO 4762, clearance ISO 273",
+        ],
+    )
     title_block(sheet, tb)
     return sheet
 
@@ -489,13 +611,27 @@ def connector_sheet(design: Design, conn_part, solid, profile: Profile, tb: Titl
     sx, sy, t = float(x1 - x0), float(y1 - y0), float(z1 - z0)
     s = pick_scale(sx + t + 60, sy + 30, 205, 240)
     sheet = Sheet(f"{design.name} — template connector")
-    tb = TitleBlock(tb.design, tb.sha256, "connector (connector.step, frame T)", design.connector.material, profile,
-                    scale_text(s), tb.date)
+    tb = TitleBlock(
+        tb.design,
+        tb.sha256,
+        "connector (connector.step, frame T)",
+        design.connector.material,
+        profile,
+        scale_text(s),
+        tb.date,
+    )
     yb = 287 - 16 - sy * s - 20
     ax = sheet.view(22, yb, (x0, x1, y0, y1), s, pad=12)
     draw_projection(ax, project_exact(solid, ViewFrame("front", (1, 0, 0), (0, 0, 1))))
-    sheet.text(ax, (x0 + x1) / 2, y0 - 9 / s, "FRONT (from +z, the pocket face; template face behind)",
-               ha="center", size=6.5, weight="bold")
+    sheet.text(
+        ax,
+        (x0 + x1) / 2,
+        y0 - 9 / s,
+        "FRONT (from +z, the pocket face; template face behind)",
+        ha="center",
+        size=6.5,
+        weight="bold",
+    )
     dim_line(ax, (x0, y1), (x1, y1), (0, 5 / s), D["plate.width"], "connector")
     dim_line(ax, (x0, y0), (x0, y1), (-6 / s, 0), D["plate.height"], "connector")
     pins = [h for h in k.holes if h.kind == "pin"]
@@ -508,8 +644,9 @@ def connector_sheet(design: Design, conn_part, solid, profile: Profile, tb: Titl
     ax = sheet.view(xs, yb, (y0, y1, z0, z1), s, pad=12)
     cx = float(k.pocket_center[0])
     draw_section(ax, section(solid, ViewFrame("section", (0, 1, 0), (1, 0, 0), (cx, 0.0, 0.0))))
-    sheet.text(ax, (y0 + y1) / 2, z0 - 9 / s, "SECTION P–P (plane x = pocket centre)", ha="center", size=6.5,
-               weight="bold")
+    sheet.text(
+        ax, (y0 + y1) / 2, z0 - 9 / s, "SECTION P–P (plane x = pocket centre)", ha="center", size=6.5, weight="bold"
+    )
     dim_line(ax, (y1, z0), (y1, z1), (6 / s, 0), D["plate.thickness"], "connector")
     pc, ph = float(k.pocket_center[1]), conn_part.pocket_size / 2
     dim_line(ax, (pc - ph, z1), (pc + ph, z1), (0, 5 / s), D["pocket.size"], "connector")
@@ -518,21 +655,50 @@ def connector_sheet(design: Design, conn_part, solid, profile: Profile, tb: Titl
     rows = [[h.name, h.kind, D[f"{h.name}.x"], D[f"{h.name}.y"], D[f"{h.name}.diameter"]] for h in k.holes]
     x_t = SHEET[0] - MARGIN - 180
     y = table(sheet, x_t, 287, [16, 22, 44, 44, 50], ["hole", "kind", "x", "y", "Ø (through)"], rows, "connector")
-    table(sheet, x_t, y - 4, [44, 44, 44, 44],
-          ["plate corner x", "plate corner y", "pocket centre x", "pocket centre y"],
-          [[D["plate.x0"], D["plate.y0"], D["pocket.x"], D["pocket.y"]]], "connector")
-    table(sheet, x_t, y - 4 - 2 * ROW_MM - 4, [60, 60], ["pocket corner radius", ""],
-          [[D["pocket.radius"], None]], "connector")
-    notes(sheet, x_t, NOTES_TOP, tol,
-          ["datum A: the template face z = 0 of T; B: pin hole 1 (the reference grid hole); C: pin hole 2",
-           "positions in frame T: origin on the reference grid hole, x along rows, y up the columns",
-           "dowel pins ISO 2338 m6 pressed in; tapped holes take the mount's z screws"])
+    table(
+        sheet,
+        x_t,
+        y - 4,
+        [44, 44, 44, 44],
+        ["plate corner x", "plate corner y", "pocket centre x", "pocket centre y"],
+        [[D["plate.x0"], D["plate.y0"], D["pocket.x"], D["pocket.y"]]],
+        "connector",
+    )
+    table(
+        sheet,
+        x_t,
+        y - 4 - 2 * ROW_MM - 4,
+        [60, 60],
+        ["pocket corner radius", ""],
+        [[D["pocket.radius"], None]],
+        "connector",
+    )
+    notes(
+        sheet,
+        x_t,
+        NOTES_TOP,
+        tol,
+        [
+            "datum A: the template face z = 0 of T; B: pin hole 1 (the reference grid hole); C: pin hole 2",
+            "positions in frame T: origin on the reference grid hole, x along rows, y up the columns",
+            "dowel pins ISO 2338 m6 pressed in; tapped holes take the mount's z screws",
+        ],
+    )
     title_block(sheet, tb)
     return sheet
 
 
-def write_drawings(design: Design, features: Features, plan: BodyPlan, body, fixture: list, profile: Profile,
-                   out_dir: str | Path, date: str | None = None, png: bool = False) -> list[Path]:
+def write_drawings(
+    design: Design,
+    features: Features,
+    plan: BodyPlan,
+    body,
+    fixture: list,
+    profile: Profile,
+    out_dir: str | Path,
+    date: str | None = None,
+    png: bool = False,
+) -> list[Path]:
     """Write ``drawing_{body,mount,connector}.{svg,pdf}`` into ``out_dir``.
 
     ``body``: the finished body solid (F); ``fixture``: the
@@ -548,8 +714,7 @@ def write_drawings(design: Design, features: Features, plan: BodyPlan, body, fix
 
     out_dir = Path(out_dir)
     cuts = cut_sizes(design, profile)
-    tb = TitleBlock(design.name, design.sha256 or "(in-memory design: no file)", "", "", profile, "",
-                    date or _today())
+    tb = TitleBlock(design.name, design.sha256 or "(in-memory design: no file)", "", "", profile, "", date or _today())
     mlay = mount_layout(design)
     by_kind = {p.kind: p for p in fixture}
     slot = None
@@ -557,10 +722,13 @@ def write_drawings(design: Design, features: Features, plan: BodyPlan, body, fix
         slot = (cuts.slide(mlay.key.width), mlay.key.slot_depth)
     written = []
     with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "ftrac", "font.family": "DejaVu Sans"}):
-        sheets = {"body": body_sheet(design, features, plan, body, profile, tb, slot),
-                  "mount": mount_sheet(design, MountPart(mlay, cuts), by_kind["mount"].local, profile, tb),
-                  "connector": connector_sheet(design, ConnectorPart(connector_layout(design, mlay), cuts),
-                                               by_kind["connector"].local, profile, tb)}
+        sheets = {
+            "body": body_sheet(design, features, plan, body, profile, tb, slot),
+            "mount": mount_sheet(design, MountPart(mlay, cuts), by_kind["mount"].local, profile, tb),
+            "connector": connector_sheet(
+                design, ConnectorPart(connector_layout(design, mlay), cuts), by_kind["connector"].local, profile, tb
+            ),
+        }
         for name, sheet in sheets.items():
             svg, pdf = out_dir / f"drawing_{name}.svg", out_dir / f"drawing_{name}.pdf"
             pic = out_dir / f"drawing_{name}.png" if png else None
@@ -569,8 +737,9 @@ def write_drawings(design: Design, features: Features, plan: BodyPlan, body, fix
     return written
 
 
-def draw_design(design: Design, out_dir: str | Path, profile: Profile = "cnc", png: bool = False,
-                date: str | None = None) -> list[Path]:
+def draw_design(
+    design: Design, out_dir: str | Path, profile: Profile = "cnc", png: bool = False, date: str | None = None
+) -> list[Path]:
     """Build the solids of ``design`` (body with its key slot, mount, connector — no exports) and
     write only the drawings into ``out_dir``, atomically (a new or empty directory, or one that
     holds earlier drawings). Returns the files written."""
@@ -592,6 +761,7 @@ def draw_design(design: Design, out_dir: str | Path, profile: Profile = "cnc", p
         slot = key_slot_tool(design, profile)
         if slot is not None:
             body = single_solid(body.cut(slot), f"{design.name} key slot")
-        written = write_drawings(design, features, plan, body, fixture_parts(design, features, profile), profile,
-                                 tmp, date=date, png=png)
+        written = write_drawings(
+            design, features, plan, body, fixture_parts(design, features, profile), profile, tmp, date=date, png=png
+        )
     return [out_dir / p.name for p in written]

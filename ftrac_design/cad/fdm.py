@@ -45,15 +45,19 @@ PRINTED_PARTS = (("body", "fiducial.stl"), ("mount", "mount.stl"), ("connector",
 
 CORE_NS = "http://schemas.microsoft.com/3dmanufacturing/core/2015/02"
 MODEL_REL = "http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"
-CONTENT_TYPES = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-                 '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
-                 '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
-                 '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/>'
-                 '</Types>\n')
-RELS = ('<?xml version="1.0" encoding="UTF-8"?>\n'
-        '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
-        f'<Relationship Target="/3D/3dmodel.model" Id="rel0" Type="{MODEL_REL}"/>'
-        '</Relationships>\n')
+CONTENT_TYPES = (
+    '<?xml version="1.0" encoding="UTF-8"?>\n'
+    '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
+    '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/>'
+    '<Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/>'
+    "</Types>\n"
+)
+RELS = (
+    '<?xml version="1.0" encoding="UTF-8"?>\n'
+    '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships">'
+    f'<Relationship Target="/3D/3dmodel.model" Id="rel0" Type="{MODEL_REL}"/>'
+    "</Relationships>\n"
+)
 #: a fixed time stamp for the zip entries, so equal content gives equal bytes
 ZIP_TIME = (1980, 1, 1, 0, 0, 0)
 
@@ -93,18 +97,19 @@ def model_xml(parts: list[MeshPart], title: str, description: str) -> str:
     buf.write('<metadata name="Application">ftrac_design</metadata>\n<resources>\n<basematerials id="1">\n')
     for p in parts:
         buf.write(f'<base name={quoteattr(p.name)} displaycolor="{hex_color(p.color)}"/>\n')
-    buf.write('</basematerials>\n')
+    buf.write("</basematerials>\n")
     for k, p in enumerate(parts):
-        buf.write(f'<object id="{k + 2}" type="model" name={quoteattr(p.name)} pid="1" pindex="{k}">\n'
-                  '<mesh>\n<vertices>\n')
+        buf.write(
+            f'<object id="{k + 2}" type="model" name={quoteattr(p.name)} pid="1" pindex="{k}">\n<mesh>\n<vertices>\n'
+        )
         buf.writelines(f'<vertex x="{x:.9g}" y="{y:.9g}" z="{z:.9g}"/>\n' for x, y, z in p.vertices.tolist())
-        buf.write('</vertices>\n<triangles>\n')
+        buf.write("</vertices>\n<triangles>\n")
         buf.writelines(f'<triangle v1="{a}" v2="{b}" v3="{c}"/>\n' for a, b, c in p.faces.tolist())
-        buf.write('</triangles>\n</mesh>\n</object>\n')
-    buf.write('</resources>\n<build>\n')
+        buf.write("</triangles>\n</mesh>\n</object>\n")
+    buf.write("</resources>\n<build>\n")
     for k, t in enumerate(plate_offsets(parts)):
         buf.write(f'<item objectid="{k + 2}" transform="1 0 0 0 1 0 0 0 1 {t[0]:.9g} {t[1]:.9g} {t[2]:.9g}"/>\n')
-    buf.write('</build>\n</model>\n')
+    buf.write("</build>\n</model>\n")
     return buf.getvalue()
 
 
@@ -115,8 +120,11 @@ def write_3mf(path: str | Path, parts: list[MeshPart], title: str, description: 
     path = Path(path)
     with atomic_file(path) as tmp:
         with zipfile.ZipFile(tmp, "w", compression=zipfile.ZIP_DEFLATED) as z:
-            for name, text in (("[Content_Types].xml", CONTENT_TYPES), ("_rels/.rels", RELS),
-                               ("3D/3dmodel.model", model_xml(parts, title, description))):
+            for name, text in (
+                ("[Content_Types].xml", CONTENT_TYPES),
+                ("_rels/.rels", RELS),
+                ("3D/3dmodel.model", model_xml(parts, title, description)),
+            ):
                 z.writestr(zipfile.ZipInfo(name, ZIP_TIME), text.encode("utf-8"), zipfile.ZIP_DEFLATED)
     return path
 
@@ -132,16 +140,29 @@ def read_stl_part(path: Path, name: str, color: tuple[float, float, float, float
 def print_settings_document(design: Design) -> dict:
     """``print_settings.json``: the slicer settings and the allowances already in the CAD."""
     cuts = cut_sizes(design, "fdm")
-    return {"format": PRINT_SETTINGS_FORMAT, "version": PRINT_SETTINGS_VERSION, "design": design.name,
-            "design_sha256": design.sha256, "profile": "fdm", "units": "mm",
-            "settings": print_settings(design).as_dict(),
-            "orientation": {"body": "axis vertical, end face B on the plate",
-                            "mount": "socket up (frame M +z up)", "connector": "pocket up (frame T +z up)"},
-            "built_into_the_parts": {"groove_width_mm": cuts.groove_width, "pocket_diameter_mm": cuts.pocket_diameter,
-                                     "hole_allowance_mm": cuts.hole_allowance,
-                                     "socket_diameter_mm": cuts.socket_diameter,
-                                     "pin_hole_diameter_mm": cuts.pin_hole_diameter,
-                                     "slide_clearance_mm": cuts.slide_clearance, "fit": cuts.fit}}
+    return {
+        "format": PRINT_SETTINGS_FORMAT,
+        "version": PRINT_SETTINGS_VERSION,
+        "design": design.name,
+        "design_sha256": design.sha256,
+        "profile": "fdm",
+        "units": "mm",
+        "settings": print_settings(design).as_dict(),
+        "orientation": {
+            "body": "axis vertical, end face B on the plate",
+            "mount": "socket up (frame M +z up)",
+            "connector": "pocket up (frame T +z up)",
+        },
+        "built_into_the_parts": {
+            "groove_width_mm": cuts.groove_width,
+            "pocket_diameter_mm": cuts.pocket_diameter,
+            "hole_allowance_mm": cuts.hole_allowance,
+            "socket_diameter_mm": cuts.socket_diameter,
+            "pin_hole_diameter_mm": cuts.pin_hole_diameter,
+            "slide_clearance_mm": cuts.slide_clearance,
+            "fit": cuts.fit,
+        },
+    }
 
 
 def write_fdm_files(design: Design, out_dir: str | Path) -> list[Path]:
@@ -153,5 +174,7 @@ def write_fdm_files(design: Design, out_dir: str | Path) -> list[Path]:
     out_dir = Path(out_dir)
     parts = [read_stl_part(out_dir / stl, name, colors[name]) for name, stl in PRINTED_PARTS]
     desc = f"{design.name} printed parts (fdm profile); design sha256 {design.sha256 or 'none'}"
-    return [write_3mf(out_dir / "fiducial.3mf", parts, design.name, desc),
-            write_json_atomic(out_dir / "print_settings.json", print_settings_document(design))]
+    return [
+        write_3mf(out_dir / "fiducial.3mf", parts, design.name, desc),
+        write_json_atomic(out_dir / "print_settings.json", print_settings_document(design)),
+    ]

@@ -52,8 +52,10 @@ def fixture_parts(design: Design, features: Features, profile: Profile = "cnc") 
     clay = connector_layout(design, mlay)
     F_from_M = rigid_inverse(features.frames["mount_from_fiducial"])
     F_from_T = rigid_inverse(features.frames["template_from_fiducial"])
-    out = [FixturePart("mount", "mount", MountPart(mlay, cuts).build(), "M", F_from_M, MOUNT_COLOR),
-           FixturePart("connector", "connector", ConnectorPart(clay, cuts).build(), "T", F_from_T, CONNECTOR_COLOR)]
+    out = [
+        FixturePart("mount", "mount", MountPart(mlay, cuts).build(), "M", F_from_M, MOUNT_COLOR),
+        FixturePart("connector", "connector", ConnectorPart(clay, cuts).build(), "T", F_from_T, CONNECTOR_COLOR),
+    ]
     for k, pin in enumerate(clay.pins, start=1):
         out.append(FixturePart(f"pin_{k}", "pin", pin_solid(pin), "T", F_from_T, PIN_COLOR))
     return out

@@ -36,13 +36,16 @@ def enforce_rules(design: Design, features: Features, profile: Profile, force: b
         first = report.violations[0]
         more = len(report.violations) - 1
         tail = f" (and {more} more rule{'s' * (more != 1)})" if more else ""
-        raise GoalError(f"design rule violated: {first.message}{tail}; "
-                        f"see `ftrac-design check --profile {profile}`, or build with --force")
+        raise GoalError(
+            f"design rule violated: {first.message}{tail}; "
+            f"see `ftrac-design check --profile {profile}`, or build with --force"
+        )
     return report
 
 
-def write_manufacturing_files(design: Design, features: Features, profile: Profile, out_dir: Path,
-                              parts: list | None = None) -> dict[str, Any]:
+def write_manufacturing_files(
+    design: Design, features: Features, profile: Profile, out_dir: Path, parts: list | None = None
+) -> dict[str, Any]:
     """Write the mount, connector and groove files into ``out_dir``; returns per-file facts.
 
     ``parts``: the :func:`~ftrac_design.cad.fixture.fixture_parts` already built for the
@@ -65,22 +68,30 @@ def write_manufacturing_files(design: Design, features: Features, profile: Profi
         if not stl.watertight or abs(rel) > 0.005:
             raise CadError(f"{p.name}.stl: watertight={stl.watertight}, volume off by {rel:+.3%} from the B-rep")
         bb = p.local.BoundingBox()
-        info[p.name] = {"frame": p.frame, "volume_mm3": round(vol, 4),
-                        "bbox_mm": [[round(bb.xmin, 6), round(bb.ymin, 6), round(bb.zmin, 6)],
-                                    [round(bb.xmax, 6), round(bb.ymax, 6), round(bb.zmax, 6)]],
-                        "stl": {"triangles": stl.triangles, "watertight": stl.watertight,
-                                "volume_vs_brep": rel}}
+        info[p.name] = {
+            "frame": p.frame,
+            "volume_mm3": round(vol, 4),
+            "bbox_mm": [
+                [round(bb.xmin, 6), round(bb.ymin, 6), round(bb.zmin, 6)],
+                [round(bb.xmax, 6), round(bb.ymax, 6), round(bb.zmax, 6)],
+            ],
+            "stl": {"triangles": stl.triangles, "watertight": stl.watertight, "volume_vs_brep": rel},
+        }
     paths = unwrap_features(features, design.outer_radius, cut_sizes(design, profile))
     write_grooves_csv(out_dir / "grooves.csv", paths)
-    write_grooves_dxf(out_dir / "grooves.dxf", paths, design.outer_radius, design.half_length,
-                      design.mount.socket_depth)
-    info["grooves"] = {"polylines": sum(p.kind != "pocket" for p in paths),
-                       "pockets": sum(p.kind == "pocket" for p in paths)}
+    write_grooves_dxf(
+        out_dir / "grooves.dxf", paths, design.outer_radius, design.half_length, design.mount.socket_depth
+    )
+    info["grooves"] = {
+        "polylines": sum(p.kind != "pocket" for p in paths),
+        "pockets": sum(p.kind == "pocket" for p in paths),
+    }
     return info
 
 
-def manufacturing_manifest(design: Design, features: Features, profile: Profile, report: CheckReport,
-                           files: dict[str, Any]) -> dict[str, Any]:
+def manufacturing_manifest(
+    design: Design, features: Features, profile: Profile, report: CheckReport, files: dict[str, Any]
+) -> dict[str, Any]:
     """The manifest's ``manufacturing`` entry (plain JSON)."""
     from .unwrap import STEP_DEG, chord_error, unwrap_features
 
@@ -88,12 +99,28 @@ def manufacturing_manifest(design: Design, features: Features, profile: Profile,
     chord = max((chord_error(p, features) for p in paths), default=0.0)
     return {
         "profile": profile,
-        "rules": {"ok": report.ok, "violations": [r.message for r in report.violations],
-                  "warnings": [r.message for r in report.warnings],
-                  "results": {r.rule: {"measured": r.measured, "limit": r.limit, "comparison": r.comparison,
-                                       "unit": r.unit, "verdict": r.verdict} for r in report.results}},
-        "frames": {"fiducial.step": "F", "assembly.step": "F", "mount.step": "M", "connector.step": "T",
-                   "grooves.csv": "F (theta about +z from +x, z along the axis)"},
+        "rules": {
+            "ok": report.ok,
+            "violations": [r.message for r in report.violations],
+            "warnings": [r.message for r in report.warnings],
+            "results": {
+                r.rule: {
+                    "measured": r.measured,
+                    "limit": r.limit,
+                    "comparison": r.comparison,
+                    "unit": r.unit,
+                    "verdict": r.verdict,
+                }
+                for r in report.results
+            },
+        },
+        "frames": {
+            "fiducial.step": "F",
+            "assembly.step": "F",
+            "mount.step": "M",
+            "connector.step": "T",
+            "grooves.csv": "F (theta about +z from +x, z along the axis)",
+        },
         "parts": files,
         "grooves": {"step_deg": STEP_DEG, "max_chord_error_mm": chord, **files.get("grooves", {})},
         "bom": bill_of_materials(design, features, profile),

@@ -66,8 +66,9 @@ class MountPart:
         self.cuts = cuts
         self.socket_diameter = cuts.socket_diameter
         self.hole_diameters = {h.name: cuts.hole(h.diameter) for h in layout.holes}
-        self.counterbore_diameters = {h.name: cuts.hole(h.counterbore_diameter) for h in layout.holes
-                                      if h.counterbore_diameter}
+        self.counterbore_diameters = {
+            h.name: cuts.hole(h.counterbore_diameter) for h in layout.holes if h.counterbore_diameter
+        }
         self.key_length = cuts.socket_diameter
 
     @classmethod
@@ -79,7 +80,7 @@ class MountPart:
         """Volume (mm³) in closed form, valid when no two cuts meet (the default layouts):
         block − chamfers − socket + key − holes − counterbores."""
         m = self.layout
-        vol = m.width ** 2 * m.height - 4 * (m.chamfer ** 2 / 2) * m.height
+        vol = m.width**2 * m.height - 4 * (m.chamfer**2 / 2) * m.height
         rs = self.socket_diameter / 2
         vol -= math.pi * rs * rs * m.socket_depth
         if m.key.height > 0:
@@ -99,8 +100,9 @@ class MountPart:
         for h in self.layout.holes:
             tools.append(self._cyl(h, self.hole_diameters[h.name] / 2, h.lo - OVERSHOOT, h.hi + OVERSHOOT))
             if h.counterbore_diameter:
-                tools.append(self._cyl(h, self.counterbore_diameters[h.name] / 2,
-                                       h.hi - h.counterbore_depth, h.hi + OVERSHOOT))
+                tools.append(
+                    self._cyl(h, self.counterbore_diameters[h.name] / 2, h.hi - h.counterbore_depth, h.hi + OVERSHOOT)
+                )
         return tools
 
     @staticmethod
@@ -121,8 +123,14 @@ class MountPart:
     def build(self) -> cq.Solid:
         """The mount as one solid in frame M."""
         m = self.layout
-        blk = (cq.Workplane("XY").box(m.width, m.width, m.height, centered=(True, True, False))
-               .translate((0, 0, -m.base_height)).edges("|Z").chamfer(m.chamfer).val())
+        blk = (
+            cq.Workplane("XY")
+            .box(m.width, m.width, m.height, centered=(True, True, False))
+            .translate((0, 0, -m.base_height))
+            .edges("|Z")
+            .chamfer(m.chamfer)
+            .val()
+        )
         socket = cq.Solid.makeCylinder(self.socket_diameter / 2, m.socket_depth + OVERSHOOT, cq.Vector(0, 0, 0))
         solid = blk.cut(socket)
         key = self.key_solid()
@@ -144,8 +152,7 @@ def key_slot_tool(design: Design, profile: Profile = "cnc", layout: MountLayout 
     cuts = cut_sizes(design, profile)
     width = cuts.slide(k.width)
     length = 2 * design.outer_radius + 2 * OVERSHOOT
-    box = cq.Solid.makeBox(length, width, k.slot_depth + OVERSHOOT,
-                           cq.Vector(-length / 2, -width / 2, -OVERSHOOT))
+    box = cq.Solid.makeBox(length, width, k.slot_depth + OVERSHOOT, cq.Vector(-length / 2, -width / 2, -OVERSHOOT))
     ang = math.degrees(math.atan2(k.direction[1], k.direction[0]))
     box = box.rotate(cq.Vector(0, 0, 0), cq.Vector(0, 0, 1), ang)
     return placed(box, rigid_inverse(mount_from_fiducial(design)))

@@ -53,6 +53,12 @@ def wire_parts(features: Features, z_extent: float) -> list[Part]:
 
 def bead_parts(features: Features) -> list[Part]:
     """Every bead as a sphere named ``bead_<point id>``."""
-    return [Part(f"bead_{p.id}", "bead", p.id,
-                 cq.Solid.makeSphere(p.diameter / 2, _v(p.center), angleDegrees1=-90, angleDegrees2=90))
-            for p in features.points]
+    return [
+        Part(
+            f"bead_{p.id}",
+            "bead",
+            p.id,
+            cq.Solid.makeSphere(p.diameter / 2, _v(p.center), angleDegrees1=-90, angleDegrees2=90),
+        )
+        for p in features.points
+    ]

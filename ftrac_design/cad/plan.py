@@ -123,8 +123,18 @@ def plan_body(design: Design, features: Features, cuts: CutSizes) -> BodyPlan:
     for ln in features.lines:
         u = radial_unit(ln.start)
         rs = seat_radius(ln.start)
-        lines.append(LineGroove(ln, u, np.cross([0.0, 0.0, 1.0], u), rs - ln.wire_diameter / 2,
-                                R + over, cuts.groove_width, float(ln.start[2]), float(ln.end[2])))
+        lines.append(
+            LineGroove(
+                ln,
+                u,
+                np.cross([0.0, 0.0, 1.0], u),
+                rs - ln.wire_diameter / 2,
+                R + over,
+                cuts.groove_width,
+                float(ln.start[2]),
+                float(ln.end[2]),
+            )
+        )
     pockets = []
     for p in features.points:
         u = radial_unit(p.center)

@@ -81,10 +81,16 @@ class CutSizes:
 
     def as_dict(self) -> dict[str, float | str]:
         """Plain-JSON form for the manifest."""
-        return {"profile": self.profile, "groove_width": self.groove_width,
-                "pocket_diameter": self.pocket_diameter, "hole_allowance": self.hole_allowance,
-                "socket_diameter": self.socket_diameter, "pin_hole_diameter": self.pin_hole_diameter,
-                "slide_clearance": self.slide_clearance, "fit": self.fit}
+        return {
+            "profile": self.profile,
+            "groove_width": self.groove_width,
+            "pocket_diameter": self.pocket_diameter,
+            "hole_allowance": self.hole_allowance,
+            "socket_diameter": self.socket_diameter,
+            "pin_hole_diameter": self.pin_hole_diameter,
+            "slide_clearance": self.slide_clearance,
+            "fit": self.fit,
+        }
 
 
 def cut_sizes(design: Design, profile: Profile = "cnc") -> CutSizes:
@@ -94,16 +100,28 @@ def cut_sizes(design: Design, profile: Profile = "cnc") -> CutSizes:
     od, pin = design.body.outer_diameter, design.connector.pin_diameter
     if profile == "cnc":
         p = design.manufacturing.cnc
-        return CutSizes("cnc", wd - p.wire_interference if wd else 0.0,
-                        bd - p.bead_interference if bd else 0.0, 0.0,
-                        f"press fit: {p.wire_interference} mm (wire) / {p.bead_interference} mm (ball) interference",
-                        od - p.socket_interference, pin - p.pin_interference, p.slide_clearance)
+        return CutSizes(
+            "cnc",
+            wd - p.wire_interference if wd else 0.0,
+            bd - p.bead_interference if bd else 0.0,
+            0.0,
+            f"press fit: {p.wire_interference} mm (wire) / {p.bead_interference} mm (ball) interference",
+            od - p.socket_interference,
+            pin - p.pin_interference,
+            p.slide_clearance,
+        )
     if profile == "fdm":
         p = design.manufacturing.fdm
-        return CutSizes("fdm", wd + 2 * p.wire_clearance if wd else 0.0,
-                        bd + 2 * p.bead_clearance if bd else 0.0, p.hole_allowance,
-                        f"glued: {p.wire_clearance} mm (wire) / {p.bead_clearance} mm (ball) gap per side",
-                        od + p.press_allowance, pin + p.press_allowance, p.slide_clearance)
+        return CutSizes(
+            "fdm",
+            wd + 2 * p.wire_clearance if wd else 0.0,
+            bd + 2 * p.bead_clearance if bd else 0.0,
+            p.hole_allowance,
+            f"glued: {p.wire_clearance} mm (wire) / {p.bead_clearance} mm (ball) gap per side",
+            od + p.press_allowance,
+            pin + p.press_allowance,
+            p.slide_clearance,
+        )
     raise ValueError(f"unknown profile {profile!r}; expected one of {PROFILES}")
 
 
@@ -147,21 +165,38 @@ def rule_limits(design: Design, profile: Profile = "cnc") -> RuleLimits:
     """Limits that ``ftrac-design check`` applies to ``design`` under ``profile``."""
     if profile == "cnc":
         return RuleLimits(
-            "cnc", CNC_WALL_MIN, CNC_WALL_RECOMMENDED, design.manufacturing.cnc.tool_diameter,
-            "end-mill diameter (manufacturing.cnc.tool_diameter)", CNC_DEPTH_RATIO_MAX,
-            CNC_DEPTH_RATIO_RECOMMENDED, CNC_TOLERANCE,
-            {"wall": "zekes3d CNC design guide; Neptune Labs: plastic wall >= 1.5 mm recommended, 1.0 mm feasible",
-             "tool": "an end mill cannot cut a slot narrower than itself (runout)",
-             "depth": "common CNC guides: pocket depth <= 3-4 x tool diameter",
-             "tolerance": "common CNC guides: +-0.05 mm on critical features"})
+            "cnc",
+            CNC_WALL_MIN,
+            CNC_WALL_RECOMMENDED,
+            design.manufacturing.cnc.tool_diameter,
+            "end-mill diameter (manufacturing.cnc.tool_diameter)",
+            CNC_DEPTH_RATIO_MAX,
+            CNC_DEPTH_RATIO_RECOMMENDED,
+            CNC_TOLERANCE,
+            {
+                "wall": "zekes3d CNC design guide; Neptune Labs: plastic wall >= 1.5 mm recommended, 1.0 mm feasible",
+                "tool": "an end mill cannot cut a slot narrower than itself (runout)",
+                "depth": "common CNC guides: pocket depth <= 3-4 x tool diameter",
+                "tolerance": "common CNC guides: +-0.05 mm on critical features",
+            },
+        )
     if profile == "fdm":
         return RuleLimits(
-            "fdm", FDM_WALL_MIN, FDM_WALL_RECOMMENDED, design.manufacturing.fdm.nozzle_diameter,
-            "nozzle width (manufacturing.fdm.nozzle_diameter)", None, None, FDM_TOLERANCE,
-            {"wall": "printparams, layer-one: 0.8 mm (2 perimeters of a 0.4 mm nozzle) minimum, 1.2-1.6 recommended",
-             "tool": "a printed gap narrower than one extrusion width closes up",
-             "depth": "no depth limit for printed grooves",
-             "tolerance": "printparams 'real-world fit': FDM accuracy about +-0.2 mm"})
+            "fdm",
+            FDM_WALL_MIN,
+            FDM_WALL_RECOMMENDED,
+            design.manufacturing.fdm.nozzle_diameter,
+            "nozzle width (manufacturing.fdm.nozzle_diameter)",
+            None,
+            None,
+            FDM_TOLERANCE,
+            {
+                "wall": "printparams, layer-one: 0.8 mm (2 perimeters of a 0.4 mm nozzle) minimum, 1.2-1.6 recommended",
+                "tool": "a printed gap narrower than one extrusion width closes up",
+                "depth": "no depth limit for printed grooves",
+                "tolerance": "printparams 'real-world fit': FDM accuracy about +-0.2 mm",
+            },
+        )
     raise ValueError(f"unknown profile {profile!r}; expected one of {PROFILES}")
 
 
@@ -232,10 +267,16 @@ class PrintSettings:
 
     def as_dict(self) -> dict[str, object]:
         """Plain-JSON form."""
-        return {"nozzle_diameter_mm": self.nozzle_diameter, "line_width_mm": self.line_width,
-                "layer_height_mm": self.layer_height, "first_layer_height_mm": self.first_layer_height,
-                "perimeters": self.perimeters, "infill_percent": self.infill_percent,
-                "xy_hole_compensation_mm": self.xy_hole_compensation, "sources": dict(self.sources)}
+        return {
+            "nozzle_diameter_mm": self.nozzle_diameter,
+            "line_width_mm": self.line_width,
+            "layer_height_mm": self.layer_height,
+            "first_layer_height_mm": self.first_layer_height,
+            "perimeters": self.perimeters,
+            "infill_percent": self.infill_percent,
+            "xy_hole_compensation_mm": self.xy_hole_compensation,
+            "sources": dict(self.sources),
+        }
 
 
 def print_settings(design: Design) -> PrintSettings:
@@ -244,12 +285,20 @@ def print_settings(design: Design) -> PrintSettings:
 
     nozzle = design.manufacturing.fdm.nozzle_diameter
     return PrintSettings(
-        nozzle, nozzle, round(FDM_LAYER_FRACTION * nozzle, 4), round(FDM_FIRST_LAYER_FRACTION * nozzle, 4),
-        math.ceil(FDM_WALL_RECOMMENDED / nozzle - 1e-9), 100, 0.0,
-        {"line_width": "one nozzle width per line: the wall rules (printparams, layer-one: 0.8 mm = 2 perimeters "
-                       "of a 0.4 mm nozzle)",
-         "layer_height": "OrcaSlicer layer-height guide: 20-80 % of the nozzle; the fine end for the grooves",
-         "first_layer_height": "OrcaSlicer layer-height guide: first layer about 50 % of the nozzle",
-         "perimeters": "recommended wall 1.2 mm (printparams, layer-one) in whole lines",
-         "infill_percent": "the X-ray model (xray.Body) takes the body as solid plastic",
-         "xy_hole_compensation": "the CAD already adds the fdm profile's hole allowance and clearances"})
+        nozzle,
+        nozzle,
+        round(FDM_LAYER_FRACTION * nozzle, 4),
+        round(FDM_FIRST_LAYER_FRACTION * nozzle, 4),
+        math.ceil(FDM_WALL_RECOMMENDED / nozzle - 1e-9),
+        100,
+        0.0,
+        {
+            "line_width": "one nozzle width per line: the wall rules (printparams, layer-one: 0.8 mm = 2 perimeters "
+            "of a 0.4 mm nozzle)",
+            "layer_height": "OrcaSlicer layer-height guide: 20-80 % of the nozzle; the fine end for the grooves",
+            "first_layer_height": "OrcaSlicer layer-height guide: first layer about 50 % of the nozzle",
+            "perimeters": "recommended wall 1.2 mm (printparams, layer-one) in whole lines",
+            "infill_percent": "the X-ray model (xray.Body) takes the body as solid plastic",
+            "xy_hole_compensation": "the CAD already adds the fdm profile's hole allowance and clearances",
+        },
+    )

@@ -19,12 +19,17 @@ def _polydata(shape: cq.Shape, tolerance: float, angular_tolerance: float):
 
     v, t = mesh_arrays(shape, tolerance, angular_tolerance)
     faces = np.hstack([np.full((len(t), 1), 3, dtype=np.int64), t]).ravel()
-    return pv.PolyData(v, faces).compute_normals(auto_orient_normals=True, split_vertices=True,
-                                                 feature_angle=35.0)
+    return pv.PolyData(v, faces).compute_normals(auto_orient_normals=True, split_vertices=True, feature_angle=35.0)
 
 
-def render_png(body: cq.Shape, parts: list[Part], path: str | Path, title: str = "",
-               part_size: float | None = None, size: tuple[int, int] = (1200, 900)) -> Path:
+def render_png(
+    body: cq.Shape,
+    parts: list[Part],
+    path: str | Path,
+    title: str = "",
+    part_size: float | None = None,
+    size: tuple[int, int] = (1200, 900),
+) -> Path:
     """Render ``body`` with its ``parts`` to ``path`` (PNG), headless.
 
     ``part_size`` (mm) is the smallest wire or bead diameter; the parts are tessellated to
@@ -44,12 +49,12 @@ def render_png(body: cq.Shape, parts: list[Part], path: str | Path, title: str =
     pl.set_background("white", top="#dfe6ee")
     pl.enable_anti_aliasing("ssaa")
     pl.enable_depth_peeling(number_of_peels=6)
-    pl.add_mesh(_polydata(body, scale / 800.0, 0.3), color=BODY_COLOR[:3], opacity=0.35,
-                smooth_shading=True, specular=0.3)
+    pl.add_mesh(
+        _polydata(body, scale / 800.0, 0.3), color=BODY_COLOR[:3], opacity=0.35, smooth_shading=True, specular=0.3
+    )
     for p in parts:
         rgb = WIRE_COLOR[:3] if p.kind == "wire" else BEAD_COLOR[:3]
-        pl.add_mesh(_polydata(p.solid, part_tol, 0.5), color=rgb,
-                    smooth_shading=True, specular=0.7, specular_power=30)
+        pl.add_mesh(_polydata(p.solid, part_tol, 0.5), color=rgb, smooth_shading=True, specular=0.7, specular_power=30)
     if title:
         pl.add_text(title, position="upper_left", font_size=12, color="black")
     # raised three-quarter view on the nominal source side (+y), axis upright

@@ -88,9 +88,11 @@ class RuleResult:
         if self.verdict == "fail":
             return f"{self.rule}: {self.title} is {val} ({self.where}); the limit is {lim}"
         if self.verdict == "warn":
-            return (f"{self.rule}: {self.title} is {val} ({self.where}); within the limit {lim} "
-                    f"but {'above' if self.comparison in ('<=', '<') else 'below'} "
-                    f"the recommended {self.recommended:g}{u}")
+            return (
+                f"{self.rule}: {self.title} is {val} ({self.where}); within the limit {lim} "
+                f"but {'above' if self.comparison in ('<=', '<') else 'below'} "
+                f"the recommended {self.recommended:g}{u}"
+            )
         return f"{self.rule}: {self.title} is {val} ({self.where}); limit {lim}"
 
     def as_dict(self) -> dict[str, Any]:
@@ -130,16 +132,23 @@ class CheckReport:
     @property
     def summary(self) -> str:
         n, w = len(self.violations), len(self.warnings)
-        return (f"{self.design} ({self.profile}): {len(self.results)} rules, "
-                f"{n} violation{'s' * (n != 1)}, {w} warning{'s' * (w != 1)}")
+        return (
+            f"{self.design} ({self.profile}): {len(self.results)} rules, "
+            f"{n} violation{'s' * (n != 1)}, {w} warning{'s' * (w != 1)}"
+        )
 
     def as_dict(self) -> dict[str, Any]:
-        return {"format": CHECK_FORMAT, "version": CHECK_VERSION,
-                "design": {"name": self.design, "source": self.source},
-                "profile": self.profile, "ok": self.ok,
-                "violations": len(self.violations), "warnings": len(self.warnings),
-                "cut_sizes": self.cut_sizes,
-                "rules": [r.as_dict() for r in self.results]}
+        return {
+            "format": CHECK_FORMAT,
+            "version": CHECK_VERSION,
+            "design": {"name": self.design, "source": self.source},
+            "profile": self.profile,
+            "ok": self.ok,
+            "violations": len(self.violations),
+            "warnings": len(self.warnings),
+            "cut_sizes": self.cut_sizes,
+            "rules": [r.as_dict() for r in self.results],
+        }
 
     def table(self) -> str:
         """The report as a plain-text table (one row per rule)."""
@@ -158,6 +167,7 @@ class CheckReport:
 
 
 # ---- the cuts in the body, from the features -------------------------------------------------
+
 
 @dataclass(frozen=True)
 class _BodyCut:
@@ -191,18 +201,29 @@ def body_cuts(design: Design, features: Features, cuts: CutSizes) -> list[_BodyC
     for e in features.ellipses:
         pts = e.sample(s)
         rs = float(np.mean(np.hypot(pts[:, 0], pts[:, 1])))
-        out.append(_BodyCut(e.id, "ellipse", None, pts, R - rs + e.wire_diameter / 2, cuts.groove_width,
-                            e.wire_diameter / 2))
+        out.append(
+            _BodyCut(e.id, "ellipse", None, pts, R - rs + e.wire_diameter / 2, cuts.groove_width, e.wire_diameter / 2)
+        )
     for ln in features.lines:
         n = max(2, int(math.ceil(ln.length / 0.05)) + 1)
         pts = ln.sample(np.linspace(0.0, 1.0, n))
         rs = float(math.hypot(ln.start[0], ln.start[1]))
-        out.append(_BodyCut(ln.id, "line", ln.id, pts, R - rs + ln.wire_diameter / 2, cuts.groove_width,
-                            ln.wire_diameter / 2))
+        out.append(
+            _BodyCut(ln.id, "line", ln.id, pts, R - rs + ln.wire_diameter / 2, cuts.groove_width, ln.wire_diameter / 2)
+        )
     for p in features.points:
         rs = float(math.hypot(p.center[0], p.center[1]))
-        out.append(_BodyCut(p.id, "pocket", p.line, p.center[None, :].copy(), R - rs + p.diameter / 2,
-                            cuts.pocket_diameter, p.diameter / 2))
+        out.append(
+            _BodyCut(
+                p.id,
+                "pocket",
+                p.line,
+                p.center[None, :].copy(),
+                R - rs + p.diameter / 2,
+                cuts.pocket_diameter,
+                p.diameter / 2,
+            )
+        )
     return out
 
 
@@ -229,7 +250,7 @@ def _min_distance(a: np.ndarray, b: np.ndarray) -> float:
         wb = np.clip(cj[:, None] * s + off, 0, len(b) - 1)
         best = np.inf
         for k in range(0, len(ci), 1000):
-            d = np.linalg.norm(a[wa[k:k + 1000]][:, :, None, :] - b[wb[k:k + 1000]][:, None, :, :], axis=3)
+            d = np.linalg.norm(a[wa[k : k + 1000]][:, :, None, :] - b[wb[k : k + 1000]][:, None, :, :], axis=3)
             best = min(best, float(d.min()))
         return best
     from scipy.spatial import cKDTree
@@ -245,6 +266,7 @@ def _ligament(a: _BodyCut, b: _BodyCut, R: float) -> float:
 
 
 # ---- the mount's and connector's cuts: axis-aligned capped cylinders and boxes --------------
+
 
 @dataclass(frozen=True)
 class _Cyl:
@@ -304,8 +326,16 @@ def _hole_pieces(h: Hole, cuts: CutSizes) -> list[_Cyl]:
     c = tuple(float(x) for x in h.center)
     out = [_Cyl(f"hole {h.name}", h.axis, c, cuts.hole(h.diameter) / 2, h.lo, h.hi)]
     if h.counterbore_diameter:
-        out.append(_Cyl(f"counterbore {h.name}", h.axis, c, cuts.hole(h.counterbore_diameter) / 2,
-                        h.hi - h.counterbore_depth, h.hi))
+        out.append(
+            _Cyl(
+                f"counterbore {h.name}",
+                h.axis,
+                c,
+                cuts.hole(h.counterbore_diameter) / 2,
+                h.hi - h.counterbore_depth,
+                h.hi,
+            )
+        )
     return out
 
 
@@ -316,6 +346,7 @@ def _face_ligament(piece: _Cyl, lo: np.ndarray, hi: np.ndarray) -> float:
 
 
 # ---- rules -------------------------------------------------------------------------------------
+
 
 @dataclass
 class _Ctx:
@@ -329,8 +360,17 @@ class _Ctx:
     connector: ConnectorLayout
 
 
-def _judge(rule: str, title: str, value: float | None, where: str, limit: float, comparison: str,
-           unit: str = "mm", recommended: float | None = None, source: str = "") -> RuleResult:
+def _judge(
+    rule: str,
+    title: str,
+    value: float | None,
+    where: str,
+    limit: float,
+    comparison: str,
+    unit: str = "mm",
+    recommended: float | None = None,
+    source: str = "",
+) -> RuleResult:
     if value is None:
         return RuleResult(rule, title, None, limit, comparison, unit, "n/a", where, recommended, source)
     ok = {">=": value >= limit - 1e-12, ">": value > limit + 1e-12, "<=": value <= limit + 1e-12}[comparison]
@@ -339,8 +379,9 @@ def _judge(rule: str, title: str, value: float | None, where: str, limit: float,
         short = value < recommended - 1e-12 if comparison in (">=", ">") else value > recommended + 1e-12
         if short:
             verdict = "warn"
-    return RuleResult(rule, title, round(float(value), 6) + 0.0, limit, comparison, unit, verdict, where,
-                      recommended, source)
+    return RuleResult(
+        rule, title, round(float(value), 6) + 0.0, limit, comparison, unit, verdict, where, recommended, source
+    )
 
 
 def _worst(items: list[tuple[float, str]]) -> tuple[float | None, str]:
@@ -357,8 +398,16 @@ def rule_bore_wall(c: _Ctx) -> RuleResult:
     R, rb = c.design.outer_radius, c.design.bore_radius
     items = [(R - b.floor_depth - rb, f"bore to {b.label} floor") for b in c.body]
     v, w = _worst(items)
-    return _judge("body.bore_wall", "wall under the deepest cut", v, w or "no cuts", c.limits.min_wall, ">=",
-                  recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "body.bore_wall",
+        "wall under the deepest cut",
+        v,
+        w or "no cuts",
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_groove_tool(c: _Ctx) -> RuleResult:
@@ -369,8 +418,15 @@ def rule_groove_tool(c: _Ctx) -> RuleResult:
     if not grooves:
         return _judge("groove.tool", "groove width", None, "no grooves", c.limits.tool, ">=")
     w = c.cuts.groove_width
-    return _judge("groove.tool", "groove width", w, f"vs {c.limits.tool:g} mm {c.limits.tool_name}",
-                  c.limits.tool, ">=", source=c.limits.sources["tool"])
+    return _judge(
+        "groove.tool",
+        "groove width",
+        w,
+        f"vs {c.limits.tool:g} mm {c.limits.tool_name}",
+        c.limits.tool,
+        ">=",
+        source=c.limits.sources["tool"],
+    )
 
 
 def rule_groove_depth(c: _Ctx) -> RuleResult:
@@ -381,10 +437,17 @@ def rule_groove_depth(c: _Ctx) -> RuleResult:
         why = "no grooves" if not grooves else f"no depth limit for {c.profile}"
         return _judge("groove.depth", "groove depth / tool", None, why, 0.0, "<=", unit="x")
     g = max(grooves, key=lambda b: b.floor_depth)
-    return _judge("groove.depth", "groove depth / tool", g.floor_depth / c.limits.tool,
-                  f"{g.label}: {g.floor_depth:.3f} mm deep, {c.limits.tool:g} mm end mill",
-                  c.limits.max_depth_ratio, "<=", unit="x", recommended=c.limits.recommended_depth_ratio,
-                  source=c.limits.sources["depth"])
+    return _judge(
+        "groove.depth",
+        "groove depth / tool",
+        g.floor_depth / c.limits.tool,
+        f"{g.label}: {g.floor_depth:.3f} mm deep, {c.limits.tool:g} mm end mill",
+        c.limits.max_depth_ratio,
+        "<=",
+        unit="x",
+        recommended=c.limits.recommended_depth_ratio,
+        source=c.limits.sources["depth"],
+    )
 
 
 def rule_crossing(c: _Ctx) -> RuleResult:
@@ -408,8 +471,16 @@ def rule_crossing(c: _Ctx) -> RuleResult:
             gap = abs(rl - re[k]) - ln.wire_diameter / 2 - e.wire_diameter / 2
             items.append((gap, f"{ln.id} under {e.id} at z = {z:.2f}"))
     v, w = _worst(items)
-    return _judge("wires.crossing_clearance", "clearance between crossing wires", v, w or "no crossings", 0.0, ">",
-                  recommended=c.limits.tolerance, source=c.limits.sources["tolerance"])
+    return _judge(
+        "wires.crossing_clearance",
+        "clearance between crossing wires",
+        v,
+        w or "no crossings",
+        0.0,
+        ">",
+        recommended=c.limits.tolerance,
+        source=c.limits.sources["tolerance"],
+    )
 
 
 def rule_pocket_spacing(c: _Ctx) -> RuleResult:
@@ -419,15 +490,23 @@ def rule_pocket_spacing(c: _Ctx) -> RuleResult:
     pockets = [b for b in c.body if b.kind == "pocket"]
     items = []
     for i, p in enumerate(pockets):
-        for q in pockets[i + 1:]:
+        for q in pockets[i + 1 :]:
             items.append((_ligament(p, q, R), f"{p.label} to {q.label}"))
         for g in c.body:
             if g.kind == "pocket" or (g.kind == "line" and g.id == p.line):
                 continue
             items.append((_ligament(p, g, R), f"{p.label} to {g.label}"))
     v, w = _worst(items)
-    return _judge("pockets.spacing", "wall between a pocket and its neighbours", v, w or "fewer than two cuts",
-                  c.limits.min_wall, ">=", recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "pockets.spacing",
+        "wall between a pocket and its neighbours",
+        v,
+        w or "fewer than two cuts",
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_groove_spacing(c: _Ctx) -> RuleResult:
@@ -437,13 +516,21 @@ def rule_groove_spacing(c: _Ctx) -> RuleResult:
     grooves = [b for b in c.body if b.kind != "pocket"]
     items = []
     for i, a in enumerate(grooves):
-        for b in grooves[i + 1:]:
+        for b in grooves[i + 1 :]:
             if a.kind != b.kind:
                 continue  # a line and an ellipse cross by design (wires.crossing_clearance)
             items.append((_ligament(a, b, R), f"{a.label} to {b.label}"))
     v, w = _worst(items)
-    return _judge("grooves.spacing", "wall between grooves", v, w or "fewer than two parallel grooves",
-                  c.limits.min_wall, ">=", recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "grooves.spacing",
+        "wall between grooves",
+        v,
+        w or "fewer than two parallel grooves",
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_retention(c: _Ctx) -> RuleResult:
@@ -461,9 +548,15 @@ def rule_retention(c: _Ctx) -> RuleResult:
     if not items:
         return _judge("pockets.retention", "pocket depth at its rim", None, "no beads", 0.0, ">")
     _, depth, b = min(items, key=lambda t: t[0])
-    return _judge("pockets.retention", "pocket depth at its rim", depth,
-                  f"{b.label}, ball radius {b.reach:g} mm", b.reach, ">",
-                  source="a ball is held by its pocket only if its centre is below the rim")
+    return _judge(
+        "pockets.retention",
+        "pocket depth at its rim",
+        depth,
+        f"{b.label}, ball radius {b.reach:g} mm",
+        b.reach,
+        ">",
+        source="a ball is held by its pocket only if its centre is below the rim",
+    )
 
 
 def rule_envelope(c: _Ctx) -> RuleResult:
@@ -476,8 +569,16 @@ def rule_envelope(c: _Ctx) -> RuleResult:
         zmax = float(np.max(np.abs(b.points[:, 2]))) + b.width / 2
         items.append((L2 - zmax, f"{b.label} to the end face"))
     v, w = _worst(items)
-    return _judge("body.envelope", "material to the end faces", v, w or "no cuts", c.limits.min_wall, ">=",
-                  recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "body.envelope",
+        "material to the end faces",
+        v,
+        w or "no cuts",
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_coverage(c: _Ctx) -> RuleResult:
@@ -490,8 +591,15 @@ def rule_coverage(c: _Ctx) -> RuleResult:
         low = float(b.points[k, 2]) - max(b.width / 2, b.reach)
         items.append((low - rim, f"{b.id} reaches z = {low:.3f}, socket rim at z = {rim:.3f}"))
     v, w = _worst(items)
-    return _judge("mount.coverage", "gap between the socket rim and the nearest feature", v, w or "no features",
-                  0.0, ">", source="the mount must not cover a wire or bead (paper §II.A.3)")
+    return _judge(
+        "mount.coverage",
+        "gap between the socket rim and the nearest feature",
+        v,
+        w or "no features",
+        0.0,
+        ">",
+        source="the mount must not cover a wire or bead (paper §II.A.3)",
+    )
 
 
 def rule_mount_hole_edge(c: _Ctx) -> RuleResult:
@@ -507,9 +615,15 @@ def rule_mount_hole_edge(c: _Ctx) -> RuleResult:
     if not items:
         return _judge("mount.hole_edge", "hole wall to block edge", None, "no holes", 0.0, ">=")
     _, lig, h = min(items, key=lambda t: t[0])
-    return _judge("mount.hole_edge", "hole wall to block edge", lig,
-                  f"hole {h.name} (Ø{h.diameter:g}) in a {m.width:g} x {m.width:g} x {m.height:g} mm block",
-                  HOLE_EDGE_FACTOR * h.diameter, ">=", source="edge distance >= 1 x hole diameter (centre at 1.5 d)")
+    return _judge(
+        "mount.hole_edge",
+        "hole wall to block edge",
+        lig,
+        f"hole {h.name} (Ø{h.diameter:g}) in a {m.width:g} x {m.width:g} x {m.height:g} mm block",
+        HOLE_EDGE_FACTOR * h.diameter,
+        ">=",
+        source="edge distance >= 1 x hole diameter (centre at 1.5 d)",
+    )
 
 
 def rule_mount_clearance(c: _Ctx) -> RuleResult:
@@ -522,7 +636,7 @@ def rule_mount_clearance(c: _Ctx) -> RuleResult:
     groups = [[socket]] + [_hole_pieces(h, c.cuts) for h in m.holes]
     items = []
     for i, ga in enumerate(groups):
-        for gb in groups[i + 1:]:
+        for gb in groups[i + 1 :]:
             for a in ga:
                 for b in gb:
                     bound = _bbox_distance(a, b)
@@ -536,8 +650,16 @@ def rule_mount_clearance(c: _Ctx) -> RuleResult:
             items.append((_face_ligament(piece, m.lo, m.hi), f"{piece.name} to the block face"))
     # the socket floor over the holes below it
     v, w = _worst(items)
-    return _judge("mount.hole_clearance", "wall between mount cuts", v, w, c.limits.min_wall, ">=",
-                  recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "mount.hole_clearance",
+        "wall between mount cuts",
+        v,
+        w,
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_connector_hole_edge(c: _Ctx) -> RuleResult:
@@ -551,8 +673,15 @@ def rule_connector_hole_edge(c: _Ctx) -> RuleResult:
         lig = _face_ligament(piece, k.lo, k.hi)
         items.append((lig / h.diameter, lig, h))
     _, lig, h = min(items, key=lambda t: t[0])
-    return _judge("connector.hole_edge", "hole wall to plate edge", lig, f"hole {h.name} (Ø{h.diameter:g})",
-                  HOLE_EDGE_FACTOR * h.diameter, ">=", source="edge distance >= 1 x hole diameter (centre at 1.5 d)")
+    return _judge(
+        "connector.hole_edge",
+        "hole wall to plate edge",
+        lig,
+        f"hole {h.name} (Ø{h.diameter:g})",
+        HOLE_EDGE_FACTOR * h.diameter,
+        ">=",
+        source="edge distance >= 1 x hole diameter (centre at 1.5 d)",
+    )
 
 
 def rule_connector_walls(c: _Ctx) -> RuleResult:
@@ -563,9 +692,13 @@ def rule_connector_walls(c: _Ctx) -> RuleResult:
     size = c.cuts.slide(k.pocket_size)
     plo = k.pocket_center[:2] - size / 2
     phi = k.pocket_center[:2] + size / 2
-    items = [(float(min(plo[0] - k.lo[0], plo[1] - k.lo[1], k.hi[0] - phi[0], k.hi[1] - phi[1])),
-              "pocket to the plate edge"),
-             (float(k.size[2] - k.pocket_depth), "pocket floor")]
+    items = [
+        (
+            float(min(plo[0] - k.lo[0], plo[1] - k.lo[1], k.hi[0] - phi[0], k.hi[1] - phi[1])),
+            "pocket to the plate edge",
+        ),
+        (float(k.size[2] - k.pocket_depth), "pocket floor"),
+    ]
     for h in k.holes:
         if h.kind != "pin":
             continue
@@ -574,8 +707,16 @@ def rule_connector_walls(c: _Ctx) -> RuleResult:
         dy = max(plo[1] - h.center[1], 0.0, h.center[1] - phi[1])
         items.append((math.hypot(dx, dy) - r, f"hole {h.name} to the pocket"))
     v, w = _worst(items)
-    return _judge("connector.walls", "connector wall", v, w, c.limits.min_wall, ">=",
-                  recommended=c.limits.recommended_wall, source=c.limits.sources["wall"])
+    return _judge(
+        "connector.walls",
+        "connector wall",
+        v,
+        w,
+        c.limits.min_wall,
+        ">=",
+        recommended=c.limits.recommended_wall,
+        source=c.limits.sources["wall"],
+    )
 
 
 def rule_template_clearance(c: _Ctx) -> RuleResult:
@@ -584,15 +725,32 @@ def rule_template_clearance(c: _Ctx) -> RuleResult:
     ``+z`` and must clear it (> 0)."""
     con = c.design.connector
     gap = con.axis_height - c.mount.width / 2 - con.template_edge
-    return _judge("connector.template_clearance", "gap between the mount and the template's top edge", gap,
-                  f"mount from y = {con.axis_height - c.mount.width / 2:g}, template edge at y = {con.template_edge:g}",
-                  0.0, ">", source="the mount reaches over the template's top edge")
+    return _judge(
+        "connector.template_clearance",
+        "gap between the mount and the template's top edge",
+        gap,
+        f"mount from y = {con.axis_height - c.mount.width / 2:g}, template edge at y = {con.template_edge:g}",
+        0.0,
+        ">",
+        source="the mount reaches over the template's top edge",
+    )
 
 
 RULES: tuple[Callable[[_Ctx], RuleResult], ...] = (
-    rule_bore_wall, rule_groove_tool, rule_groove_depth, rule_crossing, rule_pocket_spacing,
-    rule_groove_spacing, rule_retention, rule_envelope, rule_coverage, rule_mount_hole_edge,
-    rule_mount_clearance, rule_connector_hole_edge, rule_connector_walls, rule_template_clearance,
+    rule_bore_wall,
+    rule_groove_tool,
+    rule_groove_depth,
+    rule_crossing,
+    rule_pocket_spacing,
+    rule_groove_spacing,
+    rule_retention,
+    rule_envelope,
+    rule_coverage,
+    rule_mount_hole_edge,
+    rule_mount_clearance,
+    rule_connector_hole_edge,
+    rule_connector_walls,
+    rule_template_clearance,
 )
 
 
@@ -601,6 +759,14 @@ def check_design(design: Design, profile: Profile = "cnc", features: Features | 
     features = features if features is not None else compute_features(design)
     cuts = cut_sizes(design, profile)
     mount = mount_layout(design)
-    ctx = _Ctx(design, profile, features, cuts, rule_limits(design, profile),
-               body_cuts(design, features, cuts), mount, connector_layout(design, mount))
+    ctx = _Ctx(
+        design,
+        profile,
+        features,
+        cuts,
+        rule_limits(design, profile),
+        body_cuts(design, features, cuts),
+        mount,
+        connector_layout(design, mount),
+    )
     return CheckReport(design.name, design.source, profile, tuple(rule(ctx) for rule in RULES), cuts.as_dict())

@@ -45,8 +45,17 @@ from .profiles import CutSizes
 #: angular step of the ellipse polylines, degrees
 STEP_DEG = 0.5
 
-CSV_COLUMNS = ("feature", "kind", "vertex", "theta_deg", "z_mm", "depth_mm", "seat_radius_mm",
-               "part_diameter_mm", "cut_width_mm")
+CSV_COLUMNS = (
+    "feature",
+    "kind",
+    "vertex",
+    "theta_deg",
+    "z_mm",
+    "depth_mm",
+    "seat_radius_mm",
+    "part_diameter_mm",
+    "cut_width_mm",
+)
 
 #: DXF layers
 LAYERS = {"OUTLINE": 7, "GROOVE_CENTRELINES": 1, "GROOVE_EDGES": 8, "POCKETS": 5, "MOUNT": 3, "LABELS": 2}
@@ -96,8 +105,9 @@ def ellipse_parameter_at(e: EllipseFeature, theta: np.ndarray) -> np.ndarray:
     return np.where(xy_dot < 0, s + math.pi, s)
 
 
-def unwrap_features(features: Features, outer_radius: float, cuts: CutSizes,
-                    step_deg: float = STEP_DEG) -> list[UnwrappedPath]:
+def unwrap_features(
+    features: Features, outer_radius: float, cuts: CutSizes, step_deg: float = STEP_DEG
+) -> list[UnwrappedPath]:
     """Every groove and pocket of ``features`` as (θ, z) polylines; ellipses, lines, pockets."""
     out: list[UnwrappedPath] = []
     n = int(round(360.0 / step_deg))
@@ -109,20 +119,50 @@ def unwrap_features(features: Features, outer_radius: float, cuts: CutSizes,
         if np.ptp(r) > 1e-9:
             raise ValueError(f"ellipse {e.id} does not lie on a cylinder about the body axis")
         rs = float(np.mean(r))
-        out.append(UnwrappedPath(e.id, "ellipse", theta_deg.copy(), pts[:, 2].copy(), rs,
-                                 outer_radius - rs + e.wire_diameter / 2, e.wire_diameter, cuts.groove_width))
+        out.append(
+            UnwrappedPath(
+                e.id,
+                "ellipse",
+                theta_deg.copy(),
+                pts[:, 2].copy(),
+                rs,
+                outer_radius - rs + e.wire_diameter / 2,
+                e.wire_diameter,
+                cuts.groove_width,
+            )
+        )
     for ln in features.lines:
         if np.linalg.norm(ln.end[:2] - ln.start[:2]) > 1e-9:
             raise ValueError(f"line {ln.id} is not parallel to the body axis")
         th = math.degrees(math.atan2(ln.start[1], ln.start[0])) % 360.0
         rs = float(math.hypot(ln.start[0], ln.start[1]))
-        out.append(UnwrappedPath(ln.id, "line", np.array([th, th]), np.array([ln.start[2], ln.end[2]]), rs,
-                                 outer_radius - rs + ln.wire_diameter / 2, ln.wire_diameter, cuts.groove_width))
+        out.append(
+            UnwrappedPath(
+                ln.id,
+                "line",
+                np.array([th, th]),
+                np.array([ln.start[2], ln.end[2]]),
+                rs,
+                outer_radius - rs + ln.wire_diameter / 2,
+                ln.wire_diameter,
+                cuts.groove_width,
+            )
+        )
     for p in features.points:
         th = math.degrees(math.atan2(p.center[1], p.center[0])) % 360.0
         rs = float(math.hypot(p.center[0], p.center[1]))
-        out.append(UnwrappedPath(p.id, "pocket", np.array([th]), np.array([p.center[2]]), rs,
-                                 outer_radius - rs + p.diameter / 2, p.diameter, cuts.pocket_diameter))
+        out.append(
+            UnwrappedPath(
+                p.id,
+                "pocket",
+                np.array([th]),
+                np.array([p.center[2]]),
+                rs,
+                outer_radius - rs + p.diameter / 2,
+                p.diameter,
+                cuts.pocket_diameter,
+            )
+        )
     return out
 
 
@@ -144,8 +184,19 @@ def grooves_csv_text(paths: list[UnwrappedPath]) -> str:
     w.writerow(CSV_COLUMNS)
     for p in paths:
         for k, (th, z) in enumerate(zip(p.theta_deg, p.z)):
-            w.writerow([p.feature, p.kind, k, f"{th:.9f}", f"{z:.9f}", f"{p.depth:.9f}", f"{p.seat_radius:.9f}",
-                        f"{p.part_diameter:.6f}", f"{p.cut_width:.6f}"])
+            w.writerow(
+                [
+                    p.feature,
+                    p.kind,
+                    k,
+                    f"{th:.9f}",
+                    f"{z:.9f}",
+                    f"{p.depth:.9f}",
+                    f"{p.seat_radius:.9f}",
+                    f"{p.part_diameter:.6f}",
+                    f"{p.cut_width:.6f}",
+                ]
+            )
     return buf.getvalue()
 
 
@@ -163,10 +214,18 @@ def read_grooves_csv(path: str | Path) -> list[UnwrappedPath]:
     out = []
     for (feature, kind), rs in rows.items():
         rs.sort(key=lambda r: int(r["vertex"]))
-        out.append(UnwrappedPath(feature, kind, np.array([float(r["theta_deg"]) for r in rs]),
-                                 np.array([float(r["z_mm"]) for r in rs]), float(rs[0]["seat_radius_mm"]),
-                                 float(rs[0]["depth_mm"]), float(rs[0]["part_diameter_mm"]),
-                                 float(rs[0]["cut_width_mm"])))
+        out.append(
+            UnwrappedPath(
+                feature,
+                kind,
+                np.array([float(r["theta_deg"]) for r in rs]),
+                np.array([float(r["z_mm"]) for r in rs]),
+                float(rs[0]["seat_radius_mm"]),
+                float(rs[0]["depth_mm"]),
+                float(rs[0]["part_diameter_mm"]),
+                float(rs[0]["cut_width_mm"]),
+            )
+        )
     return out
 
 
@@ -177,8 +236,9 @@ def _offset(xy: np.ndarray, d: float) -> np.ndarray:
     return xy + d * np.column_stack([-t[:, 1], t[:, 0]])
 
 
-def unwrapped_dxf(paths: list[UnwrappedPath], outer_radius: float, half_length: float,
-                  socket_depth: float | None = None):
+def unwrapped_dxf(
+    paths: list[UnwrappedPath], outer_radius: float, half_length: float, socket_depth: float | None = None
+):
     """An ezdxf document of the unwrapped outer surface (mm; x = R·θ, y = z)."""
     import ezdxf
     from ezdxf import units
@@ -201,7 +261,8 @@ def unwrapped_dxf(paths: list[UnwrappedPath], outer_radius: float, half_length: 
         if p.kind == "pocket":
             msp.add_circle((float(x[0]), float(p.z[0])), p.cut_width / 2, dxfattribs={"layer": "POCKETS"})
             msp.add_text(p.feature, height=text_h * 0.6, dxfattribs={"layer": "LABELS"}).set_placement(
-                (float(x[0]) + p.cut_width, float(p.z[0])))
+                (float(x[0]) + p.cut_width, float(p.z[0]))
+            )
             continue
         xy = np.column_stack([x, p.z])
         msp.add_lwpolyline([tuple(map(float, q)) for q in xy], dxfattribs={"layer": "GROOVE_CENTRELINES"})
@@ -213,12 +274,18 @@ def unwrapped_dxf(paths: list[UnwrappedPath], outer_radius: float, half_length: 
             msp.add_lwpolyline([tuple(map(float, q)) for q in edge], dxfattribs={"layer": "GROOVE_EDGES"})
         k = int(np.argmax(p.z)) if p.kind == "ellipse" else len(xy) - 1
         msp.add_text(p.feature, height=text_h, dxfattribs={"layer": "LABELS"}).set_placement(
-            (float(xy[k, 0]) + text_h / 2, float(xy[k, 1]) + text_h / 2))
+            (float(xy[k, 0]) + text_h / 2, float(xy[k, 1]) + text_h / 2)
+        )
     return doc
 
 
-def write_grooves_dxf(path: str | Path, paths: list[UnwrappedPath], outer_radius: float, half_length: float,
-                      socket_depth: float | None = None) -> Path:
+def write_grooves_dxf(
+    path: str | Path,
+    paths: list[UnwrappedPath],
+    outer_radius: float,
+    half_length: float,
+    socket_depth: float | None = None,
+) -> Path:
     """Write ``grooves.dxf`` atomically."""
     doc = unwrapped_dxf(paths, outer_radius, half_length, socket_depth)
     buf = io.StringIO()

@@ -118,8 +118,11 @@ def project(solid: cq.Shape, frame: ViewFrame, exact: bool = False) -> Projectio
         poly.Update()
         h = HLRBRep_PolyHLRToShape()
         h.Update(poly)
-    visible = [*_edge_polylines(h.VCompound()), *_edge_polylines(h.Rg1LineVCompound()),
-               *_edge_polylines(h.OutLineVCompound())]
+    visible = [
+        *_edge_polylines(h.VCompound()),
+        *_edge_polylines(h.Rg1LineVCompound()),
+        *_edge_polylines(h.OutLineVCompound()),
+    ]
     hidden = [*_edge_polylines(h.HCompound()), *_edge_polylines(h.OutLineHCompound())]
     # the projector's 2-D frame is the Ax2's (x_dir, toward_viewer × x_dir) about its origin
     return Projection(frame, tuple(chain(visible)), tuple(chain(hidden)))
@@ -128,6 +131,7 @@ def project(solid: cq.Shape, frame: ViewFrame, exact: bool = False) -> Projectio
 def chain(polylines: list[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:
     """Join polylines that share end points into longer ones (a mesh's hidden-line removal
     returns one short edge per triangle side; drawing them one by one is slow)."""
+
     def key(p: np.ndarray) -> tuple[int, int]:
         return int(round(p[0] / tol)), int(round(p[1] / tol))
 
@@ -215,4 +219,3 @@ def section(solid: cq.Shape, frame: ViewFrame) -> Section:
                 inner.append(_wire_loop(w, frame))
         faces.append((_wire_loop(outer, frame), tuple(inner)))
     return Section(frame, tuple(faces))
-

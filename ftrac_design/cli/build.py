@@ -12,16 +12,35 @@ from ..machining.post import DEFAULT_POST, POSTS
 
 @click.command("build")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
-              help="output directory [default: outputs/<design name>/]")
-@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
-              help="manufacturing profile: sets groove widths and pocket diameters")
-@click.option("--force", is_flag=True, default=False,
-              help="build even if the design breaks a manufacturing rule")
-@click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True,
-              help="control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for")
-@click.option("--report", is_flag=True, default=False,
-              help="also write report.html (one self-contained page; runs the analysis at the design's settings)")
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="output directory [default: outputs/<design name>/]",
+)
+@click.option(
+    "--profile",
+    type=click.Choice(PROFILES),
+    default="cnc",
+    show_default=True,
+    help="manufacturing profile: sets groove widths and pocket diameters",
+)
+@click.option("--force", is_flag=True, default=False, help="build even if the design breaks a manufacturing rule")
+@click.option(
+    "--post",
+    type=click.Choice(list(POSTS)),
+    default=DEFAULT_POST,
+    show_default=True,
+    help="control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for",
+)
+@click.option(
+    "--report",
+    is_flag=True,
+    default=False,
+    help="also write report.html (one self-contained page; runs the analysis at the design's settings)",
+)
 def command(design: Path, output: Path | None, profile: str, force: bool, post: str, report: bool) -> int:
     """Build the fiducial body, wires and beads of DESIGN (a .toml file or a preset's name,
     see `ftrac-design presets`).
@@ -44,8 +63,10 @@ def command(design: Path, output: Path | None, profile: str, force: bool, post: 
     for name, info in m["files"].items():
         click.echo(f"  {name:<15} {info['bytes']:>10,d} bytes")
     click.echo(f"  {'manifest.json':<15}")
-    click.echo(f"  body {vol['body']:.1f} mm3, wires {vol['wires']:.2f} mm3, beads {vol['beads']:.2f} mm3; "
-               f"wire {m['wires']['total_length_mm']:.1f} mm, {m['beads']['count']} beads")
+    click.echo(
+        f"  body {vol['body']:.1f} mm3, wires {vol['wires']:.2f} mm3, beads {vol['beads']:.2f} mm3; "
+        f"wire {m['wires']['total_length_mm']:.1f} mm, {m['beads']['count']} beads"
+    )
     if report:
         from ..workflows.report import report_for_build
 

@@ -15,10 +15,16 @@ from ..errors import GoalError
 
 @click.command("check")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
-              help="manufacturing profile whose cut sizes and limits apply")
-@click.option("--json", "as_json", is_flag=True, default=False,
-              help="print the report as one JSON object instead of a table")
+@click.option(
+    "--profile",
+    type=click.Choice(PROFILES),
+    default="cnc",
+    show_default=True,
+    help="manufacturing profile whose cut sizes and limits apply",
+)
+@click.option(
+    "--json", "as_json", is_flag=True, default=False, help="print the report as one JSON object instead of a table"
+)
 def command(design: Path, profile: str, as_json: bool) -> int:
     """Check DESIGN (a .toml file or a preset's name) against the manufacturing design rules.
 

@@ -26,23 +26,60 @@ def _pair(ctx, param, value):
 
 @click.command("coupon")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
-              help="manufacturing profile whose groove width and pocket diameter the steps centre on")
-@click.option("-o", "--output", "output", type=click.Path(path_type=Path), default=None,
-              help="output directory [default: outputs/<design name>_coupon/]")
-@click.option("--step", type=click.FloatRange(min=0.001, max=0.5), default=None,
-              help="mm between sizes [default: 0.01 cnc, 0.05 fdm]")
-@click.option("--count", type=click.IntRange(min=1, max=15), default=7, show_default=True,
-              help="sizes of each kind")
-@click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True,
-              help="control the coupon's program is written for (cnc)")
-@click.option("--interference", callback=_pair, default=None, metavar="WIRE,BALL",
-              help="the fit that held on the coupon, mm (cnc: interference; fdm: gap per side): "
-                   "writes DESIGN with it to --write-design instead of making a coupon")
-@click.option("--write-design", "write_design", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="where --interference writes the updated design (TOML)")
-def command(design: Path, profile: str, output: Path | None, step: float | None, count: int, post: str,
-            interference: tuple[float, float] | None, write_design: Path | None) -> int:
+@click.option(
+    "--profile",
+    type=click.Choice(PROFILES),
+    default="cnc",
+    show_default=True,
+    help="manufacturing profile whose groove width and pocket diameter the steps centre on",
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="output directory [default: outputs/<design name>_coupon/]",
+)
+@click.option(
+    "--step",
+    type=click.FloatRange(min=0.001, max=0.5),
+    default=None,
+    help="mm between sizes [default: 0.01 cnc, 0.05 fdm]",
+)
+@click.option("--count", type=click.IntRange(min=1, max=15), default=7, show_default=True, help="sizes of each kind")
+@click.option(
+    "--post",
+    type=click.Choice(list(POSTS)),
+    default=DEFAULT_POST,
+    show_default=True,
+    help="control the coupon's program is written for (cnc)",
+)
+@click.option(
+    "--interference",
+    callback=_pair,
+    default=None,
+    metavar="WIRE,BALL",
+    help="the fit that held on the coupon, mm (cnc: interference; fdm: gap per side): "
+    "writes DESIGN with it to --write-design instead of making a coupon",
+)
+@click.option(
+    "--write-design",
+    "write_design",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="where --interference writes the updated design (TOML)",
+)
+def command(
+    design: Path,
+    profile: str,
+    output: Path | None,
+    step: float | None,
+    count: int,
+    post: str,
+    interference: tuple[float, float] | None,
+    write_design: Path | None,
+) -> int:
     """A press-fit test coupon for DESIGN's wire and balls: groove widths and pocket diameters
     stepped around the profile's values, each engraved with its size.
 
@@ -108,25 +145,36 @@ def _write(c, out: Path, post: str, cnc) -> int:
         if c.profile == "cnc":
             pockets = [p.diameter for p in c.plan.pockets]
             tools = tooling(cnc, min(pockets) if pockets else None)
-            text = emit(plan_program(c.plan, tools, title=f"{c.design} coupon"), post,
-                        [f"{c.design} press-fit coupon, profile {c.profile}, step {c.step_mm:g} mm",
-                         "sizes and A positions in coupon.csv; machine convention as the body's"])
+            text = emit(
+                plan_program(c.plan, tools, title=f"{c.design} coupon"),
+                post,
+                [
+                    f"{c.design} press-fit coupon, profile {c.profile}, step {c.step_mm:g} mm",
+                    "sizes and A positions in coupon.csv; machine convention as the body's",
+                ],
+            )
             parsed = parse_gcode(text, "the coupon program")
-            v = verify(parsed, c.plan, tools={tools.groove.number: tools.groove.diameter,
-                                              tools.pocket.number: tools.pocket.diameter})
+            v = verify(
+                parsed,
+                c.plan,
+                tools={tools.groove.number: tools.groove.diameter, tools.pocket.number: tools.pocket.diameter},
+            )
             name = "coupon" + POSTS[post].suffix
             write_text_atomic(tmp / name, text)
             write_json_atomic(tmp / f"{name}.verify.json", {"cycle_time_s": cycle_time(parsed), **v.as_dict()})
             verdict = v
         if verdict is not None and not verdict.ok:
-            raise GoalError(f"{c.design} coupon: its program does not cut the coupon (deviation "
-                            f"{verdict.max_deviation_mm:.4f} mm, {verdict.gouges} gouges)")
+            raise GoalError(
+                f"{c.design} coupon: its program does not cut the coupon (deviation "
+                f"{verdict.max_deviation_mm:.4f} mm, {verdict.gouges} gouges)"
+            )
     click.echo(f"coupon for {c.design} ({c.profile}, step {c.step_mm:g} mm) -> {out}")
     for s in c.steps:
         click.echo(f"  {s.kind:<6} {s.label} mm at A{s.azimuth * 57.29577951308232:7.2f}  fit {s.fit:+.3f}")
     click.echo(f"  thinnest wall {c.min_wall:.2f} mm; STL {stl.triangles} triangles, watertight {stl.watertight}")
     if verdict is not None:
-        click.echo(f"  program verified: max deviation {verdict.max_deviation_mm * 1000:.2f} um, "
-                   f"{verdict.gouges} gouges, volume {verdict.volume_difference:+.3%}")
+        click.echo(
+            f"  program verified: max deviation {verdict.max_deviation_mm * 1000:.2f} um, "
+            f"{verdict.gouges} gouges, volume {verdict.volume_difference:+.3%}"
+        )
     return 0
-

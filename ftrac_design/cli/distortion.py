@@ -14,23 +14,68 @@ from ..fileio import atomic_file
 
 @click.command("distortion")
 @click.argument("grid_image", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--pitch", "pitch_mm", type=float, required=True,
-              help="Grid pitch of the dewarping plate, mm (centre to centre of neighbouring beads).")
-@click.option("--pixel-mm", "pixel_mm", type=float, default=None,
-              help="Detector pixel pitch, mm (else from --camera or the image's header).")
-@click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="SPEC §3 camera object (JSON); its pixel size is used.")
+@click.option(
+    "--pitch",
+    "pitch_mm",
+    type=float,
+    required=True,
+    help="Grid pitch of the dewarping plate, mm (centre to centre of neighbouring beads).",
+)
+@click.option(
+    "--pixel-mm",
+    "pixel_mm",
+    type=float,
+    default=None,
+    help="Detector pixel pitch, mm (else from --camera or the image's header).",
+)
+@click.option(
+    "--camera",
+    "camera_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="SPEC §3 camera object (JSON); its pixel size is used.",
+)
 @click.option("--degree", type=int, default=5, show_default=True, help="Degree of the distortion polynomial (1–8).")
-@click.option("--polarity", type=click.Choice(["auto", "dense-dark", "dense-bright"]), default="auto",
-              show_default=True, help="dense-dark: raw detector counts; dense-bright: log/display image.")
-@click.option("--bead-mm", "bead_mm", type=float, default=None,
-              help="Bead diameter on the plate, mm (default: measured on the image).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=Path("distortion.json"),
-              show_default=True, help="Where to write the ftrac-distortion model.")
-@click.option("--plot", "plot_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Also write a PNG of the measured and fitted displacements and the residuals.")
-def command(grid_image: Path, pitch_mm: float, pixel_mm: float | None, camera_path: Path | None, degree: int,
-            polarity: str, bead_mm: float | None, output: Path, plot_path: Path | None) -> int:
+@click.option(
+    "--polarity",
+    type=click.Choice(["auto", "dense-dark", "dense-bright"]),
+    default="auto",
+    show_default=True,
+    help="dense-dark: raw detector counts; dense-bright: log/display image.",
+)
+@click.option(
+    "--bead-mm",
+    "bead_mm",
+    type=float,
+    default=None,
+    help="Bead diameter on the plate, mm (default: measured on the image).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=Path("distortion.json"),
+    show_default=True,
+    help="Where to write the ftrac-distortion model.",
+)
+@click.option(
+    "--plot",
+    "plot_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Also write a PNG of the measured and fitted displacements and the residuals.",
+)
+def command(
+    grid_image: Path,
+    pitch_mm: float,
+    pixel_mm: float | None,
+    camera_path: Path | None,
+    degree: int,
+    polarity: str,
+    bead_mm: float | None,
+    output: Path,
+    plot_path: Path | None,
+) -> int:
     """Estimate the image-intensifier distortion from GRID_IMAGE, an image of a regular square
     bead grid (a dewarping plate on the intensifier's face).
 
@@ -54,19 +99,29 @@ def command(grid_image: Path, pitch_mm: float, pixel_mm: float | None, camera_pa
         cam = camera_from_dict(meta["camera"], grid_image)
     if pixel_mm is None:
         if cam is None:
-            raise InputError(grid_image, "--pixel-mm", "the detector pixel pitch: --pixel-mm MM or --camera C.json "
-                                                       f"(a {meta.get('format', 'image').upper()} file carries none)")
+            raise InputError(
+                grid_image,
+                "--pixel-mm",
+                "the detector pixel pitch: --pixel-mm MM or --camera C.json "
+                f"(a {meta.get('format', 'image').upper()} file carries none)",
+            )
         pixel_mm = float(sum(cam.pixel_size_mm) / 2)
     if polarity == "auto":
-        polarity = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(meta.get("polarity_hint") or "",
-                                                                                    "auto")
+        polarity = {"dense_dark": "dense-dark", "dense_bright": "dense-bright"}.get(
+            meta.get("polarity_hint") or "", "auto"
+        )
     try:
-        model, report = estimate_distortion(img, pitch_mm, pixel_mm, polarity=polarity, degree=degree,
-                                            bead_diameter_mm=bead_mm, origin=str(grid_image))
+        model, report = estimate_distortion(
+            img, pitch_mm, pixel_mm, polarity=polarity, degree=degree, bead_diameter_mm=bead_mm, origin=str(grid_image)
+        )
     except InputError as exc:
         # the library names its arguments; the user typed options
-        option = {"pitch_mm": "--pitch", "pixel_mm": "--pixel-mm", "bead_diameter_mm": "--bead-mm",
-                  "degree": "--degree"}.get(exc.key or "")
+        option = {
+            "pitch_mm": "--pitch",
+            "pixel_mm": "--pixel-mm",
+            "bead_diameter_mm": "--bead-mm",
+            "degree": "--degree",
+        }.get(exc.key or "")
         if option is None:
             raise
         raise InputError(None, option, exc.expected) from None
@@ -74,6 +129,7 @@ def command(grid_image: Path, pitch_mm: float, pixel_mm: float | None, camera_pa
         with contextlib.ExitStack() as stack:
             if plot_path is not None:
                 from ..segment.gridplot import draw_grid_fit
+
                 # drawn under a temporary name, renamed only once the model is written too
                 tmp = stack.enter_context(atomic_file(plot_path))
                 draw_grid_fit(tmp, img, report, title=f"{grid_image.name}: degree {degree}")
@@ -81,7 +137,9 @@ def command(grid_image: Path, pitch_mm: float, pixel_mm: float | None, camera_pa
     except OSError as exc:
         raise InputError(plot_path, None, f"a writable output path ({exc.strerror or exc})") from None
     click.echo(report.summary())
-    click.echo(f"degree {degree}: max displacement {model.max_displacement_px:.2f} px within "
-               f"{model.support_radius_px:.0f} px of the centre; wrote {output}"
-               + (f" and {plot_path}" if plot_path is not None else ""))
+    click.echo(
+        f"degree {degree}: max displacement {model.max_displacement_px:.2f} px within "
+        f"{model.support_radius_px:.0f} px of the centre; wrote {output}"
+        + (f" and {plot_path}" if plot_path is not None else "")
+    )
     return 0

@@ -13,8 +13,7 @@ import click
 from ..errors import InputError
 
 #: output suffix → format
-SUFFIXES = {".tfm": "tfm", ".mrk.json": "mrk", ".seq.mha": "mha", ".mha": "mha", ".seq.nrrd": "nrrd",
-            ".nrrd": "nrrd"}
+SUFFIXES = {".tfm": "tfm", ".mrk.json": "mrk", ".seq.mha": "mha", ".mha": "mha", ".seq.nrrd": "nrrd", ".nrrd": "nrrd"}
 
 
 def _format_of(output: Path, fmt: str | None) -> str:
@@ -24,22 +23,46 @@ def _format_of(output: Path, fmt: str | None) -> str:
     for suffix, f in SUFFIXES.items():
         if name.endswith(suffix):
             return f
-    raise InputError(output, None, "an output ending .tfm, .mrk.json, .seq.mha or .seq.nrrd (or give --format)",
-                     parameter="output")
+    raise InputError(
+        output, None, "an output ending .tfm, .mrk.json, .seq.mha or .seq.nrrd (or give --format)", parameter="output"
+    )
 
 
 @click.command("export")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.")
-@click.option("--format", "fmt", type=click.Choice(["tfm", "mrk", "mha", "nrrd"]), default=None,
-              help="The format, when the suffix does not say.")
-@click.option("--index", type=click.IntRange(min=0), default=None,
-              help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).")
-@click.option("--name", default="FiducialToCArm", show_default=True,
-              help="The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform).")
-@click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True,
-              help="Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    required=True,
+    help="The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.",
+)
+@click.option(
+    "--format",
+    "fmt",
+    type=click.Choice(["tfm", "mrk", "mha", "nrrd"]),
+    default=None,
+    help="The format, when the suffix does not say.",
+)
+@click.option(
+    "--index",
+    type=click.IntRange(min=0),
+    default=None,
+    help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).",
+)
+@click.option(
+    "--name",
+    default="FiducialToCArm",
+    show_default=True,
+    help="The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform).",
+)
+@click.option(
+    "--space",
+    type=click.Choice(["ras", "lps"]),
+    default="ras",
+    show_default=True,
+    help="Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).",
+)
 def command(input_path: Path, output: Path, fmt: str | None, index: int | None, name: str, space: str) -> int:
     """Write INPUT as a 3D Slicer / ITK / PLUS file.
 
@@ -70,23 +93,31 @@ def command(input_path: Path, output: Path, fmt: str | None, index: int | None, 
         from ..igt.tfm import write_tfm
 
         if index is None and len(poses) > 1:
-            raise InputError(input_path, None, f"one pose, or --index K to pick one of its {len(poses)}",
-                             parameter="index")
+            raise InputError(
+                input_path, None, f"one pose, or --index K to pick one of its {len(poses)}", parameter="index"
+            )
         k = index or 0
         if k >= len(poses):
-            raise InputError(input_path, None, f"at least {k + 1} poses for --index {k}, got {len(poses)}",
-                             parameter="index")
+            raise InputError(
+                input_path, None, f"at least {k + 1} poses for --index {k}, got {len(poses)}", parameter="index"
+            )
         p = poses[k]
         if not p.converged:
-            raise InputError(p.origin, "converged",
-                             f"a solved pose to export, got none ({p.error or 'converged: false'})")
+            raise InputError(
+                p.origin, "converged", f"a solved pose to export, got none ({p.error or 'converged: false'})"
+            )
         write_tfm(output, pose_matrix(p.R, p.t), name, note=f"from {p.origin}")
         click.echo(f"wrote {output}: {name} from {p.origin}")
         return 0
     from ..igt.sequence import SequenceFrame, write_sequence
 
-    frames = [SequenceFrame(in_space(pose_matrix(p.R, p.t), space) if p.converged else None,
-                            p.time_s if p.time_s is not None else float(k)) for k, p in enumerate(poses)]
+    frames = [
+        SequenceFrame(
+            in_space(pose_matrix(p.R, p.t), space) if p.converged else None,
+            p.time_s if p.time_s is not None else float(k),
+        )
+        for k, p in enumerate(poses)
+    ]
     write_sequence(output, frames, name, fmt, space)
     ok = sum(p.converged for p in poses)
     click.echo(f"wrote {output}: {len(poses)} frames ({ok} OK, {len(poses) - ok} INVALID), {name}, {space.upper()}")

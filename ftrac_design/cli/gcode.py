@@ -17,36 +17,73 @@ from ..machining.simulate import GRID, TOLERANCE
 
 
 def _table(v, cycle: dict[str, float] | None) -> list[str]:
-    lines = [f"  max deviation   {v.max_deviation_mm * 1000:8.2f} um  (overcut {v.max_overcut_mm * 1000:.2f}, "
-             f"undercut {v.max_undercut_mm * 1000:.2f}; limit {v.tolerance_mm * 1000:g})",
-             f"  gouges          {v.gouges:8d}",
-             f"  removed volume  {v.removed_mm3:8.3f} mm3 vs {v.reference_mm3:.3f} mm3 in the CAD "
-             f"({v.volume_difference:+.3%}; limit {v.volume_tolerance:.0%})",
-             f"  grid {v.grid_mm:g} mm, scallop <= {v.scallop_mm * 1000:.2f} um, simulated in {v.run_time_s:.1f} s"]
+    lines = [
+        f"  max deviation   {v.max_deviation_mm * 1000:8.2f} um  (overcut {v.max_overcut_mm * 1000:.2f}, "
+        f"undercut {v.max_undercut_mm * 1000:.2f}; limit {v.tolerance_mm * 1000:g})",
+        f"  gouges          {v.gouges:8d}",
+        f"  removed volume  {v.removed_mm3:8.3f} mm3 vs {v.reference_mm3:.3f} mm3 in the CAD "
+        f"({v.volume_difference:+.3%}; limit {v.volume_tolerance:.0%})",
+        f"  grid {v.grid_mm:g} mm, scallop <= {v.scallop_mm * 1000:.2f} um, simulated in {v.run_time_s:.1f} s",
+    ]
     if cycle:
-        lines.insert(0, f"  cycle time      {cycle['total_s'] / 60:8.1f} min  (cutting {cycle['feed_s'] / 60:.1f}, "
-                        f"rapids {cycle['rapid_s'] / 60:.2f}, tool changes {cycle['tool_change_s'] / 60:.2f})")
+        lines.insert(
+            0,
+            f"  cycle time      {cycle['total_s'] / 60:8.1f} min  (cutting {cycle['feed_s'] / 60:.1f}, "
+            f"rapids {cycle['rapid_s'] / 60:.2f}, tool changes {cycle['tool_change_s'] / 60:.2f})",
+        )
     lines += [f"  {f}" for f in v.gouge_examples + v.rapid_faults + v.program_faults]
     return lines
 
 
 @click.command("gcode")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True,
-              help="manufacturing profile: sets groove widths and pocket diameters")
-@click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True,
-              help="the control the program is written for")
-@click.option("-o", "--output", "output", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it "
-                   "as <file>.verify.json")
-@click.option("--check", "check", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="verify this program (T1 groove, T2 pocket end mill of the design) instead of writing one")
-@click.option("--grid", type=click.FloatRange(min=0.002, max=0.1), default=GRID, show_default=True,
-              help="dexel spacing of the simulation at the outer surface, mm")
-@click.option("--tolerance", type=click.FloatRange(min=0.0, min_open=True), default=TOLERANCE, show_default=True,
-              help="largest deviation from the CAD's cuts that passes, mm")
-def command(design: Path, profile: str, post: str, output: Path | None, check: Path | None, grid: float,
-            tolerance: float) -> int:
+@click.option(
+    "--profile",
+    type=click.Choice(PROFILES),
+    default="cnc",
+    show_default=True,
+    help="manufacturing profile: sets groove widths and pocket diameters",
+)
+@click.option(
+    "--post",
+    type=click.Choice(list(POSTS)),
+    default=DEFAULT_POST,
+    show_default=True,
+    help="the control the program is written for",
+)
+@click.option(
+    "-o",
+    "--output",
+    "output",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it "
+    "as <file>.verify.json",
+)
+@click.option(
+    "--check",
+    "check",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="verify this program (T1 groove, T2 pocket end mill of the design) instead of writing one",
+)
+@click.option(
+    "--grid",
+    type=click.FloatRange(min=0.002, max=0.1),
+    default=GRID,
+    show_default=True,
+    help="dexel spacing of the simulation at the outer surface, mm",
+)
+@click.option(
+    "--tolerance",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=TOLERANCE,
+    show_default=True,
+    help="largest deviation from the CAD's cuts that passes, mm",
+)
+def command(
+    design: Path, profile: str, post: str, output: Path | None, check: Path | None, grid: float, tolerance: float
+) -> int:
     """Write and verify the body's 4-axis program for DESIGN (a .toml file or a preset's name).
 
     The program cuts every groove and pocket with an A-axis wrap (machine convention in
@@ -84,11 +121,16 @@ def command(design: Path, profile: str, post: str, output: Path | None, check: P
         raise InputError(target, None, str(exc)) from exc
     if check is None:
         write_text_atomic(target, bp.text)
-    report = {"design": d.name, "profile": profile, "program": str(target), "post": post if check is None else None,
-              "cycle_time_s": cycle, **v.as_dict()}
+    report = {
+        "design": d.name,
+        "profile": profile,
+        "program": str(target),
+        "post": post if check is None else None,
+        "cycle_time_s": cycle,
+        **v.as_dict(),
+    }
     write_json_atomic(Path(str(target) + ".verify.json"), report)
-    click.echo(f"{'checked' if check else 'wrote'} {target} ({d.name}, {profile}): "
-               f"{'PASS' if v.ok else 'FAIL'}")
+    click.echo(f"{'checked' if check else 'wrote'} {target} ({d.name}, {profile}): {'PASS' if v.ok else 'FAIL'}")
     for line in _table(v, cycle):
         click.echo(line)
     if not v.ok:

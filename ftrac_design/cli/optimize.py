@@ -16,54 +16,141 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 
 @click.command("optimize")
 @click.argument("design", type=click.Path(path_type=Path, dir_okay=False))
-@click.option("--space", "space", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="search space (TOML: [parameters], optional [search], or a shipped space's name: "
-                   "`ftrac-design presets`) [default: the design's layout "
-                   "within its envelope; see --print-space]")
-@click.option("--objective", type=click.Choice(OBJECTIVE_CHOICES), default="max", show_default=True,
-              help="max/sum/translation/rotation: p95 errors over the start's, CMA-ES; "
-                   "translation-rotation, accuracy-diameter: Pareto front, NSGA-II")
-@click.option("--evaluations", type=click.IntRange(min=1), default=400, show_default=True,
-              help="candidates to evaluate (rounded up to whole generations)")
-@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
-              help="seeds the optimiser and the search's pose sample")
-@click.option("--profile", "profiles", type=click.Choice(PROFILES), multiple=True,
-              help="design rules that constrain the search; repeat for both [default: cnc]")
-@click.option("--scheduler", default=None, metavar="ADDR",
-              help="Dask scheduler, e.g. tcp://host:8786 [default: $DASK_SCHEDULER_ADDRESS, else local processes]")
-@click.option("--workers", type=click.IntRange(min=0), default=None,
-              help="local worker processes; 0 = in this process [default: one per core]")
+@click.option(
+    "--space",
+    "space",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="search space (TOML: [parameters], optional [search], or a shipped space's name: "
+    "`ftrac-design presets`) [default: the design's layout "
+    "within its envelope; see --print-space]",
+)
+@click.option(
+    "--objective",
+    type=click.Choice(OBJECTIVE_CHOICES),
+    default="max",
+    show_default=True,
+    help="max/sum/translation/rotation: p95 errors over the start's, CMA-ES; "
+    "translation-rotation, accuracy-diameter: Pareto front, NSGA-II",
+)
+@click.option(
+    "--evaluations",
+    type=click.IntRange(min=1),
+    default=400,
+    show_default=True,
+    help="candidates to evaluate (rounded up to whole generations)",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="seeds the optimiser and the search's pose sample",
+)
+@click.option(
+    "--profile",
+    "profiles",
+    type=click.Choice(PROFILES),
+    multiple=True,
+    help="design rules that constrain the search; repeat for both [default: cnc]",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="ADDR",
+    help="Dask scheduler, e.g. tcp://host:8786 [default: $DASK_SCHEDULER_ADDRESS, else local processes]",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=0),
+    default=None,
+    help="local worker processes; 0 = in this process [default: one per core]",
+)
 @click.option("--resume", is_flag=True, default=False, help="continue the interrupted run whose log is in DIR.partial/")
-@click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
-              help="output directory [default: outputs/<design name>/optimize/]")
-@click.option("--poses", type=click.IntRange(min=100), default=None,
-              help="workspace poses of the (fixed) search sample [default: space's, else 2000]")
-@click.option("--verify-poses", type=click.IntRange(min=100), default=None,
-              help="fresh poses that re-score start and best [default: 20000]")
-@click.option("--solver-images", type=click.IntRange(min=0), default=None,
-              help="simulated images solved for start and best (0 = skip) [default: 1000]")
-@click.option("--check-images", type=click.IntRange(min=0), default=None,
-              help="rendered radiographs of start and best tracked with no initial guess, the winner's "
-                   "check beyond the noise model (0 = skip) [default: 200]")
-@click.option("--min-clearance-px", type=float, default=None,
-              help="segmentability constraint: 5th percentile of the smallest image clearance between "
-                   "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]")
-@click.option("--min-ellipse-view-deg", type=click.FloatRange(min=0.0, max=90.0), default=None,
-              help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
-                   "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
-                   "3.6 at seed 1]")
-@click.option("--score-images", type=click.IntRange(min=0), default=0, show_default=True,
-              help="score candidates on this many rendered, tracked images per condition (clean, over a patient; "
-                   "the image-true score, the same images for every candidate) instead of the paper's "
-                   "feature-level model; each candidate then costs ~0.2–0.5 s per image")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="output directory [default: outputs/<design name>/optimize/]",
+)
+@click.option(
+    "--poses",
+    type=click.IntRange(min=100),
+    default=None,
+    help="workspace poses of the (fixed) search sample [default: space's, else 2000]",
+)
+@click.option(
+    "--verify-poses",
+    type=click.IntRange(min=100),
+    default=None,
+    help="fresh poses that re-score start and best [default: 20000]",
+)
+@click.option(
+    "--solver-images",
+    type=click.IntRange(min=0),
+    default=None,
+    help="simulated images solved for start and best (0 = skip) [default: 1000]",
+)
+@click.option(
+    "--check-images",
+    type=click.IntRange(min=0),
+    default=None,
+    help="rendered radiographs of start and best tracked with no initial guess, the winner's "
+    "check beyond the noise model (0 = skip) [default: 200]",
+)
+@click.option(
+    "--min-clearance-px",
+    type=float,
+    default=None,
+    help="segmentability constraint: 5th percentile of the smallest image clearance between "
+    "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]",
+)
+@click.option(
+    "--min-ellipse-view-deg",
+    type=click.FloatRange(min=0.0, max=90.0),
+    default=None,
+    help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
+    "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
+    "3.6 at seed 1]",
+)
+@click.option(
+    "--score-images",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="score candidates on this many rendered, tracked images per condition (clean, over a patient; "
+    "the image-true score, the same images for every candidate) instead of the paper's "
+    "feature-level model; each candidate then costs ~0.2–0.5 s per image",
+)
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
-@click.option("--print-space", is_flag=True, default=False,
-              help="print the search space (the default one, or --space's) as a file to edit, and exit")
-def command(design: Path, space: Path | None, objective: str, evaluations: int, seed: int, profiles: tuple[str, ...],
-            scheduler: str | None, workers: int | None, resume: bool, output: Path | None, poses: int | None,
-            verify_poses: int | None, solver_images: int | None, check_images: int | None,
-            min_clearance_px: float | None, min_ellipse_view_deg: float | None, no_build: bool,
-            print_space: bool, score_images: int = 0) -> int:
+@click.option(
+    "--print-space",
+    is_flag=True,
+    default=False,
+    help="print the search space (the default one, or --space's) as a file to edit, and exit",
+)
+def command(
+    design: Path,
+    space: Path | None,
+    objective: str,
+    evaluations: int,
+    seed: int,
+    profiles: tuple[str, ...],
+    scheduler: str | None,
+    workers: int | None,
+    resume: bool,
+    output: Path | None,
+    poses: int | None,
+    verify_poses: int | None,
+    solver_images: int | None,
+    check_images: int | None,
+    min_clearance_px: float | None,
+    min_ellipse_view_deg: float | None,
+    no_build: bool,
+    print_space: bool,
+    score_images: int = 0,
+) -> int:
     """Optimise the layout of DESIGN (a .toml file or a preset's name) under the design rules.
 
     Every candidate is checked against the rules of the profile(s) first (graded margins);
@@ -86,20 +173,43 @@ def command(design: Path, space: Path | None, objective: str, evaluations: int, 
         return 0
     _, d = read_design(design)
     out = output if output is not None else Path("outputs") / d.name / "optimize"
-    cmd = "ftrac-design optimize " + " ".join(shlex.quote(a) for a in sys.argv[2:]) \
-        if len(sys.argv) > 2 and sys.argv[1] == "optimize" else None
+    cmd = (
+        "ftrac-design optimize " + " ".join(shlex.quote(a) for a in sys.argv[2:])
+        if len(sys.argv) > 2 and sys.argv[1] == "optimize"
+        else None
+    )
     try:
-        doc = optimize(design, out, space, objective, evaluations, seed, profiles, scheduler, workers,
-                       resume=resume, poses=poses, verify_poses=verify_poses, solver_images=solver_images,
-                       build=not no_build, command_line=cmd, min_clearance_px=min_clearance_px,
-                       min_ellipse_view_deg=min_ellipse_view_deg, check_images=check_images,
-                       score_images=score_images)
+        doc = optimize(
+            design,
+            out,
+            space,
+            objective,
+            evaluations,
+            seed,
+            profiles,
+            scheduler,
+            workers,
+            resume=resume,
+            poses=poses,
+            verify_poses=verify_poses,
+            solver_images=solver_images,
+            build=not no_build,
+            command_line=cmd,
+            min_clearance_px=min_clearance_px,
+            min_ellipse_view_deg=min_ellipse_view_deg,
+            check_images=check_images,
+            score_images=score_images,
+        )
     except KeyboardInterrupt:
-        click.echo(f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
-                   "run the same command with --resume to continue", err=True)
+        click.echo(
+            f"interrupted: the evaluation log is in {out.with_name(out.name + '.partial')}/; "
+            "run the same command with --resume to continue",
+            err=True,
+        )
         raise click.exceptions.Exit(130) from None
     click.echo(format_summary(doc))
-    click.echo(f"wrote {out}/ (best.toml, summary.json, comparison.txt, pareto.*, convergence.png"
-               f"{', build/' if not no_build else ''})")
+    click.echo(
+        f"wrote {out}/ (best.toml, summary.json, comparison.txt, pareto.*, convergence.png"
+        f"{', build/' if not no_build else ''})"
+    )
     return 0
-

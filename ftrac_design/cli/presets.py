@@ -7,8 +7,12 @@ import click
 
 
 @click.command("presets")
-@click.option("--paths", is_flag=True, default=False,
-              help="also print each file's path (to copy a preset as the start of a new design)")
+@click.option(
+    "--paths",
+    is_flag=True,
+    default=False,
+    help="also print each file's path (to copy a preset as the start of a new design)",
+)
 def command(paths: bool) -> int:
     """List the preset designs and the shipped search spaces, each with a short description.
 
@@ -17,9 +21,10 @@ def command(paths: bool) -> int:
     """
     from ..design.presets import PRESETS_DIR, SPACES_DIR, describe, preset_names, space_names
 
-    for title, folder, names in (("designs (build NAME, analyze NAME, check NAME, …)", PRESETS_DIR,
-                                  preset_names()),
-                                 ("search spaces (optimize DESIGN --space NAME)", SPACES_DIR, space_names())):
+    for title, folder, names in (
+        ("designs (build NAME, analyze NAME, check NAME, …)", PRESETS_DIR, preset_names()),
+        ("search spaces (optimize DESIGN --space NAME)", SPACES_DIR, space_names()),
+    ):
         click.echo(f"{title}:")
         width = max((len(n) for n in names), default=0)
         for name in names:

@@ -13,16 +13,37 @@ import click
 @click.argument("poses_path", metavar="POSES", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--host", default="127.0.0.1", show_default=True, help="The OpenIGTLink server (3D Slicer).")
 @click.option("--port", type=click.IntRange(1, 65535), default=18944, show_default=True)
-@click.option("--name", default="FiducialToCArm", show_default=True,
-              help="TRANSFORM device name, PLUS <From>To<To>, at most 20 characters.")
-@click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True,
-              help="The matrix's coordinates: ras for 3D Slicer, lps for the SPEC §4 pose unchanged.")
-@click.option("--rate", "rate_hz", type=click.FloatRange(min=0.0, min_open=True), default=None,
-              help="Frames per second [default: the poses' time_s, else 30].")
-@click.option("--timeout", "timeout_s", type=click.FloatRange(min=0.0), default=10.0, show_default=True,
-              help="Seconds to wait for the server to accept the connection.")
-def command(poses_path: Path, host: str, port: int, name: str, space: str, rate_hz: float | None,
-            timeout_s: float) -> int:
+@click.option(
+    "--name",
+    default="FiducialToCArm",
+    show_default=True,
+    help="TRANSFORM device name, PLUS <From>To<To>, at most 20 characters.",
+)
+@click.option(
+    "--space",
+    type=click.Choice(["ras", "lps"]),
+    default="ras",
+    show_default=True,
+    help="The matrix's coordinates: ras for 3D Slicer, lps for the SPEC §4 pose unchanged.",
+)
+@click.option(
+    "--rate",
+    "rate_hz",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Frames per second [default: the poses' time_s, else 30].",
+)
+@click.option(
+    "--timeout",
+    "timeout_s",
+    type=click.FloatRange(min=0.0),
+    default=10.0,
+    show_default=True,
+    help="Seconds to wait for the server to accept the connection.",
+)
+def command(
+    poses_path: Path, host: str, port: int, name: str, space: str, rate_hz: float | None, timeout_s: float
+) -> int:
     """Send each pose of POSES (pose.json or JSON Lines from `track`/`solve`) as a TRANSFORM.
 
     The client connects to HOST:PORT (in 3D Slicer: OpenIGTLinkIF, a server connector on port
@@ -40,10 +61,12 @@ def command(poses_path: Path, host: str, port: int, name: str, space: str, rate_
     pyigtl()
     check_transform_name(name, "name")
     poses = read_pose_records(poses_path)
-    options = serve_mod.PushOptions(host=host, port=port, name=name, space=space, rate_hz=rate_hz,
-                                    connect_timeout_s=timeout_s)
-    with tqdm(total=len(poses), desc="push", unit="pose", file=sys.stderr,
-              disable=len(poses) <= 3 or not sys.stderr.isatty()) as bar:
+    options = serve_mod.PushOptions(
+        host=host, port=port, name=name, space=space, rate_hz=rate_hz, connect_timeout_s=timeout_s
+    )
+    with tqdm(
+        total=len(poses), desc="push", unit="pose", file=sys.stderr, disable=len(poses) <= 3 or not sys.stderr.isatty()
+    ) as bar:
         sent = serve_mod.push_poses(poses, options, progress=lambda k: bar.update(k - bar.n))
     click.echo(f"sent {sent} TRANSFORM {name} to {host}:{port}")
     return 0

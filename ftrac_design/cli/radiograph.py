@@ -29,8 +29,11 @@ def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
         raise InputError(path, None, f"a readable pose file ({exc.strerror})") from None
     stripped = text.strip()
     try:
-        objs = [json.loads(stripped)] if stripped.startswith("{") and "\n{" not in stripped else \
-            [json.loads(line) for line in text.splitlines() if line.strip()]
+        objs = (
+            [json.loads(stripped)]
+            if stripped.startswith("{") and "\n{" not in stripped
+            else [json.loads(line) for line in text.splitlines() if line.strip()]
+        )
     except ValueError:
         raise InputError(path, None, "a SPEC §4 pose object, or JSON Lines of them") from None
     if not objs:
@@ -43,8 +46,11 @@ def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
             t = np.asarray(o["translation_mm"], float).reshape(3)
         except (KeyError, TypeError, ValueError):
             raise InputError(path, f"{where}rotation/translation_mm", "a 3×3 rotation and a 3-vector (mm)") from None
-        if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))) or np.abs(R @ R.T - np.eye(3)).max() > 1e-6 \
-                or np.linalg.det(R) < 0:
+        if (
+            not (np.all(np.isfinite(R)) and np.all(np.isfinite(t)))
+            or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
+            or np.linalg.det(R) < 0
+        ):
             raise InputError(path, f"{where}rotation", "a proper rotation matrix (orthonormal, det +1)")
         if t[2] <= 0:
             raise InputError(path, f"{where}translation_mm", "the fiducial in front of the source (z > 0)")
@@ -55,6 +61,7 @@ def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def _parse_occluder(text: str, frame: str):
     from ..xray import Occluder
+
     try:
         vals = [float(x) for x in text.replace(";", ",").split(",")]
         if len(vals) not in (6, 7) or not all(math.isfinite(v) for v in vals):
@@ -65,47 +72,140 @@ def _parse_occluder(text: str, frame: str):
 
 
 @click.command("radiograph")
-@click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="features.json written by `ftrac-design build`.")
-@click.option("--pose", "pose_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="SPEC §4 pose.json (or JSON Lines of poses): one image per pose.")
-@click.option("--workspace-sample", type=click.IntRange(min=1), default=None,
-              help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).")
+@click.option(
+    "--features",
+    "features_path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="features.json written by `ftrac-design build`.",
+)
+@click.option(
+    "--pose",
+    "pose_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="SPEC §4 pose.json (or JSON Lines of poses): one image per pose.",
+)
+@click.option(
+    "--workspace-sample",
+    type=click.IntRange(min=1),
+    default=None,
+    help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the poses, the noise and the anatomy.")
-@click.option("-o", "--output", required=True, type=click.Path(file_okay=False, path_type=Path),
-              help="output directory (new, or a previous radiograph output, which is replaced).")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(file_okay=False, path_type=Path),
+    help="output directory (new, or a previous radiograph output, which is replaced).",
+)
 @click.option("--format", "fmt", type=click.Choice(list(_EXT)), default="png", show_default=True)
-@click.option("--output-kind", "--output-type", "kind", type=click.Choice(["log", "raw"]), default="log",
-              show_default=True, help="log: flat-field −ln(I/I0), dense = bright; raw: detector counts, dense = dark.")
-@click.option("--energy-kev", type=click.FloatRange(40.0, 100.0), default=60.0, show_default=True,
-              help="effective energy for the attenuation coefficients.")
-@click.option("--dose", type=_POS, default=1.0e4, show_default=True,
-              help="unattenuated quanta per pixel (sets the quantum noise).")
+@click.option(
+    "--output-kind",
+    "--output-type",
+    "kind",
+    type=click.Choice(["log", "raw"]),
+    default="log",
+    show_default=True,
+    help="log: flat-field −ln(I/I0), dense = bright; raw: detector counts, dense = dark.",
+)
+@click.option(
+    "--energy-kev",
+    type=click.FloatRange(40.0, 100.0),
+    default=60.0,
+    show_default=True,
+    help="effective energy for the attenuation coefficients.",
+)
+@click.option(
+    "--dose",
+    type=_POS,
+    default=1.0e4,
+    show_default=True,
+    help="unattenuated quanta per pixel (sets the quantum noise).",
+)
 @click.option("--no-noise", is_flag=True, default=False, help="noise-free image.")
 @click.option("--focal-spot-mm", type=click.FloatRange(min=0.0), default=0.6, show_default=True)
-@click.option("--detector-blur-px", type=click.FloatRange(min=0.0), default=0.7, show_default=True,
-              help="Gaussian σ of the detector line-spread, pixels.")
-@click.option("--bit-depth", type=click.IntRange(8, 16), default=16, show_default=True,
-              help="raw quantisation; files hold 8 bits if ≤ 8, else 16.")
-@click.option("--image-size", type=(click.IntRange(min=8), click.IntRange(min=8)), default=(1024, 1024),
-              show_default=True, metavar="H W", help="image rows and columns.")
-@click.option("--background", default=None, metavar="FILE|anatomy",
-              help="line-integral image (PNG, TIFF, JPEG, NumPy or DICOM, H × W; its first frame) added in the "
-                   "log domain, or 'anatomy' for the synthetic anatomy-like background (seeded per image).")
-@click.option("--occluder", multiple=True, metavar="x0,y0,z0,x1,y1,z1[,d]",
-              help="a steel needle/rod from (x0,y0,z0) to (x1,y1,z1) mm, diameter d (default 1.27); repeatable.")
-@click.option("--occluder-frame", type=click.Choice(["F", "X"]), default="F", show_default=True,
-              help="frame of the --occluder coordinates: fiducial F or camera X.")
-@click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].")
-@click.option("--design", "design_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="design TOML (or a preset's name) giving the body when features.json does not (its 'body' key "
-                   "or design.source).")
+@click.option(
+    "--detector-blur-px",
+    type=click.FloatRange(min=0.0),
+    default=0.7,
+    show_default=True,
+    help="Gaussian σ of the detector line-spread, pixels.",
+)
+@click.option(
+    "--bit-depth",
+    type=click.IntRange(8, 16),
+    default=16,
+    show_default=True,
+    help="raw quantisation; files hold 8 bits if ≤ 8, else 16.",
+)
+@click.option(
+    "--image-size",
+    type=(click.IntRange(min=8), click.IntRange(min=8)),
+    default=(1024, 1024),
+    show_default=True,
+    metavar="H W",
+    help="image rows and columns.",
+)
+@click.option(
+    "--background",
+    default=None,
+    metavar="FILE|anatomy",
+    help="line-integral image (PNG, TIFF, JPEG, NumPy or DICOM, H × W; its first frame) added in the "
+    "log domain, or 'anatomy' for the synthetic anatomy-like background (seeded per image).",
+)
+@click.option(
+    "--occluder",
+    multiple=True,
+    metavar="x0,y0,z0,x1,y1,z1[,d]",
+    help="a steel needle/rod from (x0,y0,z0) to (x1,y1,z1) mm, diameter d (default 1.27); repeatable.",
+)
+@click.option(
+    "--occluder-frame",
+    type=click.Choice(["F", "X"]),
+    default="F",
+    show_default=True,
+    help="frame of the --occluder coordinates: fiducial F or camera X.",
+)
+@click.option(
+    "--camera",
+    "camera_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].",
+)
+@click.option(
+    "--design",
+    "design_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="design TOML (or a preset's name) giving the body when features.json does not (its 'body' key "
+    "or design.source).",
+)
 @click.option("--no-body", is_flag=True, default=False, help="wires and beads only.")
-def command(features_path: Path, pose_path: Path | None, workspace_sample: int | None, seed: int, output: Path,
-            fmt: str, kind: str, energy_kev: float, dose: float, no_noise: bool, focal_spot_mm: float,
-            detector_blur_px: float, bit_depth: int, image_size, background: str | None, occluder, occluder_frame: str,
-            camera_path: Path | None, design_path: Path | None, no_body: bool) -> int:
+def command(
+    features_path: Path,
+    pose_path: Path | None,
+    workspace_sample: int | None,
+    seed: int,
+    output: Path,
+    fmt: str,
+    kind: str,
+    energy_kev: float,
+    dose: float,
+    no_noise: bool,
+    focal_spot_mm: float,
+    detector_blur_px: float,
+    bit_depth: int,
+    image_size,
+    background: str | None,
+    occluder,
+    occluder_frame: str,
+    camera_path: Path | None,
+    design_path: Path | None,
+    no_body: bool,
+) -> int:
     """Render simulated radiographs of a fiducial with their truth (pose, camera, projected features).
 
     Exactly one of --pose and --workspace-sample. Bad input exits 2 with one line and writes nothing.
@@ -124,9 +224,14 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
         raise click.UsageError("give exactly one of --pose POSE.json and --workspace-sample N")
     features = load_features(features_path)
     camera = read_camera(camera_path) if camera_path else Camera()
-    imaging = ImagingModel(energy_kev=energy_kev, image_shape=tuple(image_size), focal_spot_mm=focal_spot_mm,
-                           detector_blur_px=detector_blur_px, photons_per_px=None if no_noise else dose,
-                           bit_depth=bit_depth)
+    imaging = ImagingModel(
+        energy_kev=energy_kev,
+        image_shape=tuple(image_size),
+        focal_spot_mm=focal_spot_mm,
+        detector_blur_px=detector_blur_px,
+        photons_per_px=None if no_noise else dose,
+        bit_depth=bit_depth,
+    )
     if no_body:
         body = None
     elif design_path is not None:
@@ -134,16 +239,23 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
     else:
         body = body_from_features_file(features_path)
         if body is None:
-            raise InputError(features_path, "body", "the fiducial's body: a 'body' key, a design.source that can be "
-                                                    "found, --design DESIGN.toml, or --no-body")
+            raise InputError(
+                features_path,
+                "body",
+                "the fiducial's body: a 'body' key, a design.source that can be "
+                "found, --design DESIGN.toml, or --no-body",
+            )
     occluders = [_parse_occluder(o, occluder_frame) for o in occluder]
     bg_image = None
     if background and background != "anatomy":
         # modality values: the linear map our PNG/TIFF/DICOM record is applied on reading
         bg_image = read_frame(background, 0, camera, need_camera=False).pixels.astype(np.float64)
         if bg_image.shape != imaging.image_shape:
-            raise InputError(background, "pixels", f"a background of {imaging.image_shape[0]} × "
-                                                   f"{imaging.image_shape[1]} pixels, got {bg_image.shape}")
+            raise InputError(
+                background,
+                "pixels",
+                f"a background of {imaging.image_shape[0]} × {imaging.image_shape[1]} pixels, got {bg_image.shape}",
+            )
     rng = np.random.default_rng(seed)
     if pose_path is not None:
         Rs, ts = read_poses(pose_path)
@@ -159,21 +271,42 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
                 name = f"img_{i:04d}{ext}"
                 bg, bg_desc = bg_image, (str(background) if background else None)
                 if background == "anatomy":
-                    bg = anatomy(imaging.image_shape, seed=seed * 100003 + i, pixel_mm=min(camera.pixel_size_mm),
-                                 energy_kev=energy_kev)
+                    bg = anatomy(
+                        imaging.image_shape,
+                        seed=seed * 100003 + i,
+                        pixel_mm=min(camera.pixel_size_mm),
+                        energy_kev=energy_kev,
+                    )
                     bg_desc = f"anatomy seed {seed * 100003 + i}"
                 try:
-                    img = render(features, Rs[i], ts[i], camera, imaging, rng=np.random.default_rng([seed, i]),
-                                 background=bg, occluders=occluders, body=body, image_name=name)
+                    img = render(
+                        features,
+                        Rs[i],
+                        ts[i],
+                        camera,
+                        imaging,
+                        rng=np.random.default_rng([seed, i]),
+                        background=bg,
+                        occluders=occluders,
+                        body=body,
+                        image_name=name,
+                    )
                 except ValueError as exc:
-                    raise InputError(pose_path or features_path, f"pose {i + 1}",
-                                     f"a pose that can be imaged ({exc})") from None
+                    raise InputError(
+                        pose_path or features_path, f"pose {i + 1}", f"a pose that can be imaged ({exc})"
+                    ) from None
                 img.truth["background"] = bg_desc
                 img.truth["output"] = kind
                 if kind == "log":
-                    write_image(tmp / name, img.log_image, camera, polarity="dense_bright",
-                                bit_depth=16 if imaging.bit_depth > 8 else 8,
-                                value_range=None if fmt == "npy" else (0.0, 6.0), quantity="log")
+                    write_image(
+                        tmp / name,
+                        img.log_image,
+                        camera,
+                        polarity="dense_bright",
+                        bit_depth=16 if imaging.bit_depth > 8 else 8,
+                        value_range=None if fmt == "npy" else (0.0, 6.0),
+                        quantity="log",
+                    )
                 else:
                     write_image(tmp / name, img.raw, camera, polarity="dense_dark", quantity="raw")
                 write_truth(tmp / f"img_{i:04d}.truth.json", img.truth)
@@ -181,6 +314,8 @@ def command(features_path: Path, pose_path: Path | None, workspace_sample: int |
             write_text_atomic(tmp / "truth.jsonl", "".join(line + "\n" for line in lines))
     except OSError as exc:
         raise InputError(output, None, f"a writable output directory ({exc.strerror})") from None
-    click.echo(f"wrote {len(Rs)} {kind} image(s) ({fmt}, {imaging.image_shape[1]}×{imaging.image_shape[0]}) "
-               f"with truth to {output}")
+    click.echo(
+        f"wrote {len(Rs)} {kind} image(s) ({fmt}, {imaging.image_shape[1]}×{imaging.image_shape[0]}) "
+        f"with truth to {output}"
+    )
     return 0

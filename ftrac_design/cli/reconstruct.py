@@ -12,33 +12,92 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
 
 
 @click.command("reconstruct")
-@click.option("--features", "features_path", required=True, type=_FILE,
-              help="features.json (its frames.template_from_fiducial gives the template frame).")
-@click.option("--poses", "poses_path", required=True, type=_FILE,
-              help="JSON Lines of SPEC §4 poses, one per image (e.g. from `ftrac-design solve`/`track`).")
-@click.option("--points", "points_path", required=True, type=_FILE,
-              help="JSON Lines, one {id: [u, v]} object per image, in the order of --poses.")
-@click.option("--camera", "camera_path", type=_FILE, default=None,
-              help="SPEC §3 camera object for every image; overrides a \"camera\" key in a pose or points "
-                   "line (an extension of SPEC §4/§5).")
-@click.option("--to", "to", type=click.Choice(["fiducial", "template"]), default="fiducial", show_default=True,
-              help="Output frame: F, or the template frame T through features.json's template_from_fiducial.")
-@click.option("--transform", "transform_path", type=_FILE, default=None,
-              help="A further rigid 4x4 from the --to frame (e.g. template -> ultrasound): a list of 4 rows, or "
-                   "{\"matrix\": …, \"name\": …, \"covariance\": 6x6}; applied last.")
-@click.option("--noise-px", type=click.FloatRange(min=0.0, min_open=True), default=None,
-              help="Image-point noise, pixels per axis [default: 0.102 mm at the detector, the paper's "
-                   "0.25 mm uniform segmentation error, in each image's pixels].")
-@click.option("--min-parallax-deg", type=click.FloatRange(min=0.0), default=2.0, show_default=True,
-              help="Refuse a point whose widest angle between two views' rays is below this.")
-@click.option("--template-sigma-mm", type=click.FloatRange(min=0.0), default=0.0, show_default=True,
-              help="Machining tolerance of the template connector, σ mm per axis, added to the uncertainty "
-                   "with --to template.")
-@click.option("-o", "--output", type=_FILE, default=Path("reconstruction.json"), show_default=True,
-              help="Where to write the ftrac-reconstruction JSON ('-' for stdout).")
-def command(features_path: Path, poses_path: Path, points_path: Path, camera_path: Path | None, to: str,
-            transform_path: Path | None, noise_px: float | None, min_parallax_deg: float,
-            template_sigma_mm: float, output: Path) -> int:
+@click.option(
+    "--features",
+    "features_path",
+    required=True,
+    type=_FILE,
+    help="features.json (its frames.template_from_fiducial gives the template frame).",
+)
+@click.option(
+    "--poses",
+    "poses_path",
+    required=True,
+    type=_FILE,
+    help="JSON Lines of SPEC §4 poses, one per image (e.g. from `ftrac-design solve`/`track`).",
+)
+@click.option(
+    "--points",
+    "points_path",
+    required=True,
+    type=_FILE,
+    help="JSON Lines, one {id: [u, v]} object per image, in the order of --poses.",
+)
+@click.option(
+    "--camera",
+    "camera_path",
+    type=_FILE,
+    default=None,
+    help='SPEC §3 camera object for every image; overrides a "camera" key in a pose or points '
+    "line (an extension of SPEC §4/§5).",
+)
+@click.option(
+    "--to",
+    "to",
+    type=click.Choice(["fiducial", "template"]),
+    default="fiducial",
+    show_default=True,
+    help="Output frame: F, or the template frame T through features.json's template_from_fiducial.",
+)
+@click.option(
+    "--transform",
+    "transform_path",
+    type=_FILE,
+    default=None,
+    help="A further rigid 4x4 from the --to frame (e.g. template -> ultrasound): a list of 4 rows, or "
+    '{"matrix": …, "name": …, "covariance": 6x6}; applied last.',
+)
+@click.option(
+    "--noise-px",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=None,
+    help="Image-point noise, pixels per axis [default: 0.102 mm at the detector, the paper's "
+    "0.25 mm uniform segmentation error, in each image's pixels].",
+)
+@click.option(
+    "--min-parallax-deg",
+    type=click.FloatRange(min=0.0),
+    default=2.0,
+    show_default=True,
+    help="Refuse a point whose widest angle between two views' rays is below this.",
+)
+@click.option(
+    "--template-sigma-mm",
+    type=click.FloatRange(min=0.0),
+    default=0.0,
+    show_default=True,
+    help="Machining tolerance of the template connector, σ mm per axis, added to the uncertainty with --to template.",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=_FILE,
+    default=Path("reconstruction.json"),
+    show_default=True,
+    help="Where to write the ftrac-reconstruction JSON ('-' for stdout).",
+)
+def command(
+    features_path: Path,
+    poses_path: Path,
+    points_path: Path,
+    camera_path: Path | None,
+    to: str,
+    transform_path: Path | None,
+    noise_px: float | None,
+    min_parallax_deg: float,
+    template_sigma_mm: float,
+    output: Path,
+) -> int:
     """Triangulate the labelled points of several tracked images into 3-D, with covariances.
 
     Each point seen in ≥ 2 images from views at least --min-parallax-deg apart is placed by
@@ -58,8 +117,20 @@ def command(features_path: Path, poses_path: Path, points_path: Path, camera_pat
     points = read_points(points_path)
     camera = read_camera(camera_path) if camera_path is not None else None
     transform = read_transform(transform_path, to) if transform_path is not None else None
-    result = reconstruct(features, poses, points, camera, to, transform, noise_px, min_parallax_deg,
-                         template_sigma_mm, str(poses_path), str(points_path), str(features_path))
+    result = reconstruct(
+        features,
+        poses,
+        points,
+        camera,
+        to,
+        transform,
+        noise_px,
+        min_parallax_deg,
+        template_sigma_mm,
+        str(poses_path),
+        str(points_path),
+        str(features_path),
+    )
     text = json.dumps(result, indent=2, allow_nan=False) + "\n"
     out = write_output_text(output, text)
     for s in result["images_skipped"]:
@@ -69,8 +140,11 @@ def command(features_path: Path, poses_path: Path, points_path: Path, camera_pat
             click.echo(f"{pid}: refused: {e['refused']}", file=out)
         else:
             p, s = e["position_mm"], e["std_mm"]
-            click.echo(f"{pid}: ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) mm ± ({s[0]:.2f}, {s[1]:.2f}, {s[2]:.2f}) "
-                       f"in {e['frame']}, {len(e['views'])} views, rms {e['rms_reprojection_px']:.3f} px", file=out)
+            click.echo(
+                f"{pid}: ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) mm ± ({s[0]:.2f}, {s[1]:.2f}, {s[2]:.2f}) "
+                f"in {e['frame']}, {len(e['views'])} views, rms {e['rms_reprojection_px']:.3f} px",
+                file=out,
+            )
     msg = f"{result['reconstructed']} of {len(result['points'])} points reconstructed"
     click.echo(msg + ("" if str(output) == "-" else f"; wrote {output}"), file=out)
     return 0 if result["reconstructed"] else 1

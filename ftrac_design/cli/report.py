@@ -20,23 +20,64 @@ from ..errors import InputError
 
 @click.command("report")
 @click.argument("source", type=click.Path(path_type=Path))
-@click.option("-o", "--output", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]")
-@click.option("--analysis", "analysis_dir", type=click.Path(path_type=Path, file_okay=False), default=None,
-              help="an `ftrac-design analyze` output directory to show [default: BUILD_DIR/analysis if present, "
-                   "else the analysis is run]")
-@click.option("--poses", type=click.IntRange(min=100), default=None,
-              help="workspace poses when the analysis is run [default: the design's, else 20000]")
-@click.option("--profile", type=click.Choice(["cnc", "fdm"]), default="cnc", show_default=True,
-              help="profile of the build made from a design file (the page shows the rules of both)")
-@click.option("--score-images", type=click.IntRange(min=0), default=100, show_default=True,
-              help="when the analysis is run: images per condition of the image-true score (0 = none)")
-@click.option("--image-atlas-step-deg", type=click.FloatRange(min=0.0, max=45.0), default=20.0, show_default=True,
-              help="when the analysis is run: grid step of the image-true atlas (0 = none)")
-@click.option("--workers", type=click.IntRange(min=0), default=None,
-              help="processes for the image-true score [default: one per core; 0 = this process]")
-def command(source: Path, output: Path | None, analysis_dir: Path | None, poses: int | None, profile: str,
-            score_images: int = 100, workers: int | None = None, image_atlas_step_deg: float = 20.0) -> int:
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(path_type=Path, dir_okay=False),
+    default=None,
+    help="HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]",
+)
+@click.option(
+    "--analysis",
+    "analysis_dir",
+    type=click.Path(path_type=Path, file_okay=False),
+    default=None,
+    help="an `ftrac-design analyze` output directory to show [default: BUILD_DIR/analysis if present, "
+    "else the analysis is run]",
+)
+@click.option(
+    "--poses",
+    type=click.IntRange(min=100),
+    default=None,
+    help="workspace poses when the analysis is run [default: the design's, else 20000]",
+)
+@click.option(
+    "--profile",
+    type=click.Choice(["cnc", "fdm"]),
+    default="cnc",
+    show_default=True,
+    help="profile of the build made from a design file (the page shows the rules of both)",
+)
+@click.option(
+    "--score-images",
+    type=click.IntRange(min=0),
+    default=100,
+    show_default=True,
+    help="when the analysis is run: images per condition of the image-true score (0 = none)",
+)
+@click.option(
+    "--image-atlas-step-deg",
+    type=click.FloatRange(min=0.0, max=45.0),
+    default=20.0,
+    show_default=True,
+    help="when the analysis is run: grid step of the image-true atlas (0 = none)",
+)
+@click.option(
+    "--workers",
+    type=click.IntRange(min=0),
+    default=None,
+    help="processes for the image-true score [default: one per core; 0 = this process]",
+)
+def command(
+    source: Path,
+    output: Path | None,
+    analysis_dir: Path | None,
+    poses: int | None,
+    profile: str,
+    score_images: int = 100,
+    workers: int | None = None,
+    image_atlas_step_deg: float = 20.0,
+) -> int:
     """Write one HTML page for a design: render, parameters, features, design rules (cnc and
     fdm), score and atlas, bill of materials, wire cut list, output files with sha256, versions.
 
@@ -48,26 +89,45 @@ def command(source: Path, output: Path | None, analysis_dir: Path | None, poses:
     if not source.is_dir():  # a build directory is reported as it is; anything else may be a preset
         source = resolve_design(source)
     if analysis_dir is not None and not (analysis_dir / "analysis.json").is_file():
-        raise InputError(analysis_dir, "--analysis", "a directory written by `ftrac-design analyze` "
-                                                      "(no analysis.json in it)")
+        raise InputError(
+            analysis_dir, "--analysis", "a directory written by `ftrac-design analyze` (no analysis.json in it)"
+        )
     if source.is_dir():
         if not (source / "manifest.json").is_file():
-            raise InputError(source, None, "a build directory with manifest.json (written by `ftrac-design build`) "
-                                           "or a design file (.toml)")
-        path = report_for_build(source, output, analysis_dir, poses=poses, score_images=score_images, workers=workers,
-                                image_atlas_step_deg=image_atlas_step_deg)
+            raise InputError(
+                source,
+                None,
+                "a build directory with manifest.json (written by `ftrac-design build`) or a design file (.toml)",
+            )
+        path = report_for_build(
+            source,
+            output,
+            analysis_dir,
+            poses=poses,
+            score_images=score_images,
+            workers=workers,
+            image_atlas_step_deg=image_atlas_step_deg,
+        )
     elif source.suffix.lower() == ".toml" or source.is_file():
-        path = _report_design(source, output, analysis_dir, poses, profile, score_images, workers,
-                              image_atlas_step_deg)
+        path = _report_design(source, output, analysis_dir, poses, profile, score_images, workers, image_atlas_step_deg)
     else:
-        raise InputError(source, None, f"a design file (.toml), a build directory or a preset ({known_presets()}) "
-                                       "(file not found)")
+        raise InputError(
+            source, None, f"a design file (.toml), a build directory or a preset ({known_presets()}) (file not found)"
+        )
     click.echo(f"wrote {path} ({path.stat().st_size / 1024:.0f} KB)")
     return 0
 
 
-def _report_design(source: Path, output: Path | None, analysis_dir: Path | None, poses: int | None,
-                   profile: str, score_images: int, workers: int | None, image_atlas_step_deg: float) -> Path:
+def _report_design(
+    source: Path,
+    output: Path | None,
+    analysis_dir: Path | None,
+    poses: int | None,
+    profile: str,
+    score_images: int,
+    workers: int | None,
+    image_atlas_step_deg: float,
+) -> Path:
     from ..cad.build import build_fiducial
     from ..design import load_design
     from ..workflows.report import report_for_build
@@ -77,6 +137,14 @@ def _report_design(source: Path, output: Path | None, analysis_dir: Path | None,
     with tempfile.TemporaryDirectory(prefix="ftrac-report-build-") as tmp:
         build = Path(tmp) / design.name
         build_fiducial(design, build, profile=profile, force=True)
-        return report_for_build(build, output, analysis_dir, poses=poses, build_kept=False, design=design,
-                                score_images=score_images, workers=workers,
-                                image_atlas_step_deg=image_atlas_step_deg)
+        return report_for_build(
+            build,
+            output,
+            analysis_dir,
+            poses=poses,
+            build_kept=False,
+            design=design,
+            score_images=score_images,
+            workers=workers,
+            image_atlas_step_deg=image_atlas_step_deg,
+        )

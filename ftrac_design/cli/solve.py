@@ -11,27 +11,62 @@ from ..errors import InputError
 
 
 @click.command("solve")
-@click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="features.json written by `ftrac-design build`.")
+@click.option(
+    "--features",
+    "features_path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="features.json written by `ftrac-design build`.",
+)
 @click.argument("observations", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Where to write: pose.json for one observation, JSON Lines for several "
-                   "(default pose.json / poses.jsonl in the current directory; '-' for stdout).")
-@click.option("--segmentation-error-mm", type=click.FloatRange(min=0.0, min_open=True), default=0.25,
-              show_default=True,
-              help="Expected segmentation error (the paper's uniform error magnitude, mm at the detector); "
-                   "sets the relative weights and the noise scale's reference.")
-@click.option("--distance", type=click.Choice(["sampson", "paper"]), default="sampson", show_default=True,
-              help="Ellipse residual: first-order geometric (Sampson) or the paper's K·PᵀMP (Eq. 8).")
-@click.option("--starts", type=click.IntRange(min=1), default=96, show_default=True,
-              help="Multi-start seeds used when no closed-form start is possible.")
-@click.option("--estimate-intrinsics", type=click.Choice(["f", "f,o", "all"]), default=None,
-              help="Estimate the C-arm intrinsics shared by all images with their poses (f: focal length at "
-                   "the given pixel pitch; f,o: and the principal point; all: fx, fy, ox, oy); refused (exit 1, "
-                   "poses solved with the given camera) where the images do not determine them. See "
-                   "ftrac_design.reconstruct.intrinsics.")
-def command(features_path: Path, observations: tuple[Path, ...], output: Path | None,
-            segmentation_error_mm: float, distance: str, starts: int, estimate_intrinsics: str | None = None) -> int:
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="Where to write: pose.json for one observation, JSON Lines for several "
+    "(default pose.json / poses.jsonl in the current directory; '-' for stdout).",
+)
+@click.option(
+    "--segmentation-error-mm",
+    type=click.FloatRange(min=0.0, min_open=True),
+    default=0.25,
+    show_default=True,
+    help="Expected segmentation error (the paper's uniform error magnitude, mm at the detector); "
+    "sets the relative weights and the noise scale's reference.",
+)
+@click.option(
+    "--distance",
+    type=click.Choice(["sampson", "paper"]),
+    default="sampson",
+    show_default=True,
+    help="Ellipse residual: first-order geometric (Sampson) or the paper's K·PᵀMP (Eq. 8).",
+)
+@click.option(
+    "--starts",
+    type=click.IntRange(min=1),
+    default=96,
+    show_default=True,
+    help="Multi-start seeds used when no closed-form start is possible.",
+)
+@click.option(
+    "--estimate-intrinsics",
+    type=click.Choice(["f", "f,o", "all"]),
+    default=None,
+    help="Estimate the C-arm intrinsics shared by all images with their poses (f: focal length at "
+    "the given pixel pitch; f,o: and the principal point; all: fx, fy, ox, oy); refused (exit 1, "
+    "poses solved with the given camera) where the images do not determine them. See "
+    "ftrac_design.reconstruct.intrinsics.",
+)
+def command(
+    features_path: Path,
+    observations: tuple[Path, ...],
+    output: Path | None,
+    segmentation_error_mm: float,
+    distance: str,
+    starts: int,
+    estimate_intrinsics: str | None = None,
+) -> int:
     """Solve the 6-DOF pose for each observation (.json, or .jsonl with one per line).
 
     Writes SPEC §4 pose objects; exits 1 if any image could not be solved (its object says
@@ -43,8 +78,9 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
 
     features = load_features(features_path)
     obs = [o for path in observations for o in read_observations(path)]
-    opts = SolverOptions(noise=NoiseModel.from_segmentation_error(segmentation_error_mm), distance=distance,
-                         starts=starts)
+    opts = SolverOptions(
+        noise=NoiseModel.from_segmentation_error(segmentation_error_mm), distance=distance, starts=starts
+    )
     if estimate_intrinsics is not None:
         return _solve_estimating_intrinsics(features, obs, opts, estimate_intrinsics, output)
     poses = solve_batch(features, obs, opts)
@@ -53,6 +89,7 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
         output = Path("poses.jsonl" if several else "pose.json")
     if str(output) == "-":
         from ..pose.io import pose_lines
+
         sys.stdout.write(pose_lines(poses, several))
     else:
         try:
@@ -65,9 +102,12 @@ def command(features_path: Path, observations: tuple[Path, ...], output: Path | 
         where = p.origin or "observation"
         if p.converged:
             t = p.translation_mm
-            click.echo(f"{where}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± "
-                       f"({p.std_mm[0]:.2f}, {p.std_mm[1]:.2f}, {p.std_mm[2]:.2f}), "
-                       f"rms {p.rms_residual_px:.3f} px, {p.iterations} iterations", file=out)
+            click.echo(
+                f"{where}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± "
+                f"({p.std_mm[0]:.2f}, {p.std_mm[1]:.2f}, {p.std_mm[2]:.2f}), "
+                f"rms {p.rms_residual_px:.3f} px, {p.iterations} iterations",
+                file=out,
+            )
         else:
             click.echo(f"{where}: not solved: {p.error}", file=out)
     if str(output) != "-":
@@ -95,13 +135,19 @@ def _solve_estimating_intrinsics(features, observations, options, which: str, ou
         sx = c.pixel_size_mm[0]
         parts = [f"f = {c.focal_length_mm:.2f} mm" + (f" ± {sd['f'] * sx:.2f}" if "f" in sd else "")]
         if "fx" in sd:
-            parts = [f"fx = {est.intrinsics[0]:.1f} ± {sd['fx']:.1f} px",
-                     f"fy = {est.intrinsics[1]:.1f} ± {sd['fy']:.1f} px"]
+            parts = [
+                f"fx = {est.intrinsics[0]:.1f} ± {sd['fx']:.1f} px",
+                f"fy = {est.intrinsics[1]:.1f} ± {sd['fy']:.1f} px",
+            ]
         if "ox" in sd:
-            parts.append(f"principal point = ({est.intrinsics[2]:.1f} ± {sd['ox']:.1f}, "
-                         f"{est.intrinsics[3]:.1f} ± {sd['oy']:.1f}) px")
-        click.echo(f"intrinsics from {len(est.solved)} images: " + ", ".join(parts)
-                   + f" (noise scale {est.noise_scale:.2f})", file=out)
+            parts.append(
+                f"principal point = ({est.intrinsics[2]:.1f} ± {sd['ox']:.1f}, "
+                f"{est.intrinsics[3]:.1f} ± {sd['oy']:.1f}) px"
+            )
+        click.echo(
+            f"intrinsics from {len(est.solved)} images: " + ", ".join(parts) + f" (noise scale {est.noise_scale:.2f})",
+            file=out,
+        )
     else:
         click.echo(f"intrinsics not estimated: {est.reason}", file=sys.stderr)
     unsolved = sum(not p.converged for p in est.start)

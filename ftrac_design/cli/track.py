@@ -19,8 +19,7 @@ import click
 from ..errors import InputError
 
 
-def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path | None, polarity: str,
-           refine: str):
+def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path | None, polarity: str, refine: str):
     """The TrackSetup from the options (InputError on any bad one)."""
     from ..features import load_features
     from ..images import read_distortion
@@ -48,10 +47,15 @@ def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path 
         try:
             from ..intensity import refine_track_result as refine_fn
         except ImportError:
-            raise InputError(None, "--refine", "intensity refinement, which this installation does not have "
-                                               "(ftrac_design.intensity); use --refine none") from None
-    return TrackSetup(features, body, options, camera, model,
-                      str(distortion_path) if distortion_path is not None else None, refine_fn)
+            raise InputError(
+                None,
+                "--refine",
+                "intensity refinement, which this installation does not have "
+                "(ftrac_design.intensity); use --refine none",
+            ) from None
+    return TrackSetup(
+        features, body, options, camera, model, str(distortion_path) if distortion_path is not None else None, refine_fn
+    )
 
 
 def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
@@ -66,37 +70,82 @@ def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
         raise InputError(path, None, f"a writable output path ({exc.strerror or exc})") from None
     except Exception as exc:  # noqa: BLE001 — the pose is kept; only its picture is missing
         from ..workflows.track_run import one_line
+
         click.echo(f"{path}: overlay not drawn: {type(exc).__name__}: {one_line(exc)}", err=True)
 
 
 @click.command("track")
-@click.option("--features", "features_path", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="features.json written by `ftrac-design build`.")
+@click.option(
+    "--features",
+    "features_path",
+    required=True,
+    type=click.Path(dir_okay=False, path_type=Path),
+    help="features.json written by `ftrac-design build`.",
+)
 @click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option("--camera", "camera_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="SPEC §3 camera object (JSON) used for every frame; overrides what the files say.")
-@click.option("--distortion", "distortion_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
-                   "pinhole grid before tracking; frames must have the model's image_shape. 'none': the detector "
-                   "does not distort (a flat panel). Without it an image intensifier's distortion of up to ~2 mm "
-                   "at 100 mm is allowed for in each pose's covariance (DX/CR DICOM images excepted).")
-@click.option("-o", "--output", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
-                   "(default pose.json / poses.jsonl). The segmented observations go beside it "
-                   "(<stem>.observation.json / <stem>.observations.jsonl).")
-@click.option("--overlay", is_flag=True,
-              help="Also write <stem>_<image stem>[_<frame>]_overlay.png per frame beside OUT (the frame index "
-                   "for runs).")
-@click.option("--polarity", type=click.Choice(["auto", "dense-dark", "dense-bright"]), default="auto",
-              show_default=True, help="How dense matter looks (dense-dark: raw detector counts; dense-bright: "
-                                      "log/display image); overrides the file's. auto: the file's, else found.")
-@click.option("--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True,
-              help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
-@click.option("--independent", is_flag=True,
-              help="Track every frame of a run alone with the full identification, no prior (default: each frame "
-                   "from the previous frames' poses, identified from scratch only where that is not confirmed).")
-def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | None, distortion_path: Path | None,
-            output: Path | None, overlay: bool, polarity: str, refine: str, independent: bool) -> int:
+@click.option(
+    "--camera",
+    "camera_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="SPEC §3 camera object (JSON) used for every frame; overrides what the files say.",
+)
+@click.option(
+    "--distortion",
+    "distortion_path",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
+    "pinhole grid before tracking; frames must have the model's image_shape. 'none': the detector "
+    "does not distort (a flat panel). Without it an image intensifier's distortion of up to ~2 mm "
+    "at 100 mm is allowed for in each pose's covariance (DX/CR DICOM images excepted).",
+)
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False, path_type=Path),
+    default=None,
+    help="pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
+    "(default pose.json / poses.jsonl). The segmented observations go beside it "
+    "(<stem>.observation.json / <stem>.observations.jsonl).",
+)
+@click.option(
+    "--overlay",
+    is_flag=True,
+    help="Also write <stem>_<image stem>[_<frame>]_overlay.png per frame beside OUT (the frame index for runs).",
+)
+@click.option(
+    "--polarity",
+    type=click.Choice(["auto", "dense-dark", "dense-bright"]),
+    default="auto",
+    show_default=True,
+    help="How dense matter looks (dense-dark: raw detector counts; dense-bright: "
+    "log/display image); overrides the file's. auto: the file's, else found.",
+)
+@click.option(
+    "--refine",
+    type=click.Choice(["none", "intensity"]),
+    default="none",
+    show_default=True,
+    help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).",
+)
+@click.option(
+    "--independent",
+    is_flag=True,
+    help="Track every frame of a run alone with the full identification, no prior (default: each frame "
+    "from the previous frames' poses, identified from scratch only where that is not confirmed).",
+)
+def command(
+    features_path: Path,
+    images: tuple[Path, ...],
+    camera_path: Path | None,
+    distortion_path: Path | None,
+    output: Path | None,
+    overlay: bool,
+    polarity: str,
+    refine: str,
+    independent: bool,
+) -> int:
     """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
 
     IMAGE is a file (PNG/TIFF/JPEG, NumPy .npy, DICOM: XA, RF, DX, CR, Enhanced XA/XRF, a video:
@@ -129,13 +178,19 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
     stem = output.name[: -len(output.suffix)] if output.suffix else output.name
     obs_path = output.with_name(f"{stem}.observations.jsonl" if several else f"{stem}.observation.json")
     lines: list[tuple[bool, str]] = []
-    with TrackOutputs(output, obs_path) as outputs, \
-            tqdm(total=total, desc="track", unit="frame", file=sys.stderr,
-                 disable=total <= 3 or not sys.stderr.isatty()) as bar:
+    with (
+        TrackOutputs(output, obs_path) as outputs,
+        tqdm(
+            total=total, desc="track", unit="frame", file=sys.stderr, disable=total <= 3 or not sys.stderr.isatty()
+        ) as bar,
+    ):
         for inp in inputs:
             # one tracker per run: its frames in order, nothing carried from one IMAGE to the next
-            tracker = RunTracker(setup.features, setup.camera, setup.options, body=setup.body,
-                                 independent=independent) if inp.run else None
+            tracker = (
+                RunTracker(setup.features, setup.camera, setup.options, body=setup.body, independent=independent)
+                if inp.run
+                else None
+            )
             frames = read_frames(inp.path, setup.camera)
             while True:
                 t0 = time.perf_counter()
@@ -149,13 +204,14 @@ def command(features_path: Path, images: tuple[Path, ...], camera_path: Path | N
                     _draw(outputs, output.with_name(overlay_name(stem, inp, frame)), img, setup, res, title)
                 outputs.add(outcome)
                 lines.append((outcome.converged, outcome.line))
-                del frame, img, res          # one frame's pixels at a time
+                del frame, img, res  # one frame's pixels at a time
                 bar.update()
         outputs.commit()
     failed = sum(not ok for ok, _ in lines)
     for ok, line in lines:
         click.echo(line, err=not ok)
     if several or not failed:
-        click.echo(f"{total - failed} of {total} tracked; wrote {output}, {obs_path}"
-                   + (" and overlays" if overlay else ""))
+        click.echo(
+            f"{total - failed} of {total} tracked; wrote {output}, {obs_path}" + (" and overlays" if overlay else "")
+        )
     return 1 if failed else 0

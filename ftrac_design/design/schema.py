@@ -164,7 +164,8 @@ class HoleSet(_Strict):
     pitch: Pos | None = Field(
         default=None,
         description="hole spacing, mm; default: the mount's grid_pitch, and for the z set the "
-                    "smallest multiple of it whose holes clear the socket")
+        "smallest multiple of it whose holes clear the socket",
+    )
     diameter: Pos = Field(default=4.5, description="clearance hole, mm (ISO 273 medium, M4)")
     counterbore_diameter: NonNeg = Field(default=8.0, description="0 = no counterbore, mm")
     counterbore_depth: NonNeg = Field(default=4.4, description="mm")
@@ -207,11 +208,14 @@ class Mount(_Strict):
     socket_depth: Pos = Field(default=3.0, description="how far the cylinder end sits in the socket, mm")
     grid_pitch: Pos = Field(default=25.0, description="hole grid of the table the mount bolts to, mm")
     width: Pos | None = Field(
-        default=None, description="block side along x and y, mm; default: the smallest whole mm "
-                                  "that keeps every hole 1.5 diameters from an edge")
+        default=None,
+        description="block side along x and y, mm; default: the smallest whole mm "
+        "that keeps every hole 1.5 diameters from an edge",
+    )
     base_height: Pos | None = Field(
-        default=None, description="block below the socket floor, mm; default: the smallest whole "
-                                  "mm that holds the x and y hole sets")
+        default=None,
+        description="block below the socket floor, mm; default: the smallest whole mm that holds the x and y hole sets",
+    )
     holes_x: HoleSet = Field(default_factory=HoleSet)
     holes_y: HoleSet = Field(default_factory=HoleSet)
     holes_z: HoleSet = Field(default_factory=HoleSet)
@@ -252,15 +256,21 @@ class Connector(_Strict):
     pin_length: Pos = Field(default=10.0, description="mm")
     pin_engagement: Pos = Field(default=4.0, description="how far the pins enter the template, mm")
     pins: list[GridNode] = Field(
-        default_factory=lambda: [[0, 0], [10, 0]], min_length=2, max_length=2,
-        description="grid nodes [column, row] of the two pins, counted from the reference hole")
+        default_factory=lambda: [[0, 0], [10, 0]],
+        min_length=2,
+        max_length=2,
+        description="grid nodes [column, row] of the two pins, counted from the reference hole",
+    )
     axis_x: float = Field(default=25.0, description="x of the fiducial axis in T, mm")
     axis_height: float = Field(
-        default=50.0, description="height (y in T) of the fiducial axis above the reference hole, mm")
+        default=50.0, description="height (y in T) of the fiducial axis above the reference hole, mm"
+    )
     template_edge: float = Field(
-        default=10.0, description="height of the template's top edge above the reference hole, mm")
+        default=10.0, description="height of the template's top edge above the reference hole, mm"
+    )
     source_side: Literal["posterior", "anterior"] = Field(
-        default="posterior", description="side of the patient the X-ray source is on in the AP view")
+        default="posterior", description="side of the patient the X-ray source is on in the AP view"
+    )
     thickness: Pos = Field(default=15.0, description="plate thickness along z, mm")
     pocket_depth: Pos = Field(default=3.0, description="depth of the pocket that locates the mount, mm")
     pocket_wall: Pos = Field(default=5.0, description="plate material around the pocket, mm")
@@ -278,19 +288,23 @@ class CncProfile(_Strict):
     socket_interference: NonNeg = Field(default=0.05, description="cylinder diameter minus mount socket diameter, mm")
     pin_interference: NonNeg = Field(default=0.02, description="dowel pin diameter minus its hole in the connector, mm")
     slide_clearance: NonNeg = Field(
-        default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
+        default=0.025, description="gap per side of the sliding fits (mount in pocket, key in slot), mm"
+    )
     # cutting data for the 4-axis program (ftrac_design.machining): engineering-plastics milling
     # tables give 91-114 m/min and a feed per tooth of 0.0009 in for a 1/8 in end mill (0.0072 x D)
     pocket_tool_diameter: Pos | None = Field(
-        default=None, description="end mill for the bead pockets, mm; default: the largest stock size "
-                                  "between half and 0.8 of the pocket diameter")
+        default=None,
+        description="end mill for the bead pockets, mm; default: the largest stock size "
+        "between half and 0.8 of the pocket diameter",
+    )
     flutes: Annotated[int, Field(ge=1, le=8)] = Field(default=2, description="flutes of both end mills")
     cutting_speed: Pos = Field(default=91.0, description="surface speed, m/min (plastics tables: 91-114)")
     spindle_max_rpm: Pos = Field(default=24000.0, description="the spindle's top speed, rpm")
     feed_per_tooth_ratio: Pos = Field(default=0.0072, description="feed per tooth / tool diameter")
     step_down_ratio: Pos = Field(default=0.5, description="depth of cut per level / tool diameter")
     ramp_angle_deg: Annotated[float, Field(gt=0.0, le=30.0)] = Field(
-        default=3.0, description="slope of ramped and helical entries, degrees")
+        default=3.0, description="slope of ramped and helical entries, degrees"
+    )
 
 
 class FdmProfile(_Strict):
@@ -302,7 +316,8 @@ class FdmProfile(_Strict):
     hole_allowance: NonNeg = Field(default=0.2, description="added to round holes' diameters (they print small), mm")
     press_allowance: NonNeg = Field(default=0.1, description="added to press-fit holes (socket, dowel pins), mm")
     slide_clearance: NonNeg = Field(
-        default=0.2, description="gap per side of the sliding fits (mount in pocket, key in slot), mm")
+        default=0.2, description="gap per side of the sliding fits (mount in pocket, key in slot), mm"
+    )
 
 
 class Manufacturing(_Strict):
@@ -311,7 +326,8 @@ class Manufacturing(_Strict):
     cnc: CncProfile = Field(default_factory=CncProfile)
     fdm: FdmProfile = Field(default_factory=FdmProfile)
     wire_cut_allowance: NonNeg = Field(
-        default=5.0, description="extra length per wire piece in the bill of materials, mm")
+        default=5.0, description="extra length per wire piece in the bill of materials, mm"
+    )
 
 
 class Analysis(_Strict):
@@ -330,7 +346,8 @@ class Analysis(_Strict):
     depth_range: NonNeg = Field(default=25.0, description="mm")
     lateral: NonNeg = Field(default=25.0, description="offset from the principal ray, mm")
     roll_range_deg: Annotated[list[float], Field(min_length=2, max_length=2)] = Field(
-        default_factory=lambda: [0.0, 360.0], description="roll about the beam, [from, to] degrees")
+        default_factory=lambda: [0.0, 360.0], description="roll about the beam, [from, to] degrees"
+    )
     segmentation_error: Pos = Field(default=0.25, description="mm at the detector")
     # a part's image localises better or worse than another size's (ftrac_design.xray.localization):
     # the optimiser writes these when it changes stock sizes, so `analyze` scores the design it wrote
@@ -342,9 +359,11 @@ class Analysis(_Strict):
     max_condition: Annotated[float, Field(ge=1.0)] = 1000.0
     # segmentability (ftrac_design.analysis.segmentability): judged only where set
     max_overlap_share: Annotated[float, Field(ge=0.0, le=1.0)] | None = Field(
-        default=None, description="largest share of workspace poses where features' images overlap")
+        default=None, description="largest share of workspace poses where features' images overlap"
+    )
     min_clearance_px: float | None = Field(
-        default=None, description="smallest 5th-percentile image clearance between features, px beyond their widths")
+        default=None, description="smallest 5th-percentile image clearance between features, px beyond their widths"
+    )
 
 
 class Design(_Strict):

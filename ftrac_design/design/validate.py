@@ -64,18 +64,25 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
         errs.append(("mount.width", f"a block wider than the socket (Ø{od} mm), got {m.width!r}"))
     if m.key_height > 0:
         if m.key_height + KEY_GAP > m.socket_depth:
-            errs.append(("mount.key_height",
-                         f"a key that stays inside the socket: key_height + {KEY_GAP} mm (the slot's end gap) "
-                         f"at most socket_depth ({m.socket_depth} mm), got {m.key_height!r}"))
+            errs.append(
+                (
+                    "mount.key_height",
+                    f"a key that stays inside the socket: key_height + {KEY_GAP} mm (the slot's end gap) "
+                    f"at most socket_depth ({m.socket_depth} mm), got {m.key_height!r}",
+                )
+            )
         if m.key_width >= od:
             errs.append(("mount.key_width", f"a key narrower than the cylinder (Ø{od} mm), got {m.key_width!r}"))
     if not c.pin_engagement < c.pin_length:
-        errs.append(("connector.pin_engagement",
-                     f"less than pin_length ({c.pin_length} mm), got {c.pin_engagement!r}"))
+        errs.append(("connector.pin_engagement", f"less than pin_length ({c.pin_length} mm), got {c.pin_engagement!r}"))
     elif c.pin_length - c.pin_engagement > c.thickness:
-        errs.append(("connector.pin_length",
-                     f"a pin that fits the plate: pin_length - pin_engagement at most thickness "
-                     f"({c.thickness} mm), got {c.pin_length!r}"))
+        errs.append(
+            (
+                "connector.pin_length",
+                f"a pin that fits the plate: pin_length - pin_engagement at most thickness "
+                f"({c.thickness} mm), got {c.pin_length!r}",
+            )
+        )
     if not c.pocket_depth < c.thickness:
         errs.append(("connector.pocket_depth", f"less than thickness ({c.thickness} mm), got {c.pocket_depth!r}"))
     if c.pins[0] == c.pins[1]:
@@ -83,9 +90,13 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
     for i, (col, row) in enumerate(c.pins):
         y = row * c.grid_pitch
         if y + c.pin_diameter / 2 > c.template_edge:
-            errs.append((f"connector.pins[{i}]",
-                         f"a grid node on the template: row {row} is at y = {y} mm, above its top edge "
-                         f"(template_edge = {c.template_edge} mm)"))
+            errs.append(
+                (
+                    f"connector.pins[{i}]",
+                    f"a grid node on the template: row {row} is at y = {y} mm, above its top edge "
+                    f"(template_edge = {c.template_edge} mm)",
+                )
+            )
     return errs
 
 
@@ -113,7 +124,7 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
     named += [(f"beads[{i}].id", b.id) for i, b in enumerate(design.beads) if b.id]
     for key, ident in named:
         if ident in ids:
-            errs.append((key, f"a unique id (\"{ident}\" is also used by {ids[ident]})"))
+            errs.append((key, f'a unique id ("{ident}" is also used by {ids[ident]})'))
         ids.setdefault(ident, key)
 
     rw = design.wire.diameter / 2.0 if design.wire else 0.0
@@ -122,14 +133,22 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
     if design.ellipses:
         d = design.seating.ellipse_wire_depth
         if design.ellipse_seat_radius - rw <= rb:
-            errs.append(("seating.ellipse_wire_depth",
-                         f"a depth that leaves the wire inside the wall (depth {d} mm reaches the bore)"))
+            errs.append(
+                (
+                    "seating.ellipse_wire_depth",
+                    f"a depth that leaves the wire inside the wall (depth {d} mm reaches the bore)",
+                )
+            )
     if design.lines:
         d = design.seating.line_wire_depth
         reach = max(rw, rbead if any(l.beads_z for l in design.lines) else 0.0)
         if design.line_seat_radius - reach <= rb:
-            errs.append(("seating.line_wire_depth",
-                         f"a depth that leaves wire and beads inside the wall (depth {d} mm reaches the bore)"))
+            errs.append(
+                (
+                    "seating.line_wire_depth",
+                    f"a depth that leaves wire and beads inside the wall (depth {d} mm reaches the bore)",
+                )
+            )
     if design.beads and design.free_bead_seat_radius - rbead <= rb:
         errs.append(("seating.free_bead_depth", "a depth that leaves the beads inside the wall"))
 
@@ -137,9 +156,13 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
     for i, e in enumerate(design.ellipses):
         reach = design.ellipse_seat_radius * math.tan(e.tilt_rad) + rw / math.cos(e.tilt_rad)
         if abs(e.z_center) + reach > L2:
-            errs.append((f"ellipses[{i}].z_center",
-                         f"an ellipse inside the body: it spans z = {e.z_center - reach:.3f} … "
-                         f"{e.z_center + reach:.3f} mm, the body ends at ±{L2} mm"))
+            errs.append(
+                (
+                    f"ellipses[{i}].z_center",
+                    f"an ellipse inside the body: it spans z = {e.z_center - reach:.3f} … "
+                    f"{e.z_center + reach:.3f} mm, the body ends at ±{L2} mm",
+                )
+            )
     for i, line in enumerate(design.lines):
         for key, z, reach in ((f"lines[{i}].z_start", line.z_start, rw), (f"lines[{i}].z_end", line.z_end, rw)):
             if abs(z) + reach > L2:
@@ -147,15 +170,17 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
         zs = sorted(line.beads_z)
         for j, z in enumerate(line.beads_z):
             if not (line.z_start - 1e-9 <= z <= line.z_end + 1e-9):
-                errs.append((f"lines[{i}].beads_z[{j}]",
-                             f"a bead on its line: z = {z} mm is off the line's extent "
-                             f"[{line.z_start}, {line.z_end}]"))
+                errs.append(
+                    (
+                        f"lines[{i}].beads_z[{j}]",
+                        f"a bead on its line: z = {z} mm is off the line's extent [{line.z_start}, {line.z_end}]",
+                    )
+                )
             elif abs(z) + rbead > L2:
                 errs.append((f"lines[{i}].beads_z[{j}]", f"a bead inside the body's length (±{L2} mm)"))
         for a, b in zip(zs, zs[1:]):
             if b - a <= 2 * rbead:
-                errs.append((f"lines[{i}].beads_z",
-                             f"beads at least one diameter apart (z = {a} and {b} overlap)"))
+                errs.append((f"lines[{i}].beads_z", f"beads at least one diameter apart (z = {a} and {b} overlap)"))
     for i, b in enumerate(design.beads):
         if abs(b.z) + rbead > L2:
             errs.append((f"beads[{i}].z", f"a bead inside the body's length (±{L2} mm)"))
@@ -166,18 +191,26 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
         for j in range(i + 1, len(design.ellipses)):
             gap = ellipse_z(design, j, phi) - ellipse_z(design, i, phi)
             if gap.min() < 0 < gap.max() or np.abs(gap).min() <= 2 * rw:
-                errs.append((f"ellipses[{j}].z_center",
-                             f"ellipses that do not cross: {design.ellipses[i].id} and "
-                             f"{design.ellipses[j].id} come within {np.abs(gap).min():.3f} mm axially "
-                             f"(wire diameter {2 * rw} mm)"))
+                errs.append(
+                    (
+                        f"ellipses[{j}].z_center",
+                        f"ellipses that do not cross: {design.ellipses[i].id} and "
+                        f"{design.ellipses[j].id} come within {np.abs(gap).min():.3f} mm axially "
+                        f"(wire diameter {2 * rw} mm)",
+                    )
+                )
 
     # a line wire passes under an ellipse wire: the radial step must clear both wires
     if design.ellipses and design.lines:
         step = design.line_seat_radius - design.ellipse_seat_radius
         if abs(step) < 2 * rw:
-            errs.append(("seating.line_wire_depth",
-                         f"line and ellipse wires seated at least one wire diameter ({2 * rw} mm) apart "
-                         f"in depth where they cross; they are {abs(step):.3f} mm apart"))
+            errs.append(
+                (
+                    "seating.line_wire_depth",
+                    f"line and ellipse wires seated at least one wire diameter ({2 * rw} mm) apart "
+                    f"in depth where they cross; they are {abs(step):.3f} mm apart",
+                )
+            )
 
     # beads must not touch an ellipse wire or another bead
     beads = bead_centers(design)
@@ -187,8 +220,13 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
             for key, _, c in beads:
                 dmin = float(np.min(np.linalg.norm(pts - c, axis=1)))
                 if dmin <= rbead + rw:
-                    errs.append((key, f"a bead clear of ellipse {design.ellipses[k].id}: "
-                                      f"its centre is {dmin:.3f} mm from the wire, needs > {rbead + rw:.3f}"))
+                    errs.append(
+                        (
+                            key,
+                            f"a bead clear of ellipse {design.ellipses[k].id}: "
+                            f"its centre is {dmin:.3f} mm from the wire, needs > {rbead + rw:.3f}",
+                        )
+                    )
     for a in range(len(beads)):
         for b in range(a + 1, len(beads)):
             if np.linalg.norm(beads[a][2] - beads[b][2]) <= 2 * rbead:

@@ -35,8 +35,11 @@ def _toml_value(v) -> str:
 
 
 def _toml_table(data: dict, path: str, out: list[str]) -> None:
-    scalars = {k: v for k, v in data.items()
-               if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))}
+    scalars = {
+        k: v
+        for k, v in data.items()
+        if not isinstance(v, dict) and not (isinstance(v, list) and v and isinstance(v[0], dict))
+    }
     if path and (scalars or not data):
         out.append(f"\n[{path}]")
     out += [f"{k} = {_toml_value(v)}" for k, v in scalars.items()]
@@ -56,4 +59,3 @@ def to_toml(data: dict) -> str:
     out: list[str] = []
     _toml_table(data, "", out)
     return "\n".join(out).lstrip("\n") + "\n"
-

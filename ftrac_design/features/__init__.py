@@ -4,8 +4,14 @@ from .io import features_from_dict, features_to_dict, load_features, write_featu
 from .model import EllipseFeature, Features, LineFeature, PointFeature
 
 __all__ = [
-    "EllipseFeature", "Features", "LineFeature", "PointFeature",
-    "features_from_dict", "features_to_dict", "load_features", "write_features",
+    "EllipseFeature",
+    "Features",
+    "LineFeature",
+    "PointFeature",
+    "features_from_dict",
+    "features_to_dict",
+    "load_features",
+    "write_features",
     "compute_features",
 ]
 

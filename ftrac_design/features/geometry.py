@@ -67,15 +67,18 @@ def point_features(design: Design) -> list[PointFeature]:
         c = line_feature(design, i)
         for z in sorted(ln.beads_z):
             n += 1
-            out.append(PointFeature(id=f"B{n}", center=np.array([c.start[0], c.start[1], z]),
-                                    diameter=d, line=ln.id))
+            out.append(PointFeature(id=f"B{n}", center=np.array([c.start[0], c.start[1], z]), diameter=d, line=ln.id))
     r = design.free_bead_seat_radius
     for b in design.beads:
         n += 1
-        out.append(PointFeature(
-            id=b.id or f"B{n}",
-            center=np.array([r * math.cos(b.azimuth_rad), r * math.sin(b.azimuth_rad), b.z]),
-            diameter=d, line=None))
+        out.append(
+            PointFeature(
+                id=b.id or f"B{n}",
+                center=np.array([r * math.cos(b.azimuth_rad), r * math.sin(b.azimuth_rad), b.z]),
+                diameter=d,
+                line=None,
+            )
+        )
     return out
 
 

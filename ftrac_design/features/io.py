@@ -42,8 +42,7 @@ def features_to_dict(f: Features) -> dict[str, Any]:
         "design": {"name": f.name, "source": f.source, "sha256": f.sha256},
         "nominal_beam_direction": _vec(f.nominal_beam_direction),
         "points": [
-            {"id": p.id, "center": _vec(p.center), "diameter": p.diameter,
-             **({"line": p.line} if p.line else {})}
+            {"id": p.id, "center": _vec(p.center), "diameter": p.diameter, **({"line": p.line} if p.line else {})}
             for p in f.points
         ],
         "lines": [
@@ -51,9 +50,15 @@ def features_to_dict(f: Features) -> dict[str, Any]:
             for ln in f.lines
         ],
         "ellipses": [
-            {"id": e.id, "center": _vec(e.center), "major_axis": _vec(e.major_axis),
-             "minor_axis": _vec(e.minor_axis), "semi_major": e.semi_major,
-             "semi_minor": e.semi_minor, "wire_diameter": e.wire_diameter}
+            {
+                "id": e.id,
+                "center": _vec(e.center),
+                "major_axis": _vec(e.major_axis),
+                "minor_axis": _vec(e.minor_axis),
+                "semi_major": e.semi_major,
+                "semi_minor": e.semi_minor,
+                "wire_diameter": e.wire_diameter,
+            }
             for e in f.ellipses
         ],
         "frames": {k: [_vec(row) for row in T] for k, T in f.frames.items()},
@@ -152,8 +157,9 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         e = r.vector(r.get(o, "end", w), f"{w}.end")
         if np.linalg.norm(e - s) < MIN_SIZE_MM:
             raise r.fail(f"{w}.end", f"an end-point at least {MIN_SIZE_MM:g} mm from start")
-        lines.append(LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter",
-                                                       minimum=0.0)))
+        lines.append(
+            LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0))
+        )
     line_ids = {ln.id for ln in lines}
 
     points = []
@@ -163,8 +169,14 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         line = r.get(o, "line", w, None)
         if line is not None and (not isinstance(line, str) or line not in line_ids):
             raise r.fail(f"{w}.line", f"the id of a line in this file, got {line!r}")
-        points.append(PointFeature(ident, r.vector(r.get(o, "center", w), f"{w}.center"),
-                                   r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter", minimum=0.0), line))
+        points.append(
+            PointFeature(
+                ident,
+                r.vector(r.get(o, "center", w), f"{w}.center"),
+                r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter", minimum=0.0),
+                line,
+            )
+        )
 
     ellipses = []
     for i, o in enumerate(r.items(d, "ellipses")):
@@ -182,8 +194,11 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         b = r.number(r.get(o, "semi_minor", w), f"{w}.semi_minor", minimum=MIN_SIZE_MM)
         if b > a * (1 + 1e-12):
             raise r.fail(f"{w}.semi_minor", f"a value not above semi_major ({a}), got {b}")
-        ellipses.append(EllipseFeature(ident, c, u, v, a, b,
-                                       r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)))
+        ellipses.append(
+            EllipseFeature(
+                ident, c, u, v, a, b, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)
+            )
+        )
 
     frames = {}
     fr = r.get(d, "frames", "", {})
@@ -197,9 +212,16 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
 
     if not (points or lines or ellipses):
         raise r.fail("points", "at least one point, line or ellipse")
-    return Features(name=str(name), source=design.get("source"), sha256=design.get("sha256"),
-                    nominal_beam_direction=beam / np.linalg.norm(beam), points=tuple(points),
-                    lines=tuple(lines), ellipses=tuple(ellipses), frames=frames)
+    return Features(
+        name=str(name),
+        source=design.get("source"),
+        sha256=design.get("sha256"),
+        nominal_beam_direction=beam / np.linalg.norm(beam),
+        points=tuple(points),
+        lines=tuple(lines),
+        ellipses=tuple(ellipses),
+        frames=frames,
+    )
 
 
 def load_features(path: str | Path) -> Features:

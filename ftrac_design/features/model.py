@@ -74,8 +74,9 @@ class EllipseFeature:
     def sample(self, s: np.ndarray) -> np.ndarray:
         """Points (n, 3) on the centre-line at parameters ``s`` (rad), mm in F."""
         s = np.asarray(s, float)[..., None]
-        return (self.center + self.semi_major * np.cos(s) * self.major_axis
-                + self.semi_minor * np.sin(s) * self.minor_axis)
+        return (
+            self.center + self.semi_major * np.cos(s) * self.major_axis + self.semi_minor * np.sin(s) * self.minor_axis
+        )
 
     def tangent(self, s: np.ndarray) -> np.ndarray:
         """Unit tangents (n, 3) of the centre-line at parameters ``s`` (rad), direction of increasing s."""
@@ -156,8 +157,10 @@ class Features:
         """
         ln = self.line(line_id)
         L = ln.length
-        cuts = [(float(ln.parameter(p.center)) * L - p.diameter / 2, float(ln.parameter(p.center)) * L + p.diameter / 2)
-                for p in self.beads_on(line_id)]
+        cuts = [
+            (float(ln.parameter(p.center)) * L - p.diameter / 2, float(ln.parameter(p.center)) * L + p.diameter / 2)
+            for p in self.beads_on(line_id)
+        ]
         pieces, pos = [], 0.0
         for lo, hi in cuts:
             if lo > pos + 1e-9:
@@ -172,8 +175,7 @@ class Features:
         """Every line's straight wire pieces as (line id, start, end), mm in F, lines in order
         (:meth:`wire_segments`); a line its beads cover whole gives its centre line, so every
         line has a piece. Computed once per Features (the image path samples them per pose)."""
-        return tuple((ln.id, a, b) for ln in self.lines
-                     for a, b in (self.wire_segments(ln.id) or [(ln.start, ln.end)]))
+        return tuple((ln.id, a, b) for ln in self.lines for a, b in (self.wire_segments(ln.id) or [(ln.start, ln.end)]))
 
     def wire_length(self, feature_id: str) -> float:
         """Length of wire (mm) that feature ``feature_id`` takes: an ellipse's whole
@@ -187,7 +189,9 @@ class Features:
         """A copy holding only the features whose id is in ``keep`` (frames kept)."""
         keep = set(keep)
         return Features(
-            name=self.name, source=self.source, sha256=self.sha256,
+            name=self.name,
+            source=self.source,
+            sha256=self.sha256,
             nominal_beam_direction=self.nominal_beam_direction,
             points=tuple(p for p in self.points if p.id in keep),
             lines=tuple(ln for ln in self.lines if ln.id in keep),
@@ -203,11 +207,23 @@ class Features:
         if not k > 0:
             raise ValueError("scale factor must be positive")
         return Features(
-            name=f"{self.name}_x{k:g}", source=self.source, sha256=self.sha256,
+            name=f"{self.name}_x{k:g}",
+            source=self.source,
+            sha256=self.sha256,
             nominal_beam_direction=self.nominal_beam_direction,
             points=tuple(PointFeature(p.id, p.center * k, p.diameter * k, p.line) for p in self.points),
             lines=tuple(LineFeature(ln.id, ln.start * k, ln.end * k, ln.wire_diameter * k) for ln in self.lines),
-            ellipses=tuple(EllipseFeature(e.id, e.center * k, e.major_axis, e.minor_axis, e.semi_major * k,
-                                          e.semi_minor * k, e.wire_diameter * k) for e in self.ellipses),
+            ellipses=tuple(
+                EllipseFeature(
+                    e.id,
+                    e.center * k,
+                    e.major_axis,
+                    e.minor_axis,
+                    e.semi_major * k,
+                    e.semi_minor * k,
+                    e.wire_diameter * k,
+                )
+                for e in self.ellipses
+            ),
             frames={},
         )

@@ -185,8 +185,10 @@ def mount_layout(design: Design) -> MountLayout:
     """The mount of ``design``: block size, socket, key and the three hole sets (M, mm)."""
     m = design.mount
     sets = _hole_sets(design)
-    pitches = {a: (hs.pitch if hs.pitch is not None else
-                   (_z_pitch(design, hs) if a == "z" else m.grid_pitch)) for a, hs in sets.items()}
+    pitches = {
+        a: (hs.pitch if hs.pitch is not None else (_z_pitch(design, hs) if a == "z" else m.grid_pitch))
+        for a, hs in sets.items()
+    }
 
     # height of the x/y hole group: as high as the socket floor (z = 0) and the top face allow
     z_limits = []
@@ -243,11 +245,20 @@ def mount_layout(design: Design) -> MountLayout:
             c[u] += du
             c[v] += dv
             c[axis] = (lo[axis] + hi[axis]) / 2
-            holes.append(Hole(f"{a}{i}", axis, c, float(lo[axis]), float(hi[axis]), hs.diameter,
-                              hs.counterbore_diameter, hs.counterbore_depth if hs.counterbore_diameter else 0.0))
+            holes.append(
+                Hole(
+                    f"{a}{i}",
+                    axis,
+                    c,
+                    float(lo[axis]),
+                    float(hi[axis]),
+                    hs.diameter,
+                    hs.counterbore_diameter,
+                    hs.counterbore_depth if hs.counterbore_diameter else 0.0,
+                )
+            )
     phi = m.key_azimuth_rad
-    key = Key(m.key_width, m.key_height, design.body.outer_diameter,
-              np.array([math.cos(phi), math.sin(phi), 0.0]))
+    key = Key(m.key_width, m.key_height, design.body.outer_diameter, np.array([math.cos(phi), math.sin(phi), 0.0]))
     return MountLayout(width, base, m.socket_depth, design.body.outer_diameter, zc, pitches, tuple(holes), key)
 
 
@@ -336,25 +347,50 @@ def connector_layout(design: Design, mount: MountLayout | None = None) -> Connec
     c = design.connector
     T_TM = template_from_mount(design, mount)
     pocket_c = np.array([c.axis_x, c.axis_height, -c.pocket_depth])
-    pins = tuple(Pin((int(i), int(j)), np.array([i * c.grid_pitch, j * c.grid_pitch, 0.0]), c.pin_diameter,
-                     c.pin_length, c.pin_engagement) for i, j in c.pins)
+    pins = tuple(
+        Pin(
+            (int(i), int(j)),
+            np.array([i * c.grid_pitch, j * c.grid_pitch, 0.0]),
+            c.pin_diameter,
+            c.pin_length,
+            c.pin_engagement,
+        )
+        for i, j in c.pins
+    )
     holes = []
     for k, p in enumerate(pins, start=1):
-        holes.append(Hole(f"pin{k}", 2, np.array([p.center[0], p.center[1], -c.thickness / 2]),
-                          -c.thickness, 0.0, c.pin_diameter, kind="pin"))
+        holes.append(
+            Hole(
+                f"pin{k}",
+                2,
+                np.array([p.center[0], p.center[1], -c.thickness / 2]),
+                -c.thickness,
+                0.0,
+                c.pin_diameter,
+                kind="pin",
+            )
+        )
     for k, h in enumerate(mount.set("z"), start=1):
         q = T_TM @ np.array([h.center[0], h.center[1], 0.0, 1.0])
-        holes.append(Hole(f"tap{k}", 2, np.array([q[0], q[1], -c.thickness / 2]), -c.thickness, 0.0,
-                          c.tap_drill, kind="tapped"))
+        holes.append(
+            Hole(f"tap{k}", 2, np.array([q[0], q[1], -c.thickness / 2]), -c.thickness, 0.0, c.tap_drill, kind="tapped")
+        )
     half = mount.width / 2 + c.pocket_wall
     xs = [p.center[0] for p in pins]
     ys = [p.center[1] for p in pins]
-    lo = np.array([min(min(xs) - c.edge_margin, c.axis_x - half),
-                   min(min(ys) - c.edge_margin, c.axis_height - half), -c.thickness])
-    hi = np.array([max(max(xs) + c.edge_margin, c.axis_x + half),
-                   max(max(ys) + c.edge_margin, c.axis_height + half), 0.0])
-    return ConnectorLayout(lo, hi, pocket_c, mount.width, c.pocket_depth, POCKET_CORNER_RADIUS,
-                           pins, tuple(holes), T_TM)
+    lo = np.array(
+        [
+            min(min(xs) - c.edge_margin, c.axis_x - half),
+            min(min(ys) - c.edge_margin, c.axis_height - half),
+            -c.thickness,
+        ]
+    )
+    hi = np.array(
+        [max(max(xs) + c.edge_margin, c.axis_x + half), max(max(ys) + c.edge_margin, c.axis_height + half), 0.0]
+    )
+    return ConnectorLayout(
+        lo, hi, pocket_c, mount.width, c.pocket_depth, POCKET_CORNER_RADIUS, pins, tuple(holes), T_TM
+    )
 
 
 def transform_points(T: np.ndarray, pts: np.ndarray) -> np.ndarray:

@@ -53,12 +53,22 @@ def check_transform_name(name: str, parameter: str = "name") -> str:
     str : ``name``.
     """
     splits = [m.start() for m in re.finditer(r"To(?=[A-Z])", name)]
-    ok = (name.isascii() and len(name) <= MAX_NAME_BYTES and len(splits) == 1
-          and _FRAME_NAME.fullmatch(name[:splits[0]]) and _FRAME_NAME.fullmatch(name[splits[0] + 2:]))
+    ok = (
+        name.isascii()
+        and len(name) <= MAX_NAME_BYTES
+        and len(splits) == 1
+        and _FRAME_NAME.fullmatch(name[: splits[0]])
+        and _FRAME_NAME.fullmatch(name[splits[0] + 2 :])
+    )
     if not ok:
-        raise InputError(None, None, f"a PLUS transform name <From>To<To> of at most {MAX_NAME_BYTES} ASCII "
-                                     f"characters, each frame name starting upper-case (e.g. {POSE_TRANSFORM}); "
-                                     f"got {name!r}", parameter=parameter)
+        raise InputError(
+            None,
+            None,
+            f"a PLUS transform name <From>To<To> of at most {MAX_NAME_BYTES} ASCII "
+            f"characters, each frame name starting upper-case (e.g. {POSE_TRANSFORM}); "
+            f"got {name!r}",
+            parameter=parameter,
+        )
     return name
 
 
@@ -66,7 +76,7 @@ def split_transform_name(name: str) -> tuple[str, str]:
     """(From, To) of a PLUS transform name (checked by :func:`check_transform_name`)."""
     check_transform_name(name)
     k = re.search(r"To(?=[A-Z])", name).start()
-    return name[:k], name[k + 2:]
+    return name[:k], name[k + 2 :]
 
 
 def pose_matrix(R: np.ndarray, t: np.ndarray) -> np.ndarray:

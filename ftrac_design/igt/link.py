@@ -82,8 +82,15 @@ def status_message_class() -> type:
     MessageBase = pyigtl().MessageBase
 
     class StatusMessage(MessageBase):
-        def __init__(self, code: int = STATUS_OK, subcode: int = 0, error_name: str = "", status_string: str = "",
-                     timestamp: float | None = None, device_name: str | None = None):
+        def __init__(
+            self,
+            code: int = STATUS_OK,
+            subcode: int = 0,
+            error_name: str = "",
+            status_string: str = "",
+            timestamp: float | None = None,
+            device_name: str | None = None,
+        ):
             MessageBase.__init__(self, timestamp=timestamp, device_name=device_name)
             self._message_type = "STATUS"
             self.code, self.subcode = int(code), int(subcode)
@@ -92,8 +99,11 @@ def status_message_class() -> type:
 
         def _pack_content(self) -> bytes:
             name = self.error_name.encode("ascii", "replace")[:20]
-            return (struct.pack(">Hq20s", self.code, self.subcode, name)
-                    + self.status_string.encode("utf-8", "replace") + b"\0")
+            return (
+                struct.pack(">Hq20s", self.code, self.subcode, name)
+                + self.status_string.encode("utf-8", "replace")
+                + b"\0"
+            )
 
         def _unpack_content(self, content: bytes) -> None:
             self.code, self.subcode, name = struct.unpack(">Hq20s", content[:30])
@@ -131,8 +141,14 @@ def status_message(code: int, text: str, device_name: str, timestamp: float | No
     device_name : the device the reply is about (≤ 20 bytes; cut).
     timestamp : the message's timestamp (s since 1970), default now.
     """
-    msg = status_message_class()(code, 0, "OK" if code == STATUS_OK else "Error", " ".join(str(text).split()),
-                                 timestamp=timestamp, device_name=device_name[:20])
+    msg = status_message_class()(
+        code,
+        0,
+        "OK" if code == STATUS_OK else "Error",
+        " ".join(str(text).split()),
+        timestamp=timestamp,
+        device_name=device_name[:20],
+    )
     msg.header_version = 2
     return msg
 
@@ -204,8 +220,11 @@ def image_camera(msg: Any, shape: tuple[int, int], override: Camera | None) -> t
             raise InputError("IMAGE metadata", "camera", "a SPEC §3 camera object as JSON") from None
         return camera_from_dict(d, "IMAGE metadata"), "metadata camera"
     if "focal_length_mm" not in meta:
-        raise InputError("IMAGE metadata", "focal_length_mm",
-                         "the source-to-detector distance (or a camera object, or the server's --camera)")
+        raise InputError(
+            "IMAGE metadata",
+            "focal_length_mm",
+            "the source-to-detector distance (or a camera object, or the server's --camera)",
+        )
     f = _metadata_number(meta, "focal_length_mm")
     M = np.asarray(msg.ijk_to_world_matrix, float)
     sx, sy = float(np.linalg.norm(M[:3, 0])), float(np.linalg.norm(M[:3, 1]))
@@ -222,8 +241,7 @@ def _json_or_null(a: Any) -> str:
     return json.dumps(arr.tolist()) if np.isfinite(arr).all() else "null"
 
 
-def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: float,
-                      extra: dict[str, str]) -> Any:
+def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: float, extra: dict[str, str]) -> Any:
     """The TRANSFORM answering one frame (header version 2).
 
     Parameters

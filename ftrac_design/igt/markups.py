@@ -22,8 +22,10 @@ from ..errors import InputError
 from ..fileio import parse_json, read_text_input, write_text_atomic
 
 #: the markups schema 3D Slicer writes and reads
-SCHEMA = ("https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/"
-          "Schema/markups-schema-v1.0.3.json#")
+SCHEMA = (
+    "https://raw.githubusercontent.com/slicer/slicer/master/Modules/Loadable/Markups/Resources/"
+    "Schema/markups-schema-v1.0.3.json#"
+)
 
 
 def markups_dict(points: list[tuple[str, np.ndarray]], name: str, description: str = "") -> dict[str, Any]:
@@ -44,23 +46,52 @@ def markups_dict(points: list[tuple[str, np.ndarray]], name: str, description: s
         p = np.asarray(p, float)
         if p.shape != (3,) or not np.isfinite(p).all():
             raise InputError(None, None, f"a finite 3-vector for point {label!r}", parameter="points")
-        cps.append({"id": str(i), "label": str(label), "description": description, "associatedNodeID": "",
-                    "position": [float(x) for x in p], "orientation": [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0],
-                    "selected": True, "locked": True, "visibility": True, "positionStatus": "defined"})
-    return {"@schema": SCHEMA, "markups": [{
-        "type": "Fiducial", "name": name, "coordinateSystem": "LPS", "coordinateUnits": "mm", "locked": True,
-        "fixedNumberOfControlPoints": False, "labelFormat": "%N-%d", "lastUsedControlPointNumber": len(cps),
-        "controlPoints": cps, "measurements": [],
-        "display": {"visibility": True, "opacity": 1.0, "pointLabelsVisibility": True, "glyphType": "Sphere3D",
-                    "glyphScale": 1.0},
-    }]}
+        cps.append(
+            {
+                "id": str(i),
+                "label": str(label),
+                "description": description,
+                "associatedNodeID": "",
+                "position": [float(x) for x in p],
+                "orientation": [-1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0],
+                "selected": True,
+                "locked": True,
+                "visibility": True,
+                "positionStatus": "defined",
+            }
+        )
+    return {
+        "@schema": SCHEMA,
+        "markups": [
+            {
+                "type": "Fiducial",
+                "name": name,
+                "coordinateSystem": "LPS",
+                "coordinateUnits": "mm",
+                "locked": True,
+                "fixedNumberOfControlPoints": False,
+                "labelFormat": "%N-%d",
+                "lastUsedControlPointNumber": len(cps),
+                "controlPoints": cps,
+                "measurements": [],
+                "display": {
+                    "visibility": True,
+                    "opacity": 1.0,
+                    "pointLabelsVisibility": True,
+                    "glyphType": "Sphere3D",
+                    "glyphScale": 1.0,
+                },
+            }
+        ],
+    }
 
 
 def write_markups(path: str | Path, points: list[tuple[str, np.ndarray]], name: str, description: str = "") -> Path:
     """Write :func:`markups_dict` to ``path`` atomically (InputError if it cannot be written)."""
     try:
-        return write_text_atomic(path, json.dumps(markups_dict(points, name, description), indent=2,
-                                                  allow_nan=False) + "\n")
+        return write_text_atomic(
+            path, json.dumps(markups_dict(points, name, description), indent=2, allow_nan=False) + "\n"
+        )
     except OSError as exc:
         raise InputError(path, None, f"a writable output path ({exc.strerror or exc})") from None
 
@@ -88,9 +119,11 @@ def read_markups(path: str | Path) -> list[tuple[str, np.ndarray]]:
             raise InputError(path, f"{key}.coordinateSystem", f'"LPS" or "RAS", got {cs!r}')
         for i, cp in enumerate(mk.get("controlPoints", [])):
             pos = cp.get("position") if isinstance(cp, dict) else None
-            if (not isinstance(pos, list) or len(pos) != 3
-                    or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-                               for x in pos)):
+            if (
+                not isinstance(pos, list)
+                or len(pos) != 3
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in pos)
+            ):
                 raise InputError(path, f"{key}.controlPoints[{i}].position", "three finite numbers")
             p = np.array(pos, float)
             if cs == "RAS":
@@ -140,7 +173,10 @@ def points_from_file(path: str | Path) -> tuple[list[tuple[str, np.ndarray]], st
 
 
 def _vec3(v: Any, path: str | Path, key: str) -> np.ndarray:
-    if (not isinstance(v, list) or len(v) != 3
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+    if (
+        not isinstance(v, list)
+        or len(v) != 3
+        or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)
+    ):
         raise InputError(path, key, "three finite numbers (mm)")
     return np.array(v, float)

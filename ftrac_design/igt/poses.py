@@ -62,8 +62,9 @@ def _number(v: Any, origin: str, key: str) -> float:
 
 def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
     if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
-        raise InputError(origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), "
-                                      f"got {_short(v)}")
+        raise InputError(
+            origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), got {_short(v)}"
+        )
     return np.array([[_number(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
 
 
@@ -96,8 +97,17 @@ def pose_record(d: Any, origin: str) -> PoseRecord:
         raise InputError(origin, "status", f"a string, got {_short(status)}")
     if not conv:
         nan = np.full(3, np.nan)
-        return PoseRecord(np.full((3, 3), np.nan), nan, False, None, time_s, frame, status,
-                          None if error is None else str(error), origin)
+        return PoseRecord(
+            np.full((3, 3), np.nan),
+            nan,
+            False,
+            None,
+            time_s,
+            frame,
+            status,
+            None if error is None else str(error),
+            origin,
+        )
     for k in ("rotation", "translation_mm"):
         if k not in d:
             raise InputError(origin, k, "a value (the key is required)")

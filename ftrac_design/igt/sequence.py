@@ -72,12 +72,14 @@ def frame_fields(frames: list[SequenceFrame], name: str) -> list[tuple[str, str]
         p = f"{PREFIX}{k:04d}_"
         ok = fr.matrix is not None and np.isfinite(fr.matrix).all()
         M = np.asarray(fr.matrix, float) if ok else np.eye(4)
-        out += [(p + "FrameNumber", str(k)),
-                (p + f"{name}Transform", " ".join(_fmt(v) for v in M.reshape(-1))),
-                (p + f"{name}TransformStatus", "OK" if ok else "INVALID"),
-                (p + "Timestamp", _fmt(fr.timestamp_s)),
-                (p + "UnfilteredTimestamp", _fmt(fr.timestamp_s)),
-                (p + "ImageStatus", "INVALID")]
+        out += [
+            (p + "FrameNumber", str(k)),
+            (p + f"{name}Transform", " ".join(_fmt(v) for v in M.reshape(-1))),
+            (p + f"{name}TransformStatus", "OK" if ok else "INVALID"),
+            (p + "Timestamp", _fmt(fr.timestamp_s)),
+            (p + "UnfilteredTimestamp", _fmt(fr.timestamp_s)),
+            (p + "ImageStatus", "INVALID"),
+        ]
     return out
 
 
@@ -95,23 +97,39 @@ def sequence_bytes(frames: list[SequenceFrame], name: str, fmt: SequenceFormat, 
     fields = frame_fields(frames, name)
     n = len(frames)
     if fmt == "mha":
-        head = ["ObjectType = Image", "NDims = 3", "AnatomicalOrientation = RAI", "BinaryData = True",
-                "CompressedData = False", f"DimSize = 0 0 {n}", "ElementSpacing = 1 1 1", "Offset = 0 0 0",
-                "TransformMatrix = 1 0 0 0 1 0 0 0 1", "ElementType = MET_UCHAR", "Kinds = domain domain list",
-                f"FtracTransformSpace = {space.upper()}"]
+        head = [
+            "ObjectType = Image",
+            "NDims = 3",
+            "AnatomicalOrientation = RAI",
+            "BinaryData = True",
+            "CompressedData = False",
+            f"DimSize = 0 0 {n}",
+            "ElementSpacing = 1 1 1",
+            "Offset = 0 0 0",
+            "TransformMatrix = 1 0 0 0 1 0 0 0 1",
+            "ElementType = MET_UCHAR",
+            "Kinds = domain domain list",
+            f"FtracTransformSpace = {space.upper()}",
+        ]
         body = [f"{k} = {v}" for k, v in fields]
         return ("\n".join(head + body + ["ElementDataFile = LOCAL"]) + "\n").encode("ascii")
     if fmt == "nrrd":
-        head = ["NRRD0004", "# a tracked run written by ftrac-design: transforms only (1 x 1 placeholder pixels)",
-                "type: uint8", "dimension: 3", f"sizes: 1 1 {n}", "kinds: domain domain list", "encoding: raw",
-                f"FtracTransformSpace:={space.upper()}"]
+        head = [
+            "NRRD0004",
+            "# a tracked run written by ftrac-design: transforms only (1 x 1 placeholder pixels)",
+            "type: uint8",
+            "dimension: 3",
+            f"sizes: 1 1 {n}",
+            "kinds: domain domain list",
+            "encoding: raw",
+            f"FtracTransformSpace:={space.upper()}",
+        ]
         body = [f"{k}:={v}" for k, v in fields]
         return ("\n".join(head + body) + "\n\n").encode("ascii") + bytes(n)
     raise InputError(None, None, f'"mha" or "nrrd", got {fmt!r}', parameter="fmt")
 
 
-def write_sequence(path: str | Path, frames: list[SequenceFrame], name: str, fmt: SequenceFormat,
-                   space: Space) -> Path:
+def write_sequence(path: str | Path, frames: list[SequenceFrame], name: str, fmt: SequenceFormat, space: Space) -> Path:
     """Write :func:`sequence_bytes` to ``path`` atomically (InputError if it cannot be written)."""
     data = sequence_bytes(frames, name, fmt, space)
     try:

@@ -28,8 +28,12 @@ from .frames import rigid_inverse, split_transform_name
 
 MAGIC = "#Insight Transform File V1.0"
 #: the transform types read: every one is ``y = A (x − c) + c + T`` with 12 parameters
-AFFINE_TYPES = ("AffineTransform_double_3_3", "AffineTransform_float_3_3",
-                "MatrixOffsetTransformBase_double_3_3", "MatrixOffsetTransformBase_float_3_3")
+AFFINE_TYPES = (
+    "AffineTransform_double_3_3",
+    "AffineTransform_float_3_3",
+    "MatrixOffsetTransformBase_double_3_3",
+    "MatrixOffsetTransformBase_float_3_3",
+)
 
 
 @dataclass(frozen=True)

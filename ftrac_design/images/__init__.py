@@ -85,6 +85,20 @@ from .runs import frame_count, read_frame, read_frames, read_image
 from .write import write_image
 from .write_dicom import write_dicom
 
-__all__ = ["Frame", "Formation", "Polarity", "MAX_FRAME_PIXELS", "frame_count", "read_frame", "read_frames",
-           "read_image", "write_image", "write_dicom", "DistortionModel", "read_distortion", "write_distortion",
-           "undistort_image", "distort_image"]
+__all__ = [
+    "Frame",
+    "Formation",
+    "Polarity",
+    "MAX_FRAME_PIXELS",
+    "frame_count",
+    "read_frame",
+    "read_frames",
+    "read_image",
+    "write_image",
+    "write_dicom",
+    "DistortionModel",
+    "read_distortion",
+    "write_distortion",
+    "undistort_image",
+    "distort_image",
+]

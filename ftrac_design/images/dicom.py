@@ -18,9 +18,11 @@ from .dicom_tags import raw_value
 from .frame import Frame, finish_pixels
 from .notes import camera_from_note, note_polarity, parse_note
 
-CAMERA_WAYS_OUT = ("supply the intrinsics with --camera C.json (SPEC §3 camera object), or estimate them from "
-                   "the fiducial over several frames (intrinsics from the fiducial, as `ftrac-design reconstruct` "
-                   "does)")
+CAMERA_WAYS_OUT = (
+    "supply the intrinsics with --camera C.json (SPEC §3 camera object), or estimate them from "
+    "the fiducial over several frames (intrinsics from the fiducial, as `ftrac-design reconstruct` "
+    "does)"
+)
 
 
 def dicom_frame_count(path: str | Path) -> int:
@@ -28,8 +30,14 @@ def dicom_frame_count(path: str | Path) -> int:
     return read_header(path).frames
 
 
-def read_dicom_frames(path: str | Path, camera: Camera | None = None, *, need_camera: bool = True,
-                      indices: range | None = None, first_index: int = 0) -> Iterator[Frame]:
+def read_dicom_frames(
+    path: str | Path,
+    camera: Camera | None = None,
+    *,
+    need_camera: bool = True,
+    indices: range | None = None,
+    first_index: int = 0,
+) -> Iterator[Frame]:
     """Frames of a DICOM file, decoded one at a time.
 
     Parameters
@@ -59,13 +67,22 @@ def read_dicom_frames(path: str | Path, camera: Camera | None = None, *, need_ca
         yield _frame(hdr, i, camera, need_camera, times[i], note, base, first_index)
 
 
-def _frame(hdr: DicomHeader, i: int, camera: Camera | None, need_camera: bool, time_s: float | None,
-           note: dict, base: dict, first_index: int) -> Frame:
+def _frame(
+    hdr: DicomHeader,
+    i: int,
+    camera: Camera | None,
+    need_camera: bool,
+    time_s: float | None,
+    note: dict,
+    base: dict,
+    first_index: int,
+) -> Frame:
     fov = field_of_view(hdr, i)
     values, direction, notes = grey_values(hdr, i, decode_frame(hdr, i))
     if fov.rotation_deg or fov.flip:
-        notes += (f"FieldOfViewRotation {fov.rotation_deg}°" + (" and horizontal flip" if fov.flip else "")
-                  + " undone",)
+        notes += (
+            f"FieldOfViewRotation {fov.rotation_deg}°" + (" and horizontal flip" if fov.flip else "") + " undone",
+        )
     pixels = finish_pixels(undo_field_of_view(values, fov), hdr.path)
     formation, polarity, more = formation_polarity(hdr, i, direction, note_polarity(note))
     notes += more
@@ -75,8 +92,12 @@ def _frame(hdr: DicomHeader, i: int, camera: Camera | None, need_camera: bool, t
         cam, source, cam_notes, missing = frame_camera(hdr, i, fov, pixels.shape, camera_from_note(note.get("camera")))
         notes += cam_notes
         if missing and need_camera:
-            raise InputError(hdr.path, ", ".join(missing), "the DICOM tags giving the camera geometry (a "
-                             f"{hdr.modality or 'DICOM'} image may omit them); {CAMERA_WAYS_OUT}")
+            raise InputError(
+                hdr.path,
+                ", ".join(missing),
+                "the DICOM tags giving the camera geometry (a "
+                f"{hdr.modality or 'DICOM'} image may omit them); {CAMERA_WAYS_OUT}",
+            )
     meta = dict(base)
     meta.update(positioner(hdr, i))
     return Frame(pixels, cam, source, formation, polarity, str(hdr.path), first_index + i, time_s, notes, meta)

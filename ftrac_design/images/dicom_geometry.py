@@ -79,8 +79,9 @@ def apply_field_of_view(detector: np.ndarray, fov: FieldOfView) -> np.ndarray:
     return np.fliplr(img) if fov.flip else img
 
 
-def frame_camera(hdr: DicomHeader, frame: int, fov: FieldOfView, detector_shape: tuple[int, int],
-                 note_camera: Camera | None) -> tuple[Camera | None, dict[str, str], tuple[str, ...], list[str]]:
+def frame_camera(
+    hdr: DicomHeader, frame: int, fov: FieldOfView, detector_shape: tuple[int, int], note_camera: Camera | None
+) -> tuple[Camera | None, dict[str, str], tuple[str, ...], list[str]]:
     """The camera of ``frame`` from its tags (see the module).
 
     Returns
@@ -109,8 +110,11 @@ def frame_camera(hdr: DicomHeader, frame: int, fov: FieldOfView, detector_shape:
         cam.validate()
     except ValueError as exc:
         raise InputError(path, "camera", f"a valid camera from the header ({exc})") from None
-    source = {"focal_length": tag_name("DistanceSourceToDetector"), "pixel_size": spacing_source,
-              "principal_point": pp_source}
+    source = {
+        "focal_length": tag_name("DistanceSourceToDetector"),
+        "pixel_size": spacing_source,
+        "principal_point": pp_source,
+    }
     return cam, source, tuple(notes), []
 
 
@@ -130,18 +134,28 @@ def _pitch(hdr: DicomHeader, frame: int, notes: list[str]) -> tuple[tuple[float,
         return ps, f"{tag_name('PixelSpacing')}, no calibration type: taken as the detector pitch"
     mag_value, _ = lookup(ds, frame, None, "EstimatedRadiographicMagnificationFactor", path)
     if mag_value is None:
-        notes.append(f"PixelSpacing is calibrated to another plane ({calib}) and no "
-                     f"EstimatedRadiographicMagnificationFactor brings it back to the detector: not used as the pitch")
+        notes.append(
+            f"PixelSpacing is calibrated to another plane ({calib}) and no "
+            f"EstimatedRadiographicMagnificationFactor brings it back to the detector: not used as the pitch"
+        )
         return None, ""
     mag = as_floats(mag_value, "EstimatedRadiographicMagnificationFactor", path, 1, positive=True)[0]
-    return ((ps[0] * mag, ps[1] * mag),
-            f"{tag_name('PixelSpacing')}, calibration {calib}, × "
-            f"{tag_name('EstimatedRadiographicMagnificationFactor')} {mag:g}")
+    return (
+        (ps[0] * mag, ps[1] * mag),
+        f"{tag_name('PixelSpacing')}, calibration {calib}, × "
+        f"{tag_name('EstimatedRadiographicMagnificationFactor')} {mag:g}",
+    )
 
 
-def _principal_point(hdr: DicomHeader, frame: int, fov: FieldOfView, pitch: tuple[float, float],
-                     shape: tuple[int, int], note_camera: Camera | None,
-                     notes: list[str]) -> tuple[tuple[float, float], str]:
+def _principal_point(
+    hdr: DicomHeader,
+    frame: int,
+    fov: FieldOfView,
+    pitch: tuple[float, float],
+    shape: tuple[int, int],
+    note_camera: Camera | None,
+    notes: list[str],
+) -> tuple[tuple[float, float], str]:
     path, ds = hdr.path, hdr.ds
     iso = raw_value(ds, "PositionOfIsocenterProjection", path)
     element = raw_value(ds, "DetectorElementSpacing", path)
@@ -160,10 +174,11 @@ def _principal_point(hdr: DicomHeader, frame: int, fov: FieldOfView, pitch: tupl
     size = raw_value(ds, "PhysicalDetectorSize", path)
     if size is not None and element is not None and fov.origin is not None:
         h_mm, w_mm = as_floats(size, "PhysicalDetectorSize", path, 2, positive=True)
-        cr, cc = h_mm / element[0] / 2.0, w_mm / element[1] / 2.0        # centre, in element-corner units
-        return (((cc - origin[1]) / bin_x - 0.5, (cr - origin[0]) / bin_y - 0.5),
-                f"centre of the physical detector ({tag_name('PhysicalDetectorSize')}, "
-                f"{tag_name('FieldOfViewOrigin')})")
+        cr, cc = h_mm / element[0] / 2.0, w_mm / element[1] / 2.0  # centre, in element-corner units
+        return (
+            ((cc - origin[1]) / bin_x - 0.5, (cr - origin[0]) / bin_y - 0.5),
+            f"centre of the physical detector ({tag_name('PhysicalDetectorSize')}, {tag_name('FieldOfViewOrigin')})",
+        )
     if note_camera is not None:
         return note_camera.principal_point_px, "ftrac note"
     h, w = shape
@@ -203,8 +218,9 @@ def _content_time(hdr: DicomHeader, frame: int) -> datetime.datetime | None:
         try:
             dt = value if isinstance(value, datetime.datetime) else DT(str(value))
         except (TypeError, ValueError):
-            raise InputError(hdr.path, tag_name(kw), f"a DICOM DT value (YYYYMMDDhhmmss.ffffff), got {value!r}") \
-                from None
+            raise InputError(
+                hdr.path, tag_name(kw), f"a DICOM DT value (YYYYMMDDhhmmss.ffffff), got {value!r}"
+            ) from None
         return dt.replace(tzinfo=None)
     return None
 

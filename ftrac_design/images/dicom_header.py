@@ -14,13 +14,20 @@ from .dicom_tags import as_int, as_text, raw_value, tag_name
 from .frame import check_frame_size
 
 #: photometric interpretations intake reads: grey, and colour from a frame grabber
-PHOTOMETRIC = ("MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422", "YBR_RCT", "YBR_ICT",
-               "YBR_PARTIAL_420")
+PHOTOMETRIC = ("MONOCHROME1", "MONOCHROME2", "RGB", "YBR_FULL", "YBR_FULL_422", "YBR_RCT", "YBR_ICT", "YBR_PARTIAL_420")
 #: the Python package that decodes each compressed transfer syntax, for the error when it is missing
 CODEC_PACKAGES = {
-    **dict.fromkeys(("1.2.840.10008.1.2.4.57", "1.2.840.10008.1.2.4.70", "1.2.840.10008.1.2.4.50",
-                     "1.2.840.10008.1.2.4.51", "1.2.840.10008.1.2.4.80", "1.2.840.10008.1.2.4.81"),
-                    "pylibjpeg and pylibjpeg-libjpeg"),
+    **dict.fromkeys(
+        (
+            "1.2.840.10008.1.2.4.57",
+            "1.2.840.10008.1.2.4.70",
+            "1.2.840.10008.1.2.4.50",
+            "1.2.840.10008.1.2.4.51",
+            "1.2.840.10008.1.2.4.80",
+            "1.2.840.10008.1.2.4.81",
+        ),
+        "pylibjpeg and pylibjpeg-libjpeg",
+    ),
     **dict.fromkeys(("1.2.840.10008.1.2.4.90", "1.2.840.10008.1.2.4.91"), "pylibjpeg and pylibjpeg-openjpeg"),
     "1.2.840.10008.1.2.5": "pydicom (RLE Lossless is built in)",
 }
@@ -32,7 +39,7 @@ class DicomHeader:
     """What intake needs from a DICOM header, checked (see the module)."""
 
     path: Path
-    ds: Any                    # the pydicom Dataset, pixel data deferred
+    ds: Any  # the pydicom Dataset, pixel data deferred
     rows: int
     columns: int
     frames: int
@@ -69,8 +76,11 @@ def read_header(path: str | Path) -> DicomHeader:
     meta = getattr(ds, "file_meta", None)
     ts = str(raw_value(meta, "TransferSyntaxUID", path) or "1.2.840.10008.1.2")
     if "PixelData" not in ds:
-        raise InputError(path, "PixelData (7FE0,0010)", "a DICOM image with pixel data (FloatPixelData and "
-                                                        "non-image objects are not read)")
+        raise InputError(
+            path,
+            "PixelData (7FE0,0010)",
+            "a DICOM image with pixel data (FloatPixelData and non-image objects are not read)",
+        )
     rows = as_int(_required(ds, "Rows", path), "Rows", path, 1, 65535)
     columns = as_int(_required(ds, "Columns", path), "Columns", path, 1, 65535)
     samples = as_int(raw_value(ds, "SamplesPerPixel", path) or 1, "SamplesPerPixel", path, 1, 3)
@@ -87,21 +97,41 @@ def read_header(path: str | Path) -> DicomHeader:
         raise InputError(path, tag_name("HighBit"), f"BitsStored − 1 = {bits_stored - 1}, got {high_bit}")
     signed = as_int(raw_value(ds, "PixelRepresentation", path) or 0, "PixelRepresentation", path, 0, 1) == 1
     frames = as_int(raw_value(ds, "NumberOfFrames", path) or 1, "NumberOfFrames", path, 1, 10**7)
-    photometric = (as_text(raw_value(ds, "PhotometricInterpretation", path))
-                   or ("MONOCHROME2" if samples == 1 else "RGB"))
+    photometric = as_text(raw_value(ds, "PhotometricInterpretation", path)) or (
+        "MONOCHROME2" if samples == 1 else "RGB"
+    )
     if photometric not in PHOTOMETRIC:
-        raise InputError(path, tag_name("PhotometricInterpretation"), f"one of {', '.join(PHOTOMETRIC)}, got "
-                                                                       f"{photometric!r}")
+        raise InputError(
+            path, tag_name("PhotometricInterpretation"), f"one of {', '.join(PHOTOMETRIC)}, got {photometric!r}"
+        )
     if (samples == 1) != photometric.startswith("MONOCHROME"):
-        raise InputError(path, tag_name("PhotometricInterpretation"), f"a photometric interpretation matching "
-                                                                       f"SamplesPerPixel {samples}, got {photometric}")
-    check_frame_size(path, (rows, columns), f"{tag_name('Rows')} × {tag_name('Columns')}",
-                     max(1, bits_allocated // 8) * samples)
+        raise InputError(
+            path,
+            tag_name("PhotometricInterpretation"),
+            f"a photometric interpretation matching SamplesPerPixel {samples}, got {photometric}",
+        )
+    check_frame_size(
+        path, (rows, columns), f"{tag_name('Rows')} × {tag_name('Columns')}", max(1, bits_allocated // 8) * samples
+    )
     name = _check_codec(path, ts)
-    hdr = DicomHeader(path, ds, rows, columns, frames, samples, bits_allocated, bits_stored, signed, photometric, ts,
-                      name, str(raw_value(ds, "SOPClassUID", path) or ""), as_text(raw_value(ds, "Modality", path)),
-                      str(raw_value(ds, "SOPClassUID", path) or "") in ENHANCED_SOP
-                      or raw_value(ds, "PerFrameFunctionalGroupsSequence", path) is not None)
+    hdr = DicomHeader(
+        path,
+        ds,
+        rows,
+        columns,
+        frames,
+        samples,
+        bits_allocated,
+        bits_stored,
+        signed,
+        photometric,
+        ts,
+        name,
+        str(raw_value(ds, "SOPClassUID", path) or ""),
+        as_text(raw_value(ds, "Modality", path)),
+        str(raw_value(ds, "SOPClassUID", path) or "") in ENHANCED_SOP
+        or raw_value(ds, "PerFrameFunctionalGroupsSequence", path) is not None,
+    )
     _check_length(hdr)
     return hdr
 
@@ -130,8 +160,12 @@ def _check_codec(path: Path, ts: str) -> str:
         available = False
     if not available:
         pkg = CODEC_PACKAGES.get(ts, "a pydicom pixel-data plug-in for it (pylibjpeg and its plug-ins, or GDCM)")
-        raise InputError(path, "TransferSyntaxUID (0002,0010)", f"a transfer syntax this installation decodes: "
-                         f"{ts} ({name}) needs {pkg} (pip install 'ftrac_design[dicom]')")
+        raise InputError(
+            path,
+            "TransferSyntaxUID (0002,0010)",
+            f"a transfer syntax this installation decodes: "
+            f"{ts} ({name}) needs {pkg} (pip install 'ftrac_design[dicom]')",
+        )
     return name
 
 
@@ -143,20 +177,26 @@ def _check_length(hdr: DicomHeader) -> None:
         return
     try:
         elem = hdr.ds.get_item("PixelData", keep_deferred=True)
-        length = getattr(elem, "length", None)           # a raw (deferred) element knows its length
+        length = getattr(elem, "length", None)  # a raw (deferred) element knows its length
         if length is None:
             length = len(elem.value or b"")
     except Exception as exc:  # pydicom raises many types for a damaged element
         raise InputError(hdr.path, "PixelData (7FE0,0010)", f"a readable pixel data element ({exc})") from None
     if length is None or length == 0xFFFFFFFF:
-        raise InputError(hdr.path, "PixelData (7FE0,0010)", "native pixel data of defined length (the transfer "
-                                                             "syntax is uncompressed)")
+        raise InputError(
+            hdr.path,
+            "PixelData (7FE0,0010)",
+            "native pixel data of defined length (the transfer syntax is uncompressed)",
+        )
     bits = hdr.rows * hdr.columns * hdr.samples * hdr.bits_allocated
     frame_bytes = bits // 8 if hdr.bits_allocated > 1 else None
     expected = (hdr.frames * bits + 7) // 8
     if length not in (expected, expected + 1):
         claimed = f"{hdr.frames} frame(s) of {hdr.rows} × {hdr.columns} × {hdr.samples} × {hdr.bits_allocated} bits"
         have = f"{length // frame_bytes} whole frame(s)" if frame_bytes else f"{length} bytes"
-        raise InputError(hdr.path, f"{tag_name('NumberOfFrames')} / {tag_name('Rows')} / {tag_name('Columns')}",
-                         f"a header matching the pixel data: it claims {claimed} = {expected} bytes, the pixel "
-                         f"data holds {length} bytes ({have})")
+        raise InputError(
+            hdr.path,
+            f"{tag_name('NumberOfFrames')} / {tag_name('Rows')} / {tag_name('Columns')}",
+            f"a header matching the pixel data: it claims {claimed} = {expected} bytes, the pixel "
+            f"data holds {length} bytes ({have})",
+        )

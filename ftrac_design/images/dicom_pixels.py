@@ -38,12 +38,18 @@ def decode_frame(hdr: DicomHeader, frame: int) -> np.ndarray:
             warnings.simplefilter("ignore")
             arr = pixel_array(hdr.path, index=frame)
     except Exception as exc:  # decoders raise many types for damaged or lying data
-        raise InputError(hdr.path, f"frame {frame}", f"decodable pixel data ({hdr.transfer_syntax_name}; "
-                                                      f"{type(exc).__name__}: {exc})") from None
+        raise InputError(
+            hdr.path,
+            f"frame {frame}",
+            f"decodable pixel data ({hdr.transfer_syntax_name}; {type(exc).__name__}: {exc})",
+        ) from None
     expected = (hdr.rows, hdr.columns) + ((3,) if hdr.samples == 3 else ())
     if arr.shape != expected:
-        raise InputError(hdr.path, f"{tag_name('Rows')} / {tag_name('Columns')}",
-                         f"frames of {expected}, decoded {arr.shape} (frame {frame})")
+        raise InputError(
+            hdr.path,
+            f"{tag_name('Rows')} / {tag_name('Columns')}",
+            f"frames of {expected}, decoded {arr.shape} (frame {frame})",
+        )
     return arr
 
 
@@ -53,7 +59,7 @@ def stored_values(hdr: DicomHeader, arr: np.ndarray) -> np.ndarray:
         return arr
     bits = hdr.bits_stored
     unsigned = arr.view(arr.dtype.str.replace("i", "u")) if arr.dtype.kind == "i" else arr
-    values = (unsigned.astype(np.int64) & ((1 << bits) - 1))
+    values = unsigned.astype(np.int64) & ((1 << bits) - 1)
     if hdr.signed:
         values = np.where(values >= (1 << (bits - 1)), values - (1 << bits), values)
     return values
@@ -93,8 +99,9 @@ def _apply_lut(hdr: DicomHeader, stored: np.ndarray) -> tuple[np.ndarray, int, s
             out = apply_modality_lut(stored, hdr.ds)
             table = np.asarray(item.LUTData, dtype=np.float64).ravel()
     except Exception as exc:
-        raise InputError(hdr.path, tag_name("ModalityLUTSequence"), f"a usable LUT ({type(exc).__name__}: {exc})") \
-            from None
+        raise InputError(
+            hdr.path, tag_name("ModalityLUTSequence"), f"a usable LUT ({type(exc).__name__}: {exc})"
+        ) from None
     direction = 1 if table.size < 2 or table[-1] >= table[0] else -1
     return np.asarray(out, dtype=np.float64), direction, "Modality LUT Sequence (0028,3000) applied"
 
@@ -112,8 +119,9 @@ def grey_values(hdr: DicomHeader, frame: int, arr: np.ndarray) -> tuple[np.ndarr
     return values, direction, notes
 
 
-def formation_polarity(hdr: DicomHeader, frame: int, direction: int,
-                       note_polarity: Polarity | None) -> tuple[Formation | None, Polarity | None, tuple[str, ...]]:
+def formation_polarity(
+    hdr: DicomHeader, frame: int, direction: int, note_polarity: Polarity | None
+) -> tuple[Formation | None, Polarity | None, tuple[str, ...]]:
     """Formation and polarity of ``frame``'s modality values (see the module)."""
     path, ds = hdr.path, hdr.ds
     rel, _ = lookup(ds, frame, PIXEL_PROPS, "PixelIntensityRelationship", path)
@@ -133,7 +141,7 @@ def formation_polarity(hdr: DicomHeader, frame: int, direction: int,
         polarity = "dense-dark"
         notes.append("LIN without a sign: values proportional to the beam intensity, dense matter dark")
     elif note_polarity is not None:
-        return formation, note_polarity, tuple(notes)        # our note describes the modality values
+        return formation, note_polarity, tuple(notes)  # our note describes the modality values
     if polarity is not None and direction < 0:
         polarity = flip_polarity(polarity)
         notes.append("decreasing modality transform: polarity of the stored values reversed")
@@ -142,7 +150,16 @@ def formation_polarity(hdr: DicomHeader, frame: int, direction: int,
 
 def header_meta(hdr: DicomHeader) -> dict[str, Any]:
     """The ``meta`` entries every frame of ``hdr`` shares."""
-    return {"format": "dicom", "bits": hdr.bits_stored, "bits_allocated": hdr.bits_allocated,
-            "signed": hdr.signed, "photometric": hdr.photometric, "modality": hdr.modality,
-            "sop_class": hdr.sop_class, "transfer_syntax": hdr.transfer_syntax,
-            "transfer_syntax_name": hdr.transfer_syntax_name, "frames": hdr.frames, "enhanced": hdr.enhanced}
+    return {
+        "format": "dicom",
+        "bits": hdr.bits_stored,
+        "bits_allocated": hdr.bits_allocated,
+        "signed": hdr.signed,
+        "photometric": hdr.photometric,
+        "modality": hdr.modality,
+        "sop_class": hdr.sop_class,
+        "transfer_syntax": hdr.transfer_syntax,
+        "transfer_syntax_name": hdr.transfer_syntax_name,
+        "frames": hdr.frames,
+        "enhanced": hdr.enhanced,
+    }

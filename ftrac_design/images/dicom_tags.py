@@ -35,7 +35,7 @@ def raw_value(ds: Any, keyword: str, path: str | Path) -> Any:
         if ds is None or keyword not in ds:
             return None
         value = ds[keyword].value
-    except Exception as exc:   # pydicom converts lazily: a malformed value raises here (ValueError, …)
+    except Exception as exc:  # pydicom converts lazily: a malformed value raises here (ValueError, …)
         raise InputError(path, tag_name(keyword), f"a valid value ({type(exc).__name__}: {exc})") from None
     if value is None or (isinstance(value, (str, bytes, list, tuple)) and len(value) == 0):
         return None

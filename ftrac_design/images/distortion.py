@@ -77,8 +77,7 @@ def _powers(x: np.ndarray, degree: int) -> list[np.ndarray]:
     return p
 
 
-def evaluate_polynomial(coef: np.ndarray, x: np.ndarray, y: np.ndarray, degree: int,
-                        derivatives: bool = False):
+def evaluate_polynomial(coef: np.ndarray, x: np.ndarray, y: np.ndarray, degree: int, derivatives: bool = False):
     """Σ coef_k x^i y^j (and, with ``derivatives``, its x and y derivatives) at arrays x, y
     of one shape; ``coef`` (n_terms, m) gives m polynomials at once (result (..., m))."""
     coef = np.asarray(coef, float)
@@ -164,8 +163,13 @@ class DistortionModel:
     # -- construction -------------------------------------------------------------------
 
     @classmethod
-    def identity(cls, shape: tuple[int, int], degree: int = 5, centre: tuple[float, float] | None = None,
-                 scale: float | None = None) -> "DistortionModel":
+    def identity(
+        cls,
+        shape: tuple[int, int],
+        degree: int = 5,
+        centre: tuple[float, float] | None = None,
+        scale: float | None = None,
+    ) -> "DistortionModel":
         """The map that moves nothing, in the default normalisation of an image of ``shape``
         (centre: the image centre ((W − 1)/2, (H − 1)/2); scale: max(H, W)/2)."""
         c, s = default_normalisation(shape, centre, scale)
@@ -174,8 +178,9 @@ class DistortionModel:
 
     def with_coefficients(self, a: np.ndarray, b: np.ndarray, **changes: Any) -> "DistortionModel":
         """A copy with new coefficients (and any other field changed)."""
-        return replace(self, coefficients_u=tuple(np.asarray(a, float)),
-                       coefficients_v=tuple(np.asarray(b, float)), **changes)
+        return replace(
+            self, coefficients_u=tuple(np.asarray(a, float)), coefficients_v=tuple(np.asarray(b, float)), **changes
+        )
 
     # -- the maps -----------------------------------------------------------------------
 
@@ -221,7 +226,7 @@ class DistortionModel:
             pa, qa = p[active], q[active]
             x, y = self.normalise(pa)
             val, dx, dy = evaluate_polynomial(self._coef, x, y, self.degree, derivatives=True)
-            r = np.asarray(self.centre_px) + self.scale_px * val - qa      # px
+            r = np.asarray(self.centre_px) + self.scale_px * val - qa  # px
             det = dx[:, 0] * dy[:, 1] - dy[:, 0] * dx[:, 1]
             done = np.all(np.abs(r) <= tol_px, axis=1) | ~np.all(np.isfinite(r), axis=1)
             good = done & (det > 0) & np.all(np.isfinite(r), axis=1)
@@ -258,12 +263,22 @@ class DistortionModel:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``ftrac-distortion`` JSON object (see :func:`write_distortion`)."""
-        d = {"format": FORMAT, "version": VERSION, "model": MODEL, "degree": self.degree,
-             "image_shape": list(self.image_shape), "centre_px": list(self.centre_px),
-             "scale_px": self.scale_px, "coefficients_u": list(self.coefficients_u),
-             "coefficients_v": list(self.coefficients_v), "direction": DIRECTION,
-             "rms_residual_px": self.rms_residual_px, "max_residual_px": self.max_residual_px,
-             "source": self.source, "max_displacement_px": self.max_displacement_px}
+        d = {
+            "format": FORMAT,
+            "version": VERSION,
+            "model": MODEL,
+            "degree": self.degree,
+            "image_shape": list(self.image_shape),
+            "centre_px": list(self.centre_px),
+            "scale_px": self.scale_px,
+            "coefficients_u": list(self.coefficients_u),
+            "coefficients_v": list(self.coefficients_v),
+            "direction": DIRECTION,
+            "rms_residual_px": self.rms_residual_px,
+            "max_residual_px": self.max_residual_px,
+            "source": self.source,
+            "max_displacement_px": self.max_displacement_px,
+        }
         if self.support_radius_px is not None:
             d["support_radius_px"] = self.support_radius_px
         return d
@@ -274,8 +289,9 @@ class DistortionModel:
         return _model_from_dict(d, origin)
 
 
-def default_normalisation(shape: tuple[int, int], centre: tuple[float, float] | None = None,
-                          scale: float | None = None) -> tuple[tuple[float, float], float]:
+def default_normalisation(
+    shape: tuple[int, int], centre: tuple[float, float] | None = None, scale: float | None = None
+) -> tuple[tuple[float, float], float]:
     """(centre, scale) px: the image centre ((W − 1)/2, (H − 1)/2) and max(H, W)/2 unless given."""
     H, W = shape
     c = ((W - 1) / 2.0, (H - 1) / 2.0) if centre is None else (float(centre[0]), float(centre[1]))
@@ -285,8 +301,13 @@ def default_normalisation(shape: tuple[int, int], centre: tuple[float, float] | 
 # -- factories (tests, simulation) ------------------------------------------------------
 
 
-def radial(shape: tuple[int, int], k_mm_at_r: tuple[float, float] = (2.0, 100.0), pixel_mm: float = 0.44,
-           centre: tuple[float, float] | None = None, degree: int = 5) -> DistortionModel:
+def radial(
+    shape: tuple[int, int],
+    k_mm_at_r: tuple[float, float] = (2.0, 100.0),
+    pixel_mm: float = 0.44,
+    centre: tuple[float, float] | None = None,
+    degree: int = 5,
+) -> DistortionModel:
     """Pincushion (k > 0) or barrel (k < 0) distortion: every point moves radially away from
     ``centre`` (px; default the image centre) by ``k (r / r₀)³`` mm, with ``(k, r₀) =
     k_mm_at_r`` in mm at the detector and r its distance from the centre; ``pixel_mm`` the
@@ -303,14 +324,28 @@ def radial(shape: tuple[int, int], k_mm_at_r: tuple[float, float] = (2.0, 100.0)
     a, b = identity_coefficients(degree)
     e = [tuple(t) for t in monomial_exponents(degree)]
     g = alpha * s * s
-    a[e.index((3, 0))] = a[e.index((1, 2))] = g        # x (x² + y²)
-    b[e.index((2, 1))] = b[e.index((0, 3))] = g        # y (x² + y²)
-    return DistortionModel(degree, tuple(shape), c, s, tuple(a), tuple(b),
-                           source=f"radial: {k:g} mm at r = {r0:g} mm, pixel {pixel_mm:g} mm")
+    a[e.index((3, 0))] = a[e.index((1, 2))] = g  # x (x² + y²)
+    b[e.index((2, 1))] = b[e.index((0, 3))] = g  # y (x² + y²)
+    return DistortionModel(
+        degree,
+        tuple(shape),
+        c,
+        s,
+        tuple(a),
+        tuple(b),
+        source=f"radial: {k:g} mm at r = {r0:g} mm, pixel {pixel_mm:g} mm",
+    )
 
 
-def s_distortion(shape: tuple[int, int], amplitude_px: float, *, radius_px: float | None = None,
-                 centre: tuple[float, float] | None = None, degree: int = 5, step_px: int = 4) -> DistortionModel:
+def s_distortion(
+    shape: tuple[int, int],
+    amplitude_px: float,
+    *,
+    radius_px: float | None = None,
+    centre: tuple[float, float] | None = None,
+    degree: int = 5,
+    step_px: int = 4,
+) -> DistortionModel:
     """S-distortion: a rotation about ``centre`` (px; default the image centre) by an angle that
     grows with the square of the radius, θ(r) = (a / R)(r / R)², so that a point at
     ``radius_px`` = R (default min(H, W)/2) moves ``amplitude_px`` = a along the circle (positive:
@@ -329,7 +364,7 @@ def s_distortion(shape: tuple[int, int], amplitude_px: float, *, radius_px: floa
     model = DistortionModel.identity(shape, degree, centre)
     c = np.asarray(model.centre_px)
     g = model.pixel_grid(step_px) - c
-    r2 = (g ** 2).sum(1)
+    r2 = (g**2).sum(1)
     th = (amplitude_px / R) * r2 / (R * R)
     cs, sn = np.cos(th), np.sin(th)
     target = np.stack([cs * g[:, 0] - sn * g[:, 1], sn * g[:, 0] + cs * g[:, 1]], -1)
@@ -337,8 +372,9 @@ def s_distortion(shape: tuple[int, int], amplitude_px: float, *, radius_px: floa
     return replace(model, source=f"s-distortion: {amplitude_px:g} px at r = {R:g} px (least squares, degree {degree})")
 
 
-def fit_displacement(model: DistortionModel, ideal_px: np.ndarray, distorted_px: np.ndarray,
-                     min_degree: int = 2) -> DistortionModel:
+def fit_displacement(
+    model: DistortionModel, ideal_px: np.ndarray, distorted_px: np.ndarray, min_degree: int = 2
+) -> DistortionModel:
     """``model`` with its terms of degree ≥ ``min_degree`` fitted by least squares so that
     distort(ideal) ≈ distorted (both (n, 2) px), its lower terms kept; the residuals (px) are
     stored as the model's RMS and max."""
@@ -352,8 +388,9 @@ def fit_displacement(model: DistortionModel, ideal_px: np.ndarray, distorted_px:
     coef[~low] = sol
     res = model.scale_px * (A @ coef) + np.asarray(model.centre_px) - distorted_px
     err = np.hypot(res[:, 0], res[:, 1])
-    return model.with_coefficients(coef[:, 0], coef[:, 1], rms_residual_px=float(np.sqrt(np.mean(err ** 2))),
-                                   max_residual_px=float(err.max()))
+    return model.with_coefficients(
+        coef[:, 0], coef[:, 1], rms_residual_px=float(np.sqrt(np.mean(err**2))), max_residual_px=float(err.max())
+    )
 
 
 def combine(*models: DistortionModel) -> DistortionModel:
@@ -368,11 +405,14 @@ def combine(*models: DistortionModel) -> DistortionModel:
             raise ValueError("combine: models with one image shape, centre, scale and degree")
     ident = np.stack(identity_coefficients(m0.degree), -1)
     coef = ident + sum(m._coef - ident for m in models)
-    return m0.with_coefficients(coef[:, 0], coef[:, 1],
-                                rms_residual_px=float(np.sqrt(sum(m.rms_residual_px ** 2 for m in models))),
-                                max_residual_px=float(sum(m.max_residual_px for m in models)),
-                                source=" + ".join(m.source for m in models),
-                                support_radius_px=None)
+    return m0.with_coefficients(
+        coef[:, 0],
+        coef[:, 1],
+        rms_residual_px=float(np.sqrt(sum(m.rms_residual_px**2 for m in models))),
+        max_residual_px=float(sum(m.max_residual_px for m in models)),
+        source=" + ".join(m.source for m in models),
+        support_radius_px=None,
+    )
 
 
 # -- images -----------------------------------------------------------------------------
@@ -388,25 +428,27 @@ def _maps(model: DistortionModel, direction: Direction) -> tuple[np.ndarray, np.
     mx = np.empty((H, W), np.float32)
     my = np.empty((H, W), np.float32)
     us = np.arange(W, dtype=float)
-    rows = max(1, 262144 // W)                                  # ~2¹⁸ points per chunk
+    rows = max(1, 262144 // W)  # ~2¹⁸ points per chunk
     for r0 in range(0, H, rows):
         vs = np.arange(r0, min(H, r0 + rows), dtype=float)
         p = np.stack(np.meshgrid(us, vs), -1)
         src = model.distort(p) if direction == "undistort" else model.undistort(p)
         src = np.where(np.isfinite(src), src, p)
-        mx[r0:r0 + len(vs)] = src[..., 0]
-        my[r0:r0 + len(vs)] = src[..., 1]
+        mx[r0 : r0 + len(vs)] = src[..., 0]
+        my[r0 : r0 + len(vs)] = src[..., 1]
     mx.setflags(write=False)
     my.setflags(write=False)
     return mx, my
 
 
-def _remap(image: np.ndarray, model: DistortionModel, direction: Direction, interpolation: Interpolation,
-           fill: float | None) -> np.ndarray:
+def _remap(
+    image: np.ndarray, model: DistortionModel, direction: Direction, interpolation: Interpolation, fill: float | None
+) -> np.ndarray:
     img = np.asarray(image)
     if img.ndim != 2 or img.shape != model.image_shape:
-        raise InputError(None, "image", f"an image of shape {model.image_shape} (the distortion model's), "
-                                        f"got {img.shape}")
+        raise InputError(
+            None, "image", f"an image of shape {model.image_shape} (the distortion model's), got {img.shape}"
+        )
     if interpolation not in ("linear", "cubic"):
         raise ValueError(f"interpolation: linear or cubic, got {interpolation!r}")
     mx, my = _maps(model, direction)
@@ -419,8 +461,9 @@ def _remap(image: np.ndarray, model: DistortionModel, direction: Direction, inte
     return out.astype(img.dtype, copy=False)
 
 
-def undistort_image(image: np.ndarray, model: DistortionModel, interpolation: Interpolation = "linear",
-                    fill: float | None = None) -> np.ndarray:
+def undistort_image(
+    image: np.ndarray, model: DistortionModel, interpolation: Interpolation = "linear", fill: float | None = None
+) -> np.ndarray:
     """The image on the ideal (pinhole) grid: output pixel p takes the input's value at
     ``model.distort(p)`` (``cv2.remap``). Same shape and dtype as ``image`` (H, W).
 
@@ -441,8 +484,9 @@ def undistort_image(image: np.ndarray, model: DistortionModel, interpolation: In
     return _remap(image, model, "undistort", interpolation, fill)
 
 
-def distort_image(image: np.ndarray, model: DistortionModel, interpolation: Interpolation = "linear",
-                  fill: float | None = None) -> np.ndarray:
+def distort_image(
+    image: np.ndarray, model: DistortionModel, interpolation: Interpolation = "linear", fill: float | None = None
+) -> np.ndarray:
     """An ideal (pinhole) render as the intensifier would show it: output pixel q takes the
     input's value at ``model.undistort(q)`` (Newton per pixel, cached per model). Same shape
     and dtype as ``image``; ``interpolation`` and ``fill`` as for :func:`undistort_image`
@@ -465,8 +509,13 @@ def _model_from_dict(d: Any, origin: str | Path) -> DistortionModel:
         v = d.get(key)
         if v is None and optional:
             return None
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (positive and v <= 0) \
-                or v < 0:
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float))
+            or not math.isfinite(v)
+            or (positive and v <= 0)
+            or v < 0
+        ):
             raise InputError(origin, key, "a positive number" if positive else "a non-negative number")
         return float(v)
 
@@ -474,8 +523,11 @@ def _model_from_dict(d: Any, origin: str | Path) -> DistortionModel:
     if isinstance(deg, bool) or not isinstance(deg, int) or not 1 <= deg <= MAX_DEGREE:
         raise InputError(origin, "degree", f"an integer 1–{MAX_DEGREE}")
     shape = d.get("image_shape")
-    if not (isinstance(shape, list) and len(shape) == 2
-            and all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in shape)):
+    if not (
+        isinstance(shape, list)
+        and len(shape) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and v >= 2 for v in shape)
+    ):
         raise InputError(origin, "image_shape", "[H, W], two integers ≥ 2")
     centre = d.get("centre_px")
     if not (isinstance(centre, list) and len(centre) == 2 and all(_finite(v) for v in centre)):
@@ -491,9 +543,18 @@ def _model_from_dict(d: Any, origin: str | Path) -> DistortionModel:
         raise InputError(origin, "source", "a string")
     rms = number("rms_residual_px", optional=True)
     mx = number("max_residual_px", optional=True)
-    return DistortionModel(deg, tuple(shape), tuple(float(v) for v in centre), number("scale_px", positive=True),
-                           coefs[0], coefs[1], 0.0 if rms is None else rms, 0.0 if mx is None else mx, source,
-                           number("support_radius_px", positive=True, optional=True))
+    return DistortionModel(
+        deg,
+        tuple(shape),
+        tuple(float(v) for v in centre),
+        number("scale_px", positive=True),
+        coefs[0],
+        coefs[1],
+        0.0 if rms is None else rms,
+        0.0 if mx is None else mx,
+        source,
+        number("support_radius_px", positive=True, optional=True),
+    )
 
 
 def _finite(v: Any) -> bool:

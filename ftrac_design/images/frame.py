@@ -75,8 +75,9 @@ def check_frame_size(path: str | Path, shape: tuple[int, ...], key: str, bytes_p
     if rows < 2 or cols < 2:
         raise InputError(path, key, f"an image of at least 2 × 2 pixels, got {rows} × {cols}")
     if rows * cols > MAX_FRAME_PIXELS or rows * cols * bytes_per_pixel > MAX_FRAME_BYTES:
-        raise InputError(path, key, f"at most {MAX_FRAME_PIXELS} pixels ({MAX_FRAME_BYTES >> 20} MiB) a frame, "
-                                    f"got {rows} × {cols}")
+        raise InputError(
+            path, key, f"at most {MAX_FRAME_PIXELS} pixels ({MAX_FRAME_BYTES >> 20} MiB) a frame, got {rows} × {cols}"
+        )
 
 
 def to_grey(img: np.ndarray, path: str | Path) -> tuple[np.ndarray, tuple[str, ...]]:
@@ -122,8 +123,16 @@ def finish_pixels(img: np.ndarray, path: str | Path) -> np.ndarray:
 
 def polarity_from_legacy(hint: Any) -> Polarity | None:
     """``"dense_dark"``/``"dense_bright"`` (our note, the old hint) → the Frame's spelling."""
-    return {"dense_dark": "dense-dark", "dense_bright": "dense-bright",
-            "dense-dark": "dense-dark", "dense-bright": "dense-bright"}.get(hint) if isinstance(hint, str) else None
+    return (
+        {
+            "dense_dark": "dense-dark",
+            "dense_bright": "dense-bright",
+            "dense-dark": "dense-dark",
+            "dense-bright": "dense-bright",
+        }.get(hint)
+        if isinstance(hint, str)
+        else None
+    )
 
 
 def legacy_hint(polarity: Polarity | None) -> str | None:

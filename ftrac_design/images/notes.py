@@ -23,7 +23,7 @@ def parse_note(text: str | None) -> dict[str, Any]:
     if not text:
         return {}
     i = text.find(NOTE_PREFIX)
-    blob = text[i + len(NOTE_PREFIX):] if i >= 0 else text
+    blob = text[i + len(NOTE_PREFIX) :] if i >= 0 else text
     try:
         d = json.loads(blob)
     except ValueError:
@@ -36,8 +36,11 @@ def parse_note(text: str | None) -> dict[str, Any]:
 def camera_from_note(d: Any) -> Camera | None:
     """A valid :class:`Camera` from a SPEC §3 camera dict, else None."""
     try:
-        cam = Camera(float(d["focal_length_mm"]), tuple(float(x) for x in d["pixel_size_mm"]),
-                     tuple(float(x) for x in d["principal_point_px"]))
+        cam = Camera(
+            float(d["focal_length_mm"]),
+            tuple(float(x) for x in d["pixel_size_mm"]),
+            tuple(float(x) for x in d["principal_point_px"]),
+        )
         if len(cam.pixel_size_mm) != 2 or len(cam.principal_point_px) != 2:
             return None
         cam.validate()

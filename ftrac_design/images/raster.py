@@ -19,8 +19,16 @@ from .frame import Frame, check_frame_size, finish_pixels, to_grey
 from .notes import camera_from_note, note_formation, note_polarity, note_rescale, parse_note
 
 
-def make_frame(path: Path, arr: np.ndarray, note: dict[str, Any], meta: dict[str, Any], index: int,
-               camera: Camera | None, need_camera: bool, notes: tuple[str, ...] = ()) -> Frame:
+def make_frame(
+    path: Path,
+    arr: np.ndarray,
+    note: dict[str, Any],
+    meta: dict[str, Any],
+    index: int,
+    camera: Camera | None,
+    need_camera: bool,
+    notes: tuple[str, ...] = (),
+) -> Frame:
     """A :class:`Frame` from a non-DICOM image array and our note (shared by PNG, JPEG, TIFF, NumPy).
 
     Parameters
@@ -46,10 +54,14 @@ def make_frame(path: Path, arr: np.ndarray, note: dict[str, Any], meta: dict[str
         cam = camera_from_note(note.get("camera")) if note.get("camera") is not None else None
         source = dict.fromkeys(("focal_length", "pixel_size", "principal_point"), "ftrac note") if cam else {}
         if cam is None and need_camera:
-            raise InputError(path, "camera", f"camera intrinsics: a {meta.get('format', 'image').upper()} file "
-                                             f"carries none; supply --camera C.json (SPEC §3 camera object), or "
-                                             f"estimate them from the fiducial over several frames (intrinsics from "
-                                             f"the fiducial, as `ftrac-design reconstruct` does)")
+            raise InputError(
+                path,
+                "camera",
+                f"camera intrinsics: a {meta.get('format', 'image').upper()} file "
+                f"carries none; supply --camera C.json (SPEC §3 camera object), or "
+                f"estimate them from the fiducial over several frames (intrinsics from "
+                f"the fiducial, as `ftrac-design reconstruct` does)",
+            )
     meta = dict(meta)
     if note:
         meta["note"] = note
@@ -86,8 +98,17 @@ def _open_pil(path: Path, load: bool) -> tuple[np.ndarray | None, dict[str, str]
                 arr = np.array(im)
     except InputError:
         raise
-    except (UnidentifiedImageError, Image.DecompressionBombError, OSError, EOFError, SyntaxError, ValueError,
-            TypeError, MemoryError, AttributeError) as exc:
+    except (
+        UnidentifiedImageError,
+        Image.DecompressionBombError,
+        OSError,
+        EOFError,
+        SyntaxError,
+        ValueError,
+        TypeError,
+        MemoryError,
+        AttributeError,
+    ) as exc:
         raise InputError(path, None, f"a readable PNG/JPEG image ({type(exc).__name__}: {exc})") from None
     return arr, text, mode, fmt
 
@@ -101,8 +122,9 @@ def read_pil_frames(path: Path, camera: Camera | None, need_camera: bool, first_
     if fmt == "jpeg":
         notes = ("JPEG: lossy compression has altered the pixel values",)
     note = parse_note(text.get("ftrac"))
-    yield make_frame(path, arr, note, {"format": fmt, "bits": int(bits), "mode": mode}, first_index, camera,
-                     need_camera, notes)
+    yield make_frame(
+        path, arr, note, {"format": fmt, "bits": int(bits), "mode": mode}, first_index, camera, need_camera, notes
+    )
 
 
 # ----------------------------------------------------------------------------- TIFF
@@ -128,7 +150,7 @@ def _page_shape(page: Any, path: Path, k: int) -> tuple[int, ...]:
         itemsize = int(np.dtype(page.dtype).itemsize) if page.dtype is not None else 1
     except Exception as exc:
         raise InputError(path, f"page {k}", f"a readable TIFF page ({type(exc).__name__}: {exc})") from None
-    if len(shape) == 3 and shape[0] in (3, 4) and shape[-1] not in (3, 4):      # planar RGB
+    if len(shape) == 3 and shape[0] in (3, 4) and shape[-1] not in (3, 4):  # planar RGB
         shape = shape[1:] + shape[:1]
     if len(shape) not in (2, 3):
         raise InputError(path, f"page {k}", f"a 2-D grey or RGB(A) page, got shape {shape}")
@@ -148,8 +170,9 @@ def tiff_frame_count(path: Path) -> int:
         shapes = [_page_shape(p, path, k) for k, p in enumerate(pages)]
     for k, s in enumerate(shapes):
         if s[:2] != shapes[0][:2]:
-            raise InputError(path, f"page {k}", f"pages of one shape (a run): page 0 is {shapes[0][:2]}, page {k} "
-                                                f"is {s[:2]}")
+            raise InputError(
+                path, f"page {k}", f"pages of one shape (a run): page 0 is {shapes[0][:2]}, page {k} is {s[:2]}"
+            )
     return len(shapes)
 
 
@@ -172,5 +195,13 @@ def read_tiff_frames(path: Path, camera: Camera | None, need_camera: bool, first
                 notes += ("integers beyond 2^24 rounded to float32",)
             if arr.dtype.kind == "c":
                 raise InputError(path, f"page {k}", f"real pixel values, got {arr.dtype}")
-            yield make_frame(path, arr, note, {"format": "tiff", "bits": bits, "dtype": str(arr.dtype), "page": k},
-                             first_index + k, camera, need_camera, notes)
+            yield make_frame(
+                path,
+                arr,
+                note,
+                {"format": "tiff", "bits": bits, "dtype": str(arr.dtype), "page": k},
+                first_index + k,
+                camera,
+                need_camera,
+                notes,
+            )

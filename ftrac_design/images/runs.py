@@ -25,9 +25,14 @@ from .raster import pil_frame_count, read_pil_frames, read_tiff_frames, tiff_fra
 from .sniff import image_format, looks_like_image
 from .video import read_video_frames, video_frame_count
 
-_COUNT: dict[str, Callable[[Path], int]] = {"png": pil_frame_count, "jpeg": pil_frame_count,
-                                             "tiff": tiff_frame_count, "npy": npy_frame_count,
-                                             "dicom": dicom_frame_count, "video": video_frame_count}
+_COUNT: dict[str, Callable[[Path], int]] = {
+    "png": pil_frame_count,
+    "jpeg": pil_frame_count,
+    "tiff": tiff_frame_count,
+    "npy": npy_frame_count,
+    "dicom": dicom_frame_count,
+    "video": video_frame_count,
+}
 
 
 def natural_key(name: str) -> list:
@@ -78,8 +83,18 @@ def _file_frames(f: Path, camera: Camera | None, need_camera: bool, first: int) 
         frames = read_pil_frames(f, camera, need_camera, first)
     for fr in frames:
         if notes:
-            fr = Frame(fr.pixels, fr.camera, fr.camera_source, fr.formation, fr.polarity, fr.source, fr.index,
-                       fr.time_s, notes + fr.notes, fr.meta)
+            fr = Frame(
+                fr.pixels,
+                fr.camera,
+                fr.camera_source,
+                fr.formation,
+                fr.polarity,
+                fr.source,
+                fr.index,
+                fr.time_s,
+                notes + fr.notes,
+                fr.meta,
+            )
         yield fr
 
 
@@ -126,8 +141,15 @@ def read_frame(path: str | Path, index: int = 0, camera: Camera | None = None, n
         n = _COUNT[fmt](f)
         if index < first + n:
             if fmt == "dicom":
-                fr = next(read_dicom_frames(f, camera, need_camera=need_camera,
-                                            indices=range(index - first, index - first + 1), first_index=first))
+                fr = next(
+                    read_dicom_frames(
+                        f,
+                        camera,
+                        need_camera=need_camera,
+                        indices=range(index - first, index - first + 1),
+                        first_index=first,
+                    )
+                )
                 return fr
             for fr in _file_frames(f, camera, need_camera, first):
                 if fr.index == index:

@@ -10,13 +10,31 @@ from ..errors import InputError
 
 ImageFormat = Literal["png", "tiff", "jpeg", "npy", "dicom", "video"]
 
-SUFFIXES: dict[str, ImageFormat] = {".png": "png", ".tif": "tiff", ".tiff": "tiff", ".jpg": "jpeg",
-                                    ".jpeg": "jpeg", ".npy": "npy", ".dcm": "dicom", ".dicom": "dicom",
-                                    ".mp4": "video", ".m4v": "video", ".mov": "video", ".avi": "video",
-                                    ".mkv": "video", ".webm": "video"}
+SUFFIXES: dict[str, ImageFormat] = {
+    ".png": "png",
+    ".tif": "tiff",
+    ".tiff": "tiff",
+    ".jpg": "jpeg",
+    ".jpeg": "jpeg",
+    ".npy": "npy",
+    ".dcm": "dicom",
+    ".dicom": "dicom",
+    ".mp4": "video",
+    ".m4v": "video",
+    ".mov": "video",
+    ".avi": "video",
+    ".mkv": "video",
+    ".webm": "video",
+}
 _MAGIC: tuple[tuple[bytes, ImageFormat], ...] = (
-    (b"\x89PNG\r\n\x1a\n", "png"), (b"II*\x00", "tiff"), (b"MM\x00*", "tiff"), (b"II+\x00", "tiff"),
-    (b"MM\x00+", "tiff"), (b"\xff\xd8\xff", "jpeg"), (b"\x93NUMPY", "npy"))
+    (b"\x89PNG\r\n\x1a\n", "png"),
+    (b"II*\x00", "tiff"),
+    (b"MM\x00*", "tiff"),
+    (b"II+\x00", "tiff"),
+    (b"MM\x00+", "tiff"),
+    (b"\xff\xd8\xff", "jpeg"),
+    (b"\x93NUMPY", "npy"),
+)
 
 
 def content_format(head: bytes) -> ImageFormat | Literal["zip"] | None:
@@ -30,8 +48,11 @@ def content_format(head: bytes) -> ImageFormat | Literal["zip"] | None:
     if head.startswith(b"PK\x03\x04") or head.startswith(b"PK\x05\x06"):
         return "zip"
     # ISO base media (MP4, MOV: an "ftyp" box first), AVI (RIFF … "AVI "), Matroska / WebM (EBML)
-    if head[4:8] == b"ftyp" or (head.startswith(b"RIFF") and head[8:12] == b"AVI ") or \
-            head.startswith(b"\x1a\x45\xdf\xa3"):
+    if (
+        head[4:8] == b"ftyp"
+        or (head.startswith(b"RIFF") and head[8:12] == b"AVI ")
+        or head.startswith(b"\x1a\x45\xdf\xa3")
+    ):
         return "video"
     return None
 
@@ -55,14 +76,21 @@ def image_format(path: str | Path) -> tuple[ImageFormat, tuple[str, ...]]:
     by_content = content_format(head)
     by_suffix = SUFFIXES.get(path.suffix.lower())
     if by_suffix == "npy" and by_content != "npy":
-        what = "a zip archive (an .npz?)" if by_content == "zip" else (f"a {by_content.upper()} file" if by_content
-                                                                         else "no NumPy header")
+        what = (
+            "a zip archive (an .npz?)"
+            if by_content == "zip"
+            else (f"a {by_content.upper()} file" if by_content else "no NumPy header")
+        )
         raise InputError(path, None, f"a NumPy .npy array (allow_pickle=False), got {what}")
     if by_content in (None, "zip"):
         if by_suffix is not None and by_content is None:
             return by_suffix, ()
-        raise InputError(path, None, "an image file (PNG, TIFF, JPEG, NumPy .npy, DICOM) or a video (MP4, AVI, "
-                                     "MKV, MOV, WebM), found by its content or suffix")
+        raise InputError(
+            path,
+            None,
+            "an image file (PNG, TIFF, JPEG, NumPy .npy, DICOM) or a video (MP4, AVI, "
+            "MKV, MOV, WebM), found by its content or suffix",
+        )
     notes = ()
     if by_suffix is not None and by_suffix != by_content:
         notes = (f"suffix {path.suffix} but the content is {by_content.upper()}: read as {by_content.upper()}",)

@@ -87,11 +87,22 @@ def read_video_frames(path: Path, camera: Camera | None, need_camera: bool, firs
         for k, vf in enumerate(container.decode(stream)):
             arr = _grey(vf)
             notes = (f"video ({codec}): lossy compression has altered the pixel values",) if lossy and k == 0 else ()
-            fr = make_frame(path, arr, {}, {**meta, "bits": 8 * arr.dtype.itemsize}, first_index + k, camera,
-                            need_camera, notes)
+            fr = make_frame(
+                path, arr, {}, {**meta, "bits": 8 * arr.dtype.itemsize}, first_index + k, camera, need_camera, notes
+            )
             t = vf.time
-            yield Frame(fr.pixels, fr.camera, fr.camera_source, fr.formation, fr.polarity, fr.source, fr.index,
-                        float(t) if t is not None else None, fr.notes, fr.meta)
+            yield Frame(
+                fr.pixels,
+                fr.camera,
+                fr.camera_source,
+                fr.formation,
+                fr.polarity,
+                fr.source,
+                fr.index,
+                float(t) if t is not None else None,
+                fr.notes,
+                fr.meta,
+            )
     except InputError:
         raise
     except Exception as exc:  # a damaged stream: FFmpeg's decoders raise many types

@@ -41,9 +41,16 @@ def _quantise(image: np.ndarray, bit_depth: int, value_range: tuple[float, float
     return q.astype(np.uint8 if bit_depth <= 8 else np.uint16), (slope, lo)
 
 
-def write_image(path: str | Path, image: np.ndarray, camera: Camera | None = None, *,
-                polarity: NotePolarity | None = None, bit_depth: int | None = None,
-                value_range: tuple[float, float] | None = None, quantity: str | None = None) -> Path:
+def write_image(
+    path: str | Path,
+    image: np.ndarray,
+    camera: Camera | None = None,
+    *,
+    polarity: NotePolarity | None = None,
+    bit_depth: int | None = None,
+    value_range: tuple[float, float] | None = None,
+    quantity: str | None = None,
+) -> Path:
     """Write ``image`` (H, W) atomically; the format comes from the suffix (see the module).
 
     Parameters
@@ -86,6 +93,7 @@ def write_image(path: str | Path, image: np.ndarray, camera: Camera | None = Non
         return path
     if fmt == "tiff" and bit_depth is None and image.dtype in (np.float32, np.float64):
         import tifffile
+
         with atomic_file(path) as tmp:
             tifffile.imwrite(tmp, image.astype(np.float32), description=NOTE_PREFIX + json.dumps(note), metadata=None)
         return path
@@ -101,12 +109,14 @@ def write_image(path: str | Path, image: np.ndarray, camera: Camera | None = Non
     if fmt == "png":
         from PIL import Image
         from PIL.PngImagePlugin import PngInfo
+
         info = PngInfo()
         info.add_text("ftrac", json.dumps(note))
         with atomic_file(path) as tmp:
             Image.fromarray(q).save(tmp, format="PNG", pnginfo=info)
     else:
         import tifffile
+
         with atomic_file(path) as tmp:
             tifffile.imwrite(tmp, q, description=NOTE_PREFIX + json.dumps(note), metadata=None)
     return path
@@ -118,9 +128,15 @@ def _write_dx(path: Path, q: np.ndarray, camera: Camera | None, rescale, note: d
     if camera is None:
         raise ValueError("DICOM needs a camera (ImagerPixelSpacing, DistanceSourceToDetector)")
     raw = note.get("polarity") == "dense_dark"
-    return write_dicom(path, q.astype(np.uint16), camera, kind="dx",
-                       relationship={"log": "LOG", "raw": "LIN"}.get(note.get("quantity")),
-                       relationship_sign={"dense_dark": 1, "dense_bright": -1}.get(note.get("polarity")),
-                       bits_stored=bit_depth if q.dtype == np.uint16 else 8, rescale=rescale,
-                       image_comments=NOTE_PREFIX + json.dumps(note),
-                       presentation_intent="FOR PROCESSING" if raw else "FOR PRESENTATION")
+    return write_dicom(
+        path,
+        q.astype(np.uint16),
+        camera,
+        kind="dx",
+        relationship={"log": "LOG", "raw": "LIN"}.get(note.get("quantity")),
+        relationship_sign={"dense_dark": 1, "dense_bright": -1}.get(note.get("polarity")),
+        bits_stored=bit_depth if q.dtype == np.uint16 else 8,
+        rescale=rescale,
+        image_comments=NOTE_PREFIX + json.dumps(note),
+        presentation_intent="FOR PROCESSING" if raw else "FOR PRESENTATION",
+    )

@@ -25,26 +25,50 @@ from .dicom_geometry import FieldOfView, apply_field_of_view
 
 Kind = Literal["xa", "rf", "dx", "cr", "enhanced-xa", "enhanced-xrf"]
 Syntax = Literal["explicit", "rle", "jpeg-lossless", "jpeg2000-lossless"]
-SOP = {"xa": ("1.2.840.10008.5.1.4.1.1.12.1", "XA"), "rf": ("1.2.840.10008.5.1.4.1.1.12.2", "RF"),
-       "dx": ("1.2.840.10008.5.1.4.1.1.1.1", "DX"), "cr": ("1.2.840.10008.5.1.4.1.1.1", "CR"),
-       "enhanced-xa": ("1.2.840.10008.5.1.4.1.1.12.1.1", "XA"),
-       "enhanced-xrf": ("1.2.840.10008.5.1.4.1.1.12.2.1", "RF")}
+SOP = {
+    "xa": ("1.2.840.10008.5.1.4.1.1.12.1", "XA"),
+    "rf": ("1.2.840.10008.5.1.4.1.1.12.2", "RF"),
+    "dx": ("1.2.840.10008.5.1.4.1.1.1.1", "DX"),
+    "cr": ("1.2.840.10008.5.1.4.1.1.1", "CR"),
+    "enhanced-xa": ("1.2.840.10008.5.1.4.1.1.12.1.1", "XA"),
+    "enhanced-xrf": ("1.2.840.10008.5.1.4.1.1.12.2.1", "RF"),
+}
 DX_FOR_PROCESSING = "1.2.840.10008.5.1.4.1.1.1.1.1"
-SYNTAX = {"explicit": "1.2.840.10008.1.2.1", "rle": "1.2.840.10008.1.2.5", "jpeg-lossless": "1.2.840.10008.1.2.4.70",
-          "jpeg2000-lossless": "1.2.840.10008.1.2.4.90"}
+SYNTAX = {
+    "explicit": "1.2.840.10008.1.2.1",
+    "rle": "1.2.840.10008.1.2.5",
+    "jpeg-lossless": "1.2.840.10008.1.2.4.70",
+    "jpeg2000-lossless": "1.2.840.10008.1.2.4.90",
+}
 _T0 = datetime.datetime(2026, 1, 1, 12, 0, 0)
 
 
-def write_dicom(path: str | Path, frames: np.ndarray, camera: Camera | Sequence[Camera] | None, *,
-                kind: Kind = "xa", photometric: Literal["MONOCHROME2", "MONOCHROME1", "RGB"] = "MONOCHROME2",
-                relationship: Literal["LIN", "LOG", "DISP"] | None = None, relationship_sign: int | None = None,
-                fov_rotation_deg: int = 0, fov_horizontal_flip: bool = False, frame_time_ms: float | None = None,
-                frame_time_vector_ms: Sequence[float] | None = None, transfer_syntax: Syntax = "explicit",
-                omit: tuple[str, ...] = (), pixel_spacing_only: bool = False,
-                calibration: Literal["GEOMETRY", "FIDUCIAL"] | None = "GEOMETRY", magnification: float | None = None,
-                isocenter_projection_px: tuple[float, float] | None = None, signed: bool = False, bits_stored: int = 16,
-                rescale: tuple[float, float] | None = None, modality_lut: np.ndarray | None = None,
-                image_comments: str | None = None, presentation_intent: str | None = None) -> Path:
+def write_dicom(
+    path: str | Path,
+    frames: np.ndarray,
+    camera: Camera | Sequence[Camera] | None,
+    *,
+    kind: Kind = "xa",
+    photometric: Literal["MONOCHROME2", "MONOCHROME1", "RGB"] = "MONOCHROME2",
+    relationship: Literal["LIN", "LOG", "DISP"] | None = None,
+    relationship_sign: int | None = None,
+    fov_rotation_deg: int = 0,
+    fov_horizontal_flip: bool = False,
+    frame_time_ms: float | None = None,
+    frame_time_vector_ms: Sequence[float] | None = None,
+    transfer_syntax: Syntax = "explicit",
+    omit: tuple[str, ...] = (),
+    pixel_spacing_only: bool = False,
+    calibration: Literal["GEOMETRY", "FIDUCIAL"] | None = "GEOMETRY",
+    magnification: float | None = None,
+    isocenter_projection_px: tuple[float, float] | None = None,
+    signed: bool = False,
+    bits_stored: int = 16,
+    rescale: tuple[float, float] | None = None,
+    modality_lut: np.ndarray | None = None,
+    image_comments: str | None = None,
+    presentation_intent: str | None = None,
+) -> Path:
     """Write a DICOM image or run atomically (see the module).
 
     Parameters
@@ -94,11 +118,37 @@ def write_dicom(path: str | Path, frames: np.ndarray, camera: Camera | Sequence[
         ds.ImageComments = image_comments
     if kind.startswith("enhanced"):
         from .write_dicom_groups import enhanced_groups
-        enhanced_groups(ds, n, cams, fov, relationship, relationship_sign, frame_time_ms, frame_time_vector_ms,
-                        pixel_spacing_only, calibration, magnification, rescale, _T0)
+
+        enhanced_groups(
+            ds,
+            n,
+            cams,
+            fov,
+            relationship,
+            relationship_sign,
+            frame_time_ms,
+            frame_time_vector_ms,
+            pixel_spacing_only,
+            calibration,
+            magnification,
+            rescale,
+            _T0,
+        )
     else:
-        _legacy_tags(ds, n, cams[0] if cams else None, fov, relationship, relationship_sign, frame_time_ms,
-                     frame_time_vector_ms, pixel_spacing_only, calibration, magnification, rescale)
+        _legacy_tags(
+            ds,
+            n,
+            cams[0] if cams else None,
+            fov,
+            relationship,
+            relationship_sign,
+            frame_time_ms,
+            frame_time_vector_ms,
+            pixel_spacing_only,
+            calibration,
+            magnification,
+            rescale,
+        )
     if modality_lut is not None:
         _modality_lut(ds, np.asarray(modality_lut), bits_stored)
     if isocenter_projection_px is not None and cams:
@@ -142,8 +192,17 @@ def _cameras(camera, n: int, kind: str) -> list[Camera]:
     return cams
 
 
-def _base(path: Path, kind: str, stored: np.ndarray, n: int, photometric: str, rgb: bool, signed: bool,
-          bits_stored: int, syntax: str):
+def _base(
+    path: Path,
+    kind: str,
+    stored: np.ndarray,
+    n: int,
+    photometric: str,
+    rgb: bool,
+    signed: bool,
+    bits_stored: int,
+    syntax: str,
+):
     from pydicom.dataset import FileDataset, FileMetaDataset
     from pydicom.uid import generate_uid
 
@@ -174,11 +233,12 @@ def _base(path: Path, kind: str, stored: np.ndarray, n: int, photometric: str, r
     return ds
 
 
-def _legacy_tags(ds, n, cam, fov, relationship, sign, frame_time_ms, vector_ms, spacing_only, calibration,
-                 magnification, rescale) -> None:
+def _legacy_tags(
+    ds, n, cam, fov, relationship, sign, frame_time_ms, vector_ms, spacing_only, calibration, magnification, rescale
+) -> None:
     if cam is not None:
         sx, sy = cam.pixel_size_mm
-        row, col = (sx, sy) if fov.rotation_deg in (90, 270) else (sy, sx)    # stored grid's (row, column)
+        row, col = (sx, sy) if fov.rotation_deg in (90, 270) else (sy, sx)  # stored grid's (row, column)
         if spacing_only:
             m = magnification or 1.0
             ds.PixelSpacing = [f"{row / m:.10g}", f"{col / m:.10g}"]
@@ -215,7 +275,7 @@ def _modality_lut(ds, table: np.ndarray, bits_stored: int) -> None:
     item = Dataset()
     item.LUTDescriptor = [int(table.size), 0, 16]
     item.ModalityLUTType = "US"
-    item.add_new(0x00283006, "US", [int(x) for x in table.astype(np.uint16)])      # LUT Data, US or OW
+    item.add_new(0x00283006, "US", [int(x) for x in table.astype(np.uint16)])  # LUT Data, US or OW
     ds.ModalityLUTSequence = Seq([item])
 
 
@@ -252,6 +312,7 @@ def _pixel_data(ds, stored: np.ndarray, syntax: str, bits_stored: int, signed: b
         ds["PixelData"].VR = "OB"
         return
     from pydicom.uid import UID
+
     src = arr if arr.shape[0] > 1 else arr[0]
     ds.PixelData = src.tobytes()
     ds.compress(UID(SYNTAX[syntax]), src, generate_instance_uid=False)

@@ -29,8 +29,9 @@ def _seq(*items):
     return Seq(list(items))
 
 
-def _geometry(group, cam: Camera, fov: FieldOfView, relationship, sign, spacing_only, calibration,
-              magnification) -> None:
+def _geometry(
+    group, cam: Camera, fov: FieldOfView, relationship, sign, spacing_only, calibration, magnification
+) -> None:
     sx, sy = cam.pixel_size_mm
     row, col = (sx, sy) if fov.rotation_deg in (90, 270) else (sy, sx)
     props = _item(FrameType=["ORIGINAL", "PRIMARY", "SINGLE PLANE"])
@@ -47,13 +48,29 @@ def _geometry(group, cam: Camera, fov: FieldOfView, relationship, sign, spacing_
     else:
         props.ImagerPixelSpacing = [f"{row:.10g}", f"{col:.10g}"]
     group.FramePixelDataPropertiesSequence = _seq(props)
-    group.XRayGeometrySequence = _seq(_item(DistanceSourceToIsocenter=float(cam.focal_length_mm) * 2.0 / 3.0,
-                                            DistanceSourceToDetector=f"{cam.focal_length_mm:.10g}"))
+    group.XRayGeometrySequence = _seq(
+        _item(
+            DistanceSourceToIsocenter=float(cam.focal_length_mm) * 2.0 / 3.0,
+            DistanceSourceToDetector=f"{cam.focal_length_mm:.10g}",
+        )
+    )
 
 
-def enhanced_groups(ds, n: int, cams: Sequence[Camera], fov: FieldOfView, relationship, sign,
-                    frame_time_ms: float | None, vector_ms: Sequence[float] | None, spacing_only: bool,
-                    calibration, magnification, rescale, t0: datetime.datetime) -> None:
+def enhanced_groups(
+    ds,
+    n: int,
+    cams: Sequence[Camera],
+    fov: FieldOfView,
+    relationship,
+    sign,
+    frame_time_ms: float | None,
+    vector_ms: Sequence[float] | None,
+    spacing_only: bool,
+    calibration,
+    magnification,
+    rescale,
+    t0: datetime.datetime,
+) -> None:
     """Fill ``ds`` (an Enhanced XA/XRF dataset) with its functional groups (see the module)."""
     from pydicom.dataset import Dataset
 
@@ -68,15 +85,21 @@ def enhanced_groups(ds, n: int, cams: Sequence[Camera], fov: FieldOfView, relati
         if sign is not None:
             props.PixelIntensityRelationshipSign = int(sign)
         shared.FramePixelDataPropertiesSequence = _seq(props)
-    shared.FieldOfViewSequence = _seq(_item(FieldOfViewOrigin=["0", "0"], FieldOfViewRotation=str(fov.rotation_deg),
-                                            FieldOfViewHorizontalFlip="YES" if fov.flip else "NO"))
+    shared.FieldOfViewSequence = _seq(
+        _item(
+            FieldOfViewOrigin=["0", "0"],
+            FieldOfViewRotation=str(fov.rotation_deg),
+            FieldOfViewHorizontalFlip="YES" if fov.flip else "NO",
+        )
+    )
     if rescale is not None:
-        shared.PixelValueTransformationSequence = _seq(_item(RescaleSlope=f"{rescale[0]:.10g}",
-                                                             RescaleIntercept=f"{rescale[1]:.10g}", RescaleType="US"))
+        shared.PixelValueTransformationSequence = _seq(
+            _item(RescaleSlope=f"{rescale[0]:.10g}", RescaleIntercept=f"{rescale[1]:.10g}", RescaleType="US")
+        )
     if magnification is not None and spacing_only:
         ds.EstimatedRadiographicMagnificationFactor = f"{magnification:.10g}"
     if vector_ms is not None:
-        offsets = [sum(vector_ms[1:k + 1]) for k in range(n)]
+        offsets = [sum(vector_ms[1 : k + 1]) for k in range(n)]
     elif frame_time_ms is not None:
         offsets = [k * frame_time_ms for k in range(n)]
     else:

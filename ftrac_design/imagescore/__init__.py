@@ -14,5 +14,15 @@ of the right poses' errors with their intervals.
 from .figures import condition_figures, paired_ratios, trial_figures
 from .trial import CONDITIONS, WRONG_DEG, WRONG_MM, Condition, TrialSettings, run_images, run_trial
 
-__all__ = ["CONDITIONS", "Condition", "TrialSettings", "WRONG_DEG", "WRONG_MM", "condition_figures",
-           "paired_ratios", "run_images", "run_trial", "trial_figures"]
+__all__ = [
+    "CONDITIONS",
+    "Condition",
+    "TrialSettings",
+    "WRONG_DEG",
+    "WRONG_MM",
+    "condition_figures",
+    "paired_ratios",
+    "run_images",
+    "run_trial",
+    "trial_figures",
+]

@@ -42,8 +42,9 @@ class AtlasSettings:
     camera: Camera = field(default_factory=Camera)
 
 
-def _direction_records(features: Features, body, settings: AtlasSettings, directions: np.ndarray,
-                       indices: Sequence[int]) -> list[dict[str, Any]]:
+def _direction_records(
+    features: Features, body, settings: AtlasSettings, directions: np.ndarray, indices: Sequence[int]
+) -> list[dict[str, Any]]:
     from ..xray import ImagingModel, render
 
     out = []
@@ -51,15 +52,28 @@ def _direction_records(features: Features, body, settings: AtlasSettings, direct
         for j in range(settings.rolls):
             roll = 2.0 * math.pi * (j + 0.5) / settings.rolls
             R, t = isocentre_poses(directions[i][None], settings.depth_mm, roll)
-            img = render(features, R[0], t[0], settings.camera, ImagingModel(),
-                         rng=np.random.default_rng([settings.seed, int(i), j, 3]), body=body).raw
-            out.append({"direction": int(i), "roll": j,
-                        **track_record(img, features, body, R[0], t[0], settings.camera)})
+            img = render(
+                features,
+                R[0],
+                t[0],
+                settings.camera,
+                ImagingModel(),
+                rng=np.random.default_rng([settings.seed, int(i), j, 3]),
+                body=body,
+            ).raw
+            out.append(
+                {"direction": int(i), "roll": j, **track_record(img, features, body, R[0], t[0], settings.camera)}
+            )
     return out
 
 
-def image_atlas(features: Features, body, settings: AtlasSettings = AtlasSettings(),
-                executor: Executor | None = None, progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+def image_atlas(
+    features: Features,
+    body,
+    settings: AtlasSettings = AtlasSettings(),
+    executor: Executor | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
     """Track the fiducial from every direction of the grid (see the module).
 
     Parameters
@@ -109,17 +123,32 @@ def image_atlas(features: Features, body, settings: AtlasSettings = AtlasSetting
     polar, _ = angle_from(features.nominal_beam_direction, dirs)
     in_cone = polar <= 25.0
     order = np.lexsort((np.nan_to_num(-median, nan=-np.inf), right))[:5]
-    return {"settings": {"step_deg": settings.step_deg, "rolls": settings.rolls, "seed": settings.seed,
-                         "depth_mm": settings.depth_mm},
-            "lon_deg": lon.tolist(), "lat_deg": lat.tolist(),
-            "right_share": right.reshape(lon.shape).tolist(),
-            "translation_median_mm": [[None if not np.isfinite(v) else float(v) for v in row]
-                                      for row in median.reshape(lon.shape)],
-            "angle_from_nominal_deg": polar.reshape(lon.shape).tolist(),
-            "right_share_sphere": float(right.mean()),
-            "right_share_cone": float(right[in_cone].mean()) if in_cone.any() else None,
-            "worst": [{"lon_deg": float(lon.flat[i]), "lat_deg": float(lat.flat[i]),
-                       "angle_from_nominal_deg": float(polar[i]), "right_share": float(right[i])} for i in order]}
+    return {
+        "settings": {
+            "step_deg": settings.step_deg,
+            "rolls": settings.rolls,
+            "seed": settings.seed,
+            "depth_mm": settings.depth_mm,
+        },
+        "lon_deg": lon.tolist(),
+        "lat_deg": lat.tolist(),
+        "right_share": right.reshape(lon.shape).tolist(),
+        "translation_median_mm": [
+            [None if not np.isfinite(v) else float(v) for v in row] for row in median.reshape(lon.shape)
+        ],
+        "angle_from_nominal_deg": polar.reshape(lon.shape).tolist(),
+        "right_share_sphere": float(right.mean()),
+        "right_share_cone": float(right[in_cone].mean()) if in_cone.any() else None,
+        "worst": [
+            {
+                "lon_deg": float(lon.flat[i]),
+                "lat_deg": float(lat.flat[i]),
+                "angle_from_nominal_deg": float(polar[i]),
+                "right_share": float(right[i]),
+            }
+            for i in order
+        ],
+    }
 
 
 def plot_image_atlas(atlas: dict[str, Any], path: str | Path, title: str = "") -> Path:
@@ -136,19 +165,26 @@ def plot_image_atlas(atlas: dict[str, Any], path: str | Path, title: str = "") -
     med = np.array([[np.nan if v is None else v for v in row] for row in atlas["translation_median_mm"]], float)
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.2))
     extent = (-180, 180, -90, 90)
-    for ax, data, label, cmap, vmin, vmax in ((axes[0], share, "share of images tracked right", "RdYlGn", 0, 1),
-                                              (axes[1], med, "median 3-D translation error (mm)", "viridis", None,
-                                               None)):
+    for ax, data, label, cmap, vmin, vmax in (
+        (axes[0], share, "share of images tracked right", "RdYlGn", 0, 1),
+        (axes[1], med, "median 3-D translation error (mm)", "viridis", None, None),
+    ):
         im = ax.imshow(data, origin="lower", extent=extent, aspect="auto", cmap=cmap, vmin=vmin, vmax=vmax)
         ax.contour(lon, lat, ang, levels=[25.0], colors="k", linewidths=1.0)
         ax.set_xlabel("longitude about the fiducial axis (°)")
         ax.set_ylabel("latitude toward +z (°)")
         fig.colorbar(im, ax=ax, label=label)
     s = atlas["settings"]
-    fig.suptitle((title or "image-true atlas") + f" — {s['step_deg']:g}° grid, {s['rolls']} rolls per direction; "
-                 f"right: {100 * atlas['right_share_sphere']:.0f} % of the sphere"
-                 + (f", {100 * atlas['right_share_cone']:.0f} % in the workspace cone (outlined)"
-                    if atlas["right_share_cone"] is not None else ""), fontsize=9)
+    fig.suptitle(
+        (title or "image-true atlas") + f" — {s['step_deg']:g}° grid, {s['rolls']} rolls per direction; "
+        f"right: {100 * atlas['right_share_sphere']:.0f} % of the sphere"
+        + (
+            f", {100 * atlas['right_share_cone']:.0f} % in the workspace cone (outlined)"
+            if atlas["right_share_cone"] is not None
+            else ""
+        ),
+        fontsize=9,
+    )
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=100)

@@ -43,9 +43,12 @@ def condition_figures(records: Sequence[dict[str, Any]], seed: int = 0) -> dict[
     n = len(records)
     right = [r for r in records if r["outcome"] == "right"]
     counts = {o: sum(r["outcome"] == o for r in records) for o in ("right", "wrong", "refused")}
-    out: dict[str, Any] = {"images": n, **counts,
-                           "refused_pct": 100.0 * counts["refused"] / n if n else None,
-                           "wrong_pct": 100.0 * counts["wrong"] / n if n else None}
+    out: dict[str, Any] = {
+        "images": n,
+        **counts,
+        "refused_pct": 100.0 * counts["refused"] / n if n else None,
+        "wrong_pct": 100.0 * counts["wrong"] / n if n else None,
+    }
     rng = np.random.default_rng(seed)
     for name, key, unit in (("translation", "translation_mm", "mm"), ("rotation", "rotation_deg", "deg")):
         v = np.array([r[key] for r in right], float)
@@ -62,8 +65,9 @@ def trial_figures(records: Sequence[dict[str, Any]], seed: int = 0) -> dict[str,
     return {c: condition_figures([r for r in records if r["condition"] == c], seed) for c in conditions}
 
 
-def paired_ratios(reference: Sequence[dict[str, Any]], other: Sequence[dict[str, Any]], condition: str,
-                  seed: int = 0) -> dict[str, Any] | None:
+def paired_ratios(
+    reference: Sequence[dict[str, Any]], other: Sequence[dict[str, Any]], condition: str, seed: int = 0
+) -> dict[str, Any] | None:
     """p95 of ``other`` over p95 of ``reference`` (translation and rotation) over the images of
     ``condition`` both got right, with a paired bootstrap 95 % interval; None when fewer than
     :data:`MIN_RIGHT` images are shared.

@@ -38,15 +38,17 @@ def plot_image_score(records: Sequence[dict[str, Any]], path: str | Path, title:
 
     figs = trial_figures(records)
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for ax, (key, fkey, unit) in zip(axes, (("translation_mm", "translation_p95_mm", "mm"),
-                                            ("rotation_deg", "rotation_p95_deg", "°"))):
+    for ax, (key, fkey, unit) in zip(
+        axes, (("translation_mm", "translation_p95_mm", "mm"), ("rotation_deg", "rotation_p95_deg", "°"))
+    ):
         for cond, f in figs.items():
             v = np.sort([r[key] for r in records if r["condition"] == cond and r["outcome"] == "right"])
             if not len(v):
                 continue
             n = f["images"]
-            label = (f"{cond}: p95 {f[fkey]:.3g} {unit}" if f[fkey] is not None else cond) + \
-                f" (refused {f['refused_pct']:.1f} %, wrong {f['wrong_pct']:.1f} %)"
+            label = (
+                f"{cond}: p95 {f[fkey]:.3g} {unit}" if f[fkey] is not None else cond
+            ) + f" (refused {f['refused_pct']:.1f} %, wrong {f['wrong_pct']:.1f} %)"
             ax.step(v, np.arange(1, len(v) + 1) / n, where="post", color=COLORS.get(cond), label=label)
             if f[fkey] is not None:
                 ax.axvline(f[fkey], color=COLORS.get(cond), lw=0.8, ls="--")

@@ -64,19 +64,35 @@ class TrialSettings:
         from ..xray import ImagingModel
 
         m = ImagingModel()
-        return {"images_per_condition": self.images, "seed": self.seed, "conditions": list(self.conditions),
-                "clean": {"energy_kev": m.energy_kev, "photons_per_px": m.photons_per_px,
-                          "focal_spot_mm": m.focal_spot_mm, "detector_blur_px": m.detector_blur_px,
-                          "formation": "raw counts", "anatomy": None},
-                "anatomy": {"scenario": "raw", "patient": "pelvis, spine, abdomen or chest, 150–300 mm",
-                            "quanta_behind_patient": [1000, 5000], "energy_kev": "50–70 by thickness",
-                            "focal_spot_mm": [0.3, 1.2], "total_blur_px": [0.5, 0.9],
-                            "scatter_to_primary": [0.2, 1.2], "formation": "raw counts"},
-                "wrong_if_beyond": {"rotation_deg": WRONG_DEG, "translation_mm": WRONG_MM}}
+        return {
+            "images_per_condition": self.images,
+            "seed": self.seed,
+            "conditions": list(self.conditions),
+            "clean": {
+                "energy_kev": m.energy_kev,
+                "photons_per_px": m.photons_per_px,
+                "focal_spot_mm": m.focal_spot_mm,
+                "detector_blur_px": m.detector_blur_px,
+                "formation": "raw counts",
+                "anatomy": None,
+            },
+            "anatomy": {
+                "scenario": "raw",
+                "patient": "pelvis, spine, abdomen or chest, 150–300 mm",
+                "quanta_behind_patient": [1000, 5000],
+                "energy_kev": "50–70 by thickness",
+                "focal_spot_mm": [0.3, 1.2],
+                "total_blur_px": [0.5, 0.9],
+                "scatter_to_primary": [0.2, 1.2],
+                "formation": "raw counts",
+            },
+            "wrong_if_beyond": {"rotation_deg": WRONG_DEG, "translation_mm": WRONG_MM},
+        }
 
 
-def _image(features: Features, body, condition: Condition, R: np.ndarray, t: np.ndarray, camera: Camera,
-           seed: int, k: int) -> np.ndarray:
+def _image(
+    features: Features, body, condition: Condition, R: np.ndarray, t: np.ndarray, camera: Camera, seed: int, k: int
+) -> np.ndarray:
     from ..xray import ImagingModel, render
     from ..xray.scenario import realistic_image
 
@@ -86,8 +102,9 @@ def _image(features: Features, body, condition: Condition, R: np.ndarray, t: np.
     return img
 
 
-def track_record(image: np.ndarray, features: Features, body, R: np.ndarray, t: np.ndarray,
-                 camera: Camera) -> dict[str, Any]:
+def track_record(
+    image: np.ndarray, features: Features, body, R: np.ndarray, t: np.ndarray, camera: Camera
+) -> dict[str, Any]:
     """Track ``image`` with the default options (time budget lifted) and class the outcome against
     the true pose (R, t) (F → X, mm).
 
@@ -120,8 +137,9 @@ def track_record(image: np.ndarray, features: Features, body, R: np.ndarray, t: 
     return rec
 
 
-def run_images(features: Features, body, settings: TrialSettings, condition: Condition,
-               indices: Sequence[int]) -> list[dict[str, Any]]:
+def run_images(
+    features: Features, body, settings: TrialSettings, condition: Condition, indices: Sequence[int]
+) -> list[dict[str, Any]]:
     """Render and track images ``indices`` of one condition; one record per image.
 
     Parameters
@@ -147,13 +165,19 @@ def run_images(features: Features, body, settings: TrialSettings, condition: Con
     out = []
     for k in indices:
         img = _image(features, body, condition, R[k], t[k], settings.camera, settings.seed, int(k))
-        out.append({"condition": condition, "k": int(k),
-                    **track_record(img, features, body, R[k], t[k], settings.camera)})
+        out.append(
+            {"condition": condition, "k": int(k), **track_record(img, features, body, R[k], t[k], settings.camera)}
+        )
     return out
 
 
-def run_trial(features: Features, body, settings: TrialSettings, executor: Executor | None = None,
-              progress: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
+def run_trial(
+    features: Features,
+    body,
+    settings: TrialSettings,
+    executor: Executor | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> list[dict[str, Any]]:
     """Every image of the trial, in (condition, k) order, whatever the executor.
 
     Parameters
@@ -170,8 +194,11 @@ def run_trial(features: Features, body, settings: TrialSettings, executor: Execu
     list of dict
         :func:`run_images`' records of every condition and image.
     """
-    tasks = [(c, list(range(i, min(i + CHUNK, settings.images))))
-             for c in settings.conditions for i in range(0, settings.images, CHUNK)]
+    tasks = [
+        (c, list(range(i, min(i + CHUNK, settings.images))))
+        for c in settings.conditions
+        for i in range(0, settings.images, CHUNK)
+    ]
     if executor is None:
         out = []
         for c, idx in tasks:

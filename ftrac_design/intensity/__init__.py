@@ -17,5 +17,17 @@ from .model import PARAMETERS, RoiModel, perturb, roi_around
 from .refine import IntensityResult, RefineOptions, refine_intensity, refine_track_result
 from .workspace import ImagingAnalysis, imaging_analysis
 
-__all__ = ["PARAMETERS", "ImagingAnalysis", "IntensityResult", "imaging_analysis", "PixelBound", "RoiModel", "perturb",
-           "pixel_information", "RefineOptions", "refine_intensity", "refine_track_result", "roi_around"]
+__all__ = [
+    "PARAMETERS",
+    "ImagingAnalysis",
+    "IntensityResult",
+    "imaging_analysis",
+    "PixelBound",
+    "RoiModel",
+    "perturb",
+    "pixel_information",
+    "RefineOptions",
+    "refine_intensity",
+    "refine_track_result",
+    "roi_around",
+]

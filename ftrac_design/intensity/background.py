@@ -33,7 +33,7 @@ def polynomial_basis(shape: tuple[int, int], degree: int) -> np.ndarray:
     h, w = shape
     v = np.linspace(-1, 1, h)[:, None] * np.ones((1, w))
     u = np.ones((h, 1)) * np.linspace(-1, 1, w)[None, :]
-    return np.array([u ** a * v ** b for a in range(degree + 1) for b in range(degree + 1 - a)])
+    return np.array([u**a * v**b for a in range(degree + 1) for b in range(degree + 1 - a)])
 
 
 def _bspline_1d(n: int, spacing_px: float) -> np.ndarray:
@@ -42,7 +42,7 @@ def _bspline_1d(n: int, spacing_px: float) -> np.ndarray:
     intervals = max(int(np.ceil((n - 1) / float(spacing_px))), 1)
     step = max(n - 1, 1) / intervals
     knots = np.arange(-3, intervals + 4) * step
-    x = np.minimum(np.arange(n, dtype=float), knots[intervals + 3])   # the last centre on the end knot
+    x = np.minimum(np.arange(n, dtype=float), knots[intervals + 3])  # the last centre on the end knot
     return BSpline.design_matrix(x, knots, 3).toarray()
 
 
@@ -87,16 +87,16 @@ class TensorSpline:
         W = np.asarray(w, float).reshape(h, wd)
         na, nb, Bv, Bu = self.na, self.nb, self.Bv, self.Bu
         # M[o][j, b] = Σ_i W[j, i] Bu[i, b] Bu[i, b + o]  (o = 0…3)
-        M = [W @ (Bu[:, :nb - o] * Bu[:, o:]) for o in range(4)]
+        M = [W @ (Bu[:, : nb - o] * Bu[:, o:]) for o in range(4)]
         band = 3 * nb + 3
         ab = np.zeros((band + 1, self.k))
         for oa in range(4):
-            Pv = Bv[:, :na - oa] * Bv[:, oa:]                    # (h, na − oa)
+            Pv = Bv[:, : na - oa] * Bv[:, oa:]  # (h, na − oa)
             for ob in range(-3, 4):
                 if oa == 0 and ob < 0:
-                    continue                                     # the lower triangle
-                Mo = M[abs(ob)]                                  # (h, nb − |ob|)
-                C = Pv.T @ Mo                                    # (na − oa, nb − |ob|)
+                    continue  # the lower triangle
+                Mo = M[abs(ob)]  # (h, nb − |ob|)
+                C = Pv.T @ Mo  # (na − oa, nb − |ob|)
                 off = oa * nb + ob
                 # entry (a, b)-(a + oa, b + ob): column index of the later one
                 a_idx = np.arange(na - oa)[:, None]
@@ -149,7 +149,7 @@ class Nuisance:
         if self.k == 0:
             return np.zeros((0,) + np.shape(X)[:-1])
         Xw = np.atleast_2d(X) * self.w
-        rhs = self.N.apply(Xw).T if isinstance(self.N, TensorSpline) else self.N @ Xw.T     # (k, m)
+        rhs = self.N.apply(Xw).T if isinstance(self.N, TensorSpline) else self.N @ Xw.T  # (k, m)
         b = self._solve(rhs)
         return b[:, 0] if np.ndim(X) == 1 else b
 

@@ -62,11 +62,19 @@ def schur_information(J: np.ndarray, N, w: np.ndarray) -> np.ndarray:
     return _schur(J, N if N is not None and len(N) else None, w)
 
 
-def pixel_information(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
-                      imaging: ImagingModel = ImagingModel(), body: Body | None | str = AUTO,
-                      background: np.ndarray | None = None, roi: tuple[int, int, int, int] | None = None,
-                      nuisance: bool = False, background_degree: int = 2,
-                      background_spline_px: float | None = None) -> PixelBound:
+def pixel_information(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    imaging: ImagingModel = ImagingModel(),
+    body: Body | None | str = AUTO,
+    background: np.ndarray | None = None,
+    roi: tuple[int, int, int, int] | None = None,
+    nuisance: bool = False,
+    background_degree: int = 2,
+    background_spline_px: float | None = None,
+) -> PixelBound:
     """Pixel-level Cramér–Rao bound of the pose at (R, t) under ``imaging`` (see the module).
 
     ``background`` (H, W) is a known line-integral image (it lowers the counts); ``roi``
@@ -87,15 +95,15 @@ def pixel_information(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     v0, u0, h, w = roi
     scale = np.full(I.shape, float(imaging.photons_per_px))
     if background is not None:
-        scale *= np.exp(-np.asarray(background, float)[v0:v0 + h, u0:u0 + w])
-    mu = scale * I                                      # expected counts
+        scale *= np.exp(-np.asarray(background, float)[v0 : v0 + h, u0 : u0 + w])
+    mu = scale * I  # expected counts
     # log domain: ∂L = −∂I / I, var L = 1/μ
     JL = (-JI / I).reshape(6, -1)
     wts = mu.ravel()
     if nuisance:
         bg = background_basis(I.shape, background_degree, background_spline_px)
-        with threadpool_limits(1, "blas"):         # small products: see refine.refine_intensity
-            F = _schur(JL, bg, wts, extra=(-np.log(I)).reshape(1, -1))       # the gain's column: L itself
+        with threadpool_limits(1, "blas"):  # small products: see refine.refine_intensity
+            F = _schur(JL, bg, wts, extra=(-np.log(I)).reshape(1, -1))  # the gain's column: L itself
     else:
         F = schur_information(JL, None, wts)
     cov = np.linalg.inv(F)

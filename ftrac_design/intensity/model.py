@@ -60,8 +60,15 @@ def perturb(R: np.ndarray, t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np
     return so3.exp(x[None, :3])[0] @ R, np.asarray(t, float) + x[3:]
 
 
-def roi_around(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, shape: tuple[int, int],
-               body: Body | None = None, margin_px: int = 12) -> tuple[int, int, int, int]:
+def roi_around(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    shape: tuple[int, int],
+    body: Body | None = None,
+    margin_px: int = 12,
+) -> tuple[int, int, int, int]:
     """(row0, col0, rows, cols): the image rectangle holding the fiducial's projection at
     (R, t) plus ``margin_px``, clipped to an image of ``shape``."""
     pts = [features.point_centers()]
@@ -124,14 +131,17 @@ class RoiModel:
             ends = np.concatenate([pieces.a, pieces.a + pieces.L[:, None] * pieces.e])
             uv, Z = project_points(cam, R, t, ends)
             M = len(pieces.L)
-            rad = pieces.r * cam.focal_length_mm / np.maximum(np.minimum(Z[:M], Z[M:]) - pieces.r, 1.0) / pix * 1.05 \
+            rad = (
+                pieces.r * cam.focal_length_mm / np.maximum(np.minimum(Z[:M], Z[M:]) - pieces.r, 1.0) / pix * 1.05
                 + 0.75
+            )
             k, rows, cols = capsule_pixels(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
             m = keep(rows, cols)
             k, rows, cols = k[m], rows[m], cols[m]
             if len(k):
-                ch = tube_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, pieces, k, cols[:, None] + ou,
-                                   rows[:, None] + ov, fdt)
+                ch = tube_chord_uv(
+                    rays.c, rays.g0, rays.gu, rays.gv, pieces, k, cols[:, None] + ou, rows[:, None] + ov, fdt
+                )
                 groups.append((rows, cols, ch * pieces.mu[k][:, None]))
         if len(radii):
             uv, Z = project_points(cam, R, t, centers)
@@ -149,15 +159,19 @@ class RoiModel:
         if self.body is not None:
             b = self.body
             mu = im.mu(b.material)
-            args = [np.asarray(x, fdt) for x in (rays.c, rays.g0, rays.gu, rays.gv)] + \
-                [b.outer_diameter / 2, b.bore_diameter / 2, b.length / 2]
+            args = [np.asarray(x, fdt) for x in (rays.c, rays.g0, rays.gu, rays.gv)] + [
+                b.outer_diameter / 2,
+                b.bore_diameter / 2,
+                b.length / 2,
+            ]
             centre = mu * body_chord_uv(*args, self._cu.astype(fdt)[None, :], self._cv.astype(fdt)[:, None])
             p += centre
             flags = self.body_flags if self.body_flags is not None else self._flags(centre)
             jj, ii = np.nonzero(flags)
             if len(jj):
-                sub = mu * body_chord_uv(*args, (self._cu[ii][:, None] + ou).astype(fdt),
-                                         (self._cv[jj][:, None] + ov).astype(fdt))
+                sub = mu * body_chord_uv(
+                    *args, (self._cu[ii][:, None] + ou).astype(fdt), (self._cv[jj][:, None] + ov).astype(fdt)
+                )
                 groups.append((jj + v0, ii + u0, sub - centre[jj, ii][:, None]))
         return gather_field(p, (v0, u0), groups, s)
 
@@ -172,9 +186,17 @@ class RoiModel:
             return
         b, im = self.body, self.imaging
         rays = Rays(self.camera, np.asarray(R, float), np.asarray(t, float))
-        centre = im.mu(b.material) * body_chord_uv(rays.c, rays.g0, rays.gu, rays.gv, b.outer_diameter / 2,
-                                                   b.bore_diameter / 2, b.length / 2, self._cu[None, :],
-                                                   self._cv[:, None])
+        centre = im.mu(b.material) * body_chord_uv(
+            rays.c,
+            rays.g0,
+            rays.gu,
+            rays.gv,
+            b.outer_diameter / 2,
+            b.bore_diameter / 2,
+            b.length / 2,
+            self._cu[None, :],
+            self._cv[:, None],
+        )
         self.body_flags = self._flags(centre)
 
     def _flags(self, centre: np.ndarray) -> np.ndarray:
@@ -206,16 +228,15 @@ class RoiModel:
         z = float(np.asarray(t, float)[2])
         mm_per_px = min(self.camera.pixel_size_mm) * z / self.camera.focal_length_mm
         lat = STEP_PX * mm_per_px
-        rho = max(self.features.characteristic_radius, 1.0)      # a lone bead at the origin has 0
+        rho = max(self.features.characteristic_radius, 1.0)  # a lone bead at the origin has 0
         return np.array([lat / rho] * 3 + [lat, lat, lat * z / rho])
 
-    def central_from_forward(self, R: np.ndarray, t: np.ndarray, value: np.ndarray,
-                             forward: np.ndarray) -> np.ndarray:
+    def central_from_forward(self, R: np.ndarray, t: np.ndarray, value: np.ndarray, forward: np.ndarray) -> np.ndarray:
         """Central-difference derivative (6, rows, cols) of the log image at (R, t) from its
         forward differences ``forward`` (``_differences(..., central=False)`` at the same
         pose, same ``value``): only the six backward renders are new."""
         kept = self.body_flags
-        self.freeze(R, t)                          # the flags the forward renders used
+        self.freeze(R, t)  # the flags the forward renders used
         try:
             h = self.steps(t)
             J = np.empty_like(forward)

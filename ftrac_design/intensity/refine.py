@@ -82,31 +82,51 @@ class IntensityResult:
     def to_dict(self) -> dict[str, Any]:
         """SPEC §4 pose object plus an ``intensity`` block of diagnostics."""
         ok = self.covariance is not None and np.all(np.isfinite(self.covariance))
-        return {"format": "ftrac-pose", "version": 1, "rotation": self.rotation.tolist(),
-                "translation_mm": self.translation_mm.tolist(), "converged": bool(self.converged),
-                "rms_residual_px": None,
-                "covariance": self.covariance.tolist() if ok else None,
-                "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
-                "intensity": {"cost_start": self.cost_start, "cost_end": self.cost_end,
-                              "iterations": self.iterations, "gain": self.gain, "roi": list(self.roi),
-                              "rms_residual_log": self.rms_residual, "background": self.background_model,
-                              "message": self.message}}
+        return {
+            "format": "ftrac-pose",
+            "version": 1,
+            "rotation": self.rotation.tolist(),
+            "translation_mm": self.translation_mm.tolist(),
+            "converged": bool(self.converged),
+            "rms_residual_px": None,
+            "covariance": self.covariance.tolist() if ok else None,
+            "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
+            "intensity": {
+                "cost_start": self.cost_start,
+                "cost_end": self.cost_end,
+                "iterations": self.iterations,
+                "gain": self.gain,
+                "roi": list(self.roi),
+                "rms_residual_log": self.rms_residual,
+                "background": self.background_model,
+                "message": self.message,
+            },
+        }
 
 
 class _Problem:
     """The objective at one smoothing scale: the weighted residual of ``Y − g L − Nᵀβ`` with
     the gain g and background β eliminated (:class:`.background.Nuisance`)."""
 
-    def __init__(self, model: RoiModel, Y: np.ndarray, imaging: ImagingModel, scale: float, degree: int,
-                 highpass: float = 0.0, robust: float | None = None, spline_px: float | None = None,
-                 loss: str = "huber"):
+    def __init__(
+        self,
+        model: RoiModel,
+        Y: np.ndarray,
+        imaging: ImagingModel,
+        scale: float,
+        degree: int,
+        highpass: float = 0.0,
+        robust: float | None = None,
+        spline_px: float | None = None,
+        loss: str = "huber",
+    ):
         self.model, self.scale, self.imaging, self.highpass, self.robust = model, scale, imaging, highpass, robust
         self.loss = loss
         self.Yraw = Y
         self.Y = self.smooth(Y)
         self.y = self.Y.ravel()
         if highpass > 0:
-            degree, spline_px = -1, None            # the high-pass removes any smooth background
+            degree, spline_px = -1, None  # the high-pass removes any smooth background
         self.basis = background_basis(Y.shape, degree, spline_px)
         self.set_pixel_weights(np.ones(Y.size))
 
@@ -163,7 +183,7 @@ class _Problem:
                 fitted = self.y - r
                 gg = g if g > 1e-6 else 1.0
                 w = N0 * np.exp(-np.clip((fitted - fitted.min()) / gg, 0, 20))
-            if self.scale > 0:                      # smoothing lowers the variance: keep the shape only
+            if self.scale > 0:  # smoothing lowers the variance: keep the shape only
                 w = w / w.mean()
         else:
             w = np.ones(self.y.size)
@@ -238,10 +258,18 @@ class RefineOptions:
     coarse_px: float = 1.0
 
 
-def refine_intensity(features: Features, image: np.ndarray, camera: Camera, R0: np.ndarray, t0: np.ndarray = None,
-                     imaging: ImagingModel = ImagingModel(), roi: tuple[int, int, int, int] | None = None,
-                     body: Body | None | str = AUTO, options: RefineOptions | None = None,
-                     **overrides: Any) -> IntensityResult:
+def refine_intensity(
+    features: Features,
+    image: np.ndarray,
+    camera: Camera,
+    R0: np.ndarray,
+    t0: np.ndarray = None,
+    imaging: ImagingModel = ImagingModel(),
+    roi: tuple[int, int, int, int] | None = None,
+    body: Body | None | str = AUTO,
+    options: RefineOptions | None = None,
+    **overrides: Any,
+) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
     ``options`` (:class:`RefineOptions`, default its defaults) with any of its fields
@@ -323,9 +351,9 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
     if roi is None:
         roi = roi_around(features, R0, t0, camera, Yfull.shape, body)
     v0, u0, h, w = roi
-    Y = Yfull[v0:v0 + h, u0:u0 + w]
+    Y = Yfull[v0 : v0 + h, u0 : u0 + w]
     model = RoiModel(features, camera, imaging, body, roi)
-    steps = model.steps(t0) / STEP_PX              # parameter change that moves features ~1 px
+    steps = model.steps(t0) / STEP_PX  # parameter change that moves features ~1 px
 
     if o.background not in ("auto", "spline", "polynomial", "highpass"):
         raise ValueError("background: 'auto', 'spline', 'polynomial' or 'highpass'")
@@ -337,8 +365,16 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
     if mode == "auto":
         mode = "spline" if o.background_spline_px else "polynomial"
         if o.highpass_px > 0:
-            probe = _Problem(model, Y, imaging, 0.0, o.background_degree, 0.0, None,
-                             o.background_spline_px if mode == "spline" else None)
+            probe = _Problem(
+                model,
+                Y,
+                imaging,
+                0.0,
+                o.background_degree,
+                0.0,
+                None,
+                o.background_spline_px if mode == "spline" else None,
+            )
             _, r, g, _, _ = probe.cost(R0, t0)
             probe.set_weights(g, r)
             c, r, _, _, _ = probe.cost(R0, t0)
@@ -346,13 +382,21 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
                 mode = "highpass"
 
     def problem(scale: float, huber: bool) -> _Problem:
-        return _Problem(model, Y, imaging, scale, o.background_degree, o.highpass_px if mode == "highpass" else 0.0,
-                        o.robust if huber else None, o.background_spline_px if mode == "spline" else None,
-                        o.robust_loss)
+        return _Problem(
+            model,
+            Y,
+            imaging,
+            scale,
+            o.background_degree,
+            o.highpass_px if mode == "highpass" else 0.0,
+            o.robust if huber else None,
+            o.background_spline_px if mode == "spline" else None,
+            o.robust_loss,
+        )
 
     R, t = R0.copy(), t0.copy()
     history, iterations, message, J, prob = [], 0, "", None, None
-    last = {}                                       # the last forward differences: pose, value, J
+    last = {}  # the last forward differences: pose, value, J
 
     def forward(R, t):
         """Forward differences of the (unsmoothed) log image at (R, t); the last pose's are
@@ -409,7 +453,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
                 if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < o.step_sigma:
                     J = Jt
                     break
-            lam, moved, this_round = 1e-3, 0, []        # the objective's weights change between rounds
+            lam, moved, this_round = 1e-3, 0, []  # the objective's weights change between rounds
             # a coarse scale only brings the pose into the fine scale's basin
             rule = o.step_sigma if scale == 0 else max(o.step_sigma, 0.3)
             for _ in range(o.max_iterations):
@@ -453,7 +497,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
                 if np.max(np.abs(dx) / steps) < o.tolerance or history_drop(this_round) < o.ftol * cst:
                     break
             if not moved and _round > 0:
-                break                               # reweighting moved nothing: converged
+                break  # reweighting moved nothing: converged
     if o.polish and prob is not None and prob.scale == 0 and not o.central_steps:
         # LM on forward differences stops where J_fwdᵀ W r = 0, not at the objective's minimum
         # (0.1–0.23 σ RMS from it on ftrac_2005: intensity_depth_check.py stopping): one
@@ -461,7 +505,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
         iterations += 1
         L0 = model.log_image(R, t)
         if last.get("key") == (R.tobytes(), t.tobytes()):
-            Jc = model.central_from_forward(R, t, L0, last["J"])     # six renders, not twelve
+            Jc = model.central_from_forward(R, t, L0, last["J"])  # six renders, not twelve
         else:
             Jc = model._differences(R, t, "log", central=True, value=L0)[1]
         J = prob.project_jacobian(prob.smooth(Jc).reshape(6, -1) * g, lp)
@@ -493,7 +537,7 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
         L0, Jc = model.jacobian(R, t)
         Jc = full.project_jacobian(full.smooth(Jc).reshape(6, -1) * g, lp)
     else:
-        Jc = J                                     # already projected at (R, t)'s last linearisation
+        Jc = J  # already projected at (R, t)'s last linearisation
     F = _dot(Jc * full.w, Jc)
     try:
         cov = np.linalg.inv((F + F.T) / 2)
@@ -502,12 +546,34 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
     except np.linalg.LinAlgError:
         cov = None
     rms = float(math.sqrt(np.mean(r * r)))
-    return IntensityResult(R, t, cov, converged, cost_start, c_end, iterations, float(g), b, roi, rms,
-                           message, history, full.n_nuisance, mode)
+    return IntensityResult(
+        R,
+        t,
+        cov,
+        converged,
+        cost_start,
+        c_end,
+        iterations,
+        float(g),
+        b,
+        roi,
+        rms,
+        message,
+        history,
+        full.n_nuisance,
+        mode,
+    )
 
 
-def refine_track_result(image: np.ndarray, features: Features, camera: Camera, result,
-                        imaging: ImagingModel | None = None, body: Body | None | str = AUTO, **options):
+def refine_track_result(
+    image: np.ndarray,
+    features: Features,
+    camera: Camera,
+    result,
+    imaging: ImagingModel | None = None,
+    body: Body | None | str = AUTO,
+    **options,
+):
     """``ftrac-design track --refine intensity``: refine a converged
     :class:`ftrac_design.segment.TrackResult` on ``image`` (as stored) and return a
     copy whose pose is the refined one (``scales="auto"`` with a 1 px coarse scale), with the
@@ -519,17 +585,37 @@ def refine_track_result(image: np.ndarray, features: Features, camera: Camera, r
         return result
     polarity = "dense_dark" if "dark" in str(getattr(result, "polarity", "")) else "dense_bright"
     imaging = imaging or ImagingModel(image_shape=tuple(np.asarray(image).shape))
-    res = refine_intensity(features, image, camera, pose.rotation, pose.translation_mm, imaging, body=body,
-                           polarity=polarity, **{"coarse_scales": (1.0,), **options})
+    res = refine_intensity(
+        features,
+        image,
+        camera,
+        pose.rotation,
+        pose.translation_mm,
+        imaging,
+        body=body,
+        polarity=polarity,
+        **{"coarse_scales": (1.0,), **options},
+    )
     cov = res.covariance
     dof = max(res.roi[2] * res.roi[3] - 6 - res.n_nuisance, 1)
     chi2 = res.cost_end / dof
     if cov is not None and imaging.noisy and chi2 > 1:
         cov = cov * chi2
-    new_pose = replace(pose, rotation=res.rotation, translation_mm=res.translation_mm,
-                       covariance=cov if cov is not None else pose.covariance)
+    new_pose = replace(
+        pose,
+        rotation=res.rotation,
+        translation_mm=res.translation_mm,
+        covariance=cov if cov is not None else pose.covariance,
+    )
     diag = dict(result.diagnostics)
-    diag["intensity"] = {"refined": bool(res.converged), "cost_start": res.cost_start, "cost_end": res.cost_end,
-                         "chi2_per_dof": chi2, "iterations": res.iterations, "gain": res.gain,
-                         "roi": list(res.roi), "message": res.message}
+    diag["intensity"] = {
+        "refined": bool(res.converged),
+        "cost_start": res.cost_start,
+        "cost_end": res.cost_end,
+        "chi2_per_dof": chi2,
+        "iterations": res.iterations,
+        "gain": res.gain,
+        "roi": list(res.roi),
+        "message": res.message,
+    }
     return replace(result, pose=new_pose, diagnostics=diag)

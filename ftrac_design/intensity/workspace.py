@@ -56,9 +56,9 @@ class ImagingAnalysis:
     segmentation_error_mm: float
     R: np.ndarray
     t: np.ndarray
-    image_std: np.ndarray          # (n, 6) deg / mm
-    feature_std: np.ndarray        # (n, 6) deg / mm
-    roi_pixels: np.ndarray         # (n,)
+    image_std: np.ndarray  # (n, 6) deg / mm
+    feature_std: np.ndarray  # (n, 6) deg / mm
+    roi_pixels: np.ndarray  # (n,)
     body: str | None = None
     seed: int = 0
     extra: dict = field(default_factory=dict)
@@ -74,21 +74,30 @@ class ImagingAnalysis:
 
     def to_dict(self) -> dict[str, Any]:
         """The analysis.json ``imaging`` block."""
+
         def stats(a: np.ndarray) -> dict:
-            return {k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist()))
-                    for k, q in (("p50", 50), ("p95", 95))}
+            return {
+                k: dict(zip(PARAMETERS, np.percentile(a, q, axis=0).tolist())) for k, q in (("p50", 50), ("p95", 95))
+            }
 
         im = self.imaging.to_dict()
         return {
-            "settings": {"poses": int(len(self.t)), "seed": self.seed,
-                         "energy_kev": im["energy_kev"], "photons_per_px": im["photons_per_px"],
-                         "detector_blur_px": im["detector_blur_px"], "focal_spot_mm": im["focal_spot_mm"],
-                         "image_shape": im["image_shape"], "supersample": im["supersample"],
-                         "body": self.body, "segmentation_error_mm": self.segmentation_error_mm,
-                         "image_bound": "pixel-level Cramér–Rao bound, Poisson counts, gain and quadratic "
-                                        "background unknown, ROI = projection + 12 px",
-                         "feature_bound": "solver Jacobian Cramér–Rao bound, uniform segmentation error "
-                                          f"{self.segmentation_error_mm:g} mm (σ = e/√3 per axis)"},
+            "settings": {
+                "poses": int(len(self.t)),
+                "seed": self.seed,
+                "energy_kev": im["energy_kev"],
+                "photons_per_px": im["photons_per_px"],
+                "detector_blur_px": im["detector_blur_px"],
+                "focal_spot_mm": im["focal_spot_mm"],
+                "image_shape": im["image_shape"],
+                "supersample": im["supersample"],
+                "body": self.body,
+                "segmentation_error_mm": self.segmentation_error_mm,
+                "image_bound": "pixel-level Cramér–Rao bound, Poisson counts, gain and quadratic "
+                "background unknown, ROI = projection + 12 px",
+                "feature_bound": "solver Jacobian Cramér–Rao bound, uniform segmentation error "
+                f"{self.segmentation_error_mm:g} mm (σ = e/√3 per axis)",
+            },
             "units": dict(zip(PARAMETERS, UNITS)),
             "image_std": stats(self.image_std),
             "feature_std": stats(self.feature_std),
@@ -97,10 +106,18 @@ class ImagingAnalysis:
         }
 
 
-def imaging_analysis(features: Features, workspace: Workspace = Workspace(), imaging: ImagingModel = ImagingModel(),
-                     poses: int = DEFAULT_IMAGING_POSES, seed: int = 0, camera: Camera = Camera(),
-                     segmentation_error_mm: float = 0.25, contour: ContourSampling = ContourSampling(),
-                     body=AUTO, progress: Callable[[int], None] | None = None) -> ImagingAnalysis:
+def imaging_analysis(
+    features: Features,
+    workspace: Workspace = Workspace(),
+    imaging: ImagingModel = ImagingModel(),
+    poses: int = DEFAULT_IMAGING_POSES,
+    seed: int = 0,
+    camera: Camera = Camera(),
+    segmentation_error_mm: float = 0.25,
+    contour: ContourSampling = ContourSampling(),
+    body=AUTO,
+    progress: Callable[[int], None] | None = None,
+) -> ImagingAnalysis:
     """Image- and feature-level predicted errors at ``poses`` workspace poses (see the module).
 
     ``imaging`` must have a finite dose. Poses where the fiducial does not project into the
@@ -132,10 +149,14 @@ def imaging_analysis(features: Features, workspace: Workspace = Workspace(), ima
     R, t = R[keep], t[keep]
     F = total_information(layout, camera, R, t, noise)
     feat = np.sqrt(np.diagonal(np.linalg.inv(F), axis1=1, axis2=2))
-    name = (None if body is None
-            else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm")
-    return ImagingAnalysis(imaging, segmentation_error_mm, R, t, _deg_mm(np.array(img_std)), _deg_mm(feat),
-                           np.array(npix), name, seed)
+    name = (
+        None
+        if body is None
+        else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm"
+    )
+    return ImagingAnalysis(
+        imaging, segmentation_error_mm, R, t, _deg_mm(np.array(img_std)), _deg_mm(feat), np.array(npix), name, seed
+    )
 
 
 def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
@@ -148,10 +169,19 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
     for ax, sl, unit in ((axes[0], slice(0, 3), "deg"), (axes[1], slice(3, 6), "mm")):
         names = PARAMETERS[sl]
         pos = np.arange(len(names))
-        for off, data, lab, col in ((-0.18, ia.image_std[:, sl], "image (pixel bound)", "tab:blue"),
-                                    (0.18, ia.feature_std[:, sl], "features (segmentation)", "tab:orange")):
-            bp = ax.boxplot(data, positions=pos + off, widths=0.3, whis=(5, 95), showfliers=False,
-                            patch_artist=True, medianprops={"color": "k"})
+        for off, data, lab, col in (
+            (-0.18, ia.image_std[:, sl], "image (pixel bound)", "tab:blue"),
+            (0.18, ia.feature_std[:, sl], "features (segmentation)", "tab:orange"),
+        ):
+            bp = ax.boxplot(
+                data,
+                positions=pos + off,
+                widths=0.3,
+                whis=(5, 95),
+                showfliers=False,
+                patch_artist=True,
+                medianprops={"color": "k"},
+            )
             for b in bp["boxes"]:
                 b.set_facecolor(col)
                 b.set_alpha(0.6)
@@ -169,9 +199,12 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
     ax.set_ylabel("σ features / σ image")
     ax.grid(True, which="both", alpha=0.3)
     dose = ia.imaging.photons_per_px
-    fig.suptitle(f"pose from the image vs from segmented features, {len(ia.t)} workspace poses "
-                 f"({ia.imaging.energy_kev:g} keV, {dose:.3g} quanta/px, segmentation error "
-                 f"{ia.segmentation_error_mm:g} mm)", fontsize=10)
+    fig.suptitle(
+        f"pose from the image vs from segmented features, {len(ia.t)} workspace poses "
+        f"({ia.imaging.energy_kev:g} keV, {dose:.3g} quanta/px, segmentation error "
+        f"{ia.segmentation_error_mm:g} mm)",
+        fontsize=10,
+    )
     fig.tight_layout()
     return save_figure(fig, Path(path))
 
@@ -179,9 +212,11 @@ def plot_imaging(ia: ImagingAnalysis, path: str | Path) -> Path:
 def format_imaging(block: dict) -> str:
     """Lines for the text summary from an analysis.json ``imaging`` block."""
     s = block["settings"]
-    out = [f"  imaging ({s['poses']} poses, {s['energy_kev']:g} keV, {s['photons_per_px']:.3g} quanta/px, "
-           f"blur {s['detector_blur_px']:g} px, focal spot {s['focal_spot_mm']:g} mm): predicted 1σ "
-           f"(deg, mm) vs features at segmentation error {s['segmentation_error_mm']:g} mm"]
+    out = [
+        f"  imaging ({s['poses']} poses, {s['energy_kev']:g} keV, {s['photons_per_px']:.3g} quanta/px, "
+        f"blur {s['detector_blur_px']:g} px, focal spot {s['focal_spot_mm']:g} mm): predicted 1σ "
+        f"(deg, mm) vs features at segmentation error {s['segmentation_error_mm']:g} mm"
+    ]
     out.append("    " + f"{'':>19}" + "".join(f"{a:>10}" for a in PARAMETERS))
     for key, lab in (("image_std", "image"), ("feature_std", "features"), ("ratio_feature_to_image", "features/image")):
         for q in ("p50", "p95"):

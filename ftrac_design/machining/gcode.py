@@ -214,8 +214,19 @@ def parse_gcode(text: str, source: str | Path = "<program>") -> ParsedProgram:
         if kind != "arc" and all((a == b) or (math.isnan(a) and math.isnan(b)) for a, b in zip(pos, end)):
             continue
         f = feed if inverse else feed * scale
-        mv = ParsedMove(n, kind, tuple(pos), tuple(end), "inverse_time" if inverse else "per_minute",
-                        f if kind != "rapid" else 0.0, centre, motion == "3", tool, rpm if spindle else 0.0, feature)
+        mv = ParsedMove(
+            n,
+            kind,
+            tuple(pos),
+            tuple(end),
+            "inverse_time" if inverse else "per_minute",
+            f if kind != "rapid" else 0.0,
+            centre,
+            motion == "3",
+            tool,
+            rpm if spindle else 0.0,
+            feature,
+        )
         if kind != "rapid" and (not spindle or tool is None):
             out.faults.append(f"line {n}: a cutting move with the spindle stopped or no tool")
         if clamped and abs(end[3] - pos[3]) > 0 and not math.isnan(pos[3]):

@@ -56,8 +56,9 @@ class EllipseCut:
     top_height: float
 
     @classmethod
-    def from_plane(cls, id: str, seat_radius: float, normal, z_center: float, width: float,
-                   floor_depth: float, top_height: float) -> "EllipseCut":
+    def from_plane(
+        cls, id: str, seat_radius: float, normal, z_center: float, width: float, floor_depth: float, top_height: float
+    ) -> "EllipseCut":
         """From the ellipse's plane: through ``(0, 0, z_center)`` with unit ``normal`` (F)."""
         n = np.asarray(normal, float)
         if abs(n[2]) < 1e-9:
@@ -180,7 +181,7 @@ class SlotCut:
         z = np.asarray(z, float)
         e = self.end_radius
         beyond = np.maximum(self.z0 - z, z - self.z1)
-        cap = self.width / 2 - e + np.sqrt(np.maximum(e * e - beyond ** 2, 0.0))
+        cap = self.width / 2 - e + np.sqrt(np.maximum(e * e - beyond**2, 0.0))
         return np.where(beyond <= 0, self.width / 2, np.where(beyond <= e, cap, np.nan))
 
     def ray_interval(self, theta, z, rho_max: float) -> tuple[np.ndarray, np.ndarray]:
@@ -243,8 +244,9 @@ class PocketCut:
         return box_sdf(lat, ax, self.diameter / 2, self.depth / 2)
 
     def ray_interval(self, theta, z, rho_max: float) -> tuple[np.ndarray, np.ndarray]:
-        lo, hi = cylinder_ray_interval(theta, z, self.azimuth, 0.0, self.z, self.floor_radius, self.diameter / 2,
-                                       self.floor_radius + self.depth)
+        lo, hi = cylinder_ray_interval(
+            theta, z, self.azimuth, 0.0, self.z, self.floor_radius, self.diameter / 2, self.floor_radius + self.depth
+        )
         return lo, np.minimum(hi, rho_max)
 
 
@@ -292,8 +294,9 @@ class Tool:
         return self.diameter / 2
 
 
-def make_tool(number: int, diameter: float, cutting_speed: float, max_rpm: float, flutes: int,
-              feed_per_tooth_ratio: float) -> Tool:
+def make_tool(
+    number: int, diameter: float, cutting_speed: float, max_rpm: float, flutes: int, feed_per_tooth_ratio: float
+) -> Tool:
     """A :class:`Tool` with its spindle speed and feeds (cutting speed in m/min)."""
     rpm = min(max_rpm, cutting_speed * 1000.0 / (math.pi * diameter))
     feed = rpm * flutes * feed_per_tooth_ratio * diameter
@@ -315,20 +318,28 @@ def pocket_tool_diameter(pocket_diameter: float, chosen: float | None = None) ->
     circle at radius ``(D − d)/2`` clears the whole floor (``d ≥ D/2``) with wall to spare."""
     if chosen is not None:
         if not pocket_diameter / 2 <= chosen <= pocket_diameter:
-            raise ValueError(f"pocket tool {chosen} mm: expected between half the pocket ({pocket_diameter / 2:g} mm) "
-                             f"and the pocket diameter ({pocket_diameter:g} mm)")
+            raise ValueError(
+                f"pocket tool {chosen} mm: expected between half the pocket ({pocket_diameter / 2:g} mm) "
+                f"and the pocket diameter ({pocket_diameter:g} mm)"
+            )
         return chosen
     fits = [d for d in STOCK_END_MILLS if pocket_diameter / 2 <= d <= 0.8 * pocket_diameter]
     if not fits:
-        raise ValueError(f"no stock end mill between {pocket_diameter / 2:g} and {0.8 * pocket_diameter:g} mm "
-                         f"for a {pocket_diameter:g} mm pocket; set manufacturing.cnc.pocket_tool_diameter")
+        raise ValueError(
+            f"no stock end mill between {pocket_diameter / 2:g} and {0.8 * pocket_diameter:g} mm "
+            f"for a {pocket_diameter:g} mm pocket; set manufacturing.cnc.pocket_tool_diameter"
+        )
     return max(fits)
 
 
 def tooling(cnc, pocket_diameter: float | None) -> Tooling:
     """Tools and entries from a design's ``manufacturing.cnc`` settings (:class:`CncProfile`)."""
-    mk = dict(cutting_speed=cnc.cutting_speed, max_rpm=cnc.spindle_max_rpm, flutes=cnc.flutes,
-              feed_per_tooth_ratio=cnc.feed_per_tooth_ratio)
+    mk = dict(
+        cutting_speed=cnc.cutting_speed,
+        max_rpm=cnc.spindle_max_rpm,
+        flutes=cnc.flutes,
+        feed_per_tooth_ratio=cnc.feed_per_tooth_ratio,
+    )
     groove = make_tool(1, cnc.tool_diameter, **mk)
     pd = pocket_tool_diameter(pocket_diameter, cnc.pocket_tool_diameter) if pocket_diameter else cnc.tool_diameter
     pocket = groove if abs(pd - groove.diameter) < 1e-9 else make_tool(2, pd, **mk)

@@ -32,10 +32,30 @@ class Post:
 
 
 POSTS: dict[str, Post] = {
-    "linuxcnc": Post("linuxcnc", "LinuxCNC (RS-274/NGC)", ".ngc", None, False, False, False, None, "M2",
-                     "G21 G90 G91.1 G94 G17 G40 G49 G80 G54"),
-    "fanuc": Post("fanuc", "Fanuc-style (O number, N numbers, M10/M11 A brake, M30)", ".nc", 1000, True, True, True,
-                  ("M10", "M11"), "M30", "G21 G90 G94 G17 G40 G49 G80 G54"),
+    "linuxcnc": Post(
+        "linuxcnc",
+        "LinuxCNC (RS-274/NGC)",
+        ".ngc",
+        None,
+        False,
+        False,
+        False,
+        None,
+        "M2",
+        "G21 G90 G91.1 G94 G17 G40 G49 G80 G54",
+    ),
+    "fanuc": Post(
+        "fanuc",
+        "Fanuc-style (O number, N numbers, M10/M11 A brake, M30)",
+        ".nc",
+        1000,
+        True,
+        True,
+        True,
+        ("M10", "M11"),
+        "M30",
+        "G21 G90 G94 G17 G40 G49 G80 G54",
+    ),
 }
 
 #: default post
@@ -97,8 +117,10 @@ def emit(program: Program, post: str = DEFAULT_POST, header: list[str] | None = 
         elif isinstance(b, ToolChange):
             t = f"{b.tool.number:02d}" if p.two_digit_tools else str(b.tool.number)
             tl = b.tool
-            desc = (f"T{tl.number}: {tl.diameter:g} mm flat end mill, {tl.rpm:g} rpm, feed {tl.feed:g} mm/min, "
-                    f"plunge {tl.plunge_feed:g} mm/min")
+            desc = (
+                f"T{tl.number}: {tl.diameter:g} mm flat end mill, {tl.rpm:g} rpm, feed {tl.feed:g} mm/min, "
+                f"plunge {tl.plunge_feed:g} mm/min"
+            )
             out.append(f"({_clean(desc, p.upper_comments)})")
             line(f"T{t} M6" if not p.two_digit_tools else f"T{t} M06")
             line(f"G0 G43 H{t} Z{_num(program.safe_z)}")
@@ -111,8 +133,9 @@ def emit(program: Program, post: str = DEFAULT_POST, header: list[str] | None = 
             clamped = b.on
         elif isinstance(b, Move):
             words = []
-            new_mode = "G93" if b.feed_mode == "inverse_time" and b.kind != "rapid" else (
-                "G94" if b.kind != "rapid" else mode)
+            new_mode = (
+                "G93" if b.feed_mode == "inverse_time" and b.kind != "rapid" else ("G94" if b.kind != "rapid" else mode)
+            )
             if new_mode != mode:
                 words.append(new_mode)
                 mode, feed = new_mode, None

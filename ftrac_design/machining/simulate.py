@@ -71,8 +71,9 @@ class Grid:
 
     @classmethod
     def for_stock(cls, stock: Stock, h: float = GRID) -> "Grid":
-        return cls(stock, max(8, math.ceil(2 * math.pi * stock.outer_radius / h)),
-                   max(1, math.ceil(2 * stock.half_length / h)))
+        return cls(
+            stock, max(8, math.ceil(2 * math.pi * stock.outer_radius / h)), max(1, math.ceil(2 * stock.half_length / h))
+        )
 
     @property
     def d_theta(self) -> float:
@@ -113,6 +114,7 @@ def _clip(grid: Grid, name: str, keys, lo, hi) -> Layer:
 
 # ---- tool placements ----------------------------------------------------------------------------
 
+
 @dataclass
 class Placements:
     """Tool placements: machine X, Y, Z (mm), A (rad), tool radius, and the run each belongs to."""
@@ -141,8 +143,9 @@ def _sample(m: ParsedMove, outer: float, step: float, tool_radius: float = 0.0) 
         t = np.linspace(0.0, 1.0, n + 1)
         a0 = math.atan2(s[1] - cy, s[0] - cx)
         ang = a0 + (1 if m.ccw else -1) * sweep * t
-        return np.column_stack([cx + r * np.cos(ang), cy + r * np.sin(ang), s[2] + (e[2] - s[2]) * t,
-                                np.full_like(t, s[3])])
+        return np.column_stack(
+            [cx + r * np.cos(ang), cy + r * np.sin(ang), s[2] + (e[2] - s[2]) * t, np.full_like(t, s[3])]
+        )
     d = e - s
     length = math.sqrt(d[0] ** 2 + d[1] ** 2 + d[2] ** 2 + (outer * d[3]) ** 2)
     n = max(1, math.ceil(length / step))
@@ -150,8 +153,9 @@ def _sample(m: ParsedMove, outer: float, step: float, tool_radius: float = 0.0) 
     return s + t * d
 
 
-def placements(prog: ParsedProgram, tools: dict[int, float], stock: Stock,
-               bound: float = SCALLOP) -> tuple[Placements, list[str]]:
+def placements(
+    prog: ParsedProgram, tools: dict[int, float], stock: Stock, bound: float = SCALLOP
+) -> tuple[Placements, list[str]]:
     """Every cutting move of ``prog`` sampled into placements; and the rapid faults."""
     rows, faults = [], []
     run, names, in_run = -1, [], False
@@ -164,8 +168,10 @@ def placements(prog: ParsedProgram, tools: dict[int, float], stock: Stock,
             p = _sample(m, stock.outer_radius, 0.05)
             inside = (p[:, 2] < stock.outer_radius - 1e-6) & (np.abs(p[:, 0]) < stock.half_length + dia / 2)
             if inside.any():
-                faults.append(f"line {m.line}: a rapid brings the tool below the stock's surface "
-                              f"(Z{p[inside, 2].min():.4f} < {stock.outer_radius:g})")
+                faults.append(
+                    f"line {m.line}: a rapid brings the tool below the stock's surface "
+                    f"(Z{p[inside, 2].min():.4f} < {stock.outer_radius:g})"
+                )
             continue
         if m.tool is None or m.tool not in tools:
             raise ValueError(f"line {m.line}: cutting with tool {m.tool}, whose diameter is not known")
@@ -213,8 +219,15 @@ def stamp(grid: Grid, pl: Placements, run: int, batch: int = 256) -> Layer:
         i = ic[:, None, None] + di[None, :, None]
         j = jc[:, None, None] + dj[None, None, :]
         i, j = np.broadcast_arrays(i, j)
-        li, hi_ = cylinder_ray_interval(grid.theta(i), grid.z(j), a[sl, None, None], y[sl, None, None],
-                                        x[sl, None, None], z[sl, None, None], r[sl, None, None])
+        li, hi_ = cylinder_ray_interval(
+            grid.theta(i),
+            grid.z(j),
+            a[sl, None, None],
+            y[sl, None, None],
+            x[sl, None, None],
+            z[sl, None, None],
+            r[sl, None, None],
+        )
         col = (i - c0) % grid.n_theta
         ok = np.isfinite(li) & (j >= j0) & (j < j1) & (col < nc)
         idx = col[ok] * nr + (j[ok] - j0)
@@ -226,6 +239,7 @@ def stamp(grid: Grid, pl: Placements, run: int, batch: int = 256) -> Layer:
 
 
 # ---- the reference cuts on the same rays --------------------------------------------------------
+
 
 def reference_layer(grid: Grid, cut, margin: float = 2.0) -> Layer:
     """The reference cut ``cut`` cast onto the grid's rays (exact intervals)."""
@@ -283,11 +297,11 @@ def union_volume(grid: Grid, layers: list[Layer]) -> float:
             cur_lo, cur_hi = l_[s0], h[s0]
             for q in range(s0 + 1, e0):
                 if l_[q] > cur_hi:
-                    total += (cur_hi ** 2 - cur_lo ** 2) / 2
+                    total += (cur_hi**2 - cur_lo**2) / 2
                     cur_lo, cur_hi = l_[q], h[q]
                 else:
                     cur_hi = max(cur_hi, h[q])
-            total += (cur_hi ** 2 - cur_lo ** 2) / 2
+            total += (cur_hi**2 - cur_lo**2) / 2
     return total * grid.d_theta * grid.d_z
 
 
@@ -325,21 +339,23 @@ def placement_distance(pl: Placements, stock: Stock, rho, theta, z, chunk: int =
     q = np.column_stack([(np.asarray(theta) % (2 * math.pi)) * R, np.asarray(z) + stock.half_length + 1.0])
     px, py, pz = rho * np.cos(theta), rho * np.sin(theta), np.asarray(z, float)
     for s in range(0, len(q), chunk):
-        lists = tree.query_ball_point(q[s:s + chunk], reach)
+        lists = tree.query_ball_point(q[s : s + chunk], reach)
         lens = np.array([len(li) for li in lists])
         if lens.sum() == 0:
             continue
         who = np.repeat(np.arange(len(lists)), lens)
         cand = np.concatenate([np.asarray(li, int) for li in lists if li])
-        d = _tool_sdf(px[s + who], py[s + who], pz[s + who], pl.x[cand], pl.y[cand], pl.z[cand], pl.a[cand],
-                      pl.radius[cand])
+        d = _tool_sdf(
+            px[s + who], py[s + who], pz[s + who], pl.x[cand], pl.y[cand], pl.z[cand], pl.a[cand], pl.radius[cand]
+        )
         best = np.full(len(lists), np.inf)
         np.minimum.at(best, who, np.maximum(d, 0.0))
-        out[s:s + chunk] = best
+        out[s : s + chunk] = best
     return out
 
 
 # ---- the check --------------------------------------------------------------------------------
+
 
 @dataclass
 class Verification:
@@ -371,20 +387,35 @@ class Verification:
 
     @property
     def ok(self) -> bool:
-        return (self.max_deviation_mm <= self.tolerance_mm and self.gouges == 0
-                and abs(self.volume_difference) <= self.volume_tolerance
-                and not self.rapid_faults and not self.program_faults)
+        return (
+            self.max_deviation_mm <= self.tolerance_mm
+            and self.gouges == 0
+            and abs(self.volume_difference) <= self.volume_tolerance
+            and not self.rapid_faults
+            and not self.program_faults
+        )
 
     def as_dict(self) -> dict[str, Any]:
         """Plain JSON."""
-        return {"ok": self.ok, "max_deviation_mm": self.max_deviation_mm, "max_overcut_mm": self.max_overcut_mm,
-                "max_undercut_mm": self.max_undercut_mm, "gouges": self.gouges,
-                "gouge_examples": self.gouge_examples, "removed_mm3": self.removed_mm3,
-                "reference_mm3": self.reference_mm3, "volume_difference": self.volume_difference,
-                "rapid_faults": self.rapid_faults, "program_faults": self.program_faults,
-                "per_feature_mm": self.per_feature_mm, "tolerance_mm": self.tolerance_mm,
-                "volume_tolerance": self.volume_tolerance, "grid_mm": self.grid_mm,
-                "scallop_mm": self.scallop_mm, "run_time_s": self.run_time_s}
+        return {
+            "ok": self.ok,
+            "max_deviation_mm": self.max_deviation_mm,
+            "max_overcut_mm": self.max_overcut_mm,
+            "max_undercut_mm": self.max_undercut_mm,
+            "gouges": self.gouges,
+            "gouge_examples": self.gouge_examples,
+            "removed_mm3": self.removed_mm3,
+            "reference_mm3": self.reference_mm3,
+            "volume_difference": self.volume_difference,
+            "rapid_faults": self.rapid_faults,
+            "program_faults": self.program_faults,
+            "per_feature_mm": self.per_feature_mm,
+            "tolerance_mm": self.tolerance_mm,
+            "volume_tolerance": self.volume_tolerance,
+            "grid_mm": self.grid_mm,
+            "scallop_mm": self.scallop_mm,
+            "run_time_s": self.run_time_s,
+        }
 
 
 def _endpoints(layer: Layer) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -413,9 +444,15 @@ def _covered_distance(sim: list[Layer], keys: np.ndarray, rho: np.ndarray) -> np
     return out
 
 
-def verify(prog: ParsedProgram, plan: CutPlan, tools: dict[int, float] | None = None, grid_mm: float = GRID,
-           scallop_mm: float = SCALLOP, tolerance: float = TOLERANCE,
-           volume_tolerance: float = VOLUME_TOLERANCE) -> Verification:
+def verify(
+    prog: ParsedProgram,
+    plan: CutPlan,
+    tools: dict[int, float] | None = None,
+    grid_mm: float = GRID,
+    scallop_mm: float = SCALLOP,
+    tolerance: float = TOLERANCE,
+    volume_tolerance: float = VOLUME_TOLERANCE,
+) -> Verification:
     """Sweep the tools of ``prog`` through ``plan``'s stock and compare with ``plan``'s cuts.
 
     Parameters
@@ -462,8 +499,10 @@ def verify(prog: ParsedProgram, plan: CutPlan, tools: dict[int, float] | None = 
         gouges += int(bad.sum())
         if bad.any() and len(examples) < 5:
             q = int(np.argmax(d))
-            examples.append(f"{la.name}: {d[q]:.4f} mm into the material beside {plan.cuts[near[q]].id} at "
-                            f"A{math.degrees(th[q]):.3f} X{zz[q]:.4f} r{r[q]:.4f}")
+            examples.append(
+                f"{la.name}: {d[q]:.4f} mm into the material beside {plan.cuts[near[q]].id} at "
+                f"A{math.degrees(th[q]):.3f} X{zz[q]:.4f} r{r[q]:.4f}"
+            )
     # undercut: reference surface points the program leaves in material
     under_max = 0.0
     for la in ref:
@@ -474,17 +513,41 @@ def verify(prog: ParsedProgram, plan: CutPlan, tools: dict[int, float] | None = 
         open_ = d > 0
         if np.any(open_ & (d > 1e-3)):
             sel = np.flatnonzero(open_ & (d > 1e-3))
-            exact = placement_distance(pl, plan.stock, r[sel], grid.theta(k[sel] // grid.n_z),
-                                       grid.z(k[sel] % grid.n_z))
+            exact = placement_distance(
+                pl, plan.stock, r[sel], grid.theta(k[sel] // grid.n_z), grid.z(k[sel] % grid.n_z)
+            )
             d[sel] = np.minimum(d[sel], exact)
         worst = float(np.max(np.where(open_, d, 0.0)))
         per.setdefault(la.name, {})["undercut_mm"] = worst
         under_max = max(under_max, worst)
     bound = max((scallop(placement_step(dd, scallop_mm), dd) for dd in tools.values()), default=0.0)
-    return Verification(grid_mm, bound, max(over_max, 0.0), under_max, gouges, examples,
-                        union_volume(grid, sim), union_volume(grid, ref), rapid_faults, list(prog.faults), per,
-                        tolerance, volume_tolerance, time.perf_counter() - t0)
+    return Verification(
+        grid_mm,
+        bound,
+        max(over_max, 0.0),
+        under_max,
+        gouges,
+        examples,
+        union_volume(grid, sim),
+        union_volume(grid, ref),
+        rapid_faults,
+        list(prog.faults),
+        per,
+        tolerance,
+        volume_tolerance,
+        time.perf_counter() - t0,
+    )
 
 
-__all__ = ["Grid", "Layer", "Placements", "Verification", "placements", "reference_layer", "scallop", "stamp",
-           "union_volume", "verify"]
+__all__ = [
+    "Grid",
+    "Layer",
+    "Placements",
+    "Verification",
+    "placements",
+    "reference_layer",
+    "scallop",
+    "stamp",
+    "union_volume",
+    "verify",
+]

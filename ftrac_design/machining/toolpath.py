@@ -139,8 +139,16 @@ class _Writer:
 
     def helix(self, feed: float, centre: tuple[float, float], z_end: float) -> None:
         """One full counter-clockwise turn about ``centre`` ending at ``z_end``."""
-        self.add(Move("arc", (self.pos[0], self.pos[1], float(z_end), self.pos[3]), "per_minute", feed,
-                      (float(centre[0]), float(centre[1])), True))
+        self.add(
+            Move(
+                "arc",
+                (self.pos[0], self.pos[1], float(z_end), self.pos[3]),
+                "per_minute",
+                feed,
+                (float(centre[0]), float(centre[1])),
+                True,
+            )
+        )
         self.pos[2] = float(z_end)
 
     def to_safe(self) -> None:
@@ -185,8 +193,12 @@ def _ellipse(w: _Writer, cut: EllipseCut, tool: Tool, tooling: Tooling) -> None:
     offsets = side_offsets(cut.width, tool.diameter)
     floor = cut.seat_radius - cut.floor_depth
     zs = levels(w.surface, floor, tooling.step_down)
-    w.add(Comment(f"FEATURE {cut.id} ellipse groove: width {cut.width:.4f}, tip at Z{floor:.4f}, "
-                  f"{len(zs)} levels x {len(offsets)} passes, wrapped (Y0)"))
+    w.add(
+        Comment(
+            f"FEATURE {cut.id} ellipse groove: width {cut.width:.4f}, tip at Z{floor:.4f}, "
+            f"{len(zs)} levels x {len(offsets)} passes, wrapped (Y0)"
+        )
+    )
     w.add(Clamp(False))
     n_loop = round(2 * math.pi / ELLIPSE_STEP)
     step = 2 * math.pi / n_loop
@@ -228,8 +240,12 @@ def _slot(w: _Writer, cut: SlotCut, tool: Tool, tooling: Tooling) -> None:
     offsets = side_offsets(cut.width, tool.diameter)
     zs = levels(w.surface, cut.floor_radius, tooling.step_down)
     length = cut.z1 - cut.z0
-    w.add(Comment(f"FEATURE {cut.id} axial slot: width {cut.width:.4f}, floor Z{cut.floor_radius:.4f}, "
-                  f"X{cut.z0:.4f} to X{cut.z1:.4f}, {len(zs)} levels x {len(offsets)} passes"))
+    w.add(
+        Comment(
+            f"FEATURE {cut.id} axial slot: width {cut.width:.4f}, floor Z{cut.floor_radius:.4f}, "
+            f"X{cut.z0:.4f} to X{cut.z1:.4f}, {len(zs)} levels x {len(offsets)} passes"
+        )
+    )
     w.rapid(z=w.safe)
     w.add(Clamp(False))
     w.rapid(x=cut.z0, y=offsets[0], a=w.index(math.degrees(cut.azimuth)))
@@ -263,8 +279,12 @@ def _pocket(w: _Writer, cut: PocketCut, tool: Tool, tooling: Tooling) -> None:
     depth = w.surface - cut.floor_radius
     pitch = 2 * math.pi * rc * math.tan(tooling.ramp_angle)
     turns = math.ceil(depth / pitch - 1e-9) if pitch > 0 else 0
-    w.add(Comment(f"FEATURE {cut.id} pocket: diameter {cut.diameter:.4f}, floor Z{cut.floor_radius:.4f}, "
-                  + (f"helix radius {rc:.4f}, {turns} turns" if turns else "plunge")))
+    w.add(
+        Comment(
+            f"FEATURE {cut.id} pocket: diameter {cut.diameter:.4f}, floor Z{cut.floor_radius:.4f}, "
+            + (f"helix radius {rc:.4f}, {turns} turns" if turns else "plunge")
+        )
+    )
     w.rapid(z=w.safe)
     w.add(Clamp(False))
     w.rapid(x=cut.z + rc, y=0.0, a=w.index(math.degrees(cut.azimuth)))

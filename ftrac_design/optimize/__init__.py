@@ -19,5 +19,16 @@ from .search import OBJECTIVES, SearchConfig, run_search
 from .setup import prepare, read_design
 from .space import SearchSpace, default_space, load_space, parse_space
 
-__all__ = ["EvalSettings", "OBJECTIVES", "SearchConfig", "SearchSpace", "default_space",
-           "evaluate_candidate", "load_space", "parse_space", "prepare", "read_design", "run_search"]
+__all__ = [
+    "EvalSettings",
+    "OBJECTIVES",
+    "SearchConfig",
+    "SearchSpace",
+    "default_space",
+    "evaluate_candidate",
+    "load_space",
+    "parse_space",
+    "prepare",
+    "read_design",
+    "run_search",
+]

@@ -76,8 +76,13 @@ class EvalSettings:
     def to_dict(self) -> dict:
         d = {"profiles": list(self.profiles), "analysis": self.analysis.to_dict()}
         if self.image_trial is not None:
-            d.update(image_trial={"images": self.image_trial.images, "seed": self.image_trial.seed,
-                                  "conditions": list(self.image_trial.conditions)})
+            d.update(
+                image_trial={
+                    "images": self.image_trial.images,
+                    "seed": self.image_trial.seed,
+                    "conditions": list(self.image_trial.conditions),
+                }
+            )
         if self.min_clearance_px is not None:
             d.update(min_clearance_px=self.min_clearance_px, clearance_poses=self.clearance_poses)
         if self.min_ellipse_view_deg is not None:
@@ -135,14 +140,19 @@ def score_figures(features, settings: AnalysisSettings) -> dict[str, float] | No
 
     R, t = _sample(settings, tuple(float(v) for v in features.nominal_beam_direction))
     # one chunk: no thread pool inside a worker (the executor already uses the cores)
-    m = analyse_poses(features, R, t, settings.camera, settings.noise, settings.contour, detail=False,
-                      chunk=max(1, len(R))).overall
+    m = analyse_poses(
+        features, R, t, settings.camera, settings.noise, settings.contour, detail=False, chunk=max(1, len(R))
+    ).overall
     tr, rot = m.translation_rms_mm, m.rotation_rms_deg
     if not (np.all(np.isfinite(tr)) and np.all(np.isfinite(rot)) and np.all(np.isfinite(m.condition))):
         return None
-    return {"translation_p95_mm": float(np.percentile(tr, 95)), "rotation_p95_deg": float(np.percentile(rot, 95)),
-            "translation_worst_mm": float(tr.max()), "rotation_worst_deg": float(rot.max()),
-            "condition_worst": float(m.condition.max())}
+    return {
+        "translation_p95_mm": float(np.percentile(tr, 95)),
+        "rotation_p95_deg": float(np.percentile(rot, 95)),
+        "translation_worst_mm": float(tr.max()),
+        "rotation_worst_deg": float(rot.max()),
+        "condition_worst": float(m.condition.max()),
+    }
 
 
 def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | None:
@@ -170,10 +180,12 @@ def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | No
     if len(right) < 20:
         return None
     n = len(records)
-    out = {"translation_p95_mm": float(np.percentile([r["translation_mm"] for r in right], 95)),
-           "rotation_p95_deg": float(np.percentile([r["rotation_deg"] for r in right], 95)),
-           "refused_pct": 100.0 * sum(r["outcome"] == "refused" for r in records) / n,
-           "wrong_pct": 100.0 * sum(r["outcome"] == "wrong" for r in records) / n}
+    out = {
+        "translation_p95_mm": float(np.percentile([r["translation_mm"] for r in right], 95)),
+        "rotation_p95_deg": float(np.percentile([r["rotation_deg"] for r in right], 95)),
+        "refused_pct": 100.0 * sum(r["outcome"] == "refused" for r in records) / n,
+        "wrong_pct": 100.0 * sum(r["outcome"] == "wrong" for r in records) / n,
+    }
     for cond, f in trial_figures(records).items():
         out[f"{cond}_translation_p95_mm"] = f["translation_p95_mm"]
         out[f"{cond}_rotation_p95_deg"] = f["rotation_p95_deg"]
@@ -195,8 +207,14 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
     from ..features import compute_features
 
     t0 = time.perf_counter()
-    out: dict = {"design_sha256": design_hash(data), "refused": None, "margins": {}, "violation": 0.0,
-                 "feasible": False, "figures": None}
+    out: dict = {
+        "design_sha256": design_hash(data),
+        "refused": None,
+        "margins": {},
+        "violation": 0.0,
+        "feasible": False,
+        "figures": None,
+    }
     try:
         design = parse_design(data, "candidate")
     except InputError as exc:
@@ -241,8 +259,11 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
             # the candidate's own parts: stock sizes other than the start's carry their error factors
             figures = score_figures(features, settings.analysis.for_parts(design.analysis))
         if figures is None:
-            reason = ("tracked right in fewer than 20 of its images" if settings.image_trial is not None
-                      else "singular somewhere in the workspace")
+            reason = (
+                "tracked right in fewer than 20 of its images"
+                if settings.image_trial is not None
+                else "singular somewhere in the workspace"
+            )
             out.update(refused=reason, violation=SINGULAR_VIOLATION)
         else:
             figures.update(outer_diameter_mm=float(design.body.outer_diameter), length_mm=float(design.body.length))

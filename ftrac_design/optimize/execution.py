@@ -47,8 +47,9 @@ def local_pool(workers: int) -> ProcessPoolExecutor:
     methods = multiprocessing.get_all_start_methods()
     ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
     if ctx.get_start_method() == "forkserver":
-        ctx.set_forkserver_preload(["ftrac_design.optimize.evaluate", "ftrac_design.cad.rules",
-                                    "ftrac_design.analysis.poses"])
+        ctx.set_forkserver_preload(
+            ["ftrac_design.optimize.evaluate", "ftrac_design.cad.rules", "ftrac_design.analysis.poses"]
+        )
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 
 
@@ -61,8 +62,12 @@ def open_executor(scheduler: str | None = None, workers: int | None = None) -> I
         try:
             client = Client(scheduler, timeout="10s")
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(None, None, f"a reachable Dask scheduler address, got {scheduler!r} "
-                             f"({type(exc).__name__}: {exc})", parameter="scheduler") from None
+            raise InputError(
+                None,
+                None,
+                f"a reachable Dask scheduler address, got {scheduler!r} ({type(exc).__name__}: {exc})",
+                parameter="scheduler",
+            ) from None
         try:
             n = sum(w.get("nthreads", 1) for w in client.scheduler_info().get("workers", {}).values())
             yield client.get_executor(), f"Dask cluster {scheduler} ({n} worker threads)"

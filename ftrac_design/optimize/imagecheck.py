@@ -56,8 +56,11 @@ def image_check(data: dict, settings, images: int, seed: int, progress: bool = F
         idx.append(k)
     out: dict = {"images": images, "pose_seed": seed, "converged": converged, "wrong": wrong, "right": len(et)}
     for name, v, unit in (("translation", np.array(et), "mm"), ("rotation", np.array(er), "deg")):
-        for stat, fn in (("median", np.median), ("p95", lambda a: np.percentile(a, 95)),
-                         ("rms", lambda a: np.sqrt(np.mean(a ** 2)))):
+        for stat, fn in (
+            ("median", np.median),
+            ("p95", lambda a: np.percentile(a, 95)),
+            ("rms", lambda a: np.sqrt(np.mean(a**2))),
+        ):
             out[f"{name}_{stat}_{unit}"] = float(fn(v)) if len(v) else None
     out["per_image"] = {"index": idx, "translation_mm": et, "rotation_deg": er}
     return out

@@ -19,6 +19,7 @@ def _save(fig, plt, path: Path) -> None:
         fig.savefig(tmp, dpi=110)
     plt.close(fig)
 
+
 def plot_convergence(res: SearchResult, path: Path) -> None:
     import matplotlib
 
@@ -47,8 +48,11 @@ def plot_convergence(res: SearchResult, path: Path) -> None:
     ax[1].set_xlabel("generation")
     ax[1].set_ylabel("feasible share of candidates")
     ax[1].set_ylim(0, 1.02)
-    fig.suptitle(f"{res.start.get('name', '')} optimize --objective {res.config.objective} "
-                 f"(seed {res.config.seed}, {len(res.entries)} evaluations)", fontsize=10)
+    fig.suptitle(
+        f"{res.start.get('name', '')} optimize --objective {res.config.objective} "
+        f"(seed {res.config.seed}, {len(res.entries)} evaluations)",
+        fontsize=10,
+    )
     _save(fig, plt, path)
 
 
@@ -61,16 +65,29 @@ def plot_front(res: SearchResult, path: Path) -> None:
     feas = [e for e in res.entries if e["feasible"]]
     size = res.config.objective == "accuracy-diameter"
     if size:  # accuracy against size, each error on its own panel, with plain 1/size scaling
-        panels = [("outer_diameter_mm", "translation_p95_mm", "p95 translation error, mm"),
-                  ("outer_diameter_mm", "rotation_p95_deg", "p95 rotation error, °")]
+        panels = [
+            ("outer_diameter_mm", "translation_p95_mm", "p95 translation error, mm"),
+            ("outer_diameter_mm", "rotation_p95_deg", "p95 rotation error, °"),
+        ]
     else:
         panels = [("translation_p95_mm", "rotation_p95_deg", "p95 rotation error, °")]
     fig, axes = plt.subplots(1, len(panels), figsize=(5.4 * len(panels), 4.2), squeeze=False)
     for ax, (kx, ky, label) in zip(axes[0], panels):
-        ax.plot([e["figures"][kx] for e in feas], [e["figures"][ky] for e in feas], ".", color="0.75", ms=3,
-                label="feasible candidates")
-        ax.plot([e["figures"][kx] for e in res.front], [e["figures"][ky] for e in res.front], "C0o-", ms=3,
-                label="Pareto front")
+        ax.plot(
+            [e["figures"][kx] for e in feas],
+            [e["figures"][ky] for e in feas],
+            ".",
+            color="0.75",
+            ms=3,
+            label="feasible candidates",
+        )
+        ax.plot(
+            [e["figures"][kx] for e in res.front],
+            [e["figures"][ky] for e in res.front],
+            "C0o-",
+            ms=3,
+            label="Pareto front",
+        )
         s0 = res.start["figures"]
         ax.plot([s0[kx]], [s0[ky]], "k*", ms=10, label="start")
         if size:
@@ -84,8 +101,10 @@ def plot_front(res: SearchResult, path: Path) -> None:
             ax.plot([res.best["figures"][kx]], [res.best["figures"][ky]], "C3*", ms=10, label="best")
         ax.set_ylabel(label + " (predicted 1σ)")
         ax.legend(fontsize=8)
-    fig.suptitle(f"optimize --objective {res.config.objective} (seed {res.config.seed}, "
-                 f"{len(res.entries)} evaluations)", fontsize=10)
+    fig.suptitle(
+        f"optimize --objective {res.config.objective} (seed {res.config.seed}, {len(res.entries)} evaluations)",
+        fontsize=10,
+    )
     _save(fig, plt, path)
 
 
@@ -113,4 +132,3 @@ def replot(log_path: str | Path, out_dir: str | Path) -> list[Path]:
     plot_convergence(res, out / "convergence.png")
     plot_front(res, out / "pareto.png")
     return [out / "convergence.png", out / "pareto.png"]
-

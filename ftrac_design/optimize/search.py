@@ -85,8 +85,10 @@ class SearchConfig:
 
 
 def objective_names(objective: str) -> tuple[str, ...]:
-    return {"translation-rotation": ("translation_ratio", "rotation_ratio"),
-            "accuracy-diameter": ("accuracy_ratio", "outer_diameter_mm")}.get(objective, (f"{objective}_ratio",))
+    return {
+        "translation-rotation": ("translation_ratio", "rotation_ratio"),
+        "accuracy-diameter": ("accuracy_ratio", "outer_diameter_mm"),
+    }.get(objective, (f"{objective}_ratio",))
 
 
 def objective_violation(objective: str, figures: dict, ref: dict) -> float:
@@ -107,9 +109,14 @@ def objective_values(objective: str, figures: dict, ref: dict) -> tuple[float, .
     """The objective vector of a scored candidate (see the module doc)."""
     t = figures["translation_p95_mm"] / ref["translation_p95_mm"]
     r = figures["rotation_p95_deg"] / ref["rotation_p95_deg"]
-    return {"max": (max(t, r),), "sum": ((t + r) / 2,), "translation": (t,), "rotation": (r,),
-            "translation-rotation": (t, r),
-            "accuracy-diameter": (max(t, r), figures["outer_diameter_mm"])}[objective]
+    return {
+        "max": (max(t, r),),
+        "sum": ((t + r) / 2,),
+        "translation": (t,),
+        "rotation": (r,),
+        "translation-rotation": (t, r),
+        "accuracy-diameter": (max(t, r), figures["outer_diameter_mm"]),
+    }[objective]
 
 
 @contextlib.contextmanager
@@ -143,8 +150,17 @@ class _Cma:
     def __init__(self, x0: np.ndarray, config: SearchConfig, choices: tuple[int, ...] = ()):
         cma = require("cma", "optimize", "the CMA-ES design search")
         self._rng: dict = {}
-        opts = {"bounds": [0.0, 1.0], "seed": config.seed + 1, "verbose": -9, "verb_log": 0, "verb_disp": 0,
-                "tolfun": 0.0, "tolflatfitness": 10_000, "tolfunhist": 0.0, "tolx": 1e-9}
+        opts = {
+            "bounds": [0.0, 1.0],
+            "seed": config.seed + 1,
+            "verbose": -9,
+            "verb_log": 0,
+            "verb_disp": 0,
+            "tolfun": 0.0,
+            "tolflatfitness": 10_000,
+            "tolfunhist": 0.0,
+            "tolx": 1e-9,
+        }
         if config.popsize:
             opts["popsize"] = config.popsize
         if any(choices):
@@ -159,7 +175,7 @@ class _Cma:
     def ask(self) -> list[np.ndarray]:
         with _private_numpy_random(self._rng):
             self._asked = self.es.ask()
-        return [np.asarray(x[:self.dim], float) for x in self._asked]
+        return [np.asarray(x[: self.dim], float) for x in self._asked]
 
     def tell(self, xs: list[np.ndarray], f: np.ndarray, g: np.ndarray) -> None:
         with _private_numpy_random(self._rng):
@@ -276,9 +292,18 @@ def require_search_packages(config: SearchConfig) -> None:
         require("cma", "optimize", "the CMA-ES design search")
 
 
-def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig, executor: Executor,
-               log_path: str | Path, resume: bool = False, progress: bool = True, executor_name: str = "",
-               stop_after: int | None = None, on_generation: Callable[[int], None] | None = None) -> SearchResult:
+def run_search(
+    space: SearchSpace,
+    settings: EvalSettings,
+    config: SearchConfig,
+    executor: Executor,
+    log_path: str | Path,
+    resume: bool = False,
+    progress: bool = True,
+    executor_name: str = "",
+    stop_after: int | None = None,
+    on_generation: Callable[[int], None] | None = None,
+) -> SearchResult:
     """Search ``space`` (see the module doc); evaluations run on ``executor`` and are logged
     to ``log_path`` (appended; with ``resume`` the logged ones are replayed, not re-run)."""
     from tqdm import tqdm
@@ -289,9 +314,15 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     if config.multi and len(objective_names(config.objective)) != 2:
         raise InputError(None, None, "two objectives", parameter="objective")
     log_path = Path(log_path)
-    header = {"kind": "run", "format": LOG_FORMAT, "version": LOG_VERSION,
-              "design_sha256": design_hash(space.base), "space": [asdict(p) for p in space.parameters],
-              "config": config.header(), "settings": settings.to_dict()}
+    header = {
+        "kind": "run",
+        "format": LOG_FORMAT,
+        "version": LOG_VERSION,
+        "design_sha256": design_hash(space.base),
+        "space": [asdict(p) for p in space.parameters],
+        "config": config.header(),
+        "settings": settings.to_dict(),
+    }
     header = json.loads(json.dumps(header))  # tuples → lists, as the log holds them
     logged = _read_log(log_path) if resume else []
     if resume and not logged:
@@ -299,8 +330,9 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     if logged:
         if logged[0] != header:
             diff = next((k for k in header if logged[0].get(k) != header.get(k)), "header")
-            raise InputError(log_path, diff, "a log of this same run (design, space, objective, seed and settings); "
-                                             "it differs here")
+            raise InputError(
+                log_path, diff, "a log of this same run (design, space, objective, seed and settings); it differs here"
+            )
     elif log_path.exists() and log_path.stat().st_size:
         raise InputError(log_path, None, "no earlier log (pass --resume to continue it, or remove it)")
     t_start = time.perf_counter()
@@ -321,8 +353,13 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
         pos += 1
         counts["replayed"] += 1
     else:
-        start = {"kind": "start", "index": 0, "seed": config.seed, **evaluate_candidate(space.base, settings),
-                 "parameters": {p.key: p.start for p in space.parameters}}
+        start = {
+            "kind": "start",
+            "index": 0,
+            "seed": config.seed,
+            **evaluate_candidate(space.base, settings),
+            "parameters": {p.key: p.start for p in space.parameters},
+        }
         if start["figures"] is None:
             from ..design.loader import parse_design
             from ..features import compute_features
@@ -337,8 +374,11 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
             else:
                 fig = score_figures(compute_features(d), settings.analysis.for_parts(d.analysis))
             if fig is None:
-                raise InputError(space.base.get("name"), None, "a start design that is not singular in its workspace "
-                                                               "and tracks from at least 20 of the images")
+                raise InputError(
+                    space.base.get("name"),
+                    None,
+                    "a start design that is not singular in its workspace and tracks from at least 20 of the images",
+                )
             fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))
             start["figures"] = fig
         write(start)
@@ -347,15 +387,17 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
     start_obj = np.array(objective_values(config.objective, ref, ref))
     worst = start_obj.copy()
     x0 = space.start_unit()
-    opt = (_Cma(x0, config, tuple(len(p.choices) if p.choices else 0 for p in space.parameters))
-           if not config.multi else _Nsga2(x0, config))
+    opt = (
+        _Cma(x0, config, tuple(len(p.choices) if p.choices else 0 for p in space.parameters))
+        if not config.multi
+        else _Nsga2(x0, config)
+    )
     entries: list[dict] = []
     history: list[float] = []
     best: dict | None = None
     gen = 0
     stopped = None
-    bar = tqdm(total=config.evaluations, unit="eval", desc="optimize", disable=None if progress else True,
-               leave=False)
+    bar = tqdm(total=config.evaluations, unit="eval", desc="optimize", disable=None if progress else True, leave=False)
     try:
         while len(entries) < config.evaluations:
             xs = opt.ask()
@@ -367,9 +409,12 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
                 if pos < len(logged):
                     e = logged[pos]
                     if e.get("index") != k or e.get("x") != [float(v) for v in x]:
-                        raise InputError(log_path, f"line {pos + 1}",
-                                         "the evaluation this run asks for next (the log belongs to another run "
-                                         "or another version of the optimiser)")
+                        raise InputError(
+                            log_path,
+                            f"line {pos + 1}",
+                            "the evaluation this run asks for next (the log belongs to another run "
+                            "or another version of the optimiser)",
+                        )
                     batch[j] = e
                     pos += 1
                     counts["replayed"] += 1
@@ -377,8 +422,15 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
                     futures.append((j, k, x, executor.submit(evaluate_candidate, data, settings)))
             for j, k, x, fut in futures:  # in submission order, whoever finished first
                 res = fut.result()
-                e = {"kind": "candidate", "index": k, "generation": gen, "seed": config.seed,
-                     "x": [float(v) for v in x], "parameters": space.values(x), **res}
+                e = {
+                    "kind": "candidate",
+                    "index": k,
+                    "generation": gen,
+                    "seed": config.seed,
+                    "x": [float(v) for v in x],
+                    "parameters": space.values(x),
+                    **res,
+                }
                 if e["feasible"]:
                     e["objectives"] = dict(zip(names, objective_values(config.objective, e["figures"], ref)))
                     e["objective_violation"] = objective_violation(config.objective, e["figures"], ref)
@@ -393,14 +445,23 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
             for e in batch:
                 if _ok(e):
                     worst = np.maximum(worst, list(e["objectives"].values()))
-            f = np.array([list(e["objectives"].values()) if _ok(e)
-                          else worst + e["violation"] + e.get("objective_violation", 0.0) for e in batch])
+            f = np.array(
+                [
+                    list(e["objectives"].values())
+                    if _ok(e)
+                    else worst + e["violation"] + e.get("objective_violation", 0.0)
+                    for e in batch
+                ]
+            )
             g = np.array([[0.0 if _ok(e) else e["violation"] + e.get("objective_violation", 0.0)] for e in batch])
             opt.tell(xs, f, g)
             for e in batch:
                 entries.append(e)
-                if _ok(e) and not config.multi and (best is None or e["objectives"][names[0]]
-                                                           < best["objectives"][names[0]]):
+                if (
+                    _ok(e)
+                    and not config.multi
+                    and (best is None or e["objectives"][names[0]] < best["objectives"][names[0]])
+                ):
                     best = e
                 history.append(best["objectives"][names[0]] if best else math.nan)
             if best is not None:
@@ -421,10 +482,25 @@ def run_search(space: SearchSpace, settings: EvalSettings, config: SearchConfig,
             f = np.array([list(e["objectives"].values()) for e in feas])
         else:  # the translation–rotation trade-off among everything feasible that was scored
             f = np.array([[e["figures"]["translation_p95_mm"], e["figures"]["rotation_p95_deg"]] for e in feas])
-        front = sorted((e for e, m in zip(feas, _front_mask(f)) if m),
-                       key=lambda e: list(e["objectives"].values())[1] if config.multi
-                       else e["figures"]["translation_p95_mm"])
+        front = sorted(
+            (e for e, m in zip(feas, _front_mask(f)) if m),
+            key=lambda e: list(e["objectives"].values())[1] if config.multi else e["figures"]["translation_p95_mm"],
+        )
         if config.multi:  # the most accurate point of the front is the "best" design
             best = min(front, key=lambda e: (e["objectives"][names[0]], e["index"]))
-    return SearchResult(space, config, settings, start, entries, best, front, time.perf_counter() - t_start,
-                        counts["evaluated"], counts["replayed"], executor_name, stopped, history, opt.popsize)
+    return SearchResult(
+        space,
+        config,
+        settings,
+        start,
+        entries,
+        best,
+        front,
+        time.perf_counter() - t_start,
+        counts["evaluated"],
+        counts["replayed"],
+        executor_name,
+        stopped,
+        history,
+        opt.popsize,
+    )

@@ -23,10 +23,16 @@ def read_design(path: str | Path) -> tuple[dict, object]:
     return tomllib.loads(Path(design.source).read_text(encoding="utf-8")), design
 
 
-def prepare(design_path: str | Path, space_path: str | Path | None = None, poses: int | None = None,
-            seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
-            min_clearance_px: float | None = None,
-            min_ellipse_view_deg: float | None = None, score_images: int = 0) -> tuple[SearchSpace, EvalSettings]:
+def prepare(
+    design_path: str | Path,
+    space_path: str | Path | None = None,
+    poses: int | None = None,
+    seed: int = 0,
+    profiles: tuple[str, ...] = ("cnc",),
+    min_clearance_px: float | None = None,
+    min_ellipse_view_deg: float | None = None,
+    score_images: int = 0,
+) -> tuple[SearchSpace, EvalSettings]:
     """The search space and evaluation settings of a run: the design's own [analysis]
     workspace and noise, a sample of ``poses`` (else the space's ``search.poses``, else
     :data:`SEARCH_POSES`) drawn with ``seed``; ellipses seen no closer to edge-on than
@@ -52,7 +58,13 @@ def prepare(design_path: str | Path, space_path: str | Path | None = None, poses
     if score_images:
         from ..imagescore import TrialSettings
 
-        trial = TrialSettings(images=int(score_images), seed=int(seed), workspace=analysis.workspace,
-                              camera=analysis.camera)
-    return space, EvalSettings(tuple(profiles), analysis, min_clearance_px,
-                               min_ellipse_view_deg=min_ellipse_view_deg or None, image_trial=trial)
+        trial = TrialSettings(
+            images=int(score_images), seed=int(seed), workspace=analysis.workspace, camera=analysis.camera
+        )
+    return space, EvalSettings(
+        tuple(profiles),
+        analysis,
+        min_clearance_px,
+        min_ellipse_view_deg=min_ellipse_view_deg or None,
+        image_trial=trial,
+    )

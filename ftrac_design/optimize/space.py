@@ -85,10 +85,18 @@ _BODY_KEYS = ("outer_diameter", "length", "bore_diameter", "scale")
 _STOCK_KEYS = ("wire.diameter", "bead.diameter")
 #: extra spacing between neighbouring beads beyond one diameter (the schema wants "more than")
 BEAD_GAP_MM = 1e-3
-SEARCH_KEYS = {"poses": int, "sigma0": float, "popsize": int, "verify_poses": int, "solver_images": int,
-               "check_images": int}
-KNOWN = ("ellipses.<id>.tilt_deg|tilt_azimuth_deg|z_center, lines.<id>.azimuth_deg|z_start|z_end|beads, "
-         "body.outer_diameter|length|bore_diameter|scale, wire.diameter, bead.diameter")
+SEARCH_KEYS = {
+    "poses": int,
+    "sigma0": float,
+    "popsize": int,
+    "verify_poses": int,
+    "solver_images": int,
+    "check_images": int,
+}
+KNOWN = (
+    "ellipses.<id>.tilt_deg|tilt_azimuth_deg|z_center, lines.<id>.azimuth_deg|z_start|z_end|beads, "
+    "body.outer_diameter|length|bore_diameter|scale, wire.diameter, bead.diameter"
+)
 
 
 @dataclass(frozen=True)
@@ -186,14 +194,14 @@ def _line_geometry(base: dict) -> dict[str, dict]:
         pin_b = n > 1 and abs(zs[-1] - b) < 1e-9
         free = (b - a) - (n - 1) * g
         s = [(z - a - i * g) / free if free > 0 else 0.5 for i, z in enumerate(zs)]
-        movable = [min(max(v, 0.0), 1.0) for i, v in enumerate(s)
-                   if not ((i == 0 and pin_a) or (i == n - 1 and pin_b))]
+        movable = [min(max(v, 0.0), 1.0) for i, v in enumerate(s) if not ((i == 0 and pin_a) or (i == n - 1 and pin_b))]
         out[line["id"]] = {"n": n, "pin_a": pin_a, "pin_b": pin_b, "fractions": movable}
     return out
 
 
-def place_beads(z_start: float, z_end: float, n: int, pin_a: bool, pin_b: bool, fractions: list[float],
-                bead_diameter: float) -> list[float]:
+def place_beads(
+    z_start: float, z_end: float, n: int, pin_a: bool, pin_b: bool, fractions: list[float], bead_diameter: float
+) -> list[float]:
     """Axial bead centres (mm) of a line from ordered fractions (see the module doc)."""
     g = bead_diameter + BEAD_GAP_MM
     s = sorted(min(max(f, 0.0), 1.0) for f in fractions)
@@ -250,20 +258,26 @@ def apply_values(base: dict, values: dict[str, float]) -> dict:
     bead_d = float(data.get("bead", {}).get("diameter", 0.0))
     for line in data.get("lines", []):
         g = geo[line["id"]]
-        moved = (line["id"] in fracs or any(f"lines.{line['id']}.{k}" in values for k in ("z_start", "z_end"))
-                 or scale is not None or "bead.diameter" in values)
+        moved = (
+            line["id"] in fracs
+            or any(f"lines.{line['id']}.{k}" in values for k in ("z_start", "z_end"))
+            or scale is not None
+            or "bead.diameter" in values
+        )
         if g["n"] and moved:
             f = list(g["fractions"])
             for i, v in fracs.get(line["id"], {}).items():
                 f[i] = v
-            line["beads_z"] = place_beads(float(line["z_start"]), float(line["z_end"]), g["n"], g["pin_a"],
-                                          g["pin_b"], f, bead_d)
+            line["beads_z"] = place_beads(
+                float(line["z_start"]), float(line["z_end"]), g["n"], g["pin_a"], g["pin_b"], f, bead_d
+            )
     return data
 
 
 @functools.lru_cache(maxsize=64)
-def _factors(bead: float | None, wire: float | None, ref_bead: float | None, ref_wire: float | None,
-             depth: float) -> tuple[float, float]:
+def _factors(
+    bead: float | None, wire: float | None, ref_bead: float | None, ref_wire: float | None, depth: float
+) -> tuple[float, float]:
     from ..xray.localization import size_error_factors
 
     return size_error_factors(bead, wire, ref_bead, ref_wire, depth)
@@ -272,6 +286,7 @@ def _factors(bead: float | None, wire: float | None, ref_bead: float | None, ref
 def _set_error_factors(base: dict, data: dict) -> None:
     """Write into ``data``'s [analysis] the start's error factors times the pixel-bound ratio of
     its stock sizes to the start's (see the module doc)."""
+
     def size(d: dict, part: str) -> float | None:
         v = d.get(part, {}).get("diameter")
         return float(v) if v is not None else None
@@ -334,8 +349,13 @@ def _parameter(base: dict, key: str, spec: Any, file: str) -> list[Parameter]:
         if owner is None:
             raise InputError(file, where, f"a design with a [{parts[0]}] table")
         ch = spec.get("choices") if isinstance(spec, dict) else None
-        if (not isinstance(spec, dict) or set(spec) != {"choices"} or not isinstance(ch, list) or not ch
-                or not all(_number(c) and c > 0 for c in ch)):
+        if (
+            not isinstance(spec, dict)
+            or set(spec) != {"choices"}
+            or not isinstance(ch, list)
+            or not ch
+            or not all(_number(c) and c > 0 for c in ch)
+        ):
             raise InputError(file, where, "{choices = [sizes, mm]}: a non-empty list of positive stock sizes")
         return [Parameter(key, min(ch), max(ch), float(owner["diameter"]), tuple(float(c) for c in ch))]
     if len(parts) == 2 and parts[0] == "body" and parts[1] in _BODY_KEYS:
@@ -381,13 +401,14 @@ def parse_space(base: dict, data: dict, file: str | Path = "<space>") -> SearchS
         raise InputError(file, "parameters.body.scale", "either body.scale or absolute body sizes, not both")
     # a bound the schema itself refuses (a field's type or range), each bound alone
     for p in out:
-        for v in ((p.low, p.high) if p.choices is None else p.choices):
+        for v in (p.low, p.high) if p.choices is None else p.choices:
             vals = {q.key: (v if q.key == p.key else q.start) for q in out}
             problem = _schema_problem(apply_values(base, vals))
             if problem:
                 root = re.sub(r"\[\d+\]$", "", p.key)
-                raise InputError(file, f"parameters.{root}",
-                                 f"bounds the design schema accepts ({p.key} = {v:g}: {problem})")
+                raise InputError(
+                    file, f"parameters.{root}", f"bounds the design schema accepts ({p.key} = {v:g}: {problem})"
+                )
     search = data.get("search", {})
     if not isinstance(search, dict):
         raise InputError(file, "search", "a table")

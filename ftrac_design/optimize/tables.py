@@ -14,24 +14,38 @@ from .search import SearchResult
 
 def image_rows(start: dict, best: dict) -> str:
     """Start vs best on rendered radiographs (:func:`.imagecheck.image_check`) as a table."""
+
     def g(v, fmt="{:.3f}"):
         return "-" if v is None else fmt.format(v)
 
     rows = [("design", "right", "wrong", "t median mm", "t p95", "t RMS", "r median °", "r p95", "r RMS")]
     for name, d in (("start", start), ("best", best)):
-        rows.append((name, str(d["right"]), str(d["wrong"]), g(d["translation_median_mm"]),
-                     g(d["translation_p95_mm"]), g(d["translation_rms_mm"]), g(d["rotation_median_deg"]),
-                     g(d["rotation_p95_deg"]), g(d["rotation_rms_deg"])))
-    head = (f"rendered radiographs ({best['images']} each, the same poses and noise draws, tracked with no "
-            f"initial guess; errors of the right poses, wrong = > 1° or > 5 mm off)")
+        rows.append(
+            (
+                name,
+                str(d["right"]),
+                str(d["wrong"]),
+                g(d["translation_median_mm"]),
+                g(d["translation_p95_mm"]),
+                g(d["translation_rms_mm"]),
+                g(d["rotation_median_deg"]),
+                g(d["rotation_p95_deg"]),
+                g(d["rotation_rms_deg"]),
+            )
+        )
+    head = (
+        f"rendered radiographs ({best['images']} each, the same poses and noise draws, tracked with no "
+        f"initial guess; errors of the right poses, wrong = > 1° or > 5 mm off)"
+    )
     return head + "\n" + _aligned(rows) + "\n"
 
 
 def _aligned(rows: list[tuple[str, ...]]) -> str:
     """Rows as text columns: the first left-aligned, the rest right-aligned."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    return "\n".join("  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
-                     for r in rows)
+    return "\n".join(
+        "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))) for r in rows
+    )
 
 
 def _score_rows(named: list[tuple[str, object]]) -> str:
@@ -43,17 +57,31 @@ def _score_rows(named: list[tuple[str, object]]) -> str:
         def g(v):
             return "inf" if v is None else f"{v:.3f}"
 
-        rows.append((name, g(f["translation_mm"]["p95"]), g(f["translation_mm"]["worst"]),
-                     g(f["translation_p95_per_axis_mm"][2]), g(f["rotation_deg"]["p95"]),
-                     g(f["rotation_deg"]["worst"]),
-                     "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
-                     "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
-                     "PASS" if s.passed else "FAIL"))
+        rows.append(
+            (
+                name,
+                g(f["translation_mm"]["p95"]),
+                g(f["translation_mm"]["worst"]),
+                g(f["translation_p95_per_axis_mm"][2]),
+                g(f["rotation_deg"]["p95"]),
+                g(f["rotation_deg"]["worst"]),
+                "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
+                "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
+                "PASS" if s.passed else "FAIL",
+            )
+        )
     return _aligned(rows)
 
 
-def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tuple[str, ...], poses: int,
-               seed: int, atlas_step_deg: float = 4.0) -> tuple[str, dict]:
+def comparison(
+    start: dict,
+    best: dict,
+    settings: AnalysisSettings,
+    profiles: tuple[str, ...],
+    poses: int,
+    seed: int,
+    atlas_step_deg: float = 4.0,
+) -> tuple[str, dict]:
     """Start vs best side by side: score, rules of each profile, whole-sphere atlas."""
     from ..analysis.atlas import blind_spot_atlas
     from ..analysis.score import Thresholds, score_design
@@ -70,19 +98,26 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
         th = Thresholds(a.max_translation, a.max_rotation_deg, a.max_condition)
         scores[k] = score_design(feats[k], s.for_parts(d.analysis), th)
     ws = s.workspace
-    lines = [f"{s.poses} fresh poses within {ws.cone_deg:g}° of the nominal beam, depth {ws.depth_mm:g} ± "
-             f"{ws.depth_range_mm:g} mm, {s.noise_text} (predicted 1σ, 3-D RMS); each design's own parts: "
-             + "; ".join(f"{k} beads ×{b:.3g}, wires ×{w:.3g}" for k, (b, w) in
-                         ((k, s.for_parts(designs[k].analysis).error_factors) for k in designs)),
-             _score_rows([(f"{k}: {designs[k].name}", scores[k]) for k in designs]), ""]
+    lines = [
+        f"{s.poses} fresh poses within {ws.cone_deg:g}° of the nominal beam, depth {ws.depth_mm:g} ± "
+        f"{ws.depth_range_mm:g} mm, {s.noise_text} (predicted 1σ, 3-D RMS); each design's own parts: "
+        + "; ".join(
+            f"{k} beads ×{b:.3g}, wires ×{w:.3g}"
+            for k, (b, w) in ((k, s.for_parts(designs[k].analysis).error_factors) for k in designs)
+        ),
+        _score_rows([(f"{k}: {designs[k].name}", scores[k]) for k in designs]),
+        "",
+    ]
     doc: dict = {"score": {k: v.figures for k, v in scores.items()}, "rules": {}, "atlas": {}}
     for prof in profiles:
         reps = {k: check_design(d, prof, feats[k]) for k, d in designs.items()}
         lines.append(f"rules ({prof}): start {reps['start'].summary}; best {reps['best'].summary}")
         rows = [("rule", "start", "", "best", "", "limit")]
         for a, b in zip(reps["start"].results, reps["best"].results):
+
             def m(r):
                 return "-" if r.measured is None else f"{r.measured:.3f}"
+
             lim = "-" if a.measured is None else f"{a.comparison} {a.limit:g}"
             rows.append((a.rule, m(a), a.verdict, m(b), b.verdict, lim))
         widths = [max(len(r[i]) for r in rows) for i in range(6)]
@@ -99,12 +134,22 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
         def g(v, fmt="{:.0f}"):
             return "inf" if v is None else fmt.format(v)
 
-        where = (f"{w.get('angle_from_nominal_deg', 0):.0f}° from nominal, az {w.get('azimuth_deg', 0):.0f}°"
-                 + (" (" + ", ".join(f"{r['id']} {r['reason']}" for r in w.get("responsible", [])) + ")"
-                    if w.get("responsible") else ""))
-        rows.append((k, g(at["condition"]["median"]), g(at["condition"]["worst"]),
-                     g(at["condition"]["worst_in_cone"]), g(at["translation_mm"]["worst"], "{:.3f}"),
-                     g(at["rotation_deg"]["worst"], "{:.3f}"), where))
+        where = f"{w.get('angle_from_nominal_deg', 0):.0f}° from nominal, az {w.get('azimuth_deg', 0):.0f}°" + (
+            " (" + ", ".join(f"{r['id']} {r['reason']}" for r in w.get("responsible", [])) + ")"
+            if w.get("responsible")
+            else ""
+        )
+        rows.append(
+            (
+                k,
+                g(at["condition"]["median"]),
+                g(at["condition"]["worst"]),
+                g(at["condition"]["worst_in_cone"]),
+                g(at["translation_mm"]["worst"], "{:.3f}"),
+                g(at["rotation_deg"]["worst"], "{:.3f}"),
+                where,
+            )
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines += ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     return "\n".join(lines) + "\n", doc
@@ -113,8 +158,15 @@ def comparison(start: dict, best: dict, settings: AnalysisSettings, profiles: tu
 def front_table(res: SearchResult) -> tuple[list[dict], str]:
     rows = []
     for e in res.front:
-        rows.append({"index": e["index"], "design_sha256": e["design_sha256"], **e["figures"],
-                     **{f"objective_{k}": v for k, v in e["objectives"].items()}, **e["parameters"]})
+        rows.append(
+            {
+                "index": e["index"],
+                "design_sha256": e["design_sha256"],
+                **e["figures"],
+                **{f"objective_{k}": v for k, v in e["objectives"].items()},
+                **e["parameters"],
+            }
+        )
     buf = io.StringIO()
     if rows:
         w = csv.DictWriter(buf, fieldnames=list(rows[0]), lineterminator="\n")
@@ -126,44 +178,53 @@ def front_table(res: SearchResult) -> tuple[list[dict], str]:
 def format_summary(doc: dict) -> str:
     """A few lines for the terminal: start vs best on fresh poses and by the solver."""
     r = doc["run"]
-    out = [f"{r['evaluations']} evaluations ({r['evaluated_now']} now, {r['replayed']} from the log) in "
-           f"{r['seconds']:.1f} s on {r['executor']}; {r['feasible_fraction']:.0%} feasible"]
+    out = [
+        f"{r['evaluations']} evaluations ({r['evaluated_now']} now, {r['replayed']} from the log) in "
+        f"{r['seconds']:.1f} s on {r['executor']}; {r['feasible_fraction']:.0%} feasible"
+    ]
     if doc.get("best") is None:
         out.append("no feasible candidate: nothing written but the log and the front")
         return "\n".join(out)
     s0, s1 = doc["start"]["verification"], doc["best"]["verification"]
     p0, p1 = s0["predicted"], s1["predicted"]
     ch = doc["best"]["change_on_fresh_poses"]
-    out.append(f"fresh {s1['poses']} poses, predicted p95: translation {p0['translation_p95_mm']:.4f} -> "
-               f"{p1['translation_p95_mm']:.4f} mm ({ch['translation_p95']:+.1%}), rotation "
-               f"{p0['rotation_p95_deg']:.4f} -> {p1['rotation_p95_deg']:.4f}° ({ch['rotation_p95']:+.1%})")
+    out.append(
+        f"fresh {s1['poses']} poses, predicted p95: translation {p0['translation_p95_mm']:.4f} -> "
+        f"{p1['translation_p95_mm']:.4f} mm ({ch['translation_p95']:+.1%}), rotation "
+        f"{p0['rotation_p95_deg']:.4f} -> {p1['rotation_p95_deg']:.4f}° ({ch['rotation_p95']:+.1%})"
+    )
     if "solver" in s1:
         m0, m1 = s0["solver"], s1["solver"]
         c = doc["best"]["change_by_solver"]
-        out.append(f"solver, {m1['images']} images ({m0['solved']} / {m1['solved']} solved), RMS: translation "
-                   f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm "
-                   f"({c['translation_rms']:+.1%}), rotation {m0['rotation_rms_deg']:.4f} -> "
-                   f"{m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%}); "
-                   f"bound at the same poses {m0['predicted_translation_rms_mm']:.4f} -> "
-                   f"{m1['predicted_translation_rms_mm']:.4f} mm, {m0['predicted_rotation_rms_deg']:.4f} -> "
-                   f"{m1['predicted_rotation_rms_deg']:.4f}°")
+        out.append(
+            f"solver, {m1['images']} images ({m0['solved']} / {m1['solved']} solved), RMS: translation "
+            f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm "
+            f"({c['translation_rms']:+.1%}), rotation {m0['rotation_rms_deg']:.4f} -> "
+            f"{m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%}); "
+            f"bound at the same poses {m0['predicted_translation_rms_mm']:.4f} -> "
+            f"{m1['predicted_translation_rms_mm']:.4f} mm, {m0['predicted_rotation_rms_deg']:.4f} -> "
+            f"{m1['predicted_rotation_rms_deg']:.4f}°"
+        )
     if "images" in s1:
         i0, i1 = s0["images"], s1["images"]
 
         def g(v, fmt):
             return "-" if v is None else fmt.format(v)
 
-        out.append(f"rendered images, {i1['images']} tracked with no initial guess (right / wrong: start "
-                   f"{i0['right']} / {i0['wrong']}, best {i1['right']} / {i1['wrong']}): p95 translation "
-                   f"{g(i0['translation_p95_mm'], '{:.3f}')} -> {g(i1['translation_p95_mm'], '{:.3f}')} mm, rotation "
-                   f"{g(i0['rotation_p95_deg'], '{:.3f}')} -> {g(i1['rotation_p95_deg'], '{:.3f}')}°; median "
-                   f"{g(i0['translation_median_mm'], '{:.3f}')} -> {g(i1['translation_median_mm'], '{:.3f}')} mm, "
-                   f"{g(i0['rotation_median_deg'], '{:.3f}')} -> {g(i1['rotation_median_deg'], '{:.3f}')}°")
+        out.append(
+            f"rendered images, {i1['images']} tracked with no initial guess (right / wrong: start "
+            f"{i0['right']} / {i0['wrong']}, best {i1['right']} / {i1['wrong']}): p95 translation "
+            f"{g(i0['translation_p95_mm'], '{:.3f}')} -> {g(i1['translation_p95_mm'], '{:.3f}')} mm, rotation "
+            f"{g(i0['rotation_p95_deg'], '{:.3f}')} -> {g(i1['rotation_p95_deg'], '{:.3f}')}°; median "
+            f"{g(i0['translation_median_mm'], '{:.3f}')} -> {g(i1['translation_median_mm'], '{:.3f}')} mm, "
+            f"{g(i0['rotation_median_deg'], '{:.3f}')} -> {g(i1['rotation_median_deg'], '{:.3f}')}°"
+        )
         pr = doc["best"].get("change_on_images", {}).get("paired")
         if pr:
-            out.append(f"  p95 ratio over the {pr['poses']} poses both got right: translation "
-                       f"{pr['translation_p95_ratio']:.2f} (95 % bootstrap {pr['translation_p95_ratio_95ci'][0]:.2f}–"
-                       f"{pr['translation_p95_ratio_95ci'][1]:.2f}), rotation {pr['rotation_p95_ratio']:.2f} "
-                       f"({pr['rotation_p95_ratio_95ci'][0]:.2f}–{pr['rotation_p95_ratio_95ci'][1]:.2f})")
+            out.append(
+                f"  p95 ratio over the {pr['poses']} poses both got right: translation "
+                f"{pr['translation_p95_ratio']:.2f} (95 % bootstrap {pr['translation_p95_ratio_95ci'][0]:.2f}–"
+                f"{pr['translation_p95_ratio_95ci'][1]:.2f}), rotation {pr['rotation_p95_ratio']:.2f} "
+                f"({pr['rotation_p95_ratio_95ci'][0]:.2f}–{pr['rotation_p95_ratio_95ci'][1]:.2f})"
+            )
     return "\n".join(out)
-

@@ -27,16 +27,25 @@ def verify(data: dict, settings: AnalysisSettings, poses: int, images: int, seed
     from .evaluate import score_figures
 
     design = parse_design(data)
-    settings = settings.for_parts(design.analysis)       # its own parts' segmentation errors
+    settings = settings.for_parts(design.analysis)  # its own parts' segmentation errors
     f = compute_features(design)
     fresh = score_figures(f, replace(settings, poses=poses, seed=seed))
     out = {"poses": poses, "pose_seed": seed, "predicted": fresh}
     if images:
         R, t = workspace_poses(settings.workspace, f.nominal_beam_direction, images, seed + 1)
         rng = np.random.default_rng(seed + 2)
-        obs = [simulate_observation(f, settings.camera, R[i], t[i], settings.segmentation_error_mm, rng,
-                                    error_factors=settings.error_factors)
-               for i in range(images)]
+        obs = [
+            simulate_observation(
+                f,
+                settings.camera,
+                R[i],
+                t[i],
+                settings.segmentation_error_mm,
+                rng,
+                error_factors=settings.error_factors,
+            )
+            for i in range(images)
+        ]
         sol = solve_batch(f, obs, SolverOptions(noise=settings.noise))
         ok = np.array([p.converged for p in sol])
         Re = np.array([p.rotation if p.converged else np.eye(3) for p in sol])
@@ -48,11 +57,15 @@ def verify(data: dict, settings: AnalysisSettings, poses: int, images: int, seed
         m = analyse_poses(f, R, t, settings.camera, settings.noise, settings.contour, detail=False).overall
         pt = float(np.sqrt(np.mean(m.translation_rms_mm[ok] ** 2)))
         pr = float(np.sqrt(np.mean(m.rotation_rms_deg[ok] ** 2)))
-        out["solver"] = {"images": images, "solved": int(ok.sum()), "image_seed": seed + 1,
-                         "translation_rms_mm": float(np.sqrt(np.mean(et ** 2))),
-                         "translation_p95_mm": float(np.percentile(et, 95)),
-                         "rotation_rms_deg": float(np.sqrt(np.mean(er ** 2))),
-                         "rotation_p95_deg": float(np.percentile(er, 95)),
-                         "predicted_translation_rms_mm": pt, "predicted_rotation_rms_deg": pr}
+        out["solver"] = {
+            "images": images,
+            "solved": int(ok.sum()),
+            "image_seed": seed + 1,
+            "translation_rms_mm": float(np.sqrt(np.mean(et**2))),
+            "translation_p95_mm": float(np.percentile(et, 95)),
+            "rotation_rms_deg": float(np.sqrt(np.mean(er**2))),
+            "rotation_p95_deg": float(np.percentile(er, 95)),
+            "predicted_translation_rms_mm": pt,
+            "predicted_rotation_rms_deg": pr,
+        }
     return out
-

@@ -11,7 +11,18 @@ from .problem import NoiseModel, Problem, compile_problem, evaluate
 from .solver import Pose, SolverOptions, refine_pose, solve_batch, solve_pose
 
 __all__ = [
-    "Camera", "CurveObservation", "NoiseModel", "Observation", "Pose", "Problem", "SolverOptions",
-    "compile_problem", "evaluate", "observation_from_dict", "read_observations", "refine_pose",
-    "solve_batch", "solve_pose",
+    "Camera",
+    "CurveObservation",
+    "NoiseModel",
+    "Observation",
+    "Pose",
+    "Problem",
+    "SolverOptions",
+    "compile_problem",
+    "evaluate",
+    "observation_from_dict",
+    "read_observations",
+    "refine_pose",
+    "solve_batch",
+    "solve_pose",
 ]

@@ -36,9 +36,9 @@ class Camera:
     @property
     def K(self) -> np.ndarray:
         """3×3 intrinsic matrix mapping camera-frame directions to homogeneous pixels."""
-        return np.array([[self.fx, 0.0, self.principal_point_px[0]],
-                         [0.0, self.fy, self.principal_point_px[1]],
-                         [0.0, 0.0, 1.0]])
+        return np.array(
+            [[self.fx, 0.0, self.principal_point_px[0]], [0.0, self.fy, self.principal_point_px[1]], [0.0, 0.0, 1.0]]
+        )
 
     @property
     def intrinsics(self) -> np.ndarray:
@@ -48,20 +48,34 @@ class Camera:
     def project(self, P: np.ndarray) -> np.ndarray:
         """Pixels (..., 2) of camera-frame points P (..., 3), mm."""
         P = np.asarray(P, float)
-        return np.stack([self.fx * P[..., 0] / P[..., 2] + self.principal_point_px[0],
-                         self.fy * P[..., 1] / P[..., 2] + self.principal_point_px[1]], -1)
+        return np.stack(
+            [
+                self.fx * P[..., 0] / P[..., 2] + self.principal_point_px[0],
+                self.fy * P[..., 1] / P[..., 2] + self.principal_point_px[1],
+            ],
+            -1,
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """SPEC §3 ``camera`` object."""
-        return {"focal_length_mm": self.focal_length_mm, "pixel_size_mm": list(self.pixel_size_mm),
-                "principal_point_px": list(self.principal_point_px)}
+        return {
+            "focal_length_mm": self.focal_length_mm,
+            "pixel_size_mm": list(self.pixel_size_mm),
+            "principal_point_px": list(self.principal_point_px),
+        }
 
-    def perturbed(self, d_focal_mm: float = 0.0, d_pixel_mm: tuple[float, float] = (0.0, 0.0),
-                  d_principal_px: tuple[float, float] = (0.0, 0.0)) -> "Camera":
+    def perturbed(
+        self,
+        d_focal_mm: float = 0.0,
+        d_pixel_mm: tuple[float, float] = (0.0, 0.0),
+        d_principal_px: tuple[float, float] = (0.0, 0.0),
+    ) -> "Camera":
         """A copy with calibration errors added (paper §III.A)."""
-        return Camera(self.focal_length_mm + d_focal_mm,
-                      (self.pixel_size_mm[0] + d_pixel_mm[0], self.pixel_size_mm[1] + d_pixel_mm[1]),
-                      (self.principal_point_px[0] + d_principal_px[0], self.principal_point_px[1] + d_principal_px[1]))
+        return Camera(
+            self.focal_length_mm + d_focal_mm,
+            (self.pixel_size_mm[0] + d_pixel_mm[0], self.pixel_size_mm[1] + d_pixel_mm[1]),
+            (self.principal_point_px[0] + d_principal_px[0], self.principal_point_px[1] + d_principal_px[1]),
+        )
 
     def validate(self) -> None:
         """Raise ValueError unless every intrinsic is finite and positive where it must be."""

@@ -143,7 +143,7 @@ def sampson_theta_jacobian(theta: np.ndarray, x: np.ndarray, y: np.ndarray, rows
     """Sampson distances d = Q/|g| (..., n) and ∂d/∂θ (..., n, 6), in normalised units;
     ``rows`` is :func:`conic_rows` of (x, y) when the caller already has it."""
     X3 = conic_rows(x, y) if rows is None else rows
-    q = (X3 @ theta[..., None, :, None])[..., 0]                  # (..., n, 3): Q, gx, gy
+    q = (X3 @ theta[..., None, :, None])[..., 0]  # (..., n, 3): Q, gx, gy
     g = q[..., 1:]
     gn2 = (g * g).sum(-1)
     gn = np.sqrt(gn2)
@@ -166,7 +166,7 @@ def _direct_ellipse(xi: np.ndarray, w: np.ndarray) -> np.ndarray:
     cond = 4 * vec[..., 0, :] * vec[..., 2, :] - vec[..., 1, :] ** 2
     # the ellipse eigenvector is the one with 4ac − b² > 0; take the most elliptic if noise
     # leaves several (it cannot leave none for points spread around a closed curve)
-    a1 = np.take_along_axis(vec, cond.argmax(-1)[..., None, None], -1)       # (..., 3, 1)
+    a1 = np.take_along_axis(vec, cond.argmax(-1)[..., None, None], -1)  # (..., 3, 1)
     th = np.concatenate([a1, T @ a1], -2)[..., 0]
     return th / np.sqrt((th * th).sum(-1))[..., None]
 
@@ -183,8 +183,7 @@ def normalisation(points: np.ndarray, w: np.ndarray):
     return m, s
 
 
-def fit_conic(points: np.ndarray, weights: np.ndarray | None = None,
-              iterations: int = SAMPSON_ITERATIONS) -> ConicFit:
+def fit_conic(points: np.ndarray, weights: np.ndarray | None = None, iterations: int = SAMPSON_ITERATIONS) -> ConicFit:
     """Conic through contour ``points`` (..., n ≥ 5, 2) px: direct ellipse fit, then Sampson
     Gauss–Newton, and the information matrix of the tangent coordinates (unit noise).
 
@@ -203,7 +202,7 @@ def fit_conic(points: np.ndarray, weights: np.ndarray | None = None,
     for it in range(max(iterations, 1)):
         basis = tangent_basis(theta)
         d, dd = sampson_theta_jacobian(theta, x, y, rows)
-        G = dd @ basis                              # (..., n, 5)
+        G = dd @ basis  # (..., n, 5)
         Gw = np.swapaxes(G * w[..., None], -1, -2)
         info = Gw @ G
         if not iterations:
@@ -219,14 +218,16 @@ def fit_conic(points: np.ndarray, weights: np.ndarray | None = None,
 def conic_matrix(theta: np.ndarray) -> np.ndarray:
     """Symmetric 3×3 matrix of conic coefficients (A, B, C, D, E, F)."""
     A, B, C, D, E, F = np.moveaxis(theta, -1, 0)
-    return np.stack([np.stack([A, B / 2, D / 2], -1), np.stack([B / 2, C, E / 2], -1),
-                     np.stack([D / 2, E / 2, F], -1)], -2)
+    return np.stack(
+        [np.stack([A, B / 2, D / 2], -1), np.stack([B / 2, C, E / 2], -1), np.stack([D / 2, E / 2, F], -1)], -2
+    )
 
 
 def conic_vector(M: np.ndarray) -> np.ndarray:
     """Inverse of :func:`conic_matrix`."""
-    return np.stack([M[..., 0, 0], 2 * M[..., 0, 1], M[..., 1, 1], 2 * M[..., 0, 2], 2 * M[..., 1, 2],
-                     M[..., 2, 2]], -1)
+    return np.stack(
+        [M[..., 0, 0], 2 * M[..., 0, 1], M[..., 1, 1], 2 * M[..., 0, 2], 2 * M[..., 1, 2], M[..., 2, 2]], -1
+    )
 
 
 def conic_center_and_axes(theta: np.ndarray):
@@ -255,5 +256,6 @@ def conic_from_coefficients(coef: np.ndarray) -> ConicFit:
     theta = conic_vector(Mn)
     theta /= np.linalg.norm(theta, axis=-1, keepdims=True)
     shape = coef.shape[:-1]
-    return ConicFit(theta, c, s, tangent_basis(theta), np.full(shape + (5, 5), np.nan),
-                    np.zeros(shape), np.zeros(shape))
+    return ConicFit(
+        theta, c, s, tangent_basis(theta), np.full(shape + (5, 5), np.nan), np.zeros(shape), np.zeros(shape)
+    )

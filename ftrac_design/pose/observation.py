@@ -53,12 +53,16 @@ class Observation:
 
     def to_dict(self) -> dict[str, Any]:
         """The SPEC §3 JSON object."""
+
         def curve(c: CurveObservation, coef_key: str) -> dict[str, Any]:
             if c.points is not None:
                 return {"points": np.asarray(c.points).tolist()}
             return {coef_key: np.asarray(c.coefficients).tolist()}
+
         return {
-            "format": FORMAT, "version": VERSION, "camera": self.camera.to_dict(),
+            "format": FORMAT,
+            "version": VERSION,
+            "camera": self.camera.to_dict(),
             "points": {k: [float(v[0]), float(v[1])] for k, v in self.points.items()},
             "lines": {k: curve(c, "coefficients") for k, c in self.lines.items()},
             "ellipses": {k: curve(c, "conic") for k, c in self.ellipses.items()},
@@ -67,10 +71,15 @@ class Observation:
     @property
     def structure(self) -> tuple:
         """What was observed and how — observations with equal structure solve as one batch."""
+
         def kind(c: CurveObservation) -> str:
             return "p" if c.points is not None else "c"
-        return (tuple(sorted(self.points)), tuple(sorted((k, kind(c)) for k, c in self.lines.items())),
-                tuple(sorted((k, kind(c)) for k, c in self.ellipses.items())))
+
+        return (
+            tuple(sorted(self.points)),
+            tuple(sorted((k, kind(c)) for k, c in self.lines.items())),
+            tuple(sorted((k, kind(c)) for k, c in self.ellipses.items())),
+        )
 
 
 def _num(v: Any, origin: str, key: str) -> float:
@@ -135,8 +144,9 @@ def _curve(v: Any, origin: str, key: str, coef_key: str, ncoef: int, minimum: in
         # means a line beyond 1e12 px or no line at all
         ab = math.hypot(c[0], c[1])
         if not ab > 1e-12 or abs(c[2]) / ab > 2 * PIXEL_LIMIT:
-            raise InputError(origin, where, f"a line (A, B not both zero) passing within "
-                                            f"{2 * PIXEL_LIMIT:.0e} px of pixel (0, 0)")
+            raise InputError(
+                origin, where, f"a line (A, B not both zero) passing within {2 * PIXEL_LIMIT:.0e} px of pixel (0, 0)"
+            )
         c = c / ab
     if coef_key == "conic":
         _check_ellipse(c, origin, where)
@@ -158,8 +168,12 @@ def _check_ellipse(c: np.ndarray, origin: str, key: str) -> None:
     ev = np.linalg.eigvalsh(np.array([[A, B / 2], [B / 2, C]]))
     semi = np.sqrt(-F0 / ev) if A > 0 else np.sqrt(F0 / -ev)
     if max(abs(u0), abs(v0), semi.max()) > PIXEL_LIMIT or not semi.min() > 0:
-        raise InputError(origin, key, f"an ellipse within ±{PIXEL_LIMIT:.0e} px (centre ({u0:.3g}, {v0:.3g}), "
-                                      f"semi-axes {semi.max():.3g}, {semi.min():.3g} px)")
+        raise InputError(
+            origin,
+            key,
+            f"an ellipse within ±{PIXEL_LIMIT:.0e} px (centre ({u0:.3g}, {v0:.3g}), "
+            f"semi-axes {semi.max():.3g}, {semi.min():.3g} px)",
+        )
 
 
 def camera_from_dict(cam: Any, origin: str | Path, key: str = "camera") -> Camera:
@@ -180,8 +194,12 @@ def camera_from_dict(cam: Any, origin: str | Path, key: str = "camera") -> Camer
         raise InputError(origin, f"{key}.pixel_size_mm", f"positive numbers, got {px.tolist()}")
     lo, hi = FOCAL_PX_RANGE
     if not lo <= f / px.max() <= f / px.min() <= hi:
-        raise InputError(origin, key, f"focal_length_mm / pixel_size_mm (the focal length in pixels) "
-                                      f"between {lo:g} and {hi:g}, got {f / px.max():.3g}–{f / px.min():.3g}")
+        raise InputError(
+            origin,
+            key,
+            f"focal_length_mm / pixel_size_mm (the focal length in pixels) "
+            f"between {lo:g} and {hi:g}, got {f / px.max():.3g}–{f / px.min():.3g}",
+        )
     return Camera(f, (float(px[0]), float(px[1])), (float(pp[0]), float(pp[1])))
 
 
@@ -237,5 +255,3 @@ def read_observations(path: str | Path) -> Iterator[Observation]:
             raise InputError(path, None, "at least one observation (the file is empty)")
     else:
         yield observation_from_dict(parse_json(text, path), str(path))
-
-

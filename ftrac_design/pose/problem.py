@@ -61,14 +61,14 @@ class NoiseModel:
     re-estimated from the residuals for the covariance.
     """
 
-    point_mm: float = 0.25 / 6 ** 0.5
-    line_mm: float = 0.25 / 6 ** 0.5
-    ellipse_mm: float = 0.25 / 6 ** 0.5
+    point_mm: float = 0.25 / 6**0.5
+    line_mm: float = 0.25 / 6**0.5
+    ellipse_mm: float = 0.25 / 6**0.5
 
     @classmethod
     def from_segmentation_error(cls, e_mm: float) -> "NoiseModel":
         """σ for the paper's uniform error of maximum magnitude ``e_mm`` on every feature."""
-        s = max(e_mm, 1e-6) / 6 ** 0.5
+        s = max(e_mm, 1e-6) / 6**0.5
         return cls(s, s, s)
 
     def scaled(self, bead: float = 1.0, wire: float = 1.0) -> "NoiseModel":
@@ -80,33 +80,33 @@ class NoiseModel:
 class Problem:
     """B images with one observation structure, as arrays (see module docstring)."""
 
-    intr: np.ndarray                      # (B, 4) fx, fy, ox, oy
-    X: np.ndarray                         # (M, 3) model points: beads, line ends, ellipse samples
+    intr: np.ndarray  # (B, 4) fx, fy, ox, oy
+    X: np.ndarray  # (M, 3) model points: beads, line ends, ellipse samples
     point_ids: list[str]
     line_ids: list[str]
     ellipse_ids: list[str]
-    K: int                                # model points per ellipse
-    p_obs: np.ndarray                     # (B, P, 2)
-    p_w: np.ndarray                       # (B, P) 1/σ
-    l_n: np.ndarray                       # (B, L, 2)
-    l_m: np.ndarray                       # (B, L, 2)
-    l_c: np.ndarray                       # (B, L)
-    l_info: np.ndarray                    # (B, L, 2, 2) already divided by σ²
-    l_from_model: np.ndarray              # (L,) bool: Λ = DᵀD/σ²
-    l_sig: np.ndarray                     # (B, L) σ px
-    e_theta: np.ndarray                   # (B, E, 6)
-    e_m: np.ndarray                       # (B, E, 2)
-    e_s: np.ndarray                       # (B, E)
-    e_basis: np.ndarray                   # (B, E, 6, 5)
-    e_info: np.ndarray                    # (B, E, 5, 5) already divided by σ²
-    e_from_model: np.ndarray              # (E,) bool
-    e_sig: np.ndarray                     # (B, E) σ px
-    e_kpaper: np.ndarray                  # (B, E) the paper's K (Eq. 8), normalised units
+    K: int  # model points per ellipse
+    p_obs: np.ndarray  # (B, P, 2)
+    p_w: np.ndarray  # (B, P) 1/σ
+    l_n: np.ndarray  # (B, L, 2)
+    l_m: np.ndarray  # (B, L, 2)
+    l_c: np.ndarray  # (B, L)
+    l_info: np.ndarray  # (B, L, 2, 2) already divided by σ²
+    l_from_model: np.ndarray  # (L,) bool: Λ = DᵀD/σ²
+    l_sig: np.ndarray  # (B, L) σ px
+    e_theta: np.ndarray  # (B, E, 6)
+    e_m: np.ndarray  # (B, E, 2)
+    e_s: np.ndarray  # (B, E)
+    e_basis: np.ndarray  # (B, E, 6, 5)
+    e_info: np.ndarray  # (B, E, 5, 5) already divided by σ²
+    e_from_model: np.ndarray  # (E,) bool
+    e_sig: np.ndarray  # (B, E) σ px
+    e_kpaper: np.ndarray  # (B, E) the paper's K (Eq. 8), normalised units
     distance: str = "sampson"
-    fit_chi2: np.ndarray = field(default_factory=lambda: np.zeros(1))   # (B,) Σ rss/σ² of the fits
-    fit_dof: np.ndarray = field(default_factory=lambda: np.zeros(1))    # (B,)
+    fit_chi2: np.ndarray = field(default_factory=lambda: np.zeros(1))  # (B,) Σ rss/σ² of the fits
+    fit_dof: np.ndarray = field(default_factory=lambda: np.zeros(1))  # (B,)
     origins: list[str] = field(default_factory=list)
-    pix: np.ndarray = field(default_factory=lambda: np.full(1, 0.44))   # (B,) mm per pixel
+    pix: np.ndarray = field(default_factory=lambda: np.full(1, 0.44))  # (B,) mm per pixel
     # Cholesky factors Lᵀ of the fitted curves' information (NaN where it comes from the
     # model): constant per image, so factored once here rather than in every evaluation
     l_Lt: np.ndarray = field(init=False, repr=False)
@@ -129,9 +129,9 @@ class Problem:
         self.row_points, bead_cuv = _row_layout(P, L, E, self.K)
         B = self.intr.shape[0]
         th = self.e_theta
-        self.e_hess = th[..., _HESS_TERMS] * _HESS_SCALE                                  # (B, E, 2, 2)
-        self.e_lin = th[..., None, 3:5]                                                   # (B, E, 1, 2)
-        self.e_F = th[..., 5:6]                                                           # (B, E, 1)
+        self.e_hess = th[..., _HESS_TERMS] * _HESS_SCALE  # (B, E, 2, 2)
+        self.e_lin = th[..., None, 3:5]  # (B, E, 1, 2)
+        self.e_F = th[..., 5:6]  # (B, E, 1)
         self.e_basis9 = self.e_basis[..., _XI_FROM_OUTER, :] * _XI_OUTER_MASK
         self.fixed_cuv = np.concatenate([np.broadcast_to(bead_cuv, (B, 2 * P, 2)), np.repeat(self.l_n, 2, 1)], 1)
         self._coplanar: bool | None = None
@@ -182,12 +182,25 @@ class Problem:
         """The same images with only the beads kept (the paper's first phase, §II.B.7)."""
         P = len(self.point_ids)
         kw = self._init_kwargs()
-        kw.update(X=self.X[:P], line_ids=[], ellipse_ids=[],
-                  l_n=self.l_n[:, :0], l_m=self.l_m[:, :0], l_c=self.l_c[:, :0], l_info=self.l_info[:, :0],
-                  l_from_model=self.l_from_model[:0], l_sig=self.l_sig[:, :0], e_theta=self.e_theta[:, :0],
-                  e_m=self.e_m[:, :0], e_s=self.e_s[:, :0], e_basis=self.e_basis[:, :0],
-                  e_info=self.e_info[:, :0], e_from_model=self.e_from_model[:0], e_sig=self.e_sig[:, :0],
-                  e_kpaper=self.e_kpaper[:, :0])
+        kw.update(
+            X=self.X[:P],
+            line_ids=[],
+            ellipse_ids=[],
+            l_n=self.l_n[:, :0],
+            l_m=self.l_m[:, :0],
+            l_c=self.l_c[:, :0],
+            l_info=self.l_info[:, :0],
+            l_from_model=self.l_from_model[:0],
+            l_sig=self.l_sig[:, :0],
+            e_theta=self.e_theta[:, :0],
+            e_m=self.e_m[:, :0],
+            e_s=self.e_s[:, :0],
+            e_basis=self.e_basis[:, :0],
+            e_info=self.e_info[:, :0],
+            e_from_model=self.e_from_model[:0],
+            e_sig=self.e_sig[:, :0],
+            e_kpaper=self.e_kpaper[:, :0],
+        )
         return Problem(**kw)
 
     def take(self, idx: np.ndarray) -> "Problem":
@@ -195,8 +208,12 @@ class Problem:
         idx = np.asarray(idx)
         kw = {}
         for name, val in self._init_kwargs().items():
-            if isinstance(val, np.ndarray) and name not in ("X", "l_from_model", "e_from_model") \
-                    and val.ndim >= 1 and val.shape[0] == self.B:
+            if (
+                isinstance(val, np.ndarray)
+                and name not in ("X", "l_from_model", "e_from_model")
+                and val.ndim >= 1
+                and val.shape[0] == self.B
+            ):
                 kw[name] = val[idx]
             else:
                 kw[name] = val
@@ -206,7 +223,7 @@ class Problem:
 
 @functools.lru_cache(maxsize=64)
 def _raw_index(point_ids: tuple, line_ids: tuple, ellipse_ids: tuple, K: int):
-    ids = (*point_ids, *line_ids, *ellipse_ids)          # a tuple: the cached value is shared
+    ids = (*point_ids, *line_ids, *ellipse_ids)  # a tuple: the cached value is shared
     count = np.array([2] * (len(point_ids) + len(line_ids)) + [K] * len(ellipse_ids), float)
     first = np.concatenate([[0], np.cumsum(count)[:-1]]).astype(int) if ids else np.zeros(0, int)
     return ids, first, count
@@ -290,14 +307,18 @@ def _model_points(features: Features, point_ids, line_ids, ellipse_ids, K: int) 
 
 
 def _check_ids(features: Features, obs: Observation) -> None:
-    kinds = {"points": {p.id for p in features.points}, "lines": {ln.id for ln in features.lines},
-             "ellipses": {e.id for e in features.ellipses}}
+    kinds = {
+        "points": {p.id for p in features.points},
+        "lines": {ln.id for ln in features.lines},
+        "ellipses": {e.id for e in features.ellipses},
+    }
     for sec in ("points", "lines", "ellipses"):
         for k in getattr(obs, sec):
             if k not in kinds[sec]:
                 known = ", ".join(sorted(kinds[sec])) or "none"
-                raise InputError(obs.origin, f"{sec}.{k}",
-                                 f"the id of a {sec[:-1]} in features.json ({features.name} has: {known})")
+                raise InputError(
+                    obs.origin, f"{sec}.{k}", f"the id of a {sec[:-1]} in features.json ({features.name} has: {known})"
+                )
 
 
 def _pad(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
@@ -309,7 +330,7 @@ def _pad(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     for i, a in enumerate(arrays):
         out[i, : len(a)] = a
         w[i, : len(a)] = 1.0
-        out[i, len(a):] = a[0]  # padding repeats a real point so normalisation stays finite
+        out[i, len(a) :] = a[0]  # padding repeats a real point so normalisation stays finite
     return out, w
 
 
@@ -370,7 +391,7 @@ def thin_ellipse_weight(fit: ConicFit, sigma_px: np.ndarray) -> np.ndarray:
 def semi_minor(theta: np.ndarray) -> np.ndarray:
     """Semi-minor axis of ellipses θ (...), in θ's coordinates (closed form, no solves)."""
     A, B, C, D, E, F = np.moveaxis(theta, -1, 0)
-    det2 = 4 * A * C - B * B                      # > 0 for an ellipse
+    det2 = 4 * A * C - B * B  # > 0 for an ellipse
     # value of the conic at its centre: F0 = F − (A E² − B D E + C D²) / det2
     F0 = F - (A * E * E - B * D * E + C * D * D) / det2
     root = np.sqrt((A - C) ** 2 + B * B)
@@ -387,9 +408,15 @@ def paper_k(theta: np.ndarray) -> np.ndarray:
     return a * b * (A * C - B * B / 4) / (2 * np.sqrt(a * a + b * b) * np.linalg.det(M))
 
 
-def compile_problem(features: Features, observations: list[Observation], noise: NoiseModel | None = None,
-                    ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson",
-                    same_structure: bool = False, task_scaling: str = "gauss-markov") -> Problem:
+def compile_problem(
+    features: Features,
+    observations: list[Observation],
+    noise: NoiseModel | None = None,
+    ellipse_model_points: int = ELLIPSE_MODEL_POINTS,
+    distance: str = "sampson",
+    same_structure: bool = False,
+    task_scaling: str = "gauss-markov",
+) -> Problem:
     """Arrays for a batch of observations sharing one :attr:`Observation.structure`.
 
     Fits every contour (batched), checks ids against ``features`` and raises
@@ -452,8 +479,7 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
     for j in np.flatnonzero(l_from_model):
         if obs0.lines[line_ids[j]].points is not None:
             continue
-        lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]),
-                                    intr[:, 2:4])
+        lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]), intr[:, 2:4])
         l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
 
     e_theta, e_m, e_s = np.zeros((B, E, 6)), np.zeros((B, E, 2)), np.ones((B, E))
@@ -467,8 +493,11 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         e_m[:, cols] = cf.center.reshape(B, n, 2)
         e_s[:, cols] = cf.scale.reshape(B, n)
         e_basis[:, cols] = cf.basis.reshape(B, n, 6, 5)
-        e_info[:, cols] = (cf.info.reshape(B, n, 5, 5) / e_sig[:, cols, None, None] ** 2
-                           * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1))
+        e_info[:, cols] = (
+            cf.info.reshape(B, n, 5, 5)
+            / e_sig[:, cols, None, None] ** 2
+            * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1)
+        )
         fit_chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
         fit_dof += cf.dof.reshape(B, n).sum(1)
         e_from_model[cols] = task_scaling == "diagonal"
@@ -478,9 +507,35 @@ def compile_problem(features: Features, observations: list[Observation], noise: 
         cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
         e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
     e_kpaper = paper_k(e_theta) if E and distance == "paper" else np.zeros((B, E))
-    prob = Problem(intr, X, point_ids, line_ids, ellipse_ids, K, p_obs, p_w, l_n, l_m, l_c, l_info,
-                   l_from_model, l_sig, e_theta, e_m, e_s, e_basis, e_info, e_from_model, e_sig, e_kpaper,
-                   distance, fit_chi2, fit_dof, origins, pix)
+    prob = Problem(
+        intr,
+        X,
+        point_ids,
+        line_ids,
+        ellipse_ids,
+        K,
+        p_obs,
+        p_w,
+        l_n,
+        l_m,
+        l_c,
+        l_info,
+        l_from_model,
+        l_sig,
+        e_theta,
+        e_m,
+        e_s,
+        e_basis,
+        e_info,
+        e_from_model,
+        e_sig,
+        e_kpaper,
+        distance,
+        fit_chi2,
+        fit_dof,
+        origins,
+        pix,
+    )
     prob._coplanar = coplanar
     return prob
 
@@ -589,9 +644,16 @@ def _chol_t(info: np.ndarray) -> np.ndarray:
     return np.swapaxes(np.linalg.cholesky(info), -1, -2)
 
 
-def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
-             whitening: list[np.ndarray] | None = None, raw_jacobian: bool = False,
-             reference: list[np.ndarray] | None = None, freeze: np.ndarray | None = None) -> Evaluation:
+def evaluate(
+    prob: Problem,
+    R: np.ndarray,
+    t: np.ndarray,
+    jac: bool = True,
+    whitening: list[np.ndarray] | None = None,
+    raw_jacobian: bool = False,
+    reference: list[np.ndarray] | None = None,
+    freeze: np.ndarray | None = None,
+) -> Evaluation:
     """Residuals and Jacobians at poses (B, 3, 3), (B, 3); see :class:`Evaluation`.
 
     ``whitening`` — the ``W`` of an earlier evaluation — freezes G instead of recomputing it;
@@ -616,7 +678,7 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         sl = slice(P, P + 2 * L)
         q = uv[:, sl].reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
         nx, ny = prob.l_n[..., 0, None], prob.l_n[..., 1, None]
-        r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]                      # (B, L, 2)
+        r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]  # (B, L, 2)
         if refresh:
             # D = ∂r/∂(ψ, c) has rows (n⊥·(p − m), 1); W = chol(Λ)ᵀ D⁻¹
             d0 = q[..., 1] * nx - q[..., 0] * ny
@@ -648,7 +710,7 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
         pn = (uv[:, sl].reshape(B, E, K, 2) - prob.e_m[:, :, None, :]) / s[..., None]
         # with H = ∇²Q and ℓ = (D, E): ∇Q = H p + ℓ and Q = ½ p·(∇Q + ℓ) + F
         H = prob.e_hess
-        g = pn @ H + prob.e_lin                                                           # (B, E, K, 2)
+        g = pn @ H + prob.e_lin  # (B, E, K, 2)
         Qv = 0.5 * (pn * (g + prob.e_lin)).sum(-1) + prob.e_F
         if prob.distance == "sampson":
             gn2 = (g * g).sum(-1)
@@ -674,13 +736,14 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
             if jac:
                 duv = k[..., None] * g
         if refresh:
-            Dt = np.swapaxes(D, -1, -2)                                                   # (B, E, 5, K)
+            Dt = np.swapaxes(D, -1, -2)  # (B, E, 5, K)
             DtD = Dt @ D
             Lt = prob.e_Lt
             if prob.e_from_model.any():
-                Lt = np.where(prob.e_from_model[None, :, None, None],
-                              _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt)
-            W = Lt @ spd_solve(DtD, Dt)                                                   # (B, E, 5, K)
+                Lt = np.where(
+                    prob.e_from_model[None, :, None, None], _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt
+                )
+            W = Lt @ spd_solve(DtD, Dt)  # (B, E, 5, K)
             if freeze is not None:
                 W = rows_where(freeze, whitening[len(Ws)], W)
         else:
@@ -697,13 +760,14 @@ def evaluate(prob: Problem, R: np.ndarray, t: np.ndarray, jac: bool = True,
     if jac:
         # one pass over every raw residual row: ∂r/∂(δ, t), then each group's whitening
         cuv = cuvs[0] if len(cuvs) == 1 else np.concatenate(cuvs, 1)
-        dr = jacobian_rows(pr, prob.row_points, cuv[..., 0], cuv[..., 1])                  # (B, n_raw, 6)
+        dr = jacobian_rows(pr, prob.row_points, cuv[..., 0], cuv[..., 1])  # (B, n_raw, 6)
         if P:
-            Js.append(dr[:, :2 * P] * prob.p_w2)
+            Js.append(dr[:, : 2 * P] * prob.p_w2)
         if L:
-            Js.append((Ws[1 if P else 0] @ dr[:, 2 * P:2 * P + 2 * L].reshape(B, L, 2, 6)).reshape(B, 2 * L, 6))
+            Js.append((Ws[1 if P else 0] @ dr[:, 2 * P : 2 * P + 2 * L].reshape(B, L, 2, 6)).reshape(B, 2 * L, 6))
         if E:
-            Js.append((Ws[-1] @ dr[:, 2 * P + 2 * L:].reshape(B, E, K, 6)).reshape(B, 5 * E, 6))
+            Js.append((Ws[-1] @ dr[:, 2 * P + 2 * L :].reshape(B, E, K, 6)).reshape(B, 5 * E, 6))
         J = cat(Js)
-    return Evaluation(cat(rho), J, cat(raw), dr if raw_jacobian else None, Ws, Z,
-                      cat(ref) if reference is not None else None)
+    return Evaluation(
+        cat(rho), J, cat(raw), dr if raw_jacobian else None, Ws, Z, cat(ref) if reference is not None else None
+    )

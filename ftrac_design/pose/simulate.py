@@ -50,9 +50,14 @@ class Workspace:
         roll = np.radians(rng.uniform(*self.roll_deg, n))
         beams = cone_directions(nominal_beam, np.arccos(cos_t), az)
         R = rotations_from_beams(beams, roll)
-        t = np.stack([rng.uniform(-self.lateral_mm, self.lateral_mm, n),
-                      rng.uniform(-self.lateral_mm, self.lateral_mm, n),
-                      rng.uniform(self.depth_mm - self.depth_range_mm, self.depth_mm + self.depth_range_mm, n)], -1)
+        t = np.stack(
+            [
+                rng.uniform(-self.lateral_mm, self.lateral_mm, n),
+                rng.uniform(-self.lateral_mm, self.lateral_mm, n),
+                rng.uniform(self.depth_mm - self.depth_range_mm, self.depth_mm + self.depth_range_mm, n),
+            ],
+            -1,
+        )
         return R, t
 
 
@@ -70,8 +75,9 @@ def cone_directions(axis: np.ndarray, polar: np.ndarray, azimuth: np.ndarray) ->
     axis = np.asarray(axis, float) / np.linalg.norm(axis)
     e1, e2 = beam_azimuth_basis(axis)
     polar, azimuth = np.asarray(polar, float), np.asarray(azimuth, float)
-    return (np.cos(polar)[..., None] * axis + np.sin(polar)[..., None]
-            * (np.cos(azimuth)[..., None] * e1 + np.sin(azimuth)[..., None] * e2))
+    return np.cos(polar)[..., None] * axis + np.sin(polar)[..., None] * (
+        np.cos(azimuth)[..., None] * e1 + np.sin(azimuth)[..., None] * e2
+    )
 
 
 def beam_azimuth_basis(axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -122,8 +128,9 @@ class CalibrationError:
         """The miscalibrated camera the solver is given."""
         px = np.asarray(camera.pixel_size_mm)
         dpp = rng.uniform(-self.principal_point_mm, self.principal_point_mm, 2) / px
-        return camera.perturbed(rng.uniform(-self.focal_mm, self.focal_mm),
-                                tuple(rng.uniform(-self.pixel_mm, self.pixel_mm, 2)), tuple(dpp))
+        return camera.perturbed(
+            rng.uniform(-self.focal_mm, self.focal_mm), tuple(rng.uniform(-self.pixel_mm, self.pixel_mm, 2)), tuple(dpp)
+        )
 
 
 PAPER_CALIBRATION_ERROR = CalibrationError(focal_mm=2.0, principal_point_mm=0.5, pixel_mm=0.001)
@@ -136,11 +143,19 @@ def segmentation_noise(shape: tuple[int, ...], e_mm: float, pixel_mm, rng: np.ra
     return np.stack([mag * np.cos(ang) / pixel_mm[0], mag * np.sin(ang) / pixel_mm[1]], -1)
 
 
-def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                         segmentation_error_mm: float = 0.0, rng: np.random.Generator | None = None,
-                         contour: ContourSampling = ContourSampling(), include: set[str] | None = None,
-                         solve_camera: Camera | None = None, as_coefficients: bool = False,
-                         error_factors: tuple[float, float] = (1.0, 1.0)) -> Observation:
+def simulate_observation(
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    segmentation_error_mm: float = 0.0,
+    rng: np.random.Generator | None = None,
+    contour: ContourSampling = ContourSampling(),
+    include: set[str] | None = None,
+    solve_camera: Camera | None = None,
+    as_coefficients: bool = False,
+    error_factors: tuple[float, float] = (1.0, 1.0),
+) -> Observation:
     """One synthetic image of ``features`` at pose (R, t) (F → X, mm).
 
     ``segmentation_error_mm``: the paper's uniform error magnitude at the detector, times
@@ -183,7 +198,8 @@ def simulate_observation(features: Features, camera: Camera, R: np.ndarray, t: n
             continue
         s = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
         obs.ellipses[el.id] = CurveObservation(
-            points=proj(el.sample(s)) + segmentation_noise((contour.ellipse,), ew, px, rng))
+            points=proj(el.sample(s)) + segmentation_noise((contour.ellipse,), ew, px, rng)
+        )
     return obs
 
 
@@ -196,18 +212,29 @@ def projected_conic(el, camera: Camera | np.ndarray, R: np.ndarray, t: np.ndarra
     intr = camera.intrinsics if isinstance(camera, Camera) else np.asarray(camera)
     intr = np.broadcast_to(intr, (R.shape[0], 4))
     Kmat = np.zeros((R.shape[0], 3, 3))
-    Kmat[:, 0, 0], Kmat[:, 1, 1], Kmat[:, 0, 2], Kmat[:, 1, 2], Kmat[:, 2, 2] = \
-        intr[:, 0], intr[:, 1], intr[:, 2], intr[:, 3], 1.0
-    cols = np.stack([R @ (el.semi_major * el.major_axis), R @ (el.semi_minor * el.minor_axis),
-                     R @ el.center + t], -1)
+    Kmat[:, 0, 0], Kmat[:, 1, 1], Kmat[:, 0, 2], Kmat[:, 1, 2], Kmat[:, 2, 2] = (
+        intr[:, 0],
+        intr[:, 1],
+        intr[:, 2],
+        intr[:, 3],
+        1.0,
+    )
+    cols = np.stack([R @ (el.semi_major * el.major_axis), R @ (el.semi_minor * el.minor_axis), R @ el.center + t], -1)
     Hinv = np.linalg.inv(Kmat @ cols)
     return np.swapaxes(Hinv, -1, -2) @ np.diag([1.0, 1.0, -1.0]) @ Hinv
 
 
-def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.ndarray, t: np.ndarray,
-                      noise: NoiseModel | None = None, contour: ContourSampling = ContourSampling(),
-                      ellipse_model_points: int = ELLIPSE_MODEL_POINTS, distance: str = "sampson",
-                      pixel_size_mm: float | None = None) -> Problem:
+def synthetic_problem(
+    features: Features,
+    camera: Camera | np.ndarray,
+    R: np.ndarray,
+    t: np.ndarray,
+    noise: NoiseModel | None = None,
+    contour: ContourSampling = ContourSampling(),
+    ellipse_model_points: int = ELLIPSE_MODEL_POINTS,
+    distance: str = "sampson",
+    pixel_size_mm: float | None = None,
+) -> Problem:
     """The solver's arrays for noise-free images of every feature at poses (B, 3, 3), (B, 3).
 
     Equal (to rounding) to what :func:`compile_problem` makes of
@@ -239,10 +266,15 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
 
     def project(P: np.ndarray) -> np.ndarray:
         Pc = np.einsum("bij,...j->b...i", R, P) + t.reshape((Bn,) + (1,) * (P.ndim - 1) + (3,))
-        return np.stack([intr[:, 0].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 0] / Pc[..., 2]
-                         + intr[:, 2].reshape((Bn,) + (1,) * (P.ndim - 1)),
-                         intr[:, 1].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 1] / Pc[..., 2]
-                         + intr[:, 3].reshape((Bn,) + (1,) * (P.ndim - 1))], -1)
+        return np.stack(
+            [
+                intr[:, 0].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 0] / Pc[..., 2]
+                + intr[:, 2].reshape((Bn,) + (1,) * (P.ndim - 1)),
+                intr[:, 1].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 1] / Pc[..., 2]
+                + intr[:, 3].reshape((Bn,) + (1,) * (P.ndim - 1)),
+            ],
+            -1,
+        )
 
     pts = {p.id: p for p in features.points}
     P_ = len(point_ids)
@@ -255,14 +287,14 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
     l_sig = np.full((Bn, L), noise.line_mm / pix)
     if L:
         s = np.linspace(0.0, 1.0, contour.line)[:, None]
-        P3 = np.stack([lns[i].start + s * (lns[i].end - lns[i].start) for i in line_ids])    # (L, n, 3)
-        q = project(P3)                                                                          # (B, L, n, 2)
+        P3 = np.stack([lns[i].start + s * (lns[i].end - lns[i].start) for i in line_ids])  # (L, n, 3)
+        q = project(P3)  # (B, L, n, 2)
         d = q[..., -1, :] - q[..., 0, :]
         d /= np.linalg.norm(d, axis=-1, keepdims=True)
         l_n = np.stack([-d[..., 1], d[..., 0]], -1)
         l_m = q.mean(-2)
         along = np.einsum("blni,bli->bln", q - l_m[..., None, :], d)
-        l_info[..., 0, 0] = np.sum(along ** 2, -1)
+        l_info[..., 0, 0] = np.sum(along**2, -1)
         l_info[..., 1, 1] = contour.line
         l_info /= l_sig[..., None, None] ** 2
 
@@ -274,7 +306,7 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
     sj = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
     for j, fid in enumerate(ellipse_ids):
         el = els[fid]
-        q = project(el.sample(sj))                                                               # (B, n, 2)
+        q = project(el.sample(sj))  # (B, n, 2)
         m, sc = normalisation(q, np.ones(q.shape[:-1]))
         C = projected_conic(el, intr, R, t)
         N = np.zeros((Bn, 3, 3))
@@ -290,9 +322,35 @@ def synthetic_problem(features: Features, camera: Camera | np.ndarray, R: np.nda
         e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = th, m, sc, basis
         e_info[:, j] = np.einsum("bni,bnj->bij", G, G) * (sc * sc / e_sig[:, j] ** 2)[:, None, None]
     e_kpaper = paper_k(e_theta) if E else np.zeros((Bn, 0))
-    return Problem(intr, X, point_ids, line_ids, ellipse_ids, K, p_obs, p_w, l_n, l_m, np.zeros((Bn, L)),
-                   l_info, np.zeros(L, bool), l_sig, e_theta, e_m, e_s, e_basis, e_info, np.zeros(E, bool),
-                   e_sig, e_kpaper, distance, np.zeros(Bn), np.zeros(Bn), [], np.full(Bn, pix))
+    return Problem(
+        intr,
+        X,
+        point_ids,
+        line_ids,
+        ellipse_ids,
+        K,
+        p_obs,
+        p_w,
+        l_n,
+        l_m,
+        np.zeros((Bn, L)),
+        l_info,
+        np.zeros(L, bool),
+        l_sig,
+        e_theta,
+        e_m,
+        e_s,
+        e_basis,
+        e_info,
+        np.zeros(E, bool),
+        e_sig,
+        e_kpaper,
+        distance,
+        np.zeros(Bn),
+        np.zeros(Bn),
+        [],
+        np.full(Bn, pix),
+    )
 
 
 def pose_errors(R_est: np.ndarray, t_est: np.ndarray, R_true: np.ndarray, t_true: np.ndarray):
@@ -301,9 +359,17 @@ def pose_errors(R_est: np.ndarray, t_est: np.ndarray, R_true: np.ndarray, t_true
     return so3.log(R_est @ np.swapaxes(R_true, -1, -2)), t_est - t_true
 
 
-def carm_sweep(R0: np.ndarray, t0: np.ndarray, n: int, swing_deg: float = 20.0, period_frames: float = 120.0,
-               tilt_deg: float = 6.0, tilt_period_frames: float = 77.0, isocentre_offset_mm: float = 100.0,
-               drift_mm: tuple[float, float, float] = (8.0, 5.0, 4.0)) -> tuple[np.ndarray, np.ndarray]:
+def carm_sweep(
+    R0: np.ndarray,
+    t0: np.ndarray,
+    n: int,
+    swing_deg: float = 20.0,
+    period_frames: float = 120.0,
+    tilt_deg: float = 6.0,
+    tilt_period_frames: float = 77.0,
+    isocentre_offset_mm: float = 100.0,
+    drift_mm: tuple[float, float, float] = (8.0, 5.0, 4.0),
+) -> tuple[np.ndarray, np.ndarray]:
     """Poses of a fiducial fixed to the patient through a run of a C-arm swinging about its
     isocentre: frame k sees the fiducial at ``Q_k (X₀ − c) + c + d_k`` (camera frame X),
     Q_k the C-arm's rotation and c the isocentre on the principal ray.

@@ -59,9 +59,13 @@ def _exp_one(x: float, y: float, z: float) -> np.ndarray:
             return np.full((3, 3), math.nan)
         a, b = math.sin(th) / th, (1.0 - math.cos(th)) / th2
     d = 1.0 - b * th2
-    return np.array([[d + b * x * x, b * x * y - a * z, b * x * z + a * y],
-                     [b * x * y + a * z, d + b * y * y, b * y * z - a * x],
-                     [b * x * z - a * y, b * y * z + a * x, d + b * z * z]])
+    return np.array(
+        [
+            [d + b * x * x, b * x * y - a * z, b * x * z + a * y],
+            [b * x * y + a * z, d + b * y * y, b * y * z - a * x],
+            [b * x * z - a * y, b * y * z + a * x, d + b * z * z],
+        ]
+    )
 
 
 def log(R: np.ndarray) -> np.ndarray:
@@ -77,8 +81,9 @@ def log(R: np.ndarray) -> np.ndarray:
     near_pi = th > np.pi - 1e-4
     if np.any(near_pi):
         Rp = R[near_pi]
-        B = ((Rp + np.swapaxes(Rp, -1, -2)) / 2
-             - np.eye(3) * ((np.trace(Rp, axis1=-2, axis2=-1) - 1) / 2)[..., None, None])
+        B = (Rp + np.swapaxes(Rp, -1, -2)) / 2 - np.eye(3) * ((np.trace(Rp, axis1=-2, axis2=-1) - 1) / 2)[
+            ..., None, None
+        ]
         # B = (1 - cos θ) n nᵀ: the column with the largest diagonal gives n up to sign
         k = np.argmax(np.diagonal(B, axis1=-2, axis2=-1), axis=-1)
         col = np.take_along_axis(B, k[..., None, None].repeat(3, -2), axis=-1)[..., 0]
@@ -108,19 +113,29 @@ def project_to_so3(M: np.ndarray) -> np.ndarray:
 def uniform_rotations(n: int, rng: np.random.Generator) -> np.ndarray:
     """``n`` rotations drawn uniformly from SO(3) (Shoemake's unit quaternions)."""
     u1, u2, u3 = rng.random((3, n))
-    q = np.stack([np.sqrt(1 - u1) * np.sin(2 * np.pi * u2), np.sqrt(1 - u1) * np.cos(2 * np.pi * u2),
-                  np.sqrt(u1) * np.sin(2 * np.pi * u3), np.sqrt(u1) * np.cos(2 * np.pi * u3)], -1)
+    q = np.stack(
+        [
+            np.sqrt(1 - u1) * np.sin(2 * np.pi * u2),
+            np.sqrt(1 - u1) * np.cos(2 * np.pi * u2),
+            np.sqrt(u1) * np.sin(2 * np.pi * u3),
+            np.sqrt(u1) * np.cos(2 * np.pi * u3),
+        ],
+        -1,
+    )
     return quat_to_matrix(q)
 
 
 def quat_to_matrix(q: np.ndarray) -> np.ndarray:
     """Unit quaternions (..., 4) as (x, y, z, w) → rotation matrices (..., 3, 3)."""
     x, y, z, w = np.moveaxis(q, -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+            np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+            np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        -2,
+    )
 
 
 def spread_rotations(n: int) -> np.ndarray:

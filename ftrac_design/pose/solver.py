@@ -126,13 +126,17 @@ class Pose:
 
     def to_dict(self) -> dict[str, Any]:
         """The SPEC §4 object, plus diagnostics (readers ignore unknown keys)."""
+
         def fin(x: float) -> float | None:
             return float(x) if math.isfinite(x) else None
+
         def mat(a: np.ndarray) -> list | None:
             a = np.asarray(a, float)
             return a.tolist() if np.all(np.isfinite(a)) else None
+
         d: dict[str, Any] = {
-            "format": FORMAT, "version": VERSION,
+            "format": FORMAT,
+            "version": VERSION,
             "rotation": mat(self.rotation),
             "translation_mm": mat(self.translation_mm),
             "converged": bool(self.converged),
@@ -142,14 +146,16 @@ class Pose:
         }
         if self.error:
             d["error"] = self.error
-        d.update({
-            "per_feature_residuals_px": {k: fin(v) for k, v in self.per_feature_residuals_px.items()},
-            "iterations": int(self.iterations),
-            "starts": int(self.starts),
-            "noise_scale": fin(self.noise_scale),
-            "residual_p_value": fin(self.residual_p_value),
-            "condition_number": fin(self.condition_number),
-        })
+        d.update(
+            {
+                "per_feature_residuals_px": {k: fin(v) for k, v in self.per_feature_residuals_px.items()},
+                "iterations": int(self.iterations),
+                "starts": int(self.starts),
+                "noise_scale": fin(self.noise_scale),
+                "residual_p_value": fin(self.residual_p_value),
+                "condition_number": fin(self.condition_number),
+            }
+        )
         if self.origin:
             d["observation"] = self.origin
         return d
@@ -186,9 +192,20 @@ class _State:
 
     def rows(self, idx: np.ndarray) -> "_State":
         """A copy of rows ``idx``."""
-        return _State(self.R[idx], self.t[idx], self.rho[idx], self.J[idx], self.raw[idx], self.Z[idx],
-                      self.cost[idx], [np.asarray(w)[idx] for w in self.W], self.iters[idx].copy(),
-                      self.converged[idx].copy(), self.fresh[idx].copy(), self.lam[idx].copy())
+        return _State(
+            self.R[idx],
+            self.t[idx],
+            self.rho[idx],
+            self.J[idx],
+            self.raw[idx],
+            self.Z[idx],
+            self.cost[idx],
+            [np.asarray(w)[idx] for w in self.W],
+            self.iters[idx].copy(),
+            self.converged[idx].copy(),
+            self.fresh[idx].copy(),
+            self.lam[idx].copy(),
+        )
 
     def put(self, mask: np.ndarray, other: "_State") -> None:
         """Take the rows of ``other`` (same batch size) where ``mask``."""
@@ -217,10 +234,14 @@ SETTLE_ITERATIONS = 30
 _LAMBDA0 = 1e-9
 
 
-def _evaluate_state(prob: Problem, R: np.ndarray, t: np.ndarray,
-                    whitening: list[np.ndarray] | None = None,
-                    reference: list[np.ndarray] | None = None,
-                    freeze: np.ndarray | None = None) -> tuple[_State, np.ndarray | None]:
+def _evaluate_state(
+    prob: Problem,
+    R: np.ndarray,
+    t: np.ndarray,
+    whitening: list[np.ndarray] | None = None,
+    reference: list[np.ndarray] | None = None,
+    freeze: np.ndarray | None = None,
+) -> tuple[_State, np.ndarray | None]:
     """State at poses (R, t): with fresh whitening, or with ``whitening`` held fixed (in the
     rows ``freeze``, if given); and, given a ``reference`` whitening, the cost (B,) under it
     (else None)."""
@@ -235,13 +256,31 @@ def _evaluate_state(prob: Problem, R: np.ndarray, t: np.ndarray,
             cost_ref = (ev.rho_ref * ev.rho_ref).sum(1)
             cost_ref = np.where(bad | ~np.isfinite(cost_ref), np.inf, cost_ref)
     B = R.shape[0]
-    return _State(R, t, ev.rho, ev.J, ev.raw, ev.Z, cost, ev.W, np.zeros(B, int), np.zeros(B, bool),
-                  np.full(B, whitening is None), np.full(B, _LAMBDA0)), cost_ref
+    return _State(
+        R,
+        t,
+        ev.rho,
+        ev.J,
+        ev.raw,
+        ev.Z,
+        cost,
+        ev.W,
+        np.zeros(B, int),
+        np.zeros(B, bool),
+        np.full(B, whitening is None),
+        np.full(B, _LAMBDA0),
+    ), cost_ref
 
 
-def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | None, h: np.ndarray,
-                        max_iterations: int, state: _State | None = None,
-                        eager: bool | np.ndarray = False) -> _State:
+def levenberg_marquardt(
+    prob: Problem,
+    R: np.ndarray | None,
+    t: np.ndarray | None,
+    h: np.ndarray,
+    max_iterations: int,
+    state: _State | None = None,
+    eager: bool | np.ndarray = False,
+) -> _State:
     """Batched LM from poses (B, 3, 3), (B, 3) (or a ``state``); rows converge independently.
 
     The whitening G is held fixed while the pose moves, so every inner problem has a fixed
@@ -268,8 +307,7 @@ def levenberg_marquardt(prob: Problem, R: np.ndarray | None, t: np.ndarray | Non
             # most rows are done: finish the stragglers on a compacted batch instead of
             # recomputing every converged row at every iteration
             idx = np.flatnonzero(act)
-            sub = levenberg_marquardt(prob.take(idx), None, None, h, max_iterations - it, st.rows(idx),
-                                      eager[idx])
+            sub = levenberg_marquardt(prob.take(idx), None, None, h, max_iterations - it, st.rows(idx), eager[idx])
             st.R[idx], st.t[idx], st.rho[idx], st.J[idx] = sub.R, sub.t, sub.rho, sub.J
             st.raw[idx], st.Z[idx], st.cost[idx] = sub.raw, sub.Z, sub.cost
             st.iters[idx], st.converged[idx], st.fresh[idx], st.lam[idx] = sub.iters, sub.converged, sub.fresh, sub.lam
@@ -403,8 +441,9 @@ def dlt_start(prob: Problem) -> tuple[np.ndarray, np.ndarray] | None:
 BEAD_REFINE_STEPS = 2
 
 
-def refine_on_beads(prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarray,
-                    steps: int = BEAD_REFINE_STEPS) -> tuple[np.ndarray, np.ndarray]:
+def refine_on_beads(
+    prob: Problem, R: np.ndarray, t: np.ndarray, h: np.ndarray, steps: int = BEAD_REFINE_STEPS
+) -> tuple[np.ndarray, np.ndarray]:
     """Poses (B, 3, 3), (B, 3) moved to the beads' own reprojection minimum by Gauss–Newton.
 
     The DLT minimises an algebraic error, not the reprojection error, so its pose is a few
@@ -452,7 +491,7 @@ def _image_anchors(prob: Problem):
         pts2.append(prob.p_obs)
         pts3.append(prob.X[:P])
     if L:
-        ends = prob.X[P:P + 2 * L].reshape(L, 2, 3)
+        ends = prob.X[P : P + 2 * L].reshape(L, 2, 3)
         use = ~prob.l_from_model
         if use.any():
             pts2.append(prob.l_m[:, use])
@@ -460,7 +499,7 @@ def _image_anchors(prob: Problem):
     radii2, radii3 = [], []
     if E:
         pts2.append(prob.e_m)
-        ell = prob.X[P + 2 * L:].reshape(E, prob.K, 3)
+        ell = prob.X[P + 2 * L :].reshape(E, prob.K, 3)
         pts3.append(ell.mean(1))
         radii2.append(prob.e_s * np.sqrt(2.0))
         radii3.append(np.sqrt(np.mean(np.sum((ell - ell.mean(1, keepdims=True)) ** 2, -1), -1)))
@@ -474,19 +513,19 @@ def multistart_seeds(prob: Problem, rotations: np.ndarray, depth_prior_mm: float
     pts2, pts3, radii2, radii3 = _image_anchors(prob)
     fx, fy, ox, oy = (prob.intr[:, i] for i in range(4))
     if pts2:
-        a2 = np.concatenate(pts2, 1)                                  # (B, n, 2)
-        a3 = np.concatenate(pts3, 0)                                  # (n, 3)
+        a2 = np.concatenate(pts2, 1)  # (B, n, 2)
+        a3 = np.concatenate(pts3, 0)  # (n, 3)
         c2 = a2.mean(1)
         c3 = a3.mean(0)
-        spread2 = np.sum((a2 - c2[:, None]) ** 2, (1, 2))             # (B,)
-        q = np.einsum("sij,nj->sni", rotations, a3 - c3)              # (S, n, 3)
-        spread3 = np.sum(q[..., :2] ** 2, (1, 2))                     # (S,)
+        spread2 = np.sum((a2 - c2[:, None]) ** 2, (1, 2))  # (B,)
+        q = np.einsum("sij,nj->sni", rotations, a3 - c3)  # (S, n, 3)
+        spread3 = np.sum(q[..., :2] ** 2, (1, 2))  # (S,)
         f = 0.5 * (fx + fy)
         s2 = spread2[:, None] / f[:, None] ** 2
         s3 = np.broadcast_to(spread3[None], (B, S)).copy()
         for r2, r3 in zip(radii2, radii3):
-            s2 = s2 + np.sum(r2 ** 2, 1)[:, None] / f[:, None] ** 2
-            s3 = s3 + np.sum(r3 ** 2)
+            s2 = s2 + np.sum(r2**2, 1)[:, None] / f[:, None] ** 2
+            s3 = s3 + np.sum(r3**2)
         with np.errstate(all="ignore"):
             Z0 = np.sqrt(s3 / s2)
         Z0 = np.where(np.isfinite(Z0) & (Z0 > 0), Z0, depth_prior_mm)
@@ -499,8 +538,9 @@ def multistart_seeds(prob: Problem, rotations: np.ndarray, depth_prior_mm: float
 
 
 # ----------------------------------------------------------------------------- results
-def _finish_all(prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, starts: int,
-                error: str | None = None) -> list[Pose]:
+def _finish_all(
+    prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, starts: int, error: str | None = None
+) -> list[Pose]:
     """Checks and covariances for every row of a solved batch, vectorised."""
     B = st.R.shape[0]
     m = prob.n_rows
@@ -544,32 +584,54 @@ def _finish_all(prob: Problem, st: _State, h: np.ndarray, opts: SolverOptions, s
             elif not math.isfinite(st.cost[row]):
                 err = "no pose puts every feature in front of the source"
             elif not c_l[row] < opts.max_condition:
-                err = (f"degenerate view: the observed features do not determine all six pose parameters "
-                       f"(condition number {c_l[row]:.3g})")
+                err = (
+                    f"degenerate view: the observed features do not determine all six pose parameters "
+                    f"(condition number {c_l[row]:.3g})"
+                )
             elif kappa > opts.max_noise_scale:
-                err = (f"residuals too large for the noise model (noise scale {kappa:.3g} > "
-                       f"{opts.max_noise_scale}): wrong correspondences or calibration?")
+                err = (
+                    f"residuals too large for the noise model (noise scale {kappa:.3g} > "
+                    f"{opts.max_noise_scale}): wrong correspondences or calibration?"
+                )
             elif kappa > opts.misfit_noise_scale and p_l[row] < opts.misfit_p_value:
-                err = (f"the features fit no single pose: residuals {kappa:.3g} x the noise model and "
-                       f"improbable against the contours' own scatter (p = {p_l[row]:.2g}); "
-                       f"swapped or misidentified features?")
-        out.append(Pose(st.R[row].copy(), st.t[row].copy(), err is None, rms_l[row],
-                        cov[row] if good[row] else None, dict(zip(ids, per_l[row])), int(st.iters[row]), err,
-                        noise_scale=kappa, condition_number=c_l[row], residual_p_value=p_l[row],
-                        starts=starts, origin=prob.origins[row] if prob.origins else ""))
+                err = (
+                    f"the features fit no single pose: residuals {kappa:.3g} x the noise model and "
+                    f"improbable against the contours' own scatter (p = {p_l[row]:.2g}); "
+                    f"swapped or misidentified features?"
+                )
+        out.append(
+            Pose(
+                st.R[row].copy(),
+                st.t[row].copy(),
+                err is None,
+                rms_l[row],
+                cov[row] if good[row] else None,
+                dict(zip(ids, per_l[row])),
+                int(st.iters[row]),
+                err,
+                noise_scale=kappa,
+                condition_number=c_l[row],
+                residual_p_value=p_l[row],
+                starts=starts,
+                origin=prob.origins[row] if prob.origins else "",
+            )
+        )
     return out
 
 
-def _finish(prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOptions, starts: int,
-            error: str | None = None) -> Pose:
+def _finish(
+    prob: Problem, st: _State, row: int, h: np.ndarray, opts: SolverOptions, starts: int, error: str | None = None
+) -> Pose:
     """Checks and covariance for one row of a solved batch."""
     return _finish_all(prob.take(np.array([row])), st.rows(np.array([row])), h, opts, starts, error)[0]
 
 
 def _underdetermined(prob: Problem) -> str | None:
     if prob.n_rows < 6:
-        return (f"observations do not constrain the pose: {prob.n_rows} independent constraints "
-                f"(2 per bead and line, 5 per ellipse) for 6 unknowns")
+        return (
+            f"observations do not constrain the pose: {prob.n_rows} independent constraints "
+            f"(2 per bead and line, 5 per ellipse) for 6 unknowns"
+        )
     return None
 
 
@@ -586,8 +648,13 @@ def view_seeds(nominal_beam: np.ndarray, cone_deg: float = 30.0, rolls: int = 12
     return rotations_from_beams(np.repeat(beams, rolls, 0), np.tile(roll, len(beams)))
 
 
-def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State | None = None,
-                nominal_beam: np.ndarray | None = None) -> Pose:
+def _robust_one(
+    prob: Problem,
+    h: np.ndarray,
+    opts: SolverOptions,
+    extra: _State | None = None,
+    nominal_beam: np.ndarray | None = None,
+) -> Pose:
     """Multi-start solve of the single image in ``prob`` (B = 1)."""
     S = opts.starts
     # SPEC §1: the fiducial sits about 2/3 of the source-detector distance from the source
@@ -604,8 +671,15 @@ def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State
     order = np.argsort(st.cost)
     finite = order[np.isfinite(st.cost[order])]
     if finite.size == 0:
-        return _finish(prob, _evaluate_state(prob, R0[:1], t0[:1])[0], 0, h, opts, len(R0),
-                       "no start led to a pose with every feature in front of the source")
+        return _finish(
+            prob,
+            _evaluate_state(prob, R0[:1], t0[:1])[0],
+            0,
+            h,
+            opts,
+            len(R0),
+            "no start led to a pose with every feature in front of the source",
+        )
     # polish the best few distinct candidates to full convergence
     keep: list[int] = []
     for i in finite:
@@ -623,18 +697,21 @@ def _robust_one(prob: Problem, h: np.ndarray, opts: SolverOptions, extra: _State
     pose.iterations = int(st2.iters[best]) + opts.explore_iterations
     if pose.converged:
         # another converged minimum, far away, that fits as well: the image cannot tell them apart
-        kappa2 = max(pose.noise_scale ** 2, 1e-30) if math.isfinite(pose.noise_scale) else 1.0
+        kappa2 = max(pose.noise_scale**2, 1e-30) if math.isfinite(pose.noise_scale) else 1.0
         for j in range(len(k)):
             if j == best or not st2.converged[j] or not math.isfinite(st2.cost[j]):
                 continue
             dchi2 = (st2.cost[j] - st2.cost[best]) / max(kappa2, 1.0)
             dang = math.degrees(float(so3.angle(st2.R[j], st2.R[best])))
             dt = float(np.linalg.norm(st2.t[j] - st2.t[best]))
-            if dchi2 < opts.ambiguity_chi2 and (dang > opts.ambiguity_rotation_deg
-                                                or dt > opts.ambiguity_translation_mm):
+            if dchi2 < opts.ambiguity_chi2 and (
+                dang > opts.ambiguity_rotation_deg or dt > opts.ambiguity_translation_mm
+            ):
                 pose.converged = False
-                pose.error = (f"ambiguous: another pose {dang:.1f}° and {dt:.1f} mm away fits the image "
-                              f"equally well (Δχ² = {dchi2:.2g}); observe more features")
+                pose.error = (
+                    f"ambiguous: another pose {dang:.1f}° and {dt:.1f} mm away fits the image "
+                    f"equally well (Δχ² = {dchi2:.2g}); observe more features"
+                )
                 break
     return pose
 
@@ -686,8 +763,11 @@ def solve_problem(prob: Problem, features: Features, opts: SolverOptions | None 
 
 def _suspect(p: Pose, opts: SolverOptions) -> bool:
     """Whether a local solve's answer needs the careful path before it is believed."""
-    return (not p.converged or not p.residual_p_value >= opts.retry_p_value
-            or not p.condition_number <= opts.retry_condition)
+    return (
+        not p.converged
+        or not p.residual_p_value >= opts.retry_p_value
+        or not p.condition_number <= opts.retry_condition
+    )
 
 
 def _better(a: Pose, b: Pose | None) -> bool:
@@ -703,8 +783,9 @@ def _better(a: Pose, b: Pose | None) -> bool:
     return ka < kb
 
 
-def solve_batch(features: Features, observations: Iterable[Observation],
-                options: SolverOptions | None = None) -> list[Pose]:
+def solve_batch(
+    features: Features, observations: Iterable[Observation], options: SolverOptions | None = None
+) -> list[Pose]:
     """Poses for many images, in input order; images that observed the same features the
     same way are compiled and solved together (vectorised)."""
     opts = options or _DEFAULTS
@@ -717,8 +798,15 @@ def solve_batch(features: Features, observations: Iterable[Observation],
             groups.setdefault(o.structure, []).append(i)
     out: list[Pose | None] = [None] * len(obs)
     for idx in groups.values():
-        prob = compile_problem(features, [obs[i] for i in idx], opts.noise, opts.ellipse_model_points,
-                               opts.distance, same_structure=True, task_scaling=opts.task_scaling)
+        prob = compile_problem(
+            features,
+            [obs[i] for i in idx],
+            opts.noise,
+            opts.ellipse_model_points,
+            opts.distance,
+            same_structure=True,
+            task_scaling=opts.task_scaling,
+        )
         try:
             poses = solve_problem(prob, features, opts)
         except np.linalg.LinAlgError as exc:
@@ -733,8 +821,20 @@ def solve_batch(features: Features, observations: Iterable[Observation],
 def _unsolved(prob: Problem, why: str) -> list[Pose]:
     """One unconverged pose per image of ``prob`` that says ``why``."""
     nan = np.full(3, np.nan)
-    return [Pose(np.full((3, 3), np.nan), nan, False, float("nan"), None, {}, 0, why,
-                 origin=prob.origins[i] if prob.origins else "") for i in range(prob.B)]
+    return [
+        Pose(
+            np.full((3, 3), np.nan),
+            nan,
+            False,
+            float("nan"),
+            None,
+            {},
+            0,
+            why,
+            origin=prob.origins[i] if prob.origins else "",
+        )
+        for i in range(prob.B)
+    ]
 
 
 def solve_pose(features: Features, observation: Observation, options: SolverOptions | None = None) -> Pose:
@@ -742,14 +842,26 @@ def solve_pose(features: Features, observation: Observation, options: SolverOpti
     return solve_batch(features, [observation], options)[0]
 
 
-def refine_pose(features: Features, observation: Observation, R: np.ndarray, t: np.ndarray,
-                options: SolverOptions | None = None, max_iterations: int | None = None) -> Pose:
+def refine_pose(
+    features: Features,
+    observation: Observation,
+    R: np.ndarray,
+    t: np.ndarray,
+    options: SolverOptions | None = None,
+    max_iterations: int | None = None,
+) -> Pose:
     """The paper's *basic* algorithm (Fig. 5): one local solve from a given initial pose."""
     opts = options or _DEFAULTS
-    prob = compile_problem(features, [observation], opts.noise, opts.ellipse_model_points, opts.distance,
-                           task_scaling=opts.task_scaling)
+    prob = compile_problem(
+        features, [observation], opts.noise, opts.ellipse_model_points, opts.distance, task_scaling=opts.task_scaling
+    )
     why = _underdetermined(prob)
     h = parameter_scale(features)
-    st = levenberg_marquardt(prob, np.asarray(R, float)[None].copy(), np.asarray(t, float)[None].copy(), h,
-                             max_iterations or opts.max_iterations)
+    st = levenberg_marquardt(
+        prob,
+        np.asarray(R, float)[None].copy(),
+        np.asarray(t, float)[None].copy(),
+        h,
+        max_iterations or opts.max_iterations,
+    )
     return _finish(prob, st, 0, h, opts, 1, why)

@@ -46,13 +46,16 @@ def is_rigid(M: np.ndarray, tol: float = 1e-6) -> bool:
     if M.shape != (4, 4) or not np.isfinite(M).all():
         return False
     R = M[:3, :3]
-    return bool(np.allclose(R @ R.T, np.eye(3), atol=tol) and abs(np.linalg.det(R) - 1) < tol
-                and np.allclose(M[3], [0, 0, 0, 1], atol=tol))
+    return bool(
+        np.allclose(R @ R.T, np.eye(3), atol=tol)
+        and abs(np.linalg.det(R) - 1) < tol
+        and np.allclose(M[3], [0, 0, 0, 1], atol=tol)
+    )
 
 
 def isotropic_covariance(sigma_mm: float = 0.0, sigma_rad: float = 0.0) -> np.ndarray:
     """6×6 covariance of a transform known to σ mm per translation axis and σ rad per rotation axis."""
-    return np.diag([sigma_rad ** 2] * 3 + [sigma_mm ** 2] * 3)
+    return np.diag([sigma_rad**2] * 3 + [sigma_mm**2] * 3)
 
 
 def apply(T: RigidTransform, P: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -62,7 +65,7 @@ def apply(T: RigidTransform, P: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray
     out = RP + T.t
     c = T.R @ np.asarray(cov, float).reshape(-1, 3, 3) @ T.R.T
     if T.covariance is not None:
-        G = np.concatenate([-so3.skew(RP), np.broadcast_to(np.eye(3), RP.shape + (3,))], -1)   # (n, 3, 6)
+        G = np.concatenate([-so3.skew(RP), np.broadcast_to(np.eye(3), RP.shape + (3,))], -1)  # (n, 3, 6)
         c = c + G @ T.covariance @ np.swapaxes(G, -1, -2)
     return out, c
 

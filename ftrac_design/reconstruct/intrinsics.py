@@ -61,19 +61,21 @@ def basis(params: tuple[str, ...], intr: np.ndarray) -> np.ndarray:
     return np.array(cols).T
 
 
-def _intrinsic_from_translation(Jt: np.ndarray, Xc: np.ndarray, Yc: np.ndarray, Z: np.ndarray,
-                                intr: np.ndarray) -> np.ndarray:
+def _intrinsic_from_translation(
+    Jt: np.ndarray, Xc: np.ndarray, Yc: np.ndarray, Z: np.ndarray, intr: np.ndarray
+) -> np.ndarray:
     """(…, 4) ∂r/∂(fx, fy, ox, oy) from ∂r/∂(t_x, t_y) (…, 2) and the camera-frame point."""
     fx, fy = intr[..., 0], intr[..., 1]
     return np.stack([Jt[..., 0] * Xc / fx, Jt[..., 1] * Yc / fy, Jt[..., 0] * Z / fx, Jt[..., 1] * Z / fy], -1)
 
 
-def information_rows(layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.ndarray,
-                     noise: NoiseModel = NoiseModel()) -> np.ndarray:
+def information_rows(
+    layout: FeatureLayout, camera: Camera, R: np.ndarray, t: np.ndarray, noise: NoiseModel = NoiseModel()
+) -> np.ndarray:
     """Whitened rows (B, n, 10): the analysis's pose rows (δ rad, t mm) then ∂/∂(fx, fy, ox, oy) px."""
     R = np.asarray(R, float).reshape(-1, 3, 3)
     t = np.asarray(t, float).reshape(-1, 3)
-    rows = whitened_rows(layout, camera, R, t, noise)                                  # (B, n, 6)
+    rows = whitened_rows(layout, camera, R, t, noise)  # (B, n, 6)
     _, Z, (Q, x, y, _, _) = project_points(layout.X, np.broadcast_to(camera.intrinsics, (R.shape[0], 4)), R, t)
     K = _intrinsic_from_translation(rows[..., 3:5], x * Z, y * Z, Z, camera.intrinsics)
     return np.concatenate([rows, K], -1)
@@ -84,14 +86,21 @@ class IntrinsicsBound:
     """Cramér–Rao bounds at B poses with ``params`` free besides the pose."""
 
     params: tuple[str, ...]
-    std: np.ndarray            # (B, k) px (f: px of fx)
-    corr_tz: np.ndarray        # (B, k) correlation of each parameter with t_z
-    pose_std: np.ndarray       # (B, 6) rad, mm with the intrinsics free
+    std: np.ndarray  # (B, k) px (f: px of fx)
+    corr_tz: np.ndarray  # (B, k) correlation of each parameter with t_z
+    pose_std: np.ndarray  # (B, 6) rad, mm with the intrinsics free
     pose_std_known: np.ndarray  # (B, 6) with the intrinsics known
 
 
-def crb(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, noise: NoiseModel = NoiseModel(),
-        params: tuple[str, ...] = NAMES, images: int = 1) -> IntrinsicsBound:
+def crb(
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    noise: NoiseModel = NoiseModel(),
+    params: tuple[str, ...] = NAMES,
+    images: int = 1,
+) -> IntrinsicsBound:
     """Bounds from one image at each pose (B, 3, 3), (B, 3), or from ``images`` independent
     images at that same pose (information × N: the 1/√N best case)."""
     layout = feature_layout(features)
@@ -105,8 +114,7 @@ def crb(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, noise:
     sd = np.sqrt(np.diagonal(C, axis1=1, axis2=2))
     corr = C[:, 6:, 5] / (sd[:, 6:] * sd[:, 5:6])
     known = np.linalg.inv(info[:, :6, :6])
-    return IntrinsicsBound(tuple(params), sd[:, 6:], corr, sd[:, :6],
-                           np.sqrt(np.diagonal(known, axis1=1, axis2=2)))
+    return IntrinsicsBound(tuple(params), sd[:, 6:], corr, sd[:, :6], np.sqrt(np.diagonal(known, axis1=1, axis2=2)))
 
 
 # ----------------------------------------------------------------------------- joint estimation
@@ -116,13 +124,13 @@ def whiten(prob: Problem, W: list[np.ndarray], dr: np.ndarray) -> np.ndarray:
     P, L, E, K = len(prob.point_ids), len(prob.line_ids), len(prob.ellipse_ids), prob.K
     out, w = [], 0
     if P:
-        out.append(dr[:, :2 * P] * prob.p_w2)
+        out.append(dr[:, : 2 * P] * prob.p_w2)
         w += 1
     if L:
-        out.append((W[w] @ dr[:, 2 * P:2 * P + 2 * L].reshape(B, L, 2, k)).reshape(B, 2 * L, k))
+        out.append((W[w] @ dr[:, 2 * P : 2 * P + 2 * L].reshape(B, L, 2, k)).reshape(B, 2 * L, k))
         w += 1
     if E:
-        out.append((W[w] @ dr[:, 2 * P + 2 * L:].reshape(B, E, K, k)).reshape(B, 5 * E, k))
+        out.append((W[w] @ dr[:, 2 * P + 2 * L :].reshape(B, E, K, k)).reshape(B, 5 * E, k))
     return np.concatenate(out, 1)
 
 
@@ -145,17 +153,17 @@ class IntrinsicsEstimate:
     reason: str | None
     params: tuple[str, ...]
     camera: Camera
-    intrinsics: np.ndarray                 # (4,) fx, fy, ox, oy px
-    std: np.ndarray                        # (k,) px, CRB at the estimate (noise model's σ)
-    R: np.ndarray                          # (N, 3, 3)
-    t: np.ndarray                          # (N, 3)
-    pose_cov: np.ndarray                   # (N, 6, 6) marginal, intrinsics free
+    intrinsics: np.ndarray  # (4,) fx, fy, ox, oy px
+    std: np.ndarray  # (k,) px, CRB at the estimate (noise model's σ)
+    R: np.ndarray  # (N, 3, 3)
+    t: np.ndarray  # (N, 3)
+    pose_cov: np.ndarray  # (N, 6, 6) marginal, intrinsics free
     noise_scale: float = float("nan")
     condition: float = float("nan")
     iterations: int = 0
-    corr_tz: np.ndarray = field(default_factory=lambda: np.zeros(0))   # (N, k)
-    solved: list[int] = field(default_factory=list)   # input indices of the N images
-    start: list = field(default_factory=list)          # every input's pose solved with the given camera
+    corr_tz: np.ndarray = field(default_factory=lambda: np.zeros(0))  # (N, k)
+    solved: list[int] = field(default_factory=list)  # input indices of the N images
+    start: list = field(default_factory=list)  # every input's pose solved with the given camera
 
     def pose_dicts(self) -> list[dict]:
         """One SPEC §4 object per input image, in input order: the joint estimate (with the
@@ -172,7 +180,7 @@ class IntrinsicsEstimate:
             d["covariance"] = self.pose_cov[a].tolist() if np.isfinite(self.pose_cov[a]).all() else None
             d["noise_scale"] = self.noise_scale
             d["camera"] = cam
-            d["rms_residual_px"] = None          # the start's residuals no longer apply
+            d["rms_residual_px"] = None  # the start's residuals no longer apply
             d.pop("per_feature_residuals_px", None)
         return out
 
@@ -206,10 +214,16 @@ def _camera_from(camera: Camera, intr: np.ndarray) -> Camera:
     return Camera(float(f), (float(sx), float(f / intr[1])), (float(intr[2]), float(intr[3])))
 
 
-def estimate(features: Features, observations: list[Observation], camera: Camera | None = None,
-             params: tuple[str, ...] = ("f", "ox", "oy"), options: SolverOptions | None = None,
-             max_iterations: int = 50, min_images: int = 2,
-             max_relative_std: float = MAX_RELATIVE_STD) -> IntrinsicsEstimate:
+def estimate(
+    features: Features,
+    observations: list[Observation],
+    camera: Camera | None = None,
+    params: tuple[str, ...] = ("f", "ox", "oy"),
+    options: SolverOptions | None = None,
+    max_iterations: int = 50,
+    min_images: int = 2,
+    max_relative_std: float = MAX_RELATIVE_STD,
+) -> IntrinsicsEstimate:
     """Joint ML estimate of N poses and shared intrinsics ``params`` from N images.
 
     ``camera`` (default: the first observation's) is the starting calibration; each image is
@@ -239,18 +253,37 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
 
     def refuse(why: str, std=None, cond=float("nan"), corr=None) -> IntrinsicsEstimate:
         # the start (each image solved with the given camera) is what a refusal leaves the user
-        cov = np.array([poses[i].covariance if poses[i].covariance is not None else np.full((6, 6), np.nan)
-                        for i in solved]).reshape(-1, 6, 6)
-        return IntrinsicsEstimate(False, why, tuple(params), cam0, cam0.intrinsics.copy(),
-                                  np.full(k, np.nan) if std is None else std, R0, t0, cov, condition=cond,
-                                  corr_tz=np.zeros((N, k)) if corr is None else corr, solved=solved, start=poses)
+        cov = np.array(
+            [poses[i].covariance if poses[i].covariance is not None else np.full((6, 6), np.nan) for i in solved]
+        ).reshape(-1, 6, 6)
+        return IntrinsicsEstimate(
+            False,
+            why,
+            tuple(params),
+            cam0,
+            cam0.intrinsics.copy(),
+            np.full(k, np.nan) if std is None else std,
+            R0,
+            t0,
+            cov,
+            condition=cond,
+            corr_tz=np.zeros((N, k)) if corr is None else corr,
+            solved=solved,
+            start=poses,
+        )
 
     if N < min_images:
-        return refuse(f"{N} solved image{'s' if N != 1 else ''}: shared intrinsics need at least {min_images} "
-                      f"(one image cannot separate the focal length from the depth, nor the principal point "
-                      f"from the lateral position)")
-    probs = [compile_problem(features, [obs[i]], opts.noise, opts.ellipse_model_points, opts.distance,
-                             task_scaling=opts.task_scaling) for i in solved]
+        return refuse(
+            f"{N} solved image{'s' if N != 1 else ''}: shared intrinsics need at least {min_images} "
+            f"(one image cannot separate the focal length from the depth, nor the principal point "
+            f"from the lateral position)"
+        )
+    probs = [
+        compile_problem(
+            features, [obs[i]], opts.noise, opts.ellipse_model_points, opts.distance, task_scaling=opts.task_scaling
+        )
+        for i in solved
+    ]
     h = parameter_scale(features)
 
     def set_intr(q: np.ndarray) -> None:
@@ -258,7 +291,7 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
             p.intr[:] = q
 
     def evaluate_all(Rs, ts, W=None):
-        out = [residuals(p, Rs[i:i + 1], ts[i:i + 1], None if W is None else W[i]) for i, p in enumerate(probs)]
+        out = [residuals(p, Rs[i : i + 1], ts[i : i + 1], None if W is None else W[i]) for i, p in enumerate(probs)]
         return out
 
     def normal(ev):
@@ -271,11 +304,11 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
             Ji = J[0] * h
             s = slice(6 * i, 6 * i + 6)
             A[s, s] = Ji.T @ Ji
-            A[s, 6 * N:] = Ji.T @ Ki
-            A[6 * N:, s] = A[s, 6 * N:].T
-            A[6 * N:, 6 * N:] += Ki.T @ Ki
+            A[s, 6 * N :] = Ji.T @ Ki
+            A[6 * N :, s] = A[s, 6 * N :].T
+            A[6 * N :, 6 * N :] += Ki.T @ Ki
             g[s] = Ji.T @ rho[0]
-            g[6 * N:] += Ki.T @ rho[0]
+            g[6 * N :] += Ki.T @ rho[0]
             cost += float(rho[0] @ rho[0])
         return A, g, cost
 
@@ -289,10 +322,10 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
             D = np.sqrt(np.maximum(np.diag(A), 1e-300))
             As = A / np.outer(D, D)
             step = -np.linalg.solve(As + lam * np.eye(len(D)), g / D) / D
-            dpose = step[:6 * N].reshape(N, 6) * h
+            dpose = step[: 6 * N].reshape(N, 6) * h
             Rn = so3.exp(dpose[:, :3]) @ R
             tn = t + dpose[:, 3:]
-            qn = intr + Bm @ step[6 * N:]
+            qn = intr + Bm @ step[6 * N :]
             set_intr(qn)
             trial = evaluate_all(Rn, tn, [e[3] for e in ev])
             tcost = sum(float(e[0][0] @ e[0][0]) for e in trial)
@@ -300,7 +333,7 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
                 R, t, intr = Rn, tn, qn
                 ev = evaluate_all(R, t)
                 A, g, new = normal(ev)
-                done = abs(cost - new) <= 1e-10 * max(cost, 1.0) and np.abs(step[6 * N:]).max() < 1e-6
+                done = abs(cost - new) <= 1e-10 * max(cost, 1.0) and np.abs(step[6 * N :]).max() < 1e-6
                 cost = new
                 lam = max(lam / 10, 1e-12)
                 if done:
@@ -316,24 +349,50 @@ def estimate(features: Features, observations: list[Observation], camera: Camera
     ew = np.linalg.eigvalsh(As)
     cond = float(ew[-1] / ew[0]) if ew[0] > 0 else math.inf
     if not cond < MAX_CONDITION:
-        return refuse(f"the images do not determine {', '.join(params)} (scaled condition number {cond:.2g}: "
-                      f"rank-deficient)", cond=cond)
+        return refuse(
+            f"the images do not determine {', '.join(params)} (scaled condition number {cond:.2g}: rank-deficient)",
+            cond=cond,
+        )
     C = np.linalg.inv(As) / np.outer(D, D)
     sd = np.sqrt(np.diag(C))
-    std = sd[6 * N:]
+    std = sd[6 * N :]
     corr = np.array([[C[6 * i + 5, 6 * N + j] / (sd[6 * i + 5] * sd[6 * N + j]) for j in range(k)] for i in range(N)])
     # rotation block back from the scaled units h
-    pose_cov = np.array([C[6 * i:6 * i + 6, 6 * i:6 * i + 6] * np.outer(h, h) for i in range(N)])
+    pose_cov = np.array([C[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] * np.outer(h, h) for i in range(N)])
     kappa = math.sqrt(cost / max(m - 6 * N - k, 1))
     if not kappa <= opts.max_noise_scale:
-        return refuse(f"residuals stay {kappa:.3g} times the noise model with {', '.join(params)} estimated: "
-                      f"other intrinsics (or distortion) are off, or the segmentation is worse than modelled", std,
-                      cond, corr)
+        return refuse(
+            f"residuals stay {kappa:.3g} times the noise model with {', '.join(params)} estimated: "
+            f"other intrinsics (or distortion) are off, or the segmentation is worse than modelled",
+            std,
+            cond,
+            corr,
+        )
     if not np.all(std < max_relative_std * intr[0]):
         worst = int(np.argmax(std / intr[0]))
-        return refuse(f"the images bound {params[worst]} only to ±{std[worst]:.3g} px "
-                      f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * max_relative_std:g} %; correlation with "
-                      f"depth {np.abs(corr[:, worst]).max():.3f}): add images from other directions or keep the "
-                      f"nominal calibration", std, cond, corr)
-    return IntrinsicsEstimate(True, None, tuple(params), _camera_from(cam0, intr), intr, std, R, t, pose_cov,
-                              kappa, cond, it, corr, solved, poses)
+        return refuse(
+            f"the images bound {params[worst]} only to ±{std[worst]:.3g} px "
+            f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * max_relative_std:g} %; correlation with "
+            f"depth {np.abs(corr[:, worst]).max():.3f}): add images from other directions or keep the "
+            f"nominal calibration",
+            std,
+            cond,
+            corr,
+        )
+    return IntrinsicsEstimate(
+        True,
+        None,
+        tuple(params),
+        _camera_from(cam0, intr),
+        intr,
+        std,
+        R,
+        t,
+        pose_cov,
+        kappa,
+        cond,
+        it,
+        corr,
+        solved,
+        poses,
+    )

@@ -60,8 +60,9 @@ def _num(v: Any, origin: str, key: str) -> float:
 
 def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
     if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
-        raise InputError(origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), "
-                                      f"got {_short(v)}")
+        raise InputError(
+            origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), got {_short(v)}"
+        )
     return np.array([[_num(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
 
 
@@ -73,14 +74,23 @@ def read_poses(path: Path) -> list[dict[str, Any]]:
         fmt = d.get("format", "ftrac-pose")
         if fmt != "ftrac-pose":
             raise InputError(origin, "format", f'"ftrac-pose", got {_short(fmt)}')
-        item: dict[str, Any] = {"origin": origin, "usable": True, "why": None, "cov": None,
-                                "camera": camera_from_dict(d["camera"], origin) if "camera" in d else None}
+        item: dict[str, Any] = {
+            "origin": origin,
+            "usable": True,
+            "why": None,
+            "cov": None,
+            "camera": camera_from_dict(d["camera"], origin) if "camera" in d else None,
+        }
         conv = d.get("converged", True)
         if not isinstance(conv, bool):
             raise InputError(origin, "converged", f"true or false, got {_short(conv)}")
         if not conv:
-            item.update(usable=False, why=f"pose not solved ({d.get('error', 'converged: false')})",
-                        R=np.full((3, 3), np.nan), t=np.full(3, np.nan))
+            item.update(
+                usable=False,
+                why=f"pose not solved ({d.get('error', 'converged: false')})",
+                R=np.full((3, 3), np.nan),
+                t=np.full(3, np.nan),
+            )
             out.append(item)
             continue
         for k in ("rotation", "translation_mm"):
@@ -99,8 +109,10 @@ def read_poses(path: Path) -> list[dict[str, Any]]:
             order = d.get("covariance_order", ["rx", "ry", "rz", "tx", "ty", "tz"])
             if order != ["rx", "ry", "rz", "tx", "ty", "tz"]:
                 raise InputError(origin, "covariance_order", '["rx", "ry", "rz", "tx", "ty", "tz"]')
-            if not (np.allclose(cov, cov.T, atol=1e-9 * max(1.0, np.abs(cov).max()))
-                    and np.linalg.eigvalsh((cov + cov.T) / 2).min() >= -1e-12 * max(1.0, np.abs(cov).max())):
+            if not (
+                np.allclose(cov, cov.T, atol=1e-9 * max(1.0, np.abs(cov).max()))
+                and np.linalg.eigvalsh((cov + cov.T) / 2).min() >= -1e-12 * max(1.0, np.abs(cov).max())
+            ):
                 raise InputError(origin, "covariance", "a symmetric positive semi-definite 6x6 matrix")
             cov = (cov + cov.T) / 2
         item.update(R=R, t=t, cov=cov)
@@ -154,9 +166,19 @@ def _fin(a: np.ndarray, nd: int = 6) -> Any:
     return np.round(a, nd).tolist() if np.isfinite(a).all() else None
 
 
-def result_dict(ids: list[str], tri, P: np.ndarray, cov: np.ndarray, frame: str, chain: list[str],
-                views_index: list[int], skipped: list[dict[str, Any]], noise_px: list[float],
-                P_F: np.ndarray, cov_F: np.ndarray) -> dict[str, Any]:
+def result_dict(
+    ids: list[str],
+    tri,
+    P: np.ndarray,
+    cov: np.ndarray,
+    frame: str,
+    chain: list[str],
+    views_index: list[int],
+    skipped: list[dict[str, Any]],
+    noise_px: list[float],
+    P_F: np.ndarray,
+    cov_F: np.ndarray,
+) -> dict[str, Any]:
     """The ``ftrac-reconstruction`` object.
 
     ``points`` maps each id to either ``{"position_mm", "covariance_mm2", "std_mm", "frame",
@@ -170,15 +192,30 @@ def result_dict(ids: list[str], tri, P: np.ndarray, cov: np.ndarray, frame: str,
         if tri.refused[k] is not None:
             points[pid] = {"refused": tri.refused[k], "views": views}
             continue
-        e: dict[str, Any] = {"frame": frame, "position_mm": _fin(P[k]), "covariance_mm2": _fin(cov[k], 9),
-                             "std_mm": _fin(np.sqrt(np.diag(cov[k]))), "views": views,
-                             "rms_reprojection_px": round(float(tri.rms_px[k]), 6),
-                             "parallax_deg": round(float(tri.parallax_deg[k]), 4)}
+        e: dict[str, Any] = {
+            "frame": frame,
+            "position_mm": _fin(P[k]),
+            "covariance_mm2": _fin(cov[k], 9),
+            "std_mm": _fin(np.sqrt(np.diag(cov[k]))),
+            "views": views,
+            "rms_reprojection_px": round(float(tri.rms_px[k]), 6),
+            "parallax_deg": round(float(tri.parallax_deg[k]), 4),
+        }
         if frame != "fiducial":
             e["position_fiducial_mm"] = _fin(P_F[k])
             e["covariance_fiducial_mm2"] = _fin(cov_F[k], 9)
         points[pid] = e
-    return {"format": FORMAT, "version": VERSION, "units": "mm", "frame": frame, "frame_chain": chain,
-            "images": len(views_index) + len(skipped), "images_used": views_index, "images_skipped": skipped,
-            "noise_px": noise_px,
-            "reconstructed": int(tri.ok.sum()), "refused": int((~tri.ok).sum()), "points": points}
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "units": "mm",
+        "frame": frame,
+        "frame_chain": chain,
+        "images": len(views_index) + len(skipped),
+        "images_used": views_index,
+        "images_skipped": skipped,
+        "noise_px": noise_px,
+        "reconstructed": int(tri.ok.sum()),
+        "refused": int((~tri.ok).sum()),
+        "points": points,
+    }

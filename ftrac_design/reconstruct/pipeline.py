@@ -18,20 +18,30 @@ from .triangulate import MIN_PARALLAX_DEG, Views, triangulate
 FRAME_KEYS = {"fiducial": None, "template": "template_from_fiducial"}
 
 
-def build_views(poses: list[dict], points: list[dict], camera: Camera | None, noise_px: float | None, poses_file: str,
-                points_file: str) -> tuple[Views, list[int], list[dict], list[str], np.ndarray, np.ndarray]:
+def build_views(
+    poses: list[dict],
+    points: list[dict],
+    camera: Camera | None,
+    noise_px: float | None,
+    poses_file: str,
+    points_file: str,
+) -> tuple[Views, list[int], list[dict], list[str], np.ndarray, np.ndarray]:
     """Views of the usable images, their input indices, the skipped ones (with why), the
     point ids and the pixels (N, n, 2) / seen mask (N, n)."""
     if len(poses) != len(points):
-        raise InputError(points_file, None, f"one line per pose: {len(poses)} poses in {poses_file}, "
-                                            f"{len(points)} lines here")
+        raise InputError(
+            points_file, None, f"one line per pose: {len(poses)} poses in {poses_file}, {len(points)} lines here"
+        )
     used, skipped = [], []
     R, t, intr, sig, cov = [], [], [], [], []
     for i, (p, q) in enumerate(zip(poses, points)):
         cam = camera or p["camera"] or q["camera"]
         if cam is None:
-            raise InputError(p["origin"], "camera", "a camera for this image: give --camera C.json, or a "
-                                                    "\"camera\" object in the pose or points line")
+            raise InputError(
+                p["origin"],
+                "camera",
+                'a camera for this image: give --camera C.json, or a "camera" object in the pose or points line',
+            )
         if not p["usable"]:
             skipped.append({"index": i, "reason": p["why"]})
             continue
@@ -51,26 +61,46 @@ def build_views(poses: list[dict], points: list[dict], camera: Camera | None, no
         for k, pid in enumerate(ids):
             if pid in points[i]["points"]:
                 uv[a, k] = points[i]["points"][pid]
-    views = Views.make(np.array(R).reshape(-1, 3, 3), np.array(t).reshape(-1, 3),
-                       np.array(intr).reshape(-1, 4), np.array(sig), np.array(cov).reshape(-1, 6, 6))
+    views = Views.make(
+        np.array(R).reshape(-1, 3, 3),
+        np.array(t).reshape(-1, 3),
+        np.array(intr).reshape(-1, 4),
+        np.array(sig),
+        np.array(cov).reshape(-1, 6, 6),
+    )
     return views, used, skipped, ids, uv, np.isfinite(uv).all(-1)
 
 
-def reconstruct(features: Features, poses: list[dict], points: list[dict], camera: Camera | None = None,
-                to: Literal["fiducial", "template"] = "fiducial", transform: fr.RigidTransform | None = None,
-                noise_px: float | None = None,
-                min_parallax_deg: float = MIN_PARALLAX_DEG, template_sigma_mm: float = 0.0,
-                poses_file: str = "<poses>", points_file: str = "<points>",
-                features_file: str = "<features>") -> dict[str, Any]:
+def reconstruct(
+    features: Features,
+    poses: list[dict],
+    points: list[dict],
+    camera: Camera | None = None,
+    to: Literal["fiducial", "template"] = "fiducial",
+    transform: fr.RigidTransform | None = None,
+    noise_px: float | None = None,
+    min_parallax_deg: float = MIN_PARALLAX_DEG,
+    template_sigma_mm: float = 0.0,
+    poses_file: str = "<poses>",
+    points_file: str = "<points>",
+    features_file: str = "<features>",
+) -> dict[str, Any]:
     """The ``ftrac-reconstruction`` object for parsed inputs (see :mod:`.io`)."""
     views, used, skipped, ids, uv, seen = build_views(poses, points, camera, noise_px, poses_file, points_file)
     if views.N:
         tri = triangulate(views, uv, seen, min_parallax_deg)
     else:
         from .triangulate import Triangulation
+
         n = len(ids)
-        tri = Triangulation(np.full((n, 3), np.nan), np.full((n, 3, 3), np.nan), np.full(n, np.nan),
-                            np.zeros((0, n), bool), np.full(n, np.nan), ["no usable pose"] * n)
+        tri = Triangulation(
+            np.full((n, 3), np.nan),
+            np.full((n, 3, 3), np.nan),
+            np.full(n, np.nan),
+            np.zeros((0, n), bool),
+            np.full(n, np.nan),
+            ["no usable pose"] * n,
+        )
     chain_t: list[fr.RigidTransform] = []
     names = ["fiducial"]
     if to == "template":

@@ -62,11 +62,11 @@ MIN_P_VALUE = 1e-6
 class Views:
     """N tracked images: poses F → X, their covariances and intrinsics, and σ px per axis."""
 
-    R: np.ndarray                 # (N, 3, 3)
-    t: np.ndarray                 # (N, 3) mm
-    intr: np.ndarray              # (N, 4) fx, fy, ox, oy px
-    sigma_px: np.ndarray          # (N,) isotropic pixel noise per axis
-    pose_cov: np.ndarray          # (N, 6, 6) rad², mm² (zeros: pose taken as exact)
+    R: np.ndarray  # (N, 3, 3)
+    t: np.ndarray  # (N, 3) mm
+    intr: np.ndarray  # (N, 4) fx, fy, ox, oy px
+    sigma_px: np.ndarray  # (N,) isotropic pixel noise per axis
+    pose_cov: np.ndarray  # (N, 6, 6) rad², mm² (zeros: pose taken as exact)
 
     @classmethod
     def make(cls, R, t, intr, sigma_px, pose_cov=None) -> "Views":
@@ -74,8 +74,13 @@ class Views:
         R = np.asarray(R, float).reshape(-1, 3, 3)
         N = R.shape[0]
         cov = np.zeros((N, 6, 6)) if pose_cov is None else np.asarray(pose_cov, float).reshape(N, 6, 6)
-        return cls(R, np.asarray(t, float).reshape(N, 3), np.broadcast_to(np.asarray(intr, float), (N, 4)).copy(),
-                   np.broadcast_to(np.asarray(sigma_px, float), (N,)).copy(), cov)
+        return cls(
+            R,
+            np.asarray(t, float).reshape(N, 3),
+            np.broadcast_to(np.asarray(intr, float), (N, 4)).copy(),
+            np.broadcast_to(np.asarray(sigma_px, float), (N,)).copy(),
+            cov,
+        )
 
     @property
     def N(self) -> int:
@@ -122,8 +127,8 @@ def _jacobians(views: Views, pr) -> tuple[np.ndarray, np.ndarray]:
     # the solver's rows with ∂r/∂(u, v) = (1, 0) and (0, 1) are the pixel's own derivatives
     Ju = jacobian_rows(pr, slice(None), one, zero)
     Jv = jacobian_rows(pr, slice(None), zero, one)
-    Jth = np.stack([Ju, Jv], -2)                                   # (N, n, 2, 6)
-    JP = Jth[..., 3:] @ views.R[:, None]                          # ∂π/∂P_X · R
+    Jth = np.stack([Ju, Jv], -2)  # (N, n, 2, 6)
+    JP = Jth[..., 3:] @ views.R[:, None]  # ∂π/∂P_X · R
     return JP, Jth
 
 
@@ -142,15 +147,15 @@ def linear_start(views: Views, uv: np.ndarray, seen: np.ndarray) -> np.ndarray:
     ``(x r₃ − r₁)·P = t₁ − x t₃`` (and the same in y); dividing by the view's depth at the
     fiducial origin makes the residuals ≈ normalised reprojection errors.
     """
-    x = (uv - views.intr[:, None, 2:]) / views.intr[:, None, :2]                    # (N, n, 2)
-    r1, r2, r3 = views.R[:, 0], views.R[:, 1], views.R[:, 2]                          # (N, 3)
-    w = (seen / np.maximum(np.abs(views.t[:, 2:3]), 1e-9))[..., None]                # (N, n, 1)
-    Ax = (x[..., 0:1] * r3[:, None] - r1[:, None]) * w                               # (N, n, 3)
+    x = (uv - views.intr[:, None, 2:]) / views.intr[:, None, :2]  # (N, n, 2)
+    r1, r2, r3 = views.R[:, 0], views.R[:, 1], views.R[:, 2]  # (N, 3)
+    w = (seen / np.maximum(np.abs(views.t[:, 2:3]), 1e-9))[..., None]  # (N, n, 1)
+    Ax = (x[..., 0:1] * r3[:, None] - r1[:, None]) * w  # (N, n, 3)
     Ay = (x[..., 1:2] * r3[:, None] - r2[:, None]) * w
-    bx = (views.t[:, None, 0] - x[..., 0] * views.t[:, None, 2]) * w[..., 0]         # (N, n)
+    bx = (views.t[:, None, 0] - x[..., 0] * views.t[:, None, 2]) * w[..., 0]  # (N, n)
     by = (views.t[:, None, 1] - x[..., 1] * views.t[:, None, 2]) * w[..., 0]
-    A = np.concatenate([Ax, Ay], 0).transpose(1, 0, 2)                               # (n, 2N, 3)
-    b = np.concatenate([bx, by], 0).T                                                # (n, 2N)
+    A = np.concatenate([Ax, Ay], 0).transpose(1, 0, 2)  # (n, 2N, 3)
+    b = np.concatenate([bx, by], 0).T  # (n, 2N)
     AtA = np.swapaxes(A, 1, 2) @ A
     Atb = np.einsum("nki,nk->ni", A, b)
     with np.errstate(all="ignore"):
@@ -163,7 +168,7 @@ def linear_start(views: Views, uv: np.ndarray, seen: np.ndarray) -> np.ndarray:
 
 def parallax_deg(views: Views, P: np.ndarray, seen: np.ndarray) -> np.ndarray:
     """Widest angle (n,) deg between the rays of two views (that see the point) through P."""
-    d = P[None] - views.centres[:, None]                                             # (N, n, 3)
+    d = P[None] - views.centres[:, None]  # (N, n, 3)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     c = np.einsum("inc,jnc->nij", d, d)
     both = seen.T[:, :, None] & seen.T[:, None, :]
@@ -171,9 +176,14 @@ def parallax_deg(views: Views, P: np.ndarray, seen: np.ndarray) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(c.min((1, 2)), -1.0, 1.0)))
 
 
-def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
-                min_parallax_deg: float = MIN_PARALLAX_DEG, steps: int = GAUSS_NEWTON_STEPS,
-                max_p: float = MIN_P_VALUE) -> Triangulation:
+def triangulate(
+    views: Views,
+    uv: np.ndarray,
+    seen: np.ndarray | None = None,
+    min_parallax_deg: float = MIN_PARALLAX_DEG,
+    steps: int = GAUSS_NEWTON_STEPS,
+    max_p: float = MIN_P_VALUE,
+) -> Triangulation:
     """ML points in F from pixels ``uv`` (N views, n points, 2) where ``seen`` (N, n) bool.
 
     See the module docstring for the model, the covariance formula and the refusals.
@@ -194,8 +204,8 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
             Si = np.linalg.inv(_residual_cov(views, Jth))
             Si = np.where(seen[..., None, None], Si, 0.0)
             r = uvp - uvz
-            JtS = np.swapaxes(JP, -1, -2) @ Si                                          # (N, n, 3, 2)
-            H = (JtS @ JP).sum(0)                                                       # (n, 3, 3)
+            JtS = np.swapaxes(JP, -1, -2) @ Si  # (N, n, 3, 2)
+            H = (JtS @ JP).sum(0)  # (n, 3, 3)
             g = (JtS @ r[..., None]).sum(0)[..., 0]
             good = np.isfinite(H).all((1, 2)) & (np.linalg.cond(np.where(np.isfinite(H), H, 0.0)) < 1e14)
             dP = np.zeros_like(P)
@@ -213,7 +223,7 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
         if invertible.any():
             cov[invertible] = np.linalg.inv(H[invertible])
         res = np.where(seen[..., None], uvp - uvz, 0.0)
-        rms = np.sqrt((res ** 2).sum((0, 2)) / np.maximum(2 * count, 1))
+        rms = np.sqrt((res**2).sum((0, 2)) / np.maximum(2 * count, 1))
         chi2 = (res[..., None, :] @ Si @ res[..., None])[..., 0, 0].sum(0)
         dof = np.maximum(2 * count - 3, 1)
         pval = chdtrc(dof, chi2)
@@ -221,21 +231,26 @@ def triangulate(views: Views, uv: np.ndarray, seen: np.ndarray | None = None,
     last_step = np.abs(dP).max(1) if n else np.zeros(0)
     for k in range(n):
         if count[k] < 2:
-            refused[k] = (f"seen in {int(count[k])} image{'s' if count[k] != 1 else ''}: "
-                          f"a point needs at least two views")
+            refused[k] = (
+                f"seen in {int(count[k])} image{'s' if count[k] != 1 else ''}: a point needs at least two views"
+            )
         elif not np.isfinite(P[k]).all():
             refused[k] = "the views' projection equations do not determine the point"
         elif not (Z[seen[:, k], k] > 0).all():
             refused[k] = "behind the X-ray source in some view: wrong correspondence or pose?"
         elif not par[k] >= min_parallax_deg:
-            refused[k] = (f"nearly parallel views: the widest angle between two rays through the point is "
-                          f"{par[k]:.2f}° (< {min_parallax_deg:g}°), depth would be "
-                          f"{1 / max(math.sin(math.radians(par[k])), 1e-12):.0f}× less certain than position "
-                          f"in the image")
+            refused[k] = (
+                f"nearly parallel views: the widest angle between two rays through the point is "
+                f"{par[k]:.2f}° (< {min_parallax_deg:g}°), depth would be "
+                f"{1 / max(math.sin(math.radians(par[k])), 1e-12):.0f}× less certain than position "
+                f"in the image"
+            )
         elif not pval[k] >= max_p:
-            refused[k] = (f"the image points do not meet in 3-D: reprojection RMS {rms[k]:.2f} px, χ² = "
-                          f"{chi2[k]:.3g} on {int(dof[k])} degrees of freedom (p = {pval[k]:.1e}); a wrong "
-                          f"correspondence, or raise the noise (σ = {np.median(views.sigma_px):.3g} px)")
+            refused[k] = (
+                f"the image points do not meet in 3-D: reprojection RMS {rms[k]:.2f} px, χ² = "
+                f"{chi2[k]:.3g} on {int(dof[k])} degrees of freedom (p = {pval[k]:.1e}); a wrong "
+                f"correspondence, or raise the noise (σ = {np.median(views.sigma_px):.3g} px)"
+            )
         elif not (np.isfinite(cov[k]).all() and last_step[k] < 1e-3):
             refused[k] = "the triangulation did not settle (inconsistent pixels or poses)"
     return Triangulation(P, cov, rms, seen, par, refused)

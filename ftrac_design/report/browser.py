@@ -36,13 +36,22 @@ def _run(html: Path, extra: list[str], timeout: float) -> subprocess.CompletedPr
     with tempfile.TemporaryDirectory(prefix="ftrac-chromium-") as profile:
         # --no-sandbox: containers and root have no user namespaces for Chromium's sandbox;
         # the page is our own file. A private profile lets parallel tests run side by side.
-        args = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--no-first-run",
-                "--disable-extensions", f"--user-data-dir={profile}", *extra, Path(html).resolve().as_uri()]
+        args = [
+            exe,
+            "--headless",
+            "--no-sandbox",
+            "--disable-gpu",
+            "--hide-scrollbars",
+            "--no-first-run",
+            "--disable-extensions",
+            f"--user-data-dir={profile}",
+            *extra,
+            Path(html).resolve().as_uri(),
+        ]
         return subprocess.run(args, capture_output=True, text=True, timeout=timeout, check=False)
 
 
-def screenshot(html: str | Path, png: str | Path, width: int = 1280, height: int = 2400,
-               timeout: float = 90.0) -> Path:
+def screenshot(html: str | Path, png: str | Path, width: int = 1280, height: int = 2400, timeout: float = 90.0) -> Path:
     """Render ``html`` in headless Chromium at ``width`` × ``height`` CSS px into ``png``."""
     png = Path(png).resolve()
     proc = _run(Path(html), [f"--screenshot={png}", f"--window-size={width},{height}"], timeout)
@@ -59,8 +68,9 @@ def dump_dom(html: str | Path, timeout: float = 90.0) -> str:
     return proc.stdout
 
 
-def readme_screenshot(html: str | Path, png: str | Path, width: int = 1280, height: int = 1100,
-                      out_width: int = 900, colours: int = 256) -> Path:
+def readme_screenshot(
+    html: str | Path, png: str | Path, width: int = 1280, height: int = 1100, out_width: int = 900, colours: int = 256
+) -> Path:
     """The top of a report as a small PNG for documentation: rendered at ``width`` ×
     ``height``, scaled to ``out_width`` px and reduced to ``colours`` colours (≤ ~200 KB)."""
     from PIL import Image

@@ -41,15 +41,15 @@ class ReportInputs:
     """Everything the page shows; ``None`` where that part is not available."""
 
     name: str
-    design: Any | None                      # ftrac_design.design.Design
+    design: Any | None  # ftrac_design.design.Design
     design_source: str | None
     design_sha256: str | None
-    features: Any                           # ftrac_design.features.Features
+    features: Any  # ftrac_design.features.Features
     manifest: dict | None = None
     build_dir: Path | None = None
     build_kept: bool = True
     render_png: bytes | None = None
-    rules: dict[str, Any] = field(default_factory=dict)   # profile → CheckReport
+    rules: dict[str, Any] = field(default_factory=dict)  # profile → CheckReport
     analysis: dict | None = None
     analysis_dir: Path | None = None
     analysis_pictures: dict[str, bytes] = field(default_factory=dict)
@@ -120,8 +120,14 @@ def _versions(manifest: dict | None, analysis: dict | None) -> dict[str, str]:
         v.update({f"build: {k}": str(x) for k, x in manifest.get("versions", {}).items()})
     if analysis and analysis.get("package_version"):
         v["analysis: ftrac_design"] = str(analysis["package_version"])
-    v.update({"report: ftrac_design": __version__, "report: python": platform.python_version(),
-              "report: numpy": numpy.__version__, "report: scipy": scipy.__version__})
+    v.update(
+        {
+            "report: ftrac_design": __version__,
+            "report: python": platform.python_version(),
+            "report: numpy": numpy.__version__,
+            "report: scipy": scipy.__version__,
+        }
+    )
     try:
         import matplotlib
 
@@ -131,9 +137,13 @@ def _versions(manifest: dict | None, analysis: dict | None) -> dict[str, str]:
     return v
 
 
-def collect(build_dir: str | Path | None = None, design: Any | None = None,
-            analysis_dir: str | Path | None = None, build_kept: bool = True,
-            features: Any | None = None) -> ReportInputs:
+def collect(
+    build_dir: str | Path | None = None,
+    design: Any | None = None,
+    analysis_dir: str | Path | None = None,
+    build_kept: bool = True,
+    features: Any | None = None,
+) -> ReportInputs:
     """Gather a report's inputs from a build directory, a design or bare features, and an
     analysis directory (``build_dir/analysis`` if it holds one and ``analysis_dir`` is not given).
 
@@ -163,8 +173,9 @@ def collect(build_dir: str | Path | None = None, design: Any | None = None,
         try:
             files = output_files(build_dir, manifest, build_kept)
         except (TypeError, ValueError, OverflowError) as exc:
-            raise InputError(build_dir / "manifest.json", "files", f"name → {{sha256, bytes}} as `build` writes "
-                                                                  f"({exc})") from None
+            raise InputError(
+                build_dir / "manifest.json", "files", f"name → {{sha256, bytes}} as `build` writes ({exc})"
+            ) from None
         if analysis_dir is None and (build_dir / "analysis" / "analysis.json").is_file():
             analysis_dir = build_dir / "analysis"
     elif design is not None:
@@ -178,7 +189,20 @@ def collect(build_dir: str | Path | None = None, design: Any | None = None,
         analysis_dir = Path(analysis_dir)
         analysis, pics = read_analysis(analysis_dir)
     rules = {p: check_design(design, p, features) for p in ("cnc", "fdm")} if design is not None else {}
-    return ReportInputs(name=features.name, design=design, design_source=source, design_sha256=sha,
-                        features=features, manifest=manifest, build_dir=build_dir, build_kept=build_kept,
-                        render_png=render, rules=rules, analysis=analysis, analysis_dir=analysis_dir,
-                        analysis_pictures=pics, files=files, versions=_versions(manifest, analysis))
+    return ReportInputs(
+        name=features.name,
+        design=design,
+        design_source=source,
+        design_sha256=sha,
+        features=features,
+        manifest=manifest,
+        build_dir=build_dir,
+        build_kept=build_kept,
+        render_png=render,
+        rules=rules,
+        analysis=analysis,
+        analysis_dir=analysis_dir,
+        analysis_pictures=pics,
+        files=files,
+        versions=_versions(manifest, analysis),
+    )

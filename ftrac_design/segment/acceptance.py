@@ -72,8 +72,11 @@ def rival(scene: Scene, best: Labelling, other: Labelling) -> tuple[str, dict] |
     can look absent under the right labelling, and a near-mirror won (track_accuracy
     200-pose sample, seed 1, images 1 and 96: 172° and 152° off, confident)."""
     q, pose = other.pose, best.pose
-    if not math.isfinite(other.score) or not np.all(np.isfinite(q.rotation)) or \
-            (str(q.error or "").startswith("identification not confirmed") and other.score >= best.score):
+    if (
+        not math.isfinite(other.score)
+        or not np.all(np.isfinite(q.rotation))
+        or (str(q.error or "").startswith("identification not confirmed") and other.score >= best.score)
+    ):
         return None
     if other.score - best.score >= scene.opts.ambiguity_chi2:
         return None
@@ -82,11 +85,20 @@ def rival(scene: Scene, best: Labelling, other: Labelling) -> tuple[str, dict] |
     if dang <= 1.0 and dt <= 3.0:
         return None
     # a design with a symmetry (nine_bead's helix has a two-fold axis) is ambiguous by construction
-    alternatives = [{"rotation": x.pose.rotation.tolist(), "translation_mm": x.pose.translation_mm.tolist(),
-                     "noise_scale": float(x.pose.noise_scale)} for x in (best, other)]
-    return (f"ambiguous identification: another labelling {dang:.1f}° and {dt:.1f} mm away explains the image as "
-            f"well (misfit {other.score:.1f} vs {best.score:.1f}, noise scale {q.noise_scale:.2f} vs "
-            f"{pose.noise_scale:.2f})", alternatives)
+    alternatives = [
+        {
+            "rotation": x.pose.rotation.tolist(),
+            "translation_mm": x.pose.translation_mm.tolist(),
+            "noise_scale": float(x.pose.noise_scale),
+        }
+        for x in (best, other)
+    ]
+    return (
+        f"ambiguous identification: another labelling {dang:.1f}° and {dt:.1f} mm away explains the image as "
+        f"well (misfit {other.score:.1f} vs {best.score:.1f}, noise scale {q.noise_scale:.2f} vs "
+        f"{pose.noise_scale:.2f})",
+        alternatives,
+    )
 
 
 def too_little_evidence(scene: Scene, lab: Labelling) -> str | None:
@@ -102,14 +114,18 @@ def too_little_evidence(scene: Scene, lab: Labelling) -> str | None:
     if n_curves and not (obs.lines or obs.ellipses):
         # the wires are what confirms a bead labelling; beads alone of a wire design
         # gave ftrac_mini's wrong poses (4 of 8 in 300 images)
-        return ("identification not confirmed: no wire contour could be used to verify the bead labelling "
-                "(wires crowded or hidden in this view)")
+        return (
+            "identification not confirmed: no wire contour could be used to verify the bead labelling "
+            "(wires crowded or hidden in this view)"
+        )
     nub = getattr(cont, "unexplained_beads", 0)
     if nub > opts.max_unexplained_beads:
         # balls in view, clear of the others, that the labelling leaves without a blob (or
         # rejects): a near-mirror labelling of ftrac_mini (image 142) matched 6 of 9
-        return (f"identification not confirmed: {nub} beads in view and well clear of the others are not "
-                f"explained (at most {opts.max_unexplained_beads})")
+        return (
+            f"identification not confirmed: {nub} beads in view and well clear of the others are not "
+            f"explained (at most {opts.max_unexplained_beads})"
+        )
     need = min(opts.min_beads, len(features.points))
     if len(obs.points) < need:
         # the balls carry the labelling; with fewer, a near-mirror of a small fiducial fits
@@ -118,13 +134,17 @@ def too_little_evidence(scene: Scene, lab: Labelling) -> str | None:
         return f"too little evidence: {len(obs.points)} beads could be used (need {need} to confirm the labelling)"
     m = 2 * len(obs.points) + 2 * len(obs.lines) + 5 * len(obs.ellipses)
     if m - 6 < opts.min_redundancy:
-        return (f"too little evidence: {len(obs.points)} beads, {len(obs.lines)} lines and {len(obs.ellipses)} "
-                f"ellipses leave {m - 6} redundant constraints (need {opts.min_redundancy} to verify a labelling)")
+        return (
+            f"too little evidence: {len(obs.points)} beads, {len(obs.lines)} lines and {len(obs.ellipses)} "
+            f"ellipses leave {m - 6} redundant constraints (need {opts.min_redundancy} to verify a labelling)"
+        )
     # balls alone must be all but two of the design's, and at least six: a bead-only design
     # has no wire to confirm a labelling, and six glyphs of a frame grabber's burned-in text
     # fitted nine_bead's helix at a pose 500 mm off
     need_alone = max(6, len(features.points) - 2)
     if len(obs.points) < need_alone and not (obs.lines or obs.ellipses):
-        return (f"too little evidence: {len(obs.points)} beads and no wires cannot verify a labelling "
-                f"(need ≥ {need_alone} beads, or wires)")
+        return (
+            f"too little evidence: {len(obs.points)} beads and no wires cannot verify a labelling "
+            f"(need ≥ {need_alone} beads, or wires)"
+        )
     return None

@@ -57,8 +57,9 @@ def _table() -> np.ndarray:
     if _tab is None:
         x = np.arange(0.0, 48.0 + _TAB_DX / 2, _TAB_DX)
         a = np.exp(np.linspace(*_TAB_LA))
-        _tab = np.concatenate([sphere_profile(np.broadcast_to(x, (len(c), len(x))), c, 1.0)
-                               for c in np.array_split(a, 16)]).astype(np.float32)
+        _tab = np.concatenate(
+            [sphere_profile(np.broadcast_to(x, (len(c), len(x))), c, 1.0) for c in np.array_split(a, 16)]
+        ).astype(np.float32)
     return _tab
 
 
@@ -69,10 +70,16 @@ def sphere_profile_fast(rho: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.nda
     lo, hi, n = _TAB_LA
     s = np.asarray(s, float)[:, None]
     ix = (np.asarray(rho, float) / s / _TAB_DX).astype(np.float32)
-    ia = ((np.log(np.clip(np.asarray(r, float)[:, None] / s, 0.2, 32.0)) - lo) / ((hi - lo) / (n - 1)))
+    ia = (np.log(np.clip(np.asarray(r, float)[:, None] / s, 0.2, 32.0)) - lo) / ((hi - lo) / (n - 1))
     ia = np.broadcast_to(ia, ix.shape).astype(np.float32)
-    v = cv2.remap(tab, np.ascontiguousarray(ix), np.ascontiguousarray(ia), cv2.INTER_LINEAR,
-                  borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    v = cv2.remap(
+        tab,
+        np.ascontiguousarray(ix),
+        np.ascontiguousarray(ia),
+        cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_CONSTANT,
+        borderValue=0.0,
+    )
     return v.astype(float) * s
 
 
@@ -99,8 +106,9 @@ class Beads:
         return len(self.uv)
 
 
-def blob_response(img: np.ndarray, radius_px: float, noise: float | np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | float]:
+def blob_response(
+    img: np.ndarray, radius_px: float, noise: float | np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | float]:
     """The scale-normalised negative Laplacian of ``img`` at the bead scale σ = r/√2 (px) and
     what white noise of pixel σ ``noise`` (a number or a map) gives it: ``(response, xx, yy,
     noise response)``; a ball of the design shows as a peak of ``response / noise response``."""
@@ -113,8 +121,14 @@ def blob_response(img: np.ndarray, radius_px: float, noise: float | np.ndarray
     return resp, xx, yy, noise_resp
 
 
-def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray, max_count: int,
-                    min_snr: float = 8.0, min_isotropy: float = 0.3) -> tuple[np.ndarray, np.ndarray]:
+def blob_candidates(
+    img: np.ndarray,
+    radius_px: float,
+    noise: float | np.ndarray,
+    max_count: int,
+    min_snr: float = 8.0,
+    min_isotropy: float = 0.3,
+) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima (n, 2) (u, v) of the scale-normalised negative Laplacian at the bead
     scale σ = r/√2, strongest first, at most ``max_count``, each ≥ ``min_snr`` times the
     noise response; also requires both Hessian eigenvalues negative, the smaller at least
@@ -152,9 +166,17 @@ def blob_candidates(img: np.ndarray, radius_px: float, noise: float | np.ndarray
     return np.stack([i[order], j[order]], -1).astype(float), val[order]
 
 
-def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: float, noise: float | np.ndarray,
-              response: np.ndarray | None = None, iterations: int = 8, exclude: np.ndarray | None = None,
-              prior_scale: float = 1.0) -> Beads:
+def fit_beads(
+    img: np.ndarray,
+    starts: np.ndarray,
+    radius_px: float,
+    blur_px: float,
+    noise: float | np.ndarray,
+    response: np.ndarray | None = None,
+    iterations: int = 8,
+    exclude: np.ndarray | None = None,
+    prior_scale: float = 1.0,
+) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
     blur (starting values; both are fitted), ``noise`` the pixel noise σ (one number, or
@@ -172,15 +194,15 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
     off = np.arange(-half, half + 1)
     oy, ox = np.meshgrid(off, off, indexing="ij")
-    inside = (ox ** 2 + oy ** 2) <= half * half
+    inside = (ox**2 + oy**2) <= half * half
     ox, oy = ox[inside].astype(float), oy[inside].astype(float)
     c0 = np.round(starts).astype(int)
     cx = np.clip(c0[:, 0], half, W - 1 - half)
     cy = np.clip(c0[:, 1], half, H - 1 - half)
     px = cx[:, None] + ox[None].astype(int)
     py = cy[:, None] + oy[None].astype(int)
-    y = img[py, px].astype(float)                             # (n, m)
-    X = px - cx[:, None].astype(float)                        # coordinates relative to the patch centre
+    y = img[py, px].astype(float)  # (n, m)
+    X = px - cx[:, None].astype(float)  # coordinates relative to the patch centre
     Y = py - cy[:, None].astype(float)
     # params: u, v (relative), r, s, A, b0, bx, by
     p = np.zeros((n, 8))
@@ -204,14 +226,14 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     cost_scale = 4.685 * sn[:, None]
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
-    prior_w = (prior_scale * sn ** 2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn ** 2 / 0.5 ** 2)
+    prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
     X5, Y5 = np.tile(X, (5, 1)), np.tile(Y, (5, 1))
     for it in range(iterations):
         # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
         # element-wise: the same numbers as five separate calls, at a fifth of the overhead)
         q = np.tile(p, (5, 1))
         for k in range(4):
-            q[(k + 1) * n:(k + 2) * n, k] += eps[k]
+            q[(k + 1) * n : (k + 2) * n, k] += eps[k]
         S5 = model_S(q, X5, Y5)
         S = S5[:n]
         m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
@@ -219,7 +241,7 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
         # Jacobian: numeric for u, v, r, s (through S), analytic for the linear terms
         J = np.empty(y.shape + (8,))
         for k in range(4):
-            J[..., k] = (p[:, 4:5] * (S5[(k + 1) * n:(k + 2) * n] - S)) / eps[k]
+            J[..., k] = (p[:, 4:5] * (S5[(k + 1) * n : (k + 2) * n] - S)) / eps[k]
         J[..., 4] = S
         J[..., 5] = 1.0
         J[..., 6] = X
@@ -257,14 +279,20 @@ def fit_beads(img: np.ndarray, starts: np.ndarray, radius_px: float, blur_px: fl
     res = y - m
     wsum = np.maximum(w.sum(1), 1.0)
     rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
-    sig2 = sn ** 2 * np.maximum(rms, 1.0) ** 2
+    sig2 = sn**2 * np.maximum(rms, 1.0) ** 2
     with np.errstate(all="ignore"):
-        cov = np.linalg.pinv(np.einsum("nmi,nmj->nij", J * w[..., None], J) + 1e-12 * np.eye(8)) \
-            * sig2[:, None, None]
+        cov = np.linalg.pinv(np.einsum("nmi,nmj->nij", J * w[..., None], J) + 1e-12 * np.eye(8)) * sig2[:, None, None]
     sd = np.sqrt(np.abs(0.5 * (cov[:, 0, 0] + cov[:, 1, 1])))
     uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
-    return Beads(uv, p[:, 2], p[:, 3], p[:, 4], sd, rms,
-                 np.asarray(response, float) if response is not None else np.full(n, np.nan))
+    return Beads(
+        uv,
+        p[:, 2],
+        p[:, 3],
+        p[:, 4],
+        sd,
+        rms,
+        np.asarray(response, float) if response is not None else np.full(n, np.nan),
+    )
 
 
 def model_S(q: np.ndarray, X: np.ndarray, Y: np.ndarray) -> np.ndarray:

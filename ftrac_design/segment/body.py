@@ -29,8 +29,16 @@ from .ridges import RidgePoints, ridge_points
 MAX_BOX_SIDE = 2.0
 
 
-def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, body, blur_px: float,
-                 margin_px: int = 8, clip: tuple[int, int] | None = None):
+def body_density(
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    body,
+    blur_px: float,
+    margin_px: int = 8,
+    clip: tuple[int, int] | None = None,
+):
     """The acetal body's modelled density (−ln of its transmission as the detector reads it)
     over its bounding box at pose (R, t): ``(box image, (row0, col0))``; uses the simulator's
     exact hollow-cylinder chords and detector (:func:`ftrac_design.xray.render.detected_deficit`).
@@ -55,11 +63,12 @@ def body_density(features: Features, camera: Camera, R: np.ndarray, t: np.ndarra
         return None
     # 3 × 3 sub-samples at the silhouettes: within 1e-3 of the simulator's 5 × 5 there, at a
     # third of the cost
-    field = line_integral_field(features.subset(set()), R, t, camera, ImagingModel(supersample=3), body,
-                                margin_px=margin_px)
+    field = line_integral_field(
+        features.subset(set()), R, t, camera, ImagingModel(supersample=3), body, margin_px=margin_px
+    )
     # the bead fit's blur includes the pixel's own width (variance 1/12), which the
     # detector's pixel integration adds
-    s = math.sqrt(max(blur_px ** 2 - 1.0 / 12.0, 0.0))
+    s = math.sqrt(max(blur_px**2 - 1.0 / 12.0, 0.0))
     D = detected_deficit(field, s, s, dtype=np.float64)
     return -np.log(np.maximum(1.0 - D, 1e-12)), field.origin
 
@@ -81,8 +90,9 @@ def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[
     return not (hi[0] < 0 or hi[1] < 0 or lo[0] > W - 1 or lo[1] > H - 1)
 
 
-def wire_mask(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int],
-              half_px: float) -> np.ndarray:
+def wire_mask(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int], half_px: float
+) -> np.ndarray:
     """(H, W) bool of an image of ``shape``: True within ``half_px`` of a wire (line piece or
     ellipse) projected at pose (R, t) — the pixels a ball's fit leaves out."""
     mask = np.zeros(shape, np.uint8)
@@ -99,22 +109,43 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
     if len(beads) == 0:
         return beads
     sc = scene.scales
-    mask = wire_mask(scene.features, scene.camera, pose.rotation, pose.translation_mm, T.shape,
-                     0.5 * sc.wire_px + 1.5 * float(np.median(beads.blur)))
-    refit = fit_beads(T, beads.uv, sc.bead_radius_px, float(np.median(beads.blur)), scene.noise_at(beads.uv),
-                      beads.response,
-                      exclude=mask)
+    mask = wire_mask(
+        scene.features,
+        scene.camera,
+        pose.rotation,
+        pose.translation_mm,
+        T.shape,
+        0.5 * sc.wire_px + 1.5 * float(np.median(beads.blur)),
+    )
+    refit = fit_beads(
+        T,
+        beads.uv,
+        sc.bead_radius_px,
+        float(np.median(beads.blur)),
+        scene.noise_at(beads.uv),
+        beads.response,
+        exclude=mask,
+    )
     # keep the first fit where the mask left too little of a ball to fit (its centre then
     # comes out far less certain: a 1 mm ball's patch is mostly wire mask, σ 1.5–3 px)
-    ok = np.isfinite(refit.uv).all(1) & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0) & \
-        np.isfinite(refit.sigma_px) & (refit.radius > 0.5 * sc.bead_radius_px) & \
-        ((refit.sigma_px <= 0.5) | (refit.sigma_px <= 3.0 * beads.sigma_px))
-    return Beads(*(np.where(ok[:, None] if getattr(beads, k).ndim == 2 else ok, getattr(refit, k), getattr(beads, k))
-                   for k in beads.__dataclass_fields__))
+    ok = (
+        np.isfinite(refit.uv).all(1)
+        & (np.linalg.norm(refit.uv - beads.uv, axis=1) < 1.0)
+        & np.isfinite(refit.sigma_px)
+        & (refit.radius > 0.5 * sc.bead_radius_px)
+        & ((refit.sigma_px <= 0.5) | (refit.sigma_px <= 3.0 * beads.sigma_px))
+    )
+    return Beads(
+        *(
+            np.where(ok[:, None] if getattr(beads, k).ndim == 2 else ok, getattr(refit, k), getattr(beads, k))
+            for k in beads.__dataclass_fields__
+        )
+    )
 
 
-def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: float,
-                        find_ridges: bool = True) -> Scene | None:
+def ridges_without_body(
+    g: np.ndarray, scene: Scene, pose: Pose, body, blur: float, find_ridges: bool = True
+) -> Scene | None:
     """The scene over the body's box again after subtracting the body's modelled projection
     at ``pose`` from the density image ``g``: the background-free image and its second derivatives
     with that box replaced, and the ridge points found there (those of the box only; none
@@ -131,8 +162,8 @@ def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, body, blur: flo
         return None
     box = (slice(r0, r1), slice(c0, c1))
     gb = g[box].astype(np.float64)
-    Bb = B[r0 - v0:r1 - v0, c0 - u0:c1 - u0]
-    quiet = T[box] < 3 * scene.noise_map[box]          # not a wire or a bead
+    Bb = B[r0 - v0 : r1 - v0, c0 - u0 : c1 - u0]
+    quiet = T[box] < 3 * scene.noise_map[box]  # not a wire or a bead
     if scene.valid is not None:
         quiet &= scene.valid[box]
     if quiet.sum() < 50 or np.ptp(Bb[quiet]) <= 0:
@@ -166,7 +197,9 @@ def merge_ridges(ridges: RidgePoints | None, inner: RidgePoints | None) -> Ridge
         return None
     lo, hi = inner.uv.min(0) - 1, inner.uv.max(0) + 1
     outside = ~((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)
-    return RidgePoints(np.concatenate([ridges.uv[outside], inner.uv]),
-                       np.concatenate([ridges.normal[outside], inner.normal]),
-                       np.concatenate([ridges.strength[outside], inner.strength]),
-                       np.concatenate([ridges.snr[outside], inner.snr]))
+    return RidgePoints(
+        np.concatenate([ridges.uv[outside], inner.uv]),
+        np.concatenate([ridges.normal[outside], inner.normal]),
+        np.concatenate([ridges.strength[outside], inner.strength]),
+        np.concatenate([ridges.snr[outside], inner.snr]),
+    )

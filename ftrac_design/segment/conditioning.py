@@ -69,8 +69,9 @@ def to_density(image: np.ndarray, polarity: str, formation: str = "linear") -> n
     return -img
 
 
-def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int,
-                    levels: tuple[float, float] | None = None) -> np.ndarray | None:
+def invalid_regions(
+    image: np.ndarray, disc_px: int, margin_px: int, levels: tuple[float, float] | None = None
+) -> np.ndarray | None:
     """Pixels that hold no information (bool, True = invalid), or None when there are none:
     regions pinned at the image's lowest or highest value (clipped: a shutter, black outside a
     round field, a saturated direct beam, a display window's white or black) wider than the
@@ -103,8 +104,9 @@ def invalid_regions(image: np.ndarray, disc_px: int, margin_px: int,
     return cv2.dilate(ext, mk).astype(bool)
 
 
-def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2,
-                 levels: tuple[float, float] | None = None) -> np.ndarray:
+def fill_clipped(
+    image: np.ndarray, radius_px: int = 2, passes: int = 2, levels: tuple[float, float] | None = None
+) -> np.ndarray:
     """``image`` (float32) with its pixels at the extreme values (within 1 % of the range of
     the lowest or highest, for 0–255 images; exactly, otherwise) replaced by the nearest
     unclipped values: a high pixel by the highest unclipped pixel within ``radius_px``, a low
@@ -136,8 +138,9 @@ def fill_clipped(image: np.ndarray, radius_px: int = 2, passes: int = 2,
     return a
 
 
-def condition(image: np.ndarray, polarity: str, formation: str | None, disc_px: int,
-              levels: tuple[float, float] | None = None) -> Conditioned:
+def condition(
+    image: np.ndarray, polarity: str, formation: str | None, disc_px: int, levels: tuple[float, float] | None = None
+) -> Conditioned:
     """The density image of ``image`` and its valid pixels (see the module).
 
     Parameters

@@ -65,11 +65,10 @@ def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
     disc = int(math.ceil(max(bead, wire) + 3 * opts.blur_px + 2))
     # the ridge detector at the wire's blurred width: its own scale for the default blur, and
     # wider by the blur beyond that (a 2 px blur left half the wire below threshold)
-    ridge = math.sqrt(max(1.0, 0.5 * wire + 0.5) ** 2 + max(opts.blur_px ** 2 - DEFAULT_BLUR_PX ** 2, 0.0))
+    ridge = math.sqrt(max(1.0, 0.5 * wire + 0.5) ** 2 + max(opts.blur_px**2 - DEFAULT_BLUR_PX**2, 0.0))
     P = features.point_centers() if features.points else np.zeros((0, 3))
     spread = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) if len(P) > 1 else 0.0
-    return Scales(bead, wire, pix, ridge, disc,
-                  spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead)
+    return Scales(bead, wire, pix, ridge, disc, spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead)
 
 
 @dataclass(frozen=True)
@@ -123,8 +122,13 @@ class Scene:
         blurred image and ``extra_px``."""
         return np.full(len(self.features.points), self.scales.bead_radius_px + 2 * self.opts.blur_px + extra_px)
 
-    def with_detections(self, T: np.ndarray, beads: Beads | None, ridges: RidgePoints | None,
-                        derivs: dict[str, np.ndarray] | None = None) -> "Scene":
+    def with_detections(
+        self,
+        T: np.ndarray,
+        beads: Beads | None,
+        ridges: RidgePoints | None,
+        derivs: dict[str, np.ndarray] | None = None,
+    ) -> "Scene":
         """The same scene with other detections (the body subtracted)."""
         return replace(self, T=T, beads=beads, ridges=ridges, derivs=derivs if derivs is not None else self.derivs)
 
@@ -133,8 +137,13 @@ class Scene:
         edge) and where it can be read (``valid``)."""
         H, W = self.shape
         uv = np.asarray(uv, float)
-        ok = np.isfinite(uv).all(-1) & (uv[..., 0] >= margin_px) & (uv[..., 1] >= margin_px) & \
-            (uv[..., 0] <= W - 1 - margin_px) & (uv[..., 1] <= H - 1 - margin_px)
+        ok = (
+            np.isfinite(uv).all(-1)
+            & (uv[..., 0] >= margin_px)
+            & (uv[..., 1] >= margin_px)
+            & (uv[..., 0] <= W - 1 - margin_px)
+            & (uv[..., 1] <= H - 1 - margin_px)
+        )
         if self.valid is not None and ok.any():
             iu = np.clip(np.rint(uv[..., 0]), 0, W - 1).astype(int)
             iv = np.clip(np.rint(uv[..., 1]), 0, H - 1).astype(int)
@@ -146,8 +155,10 @@ class Scene:
         of its noise: −∂²T/∂n² at the ridge scale (bilinear), over that filter's response
         to unit white noise. A wire there reads several units; bare background reads about
         zero, whatever its level (a second derivative has none)."""
-        xx, xy, yy, nz = bilinear_many([self.derivs["xx"], self.derivs["xy"], self.derivs["yy"], self.noise_map],
-                                       np.asarray(uv, float).reshape(-1, 2))
+        xx, xy, yy, nz = bilinear_many(
+            [self.derivs["xx"], self.derivs["xy"], self.derivs["yy"], self.noise_map],
+            np.asarray(uv, float).reshape(-1, 2),
+        )
         nx, ny = normal[:, 0], normal[:, 1]
         c = nx * nx * xx + 2 * nx * ny * xy + ny * ny * yy
         return -c / (second_derivative_gain(self.scales.ridge_sigma_px) * nz)
@@ -161,8 +172,12 @@ def bilinear(img: np.ndarray, uv: np.ndarray) -> np.ndarray:
     v = np.clip(uv[:, 1], 0, H - 1.000001)
     u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
     fu, fv = u - u0, v - v0
-    return (img[v0, u0] * (1 - fu) * (1 - fv) + img[v0, u0 + 1] * fu * (1 - fv)
-            + img[v0 + 1, u0] * (1 - fu) * fv + img[v0 + 1, u0 + 1] * fu * fv)
+    return (
+        img[v0, u0] * (1 - fu) * (1 - fv)
+        + img[v0, u0 + 1] * fu * (1 - fv)
+        + img[v0 + 1, u0] * (1 - fu) * fv
+        + img[v0 + 1, u0 + 1] * fu * fv
+    )
 
 
 def bilinear_many(imgs: list[np.ndarray], uv: np.ndarray) -> list[np.ndarray]:
@@ -183,8 +198,15 @@ def bilinear_many(imgs: list[np.ndarray], uv: np.ndarray) -> list[np.ndarray]:
     return out
 
 
-def ball_fits(T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray,
-              opts: TrackOptions, exclude: np.ndarray | None = None) -> tuple[Beads, np.ndarray]:
+def ball_fits(
+    T: np.ndarray,
+    starts: np.ndarray,
+    response: np.ndarray,
+    radius_px: float,
+    noise: np.ndarray,
+    opts: TrackOptions,
+    exclude: np.ndarray | None = None,
+) -> tuple[Beads, np.ndarray]:
     """The blurred-sphere model fitted at every start (n, 2) px of the background-free image
     ``T`` (:func:`.beads.fit_beads`, pixels where ``exclude`` is True left out), and which
     fits look like a ball.
@@ -213,22 +235,39 @@ def ball_fits(T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px
         med = float(np.median(b.amplitude))
         bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
         if bad.any():
-            b2 = fit_beads(T, starts[bad], rb, opts.blur_px, bilinear(noise, starts[bad]), response[bad],
-                           exclude=exclude, prior_scale=25.0)
+            b2 = fit_beads(
+                T,
+                starts[bad],
+                rb,
+                opts.blur_px,
+                bilinear(noise, starts[bad]),
+                response[bad],
+                exclude=exclude,
+                prior_scale=25.0,
+            )
             for k in b.__dataclass_fields__:
                 getattr(b, k)[bad] = getattr(b2, k)
     H, W = T.shape
     edge = rb + 2 * opts.blur_px + 1
     with np.errstate(invalid="ignore"):
-        ok = (np.isfinite(b.uv).all(1) & (b.radius > 0.5 * rb) & (b.radius < 2.0 * rb) & (b.blur < 3.0)
-              & (b.amplitude > 0)
-              & (b.uv[:, 0] > edge) & (b.uv[:, 1] > edge) & (b.uv[:, 0] < W - 1 - edge)
-              & (b.uv[:, 1] < H - 1 - edge) & np.isfinite(b.sigma_px))
+        ok = (
+            np.isfinite(b.uv).all(1)
+            & (b.radius > 0.5 * rb)
+            & (b.radius < 2.0 * rb)
+            & (b.blur < 3.0)
+            & (b.amplitude > 0)
+            & (b.uv[:, 0] > edge)
+            & (b.uv[:, 1] > edge)
+            & (b.uv[:, 0] < W - 1 - edge)
+            & (b.uv[:, 1] < H - 1 - edge)
+            & np.isfinite(b.sigma_px)
+        )
     return b, ok
 
 
-def fitted_balls(T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray,
-                 opts: TrackOptions) -> Beads:
+def fitted_balls(
+    T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray, opts: TrackOptions
+) -> Beads:
     """The fits of :func:`ball_fits` (no pixels excluded) that look like a ball, in the order
     of ``starts``."""
     b, ok = ball_fits(T, starts, response, radius_px, noise, opts)
@@ -244,7 +283,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
     cand, resp = blob_candidates(T, rb, noise, 8 * P + 40, opts.bead_min_snr)
     if len(cand):
         # the beads are the strongest blobs; anything far weaker is a wire crossing or clutter
-        ref = np.sort(resp)[::-1][: P]
+        ref = np.sort(resp)[::-1][:P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
     b = fitted_balls(T, cand, resp, rb, noise, opts)
@@ -259,15 +298,28 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
         # the candidates fitted together, and the clutter left out must not loosen it
         kept = b.take(order)
         again = fit_beads(T, kept.uv, rb, opts.blur_px, bilinear(noise, kept.uv), kept.response)
-        same = np.isfinite(again.uv).all(1) & (np.linalg.norm(again.uv - kept.uv, axis=1) < 1.0) & \
-            np.isfinite(again.sigma_px)
-        return Beads(*(np.where(same[:, None] if getattr(kept, k).ndim == 2 else same, getattr(again, k),
-                                getattr(kept, k)) for k in kept.__dataclass_fields__))
+        same = (
+            np.isfinite(again.uv).all(1)
+            & (np.linalg.norm(again.uv - kept.uv, axis=1) < 1.0)
+            & np.isfinite(again.sigma_px)
+        )
+        return Beads(
+            *(
+                np.where(same[:, None] if getattr(kept, k).ndim == 2 else same, getattr(again, k), getattr(kept, k))
+                for k in kept.__dataclass_fields__
+            )
+        )
     return b.take(order)
 
 
-def detect(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions,
-           valid: np.ndarray | None = None, noise: NoiseField | None = None) -> Scene:
+def detect(
+    g: np.ndarray,
+    features: Features,
+    camera: Camera,
+    opts: TrackOptions,
+    valid: np.ndarray | None = None,
+    noise: NoiseField | None = None,
+) -> Scene:
     """Background-free image and its local noise, fitted bead candidates and ridge points of the
     density image ``g`` (dense = bright).
 

@@ -37,8 +37,7 @@ def _free_samples(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np
     can be read (inside the image, valid, clear of every predicted ball)."""
     features = scene.features
     curves = identify.curve_samples(features, scene.camera, R, t)
-    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) \
-        else np.zeros((0, 2))
+    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
     rad = np.asarray(bead_radius_px, float)
     out = {}
     for fid, (kind, pts) in curves.items():
@@ -52,8 +51,9 @@ def _free_samples(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np
     return out
 
 
-def wire_support(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray,
-                 min_free_px: float = 8.0) -> dict[str, tuple[float, int]]:
+def wire_support(
+    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = 8.0
+) -> dict[str, tuple[float, int]]:
     """How much wire the image shows where pose (R, t) puts each line and ellipse.
 
     Each curve's centre-line is sampled every 0.5 px; the samples that can be read (see the
@@ -68,8 +68,9 @@ def wire_support(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.
     return out
 
 
-def image_agreement(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, tol_px: float,
-                    min_snr: float = 3.0) -> tuple[float, float]:
+def image_agreement(
+    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, tol_px: float, min_snr: float = 3.0
+) -> tuple[float, float]:
     """How well pose (R, t) accounts for the image, with no labels: ``(unexplained,
     unsupported)`` in pixels of length. *Unexplained*: ridge points farther than ``tol_px``
     from every predicted wire and outside every predicted ball (each ridge point stands for
@@ -80,16 +81,18 @@ def image_agreement(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: 
     unexplained, while dropping its own ellipses as "crowded" made its χ² the smaller)."""
     features, ridges = scene.features, scene.ridges
     curves = identify.curve_samples(features, scene.camera, R, t)
-    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) \
-        else np.zeros((0, 2))
+    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
     rad = np.asarray(bead_radius_px, float)
     pts = [p for _, p in curves.values()]
     allp = np.concatenate(pts) if pts else np.zeros((0, 2))
     allp = allp[np.isfinite(allp).all(1)]
     unexplained = 0.0
     if ridges is not None and len(ridges):
-        d = cKDTree(allp).query(ridges.uv, distance_upper_bound=tol_px)[0] if len(allp) \
+        d = (
+            cKDTree(allp).query(ridges.uv, distance_upper_bound=tol_px)[0]
+            if len(allp)
             else np.full(len(ridges), np.inf)
+        )
         far = ~np.isfinite(d)
         if len(bu) and far.any():
             db = np.linalg.norm(ridges.uv[far][:, None] - bu[None], axis=-1)
@@ -98,5 +101,5 @@ def image_agreement(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: 
     unsupported = 0.0
     for _, q, nrm in _free_samples(scene, R, t, rad).values():
         if len(q):
-            unsupported += 0.5 * float((scene.ridge_evidence(q, nrm) < min_snr).sum())   # samples every 0.5 px
+            unsupported += 0.5 * float((scene.ridge_evidence(q, nrm) < min_snr).sum())  # samples every 0.5 px
     return unexplained, unsupported

@@ -99,10 +99,12 @@ class GridReport:
 
     def summary(self) -> str:
         """One paragraph for the command line."""
-        return (f"{self.n_used} beads used ({self.n_indexed} indexed of {self.n_detected} detected; "
-                f"pitch {self.pitch_px:.2f} px, bead radius {self.bead_radius_px:.2f} px, {self.polarity}"
-                f"{', round field' if self.field_found else ''}); residual RMS {self.rms_px:.3f} px "
-                f"({self.rms_mm:.4f} mm), max {self.max_px:.3f} px ({self.max_mm:.4f} mm)")
+        return (
+            f"{self.n_used} beads used ({self.n_indexed} indexed of {self.n_detected} detected; "
+            f"pitch {self.pitch_px:.2f} px, bead radius {self.bead_radius_px:.2f} px, {self.polarity}"
+            f"{', round field' if self.field_found else ''}); residual RMS {self.rms_px:.3f} px "
+            f"({self.rms_mm:.4f} mm), max {self.max_px:.3f} px ({self.max_mm:.4f} mm)"
+        )
 
 
 # -- step 1: beads ----------------------------------------------------------------------
@@ -148,8 +150,9 @@ def _field_mask(bg: np.ndarray) -> np.ndarray | None:
     return lab == keep
 
 
-def find_grid_beads(image: np.ndarray, pitch_px: float, polarity: Polarity = "auto",
-                    bead_radius_px: float | None = None) -> GridBeads:
+def find_grid_beads(
+    image: np.ndarray, pitch_px: float, polarity: Polarity = "auto", bead_radius_px: float | None = None
+) -> GridBeads:
     """Bead centres (px) on a grid image (see the module, step 1). ``pitch_px`` is the expected
     lattice pitch in pixels (only to size the filters); ``bead_radius_px`` the expected bead
     radius in the image (measured when None)."""
@@ -161,7 +164,7 @@ def find_grid_beads(image: np.ndarray, pitch_px: float, polarity: Polarity = "au
     g = to_density(img, polarity)
     th_wide = top_hat(g, wide)
     field = _field_mask(g - th_wide)
-    expected = max(int(H * W / pitch_px ** 2 * (0.7 if field is not None else 1.0)), 4)
+    expected = max(int(H * W / pitch_px**2 * (0.7 if field is not None else 1.0)), 4)
     if bead_radius_px is None:
         probe = th_wide if field is None else np.where(field, th_wide, 0).astype(np.float32)
         bead_radius_px = _bead_scale(probe, pitch_px, expected // 2)
@@ -181,7 +184,7 @@ def find_grid_beads(image: np.ndarray, pitch_px: float, polarity: Polarity = "au
         # lower the estimate, the dark surround's noise raise it)
         vs, us = np.nonzero(inside)
         cv, cu, h = int(vs.mean()), int(us.mean()), max(int(0.6 * math.sqrt(len(vs) / math.pi)), 4)
-        noise = max(noise_sigma(th[max(cv - h, 0):cv + h, max(cu - h, 0):cu + h]), 1e-12)
+        noise = max(noise_sigma(th[max(cv - h, 0) : cv + h, max(cu - h, 0) : cu + h]), 1e-12)
     else:
         noise = noise_sigma(th)
     # a noise-free (synthetic) image: the fit's robust weights need a non-zero scale
@@ -193,11 +196,12 @@ def find_grid_beads(image: np.ndarray, pitch_px: float, polarity: Polarity = "au
     # and dragged a few by up to 1 px. Four times the noise keeps every pixel of a bead in
     # (the priors' weights, ∝ noise², are scaled back by 1/16).
     k = _ROBUST_SCALE
-    beads = fit_beads(th, cand, r, _BLUR_PX, k * noise, resp, prior_scale=1 / k ** 2)
+    beads = fit_beads(th, cand, r, _BLUR_PX, k * noise, resp, prior_scale=1 / k**2)
     if len(beads):
         med = float(np.median(beads.radius))
-        beads = fit_beads(th, beads.uv, med, float(np.median(beads.blur)), k * noise, beads.response,
-                          prior_scale=1 / k ** 2)
+        beads = fit_beads(
+            th, beads.uv, med, float(np.median(beads.blur)), k * noise, beads.response, prior_scale=1 / k**2
+        )
     uv = beads.uv
     ok = np.all(np.isfinite(uv), 1) & np.isfinite(beads.sigma_px) & (beads.amplitude > 0)
     ok &= (uv[:, 0] >= half) & (uv[:, 0] <= W - 1 - half) & (uv[:, 1] >= half) & (uv[:, 1] <= H - 1 - half)
@@ -325,8 +329,9 @@ def _homography(h: np.ndarray, n: np.ndarray) -> np.ndarray:
     return w[:, :2] / w[:, 2:3]
 
 
-def fit_grid(index: np.ndarray, detected: np.ndarray, model: DistortionModel, robust: bool = True
-             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def fit_grid(
+    index: np.ndarray, detected: np.ndarray, model: DistortionModel, robust: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Fit q = D(H(i, j)) (see the module, step 3) to beads at lattice ``index`` (n, 2) seen at
     ``detected`` (n, 2) px, D in ``model``'s normalisation and degree. Returns D's coefficients
     (n_terms, 2), the homography (3 × 3, index → ideal px) and the ideal pixels H(i, j) (n, 2).
@@ -340,8 +345,9 @@ def fit_grid(index: np.ndarray, detected: np.ndarray, model: DistortionModel, ro
         return _fit_grid(index, detected, model, robust)
 
 
-def _fit_grid(index: np.ndarray, detected: np.ndarray, model: DistortionModel, robust: bool = True
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _fit_grid(
+    index: np.ndarray, detected: np.ndarray, model: DistortionModel, robust: bool = True
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`fit_grid`'s work."""
     c, s = np.asarray(model.centre_px), model.scale_px
     qn = (detected - c) / s
@@ -357,8 +363,7 @@ def _fit_grid(index: np.ndarray, detected: np.ndarray, model: DistortionModel, r
         coef = _coefficients(p[8:], basis, model.degree)
         return (s * (design_matrix(x[:, 0], x[:, 1], model.degree) @ coef - qn)).ravel()
 
-    sol = least_squares(residual, p0, loss="soft_l1" if robust else "linear", f_scale=0.5, x_scale="jac",
-                        method="trf")
+    sol = least_squares(residual, p0, loss="soft_l1" if robust else "linear", f_scale=0.5, x_scale="jac", method="trf")
     p = sol.x
     coef = _coefficients(p[8:], basis, model.degree)
     # homography in pixels: ideal = c + s · Hn((index − mu) / sd)
@@ -374,9 +379,16 @@ def parameter_count(degree: int) -> int:
     return 8 + (2 * (n_terms(degree) - 3) - 2 if degree >= 2 else 0)
 
 
-def estimate_distortion(image: np.ndarray, pitch_mm: float, pixel_mm: float, *, polarity: Polarity = "auto",
-                        degree: int = 5, bead_diameter_mm: float | None = None, origin: str | None = None
-                        ) -> tuple[DistortionModel, GridReport]:
+def estimate_distortion(
+    image: np.ndarray,
+    pitch_mm: float,
+    pixel_mm: float,
+    *,
+    polarity: Polarity = "auto",
+    degree: int = 5,
+    bead_diameter_mm: float | None = None,
+    origin: str | None = None,
+) -> tuple[DistortionModel, GridReport]:
     """Distortion model (ideal → distorted px) of the image-intensifier from one ``image`` (H, W)
     of a regular square bead grid of pitch ``pitch_mm`` (see the module).
 
@@ -394,17 +406,22 @@ def estimate_distortion(image: np.ndarray, pitch_mm: float, pixel_mm: float, *, 
     _check_args(image, pitch_mm, pixel_mm, degree, bead_diameter_mm, polarity, origin)
     img = np.asarray(image, float)
     pitch_px = pitch_mm / pixel_mm
-    found = find_grid_beads(img, pitch_px, polarity,
-                            None if bead_diameter_mm is None else bead_diameter_mm / 2 / pixel_mm)
+    found = find_grid_beads(
+        img, pitch_px, polarity, None if bead_diameter_mm is None else bead_diameter_mm / 2 / pixel_mm
+    )
     model = DistortionModel.identity(img.shape, degree)
     need = int(math.ceil(1.5 * parameter_count(degree)))
     idx, on, pitch = index_grid(found.uv, model.centre_px)
     # the lattice must span the degree in both directions, not only hold enough beads
     span = min(len(np.unique(idx[on, 0])), len(np.unique(idx[on, 1])))
     if on.sum() < need or span < degree + 1:
-        raise InputError(origin, "image", f"a bead-grid image with at least {need} grid beads, in at least "
-                                          f"{degree + 1} rows and columns, indexed for a degree-{degree} fit; "
-                                          f"found {int(on.sum())} in {span} ({len(found.uv)} beads detected)")
+        raise InputError(
+            origin,
+            "image",
+            f"a bead-grid image with at least {need} grid beads, in at least "
+            f"{degree + 1} rows and columns, indexed for a degree-{degree} fit; "
+            f"found {int(on.sum())} in {span} ({len(found.uv)} beads detected)",
+        )
     index, det = idx[on].astype(float), found.uv[on]
     # a robust (soft-L1) fit first, then plain least squares without the beads beyond 5 σ
     # (σ per axis from the median residual, Rayleigh), until the set of beads settles
@@ -418,19 +435,40 @@ def estimate_distortion(image: np.ndarray, pitch_mm: float, pixel_mm: float, *, 
         used, robust = new, False
     else:
         coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=False)
-    ideal = (np.c_[index, np.ones(len(index))] @ Hpx.T)
+    ideal = np.c_[index, np.ones(len(index))] @ Hpx.T
     ideal = ideal[:, :2] / ideal[:, 2:3]
     fitted = _apply(model, coef, Hpx, index)
     err = np.hypot(*(det - fitted)[used].T)
-    rms, mx = float(np.sqrt(np.mean(err ** 2))), float(err.max())
+    rms, mx = float(np.sqrt(np.mean(err**2))), float(err.max())
     support = float(np.max(np.hypot(*(det[used] - np.asarray(model.centre_px)).T))) + pitch / 2
     model = model.with_coefficients(
-        coef[:, 0], coef[:, 1], rms_residual_px=rms, max_residual_px=mx, support_radius_px=support,
+        coef[:, 0],
+        coef[:, 1],
+        rms_residual_px=rms,
+        max_residual_px=mx,
+        support_radius_px=support,
         source=f"bead grid{' ' + str(origin) if origin else ''}: pitch {pitch_mm:g} mm, {int(used.sum())} beads, "
-               f"pixel {pixel_mm:g} mm")
-    report = GridReport(len(found.uv), int(on.sum()), int(used.sum()), pitch, found.bead_radius_px, found.polarity,
-                        found.field_found, rms, mx, rms * pixel_mm, mx * pixel_mm, index.astype(int), det, ideal,
-                        fitted, used, Hpx)
+        f"pixel {pixel_mm:g} mm",
+    )
+    report = GridReport(
+        len(found.uv),
+        int(on.sum()),
+        int(used.sum()),
+        pitch,
+        found.bead_radius_px,
+        found.polarity,
+        found.field_found,
+        rms,
+        mx,
+        rms * pixel_mm,
+        mx * pixel_mm,
+        index.astype(int),
+        det,
+        ideal,
+        fitted,
+        used,
+        Hpx,
+    )
     return model, report
 
 
@@ -452,11 +490,16 @@ def _check_args(image, pitch_mm, pixel_mm, degree, bead_diameter_mm, polarity, o
     if bead_diameter_mm is not None and not (math.isfinite(bead_diameter_mm) and 0 < bead_diameter_mm < pitch_mm):
         raise InputError(origin, "bead_diameter_mm", "a positive number of millimetres smaller than the pitch")
     if pitch_mm / pixel_mm < 4:
-        raise InputError(origin, "pitch_mm", f"a grid pitch of at least 4 pixels (pitch / pixel = "
-                                             f"{pitch_mm / pixel_mm:.3g})")
+        raise InputError(
+            origin, "pitch_mm", f"a grid pitch of at least 4 pixels (pitch / pixel = {pitch_mm / pixel_mm:.3g})"
+        )
     if pitch_mm / pixel_mm > min(img.shape) / 4:
-        raise InputError(origin, "pitch_mm", f"a grid pitch of at most a quarter of the image "
-                                             f"({min(img.shape) // 4} px; pitch / pixel = {pitch_mm / pixel_mm:.3g})")
+        raise InputError(
+            origin,
+            "pitch_mm",
+            f"a grid pitch of at most a quarter of the image "
+            f"({min(img.shape) // 4} px; pitch / pixel = {pitch_mm / pixel_mm:.3g})",
+        )
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or not 1 <= degree <= 8:
         raise InputError(origin, "degree", f"an integer 1–8, got {degree!r}")
     if polarity not in ("auto", "dense-dark", "dense-bright"):

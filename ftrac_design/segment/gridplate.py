@@ -19,9 +19,15 @@ from ..pose.camera import Camera
 from ..xray import ImagingModel, render
 
 
-def grid_plate(pitch_mm: float, rows: int, cols: int, bead_diameter_mm: float = 1.5,
-               missing: tuple[tuple[int, int], ...] = (), extra_mm: tuple[tuple[float, float], ...] = (),
-               extra_diameter_mm: float | None = None) -> Features:
+def grid_plate(
+    pitch_mm: float,
+    rows: int,
+    cols: int,
+    bead_diameter_mm: float = 1.5,
+    missing: tuple[tuple[int, int], ...] = (),
+    extra_mm: tuple[tuple[float, float], ...] = (),
+    extra_diameter_mm: float | None = None,
+) -> Features:
     """A plate of ``rows`` × ``cols`` steel beads ``pitch_mm`` apart, centred on the F origin.
 
     Bead (i, j) (row i, column j) sits at x = (j − (cols − 1)/2) pitch, y = (i − (rows − 1)/2)
@@ -40,8 +46,13 @@ def grid_plate(pitch_mm: float, rows: int, cols: int, bead_diameter_mm: float = 
     d_extra = 1.6 * bead_diameter_mm if extra_diameter_mm is None else float(extra_diameter_mm)
     for k, (x, y) in enumerate(extra_mm):
         pts.append(PointFeature(f"X{k}", np.array([x, y, 0.0]), d_extra))
-    return Features(name="bead-grid plate", source=None, sha256=None,
-                    nominal_beam_direction=np.array([0.0, 0.0, 1.0]), points=tuple(pts))
+    return Features(
+        name="bead-grid plate",
+        source=None,
+        sha256=None,
+        nominal_beam_direction=np.array([0.0, 0.0, 1.0]),
+        points=tuple(pts),
+    )
 
 
 @dataclass(frozen=True)
@@ -57,26 +68,38 @@ class GridImage:
     camera: Camera
 
 
-def plate_pose(rotation_rad: float = 0.0, tilt_rad: tuple[float, float] = (0.0, 0.0), distance_mm: float = 970.0,
-               offset_mm: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+def plate_pose(
+    rotation_rad: float = 0.0,
+    tilt_rad: tuple[float, float] = (0.0, 0.0),
+    distance_mm: float = 970.0,
+    offset_mm: tuple[float, float] = (0.0, 0.0),
+) -> tuple[np.ndarray, np.ndarray]:
     """(R, t) of a plate facing the source: tilted by ``tilt_rad`` about the camera's x then y
     axis, turned by ``rotation_rad`` about the beam, its centre ``distance_mm`` from the source
     (default: taped to the face of an intensifier 1 m from the source) and ``offset_mm`` off the
     principal ray."""
+
     def rot(axis: int, a: float) -> np.ndarray:
         c, s = np.cos(a), np.sin(a)
         i, j = [k for k in range(3) if k != axis]
         m = np.eye(3)
         m[i, i], m[i, j], m[j, i], m[j, j] = c, -s, s, c
         return m
+
     R = rot(2, rotation_rad) @ rot(0, tilt_rad[0]) @ rot(1, tilt_rad[1])
     return R, np.array([offset_mm[0], offset_mm[1], distance_mm], float)
 
 
-def render_grid(plate: Features, distortion: DistortionModel | None = None, *,
-                camera: Camera | None = None, imaging: ImagingModel | None = None,
-                pose: tuple[np.ndarray, np.ndarray] | None = None, field_radius_px: float | None = None,
-                rng: np.random.Generator | None = None) -> GridImage:
+def render_grid(
+    plate: Features,
+    distortion: DistortionModel | None = None,
+    *,
+    camera: Camera | None = None,
+    imaging: ImagingModel | None = None,
+    pose: tuple[np.ndarray, np.ndarray] | None = None,
+    field_radius_px: float | None = None,
+    rng: np.random.Generator | None = None,
+) -> GridImage:
     """Simulate the plate's image: the noise-free render (no body) is the pinhole image; it is
     warped by ``distortion`` (``distort_image``, bilinear), cut to a round intensifier field of
     ``field_radius_px`` about the image centre (dark outside, a 2 px soft edge), then given the

@@ -19,6 +19,7 @@ from .gridcal import GridReport
 def draw_grid_fit(path: str | Path, image: np.ndarray, report: GridReport, title: str = "") -> Path:
     """Write the PNG of ``report`` over ``image`` (shown as stored, grey), atomically."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -43,12 +44,16 @@ def draw_grid_fit(path: str | Path, image: np.ndarray, report: GridReport, title
     axes[0].quiver(ideal[:, 0], ideal[:, 1], *(k_disp * (seen - ideal)).T, color="k", **quiver)
     axes[0].quiver(ideal[:, 0], ideal[:, 1], *(k_disp * (fit - ideal)).T, color="tab:red", alpha=0.7, **quiver)
     axes[0].plot(seen[~u, 0], seen[~u, 1], "x", color="tab:orange", ms=6)
-    axes[0].set_title(f"displacement × {k_disp:.3g}: measured (black), model (red); "
-                      f"max {disp.max(initial=0.0):.2f} px", fontsize=9)
+    axes[0].set_title(
+        f"displacement × {k_disp:.3g}: measured (black), model (red); max {disp.max(initial=0.0):.2f} px", fontsize=9
+    )
     axes[1].quiver(fit[u, 0], fit[u, 1], *(k_res * (seen - fit)[u]).T, color="tab:blue", **quiver)
     axes[1].plot(seen[~u, 0], seen[~u, 1], "x", color="tab:orange", ms=6)
-    axes[1].set_title(f"residual × {k_res:.3g}: RMS {report.rms_px:.3f} px, max {report.max_px:.3f} px "
-                      f"({report.n_used} beads; × left out)", fontsize=9)
+    axes[1].set_title(
+        f"residual × {k_res:.3g}: RMS {report.rms_px:.3f} px, max {report.max_px:.3f} px "
+        f"({report.n_used} beads; × left out)",
+        fontsize=9,
+    )
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

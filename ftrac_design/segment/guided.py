@@ -36,8 +36,14 @@ def _normals(pts: np.ndarray, closed: bool) -> np.ndarray:
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
 
 
-def _refine(scene: Scene, q: np.ndarray, n: np.ndarray, iterations: int = 3, max_angle_deg: float = 25.0,
-            max_aspect: float = 0.5) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _refine(
+    scene: Scene,
+    q: np.ndarray,
+    n: np.ndarray,
+    iterations: int = 3,
+    max_angle_deg: float = 25.0,
+    max_aspect: float = 0.5,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Points ``q`` (m, 2) moved along their normals ``n`` to the ridge (Steger's step, each
     step at most 1 px); returns the points, the curvature across them (nᵀ H n), and whether
     the image there is a ridge *along the predicted curve*: its steepest downward curvature
@@ -59,17 +65,29 @@ def _refine(scene: Scene, q: np.ndarray, n: np.ndarray, iterations: int = 3, max
     half, disc = 0.5 * (a + c), np.sqrt(0.25 * (a - c) ** 2 + b * b)
     l1, l2 = half - disc, half + disc
     # eigenvector of l1: (b, l1 − a) or (l1 − c, b), whichever is better conditioned
-    e = np.where((np.abs(b) + np.abs(l1 - a) >= np.abs(l1 - c) + np.abs(b))[:, None],
-                 np.stack([b, l1 - a], -1), np.stack([l1 - c, b], -1))
+    e = np.where(
+        (np.abs(b) + np.abs(l1 - a) >= np.abs(l1 - c) + np.abs(b))[:, None],
+        np.stack([b, l1 - a], -1),
+        np.stack([l1 - c, b], -1),
+    )
     e /= np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-30)
     aligned = np.abs(np.einsum("ij,ij->i", e, n)) >= np.cos(np.radians(max_angle_deg))
     ridge = (l1 < 0) & (np.abs(l2) <= max_aspect * np.abs(l1)) & aligned
     return q, cnn, ridge
 
 
-def guided_contours(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, tol_px: float,
-                    separation_px: float, min_snr: float, spacing_px: float = 1.0, ridge_var_px2: float = 0.0,
-                    min_points: int = 8) -> identify.Contours:
+def guided_contours(
+    scene: Scene,
+    R: np.ndarray,
+    t: np.ndarray,
+    bead_radius_px: np.ndarray,
+    tol_px: float,
+    separation_px: float,
+    min_snr: float,
+    spacing_px: float = 1.0,
+    ridge_var_px2: float = 0.0,
+    min_points: int = 8,
+) -> identify.Contours:
     """Contour points of each line and ellipse measured where pose (R, t) puts them (see the
     module), one per ``spacing_px`` of predicted arc; curves with fewer than ``min_points``
     are dropped, and marked *missing* when not even ``min_points`` samples could be read."""
@@ -81,11 +99,11 @@ def guided_contours(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: 
     if not curves:
         return out
     ids = list(curves)
-    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) \
-        else np.zeros((0, 2))
+    bu = identify.project(scene.camera, R, t, features.point_centers())[0] if len(features.points) else np.zeros((0, 2))
     rad = np.asarray(bead_radius_px, float)
-    trees = {fid: cKDTree(p[np.isfinite(p).all(1)]) for fid, (_, p) in curves.items()
-             if np.isfinite(p).all(1).sum() > 1}
+    trees = {
+        fid: cKDTree(p[np.isfinite(p).all(1)]) for fid, (_, p) in curves.items() if np.isfinite(p).all(1).sum() > 1
+    }
     gain = second_derivative_gain(scene.scales.ridge_sigma_px)
     every = max(int(round(spacing_px / _STEP_PX)), 1)
     for fid in ids:

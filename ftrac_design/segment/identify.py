@@ -59,7 +59,6 @@ def outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
     return np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
 
 
-
 @dataclass
 class BeadHypothesis:
     """A pose F → X from a bead labelling: ``match`` maps model bead index → detected blob
@@ -77,13 +76,19 @@ def project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tupl
     X = np.einsum("...ij,nj->...ni", R, P) + t[..., None, :]
     Z = X[..., 2]
     with np.errstate(all="ignore"):
-        uv = np.stack([camera.fx * X[..., 0] / Z + camera.principal_point_px[0],
-                       camera.fy * X[..., 1] / Z + camera.principal_point_px[1]], -1)
+        uv = np.stack(
+            [
+                camera.fx * X[..., 0] / Z + camera.principal_point_px[0],
+                camera.fy * X[..., 1] / Z + camera.principal_point_px[1],
+            ],
+            -1,
+        )
     return uv, Z
 
 
-def _image_triplets(uv: np.ndarray, limit: int, max_extent_px: float = np.inf, k: int = 12
-                    ) -> list[tuple[int, int, int]]:
+def _image_triplets(
+    uv: np.ndarray, limit: int, max_extent_px: float = np.inf, k: int = 12
+) -> list[tuple[int, int, int]]:
     """Up to ``limit`` triplets of the ``k`` strongest blobs (``uv`` strongest first) that
     could all be balls of one fiducial: no side longer than ``max_extent_px`` and not
     nearly collinear; the strongest blobs first (the sum of their ranks), then the larger
@@ -132,19 +137,20 @@ def _p3p_poses(objs: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple[np.nda
     return so3.exp(np.asarray(rs, float).reshape(-1, 3)), np.asarray(ts, float).reshape(-1, 3)
 
 
-def _collect_matches(best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray,
-                     tol_px: float) -> None:
+def _collect_matches(
+    best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
+) -> None:
     """Add to ``best`` (match key → hypothesis, the lower RMS kept) the labellings of the
     poses (R, t) that put at least four model beads within ``tol_px`` of a blob of ``tree``."""
     P = len(model)
     proj, Z = project(camera, R, t, model)
     front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
-    proj = np.where(np.isfinite(proj), proj, 1e9)             # a degenerate P3P solution matches nothing
+    proj = np.where(np.isfinite(proj), proj, 1e9)  # a degenerate P3P solution matches nothing
     d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
     d, j = d.reshape(len(R), P), j.reshape(len(R), P)
     hit = np.isfinite(d) & front[:, None]
     count = hit.sum(1)
-    for r in np.argsort(-count, kind="stable")[: 64]:
+    for r in np.argsort(-count, kind="stable")[:64]:
         if count[r] < 4:
             break
         match: dict[int, int] = {}
@@ -168,9 +174,15 @@ def _collect_matches(best: dict, model: np.ndarray, camera: Camera, tree: cKDTre
             best[key] = h
 
 
-def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: float,
-                    image_triplets: int = 24, keep: int = 8, max_extent_px: float = np.inf
-                    ) -> list[BeadHypothesis]:
+def bead_hypotheses(
+    model: np.ndarray,
+    uv: np.ndarray,
+    camera: Camera,
+    tol_px: float,
+    image_triplets: int = 24,
+    keep: int = 8,
+    max_extent_px: float = np.inf,
+) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
 
     Parameters
@@ -198,7 +210,7 @@ def bead_hypotheses(model: np.ndarray, uv: np.ndarray, camera: Camera, tol_px: f
     mtri = _model_triplets(model)
     tree = cKDTree(uv)
     best: dict[tuple, BeadHypothesis] = {}
-    objs = np.ascontiguousarray(model[mtri], dtype=np.float64)      # (m, 3, 3), once for every image triplet
+    objs = np.ascontiguousarray(model[mtri], dtype=np.float64)  # (m, 3, 3), once for every image triplet
     top, stale, tried = 0, 0, 0
     for itri in _image_triplets(uv, image_triplets, max_extent_px):
         poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
@@ -236,13 +248,19 @@ class Contours:
 _SAMPLES_CACHE: dict = {}
 
 
-def curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                   step_px: float = 0.5) -> dict[str, tuple[str, np.ndarray]]:
+def curve_samples(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, step_px: float = 0.5
+) -> dict[str, tuple[str, np.ndarray]]:
     """Densely projected centre-lines: id → (kind, (n, 2) px), wire pieces of lines only.
     The last few poses' samples are kept (contour gathering, wire support, agreement and
     the ball refit all ask for the same pose)."""
-    key = (id(features), tuple(camera.intrinsics), np.asarray(R, float).tobytes(), np.asarray(t, float).tobytes(),
-           step_px)
+    key = (
+        id(features),
+        tuple(camera.intrinsics),
+        np.asarray(R, float).tobytes(),
+        np.asarray(t, float).tobytes(),
+        step_px,
+    )
     hit = _SAMPLES_CACHE.get(key)
     if hit is not None and hit[0] is features:
         return hit[1]
@@ -253,8 +271,9 @@ def curve_samples(features: Features, camera: Camera, R: np.ndarray, t: np.ndarr
     return out
 
 
-def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                            step_px: float) -> dict[str, tuple[str, np.ndarray]]:
+def _curve_samples_uncached(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, step_px: float
+) -> dict[str, tuple[str, np.ndarray]]:
     # every piece's end points and every ellipse's 64 coarse samples in one projection,
     # then every dense sample in a second (the projection is point-wise: the same numbers)
     pieces = features.wire_pieces
@@ -263,13 +282,13 @@ def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t
     cuv = project(camera, R, t, np.concatenate(coarse))[0] if coarse else np.zeros((0, 2))
     dense, owner = [], []
     for k, (fid, a, b) in enumerate(pieces):
-        ab = cuv[2 * k:2 * k + 2]
+        ab = cuv[2 * k : 2 * k + 2]
         n = max(int(np.linalg.norm(ab[1] - ab[0]) / step_px), 2)
         dense.append(a + np.linspace(0, 1, n)[:, None] * (b - a))
         owner.append((fid, "line"))
     o = 2 * len(pieces)
     for k, el in enumerate(features.ellipses):
-        uv = cuv[o + 64 * k:o + 64 * (k + 1)]
+        uv = cuv[o + 64 * k : o + 64 * (k + 1)]
         per = float(np.linalg.norm(np.diff(np.vstack([uv, uv[:1]]), axis=0), axis=1).sum())
         n = max(int(per / step_px), 64)
         dense.append(el.sample(np.linspace(0, 2 * np.pi, n, endpoint=False)))
@@ -280,15 +299,25 @@ def _curve_samples_uncached(features: Features, camera: Camera, R: np.ndarray, t
     parts: dict[str, tuple[str, list]] = {}
     i = 0
     for (fid, kind), X in zip(owner, dense):
-        parts.setdefault(fid, (kind, []))[1].append(duv[i:i + len(X)])
+        parts.setdefault(fid, (kind, []))[1].append(duv[i : i + len(X)])
         i += len(X)
     return {fid: (kind, np.concatenate(p)) for fid, (kind, p) in parts.items()}
 
 
-def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, ridges: RidgePoints,
-                    bead_radius_px: np.ndarray, tol_px: float, separation_px: float,
-                    min_points: int = 8, max_angle_deg: float = 25.0, ridge_var_px2: float = 0.0,
-                    thin_px: float = 0.0) -> Contours:
+def gather_contours(
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    ridges: RidgePoints,
+    bead_radius_px: np.ndarray,
+    tol_px: float,
+    separation_px: float,
+    min_points: int = 8,
+    max_angle_deg: float = 25.0,
+    ridge_var_px2: float = 0.0,
+    thin_px: float = 0.0,
+) -> Contours:
     """Ridge points of each projected line and ellipse at pose (R, t).
 
     A ridge point belongs to a curve when it lies within ``tol_px`` of it, its normal is
@@ -324,7 +353,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         lo, hi = allp.min(0) - reach_px, allp.max(0) + reach_px
         ridges = ridges.take(np.flatnonzero(((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)))
     uvr = ridges.uv
-    reach = np.zeros(len(uvr), bool)                         # within reach of some curve
+    reach = np.zeros(len(uvr), bool)  # within reach of some curve
     arc = np.zeros((len(ids), len(uvr)))
     dist = np.full((len(ids), len(uvr)), np.inf)
     tang = np.zeros((len(ids), len(uvr), 2))
@@ -335,8 +364,11 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         # its row stays at distance ∞): the query and the per-point arithmetic on those
         # inside its own bounding box grown by the reach alone
         fin = pts[np.isfinite(pts).all(1)]
-        box = np.flatnonzero(((uvr >= fin.min(0) - reach_px) & (uvr <= fin.max(0) + reach_px)).all(1)) \
-            if len(fin) else np.zeros(0, int)
+        box = (
+            np.flatnonzero(((uvr >= fin.min(0) - reach_px) & (uvr <= fin.max(0) + reach_px)).all(1))
+            if len(fin)
+            else np.zeros(0, int)
+        )
         if len(box) == 0:
             continue
         tree = cKDTree(pts)
@@ -362,7 +394,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
             dd = np.where(ok & inner, perp, dd)
         dist[k, on] = dd
         tang[k, on] = tv
-        arc[k, on] = jj * 0.5                                # _curve_samples' step, px
+        arc[k, on] = jj * 0.5  # _curve_samples' step, px
         if kind == "ellipse":
             # signed curvature from three neighbouring samples; its centre side is where the
             # chord's midpoint bends
@@ -376,7 +408,7 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
         free[reach] = (db > np.asarray(bead_radius_px)[None]).all(1)
     near = dist <= tol_px
     crowded = (dist <= separation_px).sum(0) > 1
-    cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))   # normal ⟂ tangent → ~0
+    cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))  # normal ⟂ tangent → ~0
     aligned = cosang <= np.sin(np.radians(max_angle_deg))
     for k, fid in enumerate(ids):
         sel = near[k] & ~crowded & free & aligned[k]
@@ -385,8 +417,9 @@ def gather_contours(features: Features, camera: Camera, R: np.ndarray, t: np.nda
             cover = near[k].sum()
             if cover < min_points:
                 out.missing.append(fid)
-            out.dropped[fid] = (f"{int(sel.sum())} usable contour points ({int(cover)} near it; the rest lie on "
-                                f"beads or other wires)")
+            out.dropped[fid] = (
+                f"{int(sel.sum())} usable contour points ({int(cover)} near it; the rest lie on beads or other wires)"
+            )
             continue
         idx = np.flatnonzero(sel)
         if thin_px > 0:

@@ -39,7 +39,7 @@ def to_density(image: np.ndarray, polarity: str) -> np.ndarray:
 
 
 def detect_polarity(image: np.ndarray, disc_px: int) -> str:
-    """"dense-dark" or "dense-bright": the sign in which thin compact structures (the
+    """ "dense-dark" or "dense-bright": the sign in which thin compact structures (the
     fiducial's wires and beads) stand out most. Compares the strongest responses of the
     white and black top-hats of a normalised image; metal is the most compact, most
     contrasted thing in a radiograph of the fiducial, whatever the anatomy around it."""
@@ -52,8 +52,8 @@ def detect_polarity(image: np.ndarray, disc_px: int) -> str:
     d = derivatives(img, max(disc_px / 4.0, 1.0), first=False)
     half_tr = 0.5 * (d["xx"] + d["yy"])
     disc = np.sqrt(0.25 * (d["xx"] - d["yy"]) ** 2 + d["xy"] ** 2)
-    bright = np.maximum(-(half_tr + disc), 0)       # both eigenvalues < 0: a bright blob
-    dark = np.maximum(half_tr - disc, 0)            # both > 0: a dark blob
+    bright = np.maximum(-(half_tr + disc), 0)  # both eigenvalues < 0: a bright blob
+    dark = np.maximum(half_tr - disc, 0)  # both > 0: a dark blob
     w, b = _kth_largest(bright, 16), _kth_largest(dark, 16)
     return "dense-bright" if w >= b else "dense-dark"
 
@@ -126,8 +126,8 @@ def gaussian_kernels(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     x = np.arange(-r, r + 1, dtype=np.float64)
     g0 = np.exp(-0.5 * (x / sigma) ** 2)
     g0 /= g0.sum()
-    g1 = -x / sigma ** 2 * g0
-    g2 = (x * x / sigma ** 4 - 1.0 / sigma ** 2) * g0
+    g1 = -x / sigma**2 * g0
+    g2 = (x * x / sigma**4 - 1.0 / sigma**2) * g0
     # exact moments on the grid: Σ g1·x = −1, Σ g2·x²/2 = 1 (derivative filters of a ramp/parabola)
     g1 /= -(g1 * x).sum()
     g2 -= g2.mean()
@@ -178,14 +178,16 @@ def _background_level(g: np.ndarray, structure_px: int) -> np.ndarray:
 def _laplacian(g: np.ndarray, sigma: float) -> tuple[np.ndarray, float]:
     """The Laplacian of Gaussian of ``g`` at ``sigma`` px and its gain for unit white noise."""
     g0, _, g2 = gaussian_kernels(sigma)
-    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + \
-        cv2.sepFilter2D(g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE)
+    lap = cv2.sepFilter2D(g, cv2.CV_32F, g2, g0, borderType=cv2.BORDER_REPLICATE) + cv2.sepFilter2D(
+        g, cv2.CV_32F, g0, g2, borderType=cv2.BORDER_REPLICATE
+    )
     k = np.outer(g0.astype(np.float64), g2) + np.outer(g2.astype(np.float64), g0)
     return lap, float(np.sqrt((k * k).sum()))
 
 
-def _measured_levels(level: np.ndarray, lap: np.ndarray, gain: float, valid: np.ndarray | None,
-                     bins: int) -> NoiseLevels | None:
+def _measured_levels(
+    level: np.ndarray, lap: np.ndarray, gain: float, valid: np.ndarray | None, bins: int
+) -> NoiseLevels | None:
     """The noise level function measured on the Laplacian ``lap`` grouped by ``level`` (see
     :func:`noise_map`), or None with fewer than 64 samples."""
     H, W = level.shape
@@ -205,8 +207,8 @@ def _measured_levels(level: np.ndarray, lap: np.ndarray, gain: float, valid: np.
     centre = np.empty(nb)
     sig = np.empty(nb)
     for b in range(nb):
-        rb = r[cuts[b]:cuts[b + 1]]
-        centre[b] = float(np.median(lv[cuts[b]:cuts[b + 1]]))
+        rb = r[cuts[b] : cuts[b + 1]]
+        centre[b] = float(np.median(lv[cuts[b] : cuts[b + 1]]))
         # the lower quartile of |r − median| over its Gaussian value (Φ⁻¹(5/8) σ)
         sig[b] = float(np.percentile(np.abs(rb - np.median(rb)), 25)) / 0.31864 / gain
     if nb >= 3:
@@ -215,8 +217,9 @@ def _measured_levels(level: np.ndarray, lap: np.ndarray, gain: float, valid: np.
     return NoiseLevels(centre, np.maximum(sig, 1e-9))
 
 
-def noise_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
-                 structure_px: int = 0) -> NoiseLevels | None:
+def noise_levels(
+    g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32, structure_px: int = 0
+) -> NoiseLevels | None:
     """The noise level function of the density image ``g`` at scale ``sigma`` px, as
     :func:`noise_map` measures it (same arguments); None when ``g`` has too few readable
     pixels to measure one (fewer than 64 samples).
@@ -230,8 +233,14 @@ def noise_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, b
     return _measured_levels(_background_level(g, structure_px), lap, gain, valid, bins)
 
 
-def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
-              structure_px: int = 0, levels: NoiseLevels | None = None) -> np.ndarray:
+def noise_map(
+    g: np.ndarray,
+    sigma: float,
+    valid: np.ndarray | None = None,
+    bins: int = 32,
+    structure_px: int = 0,
+    levels: NoiseLevels | None = None,
+) -> np.ndarray:
     """Local noise σ (H, W) float32 of the density image ``g``, as the white-noise pixel σ
     that gives the noise the detectors actually see at scale ``sigma`` px.
 
@@ -263,9 +272,14 @@ def noise_map(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins
     return noise_map_and_levels(g, sigma, valid, bins, structure_px, levels)[0]
 
 
-def noise_map_and_levels(g: np.ndarray, sigma: float, valid: np.ndarray | None = None, bins: int = 32,
-                         structure_px: int = 0, levels: NoiseLevels | None = None
-                         ) -> tuple[np.ndarray, NoiseLevels | None]:
+def noise_map_and_levels(
+    g: np.ndarray,
+    sigma: float,
+    valid: np.ndarray | None = None,
+    bins: int = 32,
+    structure_px: int = 0,
+    levels: NoiseLevels | None = None,
+) -> tuple[np.ndarray, NoiseLevels | None]:
     """:func:`noise_map` and the noise level function it used (``levels`` when given, the
     one measured on ``g`` otherwise; None where too few pixels could be read to measure one)."""
     g = np.ascontiguousarray(g, dtype=np.float32)
@@ -311,8 +325,9 @@ def _sorted_quantile(v: np.ndarray, cnt: np.ndarray, q: float) -> np.ndarray:
 CLUTTER_TILE_PX = 64
 
 
-def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = CLUTTER_TILE_PX
-                 ) -> np.ndarray | None:
+def _clutter_map(
+    lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: int = CLUTTER_TILE_PX
+) -> np.ndarray | None:
     """The robust spread of the Laplacian response ``lap`` in tiles of ``tile`` px,
     over the white-noise ``gain``, interpolated to every pixel: what the level function
     misses where anatomy rather than quanta makes the clutter at the detectors' scale (the
@@ -322,10 +337,10 @@ def _clutter_map(lap: np.ndarray, valid: np.ndarray | None, gain: float, tile: i
     ny, nx = H // tile, W // tile
     if ny < 2 or nx < 2:
         return None
-    v = lap[:ny * tile:2, :nx * tile:2].reshape(ny, tile // 2, nx, tile // 2).transpose(0, 2, 1, 3)
+    v = lap[: ny * tile : 2, : nx * tile : 2].reshape(ny, tile // 2, nx, tile // 2).transpose(0, 2, 1, 3)
     v = v.reshape(ny, nx, -1).astype(np.float64)
     if valid is not None:
-        m = np.asarray(valid, bool)[:ny * tile:2, :nx * tile:2].reshape(ny, tile // 2, nx, tile // 2)
+        m = np.asarray(valid, bool)[: ny * tile : 2, : nx * tile : 2].reshape(ny, tile // 2, nx, tile // 2)
         m = m.transpose(0, 2, 1, 3).reshape(ny, nx, -1)
         v = np.where(m, v, np.nan)
         cnt = m.sum(-1)
@@ -356,9 +371,15 @@ class NoiseField:
     ``levels``: noise level functions measured before, by scale (px), used instead of
     measuring them (a crop of a run's frame with the frame's own function)."""
 
-    def __init__(self, g: np.ndarray, valid: np.ndarray | None, structure_px: int,
-                 box: tuple[int, int, int, int] | None = None, cache: dict | None = None,
-                 levels: dict[float, NoiseLevels] | None = None):
+    def __init__(
+        self,
+        g: np.ndarray,
+        valid: np.ndarray | None,
+        structure_px: int,
+        box: tuple[int, int, int, int] | None = None,
+        cache: dict | None = None,
+        levels: dict[float, NoiseLevels] | None = None,
+    ):
         self._g, self._valid, self._structure = g, valid, int(structure_px)
         self._box = box
         # maps by scale, and ("levels", scale) → the level function: shared with the crops
@@ -371,8 +392,9 @@ class NoiseField:
         key = round(float(sigma), 3)
         full = self._cache.get(key)
         if full is None:
-            full, used = noise_map_and_levels(self._g, sigma, self._valid, structure_px=self._structure,
-                                              levels=self._cache.get(("levels", key)))
+            full, used = noise_map_and_levels(
+                self._g, sigma, self._valid, structure_px=self._structure, levels=self._cache.get(("levels", key))
+            )
             self._cache[key] = full
             self._cache[("levels", key)] = used
         if self._box is None:

@@ -60,13 +60,18 @@ class Labelling:
 
 def observation(camera, beads_uv: dict[str, np.ndarray], contours: identify.Contours) -> Observation:
     """The SPEC §3 observation of matched bead centres and gathered contours (pixels)."""
-    return Observation(camera, dict(beads_uv),
-                       {k: CurveObservation(points=v) for k, v in contours.lines.items()},
-                       {k: CurveObservation(points=v) for k, v in contours.ellipses.items()}, origin="<image>")
+    return Observation(
+        camera,
+        dict(beads_uv),
+        {k: CurveObservation(points=v) for k, v in contours.lines.items()},
+        {k: CurveObservation(points=v) for k, v in contours.ellipses.items()},
+        origin="<image>",
+    )
 
 
-def match_beads(scene: Scene, R: np.ndarray, t: np.ndarray, beads: Beads, tol: float, sep: float
-                ) -> tuple[dict[str, int], dict[str, str]]:
+def match_beads(
+    scene: Scene, R: np.ndarray, t: np.ndarray, beads: Beads, tol: float, sep: float
+) -> tuple[dict[str, int], dict[str, str]]:
     """Model bead id → blob index at pose (R, t): the nearest blob within ``tol`` px, one
     blob per bead; beads projected within ``sep`` px of another bead are left out (merged
     blobs). Returns the match and the beads left out with why."""
@@ -118,18 +123,39 @@ def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
         return identify.Contours()
     tol = opts.contour_tol_px if stage == 0 else opts.final_contour_tol_px
     mag = scene.camera.focal_length_mm / float(t[2]) if t[2] > 0 else opts.magnification
-    wr = max([ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses]) \
-        / 2 * mag / sc.pixel_mm
-    var = sc.ridge_sigma_px ** 2 + blur ** 2 + wr * wr / 4
+    wr = (
+        max([ln.wire_diameter for ln in features.lines] + [e.wire_diameter for e in features.ellipses])
+        / 2
+        * mag
+        / sc.pixel_mm
+    )
+    var = sc.ridge_sigma_px**2 + blur**2 + wr * wr / 4
     excl = np.full(len(features.points), sc.bead_radius_px + 3 * opts.blur_px + 1.5)
     if opts.contours == "guided":
-        cont = guided_contours(scene, R, t, excl, tol, opts.separation_px, opts.guided_min_snr,
-                               spacing_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 1.0,
-                               ridge_var_px2=var)
+        cont = guided_contours(
+            scene,
+            R,
+            t,
+            excl,
+            tol,
+            opts.separation_px,
+            opts.guided_min_snr,
+            spacing_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 1.0,
+            ridge_var_px2=var,
+        )
     else:
-        cont = identify.gather_contours(features, scene.camera, R, t, scene.ridges, excl, tol, opts.separation_px,
-                                        ridge_var_px2=var,
-                                        thin_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 0.0)
+        cont = identify.gather_contours(
+            features,
+            scene.camera,
+            R,
+            t,
+            scene.ridges,
+            excl,
+            tol,
+            opts.separation_px,
+            ridge_var_px2=var,
+            thin_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 0.0,
+        )
     clean_contours(cont)
     return cont
 
@@ -148,8 +174,9 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
             # before anything is projected: a pose near the source projects the wires over
             # millions of pixels
             return why
-        match, dropped_beads = match_beads(scene, R, t, beads, opts.match_tol_px if stage else
-                                           max(opts.match_tol_px, rb), sep)
+        match, dropped_beads = match_beads(
+            scene, R, t, beads, opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep
+        )
         cont = _contours(scene, R, t, blur, stage)
         obs = observation(scene.camera, {fid: beads.uv[j] for fid, j in match.items()}, cont)
         if not (obs.points or obs.lines or obs.ellipses):
@@ -183,17 +210,23 @@ def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
             break
         if len(removed) >= opts.max_dropped:
             pose.converged = False
-            pose.error = (f"features inconsistent with the pose: {worst} (p = {pv[worst]:.1e}) after dropping "
-                          f"{', '.join(removed)}; wrong identification or segmentation")
+            pose.error = (
+                f"features inconsistent with the pose: {worst} (p = {pv[worst]:.1e}) after dropping "
+                f"{', '.join(removed)}; wrong identification or segmentation"
+            )
             break
         removed[worst] = f"residual improbable under the measured noise (p = {pv[worst]:.1e})"
         if len(obs.points) + len(obs.lines) + len(obs.ellipses) <= 1:
             pose.converged = False
             pose.error = f"no feature consistent with the pose ({worst}: p = {pv[worst]:.1e})"
             break
-        obs = Observation(obs.camera, {k: v for k, v in obs.points.items() if k != worst},
-                          {k: v for k, v in obs.lines.items() if k != worst},
-                          {k: v for k, v in obs.ellipses.items() if k != worst}, obs.origin)
+        obs = Observation(
+            obs.camera,
+            {k: v for k, v in obs.points.items() if k != worst},
+            {k: v for k, v in obs.lines.items() if k != worst},
+            {k: v for k, v in obs.ellipses.items() if k != worst},
+            obs.origin,
+        )
         # from the pose the dropped feature had pulled: a local solve (the full no-guess solve
         # here cost ~40 ms per drop, mostly on rival labellings, and changed no pose on 440
         # track_accuracy images: 100 ftrac_2005, 60 ftrac_mini, 60 nine_bead, clean and anatomy)
@@ -211,8 +244,10 @@ def implausible(scene: Scene, R: np.ndarray, t: np.ndarray) -> str | None:
         return "no finite pose"
     Z = scene.features.point_centers() @ R[2] + t[2] if scene.features.points else np.array([t[2]])
     if not lo * f <= t[2] <= hi * f or np.any(Z <= 0.05 * f):
-        return (f"implausible pose: the fiducial at {t[2]:.0f} mm from the source (between {lo * f:.0f} and "
-                f"{hi * f:.0f} mm expected for a source-to-detector distance of {f:.0f} mm)")
+        return (
+            f"implausible pose: the fiducial at {t[2]:.0f} mm from the source (between {lo * f:.0f} and "
+            f"{hi * f:.0f} mm expected for a source-to-detector distance of {f:.0f} mm)"
+        )
     return None
 
 
@@ -264,8 +299,11 @@ def misfit(scene: Scene, lab: Labelling) -> float:
         return math.inf
     prob, ev = residuals_at(features, obs, lab.noise, pose.rotation, pose.translation_mm)
     chi = float(np.sum(ev.rho[0] ** 2))
-    uv, _ = identify.project(scene.camera, pose.rotation, pose.translation_mm, features.point_centers()) \
-        if features.points else (np.zeros((0, 2)), None)
+    uv, _ = (
+        identify.project(scene.camera, pose.rotation, pose.translation_mm, features.point_centers())
+        if features.points
+        else (np.zeros((0, 2)), None)
+    )
     m = sc.bead_radius_px + 2
     unexplained, isolated = 0, 0
     # a ball whose blob may be blended with a neighbour's (within 2 bead widths) is
@@ -290,7 +328,12 @@ def with_agreement(scene: Scene, lab: Labelling) -> Labelling:
     p = lab.pose
     if not np.all(np.isfinite(p.rotation)) or not (features.lines or features.ellipses) or scene.ridges is None:
         return lab
-    ux, us = evidence.image_agreement(scene, p.rotation, p.translation_mm, scene.bead_exclusion(),
-                                      max(1.5, 0.5 * sc.wire_px + 1.0), opts.agreement_min_snr)
+    ux, us = evidence.image_agreement(
+        scene,
+        p.rotation,
+        p.translation_mm,
+        scene.bead_exclusion(),
+        max(1.5, 0.5 * sc.wire_px + 1.0),
+        opts.agreement_min_snr,
+    )
     return replace(lab, agreement=(ux, us), score=lab.score + opts.agreement_chi2_per_px * (ux + us))
-

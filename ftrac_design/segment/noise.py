@@ -24,8 +24,7 @@ from .beads import Beads
 from .options import TrackOptions
 
 
-def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: float,
-                   opts: TrackOptions) -> NoiseModel:
+def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: float, opts: TrackOptions) -> NoiseModel:
     """Per-feature-type σ (mm at the detector) measured on this image, with floors.
 
     Beside the random part measured here (each bead fit's own σ; each curve's scatter about
@@ -58,8 +57,10 @@ def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: f
     # a 2 px blur left an ellipse pose 4 mm off in depth with a χ² of 80 at the default
     sys_curve = opts.sys_curve_px * max(1.0, (opts.blur_px / TrackOptions.blur_px) ** 2)
     out = []
-    for store, fitter, floor in ((obs.lines, fit_line, opts.floor_line_mm),
-                                 (obs.ellipses, fit_conic, opts.floor_ellipse_mm)):
+    for store, fitter, floor in (
+        (obs.lines, fit_line, opts.floor_line_mm),
+        (obs.ellipses, fit_conic, opts.floor_ellipse_mm),
+    ):
         rss, dof, ns = 0.0, 0, []
         for c in store.values():
             f = cached_fit(fitter, c.points)
@@ -68,7 +69,7 @@ def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: f
             ns.append(len(c.points))
         s = math.sqrt(rss / dof) if dof > 0 else 0.0
         n = float(np.median(ns)) if ns else 0.0
-        out.append(max(math.sqrt(s * s + n * sys_curve ** 2) * pix, floor))
+        out.append(max(math.sqrt(s * s + n * sys_curve**2) * pix, floor))
     return NoiseModel(point, out[0], out[1])
 
 
@@ -119,8 +120,13 @@ def residuals_at(features: Features, obs: Observation, noise: NoiseModel, R: np.
     per-feature test, the covariance's variance factor and the labelling's score all ask
     for the same observation at the same pose, and compiling it fits every contour again."""
     key = (R.tobytes(), t.tobytes())
-    if _RESIDUALS and _RESIDUALS[0] is features and _RESIDUALS[1] is obs and _RESIDUALS[2] is noise \
-            and _RESIDUALS[3] == key:
+    if (
+        _RESIDUALS
+        and _RESIDUALS[0] is features
+        and _RESIDUALS[1] is obs
+        and _RESIDUALS[2] is noise
+        and _RESIDUALS[3] == key
+    ):
         return _RESIDUALS[4], _RESIDUALS[5]
     prob = compile_problem(features, [obs], noise)
     ev = evaluate(prob, R[None], t[None], jac=False)
@@ -140,8 +146,9 @@ def feature_p_values(features: Features, obs: Observation, pose: Pose, noise: No
     return out
 
 
-def calibrated_covariance(features: Features, obs: Observation, pose: Pose, noise: NoiseModel,
-                          opts: TrackOptions | None = None) -> float | None:
+def calibrated_covariance(
+    features: Features, obs: Observation, pose: Pose, noise: NoiseModel, opts: TrackOptions | None = None
+) -> float | None:
     """Rescale the pose covariance (in place) to the image path's noise model; returns s².
 
     The solver scales (JᵀJ)⁻¹ by κ², pooled over the pose residuals *and* the contour fits'
@@ -170,7 +177,7 @@ def calibrated_covariance(features: Features, obs: Observation, pose: Pose, nois
     q = {"p": opts.variance_point, "l": opts.variance_line, "e": opts.variance_ellipse}
     J = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=True).J
     if J is None or not np.all(np.isfinite(J)):
-        pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+        pose.covariance = pose.covariance / pose.noise_scale**2 * s2
         return s2
     J = J[0]
     w = np.empty(m)
@@ -179,7 +186,7 @@ def calibrated_covariance(features: Features, obs: Observation, pose: Pose, nois
     try:
         Ai = np.linalg.inv(J.T @ J)
     except np.linalg.LinAlgError:
-        pose.covariance = pose.covariance / pose.noise_scale ** 2 * s2
+        pose.covariance = pose.covariance / pose.noise_scale**2 * s2
         return s2
     C = s2 * Ai @ ((J * w[:, None]).T @ J) @ Ai
     pose.covariance = 0.5 * (C + C.T)
@@ -198,31 +205,39 @@ def distortion_modes(camera, uv: np.ndarray, radius_mm: float) -> list[np.ndarra
     d = np.asarray(uv, float) - c
     r0 = radius_mm / pix
     r2 = np.sum(d * d, axis=-1, keepdims=True)
-    g = (r2 / r0 ** 3) / pix
+    g = (r2 / r0**3) / pix
     modes = [d * g, np.stack([-d[:, 1], d[:, 0]], -1) * g]
     for axis in range(2):
         e = np.zeros(2)
         e[axis] = 1.0
         # −∂/∂c of |p − c|² (p − c) along the axis: 2 (p − c)(p − c)ᵢ + |p − c|² eᵢ; 3 r0² at r0
-        field = 2 * d * d[:, axis:axis + 1] + r2 * e
-        modes.append(field / (3 * r0 ** 2) / pix)
+        field = 2 * d * d[:, axis : axis + 1] + r2 * e
+        modes.append(field / (3 * r0**2) / pix)
     return modes
 
 
 def _displaced_by_modes(obs: Observation, radius_mm: float) -> list[Observation]:
     """``obs`` displaced by each of the four modes of :func:`distortion_modes`, in order."""
     from ..pose.observation import CurveObservation
+
     pts = {k: distortion_modes(obs.camera, np.asarray(v, float)[None], radius_mm) for k, v in obs.points.items()}
     lines = {k: distortion_modes(obs.camera, c.points, radius_mm) for k, c in obs.lines.items()}
     ells = {k: distortion_modes(obs.camera, c.points, radius_mm) for k, c in obs.ellipses.items()}
-    return [Observation(obs.camera, {k: v + pts[k][m][0] for k, v in obs.points.items()},
-                        {k: CurveObservation(points=c.points + lines[k][m]) for k, c in obs.lines.items()},
-                        {k: CurveObservation(points=c.points + ells[k][m]) for k, c in obs.ellipses.items()},
-                        obs.origin) for m in range(4)]
+    return [
+        Observation(
+            obs.camera,
+            {k: v + pts[k][m][0] for k, v in obs.points.items()},
+            {k: CurveObservation(points=c.points + lines[k][m]) for k, c in obs.lines.items()},
+            {k: CurveObservation(points=c.points + ells[k][m]) for k, c in obs.ellipses.items()},
+            obs.origin,
+        )
+        for m in range(4)
+    ]
 
 
-def distortion_covariance(features: Features, obs: Observation, pose: Pose, noise: NoiseModel,
-                          sigma_mm: float, radius_mm: float = 100.0) -> np.ndarray | None:
+def distortion_covariance(
+    features: Features, obs: Observation, pose: Pose, noise: NoiseModel, sigma_mm: float, radius_mm: float = 100.0
+) -> np.ndarray | None:
     """The pose covariance (6 × 6, SPEC §4 order) that an unmodelled image distortion of
     ``sigma_mm`` (σ of the pincushion and S modes of :func:`distortion_modes`, 0.4 σ of the
     centre's, at ``radius_mm`` from the principal point) adds: each mode's displacement of the
@@ -250,8 +265,12 @@ def distortion_covariance(features: Features, obs: Observation, pose: Pose, nois
     # the four displaced observations compiled and evaluated as one batch (one batched
     # contour fit instead of four)
     shifted = _displaced_by_modes(obs, radius_mm)
-    ev = evaluate(compile_problem(features, shifted, noise, same_structure=True), np.repeat(R[None], 4, 0),
-                  np.repeat(t[None], 4, 0), jac=False)
+    ev = evaluate(
+        compile_problem(features, shifted, noise, same_structure=True),
+        np.repeat(R[None], 4, 0),
+        np.repeat(t[None], 4, 0),
+        jac=False,
+    )
     for k in range(4):
         drho = ev.rho[k] - ev0.rho[0]
         if drho.shape != ev0.rho[0].shape or not np.all(np.isfinite(drho)):

@@ -155,8 +155,9 @@ class TrackResult:
         d = self.pose.to_dict()
         d["segmentation"] = {
             "polarity": self.polarity,
-            "noise_model_mm": None if self.noise is None else
-            {"point": self.noise.point_mm, "line": self.noise.line_mm, "ellipse": self.noise.ellipse_mm},
+            "noise_model_mm": None
+            if self.noise is None
+            else {"point": self.noise.point_mm, "line": self.noise.line_mm, "ellipse": self.noise.ellipse_mm},
             **self.diagnostics,
         }
         return d
@@ -177,7 +178,12 @@ def failed_pose(reason: str) -> Pose:
     return Pose(np.full((3, 3), np.nan), nan, False, math.nan, None, {}, 0, reason)
 
 
-def failed_result(reason: str, polarity: str = "", beads: Beads | None = None, ridges: RidgePoints | None = None,
-                  diagnostics: dict[str, Any] | None = None) -> TrackResult:
+def failed_result(
+    reason: str,
+    polarity: str = "",
+    beads: Beads | None = None,
+    ridges: RidgePoints | None = None,
+    diagnostics: dict[str, Any] | None = None,
+) -> TrackResult:
     """A :class:`TrackResult` without a pose: nothing was identified, for ``reason``."""
     return TrackResult(failed_pose(reason), None, {}, beads, ridges, polarity, None, dict(diagnostics or {}))

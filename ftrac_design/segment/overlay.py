@@ -21,6 +21,7 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
     """Write the overlay PNG of ``result`` (a :class:`~.options.TrackResult`) on ``image``
     (the density image or the image as stored; shown dense = bright), atomically."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -35,8 +36,11 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
     if result.beads is not None and len(result.beads):
         pts.append(result.beads.uv)
     if ok_pose:
-        uv, _ = project(cam, pose.rotation, pose.translation_mm, features.point_centers()) \
-            if features.points else (np.zeros((0, 2)), None)
+        uv, _ = (
+            project(cam, pose.rotation, pose.translation_mm, features.point_centers())
+            if features.points
+            else (np.zeros((0, 2)), None)
+        )
         pts.append(uv)
         for el in features.ellipses:
             pts.append(project(cam, pose.rotation, pose.translation_mm, el.sample(np.linspace(0, 2 * np.pi, 16)))[0])
@@ -48,11 +52,17 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
         hi = np.clip(np.ceil(allp.max(0)) + 30, 0, [W - 1, H - 1]).astype(int)
     else:
         lo, hi = np.array([0, 0]), np.array([W - 1, H - 1])
-    crop = img[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1]
+    crop = img[lo[1] : hi[1] + 1, lo[0] : hi[0] + 1]
     fig, ax = plt.subplots(figsize=(8, 8 * crop.shape[0] / max(crop.shape[1], 1) + 0.6), dpi=110)
     vmin, vmax = np.percentile(crop, [1, 99.8]) if crop.size else (0, 1)
-    ax.imshow(crop, cmap="gray", vmin=vmin, vmax=vmax, extent=(lo[0] - 0.5, hi[0] + 0.5, hi[1] + 0.5, lo[1] - 0.5),
-              interpolation="nearest")
+    ax.imshow(
+        crop,
+        cmap="gray",
+        vmin=vmin,
+        vmax=vmax,
+        extent=(lo[0] - 0.5, hi[0] + 0.5, hi[1] + 0.5, lo[1] - 0.5),
+        interpolation="nearest",
+    )
     if result.ridges is not None and len(result.ridges):
         r = result.ridges.uv
         inside = (r >= lo).all(1) & (r <= hi).all(1)
@@ -81,14 +91,23 @@ def draw_overlay(path: str | Path, image: np.ndarray, features: Features, result
             ab = project(cam, R, t, np.array([ln.start, ln.end]))[0]
             ax.plot(ab[:, 0], ab[:, 1], style, color=colour[ln.id], lw=0.9, alpha=0.9)
             m = ab.mean(0)
-            ax.annotate(ln.id, m, xytext=(8, 8), textcoords="offset points", color=colour[ln.id], fontsize=9,
-                        weight="bold")
+            ax.annotate(
+                ln.id, m, xytext=(8, 8), textcoords="offset points", color=colour[ln.id], fontsize=9, weight="bold"
+            )
         for el in features.ellipses:
             uv = project(cam, R, t, el.sample(np.linspace(0, 2 * np.pi, 200)))[0]
             ax.plot(uv[:, 0], uv[:, 1], style, color=colour[el.id], lw=0.9, alpha=0.9)
             top = uv[np.argmin(uv[:, 1])]
-            ax.annotate(el.id, top, xytext=(0, -10), textcoords="offset points", color=colour[el.id], fontsize=9,
-                        weight="bold", ha="center")
+            ax.annotate(
+                el.id,
+                top,
+                xytext=(0, -10),
+                textcoords="offset points",
+                color=colour[el.id],
+                fontsize=9,
+                weight="bold",
+                ha="center",
+            )
     ax.set_xlim(lo[0] - 0.5, hi[0] + 0.5)
     ax.set_ylim(hi[1] + 0.5, lo[1] - 0.5)
     status = "converged" if pose.converged else f"NOT converged: {pose.error}"

@@ -50,8 +50,10 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], deadline: flo
         if isinstance(lab, str):
             continue
         p = lab.pose
-        if any(so3.angle(p.rotation, R0) < math.radians(0.5) and np.linalg.norm(p.translation_mm - t0) < 2.0
-               for R0, t0 in seen):
+        if any(
+            so3.angle(p.rotation, R0) < math.radians(0.5) and np.linalg.norm(p.translation_mm - t0) < 2.0
+            for R0, t0 in seen
+        ):
             continue
         seen.append((p.rotation, p.translation_mm))
         if p.converged:
@@ -99,8 +101,9 @@ def _accept(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[s
         absent, support = acceptance.wire_support(scene, pose)
         diag["wire_support"] = support
         if absent:
-            acceptance.refuse(pose, f"identification not confirmed: the image shows no wire where the pose puts "
-                                    f"{', '.join(absent)}")
+            acceptance.refuse(
+                pose, f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
+            )
     if pose.converged:
         acceptance.refuse(pose, acceptance.too_little_evidence(scene, best))
 
@@ -112,17 +115,29 @@ def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
     quality: dict[str, Any] = {"points": {}, "lines": {}, "ellipses": {}}
     for fid, j in best.match.items():
         if fid in obs.points:
-            quality["points"][fid] = {"sigma_px": float(beads.sigma_px[j]), "radius_px": float(beads.radius[j]),
-                                      "blur_px": float(beads.blur[j]), "snr": float(beads.response[j])}
+            quality["points"][fid] = {
+                "sigma_px": float(beads.sigma_px[j]),
+                "radius_px": float(beads.radius[j]),
+                "blur_px": float(beads.blur[j]),
+                "snr": float(beads.response[j]),
+            }
     for store, name in ((obs.lines, "lines"), (obs.ellipses, "ellipses")):
         for fid, c in store.items():
             quality[name][fid] = {"snr": [round(float(x), 1) for x in cont.snr.get(fid, [])][: len(c.points)]}
     return quality
 
 
-def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, pol: str,
-                   valid: np.ndarray | None = None, noise: NoiseField | None = None,
-                   deadline: float = math.inf) -> TrackResult:
+def _track_density(
+    g: np.ndarray,
+    features: Features,
+    camera: Camera,
+    opts: TrackOptions,
+    body,
+    pol: str,
+    valid: np.ndarray | None = None,
+    noise: NoiseField | None = None,
+    deadline: float = math.inf,
+) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
     where ``valid``, with local noise ``noise``."""
     scene = detect(g, features, camera, opts, valid, noise)
@@ -132,19 +147,32 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
         opts = replace(opts, blur_px=blur)
         scene = detect(g, features, camera, opts, valid, noise)
     beads, ridges = scene.beads, scene.ridges
-    diag: dict[str, Any] = {"blobs": 0 if beads is None else len(beads),
-                            "ridge_points": 0 if ridges is None else len(ridges)}
+    diag: dict[str, Any] = {
+        "blobs": 0 if beads is None else len(beads),
+        "ridge_points": 0 if ridges is None else len(ridges),
+    }
     if not features.points:
         return failed_result("identification needs beads; this design has none", pol, beads, ridges, diag)
     if beads is None or len(beads) < 3:
-        return failed_result(f"no fiducial found: {0 if beads is None else len(beads)} bead-like blobs "
-                             f"(need at least 3 of {len(features.points)})", pol, beads, ridges, diag)
-    hyps = identify.bead_hypotheses(features.point_centers(), beads.uv, camera,
-                                    opts.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
-                                    max_extent_px=scene.scales.max_bead_spread_px)
+        return failed_result(
+            f"no fiducial found: {0 if beads is None else len(beads)} bead-like blobs "
+            f"(need at least 3 of {len(features.points)})",
+            pol,
+            beads,
+            ridges,
+            diag,
+        )
+    hyps = identify.bead_hypotheses(
+        features.point_centers(),
+        beads.uv,
+        camera,
+        opts.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        max_extent_px=scene.scales.max_bead_spread_px,
+    )
     if not hyps:
-        return failed_result(f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads,
-                             ridges, diag)
+        return failed_result(
+            f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads, ridges, diag
+        )
     evaluated = _labellings(scene, hyps, deadline)
     if not evaluated:
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
@@ -156,23 +184,41 @@ def _track_density(g: np.ndarray, features: Features, camera: Camera, opts: Trac
             best, scene = redone
             diag["body_subtracted"] = True
     _accept(scene, best, others, diag)
-    diag.update({
-        "blur_px": scene.opts.blur_px,
-        "hypotheses": len(hyps),
-        "labellings_tested": len(evaluated),
-        "beads_matched": len(best.obs.points),
-        "dropped": best.dropped,
-        "rejected": best.removed,
-        "pixel_noise": scene.pixel_noise,
-        # the residuals' own scale relative to the noise model (the covariance uses it)
-        "variance_factor": best.variance_factor,
-    })
-    return TrackResult(best.pose, best.obs, _quality(scene, best), scene.beads, scene.ridges, pol, best.noise, diag,
-                       noise_levels=None if noise is None else noise.levels(scene.scales.ridge_sigma_px))
+    diag.update(
+        {
+            "blur_px": scene.opts.blur_px,
+            "hypotheses": len(hyps),
+            "labellings_tested": len(evaluated),
+            "beads_matched": len(best.obs.points),
+            "dropped": best.dropped,
+            "rejected": best.removed,
+            "pixel_noise": scene.pixel_noise,
+            # the residuals' own scale relative to the noise model (the covariance uses it)
+            "variance_factor": best.variance_factor,
+        }
+    )
+    return TrackResult(
+        best.pose,
+        best.obs,
+        _quality(scene, best),
+        scene.beads,
+        scene.ridges,
+        pol,
+        best.noise,
+        diag,
+        noise_levels=None if noise is None else noise.levels(scene.scales.ridge_sigma_px),
+    )
 
 
-def track_image(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None = None,
-                polarity_hint: str | None = None, body="auto", formation_hint: str | None = None) -> TrackResult:
+def track_image(
+    image: np.ndarray,
+    features: Features,
+    camera: Camera,
+    options: TrackOptions | None = None,
+    polarity_hint: str | None = None,
+    body="auto",
+    formation_hint: str | None = None,
+) -> TrackResult:
     """Segment, identify and solve one image with no initial guess.
 
     Parameters
@@ -228,11 +274,19 @@ def _line_integrals(img: np.ndarray) -> bool:
     return bool(float(np.max(np.abs(a))) <= 64.0 and not np.all(a == np.round(a)))
 
 
-def _track(image: np.ndarray, features: Features, camera: Camera, options: TrackOptions | None,
-           polarity_hint: str | None, body, formation_hint: str | None) -> TrackResult:
+def _track(
+    image: np.ndarray,
+    features: Features,
+    camera: Camera,
+    options: TrackOptions | None,
+    polarity_hint: str | None,
+    body,
+    formation_hint: str | None,
+) -> TrackResult:
     start = time.monotonic()
     if isinstance(body, str):
         from ..xray.scene import body_from_source
+
         body = body_from_source(features.source)
     opts = options or TrackOptions()
     img = np.asarray(image)
@@ -240,8 +294,11 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
         img = img.astype(np.float32)
     sc = scales(features, camera, opts)
     # everything first on a half-size image: polarity, and where the fiducial may be
-    small = cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA) \
-        if min(img.shape) >= 64 else img
+    small = (
+        cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
+        if min(img.shape) >= 64
+        else img
+    )
     # the formation is a property of the pixels (their range and type), not of the polarity
     # tried: 8-bit integers are a display frame either way
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
@@ -263,14 +320,14 @@ def _track(image: np.ndarray, features: Features, camera: Camera, options: Track
         tried.append(res)
     if len(tried) > 1:
         first = tried[0]
-        first.pose.error = (f"{first.pose.error} (as {first.polarity}; as {tried[1].polarity}: "
-                            f"{tried[1].pose.error})")
+        first.pose.error = f"{first.pose.error} (as {first.polarity}; as {tried[1].polarity}: {tried[1].pose.error})"
         first.diagnostics["polarity_tried"] = [t.polarity for t in tried]
     return tried[0]
 
 
-def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body,
-                       sc, deadline: float) -> TrackResult:
+def _track_conditioned(
+    cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, sc, deadline: float
+) -> TrackResult:
     """:func:`track_image` on a conditioned image: in each region where the fiducial may be
     (most likely first) until one gives a pose; the whole image when none is found."""
     img, valid, pol = cond.density, cond.valid, cond.polarity
@@ -278,23 +335,39 @@ def _track_conditioned(cond, small: np.ndarray, features: Features, camera: Came
     regions: list[tuple[int, int, int, int]] = []
     if small.shape != img.shape and opts.roi:
         if sc.bead_radius_px / 2 >= opts.min_region_bead_px:
-            vs = None if valid is None else cv2.resize(valid.astype(np.uint8), (small.shape[1], small.shape[0]),
-                                                       interpolation=cv2.INTER_NEAREST).astype(bool)
+            vs = (
+                None
+                if valid is None
+                else cv2.resize(
+                    valid.astype(np.uint8), (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST
+                ).astype(bool)
+            )
             gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
             regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
         else:
             # balls too small to survive halving (ftrac_mini's 1 mm: 0.85 px): looked for at full size
-            regions = fiducial_regions(img, features, sc, opts, valid, opts.max_regions, factor=1,
-                                       noise=noise.at(sc.ridge_sigma_px))
+            regions = fiducial_regions(
+                img, features, sc, opts, valid, opts.max_regions, factor=1, noise=noise.at(sc.ridge_sigma_px)
+            )
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
         if first is not None and time.monotonic() > deadline:
             first.diagnostics["time_budget_spent"] = True
             return first
-        crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
-                                                       camera.principal_point_px[1] - r0))
-        res = _track_density(img[r0:r1, c0:c1], features, crop_cam, opts, body, pol,
-                             None if valid is None else valid[r0:r1, c0:c1], noise.crop(r0, r1, c0, c1), deadline)
+        crop_cam = replace(
+            camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
+        )
+        res = _track_density(
+            img[r0:r1, c0:c1],
+            features,
+            crop_cam,
+            opts,
+            body,
+            pol,
+            None if valid is None else valid[r0:r1, c0:c1],
+            noise.crop(r0, r1, c0, c1),
+            deadline,
+        )
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
         if res.pose.converged or view_limited(res, features, camera, img.shape, opts):

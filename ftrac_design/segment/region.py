@@ -18,9 +18,16 @@ from .options import TrackOptions, TrackResult
 from .ridges import RidgePoints
 
 
-def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: TrackOptions,
-                     valid: np.ndarray | None = None, max_regions: int = 3, factor: int = 2,
-                     noise: np.ndarray | None = None) -> list[tuple[int, int, int, int]]:
+def fiducial_regions(
+    gs: np.ndarray,
+    features: Features,
+    sc: Scales,
+    opts: TrackOptions,
+    valid: np.ndarray | None = None,
+    max_regions: int = 3,
+    factor: int = 2,
+    noise: np.ndarray | None = None,
+) -> list[tuple[int, int, int, int]]:
     """Where the fiducial may be, from a density image ``gs`` reduced ``factor`` times
     (readable where ``valid``; its local noise ``noise`` when already measured): up to
     ``max_regions`` full-size boxes ``(row0, row1, col0, col1)``, each
@@ -37,8 +44,7 @@ def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: Track
     rb = sc.bead_radius_px / factor
     disc = int(math.ceil(max(rb, sc.wire_px / factor) + 3 * opts.blur_px / factor + 2))
     T = top_hat(gs, disc)
-    nmap = noise if noise is not None else noise_map(gs, max(sc.ridge_sigma_px / factor, 0.8), valid,
-                                                     structure_px=disc)
+    nmap = noise if noise is not None else noise_map(gs, max(sc.ridge_sigma_px / factor, 0.8), valid, structure_px=disc)
     if valid is not None:
         T[~valid] = 0.0
     P = len(features.points)
@@ -52,7 +58,7 @@ def fiducial_regions(gs: np.ndarray, features: Features, sc: Scales, opts: Track
     X = np.concatenate(pts)
     ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
     D = ext * opts.magnification * 1.25 / sc.pixel_mm
-    uv = factor * cand + 0.5 * (factor - 1)                 # reduced pixel i covers full-size fi … fi + f − 1
+    uv = factor * cand + 0.5 * (factor - 1)  # reduced pixel i covers full-size fi … fi + f − 1
     w = np.minimum(resp, 3.0 * opts.bead_min_snr)
     near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
     H, W = factor * gs.shape[0], factor * gs.shape[1]
@@ -84,20 +90,26 @@ def shifted(res: TrackResult, camera: Camera, du: int, dv: int) -> TrackResult:
     off = np.array([du, dv], float)
     if res.observation is not None:
         o = res.observation
-        res.observation = Observation(camera, {k: v + off for k, v in o.points.items()},
-                                      {k: CurveObservation(points=c.points + off) for k, c in o.lines.items()},
-                                      {k: CurveObservation(points=c.points + off) for k, c in o.ellipses.items()},
-                                      origin=o.origin)
+        res.observation = Observation(
+            camera,
+            {k: v + off for k, v in o.points.items()},
+            {k: CurveObservation(points=c.points + off) for k, c in o.lines.items()},
+            {k: CurveObservation(points=c.points + off) for k, c in o.ellipses.items()},
+            origin=o.origin,
+        )
     if res.beads is not None:
-        res.beads = Beads(*(getattr(res.beads, k) + off if k == "uv" else getattr(res.beads, k)
-                            for k in res.beads.__dataclass_fields__))
+        res.beads = Beads(
+            *(
+                getattr(res.beads, k) + off if k == "uv" else getattr(res.beads, k)
+                for k in res.beads.__dataclass_fields__
+            )
+        )
     if res.ridges is not None:
         res.ridges = RidgePoints(res.ridges.uv + off, res.ridges.normal, res.ridges.strength, res.ridges.snr)
     return res
 
 
-def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tuple[int, int],
-                     opts: TrackOptions) -> int:
+def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tuple[int, int], opts: TrackOptions) -> int:
     """How many balls a perfect segmentation could use at ``pose``: those projected inside
     the image of ``shape`` (clear of its edge as detection requires) and not within the
     merging distance of another ball (the labelling leaves those out). A bound set by the
@@ -109,14 +121,20 @@ def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tupl
     H, W = shape
     edge = sc.bead_radius_px + 2 * opts.blur_px + 1
     sep = 2 * sc.bead_radius_px + 2 * opts.blur_px
-    inside = np.isfinite(uv).all(1) & (uv[:, 0] > edge) & (uv[:, 1] > edge) & (uv[:, 0] < W - 1 - edge) \
+    inside = (
+        np.isfinite(uv).all(1)
+        & (uv[:, 0] > edge)
+        & (uv[:, 1] > edge)
+        & (uv[:, 0] < W - 1 - edge)
         & (uv[:, 1] < H - 1 - edge)
+    )
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9
     return int((inside & (dd.min(1) >= sep)).sum())
 
 
-def view_limited(res: TrackResult, features: Features, camera: Camera, shape: tuple[int, int],
-                 opts: TrackOptions) -> bool:
+def view_limited(
+    res: TrackResult, features: Features, camera: Camera, shape: tuple[int, int], opts: TrackOptions
+) -> bool:
     """Whether a region's unconfirmed answer is limited by the view itself, so that searching
     the whole image (``shape``, seen with ``camera``) again cannot confirm it: too few balls
     could be used, and even a perfect segmentation of the whole image at that pose could
@@ -124,8 +142,13 @@ def view_limited(res: TrackResult, features: Features, camera: Camera, shape: tu
     whole-image retry cost ~200 ms and ended the same way."""
     need = min(opts.min_beads, len(features.points))
     p = res.pose
-    if p.converged or res.observation is None or not np.all(np.isfinite(p.rotation)) or \
-            not str(p.error or "").startswith("too little evidence") or len(res.observation.points) >= need:
+    if (
+        p.converged
+        or res.observation is None
+        or not np.all(np.isfinite(p.rotation))
+        or not str(p.error or "").startswith("too little evidence")
+        or len(res.observation.points) >= need
+    ):
         return False
     n = resolvable_beads(features, camera, p, shape, opts)
     res.diagnostics["beads_resolvable"] = n

@@ -38,8 +38,14 @@ class RidgePoints:
         return len(self.uv)
 
 
-def ridge_points(img: np.ndarray, sigma: float, noise: float | np.ndarray, min_snr: float = 6.0,
-                 max_aspect: float = 0.5, derivs: dict[str, np.ndarray] | None = None) -> RidgePoints:
+def ridge_points(
+    img: np.ndarray,
+    sigma: float,
+    noise: float | np.ndarray,
+    min_snr: float = 6.0,
+    max_aspect: float = 0.5,
+    derivs: dict[str, np.ndarray] | None = None,
+) -> RidgePoints:
     """Steger ridge points of bright lines in ``img`` (float32, background removed) at scale
     ``sigma`` px. ``noise`` is the pixel noise σ of ``img`` (one number or a map (H, W)); a point is kept when its
     curvature exceeds ``min_snr`` times the curvature that noise alone produces, and when
@@ -51,6 +57,7 @@ def ridge_points(img: np.ndarray, sigma: float, noise: float | np.ndarray, min_s
     # white noise of σ through the second-derivative filter: σ·‖g2⊗g0‖ (≈ σ·0.61/σ_s³·…);
     # measured here from the kernels so it is exact for the sampled filter
     from .image import gaussian_kernels
+
     g0, _, g2 = gaussian_kernels(sigma)
     noise_curv = noise * float(np.sqrt((g2.astype(np.float64) ** 2).sum() * (g0.astype(np.float64) ** 2).sum()))
     # most negative eigenvalue of [[xx, xy], [xy, yy]]

@@ -85,8 +85,9 @@ class RunContext:
     ball_blur_px: float
 
 
-def run_context(image: np.ndarray, result: TrackResult, features: Features, camera: Camera,
-                options: TrackOptions | None = None) -> RunContext | None:
+def run_context(
+    image: np.ndarray, result: TrackResult, features: Features, camera: Camera, options: TrackOptions | None = None
+) -> RunContext | None:
     """The :class:`RunContext` of a frame that :func:`~.pipeline.track_image` tracked.
 
     Parameters
@@ -117,8 +118,9 @@ def run_context(image: np.ndarray, result: TrackResult, features: Features, came
     return RunContext(result.polarity, form, blur, sc.ridge_sigma_px, levels, ball_blur)
 
 
-def predicted_box(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int],
-                  margin_px: float) -> tuple[int, int, int, int] | None:
+def predicted_box(
+    features: Features, camera: Camera, R: np.ndarray, t: np.ndarray, shape: tuple[int, int], margin_px: float
+) -> tuple[int, int, int, int] | None:
     """The box ``(row0, row1, col0, col1)`` holding the fiducial's projection at pose (R, t)
     (balls and wires) and ``margin_px`` around it, clipped to an image of ``shape``; None
     when the projection is not finite or its box misses the image."""
@@ -148,15 +150,19 @@ def _on_tiles(box: tuple[int, int, int, int], shape: tuple[int, int], tile: int)
 
 def _clip_levels(img: np.ndarray) -> tuple[float, float]:
     """The lowest and highest pixel value of a frame (one pass through OpenCV where it can)."""
-    if img.dtype in (np.uint8, np.uint16, np.int16, np.float32, np.float64) and img.ndim == 2 \
-            and img.flags.c_contiguous:
+    if (
+        img.dtype in (np.uint8, np.uint16, np.int16, np.float32, np.float64)
+        and img.ndim == 2
+        and img.flags.c_contiguous
+    ):
         lo, hi, _, _ = cv2.minMaxLoc(img)
         return float(lo), float(hi)
     return float(img.min()), float(img.max())
 
 
-def _balls_near(T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, uv: np.ndarray, search_px: float,
-                min_snr: float) -> tuple[np.ndarray, np.ndarray]:
+def _balls_near(
+    T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, uv: np.ndarray, search_px: float, min_snr: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Per predicted ball centre ``uv`` (n, 2), the strongest blob-like pixel (both Hessian
     eigenvalues of the blob filter negative) within ``search_px``, when its response is at
     least ``min_snr`` noise units: the starts (m, 2) and their responses (m,)."""
@@ -164,7 +170,7 @@ def _balls_near(T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, 
     r = int(math.ceil(search_px))
     off = np.arange(-r, r + 1)
     oy, ox = np.meshgrid(off, off, indexing="ij")
-    disc = ox ** 2 + oy ** 2 <= search_px * search_px
+    disc = ox**2 + oy**2 <= search_px * search_px
     ox, oy = ox[disc], oy[disc]
     c = np.rint(uv).astype(int)
     ok = np.isfinite(uv).all(1) & (c[:, 0] >= 0) & (c[:, 1] >= 0) & (c[:, 0] < W) & (c[:, 1] < H)
@@ -179,16 +185,29 @@ def _balls_near(T: np.ndarray, snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, 
     return starts[keep], best[keep]
 
 
-def _balls(T: np.ndarray, nmap: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, sc,
-           R: np.ndarray, t: np.ndarray, search_px: float, ball_blur_px: float):
+def _balls(
+    T: np.ndarray,
+    nmap: np.ndarray,
+    features: Features,
+    camera: Camera,
+    opts: TrackOptions,
+    sc,
+    R: np.ndarray,
+    t: np.ndarray,
+    search_px: float,
+    ball_blur_px: float,
+):
     """The balls near their projections at pose (R, t) (see :func:`scene_near`) and the
     blob detector's response over its noise (H, W)."""
     resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap)
     snr = (resp / nr).astype(np.float32)
     uv, _ = identify.project(camera, R, t, features.point_centers())
     starts, val = _balls_near(T, snr, xx, yy, uv, search_px, opts.bead_min_snr)
-    mask = wire_mask(features, camera, R, t, T.shape, 0.5 * sc.wire_px + 1.5 * ball_blur_px) \
-        if features.lines or features.ellipses else None
+    mask = (
+        wire_mask(features, camera, R, t, T.shape, 0.5 * sc.wire_px + 1.5 * ball_blur_px)
+        if features.lines or features.ellipses
+        else None
+    )
     b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, opts, exclude=mask)
     weak = ~ok | ~(b.sigma_px <= 0.5)
     if mask is not None and weak.any():
@@ -198,8 +217,11 @@ def _balls(T: np.ndarray, nmap: np.ndarray, features: Features, camera: Camera, 
         plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, opts)
         mw = b.take(weak)
         with np.errstate(invalid="ignore"):
-            keep_masked = ok[weak] & (np.linalg.norm(mw.uv - plain.uv, axis=1) < 1.0) & \
-                ((mw.sigma_px <= 0.5) | (mw.sigma_px <= 3.0 * plain.sigma_px))
+            keep_masked = (
+                ok[weak]
+                & (np.linalg.norm(mw.uv - plain.uv, axis=1) < 1.0)
+                & ((mw.sigma_px <= 0.5) | (mw.sigma_px <= 3.0 * plain.sigma_px))
+            )
         idx = np.flatnonzero(weak)
         for k in b.__dataclass_fields__:
             getattr(b, k)[idx[~keep_masked]] = getattr(plain, k)[~keep_masked]
@@ -212,9 +234,20 @@ def _balls(T: np.ndarray, nmap: np.ndarray, features: Features, camera: Camera, 
     return b, snr
 
 
-def scene_near(g: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, R: np.ndarray,
-               t: np.ndarray, search_px: float, valid: np.ndarray | None, noise: NoiseField, body=None,
-               ball_blur_px: float | None = None, diag: dict | None = None) -> Scene:
+def scene_near(
+    g: np.ndarray,
+    features: Features,
+    camera: Camera,
+    opts: TrackOptions,
+    R: np.ndarray,
+    t: np.ndarray,
+    search_px: float,
+    valid: np.ndarray | None,
+    noise: NoiseField,
+    body=None,
+    ball_blur_px: float | None = None,
+    diag: dict | None = None,
+) -> Scene:
     """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
     only where pose (R, t) puts the fiducial (see the module).
 
@@ -250,14 +283,12 @@ def scene_near(g: np.ndarray, features: Features, camera: Camera, opts: TrackOpt
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
     scene = Scene(features, camera, opts, sc, T, nmap, None, ridges, valid, None, None)
     if body is not None:
-        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), body, blur,
-                                    find_ridges=False)
+        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), body, blur, find_ridges=False)
         if inner is not None:
             T = inner.T
             if diag is not None:
                 diag["body_subtracted"] = True
-    beads, snr = _balls(T, nmap, features, camera, opts, sc, R, t, search_px, blur) if features.points \
-        else (None, None)
+    beads, snr = _balls(T, nmap, features, camera, opts, sc, R, t, search_px, blur) if features.points else (None, None)
     d = derivatives(T, sc.ridge_sigma_px)
     return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
 
@@ -272,9 +303,18 @@ def _moved_px(camera: Camera, features: Features, R0, t0, R1, t1) -> float:
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 
-def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-               context: RunContext, options: TrackOptions | None = None, search_px: float | None = None,
-               body=None, first_stage: int = 0) -> TrackResult:
+def track_near(
+    image: np.ndarray,
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    context: RunContext,
+    options: TrackOptions | None = None,
+    search_px: float | None = None,
+    body=None,
+    first_stage: int = 0,
+) -> TrackResult:
     """Track one frame of a run from the predicted pose (R, t): see the module.
 
     Parameters
@@ -302,13 +342,23 @@ def track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndar
     try:
         return _track_near(image, features, camera, R, t, context, options, search_px, body, first_stage)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
-        return failed_result(f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}",
-                             context.polarity)
+        return failed_result(
+            f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}", context.polarity
+        )
 
 
-def _track_near(image: np.ndarray, features: Features, camera: Camera, R: np.ndarray, t: np.ndarray,
-                context: RunContext, options: TrackOptions | None, search_px: float | None, body,
-                first_stage: int) -> TrackResult:
+def _track_near(
+    image: np.ndarray,
+    features: Features,
+    camera: Camera,
+    R: np.ndarray,
+    t: np.ndarray,
+    context: RunContext,
+    options: TrackOptions | None,
+    search_px: float | None,
+    body,
+    first_stage: int,
+) -> TrackResult:
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
@@ -331,42 +381,63 @@ def _track_near(image: np.ndarray, features: Features, camera: Camera, R: np.nda
     cond = condition(crop, context.polarity, context.formation, sc0.disc_px, _clip_levels(img))
     levels = {context.ridge_sigma_px: context.noise} if context.noise is not None else None
     inner = (slice(r0 - a0, r1 - a0), slice(c0 - b0, c1 - b0))
-    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0,
-                                                                                 c1 - b0)
+    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0, c1 - b0)
     density = np.ascontiguousarray(cond.density[inner])
     valid = None if cond.valid is None else np.ascontiguousarray(cond.valid[inner])
-    crop_cam = replace(camera, principal_point_px=(camera.principal_point_px[0] - c0,
-                                                   camera.principal_point_px[1] - r0))
-    diag: dict[str, Any] = {"path": "tracked", "roi": [int(c0), int(r0), int(c1 - c0), int(r1 - r0)],
-                            "formation": cond.formation, "blur_px": opts.blur_px}
-    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body,
-                       context.ball_blur_px, diag)
+    crop_cam = replace(
+        camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
+    )
+    diag: dict[str, Any] = {
+        "path": "tracked",
+        "roi": [int(c0), int(r0), int(c1 - c0), int(r1 - r0)],
+        "formation": cond.formation,
+        "blur_px": opts.blur_px,
+    }
+    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body, context.ball_blur_px, diag)
     diag["blobs"] = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
-        return shifted(failed_result(f"tracking lost: {diag['blobs']} balls found near their predicted places",
-                                     context.polarity, scene.beads, None, diag), camera, c0, r0)
+        return shifted(
+            failed_result(
+                f"tracking lost: {diag['blobs']} balls found near their predicted places",
+                context.polarity,
+                scene.beads,
+                None,
+                diag,
+            ),
+            camera,
+            c0,
+            r0,
+        )
     lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
     if isinstance(lab, str):
-        return shifted(failed_result(f"tracking lost: {lab}", context.polarity, scene.beads, None, diag),
-                       camera, c0, r0)
+        return shifted(
+            failed_result(f"tracking lost: {lab}", context.polarity, scene.beads, None, diag), camera, c0, r0
+        )
     _accept(scene, lab, [], diag)
     pose = lab.pose
-    moved = _moved_px(crop_cam, features, R, t, pose.rotation, pose.translation_mm) \
-        if np.all(np.isfinite(pose.rotation)) else math.inf
+    moved = (
+        _moved_px(crop_cam, features, R, t, pose.rotation, pose.translation_mm)
+        if np.all(np.isfinite(pose.rotation))
+        else math.inf
+    )
     diag["moved_px"] = round(moved, 2) if math.isfinite(moved) else None
     if pose.converged and moved > capture:
         pose.converged = False
-        pose.error = (f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
-                      f"put them, more than the {capture:.1f} px they were matched within")
-    diag.update({
-        "beads_matched": len(lab.obs.points),
-        "dropped": lab.dropped,
-        "rejected": lab.removed,
-        "pixel_noise": scene.pixel_noise,
-        "variance_factor": lab.variance_factor,
-        "rotation_step_deg": round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
-        if np.all(np.isfinite(pose.rotation)) else None,
-    })
+        pose.error = (
+            f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
+            f"put them, more than the {capture:.1f} px they were matched within"
+        )
+    diag.update(
+        {
+            "beads_matched": len(lab.obs.points),
+            "dropped": lab.dropped,
+            "rejected": lab.removed,
+            "pixel_noise": scene.pixel_noise,
+            "variance_factor": lab.variance_factor,
+            "rotation_step_deg": round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
+            if np.all(np.isfinite(pose.rotation))
+            else None,
+        }
+    )
     res = TrackResult(pose, lab.obs, _quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
     return shifted(res, camera, c0, r0)
-

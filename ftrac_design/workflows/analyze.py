@@ -40,13 +40,18 @@ from ..imagescore.atlas import AtlasSettings, image_atlas, plot_image_atlas
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
-PLOTS = {"score": "score.png", "sphere": "atlas_sphere.png", "cone": "atlas_cone.png",
-         "segmentability": "segmentability.png"}
+PLOTS = {
+    "score": "score.png",
+    "sphere": "atlas_sphere.png",
+    "cone": "atlas_cone.png",
+    "segmentability": "segmentability.png",
+}
 IMAGE_SCORE_PLOT = "image_score.png"
 IMAGE_ATLAS_PLOT = "image_atlas.png"
 #: what the feature-level figures are, in the summary and analysis.json
-PAPER_MODEL = ("the paper's model: feature-level Cramér–Rao bound, uniform segmentation error per feature "
-               "(Jain et al. 2005)")
+PAPER_MODEL = (
+    "the paper's model: feature-level Cramér–Rao bound, uniform segmentation error per feature (Jain et al. 2005)"
+)
 #: the segmentability sphere map's grid is no finer than this (~0.1 ms a direction)
 SEGMENTABILITY_ATLAS_STEP_DEG = 3.0
 
@@ -61,15 +66,26 @@ class ImagingBlock(Protocol):
     def plot(self, path: Path) -> Path: ...
 
 
-def analysis_document(subject: Subject, score: DesignScore, atlas: Atlas | None, seconds: float,
-                      files: list[str], seg_atlas: SegmentabilityAtlas | None = None) -> dict:
+def analysis_document(
+    subject: Subject,
+    score: DesignScore,
+    atlas: Atlas | None,
+    seconds: float,
+    files: list[str],
+    seg_atlas: SegmentabilityAtlas | None = None,
+) -> dict:
     """The analysis.json object (see module doc)."""
     from .. import __version__
 
     f = subject.features
-    doc = {"format": FORMAT, "version": VERSION, "units": {"length": "mm", "angle": "deg"},
-           "design": {"name": f.name, "source": f.source, "sha256": f.sha256, "input": str(subject.path)},
-           "settings": score.settings.to_dict(), "passed": score.passed}
+    doc = {
+        "format": FORMAT,
+        "version": VERSION,
+        "units": {"length": "mm", "angle": "deg"},
+        "design": {"name": f.name, "source": f.source, "sha256": f.sha256, "input": str(subject.path)},
+        "settings": score.settings.to_dict(),
+        "passed": score.passed,
+    }
     doc.update(score.to_dict())
     doc["atlas"] = atlas.to_dict() if atlas is not None else None
     if doc.get("segmentability") is not None:
@@ -102,16 +118,28 @@ def subject_body(subject: Subject):
 def image_score_block(trial: TrialSettings, records: list[dict], seconds: float) -> dict[str, Any]:
     """analysis.json's ``image_score`` block: the imaging model, the figures per condition, every
     image's record and the time it took (s)."""
-    return {"name": "image-true score", "model": trial.describe(), "figures": trial_figures(records, trial.seed),
-            "records": records, "time_s": round(seconds, 3)}
+    return {
+        "name": "image-true score",
+        "model": trial.describe(),
+        "figures": trial_figures(records, trial.seed),
+        "records": records,
+        "time_s": round(seconds, 3),
+    }
 
 
-def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thresholds, out_dir: Path | None,
-                 atlas_step_deg: float = 2.0, plots: bool = True,
-                 progress: Callable[[int], None] | None = None,
-                 imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None,
-                 trial: TrialSettings | None = None, executor: Executor | None = None,
-                 image_atlas_settings: AtlasSettings | None = None) -> tuple[dict, Path]:
+def run_analysis(
+    subject: Subject,
+    settings: AnalysisSettings,
+    thresholds: Thresholds,
+    out_dir: Path | None,
+    atlas_step_deg: float = 2.0,
+    plots: bool = True,
+    progress: Callable[[int], None] | None = None,
+    imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None,
+    trial: TrialSettings | None = None,
+    executor: Executor | None = None,
+    image_atlas_settings: AtlasSettings | None = None,
+) -> tuple[dict, Path]:
     """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
 
     Parameters
@@ -157,14 +185,20 @@ def run_analysis(subject: Subject, settings: AnalysisSettings, thresholds: Thres
     img_atlas = None
     if image_atlas_settings is not None:
         body = subject_body(subject)
-        image_atlas_settings = replace(image_atlas_settings, depth_mm=settings.workspace.depth_mm,
-                                       camera=settings.camera)
+        image_atlas_settings = replace(
+            image_atlas_settings, depth_mm=settings.workspace.depth_mm, camera=settings.camera
+        )
         img_atlas = image_atlas(subject.features, body, image_atlas_settings, executor, progress)
     score = score_design(subject.features, settings, thresholds, progress=progress)
     atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
-    seg_atlas = segmentability_atlas(subject.features, settings.camera, settings.workspace.depth_mm,
-                                     settings.workspace.cone_deg, max(atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
-                                     settings.clearance)
+    seg_atlas = segmentability_atlas(
+        subject.features,
+        settings.camera,
+        settings.workspace.depth_mm,
+        settings.workspace.cone_deg,
+        max(atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
+        settings.clearance,
+    )
     ia = None
     if imaging is not None:
         ia = imaging(progress)
@@ -225,25 +259,35 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
         echo(format_image_atlas(doc["image_atlas"]))
     if doc.get("image_score") or doc.get("image_atlas"):
         echo(f"{PAPER_MODEL}:")
-    echo(f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
-         f"segmentation error {s['segmentation_error_mm']:g} mm"
-         + "".join(f", {k} ×{s[k + '_error_factor']:.3g}" for k in ("bead", "wire") if k + "_error_factor" in s)
-         + " (predicted 1σ, 3-D RMS)")
+    echo(
+        f"{doc['design']['name']}: {s['poses']} poses within {s['cone_deg']:g}° of the nominal beam, "
+        f"segmentation error {s['segmentation_error_mm']:g} mm"
+        + "".join(f", {k} ×{s[k + '_error_factor']:.3g}" for k in ("bead", "wire") if k + "_error_factor" in s)
+        + " (predicted 1σ, 3-D RMS)"
+    )
     tz = f["translation_p95_per_axis_mm"][2]
-    echo(f"  translation  p95 {_fmt(f['translation_mm']['p95'])} mm  worst {_fmt(f['translation_mm']['worst'])} mm"
-         f"  (depth p95 {_fmt(tz)} mm)")
+    echo(
+        f"  translation  p95 {_fmt(f['translation_mm']['p95'])} mm  worst {_fmt(f['translation_mm']['worst'])} mm"
+        f"  (depth p95 {_fmt(tz)} mm)"
+    )
     echo(f"  rotation     p95 {_fmt(f['rotation_deg']['p95'])}°  worst {_fmt(f['rotation_deg']['worst'])}°")
     echo(f"  condition    median {_fmt(f['condition']['median'])}  worst {_fmt(f['condition']['worst'])}")
     for c in doc["checks"]:
-        echo(f"  {'ok  ' if c['passed'] else 'FAIL'} {c['figure']:<18} {_fmt(c['value']):>8} {c['unit']:<3} "
-             f"limit {c['limit']:g}")
+        echo(
+            f"  {'ok  ' if c['passed'] else 'FAIL'} {c['figure']:<18} {_fmt(c['value']):>8} {c['unit']:<3} "
+            f"limit {c['limit']:g}"
+        )
     for g, v in doc["groups"].items():
-        echo(f"  {g:<9} alone: translation p95 {_fmt(v['translation_mm']['p95'])} mm, condition median "
-             f"{_fmt(v['condition']['median'])}"
-             + (f", singular at {v['singular_fraction']:.0%} of poses" if v["singular_fraction"] else ""))
+        echo(
+            f"  {g:<9} alone: translation p95 {_fmt(v['translation_mm']['p95'])} mm, condition median "
+            f"{_fmt(v['condition']['median'])}"
+            + (f", singular at {v['singular_fraction']:.0%} of poses" if v["singular_fraction"] else "")
+        )
     worst = max(doc["features"], key=lambda x: x["without"]["translation_loss"] or float("inf"))
-    echo(f"  most needed feature: {worst['id']} (without it p95 translation x"
-         f"{_fmt(worst['without']['translation_loss'])})")
+    echo(
+        f"  most needed feature: {worst['id']} (without it p95 translation x"
+        f"{_fmt(worst['without']['translation_loss'])})"
+    )
     sg = doc.get("segmentability")
     if sg:
         echo(format_segmentability(sg))
@@ -253,11 +297,15 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
     if at:
         echo(f"  atlas: {at['directions']} directions; worst view directions:")
         for i, w in enumerate(at["worst_directions"][:3]):
-            who = ", ".join(f"{r['id']} {r['reason']} ({_fmt(r['view_angle_deg'])}°)" for r in w["responsible"]) \
+            who = (
+                ", ".join(f"{r['id']} {r['reason']} ({_fmt(r['view_angle_deg'])}°)" for r in w["responsible"])
                 or "no single feature blind"
-            echo(f"    {i + 1}. lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° "
-                 f"({w['angle_from_nominal_deg']:.0f}° from nominal{', in workspace' if w['in_workspace'] else ''}):"
-                 f" {_fmt(w['translation_error_mm'])} mm, condition {_fmt(w['condition'])} — {who}")
+            )
+            echo(
+                f"    {i + 1}. lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° "
+                f"({w['angle_from_nominal_deg']:.0f}° from nominal{', in workspace' if w['in_workspace'] else ''}):"
+                f" {_fmt(w['translation_error_mm'])} mm, condition {_fmt(w['condition'])} — {who}"
+            )
     return "\n".join(lines)
 
 
@@ -269,18 +317,24 @@ def format_image_score(name: str, block: dict) -> str:
     """A few lines on an analysis.json ``image_score`` block: per condition, the p95 errors of the
     right poses with their 95 % intervals and the shares refused and wrong."""
     m = block["model"]
-    out = [f"{name}: image-true score — {m['images_per_condition']} rendered images per condition, seed {m['seed']}, "
-           f"tracked with the defaults (right within {m['wrong_if_beyond']['rotation_deg']:g}° and "
-           f"{m['wrong_if_beyond']['translation_mm']:g} mm)"]
+    out = [
+        f"{name}: image-true score — {m['images_per_condition']} rendered images per condition, seed {m['seed']}, "
+        f"tracked with the defaults (right within {m['wrong_if_beyond']['rotation_deg']:g}° and "
+        f"{m['wrong_if_beyond']['translation_mm']:g} mm)"
+    ]
     for cond, f in block["figures"].items():
-        out.append(f"  {cond:<8} translation p95 {_fmt(f['translation_p95_mm'])} mm"
-                   f"{_interval(f['translation_p95_95ci_mm'])}, rotation p95 {_fmt(f['rotation_p95_deg'])}°"
-                   f"{_interval(f['rotation_p95_95ci_deg'])}; refused {f['refused_pct']:.1f} %, "
-                   f"wrong {f['wrong_pct']:.1f} %")
-    out.append(f"  (clean: {m['clean']['photons_per_px']:g} quanta/px, {m['clean']['energy_kev']:g} keV, "
-               f"focal spot {m['clean']['focal_spot_mm']:g} mm, blur {m['clean']['detector_blur_px']:g} px; "
-               f"anatomy: {m['anatomy']['patient']}, {m['anatomy']['quanta_behind_patient'][0]}–"
-               f"{m['anatomy']['quanta_behind_patient'][1]} quanta behind the patient, raw counts)")
+        out.append(
+            f"  {cond:<8} translation p95 {_fmt(f['translation_p95_mm'])} mm"
+            f"{_interval(f['translation_p95_95ci_mm'])}, rotation p95 {_fmt(f['rotation_p95_deg'])}°"
+            f"{_interval(f['rotation_p95_95ci_deg'])}; refused {f['refused_pct']:.1f} %, "
+            f"wrong {f['wrong_pct']:.1f} %"
+        )
+    out.append(
+        f"  (clean: {m['clean']['photons_per_px']:g} quanta/px, {m['clean']['energy_kev']:g} keV, "
+        f"focal spot {m['clean']['focal_spot_mm']:g} mm, blur {m['clean']['detector_blur_px']:g} px; "
+        f"anatomy: {m['anatomy']['patient']}, {m['anatomy']['quanta_behind_patient'][0]}–"
+        f"{m['anatomy']['quanta_behind_patient'][1]} quanta behind the patient, raw counts)"
+    )
     return "\n".join(out)
 
 
@@ -289,11 +343,16 @@ def format_image_atlas(atlas: dict) -> str:
     directions."""
     s = atlas["settings"]
     cone = atlas["right_share_cone"]
-    out = [f"  image-true atlas ({s['step_deg']:g}° grid, {s['rolls']} rolls, clean): tracked right from "
-           f"{100 * atlas['right_share_sphere']:.0f} % of the sphere of view directions"
-           + (f", {100 * cone:.0f} % of the workspace cone" if cone is not None else "")]
-    worst = "; ".join(f"lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° ({w['angle_from_nominal_deg']:.0f}° from "
-                      f"nominal) {100 * w['right_share']:.0f} % right" for w in atlas["worst"][:3])
+    out = [
+        f"  image-true atlas ({s['step_deg']:g}° grid, {s['rolls']} rolls, clean): tracked right from "
+        f"{100 * atlas['right_share_sphere']:.0f} % of the sphere of view directions"
+        + (f", {100 * cone:.0f} % of the workspace cone" if cone is not None else "")
+    ]
+    worst = "; ".join(
+        f"lon {w['lon_deg']:.0f}°, lat {w['lat_deg']:.0f}° ({w['angle_from_nominal_deg']:.0f}° from "
+        f"nominal) {100 * w['right_share']:.0f} % right"
+        for w in atlas["worst"][:3]
+    )
     out.append(f"    worst: {worst}")
     return "\n".join(out)
 
@@ -305,16 +364,26 @@ def _pct(v) -> str:
 def format_segmentability(sg: dict) -> str:
     """Two or three lines on image clearances from an analysis.json ``segmentability`` block."""
     c = {k: ("n/a" if v is None else f"{v:.3g}") for k, v in sg["clearance_px"].items()}
-    kinds = ", ".join(f"{k} {_pct(v['overlap_share'])}" for k, v in sg["kinds"].items()
-                      if v["counted"] and v["overlap_share"] > 0) or "none"
-    out = [f"  segmentability ({sg['settings']['poses']} poses): features overlap at {_pct(sg['overlap_share'])} "
-           f"of poses ({kinds}); smallest clearance p5 {c['p5']} px, min {c['min']} px"]
+    kinds = (
+        ", ".join(
+            f"{k} {_pct(v['overlap_share'])}" for k, v in sg["kinds"].items() if v["counted"] and v["overlap_share"] > 0
+        )
+        or "none"
+    )
+    out = [
+        f"  segmentability ({sg['settings']['poses']} poses): features overlap at {_pct(sg['overlap_share'])} "
+        f"of poses ({kinds}); smallest clearance p5 {c['p5']} px, min {c['min']} px"
+    ]
     if sg["worst_poses"]:
         w = sg["worst_poses"][0]
-        out.append(f"    worst: {w['pair']} ({w['kind']}) {w['clearance_px']:.2g} px at "
-                   f"{w['angle_from_nominal_deg']:.0f}° from nominal")
+        out.append(
+            f"    worst: {w['pair']} ({w['kind']}) {w['clearance_px']:.2g} px at "
+            f"{w['angle_from_nominal_deg']:.0f}° from nominal"
+        )
     at = sg.get("atlas")
     if at:
-        out.append(f"    overlap over {_pct(at['overlap_share_of_sphere'])} of the sphere of view directions, "
-                   f"{_pct(at['overlap_share_of_cone'])} of the workspace cone (fiducial at the isocentre)")
+        out.append(
+            f"    overlap over {_pct(at['overlap_share_of_sphere'])} of the sphere of view directions, "
+            f"{_pct(at['overlap_share_of_cone'])} of the workspace cone (fiducial at the isocentre)"
+        )
     return "\n".join(out)

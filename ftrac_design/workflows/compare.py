@@ -12,8 +12,12 @@ from ..imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
 from .analyze import subject_body
 
 
-def image_scores(subjects: Sequence[Subject], trial: TrialSettings, executor: Executor | None = None,
-                 progress: Callable[[int], None] | None = None) -> list[dict[str, Any]]:
+def image_scores(
+    subjects: Sequence[Subject],
+    trial: TrialSettings,
+    executor: Executor | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> list[dict[str, Any]]:
     """The image-true score of each design on one sample, and its paired ratios to the first.
 
     Parameters
@@ -37,9 +41,15 @@ def image_scores(subjects: Sequence[Subject], trial: TrialSettings, executor: Ex
     records = [run_trial(s.features, subject_body(s), trial, executor, progress) for s in subjects]
     out = []
     for i, (s, rec) in enumerate(zip(subjects, records)):
-        out.append({"design": s.features.name, "figures": trial_figures(rec, trial.seed),
-                    "vs_first": None if i == 0 else {c: paired_ratios(records[0], rec, c, trial.seed)
-                                                     for c in trial.conditions}})
+        out.append(
+            {
+                "design": s.features.name,
+                "figures": trial_figures(rec, trial.seed),
+                "vs_first": None
+                if i == 0
+                else {c: paired_ratios(records[0], rec, c, trial.seed) for c in trial.conditions},
+            }
+        )
     return out
 
 
@@ -50,8 +60,10 @@ def _g(v, spec: str = ".3f") -> str:
 def image_table(scores: Sequence[dict[str, Any]], trial: TrialSettings) -> list[str]:
     """Lines of text: per condition, each design's p95 errors, shares refused and wrong, and its p95
     ratios to the first design with 95 % intervals."""
-    lines = [f"image-true score: {trial.images} rendered images per condition, seed {trial.seed}, the same images "
-             f"for every design (p95 of the right poses; ratios to {scores[0]['design']} paired, 95 % interval)"]
+    lines = [
+        f"image-true score: {trial.images} rendered images per condition, seed {trial.seed}, the same images "
+        f"for every design (p95 of the right poses; ratios to {scores[0]['design']} paired, 95 % interval)"
+    ]
     for cond in trial.conditions:
         rows = [(cond, "t p95 mm", "r p95 °", "refused %", "wrong %", "t ratio", "r ratio")]
         for s in scores:
@@ -64,10 +76,20 @@ def image_table(scores: Sequence[dict[str, Any]], trial: TrialSettings) -> list[
                 lo, hi = p[f"{name}_p95_ratio_95ci"]
                 return f"{p[f'{name}_p95_ratio']:.2f} [{lo:.2f}, {hi:.2f}]"
 
-            rows.append((s["design"], _g(f["translation_p95_mm"]), _g(f["rotation_p95_deg"]),
-                         _g(f["refused_pct"], ".1f"), _g(f["wrong_pct"], ".1f"), ratio("translation"),
-                         ratio("rotation")))
+            rows.append(
+                (
+                    s["design"],
+                    _g(f["translation_p95_mm"]),
+                    _g(f["rotation_p95_deg"]),
+                    _g(f["refused_pct"], ".1f"),
+                    _g(f["wrong_pct"], ".1f"),
+                    ratio("translation"),
+                    ratio("rotation"),
+                )
+            )
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-        lines += ["  " + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
-                  for r in rows]
+        lines += [
+            "  " + "  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths)))
+            for r in rows
+        ]
     return lines

@@ -36,26 +36,48 @@ def _check_output_dir(out_dir: Path) -> None:
     check_output_dir(out_dir, "an earlier optimize output", lambda d: json_format_is(d / "summary.json", FORMAT))
 
 
-def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Path | None = None,
-             objective: Objective = "max", evaluations: int = 400, seed: int = 0, profiles: tuple[str, ...] = ("cnc",),
-             scheduler: str | None = None, workers: int | None = None, executor: Executor | None = None,
-             resume: bool = False, poses: int | None = None, verify_poses: int | None = None,
-             solver_images: int | None = None, build: bool = True, progress: bool = True,
-             command_line: str | None = None, stop_after: int | None = None, sigma0: float | None = None,
-             popsize: int | None = None, min_clearance_px: float | None = None,
-             min_ellipse_view_deg: float | None = None, check_images: int | None = None,
-             score_images: int = 0) -> dict:
+def optimize(
+    design_path: str | Path,
+    out_dir: str | Path,
+    space_path: str | Path | None = None,
+    objective: Objective = "max",
+    evaluations: int = 400,
+    seed: int = 0,
+    profiles: tuple[str, ...] = ("cnc",),
+    scheduler: str | None = None,
+    workers: int | None = None,
+    executor: Executor | None = None,
+    resume: bool = False,
+    poses: int | None = None,
+    verify_poses: int | None = None,
+    solver_images: int | None = None,
+    build: bool = True,
+    progress: bool = True,
+    command_line: str | None = None,
+    stop_after: int | None = None,
+    sigma0: float | None = None,
+    popsize: int | None = None,
+    min_clearance_px: float | None = None,
+    min_ellipse_view_deg: float | None = None,
+    check_images: int | None = None,
+    score_images: int = 0,
+) -> dict:
     """Run a search and write its outputs into ``out_dir`` (see :mod:`.optimize_outputs`); returns
     ``summary.json``'s content. ``executor`` (any ``concurrent.futures``-style one) wins
     over ``scheduler`` / ``workers`` (see :mod:`ftrac_design.optimize.execution`). Raises
     :class:`~ftrac_design.errors.GoalError` when no candidate is feasible."""
     out_dir = Path(out_dir)
     _check_output_dir(out_dir)
-    space, settings = prepare(design_path, space_path, poses, seed, profiles, min_clearance_px,
-                              min_ellipse_view_deg, score_images)
-    config = SearchConfig(objective=objective, evaluations=evaluations, seed=seed,
-                          sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
-                          popsize=popsize or space.search.get("popsize"))
+    space, settings = prepare(
+        design_path, space_path, poses, seed, profiles, min_clearance_px, min_ellipse_view_deg, score_images
+    )
+    config = SearchConfig(
+        objective=objective,
+        evaluations=evaluations,
+        seed=seed,
+        sigma0=sigma0 or space.search.get("sigma0", SearchConfig.sigma0),
+        popsize=popsize or space.search.get("popsize"),
+    )
     require_search_packages(config)
     work = work_dir(out_dir)
     log = work / "evaluations.jsonl"
@@ -64,12 +86,14 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
     if not resume and work.exists():
         raise InputError(work, None, "no interrupted run here: resume it, or remove it", parameter="resume")
     work.mkdir(parents=True, exist_ok=True)
-    command_line = command_line or (f"ftrac-design optimize {design_path} --objective {objective} "
-                                    f"--evaluations {evaluations} --seed {seed}")
+    command_line = command_line or (
+        f"ftrac-design optimize {design_path} --objective {objective} --evaluations {evaluations} --seed {seed}"
+    )
     try:
         if executor is not None:
-            res = run_search(space, settings, config, executor, log, resume, progress, type(executor).__name__,
-                             stop_after=stop_after)
+            res = run_search(
+                space, settings, config, executor, log, resume, progress, type(executor).__name__, stop_after=stop_after
+            )
         else:
             with open_executor(scheduler, workers) as (ex, name):
                 res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
@@ -78,11 +102,18 @@ def optimize(design_path: str | Path, out_dir: str | Path, space_path: str | Pat
             shutil.rmtree(work, ignore_errors=True)
         raise
     with atomic_directory(out_dir) as tmp:
-        doc = write_outputs(res, tmp, log, command_line,
-                            verify_poses or space.search.get("verify_poses", VERIFY_POSES),
-                            SOLVER_IMAGES if solver_images is None else solver_images, build, profiles[0],
-                            space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
-                            progress)
+        doc = write_outputs(
+            res,
+            tmp,
+            log,
+            command_line,
+            verify_poses or space.search.get("verify_poses", VERIFY_POSES),
+            SOLVER_IMAGES if solver_images is None else solver_images,
+            build,
+            profiles[0],
+            space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
+            progress,
+        )
     shutil.rmtree(work, ignore_errors=True)
     if doc.get("best") is None:
         raise GoalError(f"no feasible candidate in {len(res.entries)} evaluations; outputs in {out_dir}")

@@ -55,9 +55,18 @@ def design_toml(data: dict, header: str, profiles: tuple[str, ...] = ()) -> str:
     return comment + "\n" + body
 
 
-def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: str, verify_poses: int,
-                  solver_images: int, build: bool, profile: str, check_images: int = 0,
-                  progress: bool = False) -> dict:
+def write_outputs(
+    res: SearchResult,
+    tmp: Path,
+    log_path: Path,
+    command_line: str,
+    verify_poses: int,
+    solver_images: int,
+    build: bool,
+    profile: str,
+    check_images: int = 0,
+    progress: bool = False,
+) -> dict:
     """Write every output of a finished search into ``tmp`` (the caller renames it);
     ``check_images`` rendered radiographs of start and best are tracked (:mod:`ftrac_design.optimize.imagecheck`)."""
     from ..design.loader import parse_design
@@ -67,18 +76,38 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
     vseed = 1_000_003 + 2 * seed
     start_data = res.space.base
     best_data = res.space.candidate(np.asarray(res.best["x"])) if res.best is not None else None
-    doc: dict = {"format": FORMAT, "version": VERSION, "command": command_line,
-                 "run": {"objective": res.config.objective, "objectives": list(objective_names(res.config.objective)),
-                         "evaluations": len(res.entries), "evaluated_now": res.evaluated, "replayed": res.replayed,
-                         "seed": seed, "sigma0": res.config.sigma0, "popsize": res.popsize or res.config.popsize,
-                         "seconds": res.seconds, "executor": res.executor, "stopped": res.stopped,
-                         "feasible_fraction": res.feasible_fraction,
-                         "refused_fraction": float(np.mean([bool(e["refused"]) for e in res.entries]))
-                         if res.entries else 0.0},
-                 "settings": res.settings.to_dict(),
-                 "space": [{"key": p.key, "low": p.low, "high": p.high, "start": p.start,
-                            "choices": list(p.choices) if p.choices else None} for p in res.space.parameters],
-                 "start": {"figures": res.start["figures"], "margins": res.start["margins"]}}
+    doc: dict = {
+        "format": FORMAT,
+        "version": VERSION,
+        "command": command_line,
+        "run": {
+            "objective": res.config.objective,
+            "objectives": list(objective_names(res.config.objective)),
+            "evaluations": len(res.entries),
+            "evaluated_now": res.evaluated,
+            "replayed": res.replayed,
+            "seed": seed,
+            "sigma0": res.config.sigma0,
+            "popsize": res.popsize or res.config.popsize,
+            "seconds": res.seconds,
+            "executor": res.executor,
+            "stopped": res.stopped,
+            "feasible_fraction": res.feasible_fraction,
+            "refused_fraction": float(np.mean([bool(e["refused"]) for e in res.entries])) if res.entries else 0.0,
+        },
+        "settings": res.settings.to_dict(),
+        "space": [
+            {
+                "key": p.key,
+                "low": p.low,
+                "high": p.high,
+                "start": p.start,
+                "choices": list(p.choices) if p.choices else None,
+            }
+            for p in res.space.parameters
+        ],
+        "start": {"figures": res.start["figures"], "margins": res.start["margins"]},
+    }
     settings = res.settings.analysis
     doc["start"]["verification"] = verify(start_data, settings, verify_poses, solver_images, vseed)
     if check_images:
@@ -86,12 +115,14 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
 
         doc["start"]["verification"]["images"] = image_check(start_data, settings, check_images, vseed + 3, progress)
     if best_data is not None:
-        header = (f"{best_data['name']}: found by `{command_line}`\n"
-                  f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
-                  f"evaluations, {res.settings.analysis.poses} search poses; start design "
-                  f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses,\n"
-                  f"the Monte-Carlo solver check{' and the rendered-image check' if check_images else ''} are in "
-                  f"summary.json beside it.")
+        header = (
+            f"{best_data['name']}: found by `{command_line}`\n"
+            f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
+            f"evaluations, {res.settings.analysis.poses} search poses; start design "
+            f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses,\n"
+            f"the Monte-Carlo solver check{' and the rendered-image check' if check_images else ''} are in "
+            f"summary.json beside it."
+        )
         text = design_toml(best_data, header, res.settings.profiles)
         write_text_atomic(tmp / "best.toml", text)
         import tomllib
@@ -101,19 +132,27 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
         v = verify(written, settings, verify_poses, solver_images, vseed)
         if check_images:
             v["images"] = image_check(written, settings, check_images, vseed + 3, progress)
-        doc["best"] = {"index": res.best["index"], "generation": res.best["generation"],
-                       "parameters": res.best["parameters"], "design_sha256": res.best["design_sha256"],
-                       "figures": res.best["figures"], "objectives": res.best["objectives"],
-                       "margins": res.best["margins"], "verification": v}
+        doc["best"] = {
+            "index": res.best["index"],
+            "generation": res.best["generation"],
+            "parameters": res.best["parameters"],
+            "design_sha256": res.best["design_sha256"],
+            "figures": res.best["figures"],
+            "objectives": res.best["objectives"],
+            "margins": res.best["margins"],
+            "verification": v,
+        }
         s0, s1 = doc["start"]["verification"]["predicted"], v["predicted"]
         doc["best"]["change_on_fresh_poses"] = {
             "translation_p95": s1["translation_p95_mm"] / s0["translation_p95_mm"] - 1,
-            "rotation_p95": s1["rotation_p95_deg"] / s0["rotation_p95_deg"] - 1}
+            "rotation_p95": s1["rotation_p95_deg"] / s0["rotation_p95_deg"] - 1,
+        }
         if solver_images:
             m0, m1 = doc["start"]["verification"]["solver"], v["solver"]
             doc["best"]["change_by_solver"] = {
                 "translation_rms": m1["translation_rms_mm"] / m0["translation_rms_mm"] - 1,
-                "rotation_rms": m1["rotation_rms_deg"] / m0["rotation_rms_deg"] - 1}
+                "rotation_rms": m1["rotation_rms_deg"] / m0["rotation_rms_deg"] - 1,
+            }
         if check_images:
             i0, i1 = doc["start"]["verification"]["images"], v["images"]
             change = {}
@@ -138,8 +177,10 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
         doc["best"] = None
     rows, text_csv = front_table(res)
     doc["front"] = rows
-    write_json_atomic(tmp / "pareto.json", {"format": FORMAT + "-front", "version": VERSION,
-                                            "objective": res.config.objective, "points": rows})
+    write_json_atomic(
+        tmp / "pareto.json",
+        {"format": FORMAT + "-front", "version": VERSION, "objective": res.config.objective, "points": rows},
+    )
     write_text_atomic(tmp / "pareto.csv", text_csv)
     if res.entries:
         plot_convergence(res, tmp / "convergence.png")
@@ -148,4 +189,3 @@ def write_outputs(res: SearchResult, tmp: Path, log_path: Path, command_line: st
     write_json_atomic(tmp / "summary.json", json.loads(json.dumps(doc, default=float)))
     shutil.copyfile(log_path, tmp / "evaluations.jsonl")
     return doc
-

@@ -14,11 +14,19 @@ DEFAULT_SCORE_IMAGES = 100
 DEFAULT_IMAGE_ATLAS_STEP_DEG = 20.0
 
 
-def report_for_build(build_dir: str | Path, output: str | Path | None = None, analysis_dir: str | Path | None = None,
-                     run_analysis_if_missing: bool = True, poses: int | None = None,
-                     atlas_step_deg: float = 2.0, build_kept: bool = True, design=None,
-                     score_images: int = DEFAULT_SCORE_IMAGES, workers: int | None = None,
-                     image_atlas_step_deg: float = DEFAULT_IMAGE_ATLAS_STEP_DEG) -> Path:
+def report_for_build(
+    build_dir: str | Path,
+    output: str | Path | None = None,
+    analysis_dir: str | Path | None = None,
+    run_analysis_if_missing: bool = True,
+    poses: int | None = None,
+    atlas_step_deg: float = 2.0,
+    build_kept: bool = True,
+    design=None,
+    score_images: int = DEFAULT_SCORE_IMAGES,
+    workers: int | None = None,
+    image_atlas_step_deg: float = DEFAULT_IMAGE_ATLAS_STEP_DEG,
+) -> Path:
     """Write the report of ``build_dir`` (default ``build_dir/report.html``); returns its path.
 
     The analysis comes from ``analysis_dir``, else ``build_dir/analysis/``; if neither holds
@@ -33,8 +41,16 @@ def report_for_build(build_dir: str | Path, output: str | Path | None = None, an
     output = Path(output) if output is not None else build_dir / "report.html"
     if analysis_dir is None and not (build_dir / "analysis" / "analysis.json").is_file() and run_analysis_if_missing:
         with tempfile.TemporaryDirectory(prefix="ftrac-report-") as tmp:
-            _analyse(build_dir, design, Path(tmp) / "analysis", poses, atlas_step_deg, score_images, workers,
-                     image_atlas_step_deg)
+            _analyse(
+                build_dir,
+                design,
+                Path(tmp) / "analysis",
+                poses,
+                atlas_step_deg,
+                score_images,
+                workers,
+                image_atlas_step_deg,
+            )
             r = collect(build_dir, design, Path(tmp) / "analysis", build_kept)
             return write_report(r, output)
     return write_report(collect(build_dir, design, analysis_dir, build_kept), output)
@@ -59,8 +75,16 @@ def report_for_analysis(source: str | Path, analysis_dir: str | Path, output: st
     return write_report(collect(features=load_features(source), analysis_dir=analysis_dir), output)
 
 
-def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_step_deg: float, score_images: int,
-             workers: int | None, image_atlas_step_deg: float) -> None:
+def _analyse(
+    build_dir: Path,
+    design,
+    out_dir: Path,
+    poses: int | None,
+    atlas_step_deg: float,
+    score_images: int,
+    workers: int | None,
+    image_atlas_step_deg: float,
+) -> None:
     """Run the analysis of a build at its design's settings, with plots and the image-true score."""
     from ..analysis.subject import Subject, settings_for
     from ..design.loader import parse_design
@@ -82,5 +106,14 @@ def _analyse(build_dir: Path, design, out_dir: Path, poses: int | None, atlas_st
     trial = TrialSettings(images=score_images) if score_images else None
     atlas = AtlasSettings(step_deg=image_atlas_step_deg) if image_atlas_step_deg else None
     with open_executor(None, workers) as (executor, _):
-        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True, trial=trial, executor=executor,
-                     image_atlas_settings=atlas)
+        run_analysis(
+            subject,
+            settings,
+            thresholds,
+            out_dir,
+            atlas_step_deg,
+            True,
+            trial=trial,
+            executor=executor,
+            image_atlas_settings=atlas,
+        )

@@ -148,10 +148,19 @@ class RunTracker:
     >>> pose["status"], pose["converged"], pose["timing"]["elapsed_ms"]  # doctest: +SKIP
     """
 
-    def __init__(self, features: Features, camera: Camera | None = None, options: TrackOptions | None = None, *,
-                 body: Any = "auto", run_options: RunOptions | None = None, independent: bool = False):
+    def __init__(
+        self,
+        features: Features,
+        camera: Camera | None = None,
+        options: TrackOptions | None = None,
+        *,
+        body: Any = "auto",
+        run_options: RunOptions | None = None,
+        independent: bool = False,
+    ):
         if isinstance(body, str):
             from ..xray.scene import body_from_source
+
             body = body_from_source(features.source)
         self.features = features
         self.camera = camera
@@ -173,20 +182,43 @@ class RunTracker:
         st.context = None
         st.last_moved_px = math.inf
 
-    def track(self, image: np.ndarray, camera: Camera | None = None, time_s: float | None = None, *,
-              frame: int | None = None, options: TrackOptions | None = None, polarity_hint: str | None = None,
-              formation_hint: str | None = None) -> dict[str, Any]:
+    def track(
+        self,
+        image: np.ndarray,
+        camera: Camera | None = None,
+        time_s: float | None = None,
+        *,
+        frame: int | None = None,
+        options: TrackOptions | None = None,
+        polarity_hint: str | None = None,
+        formation_hint: str | None = None,
+    ) -> dict[str, Any]:
         """Track the next frame: the SPEC §4 pose object with ``status`` ("tracked",
         "re-identified" or "lost"), ``frame``, ``time_s`` and ``timing``.
 
         Parameters are those of :meth:`track_frame`.
         """
-        return self.track_frame(image, camera, time_s, frame=frame, options=options, polarity_hint=polarity_hint,
-                                formation_hint=formation_hint).pose_dict()
+        return self.track_frame(
+            image,
+            camera,
+            time_s,
+            frame=frame,
+            options=options,
+            polarity_hint=polarity_hint,
+            formation_hint=formation_hint,
+        ).pose_dict()
 
-    def track_frame(self, image: np.ndarray, camera: Camera | None = None, time_s: float | None = None, *,
-                    frame: int | None = None, options: TrackOptions | None = None,
-                    polarity_hint: str | None = None, formation_hint: str | None = None) -> FrameAnswer:
+    def track_frame(
+        self,
+        image: np.ndarray,
+        camera: Camera | None = None,
+        time_s: float | None = None,
+        *,
+        frame: int | None = None,
+        options: TrackOptions | None = None,
+        polarity_hint: str | None = None,
+        formation_hint: str | None = None,
+    ) -> FrameAnswer:
         """Track the next frame of the run.
 
         Parameters
@@ -220,15 +252,15 @@ class RunTracker:
         prediction = None if self.independent else self._predict(index, time_s)
         if prediction is not None and st.context is not None:
             fs = 2 if st.last_moved_px <= self.run_options.tight_start_px else 0
-            res = track_near(image, self.features, cam, *prediction, st.context, opts, body=self.body,
-                             first_stage=fs)
+            res = track_near(image, self.features, cam, *prediction, st.context, opts, body=self.body, first_stage=fs)
             if res.pose.converged:
                 st.last_moved_px = float(res.diagnostics.get("moved_px") or 0.0)
                 self._accept(index, time_s, res)
                 return FrameAnswer(res, "tracked", index, time_s, 1000 * (time.perf_counter() - start))
             tracking_error = res.pose.error
-        res = track_image(image, self.features, cam, opts, polarity_hint=polarity_hint, body=self.body,
-                          formation_hint=formation_hint)
+        res = track_image(
+            image, self.features, cam, opts, polarity_hint=polarity_hint, body=self.body, formation_hint=formation_hint
+        )
         res.diagnostics["path"] = "re-identified" if res.pose.converged else "lost"
         st.last_moved_px = math.inf
         if not res.pose.converged:
@@ -243,8 +275,7 @@ class RunTracker:
                 # no context: the next frame is identified from scratch too
                 st.context = None
             self._accept(index, time_s, res)
-        return FrameAnswer(res, "re-identified", index, time_s, 1000 * (time.perf_counter() - start),
-                           tracking_error)
+        return FrameAnswer(res, "re-identified", index, time_s, 1000 * (time.perf_counter() - start), tracking_error)
 
     def _accept(self, index: int, time_s: float | None, res: TrackResult) -> None:
         """Remember an accepted pose; only consecutive frames' poses make a velocity."""

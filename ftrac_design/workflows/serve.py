@@ -101,13 +101,23 @@ def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
     -------
     Tracker : returns the frame's SPEC §4 object with ``time_s`` and ``camera``.
     """
+
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
-        frame = Frame(pixels=image, camera=camera, camera_source={}, formation=None, polarity=None,
-                      source="OpenIGTLink", index=0, time_s=time_s)
+        frame = Frame(
+            pixels=image,
+            camera=camera,
+            camera_source={},
+            formation=None,
+            polarity=None,
+            source="OpenIGTLink",
+            index=0,
+            time_s=time_s,
+        )
         _, res, _ = track_pixels(frame, setup)
         pose = res.pose_dict()
         pose.update(time_s=time_s, camera=camera.to_dict(), status="tracked" if res.pose.converged else "lost")
         return pose
+
     return track
 
 
@@ -131,8 +141,16 @@ def run_tracker(setup: TrackSetup) -> Tracker:
     count = iter(range(1 << 62))  # frames in the order they reach the tracker: the run's own count
 
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
-        frame = Frame(pixels=image, camera=camera, camera_source={}, formation=None, polarity=None,
-                      source="OpenIGTLink", index=next(count), time_s=time_s)
+        frame = Frame(
+            pixels=image,
+            camera=camera,
+            camera_source={},
+            formation=None,
+            polarity=None,
+            source="OpenIGTLink",
+            index=next(count),
+            time_s=time_s,
+        )
         try:
             _, res, answer = track_pixels(frame, setup, tracker)
         except Exception:
@@ -141,6 +159,7 @@ def run_tracker(setup: TrackSetup) -> Tracker:
         pose = answer.pose_dict()
         pose.update(time_s=time_s, camera=camera.to_dict())
         return pose
+
     return track
 
 
@@ -221,11 +240,16 @@ class ServeSummary:
 
     def line(self) -> str:
         """One line: the counts and the latency's median and maximum."""
-        lat = (f"; latency median {np.median(self.latencies_ms):.0f} ms, max {max(self.latencies_ms):.0f} ms"
-               if self.latencies_ms else "")
-        return (f"{self.connections} connections, {self.received} frames received, {self.answered} answered "
-                f"({self.tracked} with a pose), {self.dropped} dropped (queue full), {self.undelivered} undelivered "
-                f"(client gone), {self.bad_messages} bad messages{lat}")
+        lat = (
+            f"; latency median {np.median(self.latencies_ms):.0f} ms, max {max(self.latencies_ms):.0f} ms"
+            if self.latencies_ms
+            else ""
+        )
+        return (
+            f"{self.connections} connections, {self.received} frames received, {self.answered} answered "
+            f"({self.tracked} with a pose), {self.dropped} dropped (queue full), {self.undelivered} undelivered "
+            f"(client gone), {self.bad_messages} bad messages{lat}"
+        )
 
 
 class FrameInbox:
@@ -355,11 +379,16 @@ class IgtlServer(socketserver.TCPServer):
         try:
             super().__init__((options.host, options.port), _Handler)
         except OSError as exc:
-            raise InputError(None, None, f"an address and port this machine can listen on: {options.host}:"
-                                         f"{options.port}: {exc.strerror or exc}", parameter="port") from None
+            raise InputError(
+                None,
+                None,
+                f"an address and port this machine can listen on: {options.host}:{options.port}: {exc.strerror or exc}",
+                parameter="port",
+            ) from None
         self.port = self.server_address[1]
-        self._previous_signal_handlers = {s: signal.signal(s, self._signal_handler)
-                                          for s in (signal.SIGTERM, signal.SIGINT)}
+        self._previous_signal_handlers = {
+            s: signal.signal(s, self._signal_handler) for s in (signal.SIGTERM, signal.SIGINT)
+        }
         self._thread = threading.Thread(target=self.serve_forever, daemon=True)
         self._thread.start()
 
@@ -398,8 +427,7 @@ class IgtlServer(socketserver.TCPServer):
         with self._lock:
             self.connected = False
             self.summary.undelivered += n
-        self._say(f"connection {conn} closed: {self._frames[conn]} frames received, "
-                  f"{self.inbox.dropped[conn]} dropped")
+        self._say(f"connection {conn} closed: {self._frames[conn]} frames received, {self.inbox.dropped[conn]} dropped")
 
     def flush(self, sock: socket.socket) -> None:
         """Send every queued answer (OSError when the client is gone)."""
@@ -438,8 +466,10 @@ class IgtlServer(socketserver.TCPServer):
         except UnicodeDecodeError:
             raise _Framing("a message header whose type and device name are ASCII") from None
         if version not in (1, 2) or size > MAX_BODY_BYTES:
-            raise _Framing(f"a message header of version 1 or 2 with a body of at most {MAX_BODY_BYTES} bytes "
-                           f"(got version {version}, {size} bytes)")
+            raise _Framing(
+                f"a message header of version 1 or 2 with a body of at most {MAX_BODY_BYTES} bytes "
+                f"(got version {version}, {size} bytes)"
+            )
         body = bytearray(size)
         _recv_into(sock, memoryview(body), started=True)
         fields = link.parse_header(head)
@@ -447,8 +477,13 @@ class IgtlServer(socketserver.TCPServer):
             # a peer's status is information, not a request: answering it could ping-pong
             return
         if mtype_s != "IMAGE":
-            self.reply_error(link.STATUS_UNKNOWN_INSTRUCTION, f"{mtype_s} {device_s!r}: only IMAGE messages are "
-                             "tracked; message ignored", device_s, conn, fields["timestamp"])
+            self.reply_error(
+                link.STATUS_UNKNOWN_INSTRUCTION,
+                f"{mtype_s} {device_s!r}: only IMAGE messages are tracked; message ignored",
+                device_s,
+                conn,
+                fields["timestamp"],
+            )
             return
         with self._lock:
             index = self._frames[conn]
@@ -470,8 +505,13 @@ class IgtlServer(socketserver.TCPServer):
             self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: {exc}", name, conn, ts)
             return None
         except Exception as exc:  # noqa: BLE001 — any decoding failure of a sender's bytes is its error
-            self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: malformed ({type(exc).__name__}: "
-                             f"{one_line(exc)})", name, conn, ts)
+            self.reply_error(
+                link.STATUS_INVALID_PACKET,
+                f"IMAGE {name!r}: malformed ({type(exc).__name__}: {one_line(exc)})",
+                name,
+                conn,
+                ts,
+            )
             return None
         try:
             camera, _ = link.image_camera(msg, pixels.shape, self.options.camera)
@@ -507,8 +547,10 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
     try:
         msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
     except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
-        pose = {**failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
-                "status": "error"}
+        pose = {
+            **failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
+            "status": "error",
+        }
         msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
     ok = msg.metadata["TransformStatus"] == "OK"
     with server._lock:
@@ -516,17 +558,23 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
         server.summary.tracked += int(ok)
     if options.valid_only and not ok:
         return
-    msg.metadata.update({"frame": str(item.index), "image_device": item.device,
-                         "dropped": str(server.inbox.dropped[item.connection]),
-                         "queue_ms": f"{1e3 * (start - item.received):.3f}",
-                         "track_ms": f"{1e3 * (done - begin):.3f}",
-                         "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}"})
+    msg.metadata.update(
+        {
+            "frame": str(item.index),
+            "image_device": item.device,
+            "dropped": str(server.inbox.dropped[item.connection]),
+            "queue_ms": f"{1e3 * (start - item.received):.3f}",
+            "track_ms": f"{1e3 * (done - begin):.3f}",
+            "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}",
+        }
+    )
     if server.reply(msg, item.connection):
         server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
 
 
-def _answer_until_stopped(server: IgtlServer, tracker: Tracker, log: TextIO | None,
-                          stop: threading.Event | None) -> None:
+def _answer_until_stopped(
+    server: IgtlServer, tracker: Tracker, log: TextIO | None, stop: threading.Event | None
+) -> None:
     """The tracking loop: answer frames from the inbox until ``stop`` is set (or Ctrl-C), with a
     progress line every ``report_s`` seconds while frames flow."""
     report_s = server.options.report_s
@@ -542,14 +590,23 @@ def _answer_until_stopped(server: IgtlServer, tracker: Tracker, log: TextIO | No
         if report_s and log is not None and time.monotonic() - last_report > report_s:
             s = server.summary
             lat = s.latencies_ms[reported:]
-            print(f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
-                  f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""), file=log, flush=True)
+            print(
+                f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
+                f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""),
+                file=log,
+                flush=True,
+            )
             last_report, reported = time.monotonic(), len(s.latencies_ms)
 
 
-def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = run_tracker,
-          log: TextIO | None = None, stop: threading.Event | None = None,
-          on_listen: Callable[[IgtlServer], None] | None = None) -> ServeSummary:
+def serve(
+    setup: TrackSetup,
+    options: ServeOptions,
+    factory: TrackerFactory = run_tracker,
+    log: TextIO | None = None,
+    stop: threading.Event | None = None,
+    on_listen: Callable[[IgtlServer], None] | None = None,
+) -> ServeSummary:
     """Run the OpenIGTLink server until Ctrl-C (or ``stop``): IMAGE in, TRANSFORM out.
 
     Parameters
@@ -574,8 +631,12 @@ def serve(setup: TrackSetup, options: ServeOptions, factory: TrackerFactory = ru
     try:
         if log is not None:
             where = "every interface" if options.host in ("0.0.0.0", "::", "") else options.host
-            print(f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
-                  f"({options.space.upper()}); Ctrl-C stops", file=log, flush=True)
+            print(
+                f"listening on {options.host}:{server.port} ({where}); IMAGE in, TRANSFORM {options.name} out "
+                f"({options.space.upper()}); Ctrl-C stops",
+                file=log,
+                flush=True,
+            )
         if on_listen is not None:
             on_listen(server)
         _answer_until_stopped(server, tracker, log, stop)
@@ -630,9 +691,13 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
         deadline = time.monotonic() + options.connect_timeout_s
         while not client.is_connected():
             if time.monotonic() > deadline:
-                raise InputError(None, None, f"an OpenIGTLink server listening at {options.host}:{options.port} "
-                                             f"(none answered within {options.connect_timeout_s:g} s)",
-                                 parameter="port")
+                raise InputError(
+                    None,
+                    None,
+                    f"an OpenIGTLink server listening at {options.host}:{options.port} "
+                    f"(none answered within {options.connect_timeout_s:g} s)",
+                    parameter="port",
+                )
             time.sleep(0.01)
         times = send_times(poses, options.rate_hz)
         start, wall0 = times[0], time.monotonic()
@@ -640,15 +705,20 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
             wait = wall0 + (t - start) - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
-            pose = {"converged": p.converged, "rotation": p.R.tolist() if p.converged else None,
-                    "translation_mm": p.t.tolist() if p.converged else None,
-                    "covariance": None if p.covariance is None else p.covariance.tolist(),
-                    "status": p.status, "error": p.error}
+            pose = {
+                "converged": p.converged,
+                "rotation": p.R.tolist() if p.converged else None,
+                "translation_mm": p.t.tolist() if p.converged else None,
+                "covariance": None if p.covariance is None else p.covariance.tolist(),
+                "status": p.status,
+                "error": p.error,
+            }
             extra = {"frame": str(p.frame if p.frame is not None else k)}
             if p.time_s is not None:
                 extra["time_s"] = repr(p.time_s)
-            client.send_message(link.transform_message(pose, options.name, options.space, time.time(), extra),
-                                wait=True)
+            client.send_message(
+                link.transform_message(pose, options.name, options.space, time.time(), extra), wait=True
+            )
             if progress is not None:
                 progress(k + 1)
         return len(poses)

@@ -55,8 +55,14 @@ from ..segment import TrackOptions, TrackResult, track_image
 from .run_tracker import FrameAnswer, RunTracker
 
 #: the observation written for a frame that has none (nothing segmented)
-EMPTY_OBSERVATION = {"format": "ftrac-observation", "version": 1, "camera": None, "points": {}, "lines": {},
-                     "ellipses": {}}
+EMPTY_OBSERVATION = {
+    "format": "ftrac-observation",
+    "version": 1,
+    "camera": None,
+    "points": {},
+    "lines": {},
+    "ellipses": {},
+}
 
 
 @dataclass(frozen=True)
@@ -132,12 +138,20 @@ def check_distortion_shape(frame: Frame, model: DistortionModel | None, model_pa
     H, W = model.image_shape
     h, w = frame.pixels.shape
     where = f"frame {frame.index}: " if frame.index else ""
-    raise InputError(frame.source, "image shape", f"{where}{H} × {W} pixels (rows × columns), the image_shape of "
-                                                  f"the distortion model {model_path}; got {h} × {w}")
+    raise InputError(
+        frame.source,
+        "image shape",
+        f"{where}{H} × {W} pixels (rows × columns), the image_shape of "
+        f"the distortion model {model_path}; got {h} × {w}",
+    )
 
 
-def validate_inputs(paths: list[Path], camera: Camera | None = None, distortion: DistortionModel | None = None,
-                    distortion_path: str | None = None) -> list[ImageInput]:
+def validate_inputs(
+    paths: list[Path],
+    camera: Camera | None = None,
+    distortion: DistortionModel | None = None,
+    distortion_path: str | None = None,
+) -> list[ImageInput]:
     """Read every frame of every IMAGE argument once (decoded, then dropped) so that bad
     input is found before anything is tracked.
 
@@ -220,18 +234,24 @@ def summary_line(label: str, result: TrackResult) -> str:
     if not p.converged:
         return f"{label}: pose not found: {one_line(p.error)}"
     t, s, obs = p.translation_mm, p.std_mm, result.observation
-    counts = (f"{len(obs.points)} beads, {len(obs.lines)} lines, {len(obs.ellipses)} ellipses"
-              if obs is not None else "no observation")
-    return (f"{label}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± ({s[0]:.2f}, {s[1]:.2f}, {s[2]:.2f}), "
-            f"rms {p.rms_residual_px:.3f} px, {counts}")
+    counts = (
+        f"{len(obs.points)} beads, {len(obs.lines)} lines, {len(obs.ellipses)} ellipses"
+        if obs is not None
+        else "no observation"
+    )
+    return (
+        f"{label}: t = ({t[0]:.2f}, {t[1]:.2f}, {t[2]:.2f}) mm ± ({s[0]:.2f}, {s[1]:.2f}, {s[2]:.2f}), "
+        f"rms {p.rms_residual_px:.3f} px, {counts}"
+    )
 
 
 #: DICOM modalities whose images no intensifier distorts (digital and computed radiography)
 FLAT_MODALITIES = ("DX", "CR", "MG")
 
 
-def track_pixels(frame: Frame, setup: TrackSetup, tracker: RunTracker | None = None
-                 ) -> tuple[np.ndarray, TrackResult, FrameAnswer | None]:
+def track_pixels(
+    frame: Frame, setup: TrackSetup, tracker: RunTracker | None = None
+) -> tuple[np.ndarray, TrackResult, FrameAnswer | None]:
     """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
     frame's polarity and formation as hints (``TrackOptions.polarity`` overrides) — or, for
     a frame of a run, the run's ``tracker`` (:class:`~.run_tracker.RunTracker`) — then
@@ -249,12 +269,26 @@ def track_pixels(frame: Frame, setup: TrackSetup, tracker: RunTracker | None = N
         options = replace(options, distortion_prior_mm=0.0)
     answer = None
     if tracker is not None:
-        answer = tracker.track_frame(img, frame.camera, frame.time_s, frame=frame.index, options=options,
-                                     polarity_hint=frame.polarity, formation_hint=frame.formation)
+        answer = tracker.track_frame(
+            img,
+            frame.camera,
+            frame.time_s,
+            frame=frame.index,
+            options=options,
+            polarity_hint=frame.polarity,
+            formation_hint=frame.formation,
+        )
         res = answer.result
     else:
-        res = track_image(img, setup.features, frame.camera, options, polarity_hint=frame.polarity,
-                          body=setup.body, formation_hint=frame.formation)
+        res = track_image(
+            img,
+            setup.features,
+            frame.camera,
+            options,
+            polarity_hint=frame.polarity,
+            body=setup.body,
+            formation_hint=frame.formation,
+        )
     if setup.refine is not None and res.pose.converged:
         # the converged pose refined on the pixels; the observation stays the segmented one
         res = setup.refine(img, setup.features, frame.camera, res, body=setup.body)
@@ -263,8 +297,14 @@ def track_pixels(frame: Frame, setup: TrackSetup, tracker: RunTracker | None = N
     return img, res, answer
 
 
-def track_frame(frame: Frame, inp: ImageInput, setup: TrackSetup, lines: bool, tracker: RunTracker | None = None,
-                read_ms: float | None = None) -> tuple[FrameOutcome, np.ndarray | None, TrackResult | None]:
+def track_frame(
+    frame: Frame,
+    inp: ImageInput,
+    setup: TrackSetup,
+    lines: bool,
+    tracker: RunTracker | None = None,
+    read_ms: float | None = None,
+) -> tuple[FrameOutcome, np.ndarray | None, TrackResult | None]:
     """Track one frame under a guard: any exception becomes this frame's failed pose.
 
     Parameters

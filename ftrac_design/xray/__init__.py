@@ -19,25 +19,45 @@ from .scene import body_from_design_file, body_from_features_file, body_from_sou
 from .truth import projected_features, read_truth, truth_dict, write_truth
 
 __all__ = [
-    "Body", "ImagingModel", "Occluder", "Radiograph", "render", "expected_transmission", "line_integral_box",
-    "blur_sigma_px", "body_from_design_file", "body_from_features_file", "body_from_source",
-    "projected_features", "read_truth", "truth_dict", "write_truth", "read_image", "write_image", "anatomy",
-    "seeds", "apply_chain", "n0_for_counts", "realistic_image",
+    "Body",
+    "ImagingModel",
+    "Occluder",
+    "Radiograph",
+    "render",
+    "expected_transmission",
+    "line_integral_box",
+    "blur_sigma_px",
+    "body_from_design_file",
+    "body_from_features_file",
+    "body_from_source",
+    "projected_features",
+    "read_truth",
+    "truth_dict",
+    "write_truth",
+    "read_image",
+    "write_image",
+    "anatomy",
+    "seeds",
+    "apply_chain",
+    "n0_for_counts",
+    "realistic_image",
 ]
 
-_LAZY = {"seeds": "patient", "apply_chain": "display", "n0_for_counts": "display",
-         "realistic_image": "scenario"}
+_LAZY = {"seeds": "patient", "apply_chain": "display", "n0_for_counts": "display", "realistic_image": "scenario"}
 
 
 def __getattr__(name):
     # image-file and background modules import imaging libraries: load them on first use
     if name in ("read_image", "write_image"):
         from .. import images
+
         return getattr(images, name)
     if name == "anatomy":
         from .background import anatomy
+
         return anatomy
     if name in _LAZY:
         import importlib
+
         return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
     raise AttributeError(name)

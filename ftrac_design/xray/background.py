@@ -43,8 +43,13 @@ def _shell(U: np.ndarray, V: np.ndarray, c, axes, angle: float, wall: float) -> 
     return (outer - inner).astype(np.float32)
 
 
-def anatomy(shape: tuple[int, int] = (1024, 1024), seed: int = 0, pixel_mm: float = 0.44,
-            strength: float = 1.0, energy_kev: float = 60.0) -> np.ndarray:
+def anatomy(
+    shape: tuple[int, int] = (1024, 1024),
+    seed: int = 0,
+    pixel_mm: float = 0.44,
+    strength: float = 1.0,
+    energy_kev: float = 60.0,
+) -> np.ndarray:
     """A reproducible anatomy-like line-integral image (H, W) float32 (see the module).
 
     ``seed`` fixes it; ``strength`` scales every structure; ``pixel_mm`` converts the bone
@@ -54,7 +59,7 @@ def anatomy(shape: tuple[int, int] = (1024, 1024), seed: int = 0, pixel_mm: floa
     H, W = shape
     out = 0.15 * _smooth_noise(rng, shape, 120.0) + 0.05 * _smooth_noise(rng, shape, 30.0)
     V, U = np.mgrid[0:H, 0:W].astype(np.float32)
-    mu_bone_px = linear_attenuation("bone", energy_kev) * pixel_mm * 0.5   # cortical bone of half density
+    mu_bone_px = linear_attenuation("bone", energy_kev) * pixel_mm * 0.5  # cortical bone of half density
     for _ in range(rng.integers(2, 4)):
         c = (rng.uniform(0, W), rng.uniform(0, H))
         a = rng.uniform(60, 200) / pixel_mm * 0.44

@@ -118,16 +118,28 @@ class Display:
     video_noise: float = 0.0
 
     def __post_init__(self) -> None:
-        _check(self.formation in ("linear", "log", "display"), "Display.formation",
-               f"linear, log or display, got {self.formation!r}")
-        _check(self.polarity in ("dense-dark", "dense-bright"), "Display.polarity",
-               f"dense-dark or dense-bright, got {self.polarity!r}")
+        _check(
+            self.formation in ("linear", "log", "display"),
+            "Display.formation",
+            f"linear, log or display, got {self.formation!r}",
+        )
+        _check(
+            self.polarity in ("dense-dark", "dense-bright"),
+            "Display.polarity",
+            f"dense-dark or dense-bright, got {self.polarity!r}",
+        )
         _check(self.bits in (8, 16), "Display.bits", f"8 or 16, got {self.bits!r}")
         _check(self.gamma > 0 and math.isfinite(self.gamma), "Display.gamma", "a positive number")
-        _check(self.unsharp_sigma_px >= 0 and self.unsharp_amount >= 0, "Display.unsharp",
-               "a non-negative σ (px) and amount")
-        _check(self.window is None or (len(self.window) == 2 and self.window[1] > 0), "Display.window",
-               "None or (centre, width) with a positive width")
+        _check(
+            self.unsharp_sigma_px >= 0 and self.unsharp_amount >= 0,
+            "Display.unsharp",
+            "a non-negative σ (px) and amount",
+        )
+        _check(
+            self.window is None or (len(self.window) == 2 and self.window[1] > 0),
+            "Display.window",
+            "None or (centre, width) with a positive width",
+        )
         lo, hi = self.window_percentiles
         _check(0 <= lo < hi <= 100, "Display.window_percentiles", "two percentiles 0 ≤ low < high ≤ 100")
         _check(self.video_noise >= 0, "Display.video_noise", "a non-negative number")
@@ -156,8 +168,11 @@ class Shutter:
         _check(self.radius_px is None or self.radius_px > 0, "Shutter.radius_px", "a positive radius (px)")
         _check(self.edge_px >= 0 and self.penumbra_px >= 0, "Shutter.edge_px / penumbra_px", "non-negative widths")
         _check(0 <= self.transmission < 1, "Shutter.transmission", "a fraction in [0, 1)")
-        _check(len(self.opening_px) == 4 and all(o > 0 for o in self.opening_px), "Shutter.opening_px",
-               "four positive distances (left, right, top, bottom; inf for no blade)")
+        _check(
+            len(self.opening_px) == 4 and all(o > 0 for o in self.opening_px),
+            "Shutter.opening_px",
+            "four positive distances (left, right, top, bottom; inf for no blade)",
+        )
 
 
 # ----------------------------------------------------------------------------- the field
@@ -166,8 +181,12 @@ def _centre(shape, center_px):
     return ((W - 1) / 2, (H - 1) / 2) if center_px is None else (float(center_px[0]), float(center_px[1]))
 
 
-def round_field(shape: tuple[int, int], center_px: tuple[float, float] | None = None, radius_px: float | None = None,
-                edge_px: float = 1.5) -> np.ndarray:
+def round_field(
+    shape: tuple[int, int],
+    center_px: tuple[float, float] | None = None,
+    radius_px: float | None = None,
+    edge_px: float = 1.5,
+) -> np.ndarray:
     """Weight (H, W) float32 of an image intensifier's round field: 1 inside, 0 outside, a linear
     ramp ``edge_px`` wide centred on the radius (its sum is π r² to well within a pixel ring)."""
     H, W = shape
@@ -181,9 +200,14 @@ def round_field(shape: tuple[int, int], center_px: tuple[float, float] | None = 
     return np.clip((r - rho) / np.float32(edge_px) + 0.5, 0.0, 1.0).astype(np.float32)
 
 
-def blade_transmission(shape: tuple[int, int], center_px: tuple[float, float] | None,
-                       opening_px: tuple[float, float, float, float], angle: float = 0.0,
-                       transmission: float = 0.04, penumbra_px: float = 2.0) -> np.ndarray:
+def blade_transmission(
+    shape: tuple[int, int],
+    center_px: tuple[float, float] | None,
+    opening_px: tuple[float, float, float, float],
+    angle: float = 0.0,
+    transmission: float = 0.04,
+    penumbra_px: float = 2.0,
+) -> np.ndarray:
     """Fraction (H, W) float32 of the photons that pass the collimator blades: per blade
     ``T + (1 − T) Φ(d / σ)`` with d the signed distance (px) into the opening from its edge
     (Φ the normal CDF: a Gaussian penumbra), multiplied over the blades (T² where two overlap)."""
@@ -213,8 +237,9 @@ def shutter_maps(shape: tuple[int, int], shutter: Shutter) -> tuple[np.ndarray, 
         w = round_field(shape, shutter.center_px, shutter.radius_px, shutter.edge_px)
         return ones, w, w >= 0.5
     if shutter.kind == "blades":
-        t = blade_transmission(shape, shutter.center_px, shutter.opening_px, shutter.angle, shutter.transmission,
-                               shutter.penumbra_px)
+        t = blade_transmission(
+            shape, shutter.center_px, shutter.opening_px, shutter.angle, shutter.transmission, shutter.penumbra_px
+        )
         return t, ones, t >= 0.5 * (1 + shutter.transmission)
     return ones, ones, np.ones(shape, bool)
 
@@ -247,8 +272,13 @@ def scatter(primary: np.ndarray, fraction: float, sigma_px: float) -> np.ndarray
     return np.float32(fraction) * low
 
 
-def gain_field(shape: tuple[int, int], detector: Detector, rng: np.random.Generator,
-               center_px: tuple[float, float] | None = None, radius_px: float | None = None) -> np.ndarray:
+def gain_field(
+    shape: tuple[int, int],
+    detector: Detector,
+    rng: np.random.Generator,
+    center_px: tuple[float, float] | None = None,
+    radius_px: float | None = None,
+) -> np.ndarray:
     """Relative gain (H, W) float32: vignetting ``1 − v (r/R)²`` about the field's centre
     (R its radius, default the half-diagonal) times ``1 + nonuniformity × smooth field``
     (a unit-σ random field with ~100 px correlation)."""
@@ -328,8 +358,13 @@ def auto_window(s: np.ndarray, mask: np.ndarray, percentiles: tuple[float, float
     return float(lo) + width / 2, width
 
 
-_TEXT = ("{kv} kV  {ma:.1f} mA", "FL {m:02d}:{s:02d}", "DAP {dap:.2f} Gy cm2", "IMG {i}/{n}",
-         "{d:02d}-{mo:02d}-2024 {h:02d}:{mi:02d}")
+_TEXT = (
+    "{kv} kV  {ma:.1f} mA",
+    "FL {m:02d}:{s:02d}",
+    "DAP {dap:.2f} Gy cm2",
+    "IMG {i}/{n}",
+    "{d:02d}-{mo:02d}-2024 {h:02d}:{mi:02d}",
+)
 
 
 def annotation_mask(shape: tuple[int, int], rng: np.random.Generator) -> np.ndarray:
@@ -338,10 +373,19 @@ def annotation_mask(shape: tuple[int, int], rng: np.random.Generator) -> np.ndar
     H, W = shape
     m = np.zeros(shape, np.uint8)
     scale = max(H, W) / 1024 * float(rng.uniform(0.7, 1.0))
-    fields = {"kv": int(rng.integers(60, 110)), "ma": float(rng.uniform(0.5, 12)), "m": int(rng.integers(0, 10)),
-              "s": int(rng.integers(0, 60)), "dap": float(rng.uniform(0.1, 30)), "i": int(rng.integers(1, 40)),
-              "n": 40, "d": int(rng.integers(1, 29)), "mo": int(rng.integers(1, 13)), "h": int(rng.integers(0, 24)),
-              "mi": int(rng.integers(0, 60))}
+    fields = {
+        "kv": int(rng.integers(60, 110)),
+        "ma": float(rng.uniform(0.5, 12)),
+        "m": int(rng.integers(0, 10)),
+        "s": int(rng.integers(0, 60)),
+        "dap": float(rng.uniform(0.1, 30)),
+        "i": int(rng.integers(1, 40)),
+        "n": 40,
+        "d": int(rng.integers(1, 29)),
+        "mo": int(rng.integers(1, 13)),
+        "h": int(rng.integers(0, 24)),
+        "mi": int(rng.integers(0, 60)),
+    }
     lines = [t.format(**fields) for t in _TEXT]
     step = int(30 * scale)
     corners = rng.choice(4, 2, replace=False)
@@ -350,8 +394,16 @@ def annotation_mask(shape: tuple[int, int], rng: np.random.Generator) -> np.ndar
         x = int(12 * scale) if corner in (0, 2) else int(W - 280 * scale)
         y0 = int(30 * scale) if corner in (0, 1) else int(H - step * len(block))
         for j, text in enumerate(block):
-            cv2.putText(m, text, (x, y0 + j * step), cv2.FONT_HERSHEY_SIMPLEX, 0.8 * scale, 255,
-                        max(1, int(2 * scale)), cv2.LINE_AA)
+            cv2.putText(
+                m,
+                text,
+                (x, y0 + j * step),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.8 * scale,
+                255,
+                max(1, int(2 * scale)),
+                cv2.LINE_AA,
+            )
     cu, cv = int(W / 2 + rng.normal(0, W / 20)), int(H / 2 + rng.normal(0, H / 20))
     arm, gap = int(rng.uniform(20, 60) * scale), int(6 * scale)
     for du, dv in ((1, 0), (-1, 0), (0, 1), (0, -1)):
@@ -359,20 +411,22 @@ def annotation_mask(shape: tuple[int, int], rng: np.random.Generator) -> np.ndar
     return m.astype(np.float32) / 255.0
 
 
-def _display(s: np.ndarray, field: np.ndarray, exposed: np.ndarray, display: Display,
-             rng: np.random.Generator) -> tuple[np.ndarray, dict[str, Any]]:
+def _display(
+    s: np.ndarray, field: np.ndarray, exposed: np.ndarray, display: Display, rng: np.random.Generator
+) -> tuple[np.ndarray, dict[str, Any]]:
     """The display formation of a log signal (see the module): stored image and its settings."""
     # outside the field the signal is meaningless: the inside's median there keeps the
     # unsharp mask from ringing along the field's edge
     if not exposed.all():
         s = np.where(field >= 0.5, s, np.float32(np.median(s[::4, ::4][exposed[::4, ::4]]) if exposed.any() else 0))
     s = unsharp_mask(s, display.unsharp_sigma_px, display.unsharp_amount)
-    centre, width = display.window if display.window is not None else auto_window(s, exposed,
-                                                                                  display.window_percentiles)
+    centre, width = (
+        display.window if display.window is not None else auto_window(s, exposed, display.window_percentiles)
+    )
     y = apply_gamma(window_level(s, centre, width), display.gamma)
     if display.polarity == "dense-dark":
         y = 1.0 - y
-    y *= field                                  # black outside the round field, in either polarity
+    y *= field  # black outside the round field, in either polarity
     top = (1 << display.bits) - 1
     out = y * np.float32(top)
     if display.annotations:
@@ -381,13 +435,24 @@ def _display(s: np.ndarray, field: np.ndarray, exposed: np.ndarray, display: Dis
     if display.video_noise > 0:
         out += np.float32(display.video_noise * top / 255.0) * rng.standard_normal(out.shape, dtype=np.float32)
     out = np.clip(np.rint(out), 0, top).astype(np.uint8 if display.bits == 8 else np.uint16)
-    return out, {"window": (centre, width), "gamma": display.gamma,
-                 "unsharp": (display.unsharp_sigma_px, display.unsharp_amount), "annotations": display.annotations}
+    return out, {
+        "window": (centre, width),
+        "gamma": display.gamma,
+        "unsharp": (display.unsharp_sigma_px, display.unsharp_amount),
+        "annotations": display.annotations,
+    }
 
 
-def apply_chain(expected_counts: np.ndarray | None = None, detector: Detector = Detector(),
-                display: Display = Display(), shutter: Shutter = Shutter(), rng: np.random.Generator | None = None,
-                *, line_integral: np.ndarray | None = None, n0: float | None = None) -> tuple[np.ndarray, dict]:
+def apply_chain(
+    expected_counts: np.ndarray | None = None,
+    detector: Detector = Detector(),
+    display: Display = Display(),
+    shutter: Shutter = Shutter(),
+    rng: np.random.Generator | None = None,
+    *,
+    line_integral: np.ndarray | None = None,
+    n0: float | None = None,
+) -> tuple[np.ndarray, dict]:
     """The image a C-arm stores for expected primary quanta per pixel (see the module).
 
     Parameters
@@ -413,21 +478,36 @@ def apply_chain(expected_counts: np.ndarray | None = None, detector: Detector = 
             raise InputError(None, "expected_counts", "expected counts, or a line integral with n0")
         expected_counts = np.float32(n0) * np.exp(-np.asarray(line_integral, np.float32))
     N = np.asarray(expected_counts, np.float32)
-    _check(N.ndim == 2 and bool(np.isfinite(N).all()) and float(N.min()) >= 0, "expected_counts",
-           "a 2-D array of finite non-negative quanta per pixel")
+    _check(
+        N.ndim == 2 and bool(np.isfinite(N).all()) and float(N.min()) >= 0,
+        "expected_counts",
+        "a 2-D array of finite non-negative quanta per pixel",
+    )
     rng = rng if rng is not None else np.random.default_rng()
     n0 = float(N.max()) if n0 is None else float(n0)
     _check(n0 > 0, "n0", "a positive number of quanta per pixel")
     blades, field, exposed = shutter_maps(N.shape, shutter)
     primary = N * blades
     total = (primary + scatter(primary, detector.scatter_fraction, detector.scatter_sigma_px)) * field
-    gains = gain_field(N.shape, detector, rng, shutter.center_px if shutter.kind == "round" else None,
-                       shutter.radius_px if shutter.kind == "round" else None)
+    gains = gain_field(
+        N.shape,
+        detector,
+        rng,
+        shutter.center_px if shutter.kind == "round" else None,
+        shutter.radius_px if shutter.kind == "round" else None,
+    )
     raw = detect(total, detector, rng, gains)
-    info: dict[str, Any] = {"formation": display.formation, "field_mask": exposed,
-                            "exposed_fraction": float(exposed.mean()), "n0": n0, "gain": detector.gain,
-                            "offset": detector.offset, "bits": detector.bits,
-                            "saturated_fraction": float((raw >= detector.full_scale).mean()), "shutter": shutter.kind}
+    info: dict[str, Any] = {
+        "formation": display.formation,
+        "field_mask": exposed,
+        "exposed_fraction": float(exposed.mean()),
+        "n0": n0,
+        "gain": detector.gain,
+        "offset": detector.offset,
+        "bits": detector.bits,
+        "saturated_fraction": float((raw >= detector.full_scale).mean()),
+        "shutter": shutter.kind,
+    }
     if display.formation == "linear":
         info["polarity"] = "dense-dark"
         return raw.astype(np.uint16), info
@@ -440,8 +520,13 @@ def apply_chain(expected_counts: np.ndarray | None = None, detector: Detector = 
     return out, info
 
 
-def n0_for_counts(background: np.ndarray, counts_behind_patient: float, statistic: Literal["median", "mean"] = "median",
-                  mask: np.ndarray | None = None, threshold: float = 0.5) -> float:
+def n0_for_counts(
+    background: np.ndarray,
+    counts_behind_patient: float,
+    statistic: Literal["median", "mean"] = "median",
+    mask: np.ndarray | None = None,
+    threshold: float = 0.5,
+) -> float:
     """Quanta per pixel with nothing in the beam (N0) that put ``counts_behind_patient`` behind
     the patient, as automatic exposure control sets the dose (100–500 quanta per pixel in
     fluoroscopy, a few thousand in a radiograph).

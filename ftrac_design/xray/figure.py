@@ -7,12 +7,19 @@ from pathlib import Path
 import numpy as np
 
 
-def truth_overlay(image: np.ndarray, truth: dict, path: str | Path, title: str = "", margin_px: int = 40,
-                  raw_image: np.ndarray | None = None) -> Path:
+def truth_overlay(
+    image: np.ndarray,
+    truth: dict,
+    path: str | Path,
+    title: str = "",
+    margin_px: int = 40,
+    raw_image: np.ndarray | None = None,
+) -> Path:
     """Write a PNG of ``image`` (dense = bright) cropped around the fiducial, beside the same
     crop with the truth's projected beads, lines and ellipses drawn per feature id. With
     ``raw_image`` a third panel shows the raw detector counts (dense = dark)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -37,7 +44,7 @@ def truth_overlay(image: np.ndarray, truth: dict, path: str | Path, title: str =
     u0, v0 = (np.floor(pts.min(0)) - margin_px).astype(int)
     u1, v1 = (np.ceil(pts.max(0)) + margin_px).astype(int)
     u0, v0, u1, v1 = max(u0, 0), max(v0, 0), min(u1, W - 1), min(v1, H - 1)
-    crop = image[v0:v1 + 1, u0:u1 + 1]
+    crop = image[v0 : v1 + 1, u0 : u1 + 1]
     ext = (u0 - 0.5, u1 + 0.5, v1 + 0.5, v0 - 0.5)
     panels = 3 if raw_image is not None else 2
     fig, axes = plt.subplots(1, panels, figsize=(4.2 * panels, 4.4))
@@ -63,7 +70,7 @@ def truth_overlay(image: np.ndarray, truth: dict, path: str | Path, title: str =
     ax.set_ylim(ext[2], ext[3])
     ax.set_title("truth: projected features", fontsize=9)
     if raw_image is not None:
-        rc = raw_image[v0:v1 + 1, u0:u1 + 1]
+        rc = raw_image[v0 : v1 + 1, u0 : u1 + 1]
         axes[2].imshow(rc, cmap="gray", extent=ext, interpolation="nearest")
         axes[2].set_xticks([])
         axes[2].set_yticks([])

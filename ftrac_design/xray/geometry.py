@@ -52,12 +52,14 @@ class Pieces:
         if not parts:
             z3, z = np.zeros((0, 3)), np.zeros(0)
             return Pieces(z3, z3, z, z, z3, z3, z, np.zeros(0, int))
-        return Pieces(*(np.concatenate([getattr(p, f) for p in parts]) for f in
-                        ("a", "e", "L", "r", "n0", "n1", "mu", "owner")))
+        return Pieces(
+            *(np.concatenate([getattr(p, f) for p in parts]) for f in ("a", "e", "L", "r", "n0", "n1", "mu", "owner"))
+        )
 
 
-def straight_pieces(start: np.ndarray, end: np.ndarray, radius: float, mu: float, owner: int,
-                    max_len_mm: float = 1.0) -> Pieces:
+def straight_pieces(
+    start: np.ndarray, end: np.ndarray, radius: float, mu: float, owner: int, max_len_mm: float = 1.0
+) -> Pieces:
     """A straight tube from ``start`` to ``end`` (mm, F) cut by perpendicular planes into
     pieces no longer than ``max_len_mm`` (exact: the cuts coincide, so the pieces tile it)."""
     start, end = np.asarray(start, float), np.asarray(end, float)
@@ -66,8 +68,16 @@ def straight_pieces(start: np.ndarray, end: np.ndarray, radius: float, mu: float
     n = max(1, math.ceil(length / max_len_mm))
     s = np.arange(n) * (length / n)
     E = np.broadcast_to(e, (n, 3)).copy()
-    return Pieces(start + s[:, None] * e, E, np.full(n, length / n), np.full(n, radius), E, E.copy(),
-                  np.full(n, mu), np.full(n, owner))
+    return Pieces(
+        start + s[:, None] * e,
+        E,
+        np.full(n, length / n),
+        np.full(n, radius),
+        E,
+        E.copy(),
+        np.full(n, mu),
+        np.full(n, owner),
+    )
 
 
 def ellipse_vertex_count(el: EllipseFeature, max_sagitta_mm: float = 0.01) -> int:
@@ -91,7 +101,7 @@ def ellipse_pieces(el: EllipseFeature, mu: float, owner: int, max_sagitta_mm: fl
     s = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
     a, b = el.semi_major, el.semi_minor
     speed2 = a * a * np.sin(s) ** 2 + b * b * np.cos(s) ** 2
-    rho = speed2 ** 1.5 / (a * b)
+    rho = speed2**1.5 / (a * b)
     L = np.sqrt(speed2) * (2 * np.pi / n)
     normal = (b * np.cos(s))[:, None] * el.major_axis + (a * np.sin(s))[:, None] * el.minor_axis
     normal /= np.linalg.norm(normal, axis=1, keepdims=True)
@@ -101,7 +111,7 @@ def ellipse_pieces(el: EllipseFeature, mu: float, owner: int, max_sagitta_mm: fl
     L = np.linalg.norm(seg, axis=1)
     e = seg / L[:, None]
     e_prev = np.roll(e, 1, axis=0)
-    n0 = e + e_prev                       # bisector plane at each vertex
+    n0 = e + e_prev  # bisector plane at each vertex
     n0 /= np.linalg.norm(n0, axis=1, keepdims=True)
     n1 = np.roll(n0, -1, axis=0)
     r = el.wire_diameter / 2.0
@@ -122,8 +132,16 @@ def _dot(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", x, y)
 
 
-def tube_chord(c: np.ndarray, d: np.ndarray, a: np.ndarray, e: np.ndarray, L: np.ndarray, r: np.ndarray,
-               n0: np.ndarray, n1: np.ndarray) -> np.ndarray:
+def tube_chord(
+    c: np.ndarray,
+    d: np.ndarray,
+    a: np.ndarray,
+    e: np.ndarray,
+    L: np.ndarray,
+    r: np.ndarray,
+    n0: np.ndarray,
+    n1: np.ndarray,
+) -> np.ndarray:
     """Chord (mm) of rays ``c + s d`` (d (N, 3)) through clipped cylinders given row-wise
     (``a``, ``e``, ``n0``, ``n1`` (N, 3), ``L``, ``r`` (N,); see :class:`Pieces`)."""
     w = c - a
@@ -131,7 +149,7 @@ def tube_chord(c: np.ndarray, d: np.ndarray, a: np.ndarray, e: np.ndarray, L: np
     dp = d - de[:, None] * e
     wp = w - we[:, None] * e
     A = _dot(dp, dp)
-    A = np.where(A > 0, A, np.inf)            # a ray along the axis meets no side wall
+    A = np.where(A > 0, A, np.inf)  # a ray along the axis meets no side wall
     s0 = -_dot(wp, dp) / A
     m = wp + s0[:, None] * dp
     h = np.sqrt(np.maximum(r * r - _dot(m, m), 0.0) / A)
@@ -180,8 +198,17 @@ def _lin(g0: np.ndarray, gu: np.ndarray, gv: np.ndarray, x: np.ndarray) -> np.nd
     return np.stack([x @ g0, x @ gu, x @ gv], -1)
 
 
-def tube_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray, pieces: Pieces,
-                  k: np.ndarray, U: np.ndarray, V: np.ndarray, dtype=np.float64) -> np.ndarray:
+def tube_chord_uv(
+    c: np.ndarray,
+    g0: np.ndarray,
+    gu: np.ndarray,
+    gv: np.ndarray,
+    pieces: Pieces,
+    k: np.ndarray,
+    U: np.ndarray,
+    V: np.ndarray,
+    dtype=np.float64,
+) -> np.ndarray:
     """:func:`tube_chord` of piece ``k`` (n,) for rays through image points (U, V) (n, s),
     with ray directions d = g0 + u gu + v gv (F). Same result, several times faster: every
     dot product with d is a linear form in (u, v) whose coefficients are computed per piece
@@ -196,11 +223,11 @@ def tube_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray,
     u_ref = np.rint(U[:, 0]) if U.ndim == 2 else np.rint(U)
     v_ref = np.rint(V[:, 0]) if V.ndim == 2 else np.rint(V)
     Lf = _lin(g0, gu, gv, np.concatenate([pieces.e, w, np.cross(pieces.e, w), pieces.n0, pieces.n1]))
-    De, Dw, Dm, D0, D1 = (Lf[i * M:(i + 1) * M][k] for i in range(5))
+    De, Dw, Dm, D0, D1 = (Lf[i * M : (i + 1) * M][k] for i in range(5))
     g_0 = np.einsum("ij,ij->i", pieces.n0, w)[k]
     g_1 = (np.einsum("ij,ij->i", pieces.n1, w) - pieces.L * np.einsum("ij,ij->i", pieces.n1, pieces.e))[k]
-    we_k, r2 = we[k], (pieces.r ** 2)[k]
-    dref = g0 + u_ref[:, None] * gu + v_ref[:, None] * gv            # d at the reference pixel (n, 3)
+    we_k, r2 = we[k], (pieces.r**2)[k]
+    dref = g0 + u_ref[:, None] * gu + v_ref[:, None] * gv  # d at the reference pixel (n, 3)
 
     def centred(D):
         a0 = D[:, 0] + u_ref * D[:, 1] + v_ref * D[:, 2]
@@ -217,8 +244,14 @@ def tube_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray,
     dd_ref = np.einsum("ij,ij->i", dref, dref)
     du, dv = dref @ gu, dref @ gv
     cst = [np.asarray(x, dtype)[:, None] for x in (dd_ref, 2 * du, 2 * dv)]
-    dd = cst[0] + Uc * cst[1] + Vc * cst[2] + dtype(gu @ gu) * Uc * Uc + dtype(2 * (gu @ gv)) * Uc * Vc \
+    dd = (
+        cst[0]
+        + Uc * cst[1]
+        + Vc * cst[2]
+        + dtype(gu @ gu) * Uc * Uc
+        + dtype(2 * (gu @ gv)) * Uc * Vc
         + dtype(gv @ gv) * Vc * Vc
+    )
     de = f(De)
     A = dd - de * de
     A = np.where(A > 0, A, np.inf)
@@ -239,8 +272,17 @@ def tube_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray,
     return np.maximum(hi - lo, 0) * np.sqrt(dd)
 
 
-def body_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray, outer_radius: float,
-                  bore_radius: float, half_length: float, U: np.ndarray, V: np.ndarray) -> np.ndarray:
+def body_chord_uv(
+    c: np.ndarray,
+    g0: np.ndarray,
+    gu: np.ndarray,
+    gv: np.ndarray,
+    outer_radius: float,
+    bore_radius: float,
+    half_length: float,
+    U: np.ndarray,
+    V: np.ndarray,
+) -> np.ndarray:
     """Chord (mm) through the hollow cylinder bore_radius ≤ √(x² + y²) ≤ outer_radius,
     |z| ≤ half_length (F) of rays through image points (U, V) (any shape), d = g0 + u gu + v gv.
     Equals :func:`cylinder_z_chord` (outer) minus the same for the bore."""
@@ -249,7 +291,7 @@ def body_chord_uv(c: np.ndarray, g0: np.ndarray, gu: np.ndarray, gv: np.ndarray,
     dz = g0[2] + U * gu[2] + V * gv[2]
     A0 = dx * dx + dy * dy
     A = np.where(A0 > 0, A0, np.inf)
-    mn = c[0] * dy - c[1] * dx                  # m √A, m = the ray's distance from the axis
+    mn = c[0] * dy - c[1] * dx  # m √A, m = the ray's distance from the axis
     s0 = -(c[0] * dx + c[1] * dy) / A
     with np.errstate(divide="ignore", invalid="ignore"):
         z1 = (-half_length - c[2]) / dz

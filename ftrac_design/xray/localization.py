@@ -39,7 +39,7 @@ def _chord(r_img: np.ndarray, radius_mm: float, magnification: float) -> np.ndar
     """Path length (mm) through a ball (or across a wire) of ``radius_mm`` along the ray
     hitting the detector ``r_img`` mm from the part's image centre (line)."""
     rho = np.asarray(r_img, float) / magnification
-    return 2.0 * np.sqrt(np.clip(radius_mm ** 2 - rho ** 2, 0.0, None))
+    return 2.0 * np.sqrt(np.clip(radius_mm**2 - rho**2, 0.0, None))
 
 
 def _fine(width_mm: float, pix: float) -> int:
@@ -67,8 +67,9 @@ def _setup(diameter_mm: float, depth_mm: float, camera: Camera, imaging: Imaging
     return M, pix, blur, half_px, imaging.mu("steel"), float(imaging.photons_per_px)
 
 
-def bead_sigma_mm(diameter_mm: float, depth_mm: float, camera: Camera = Camera(),
-                  imaging: ImagingModel = ImagingModel()) -> float:
+def bead_sigma_mm(
+    diameter_mm: float, depth_mm: float, camera: Camera = Camera(), imaging: ImagingModel = ImagingModel()
+) -> float:
     """Cramér–Rao σ (detector mm, per image axis) of a steel ball's image centre.
 
     ``diameter_mm`` the ball's, ``depth_mm`` its distance from the source (sets the
@@ -86,16 +87,17 @@ def bead_sigma_mm(diameter_mm: float, depth_mm: float, camera: Camera = Camera()
             T = np.exp(-mu * _chord(np.hypot(x[None, :], y[:, None]), diameter_mm / 2, M))
             Tb = _blur(T, blur * fine, (0, 1))
             # pixel means, and their derivative for a shift along x: edge difference / width
-            rows = Tb.reshape(2 * half, fine, n).mean(1)                       # (px rows, fine x)
+            rows = Tb.reshape(2 * half, fine, n).mean(1)  # (px rows, fine x)
             lam = rows.reshape(2 * half, 2 * half, fine).mean(2)
-            edges = np.concatenate([rows[:, ::fine], rows[:, -1:]], axis=1)    # approx. pixel edges
+            edges = np.concatenate([rows[:, ::fine], rows[:, -1:]], axis=1)  # approx. pixel edges
             dlam = -(edges[:, 1:] - edges[:, :-1]) / pix
-            info.append(N0 * np.sum(dlam ** 2 / lam))
+            info.append(N0 * np.sum(dlam**2 / lam))
     return float(1.0 / np.sqrt(np.mean(info)))
 
 
-def wire_sigma_mm(diameter_mm: float, depth_mm: float, camera: Camera = Camera(),
-                  imaging: ImagingModel = ImagingModel()) -> float:
+def wire_sigma_mm(
+    diameter_mm: float, depth_mm: float, camera: Camera = Camera(), imaging: ImagingModel = ImagingModel()
+) -> float:
     """Cramér–Rao σ (detector mm) of a steel wire's image position across its length,
     from one millimetre of its image (σ of a longer stretch ∝ 1/√length).
 
@@ -112,18 +114,30 @@ def wire_sigma_mm(diameter_mm: float, depth_mm: float, camera: Camera = Camera()
         lam = Tb.reshape(2 * half, fine).mean(1)
         edges = np.concatenate([Tb[::fine], Tb[-1:]])
         dlam = -(edges[1:] - edges[:-1]) / pix
-        info.append(N0 * np.sum(dlam ** 2 / lam) / pix)      # per pixel row → per mm of image
+        info.append(N0 * np.sum(dlam**2 / lam) / pix)  # per pixel row → per mm of image
     return float(1.0 / np.sqrt(np.mean(info)))
 
 
-def size_error_factors(bead_mm: float | None, wire_mm: float | None, ref_bead_mm: float | None,
-                       ref_wire_mm: float | None, depth_mm: float, camera: Camera = Camera(),
-                       imaging: ImagingModel = ImagingModel()) -> tuple[float, float]:
+def size_error_factors(
+    bead_mm: float | None,
+    wire_mm: float | None,
+    ref_bead_mm: float | None,
+    ref_wire_mm: float | None,
+    depth_mm: float,
+    camera: Camera = Camera(),
+    imaging: ImagingModel = ImagingModel(),
+) -> tuple[float, float]:
     """(bead, wire) segmentation-error factors of parts of ``bead_mm`` / ``wire_mm`` relative
     to the reference sizes: σ(size) / σ(reference) from the pixel-level bound at ``depth_mm``.
     A missing size (None) gives 1."""
-    kb = (bead_sigma_mm(bead_mm, depth_mm, camera, imaging) / bead_sigma_mm(ref_bead_mm, depth_mm, camera, imaging)
-          if bead_mm and ref_bead_mm and bead_mm != ref_bead_mm else 1.0)
-    kw = (wire_sigma_mm(wire_mm, depth_mm, camera, imaging) / wire_sigma_mm(ref_wire_mm, depth_mm, camera, imaging)
-          if wire_mm and ref_wire_mm and wire_mm != ref_wire_mm else 1.0)
+    kb = (
+        bead_sigma_mm(bead_mm, depth_mm, camera, imaging) / bead_sigma_mm(ref_bead_mm, depth_mm, camera, imaging)
+        if bead_mm and ref_bead_mm and bead_mm != ref_bead_mm
+        else 1.0
+    )
+    kw = (
+        wire_sigma_mm(wire_mm, depth_mm, camera, imaging) / wire_sigma_mm(ref_wire_mm, depth_mm, camera, imaging)
+        if wire_mm and ref_wire_mm and wire_mm != ref_wire_mm
+        else 1.0
+    )
     return float(kb), float(kw)

@@ -86,11 +86,28 @@ MATERIALS: dict[str, tuple[float, dict[str, float]]] = {
 KNOWN = tuple(MATERIALS) + tuple(_TABULATED) + ("trabecular_bone",)
 
 #: words in a design's material string → our material name (the more specific words first)
-_ALIASES = (("steel", "steel"), ("440c", "steel"), ("iron", "steel"), ("acetal", "acetal"), ("pom", "acetal"),
-            ("delrin", "acetal"), ("pla", "pla"), ("water", "water"), ("cortical", "cortical_bone"),
-            ("trabecular", "trabecular_bone"), ("cancellous", "trabecular_bone"), ("spongiosa", "trabecular_bone"),
-            ("bone", "bone"), ("soft tissue", "soft_tissue"), ("muscle", "muscle"), ("adipose", "adipose"),
-            ("fat", "adipose"), ("lung", "lung"), ("titanium", "titanium"), ("air", "air"))
+_ALIASES = (
+    ("steel", "steel"),
+    ("440c", "steel"),
+    ("iron", "steel"),
+    ("acetal", "acetal"),
+    ("pom", "acetal"),
+    ("delrin", "acetal"),
+    ("pla", "pla"),
+    ("water", "water"),
+    ("cortical", "cortical_bone"),
+    ("trabecular", "trabecular_bone"),
+    ("cancellous", "trabecular_bone"),
+    ("spongiosa", "trabecular_bone"),
+    ("bone", "bone"),
+    ("soft tissue", "soft_tissue"),
+    ("muscle", "muscle"),
+    ("adipose", "adipose"),
+    ("fat", "adipose"),
+    ("lung", "lung"),
+    ("titanium", "titanium"),
+    ("air", "air"),
+)
 
 
 def material_name(text: str) -> str:

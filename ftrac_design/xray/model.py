@@ -64,8 +64,11 @@ class ImagingModel:
         if int(self.supersample) < 1:
             raise ValueError("supersample: a positive integer")
         if self.attenuation_per_mm is not None:
-            object.__setattr__(self, "attenuation_per_mm",
-                               {material_name(k): float(v) for k, v in dict(self.attenuation_per_mm).items()})
+            object.__setattr__(
+                self,
+                "attenuation_per_mm",
+                {material_name(k): float(v) for k, v in dict(self.attenuation_per_mm).items()},
+            )
 
     @property
     def noisy(self) -> bool:
@@ -153,7 +156,7 @@ class Occluder:
 
     start: tuple[float, float, float]
     end: tuple[float, float, float]
-    diameter: float = 1.27          # an 18 G brachytherapy needle
+    diameter: float = 1.27  # an 18 G brachytherapy needle
     material: str = "steel"
     frame: str = "F"
 
@@ -168,17 +171,22 @@ class Occluder:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dict."""
-        return {"start": list(self.start), "end": list(self.end), "diameter": self.diameter,
-                "material": self.material, "frame": self.frame}
+        return {
+            "start": list(self.start),
+            "end": list(self.end),
+            "diameter": self.diameter,
+            "material": self.material,
+            "frame": self.frame,
+        }
 
 
 @dataclass
 class Radiograph:
     """One simulated image (``img[row, col]``, the pixel ``img[j, i]`` centred at (u, v) = (i, j))."""
 
-    line_integral: np.ndarray      # (H, W) float64 noise-free −ln(I/I0) after blur, dense = bright
-    log_image: np.ndarray          # (H, W) float64 flat-field/log image with noise, dense = bright
-    raw: np.ndarray                # (H, W) uint8/uint16 detector counts, dense = DARK
+    line_integral: np.ndarray  # (H, W) float64 noise-free −ln(I/I0) after blur, dense = bright
+    log_image: np.ndarray  # (H, W) float64 flat-field/log image with noise, dense = bright
+    raw: np.ndarray  # (H, W) uint8/uint16 detector counts, dense = DARK
     camera: Camera
     rotation: np.ndarray
     translation_mm: np.ndarray

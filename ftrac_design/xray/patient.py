@@ -120,6 +120,7 @@ class PatientModel:
 #: attenuation (the rest is marrow), so the core's line integral fluctuates by ~3–10 %
 TEXTURE_AMPLITUDE = (0.03, 0.10)
 
+
 # ----------------------------------------------------------------------------- anatomy
 def _j(rng: np.random.Generator, x: float, rel: float = 0.08) -> float:
     """``x`` with a relative Gaussian spread ``rel`` (clipped at ±2.5 σ)."""
@@ -130,7 +131,7 @@ def _levels(rng: np.random.Generator) -> list[dict]:
     """T1–L5 (top to bottom): body centre y, half-width, half-depth, half-height (mm); S1 top at y = 0."""
     out = []
     y = 0.0
-    for k in range(17):                       # from L5 (k = 0) upward
+    for k in range(17):  # from L5 (k = 0) upward
         lumbar = k < 5
         disc = _j(rng, 10.0 if lumbar else 5.0, 0.1)
         f = k / 4 if lumbar else (k - 5) / 11  # 0 at L5 / T12, 1 at L1 / T1
@@ -138,8 +139,16 @@ def _levels(rng: np.random.Generator) -> list[dict]:
         width = _j(rng, (50 - 8 * f) if lumbar else (40 - 14 * f), 0.05)
         depth = _j(rng, (35 - 3 * f) if lumbar else (30 - 13 * f), 0.05)
         y -= disc
-        out.append({"name": (f"L{5 - k}" if lumbar else f"T{17 - k}"), "y": y - height / 2, "a": width / 2,
-                    "c": depth / 2, "h": height / 2, "lumbar": lumbar})
+        out.append(
+            {
+                "name": (f"L{5 - k}" if lumbar else f"T{17 - k}"),
+                "y": y - height / 2,
+                "a": width / 2,
+                "c": depth / 2,
+                "h": height / 2,
+                "lumbar": lumbar,
+            }
+        )
         y -= height
     return out[::-1]
 
@@ -154,16 +163,28 @@ def _vertebra(rng: np.random.Generator, lv: dict, x0: float) -> list[Structure]:
     yp = y - 0.25 * h
     xp = 0.68 * a
     for s in (-1, 1):
-        out.append(Structure(f"{n} pedicle", Canal((x0 + s * xp, yp), (ped_w, ped_h), 22.0 if lumbar else 16.0,
-                                                   tilt, wall=1.5)))
-        out.append(Structure(f"{n} lamina", Tube((x0 + s * xp, yp + ped_h), (x0 + s * 3.0, y + 0.9 * h),
-                                                 4.0, 6.0, wall=1.2)))
+        out.append(
+            Structure(
+                f"{n} pedicle", Canal((x0 + s * xp, yp), (ped_w, ped_h), 22.0 if lumbar else 16.0, tilt, wall=1.5)
+            )
+        )
+        out.append(
+            Structure(f"{n} lamina", Tube((x0 + s * xp, yp + ped_h), (x0 + s * 3.0, y + 0.9 * h), 4.0, 6.0, wall=1.2))
+        )
         tp_len = _j(rng, 22.0 if lumbar else 14.0, 0.15)
         tip = (x0 + s * (xp + ped_w + tp_len), yp + (0.0 if lumbar else -4.0))
-        out.append(Structure(f"{n} transverse process", Tube((x0 + s * (xp + ped_w), yp), tip,
-                                                             _j(rng, 4.5 if lumbar else 5.0), 5.0, wall=1.0)))
-    out.append(Structure(f"{n} spinous process", Ellipsoid((x0, y + 0.55 * h), (_j(rng, 4.5), _j(rng, 9.0)),
-                                                           15.0 if lumbar else 11.0, tilt, wall=1.0)))
+        out.append(
+            Structure(
+                f"{n} transverse process",
+                Tube((x0 + s * (xp + ped_w), yp), tip, _j(rng, 4.5 if lumbar else 5.0), 5.0, wall=1.0),
+            )
+        )
+    out.append(
+        Structure(
+            f"{n} spinous process",
+            Ellipsoid((x0, y + 0.55 * h), (_j(rng, 4.5), _j(rng, 9.0)), 15.0 if lumbar else 11.0, tilt, wall=1.0),
+        )
+    )
     return out
 
 
@@ -194,7 +215,7 @@ def _ribs(rng: np.random.Generator, levels: list[dict], half_width: float) -> li
     out = []
     lateral = 0.88 * half_width
     for k in range(12):
-        lv = levels[k]                       # T1..T12
+        lv = levels[k]  # T1..T12
         y = lv["y"]
         # a rib slopes down and forward, so the beam crosses its 5–8 mm thickness obliquely
         h, c = _j(rng, 6.0 if k > 0 else 5.0), _j(rng, 5.5)
@@ -202,14 +223,18 @@ def _ribs(rng: np.random.Generator, levels: list[dict], half_width: float) -> li
         reach = lateral * (0.55 + 0.45 * math.sin(min(k + 1, 9) / 9 * math.pi / 2))
         for s in (-1, 1):
             x_in = s * (lv["a"] + 14.0)
-            if k >= 10:                      # floating ribs: short, sloping down and out
-                out.append(_arc_tube(f"rib {k + 1}", (x_in, y), (s * (lv["a"] + 50), y + 14),
-                                     (s * (lv["a"] + 85), y + 40), h, c, 1.0))
+            if k >= 10:  # floating ribs: short, sloping down and out
+                out.append(
+                    _arc_tube(
+                        f"rib {k + 1}", (x_in, y), (s * (lv["a"] + 50), y + 14), (s * (lv["a"] + 85), y + 40), h, c, 1.0
+                    )
+                )
                 continue
             drop = _j(rng, 35.0 + 3.0 * k, 0.1)
             p_lat = (s * reach, y + drop)
-            out.append(_arc_tube(f"rib {k + 1} posterior", (x_in, y), (s * 0.6 * reach, y + 0.15 * drop - 6), p_lat,
-                                 h, c, 1.0))
+            out.append(
+                _arc_tube(f"rib {k + 1} posterior", (x_in, y), (s * 0.6 * reach, y + 0.15 * drop - 6), p_lat, h, c, 1.0)
+            )
             y_front = y + drop + _j(rng, 45.0 + 4.0 * k, 0.1)
             x_front = s * _j(rng, 35.0 + 5.0 * k, 0.1)
             p_mid = (s * 0.7 * reach, y + drop + 0.55 * (y_front - y - drop))
@@ -222,13 +247,30 @@ def _shoulders(rng: np.random.Generator, levels: list[dict], half_width: float) 
     out = []
     y1 = levels[0]["y"]
     for s in (-1, 1):
-        out.append(_arc_tube("clavicle", (s * 22, y1 - 18), (s * 80, y1 - 30), (s * 0.95 * half_width, y1 - 24),
-                             _j(rng, 6.5), 6.0, 1.8))
+        out.append(
+            _arc_tube(
+                "clavicle",
+                (s * 22, y1 - 18),
+                (s * 80, y1 - 30),
+                (s * 0.95 * half_width, y1 - 24),
+                _j(rng, 6.5),
+                6.0,
+                1.8,
+            )
+        )
         ys = levels[4]["y"]
-        out.append(Structure("scapula", Ellipsoid((s * 0.78 * half_width, ys), (_j(rng, 45.0), _j(rng, 75.0)), 6.0,
-                                                  s * 0.25, wall=1.5)))
-        out.append(Structure("scapular border", Tube((s * 0.95 * half_width, ys - 50), (s * 0.70 * half_width, ys + 70),
-                                                     5.0, 7.0, wall=1.5)))
+        out.append(
+            Structure(
+                "scapula",
+                Ellipsoid((s * 0.78 * half_width, ys), (_j(rng, 45.0), _j(rng, 75.0)), 6.0, s * 0.25, wall=1.5),
+            )
+        )
+        out.append(
+            Structure(
+                "scapular border",
+                Tube((s * 0.95 * half_width, ys - 50), (s * 0.70 * half_width, ys + 70), 5.0, 7.0, wall=1.5),
+            )
+        )
     return out
 
 
@@ -237,14 +279,28 @@ def _pelvis(rng: np.random.Generator, levels: list[dict]) -> list[Structure]:
     out = []
     # the sacrum: wide alae on top, narrowing to the apex (a wedge cut from an ellipsoid)
     a_s, b_s = _j(rng, 56.0, 0.06), _j(rng, 62.0, 0.06)
-    out.append(Structure("sacrum", Ellipsoid((0.0, 50.0), (a_s, b_s), 18.0, 0.0, wall=1.5,
-                                             clips=((0.8, 0.5, 0.55 * a_s), (-0.8, 0.5, 0.55 * a_s)))))
+    out.append(
+        Structure(
+            "sacrum",
+            Ellipsoid(
+                (0.0, 50.0), (a_s, b_s), 18.0, 0.0, wall=1.5, clips=((0.8, 0.5, 0.55 * a_s), (-0.8, 0.5, 0.55 * a_s))
+            ),
+        )
+    )
     out.append(Structure("coccyx", Tube((0.0, 105.0), (0.0, 135.0), 7.0, 7.0, wall=1.0)))
     for k, (yf, xf, rf) in enumerate(((16, 27, 5.5), (36, 23, 5.0), (55, 18, 4.0), (72, 13, 3.0))):
         for s in (-1, 1):
             # a foramen is a canal of soft tissue through the sacrum's spongiosa, ringed by cortex
-            out.append(Structure(f"sacral foramen S{k + 1}", Canal((s * xf, yf), (rf, rf * 1.1), 14.0, wall=1.0),
-                                 wall="cortical_bone", core="soft_tissue", medium="trabecular_bone", textured=False))
+            out.append(
+                Structure(
+                    f"sacral foramen S{k + 1}",
+                    Canal((s * xf, yf), (rf, rf * 1.1), 14.0, wall=1.0),
+                    wall="cortical_bone",
+                    core="soft_tissue",
+                    medium="trabecular_bone",
+                    textured=False,
+                )
+            )
     x_hip = _j(rng, 92.0, 0.05)
     y_hip = _j(rng, 105.0, 0.05)
     r_head = _j(rng, 24.0, 0.07)
@@ -256,36 +312,75 @@ def _pelvis(rng: np.random.Generator, levels: list[dict]) -> list[Structure]:
         # seen obliquely (the wing faces 40–50° off the coronal plane): a 10–20 mm chord of a thin
         # plate; its lower part runs into the acetabulum's roof and the sacro-iliac joint
         out.append(Structure("iliac wing", Ellipsoid(cw, (r_wing, r_wing), 10.0, 0.0, wall=2.0)))
-        out.append(Structure("iliac crest", Tube(cw, half_width=5.0, depth=8.0, wall=1.5, radius=r_wing - 5.0,
-                                                 angles=((math.pi * 1.05, math.pi * 1.9) if s > 0 else
-                                                         (math.pi * 1.10, math.pi * 1.95)))))
+        out.append(
+            Structure(
+                "iliac crest",
+                Tube(
+                    cw,
+                    half_width=5.0,
+                    depth=8.0,
+                    wall=1.5,
+                    radius=r_wing - 5.0,
+                    angles=((math.pi * 1.05, math.pi * 1.9) if s > 0 else (math.pi * 1.10, math.pi * 1.95)),
+                ),
+            )
+        )
         out.append(_arc_tube("pelvic brim", (s * 40, 12), (s * 58, 60), (s * 22, y_hip + 28), 2.5, 11.0, 1.0))
         c_hip = (s * x_hip, y_hip)
-        out.append(Structure("acetabulum", Ellipsoid(c_hip, (r_head + 6.0, r_head + 6.0), r_head + 6.0, 0.0,
-                                                     wall=3.5, clips=((s * 0.5, 1.0, 0.0),))))
+        out.append(
+            Structure(
+                "acetabulum",
+                Ellipsoid(
+                    c_hip, (r_head + 6.0, r_head + 6.0), r_head + 6.0, 0.0, wall=3.5, clips=((s * 0.5, 1.0, 0.0),)
+                ),
+            )
+        )
         out.append(Structure("femoral head", Ellipsoid(c_hip, (r_head, r_head), r_head, 0.0, wall=1.2)))
         # the neck runs from the head down and out to the shaft, at the neck–shaft angle to it
         shaft = np.array([-s * 0.12, 1.0]) / math.hypot(0.12, 1.0)
-        medial = np.array([-s * shaft[1], s * shaft[0]])        # across the shaft, toward the midline
+        medial = np.array([-s * shaft[1], s * shaft[0]])  # across the shaft, toward the midline
         to_head = math.cos(neck_angle) * shaft + math.sin(neck_angle) * medial
         neck_len = _j(rng, 50.0, 0.08)
         junction = (c_hip[0] - neck_len * to_head[0], c_hip[1] - neck_len * to_head[1])
         out.append(Structure("femoral neck", Tube(c_hip, junction, _j(rng, 15.0, 0.06), 14.0, wall=2.0)))
-        out.append(Structure("greater trochanter", Ellipsoid((junction[0] + s * 14.0, junction[1] - 12.0),
-                                                             (_j(rng, 17.0), _j(rng, 24.0)), 20.0, 0.0, wall=1.5)))
+        out.append(
+            Structure(
+                "greater trochanter",
+                Ellipsoid(
+                    (junction[0] + s * 14.0, junction[1] - 12.0), (_j(rng, 17.0), _j(rng, 24.0)), 20.0, 0.0, wall=1.5
+                ),
+            )
+        )
         shaft1 = (junction[0] + 400 * shaft[0], junction[1] + 400 * shaft[1])
-        out.append(Structure("femoral shaft", Tube(junction, shaft1, _j(rng, 14.0, 0.06), 14.0,
-                                                   wall=_j(rng, 6.0, 0.1))))
-        out.append(Structure("lesser trochanter", Ellipsoid((junction[0] - s * 13.0, junction[1] + 30.0), (9.0, 11.0),
-                                                            10.0, 0.0, wall=1.2)))
+        out.append(
+            Structure("femoral shaft", Tube(junction, shaft1, _j(rng, 14.0, 0.06), 14.0, wall=_j(rng, 6.0, 0.1)))
+        )
+        out.append(
+            Structure(
+                "lesser trochanter",
+                Ellipsoid((junction[0] - s * 13.0, junction[1] + 30.0), (9.0, 11.0), 10.0, 0.0, wall=1.2),
+            )
+        )
         # pubis and ischium around the obturator foramen
-        out.append(Structure("superior pubic ramus", Tube((s * (x_hip - 22), y_hip + 10), (s * 14.0, y_hip + 38),
-                                                          _j(rng, 8.5), 10.0, wall=1.5)))
+        out.append(
+            Structure(
+                "superior pubic ramus",
+                Tube((s * (x_hip - 22), y_hip + 10), (s * 14.0, y_hip + 38), _j(rng, 8.5), 10.0, wall=1.5),
+            )
+        )
         out.append(Structure("pubic body", Ellipsoid((s * 17.0, y_hip + 55), (12.0, 24.0), 12.0, 0.0, wall=1.5)))
-        out.append(Structure("inferior pubic ramus", Tube((s * 16.0, y_hip + 75), (s * (x_hip - 38), y_hip + 95),
-                                                          _j(rng, 7.0), 9.0, wall=1.5)))
-        out.append(Structure("ischium", Tube((s * (x_hip - 38), y_hip + 95), (s * (x_hip - 18), y_hip + 22),
-                                             _j(rng, 11.0), 14.0, wall=1.8)))
+        out.append(
+            Structure(
+                "inferior pubic ramus",
+                Tube((s * 16.0, y_hip + 75), (s * (x_hip - 38), y_hip + 95), _j(rng, 7.0), 9.0, wall=1.5),
+            )
+        )
+        out.append(
+            Structure(
+                "ischium",
+                Tube((s * (x_hip - 38), y_hip + 95), (s * (x_hip - 18), y_hip + 22), _j(rng, 11.0), 14.0, wall=1.8),
+            )
+        )
     return out
 
 
@@ -310,23 +405,47 @@ def _lungs(rng: np.random.Generator, levels: list[dict], body: BodySection):
         depth = 0.7 * body.half_depth * math.sqrt(max(1 - (abs(cx) / hw) ** 2, 0.1))
         lungs.append(Ellipsoid((cx, y_mid), (a, b), depth, 0.0))
         y_dome = levels[9]["y"] + (0.0 if s < 0 else 12.0)
-        intruders.append(Ellipsoid((s * 0.35 * x_out, y_dome + 95.0), (_j(rng, 0.75 * x_out, 0.05), 95.0),
-                                   1.2 * body.half_depth, 0.0))
+        intruders.append(
+            Ellipsoid(
+                (s * 0.35 * x_out, y_dome + 95.0), (_j(rng, 0.75 * x_out, 0.05), 95.0), 1.2 * body.half_depth, 0.0
+            )
+        )
         hilum = (s * (levels[4]["a"] + 25), levels[5]["y"])
         for _ in range(int(rng.integers(12, 20))):
             th = float(rng.uniform(-1.2, 1.2))
             r = float(rng.uniform(40, 110))
             start = (hilum[0] + s * float(rng.uniform(0, 15)), hilum[1] + float(rng.normal(0, 12)))
             end = (start[0] + s * r * math.cos(th), start[1] + r * math.sin(th))
-            vessels.append(Structure("pulmonary vessel", Tube(start, end, float(rng.uniform(1.5, 4.0)), 3.0),
-                                     wall="soft_tissue", core="soft_tissue", medium="lung", textured=False))
-    intruders.append(Ellipsoid((_j(rng, 30.0, 0.2), levels[8]["y"] + 15), (_j(rng, 62.0), _j(rng, 52.0)),
-                               0.6 * body.half_depth, -0.5))
-    air = [Structure("trachea", Tube((0.0, y_top - 60), (0.0, levels[4]["y"]), 8.5, 8.5), wall="air", core="air",
-                     textured=False)]
+            vessels.append(
+                Structure(
+                    "pulmonary vessel",
+                    Tube(start, end, float(rng.uniform(1.5, 4.0)), 3.0),
+                    wall="soft_tissue",
+                    core="soft_tissue",
+                    medium="lung",
+                    textured=False,
+                )
+            )
+    intruders.append(
+        Ellipsoid(
+            (_j(rng, 30.0, 0.2), levels[8]["y"] + 15), (_j(rng, 62.0), _j(rng, 52.0)), 0.6 * body.half_depth, -0.5
+        )
+    )
+    air = [
+        Structure(
+            "trachea", Tube((0.0, y_top - 60), (0.0, levels[4]["y"]), 8.5, 8.5), wall="air", core="air", textured=False
+        )
+    ]
     for s in (-1, 1):
-        air.append(Structure("main bronchus", Tube((0.0, levels[4]["y"]), (s * 40.0, levels[5]["y"] + 8), 6.0, 6.0),
-                             wall="air", core="air", textured=False))
+        air.append(
+            Structure(
+                "main bronchus",
+                Tube((0.0, levels[4]["y"]), (s * 40.0, levels[5]["y"] + 8), 6.0, 6.0),
+                wall="air",
+                core="air",
+                textured=False,
+            )
+        )
     return tuple(lungs), tuple(intruders), vessels + air
 
 
@@ -336,26 +455,53 @@ def _soft_outlines(rng: np.random.Generator, levels: list[dict]) -> list[Structu
     y_l1 = levels[12]["y"]
     for s in (-1, 1):
         ck = (s * _j(rng, 65.0), y_l1 + (10.0 if s < 0 else -5.0))
-        out.append(Structure("kidney", Ellipsoid(ck, (_j(rng, 30.0), _j(rng, 55.0)), 28.0, s * 0.25, wall=5.0),
-                             wall="adipose", core="soft_tissue", textured=False))
-        out.append(Structure("psoas margin", Tube((s * 22.0, levels[11]["y"]), (s * 62.0, 30.0), 3.0, 40.0),
-                             wall="adipose", core="adipose", textured=False))
-    out.append(Structure("bladder", Ellipsoid((0.0, 140.0), (_j(rng, 45.0, 0.15), _j(rng, 35.0, 0.15)), 40.0, 0.0,
-                                              wall=3.0), wall="adipose", core="soft_tissue", textured=False))
+        out.append(
+            Structure(
+                "kidney",
+                Ellipsoid(ck, (_j(rng, 30.0), _j(rng, 55.0)), 28.0, s * 0.25, wall=5.0),
+                wall="adipose",
+                core="soft_tissue",
+                textured=False,
+            )
+        )
+        out.append(
+            Structure(
+                "psoas margin",
+                Tube((s * 22.0, levels[11]["y"]), (s * 62.0, 30.0), 3.0, 40.0),
+                wall="adipose",
+                core="adipose",
+                textured=False,
+            )
+        )
+    out.append(
+        Structure(
+            "bladder",
+            Ellipsoid((0.0, 140.0), (_j(rng, 45.0, 0.15), _j(rng, 35.0, 0.15)), 40.0, 0.0, wall=3.0),
+            wall="adipose",
+            core="soft_tissue",
+            textured=False,
+        )
+    )
     return out
 
 
 def _gas(rng: np.random.Generator, levels: list[dict], half_width: float) -> list[Structure]:
     """Colon gas in haustral segments with stool mottling, small-bowel loops, the stomach bubble."""
+
     def gas(name, shape):
         return Structure(name, shape, wall="air", core="air", textured=False)
 
     out = []
     y_t12 = levels[11]["y"]
     xr, xl = -0.62 * half_width, 0.65 * half_width
-    colon = [((xr, 30.0), (xr, y_t12 + 40)), ((xr, y_t12 + 40), (0.0, y_t12 + 75)),
-             ((0.0, y_t12 + 75), (xl, y_t12 + 20)), ((xl, y_t12 + 20), (xl, 20.0)),
-             ((xl, 20.0), (10.0, 75.0)), ((0.0, 70.0), (0.0, 150.0))]
+    colon = [
+        ((xr, 30.0), (xr, y_t12 + 40)),
+        ((xr, y_t12 + 40), (0.0, y_t12 + 75)),
+        ((0.0, y_t12 + 75), (xl, y_t12 + 20)),
+        ((xl, y_t12 + 20), (xl, 20.0)),
+        ((xl, 20.0), (10.0, 75.0)),
+        ((0.0, 70.0), (0.0, 150.0)),
+    ]
     for p0, p1 in colon:
         L = math.dist(p0, p1)
         n = max(1, int(L // 28))
@@ -367,25 +513,41 @@ def _gas(rng: np.random.Generator, levels: list[dict], half_width: float) -> lis
             b = (p0[0] + f1 * (p1[0] - p0[0]), p0[1] + f1 * (p1[1] - p0[1]))
             w = float(rng.uniform(10, 24))
             out.append(gas("colon gas", Tube(a, b, w, float(rng.uniform(10, 22)))))
-            if rng.random() < 0.5:         # stool: gas bubbles in a soft mass
+            if rng.random() < 0.5:  # stool: gas bubbles in a soft mass
                 for _ in range(int(rng.integers(8, 25))):
                     t = float(rng.random())
-                    c = (a[0] + t * (b[0] - a[0]) + rng.normal(0, w / 2),
-                         a[1] + t * (b[1] - a[1]) + rng.normal(0, w / 2))
+                    c = (
+                        a[0] + t * (b[0] - a[0]) + rng.normal(0, w / 2),
+                        a[1] + t * (b[1] - a[1]) + rng.normal(0, w / 2),
+                    )
                     r = float(rng.uniform(1.5, 4.5))
                     out.append(gas("stool gas", Ellipsoid(c, (r, r), r)))
     for _ in range(int(rng.integers(0, 6))):  # small-bowel loops around the umbilicus
         c = (float(rng.normal(0, 50)), float(rng.normal(levels[14]["y"], 50)))
         r = float(rng.uniform(15, 35))
         t0 = float(rng.uniform(0, 2 * math.pi))
-        out.append(gas("small-bowel gas", Tube(c, half_width=float(rng.uniform(7, 13)), depth=float(rng.uniform(7, 12)),
-                                               radius=r, angles=(t0, t0 + float(rng.uniform(1.0, 3.5))))))
-    out.append(gas("stomach bubble", Ellipsoid((0.45 * half_width, levels[10]["y"] + 20),
-                                               (_j(rng, 35.0, 0.2), _j(rng, 22.0, 0.2)), 22.0)))
+        out.append(
+            gas(
+                "small-bowel gas",
+                Tube(
+                    c,
+                    half_width=float(rng.uniform(7, 13)),
+                    depth=float(rng.uniform(7, 12)),
+                    radius=r,
+                    angles=(t0, t0 + float(rng.uniform(1.0, 3.5))),
+                ),
+            )
+        )
+    out.append(
+        gas(
+            "stomach bubble",
+            Ellipsoid((0.45 * half_width, levels[10]["y"] + 20), (_j(rng, 35.0, 0.2), _j(rng, 22.0, 0.2)), 22.0),
+        )
+    )
     return out
 
 
-_VIEW = {   # kind → (x range of the view centre, y range, AP thickness range (mm))
+_VIEW = {  # kind → (x range of the view centre, y range, AP thickness range (mm))
     "pelvis": ((-60.0, 60.0), (50.0, 140.0), (190.0, 240.0)),
     "spine": ((-25.0, 25.0), (-230.0, -60.0), (190.0, 240.0)),
     "abdomen": ((-70.0, 70.0), (-220.0, -20.0), (150.0, 300.0)),
@@ -393,8 +555,9 @@ _VIEW = {   # kind → (x range of the view centre, y range, AP thickness range 
 }
 
 
-def patient_model(kind: Kind = "pelvis", seed: int = 0, field_mm: float = 340.0,
-                  skin_edge: bool | None = None) -> PatientModel:
+def patient_model(
+    kind: Kind = "pelvis", seed: int = 0, field_mm: float = 340.0, skin_edge: bool | None = None
+) -> PatientModel:
     """A random adult (reproducible by ``seed``) and a view of ``kind`` onto it (see the module).
 
     ``field_mm`` is the field of view's width at the patient (mm), used to put one flank's skin
@@ -407,8 +570,9 @@ def patient_model(kind: Kind = "pelvis", seed: int = 0, field_mm: float = 340.0,
     (x_rng, y_rng, t_rng) = _VIEW[kind]
     thickness = float(rng.uniform(*t_rng))
     half_width = thickness * float(rng.uniform(0.68, 0.82))
-    body = BodySection(half_width, thickness / 2, float(rng.uniform(8, 12 + 0.12 * (thickness - 160))),
-                       float(rng.uniform(0.0, 0.08)))
+    body = BodySection(
+        half_width, thickness / 2, float(rng.uniform(8, 12 + 0.12 * (thickness - 160))), float(rng.uniform(0.0, 0.08))
+    )
     levels = _levels(rng)
     structures: list[Structure] = []
     for lv in levels:
@@ -428,12 +592,19 @@ def patient_model(kind: Kind = "pelvis", seed: int = 0, field_mm: float = 340.0,
         cx = math.copysign(max(abs(cx), need), cx if cx != 0 else 1.0)
     angle = float(rng.normal(0, 0.12)) if rng.random() < 0.7 else float(rng.uniform(-math.pi, math.pi))
     placement = Placement((cx, cy), angle, bool(rng.random() < 0.5), scale)
-    return PatientModel(kind, body, tuple(structures), lungs, intruders, placement,
-                        float(rng.uniform(*TEXTURE_AMPLITUDE)))
+    return PatientModel(
+        kind, body, tuple(structures), lungs, intruders, placement, float(rng.uniform(*TEXTURE_AMPLITUDE))
+    )
 
 
-def place_at(model: PatientModel, point_mm: tuple[float, float], pixel_uv: tuple[float, float],
-             shape: tuple[int, int], pixel_mm: float, magnification: float) -> PatientModel:
+def place_at(
+    model: PatientModel,
+    point_mm: tuple[float, float],
+    pixel_uv: tuple[float, float],
+    shape: tuple[int, int],
+    pixel_mm: float,
+    magnification: float,
+) -> PatientModel:
     """``model`` with its view shifted so that the patient point ``point_mm`` (patient mm)
     images at pixel ``pixel_uv`` (u, v); rotation, mirror and scale are kept."""
     grid = _Grid.of(shape, model.placement, pixel_mm, magnification)
@@ -441,14 +612,25 @@ def place_at(model: PatientModel, point_mm: tuple[float, float], pixel_uv: tuple
     x = grid.x0 + grid.xu * u + grid.xv * v
     y = grid.y0 + grid.yu * u + grid.yv * v
     c = model.placement.center
-    new = Placement((c[0] + point_mm[0] - x, c[1] + point_mm[1] - y), model.placement.angle,
-                    model.placement.mirror, model.placement.scale)
-    return PatientModel(model.kind, model.body, model.structures, model.lungs, model.lung_intruders, new,
-                        model.texture_amplitude)
+    new = Placement(
+        (c[0] + point_mm[0] - x, c[1] + point_mm[1] - y),
+        model.placement.angle,
+        model.placement.mirror,
+        model.placement.scale,
+    )
+    return PatientModel(
+        model.kind, model.body, model.structures, model.lungs, model.lung_intruders, new, model.texture_amplitude
+    )
 
 
-def over_body(model: PatientModel, pixel_box: tuple[float, float, float, float], shape: tuple[int, int],
-              pixel_mm: float, magnification: float, margin_mm: float = 40.0) -> PatientModel:
+def over_body(
+    model: PatientModel,
+    pixel_box: tuple[float, float, float, float],
+    shape: tuple[int, int],
+    pixel_mm: float,
+    magnification: float,
+    margin_mm: float = 40.0,
+) -> PatientModel:
     """``model`` with its view shifted sideways, if need be, so that the image box (u0, v0, u1, v1)
     lies over the body at least ``margin_mm`` inside its skin (a fiducial over the air beside the
     patient would sit in the saturated direct beam)."""
@@ -463,11 +645,12 @@ def over_body(model: PatientModel, pixel_box: tuple[float, float, float, float],
     if not over.any():
         return model
     k = int(np.argmax(over))
-    shift = math.copysign(float(over[k]), x[k] - b.center_x)   # move the view toward the midline
+    shift = math.copysign(float(over[k]), x[k] - b.center_x)  # move the view toward the midline
     c = model.placement.center
     new = Placement((c[0] - shift, c[1]), model.placement.angle, model.placement.mirror, model.placement.scale)
-    return PatientModel(model.kind, model.body, model.structures, model.lungs, model.lung_intruders, new,
-                        model.texture_amplitude)
+    return PatientModel(
+        model.kind, model.body, model.structures, model.lungs, model.lung_intruders, new, model.texture_amplitude
+    )
 
 
 def structure_center(st: Structure) -> tuple[float, float]:
@@ -487,7 +670,7 @@ class _Grid:
     y0: float
     yu: float
     yv: float
-    px: float          # pixel size at the patient, patient mm
+    px: float  # pixel size at the patient, patient mm
 
     @classmethod
     def of(cls, shape, placement: Placement, pixel_mm: float, magnification: float) -> "_Grid":
@@ -529,8 +712,10 @@ class _Grid:
         """Patient mm (x, y) of the pixels in a box, float32 (h, w)."""
         u = np.arange(cols.start, cols.stop, dtype=np.float32)[None, :]
         v = np.arange(rows.start, rows.stop, dtype=np.float32)[:, None]
-        return (np.float32(self.x0) + np.float32(self.xu) * u + np.float32(self.xv) * v,
-                np.float32(self.y0) + np.float32(self.yu) * u + np.float32(self.yv) * v)
+        return (
+            np.float32(self.x0) + np.float32(self.xu) * u + np.float32(self.xv) * v,
+            np.float32(self.y0) + np.float32(self.yu) * u + np.float32(self.yv) * v,
+        )
 
 
 def _body_image(body: BodySection, grid: _Grid, shape, mu_fat: float, mu_soft: float) -> np.ndarray:
@@ -566,13 +751,18 @@ def texture(shape: tuple[int, int], rng: np.random.Generator, px_mm: float) -> n
     # the band's scale is loose: pixel sizes within 0.05 mm share a field
     tile = _texture_tile((side, side), max(0.05, round(float(px_mm) / 0.05) * 0.05))
     r0, c0 = int(rng.integers(0, side - H + 1)), int(rng.integers(0, side - W + 1))
-    out = tile[r0:r0 + H, c0:c0 + W]
+    out = tile[r0 : r0 + H, c0 : c0 + W]
     return out[::-1] if rng.random() < 0.5 else out
 
 
-def render_patient(model: PatientModel, shape: tuple[int, int] = (1024, 1024), pixel_mm: float = 0.44,
-                   magnification: float = 1.3, energy_kev: float = 60.0,
-                   texture_field: np.ndarray | None = None) -> np.ndarray:
+def render_patient(
+    model: PatientModel,
+    shape: tuple[int, int] = (1024, 1024),
+    pixel_mm: float = 0.44,
+    magnification: float = 1.3,
+    energy_kev: float = 60.0,
+    texture_field: np.ndarray | None = None,
+) -> np.ndarray:
     """Line integral (H, W) float32 of ``model`` (dimensionless, dense = bright) on a detector of
     ``pixel_mm`` pixels with the patient plane magnified ``magnification`` times.
 
@@ -580,9 +770,11 @@ def render_patient(model: PatientModel, shape: tuple[int, int] = (1024, 1024), p
     core by ``1 + model.texture_amplitude × texture``.
     """
     grid = _Grid.of(shape, model.placement, pixel_mm, magnification)
-    mu = {m: linear_attenuation(m, energy_kev) for m in ("soft_tissue", "adipose", "lung", "cortical_bone",
-                                                         "trabecular_bone", "air")}
-    k = model.placement.scale                   # chords in the patient's own mm → real mm
+    mu = {
+        m: linear_attenuation(m, energy_kev)
+        for m in ("soft_tissue", "adipose", "lung", "cortical_bone", "trabecular_bone", "air")
+    }
+    k = model.placement.scale  # chords in the patient's own mm → real mm
     out = k * _body_image(model.body, grid, shape, mu["adipose"], mu["soft_tissue"])
     # lungs: the lung chord less the heart's and domes' (they displace lung), never below zero
     for el in model.lungs:
@@ -609,8 +801,16 @@ def render_patient(model: PatientModel, shape: tuple[int, int] = (1024, 1024), p
     return np.maximum(out, 0.0)
 
 
-def _add_tube(out: np.ndarray, tube: Tube, box, grid: _Grid, d_wall: float, d_core: float,
-              tex: np.ndarray | None, amplitude: float) -> None:
+def _add_tube(
+    out: np.ndarray,
+    tube: Tube,
+    box,
+    grid: _Grid,
+    d_wall: float,
+    d_core: float,
+    tex: np.ndarray | None,
+    amplitude: float,
+) -> None:
     """Add a tube's line integral, evaluated only on the pixels of a band drawn along its
     centre-line (a long thin arc fills a few per cent of its bounding box)."""
     rows, cols = box
@@ -618,10 +818,10 @@ def _add_tube(out: np.ndarray, tube: Tube, box, grid: _Grid, d_wall: float, d_co
     uv = grid.pixels(line) - [cols.start, rows.start]
     reach = (tube.half_width + sag) / grid.px + 2.0
     mask = np.zeros((rows.stop - rows.start, cols.stop - cols.start), np.uint8)
-    shift = 4                                   # OpenCV's sub-pixel vertices: 1/16 px
+    shift = 4  # OpenCV's sub-pixel vertices: 1/16 px
     pts = np.rint(uv * (1 << shift)).astype(np.int32).reshape(-1, 1, 2)
     cv2.polylines(mask, [pts], False, 1, thickness=int(2 * math.ceil(reach) + 1), lineType=cv2.LINE_8, shift=shift)
-    for p in (pts[0, 0], pts[-1, 0]):           # round ends
+    for p in (pts[0, 0], pts[-1, 0]):  # round ends
         cv2.circle(mask, (int(p[0]), int(p[1])), int(math.ceil(reach)) << shift, 1, -1, cv2.LINE_8, shift)
     jj, ii = np.nonzero(mask)
     if len(jj) == 0:
@@ -636,9 +836,16 @@ def _add_tube(out: np.ndarray, tube: Tube, box, grid: _Grid, d_wall: float, d_co
     out[r, c] += d_wall * wall + d_core * core
 
 
-def patient(shape: tuple[int, int] = (1024, 1024), seed: int = 0, kind: Kind = "pelvis", pixel_mm: float = 0.44,
-            energy_kev: float = 60.0, magnification: float = 1.3, skin_edge: bool | None = None,
-            textured: bool = True) -> np.ndarray:
+def patient(
+    shape: tuple[int, int] = (1024, 1024),
+    seed: int = 0,
+    kind: Kind = "pelvis",
+    pixel_mm: float = 0.44,
+    energy_kev: float = 60.0,
+    magnification: float = 1.3,
+    skin_edge: bool | None = None,
+    textured: bool = True,
+) -> np.ndarray:
     """A patient's line integral (H, W) float32 (dense = bright, 0 in air), reproducible by ``seed``.
 
     Parameters
@@ -670,8 +877,7 @@ def patient(shape: tuple[int, int] = (1024, 1024), seed: int = 0, kind: Kind = "
 
 
 # ----------------------------------------------------------------------------- implants
-def _capsules_image(shape, p0: np.ndarray, p1: np.ndarray, radius: float, mu: float,
-                    supersample: int) -> np.ndarray:
+def _capsules_image(shape, p0: np.ndarray, p1: np.ndarray, radius: float, mu: float, supersample: int) -> np.ndarray:
     """Line integral (H, W) of capsules p0[k]→p1[k] (pixels in x, y; depth in px too), radius
     ``radius`` px, μ per pixel length ``mu``, each pixel the mean of supersample² sub-samples."""
     H, W = shape
@@ -688,8 +894,9 @@ def _capsules_image(shape, p0: np.ndarray, p1: np.ndarray, radius: float, mu: fl
             continue
         u = np.arange(u0, u1)[None, :, None] + ou.ravel()[None, None, :]
         v = np.arange(v0, v1)[:, None, None] + ov.ravel()[None, None, :]
-        ch = capsule_chord(np.broadcast_to(u, (v1 - v0, u1 - u0, s * s)), np.broadcast_to(v, (v1 - v0, u1 - u0, s * s)),
-                           a, b, radius)
+        ch = capsule_chord(
+            np.broadcast_to(u, (v1 - v0, u1 - u0, s * s)), np.broadcast_to(v, (v1 - v0, u1 - u0, s * s)), a, b, radius
+        )
         out[v0:v1, u0:u1] += mu * ch.mean(-1)
     return out.astype(np.float32)
 
@@ -708,10 +915,20 @@ def _directions(rng, n):
     return d / np.linalg.norm(d, axis=1, keepdims=True)
 
 
-def seeds(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: Sequence[float] | None = None,
-          spread_px: float | None = None, pixel_mm: float = 0.44, magnification: float = 1.3,
-          energy_kev: float = 60.0, length_mm: float = 4.5, diameter_mm: float = 0.8,
-          material: str = "titanium", supersample: int = 4) -> np.ndarray:
+def seeds(
+    shape: tuple[int, int],
+    n: int,
+    rng: np.random.Generator,
+    center_px: Sequence[float] | None = None,
+    spread_px: float | None = None,
+    pixel_mm: float = 0.44,
+    magnification: float = 1.3,
+    energy_kev: float = 60.0,
+    length_mm: float = 4.5,
+    diameter_mm: float = 0.8,
+    material: str = "titanium",
+    supersample: int = 4,
+) -> np.ndarray:
     """Brachytherapy seeds as a line-integral image (H, W) float32 to add to a background.
 
     ``n`` capsules (``length_mm`` end to end, ``diameter_mm``; default the 0.8 × 4.5 mm of an
@@ -723,7 +940,7 @@ def seeds(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: S
     """
     if n < 0 or supersample < 1:
         raise InputError(None, "n / supersample", "a non-negative count and a positive supersampling")
-    px = pixel_mm / magnification                  # mm at the seed per detector pixel
+    px = pixel_mm / magnification  # mm at the seed per detector pixel
     r = diameter_mm / 2 / px
     half = (length_mm / 2 - diameter_mm / 2) / px  # half the capsule's axis, pixels
     c = _region(shape, rng, center_px, spread_px, n)
@@ -734,10 +951,20 @@ def seeds(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: S
     return _capsules_image(shape, centers - half * d, centers + half * d, r, mu, supersample)
 
 
-def clips(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: Sequence[float] | None = None,
-          spread_px: float | None = None, pixel_mm: float = 0.44, magnification: float = 1.3,
-          energy_kev: float = 60.0, leg_mm: float = 7.0, wire_mm: float = 0.8, material: str = "titanium",
-          supersample: int = 4) -> np.ndarray:
+def clips(
+    shape: tuple[int, int],
+    n: int,
+    rng: np.random.Generator,
+    center_px: Sequence[float] | None = None,
+    spread_px: float | None = None,
+    pixel_mm: float = 0.44,
+    magnification: float = 1.3,
+    energy_kev: float = 60.0,
+    leg_mm: float = 7.0,
+    wire_mm: float = 0.8,
+    material: str = "titanium",
+    supersample: int = 4,
+) -> np.ndarray:
     """Closed surgical (ligation) clips as a line-integral image (H, W) float32: each two
     touching parallel legs (capsules ``leg_mm`` long end to end, ``wire_mm`` thick), randomly
     oriented at random depths (±20 mm), placed as in :func:`seeds`."""
@@ -749,18 +976,25 @@ def clips(shape: tuple[int, int], n: int, rng: np.random.Generator, center_px: S
     c = np.c_[_region(shape, rng, center_px, spread_px, n), rng.uniform(-20.0, 20.0, n) / px]
     d = _directions(rng, n)
     q = np.cross(d, _directions(rng, n))
-    q /= np.linalg.norm(q, axis=1, keepdims=True)       # the side the second leg lies on
+    q /= np.linalg.norm(q, axis=1, keepdims=True)  # the side the second leg lies on
     p0, p1 = [], []
     for s in (-1.0, 1.0):
-        mid = c + s * r * q                              # the legs' axes 2 r apart: touching
+        mid = c + s * r * q  # the legs' axes 2 r apart: touching
         p0.append(mid - half * d)
         p1.append(mid + half * d)
     mu = linear_attenuation(material, energy_kev) * px
     return _capsules_image(shape, np.concatenate(p0), np.concatenate(p1), r, mu, supersample)
 
 
-def seed_line_integral_sum(n: int, pixel_mm: float = 0.44, magnification: float = 1.3, energy_kev: float = 60.0,
-                           length_mm: float = 4.5, diameter_mm: float = 0.8, material: str = "titanium") -> float:
+def seed_line_integral_sum(
+    n: int,
+    pixel_mm: float = 0.44,
+    magnification: float = 1.3,
+    energy_kev: float = 60.0,
+    length_mm: float = 4.5,
+    diameter_mm: float = 0.8,
+    material: str = "titanium",
+) -> float:
     """The sum over the image of :func:`seeds`' line integral when all ``n`` lie inside it:
     n × μ × capsule volume / (pixel area at the seeds)."""
     px = pixel_mm / magnification

@@ -79,6 +79,7 @@ def resolve_body(features: Features, body) -> Body | None:
     if body != AUTO:
         raise TypeError("body: a Body, None or 'auto'")
     from .scene import body_from_source
+
     return body_from_source(features.source)
 
 
@@ -123,17 +124,26 @@ def gather_field(p: np.ndarray, origin: tuple[int, int], groups, s: int) -> Subs
     sub = np.zeros(len(rough) * S)
     pos = 0
     for idx, vals in groups:
-        k = inv[pos:pos + len(idx)]
+        k = inv[pos : pos + len(idx)]
         pos += len(idx)
-        sub += np.bincount((k[:, None] * S + np.arange(S)).ravel(), weights=np.asarray(vals, float).ravel(),
-                           minlength=len(rough) * S)
+        sub += np.bincount(
+            (k[:, None] * S + np.arange(S)).ravel(), weights=np.asarray(vals, float).ravel(), minlength=len(rough) * S
+        )
     sub = sub.reshape(-1, S) + p.ravel()[rough][:, None]
     p.ravel()[rough] = sub.mean(1)
     return SubsampledField(p, rough, sub, (int(v0), int(u0)), s)
 
 
-def line_integral_field(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-                        body: Body | None, occluders: Sequence[Occluder] = (), margin_px: int = 0) -> SubsampledField:
+def line_integral_field(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    imaging: ImagingModel,
+    body: Body | None,
+    occluders: Sequence[Occluder] = (),
+    margin_px: int = 0,
+) -> SubsampledField:
     """Un-blurred line integral of the fiducial over its bounding box (see :class:`SubsampledField`):
     every pixel a wire, bead or occluder touches, and the body's rough pixels, sub-sampled.
 
@@ -150,7 +160,7 @@ def line_integral_field(features: Features, R: np.ndarray, t: np.ndarray, camera
     ou, ov = subsample_offsets(s)
     fdt = np.float32 if imaging.single_precision else np.float64
 
-    groups = []          # (rows, cols, sub-sample values) of the primitives
+    groups = []  # (rows, cols, sub-sample values) of the primitives
     lo, hi = [], []
     if len(pieces.L):
         ends = np.concatenate([pieces.a, pieces.a + pieces.L[:, None] * pieces.e])
@@ -197,8 +207,16 @@ def line_integral_field(features: Features, R: np.ndarray, t: np.ndarray, camera
     return gather_field(p, (int(v0), int(u0)), groups, s)
 
 
-def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-                      body: Body | None, occluders: Sequence[Occluder] = (), margin_px: int = 0):
+def line_integral_box(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    imaging: ImagingModel,
+    body: Body | None,
+    occluders: Sequence[Occluder] = (),
+    margin_px: int = 0,
+):
     """Un-blurred, pixel-integrated (mean over the sub-samples) line integral over the fiducial's bounding box.
 
     Returns ``(p, (v0, u0))``: ``p`` (h, w) float64 whose pixel ``p[j, i]`` is image pixel
@@ -208,19 +226,28 @@ def line_integral_box(features: Features, R: np.ndarray, t: np.ndarray, camera: 
     return field.p, field.origin
 
 
-def _body_values(rays: Rays, U: np.ndarray, V: np.ndarray, body: Body, mu: float,
-                 dtype=np.float64) -> np.ndarray:
+def _body_values(rays: Rays, U: np.ndarray, V: np.ndarray, body: Body, mu: float, dtype=np.float64) -> np.ndarray:
     c, g0, gu, gv = (np.asarray(x, dtype) for x in (rays.c, rays.g0, rays.gu, rays.gv))
-    return mu * body_chord_uv(c, g0, gu, gv, body.outer_diameter / 2, body.bore_diameter / 2, body.length / 2,
-                              np.asarray(U, dtype), np.asarray(V, dtype))
+    return mu * body_chord_uv(
+        c,
+        g0,
+        gu,
+        gv,
+        body.outer_diameter / 2,
+        body.bore_diameter / 2,
+        body.length / 2,
+        np.asarray(U, dtype),
+        np.asarray(V, dtype),
+    )
 
 
 def rough_body_pixels(centre: np.ndarray, dilate_px: int = 1) -> np.ndarray:
     """Body pixels to sub-sample (bool, like ``centre``): 4-neighbour Laplacian of the centre
     line integral above :data:`.rays.BODY_ROUGHNESS`, dilated by ``dilate_px`` pixels."""
     lap = np.zeros_like(centre)
-    lap[1:-1, 1:-1] = (centre[:-2, 1:-1] + centre[2:, 1:-1] + centre[1:-1, :-2] + centre[1:-1, 2:]
-                       - 4 * centre[1:-1, 1:-1])
+    lap[1:-1, 1:-1] = (
+        centre[:-2, 1:-1] + centre[2:, 1:-1] + centre[1:-1, :-2] + centre[1:-1, 2:] - 4 * centre[1:-1, 1:-1]
+    )
     flag = np.abs(lap) > BODY_ROUGHNESS
     for _ in range(dilate_px):
         f = flag.copy()
@@ -242,7 +269,7 @@ def _add_body(p: np.ndarray, origin, box, body: Body, mu: float, rays: Rays, s: 
     # float32 (single_precision): the body's μ is small, so rounding (worst at the
     # silhouettes, where R²A − (m√A)² cancels) stays below 1e-4 in p
     centre = _body_values(rays, cu[None, :], cv[:, None], body, mu, fdt).astype(np.float64)
-    p[bv0 - v0:bv1 - v0 + 1, bu0 - u0:bu1 - u0 + 1] += centre
+    p[bv0 - v0 : bv1 - v0 + 1, bu0 - u0 : bu1 - u0 + 1] += centre
     jj, ii = np.nonzero(rough_body_pixels(centre, BODY_DILATE_PX))
     if not len(jj):
         return np.zeros(0, int), np.zeros(0, int), np.zeros((0, s * s))
@@ -271,7 +298,7 @@ def pixel_kernels(sigma_px: float, offsets: np.ndarray) -> np.ndarray:
     """
     o = np.asarray(offsets, float)
     m = int(math.ceil(4.0 * sigma_px)) + 1
-    x = (m - np.arange(2 * m + 1))[None, :] - o[:, None]          # receiving − source, px
+    x = (m - np.arange(2 * m + 1))[None, :] - o[:, None]  # receiving − source, px
     if sigma_px < 1e-6:
         K = ((x > -0.5) & (x < 0.5)).astype(float) + 0.5 * (np.abs(np.abs(x) - 0.5) < 1e-12)
     else:
@@ -286,8 +313,9 @@ def _correlate2(a: np.ndarray, ku: np.ndarray, kv: np.ndarray) -> np.ndarray:
     return cv2.sepFilter2D(a, -1, ku, kv, borderType=cv2.BORDER_CONSTANT)
 
 
-def detected_deficit(field: SubsampledField, sigma_u: float, sigma_v: float,
-                     behind: np.ndarray | None = None, dtype=np.float32) -> np.ndarray:
+def detected_deficit(
+    field: SubsampledField, sigma_u: float, sigma_v: float, behind: np.ndarray | None = None, dtype=np.float32
+) -> np.ndarray:
     """What the detector reads of the field's photon deficit: ``1 − I/I0`` per pixel (h, w), ``dtype``.
 
     The photons, not the line integrals, are blurred and integrated: each sub-sample's
@@ -323,8 +351,15 @@ def detected_deficit(field: SubsampledField, sigma_u: float, sigma_v: float,
     return out
 
 
-def transmission_box(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-                     body: Body | None, occluders: Sequence[Occluder] = ()):
+def transmission_box(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    imaging: ImagingModel,
+    body: Body | None,
+    occluders: Sequence[Occluder] = (),
+):
     """Noise-free transmission I/I0 of the fiducial as the detector reads it (blurred photons
     integrated over each pixel, :func:`detected_deficit`) over its bounding box, clipped to
     the image: ``(I (h, w) float32, (row0, col0))``; outside the box I = 1. Empty box: (0, 0) array."""
@@ -335,11 +370,18 @@ def transmission_box(features: Features, R: np.ndarray, t: np.ndarray, camera: C
     I = 1.0 - detected_deficit(field, su, sv)
     v0, u0 = field.origin
     H, W = imaging.image_shape
-    return I[r0 - v0:min(v0 + I.shape[0], H) - v0, c0 - u0:min(u0 + I.shape[1], W) - u0], (r0, c0)
+    return I[r0 - v0 : min(v0 + I.shape[0], H) - v0, c0 - u0 : min(u0 + I.shape[1], W) - u0], (r0, c0)
 
 
-def detector_box(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-                 body: Body | None, occluders: Sequence[Occluder] = ()):
+def detector_box(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    imaging: ImagingModel,
+    body: Body | None,
+    occluders: Sequence[Occluder] = (),
+):
     """The fiducial's :class:`SubsampledField` with a margin wide enough for the blur, and the
     first image (row, col) of its box inside the image: ``(field, (row0, col0))``; ``(None,
     (0, 0))`` when the box misses the image."""
@@ -355,14 +397,20 @@ def detector_box(features: Features, R: np.ndarray, t: np.ndarray, camera: Camer
     return field, (r0, c0)
 
 
-def expected_transmission(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
-                          imaging: ImagingModel = ImagingModel(), body: Body | None | str = AUTO,
-                          occluders: Sequence[Occluder] = ()) -> np.ndarray:
+def expected_transmission(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    imaging: ImagingModel = ImagingModel(),
+    body: Body | None | str = AUTO,
+    occluders: Sequence[Occluder] = (),
+) -> np.ndarray:
     """Noise-free blurred transmission I/I0 (H, W) float32 of the fiducial alone (1 = no object)."""
     body = resolve_body(features, body)
     Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, body, occluders)
     out = np.ones(imaging.image_shape, np.float32)
-    out[r0:r0 + Ib.shape[0], c0:c0 + Ib.shape[1]] = Ib
+    out[r0 : r0 + Ib.shape[0], c0 : c0 + Ib.shape[1]] = Ib
     return out
 
 
@@ -375,10 +423,18 @@ def window(image: np.ndarray, origin: tuple[int, int], shape: tuple[int, int]) -
     return image[np.ix_(rows, cols)]
 
 
-def render(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
-           imaging: ImagingModel = ImagingModel(), rng: np.random.Generator | None = None,
-           background: np.ndarray | None = None, occluders: Sequence[Occluder] = (),
-           body: Body | None | str = AUTO, image_name: str = "") -> Radiograph:
+def render(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    imaging: ImagingModel = ImagingModel(),
+    rng: np.random.Generator | None = None,
+    background: np.ndarray | None = None,
+    occluders: Sequence[Occluder] = (),
+    body: Body | None | str = AUTO,
+    image_name: str = "",
+) -> Radiograph:
     """A simulated radiograph of ``features`` at pose (R, t) (F → X, mm) — see the module.
 
     ``background`` (H, W) is a line-integral image (e.g. :func:`.background.anatomy`) added
@@ -407,7 +463,7 @@ def render(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Ca
         v0, u0 = field.origin
         h, w = field.p.shape
         su, sv = blur_sigma_px(camera, imaging, float(t[2]))
-        D = detected_deficit(field, su, sv)[r0 - v0:min(v0 + h, H) - v0, c0 - u0:min(u0 + w, W) - u0]
+        D = detected_deficit(field, su, sv)[r0 - v0 : min(v0 + h, H) - v0, c0 - u0 : min(u0 + w, W) - u0]
         box = (slice(r0, r0 + D.shape[0]), slice(c0, c0 + D.shape[1]))
         # the background is an image as detected: it multiplies the detected fiducial
         line_integral[box] -= np.log1p(-D.astype(np.float64))
@@ -425,6 +481,15 @@ def render(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Ca
         raw = np.clip(np.rint(N * np.float32(gain)), 0, imaging.full_scale)
         log_image = line_integral.copy()
     raw = raw.astype(np.uint8 if imaging.bit_depth <= 8 else np.uint16)
-    truth = truth_dict(features, R, t, camera, imaging, image_name=image_name, body=body, occluders=occluders,
-                       background=None if background is None else "given")
+    truth = truth_dict(
+        features,
+        R,
+        t,
+        camera,
+        imaging,
+        image_name=image_name,
+        body=body,
+        occluders=occluders,
+        background=None if background is None else "given",
+    )
     return Radiograph(line_integral, log_image, raw, camera, R, t, truth)

@@ -70,17 +70,54 @@ from .patient import (
 )
 from .render import AUTO, blur_sigma_px, detected_deficit, detector_box, resolve_body, transmission_box, window
 
-Condition = Literal["raw", "log", "display-dark", "display-bright", "round-shutter", "blades", "fluoro-dose",
-                    "strong-anatomy", "blur-2px", "seeds-needle"]
-CONDITIONS: tuple[str, ...] = ("raw", "log", "display-dark", "display-bright", "round-shutter", "blades",
-                               "fluoro-dose", "strong-anatomy", "blur-2px", "seeds-needle")
+Condition = Literal[
+    "raw",
+    "log",
+    "display-dark",
+    "display-bright",
+    "round-shutter",
+    "blades",
+    "fluoro-dose",
+    "strong-anatomy",
+    "blur-2px",
+    "seeds-needle",
+]
+CONDITIONS: tuple[str, ...] = (
+    "raw",
+    "log",
+    "display-dark",
+    "display-bright",
+    "round-shutter",
+    "blades",
+    "fluoro-dose",
+    "strong-anatomy",
+    "blur-2px",
+    "seeds-needle",
+)
 #: how often each kind of patient view is drawn (strong-anatomy: pelvis and spine only)
 KIND_WEIGHTS = {"pelvis": 0.4, "spine": 0.2, "abdomen": 0.2, "chest": 0.2}
 #: structures put right behind the fiducial for strong-anatomy, by the kind of view
-DENSE = {"pelvis": ("femoral head", "acetabulum", "sacrum", "pubic body", "femoral neck", "greater trochanter",
-                    "iliac crest", "iliac wing", "ischium", "superior pubic ramus", "L5 body", "L4 body"),
-         "spine": tuple(f"{v} {part}" for v in ("T11", "T12", "L1", "L2", "L3", "L4", "L5")
-                        for part in ("body", "pedicle", "spinous process", "transverse process"))}
+DENSE = {
+    "pelvis": (
+        "femoral head",
+        "acetabulum",
+        "sacrum",
+        "pubic body",
+        "femoral neck",
+        "greater trochanter",
+        "iliac crest",
+        "iliac wing",
+        "ischium",
+        "superior pubic ramus",
+        "L5 body",
+        "L4 body",
+    ),
+    "spine": tuple(
+        f"{v} {part}"
+        for v in ("T11", "T12", "L1", "L2", "L3", "L4", "L5")
+        for part in ("body", "pedicle", "spinous process", "transverse process")
+    ),
+}
 
 
 def _loguniform(rng: np.random.Generator, lo: float, hi: float) -> float:
@@ -104,7 +141,7 @@ def _strong_placement(model: PatientModel, rng, fid_uv, shape, pixel_mm, mag) ->
     cand = [st for st in model.structures if st.name in names]
     st = cand[int(rng.integers(len(cand)))]
     x, y = structure_center(st)
-    jitter = rng.normal(0, 4.0, 2)           # mm: not always dead centre
+    jitter = rng.normal(0, 4.0, 2)  # mm: not always dead centre
     return place_at(model, (x + jitter[0], y + jitter[1]), fid_uv, shape, pixel_mm, mag), st.name
 
 
@@ -129,29 +166,49 @@ def _shutter(condition: str, rng, box, shape) -> Shutter:
         n_blades = int(rng.integers(2, 5))
         for k in rng.choice(4, 4 - n_blades, replace=False):
             opening[k] = math.inf
-        return Shutter("blades", c, opening_px=tuple(opening), angle=angle,
-                       transmission=float(rng.uniform(0.02, 0.08)), penumbra_px=float(rng.uniform(1.0, 4.0)))
+        return Shutter(
+            "blades",
+            c,
+            opening_px=tuple(opening),
+            angle=angle,
+            transmission=float(rng.uniform(0.02, 0.08)),
+            penumbra_px=float(rng.uniform(1.0, 4.0)),
+        )
     return Shutter()
 
 
 def _display(condition: str, rng, box) -> Display:
     formation = {"raw": "linear", "log": "log"}.get(condition)
     if formation is None:
-        choices = {"blades": ("linear", "display"), "seeds-needle": ("linear", "display"),
-                   "strong-anatomy": ("log", "display", "display"), "blur-2px": ("log", "display", "display")}
+        choices = {
+            "blades": ("linear", "display"),
+            "seeds-needle": ("linear", "display"),
+            "strong-anatomy": ("log", "display", "display"),
+            "blur-2px": ("log", "display", "display"),
+        }
         formation = str(rng.choice(choices.get(condition, ("display",))))
     if formation != "display":
         return Display(formation)
     polarity = {"display-dark": "dense-dark", "display-bright": "dense-bright"}.get(
-        condition, "dense-dark" if rng.random() < 0.5 else "dense-bright")
+        condition, "dense-dark" if rng.random() < 0.5 else "dense-bright"
+    )
     # the automatic window, or one time in three a tighter one (a user's contrast boost)
     if rng.random() < 1 / 3:
         pct = (float(rng.uniform(2.0, 8.0)), float(rng.uniform(92.0, 98.0)))
     else:
         pct = (float(rng.uniform(0.0, 2.0)), float(rng.uniform(98.0, 100.0)))
-    return Display("display", None, pct, _loguniform(rng, 0.6, 1.6),
-                   float(rng.uniform(2.0, 12.0)), float(rng.uniform(0.0, 1.5)) if rng.random() < 0.8 else 0.0,
-                   polarity, 8, bool(rng.random() < 0.5), float(rng.uniform(0.0, 1.5)))
+    return Display(
+        "display",
+        None,
+        pct,
+        _loguniform(rng, 0.6, 1.6),
+        float(rng.uniform(2.0, 12.0)),
+        float(rng.uniform(0.0, 1.5)) if rng.random() < 0.8 else 0.0,
+        polarity,
+        8,
+        bool(rng.random() < 0.5),
+        float(rng.uniform(0.0, 1.5)),
+    )
 
 
 def _needles(features: Features, rng, n: int) -> tuple[Occluder, ...]:
@@ -176,13 +233,20 @@ def _detector(rng, expected: np.ndarray, intensifier: bool) -> Detector:
     full = (1 << bits) - 1
     spr = float(rng.uniform(0.2, 1.2))
     H, W = expected.shape
-    central = expected[H // 4:H - H // 4:4, W // 4:W - W // 4:4]
+    central = expected[H // 4 : H - H // 4 : 4, W // 4 : W - W // 4 : 4]
     bright = float(np.percentile(central, 99.5)) + spr * float(central.mean())
     gain = float(rng.uniform(0.4, 0.8)) * full / max(bright, 1e-6)
-    return Detector(bits, gain, float(rng.uniform(0.0, 0.02)) * full, float(rng.uniform(0.0, 4.0)) * gain,
-                    float(rng.uniform(0.0, 0.01)), spr, float(rng.uniform(40, 120)),
-                    float(rng.uniform(0.1, 0.35)) if intensifier else 0.0,
-                    float(rng.uniform(0.0, 0.6)) if intensifier else 0.0)
+    return Detector(
+        bits,
+        gain,
+        float(rng.uniform(0.0, 0.02)) * full,
+        float(rng.uniform(0.0, 4.0)) * gain,
+        float(rng.uniform(0.0, 0.01)),
+        spr,
+        float(rng.uniform(40, 120)),
+        float(rng.uniform(0.1, 0.35)) if intensifier else 0.0,
+        float(rng.uniform(0.0, 0.6)) if intensifier else 0.0,
+    )
 
 
 def _dose(condition: str, rng) -> float:
@@ -193,9 +257,16 @@ def _dose(condition: str, rng) -> float:
     return _loguniform(rng, 200, 3000)
 
 
-def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera = Camera(),
-                    condition: Condition = "raw", seed: int = 0, body=AUTO,
-                    shape: tuple[int, int] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+def realistic_image(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera = Camera(),
+    condition: Condition = "raw",
+    seed: int = 0,
+    body=AUTO,
+    shape: tuple[int, int] | None = None,
+) -> tuple[np.ndarray, dict[str, Any]]:
     """A test image of ``features`` at pose (R, t) (F → X, mm) under ``condition`` (see the module).
 
     Parameters
@@ -230,7 +301,7 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     su, sv = blur_sigma_px(camera, imaging, float(t[2]))
     sigma_focal = math.hypot(su, sv) / math.sqrt(2)
     sigma_target = float(rng.uniform(1.6, 2.0)) if condition == "blur-2px" else float(rng.uniform(0.5, 0.9))
-    sigma_det = math.sqrt(max(sigma_target ** 2 - sigma_focal ** 2, 0.0))
+    sigma_det = math.sqrt(max(sigma_target**2 - sigma_focal**2, 0.0))
     occluders = _needles(features, rng, int(rng.integers(1, 3))) if condition == "seeds-needle" else ()
     _, _, box = _footprint(features, R, t, camera, imaging, body)
 
@@ -240,26 +311,50 @@ def realistic_image(features: Features, R: np.ndarray, t: np.ndarray, camera: Ca
     T = _photons(features, R, t, camera, imaging, body, occluders, bg, mag, focal, sigma_det)
     counts = _dose(condition, rng)
     n0 = n0_for_counts(bg, counts)
-    intensifier = condition == "round-shutter" or (condition in ("display-dark", "display-bright", "fluoro-dose",
-                                                                 "blur-2px") and rng.random() < 0.5)
+    intensifier = condition == "round-shutter" or (
+        condition in ("display-dark", "display-bright", "fluoro-dose", "blur-2px") and rng.random() < 0.5
+    )
     expected = np.float32(n0) * T
     detector = _detector(rng, expected, intensifier)
     shutter = _shutter(condition, rng, box, (H, W))
     display = _display(condition, rng, box)
     image, info = apply_chain(expected, detector, display, shutter, rng, n0=n0)
-    info.update({
-        "condition": condition, "seed": int(seed), "counts_behind_patient": counts, "fiducial_box": box,
-        "blur_sigma_px": math.hypot(sigma_focal, sigma_det), "detector_blur_px": sigma_det, "focal_spot_mm": focal,
-        "energy_kev": patient_info.pop("energy_kev"), "intensifier": intensifier, "patient": patient_info,
-        "seeds": patient_info.pop("seeds"), "clips": patient_info.pop("clips"),
-        "needles": [oc.to_dict() for oc in occluders],
-        "detector": asdict(detector), "display": asdict(display), "shutter_settings": asdict(shutter),
-    })
+    info.update(
+        {
+            "condition": condition,
+            "seed": int(seed),
+            "counts_behind_patient": counts,
+            "fiducial_box": box,
+            "blur_sigma_px": math.hypot(sigma_focal, sigma_det),
+            "detector_blur_px": sigma_det,
+            "focal_spot_mm": focal,
+            "energy_kev": patient_info.pop("energy_kev"),
+            "intensifier": intensifier,
+            "patient": patient_info,
+            "seeds": patient_info.pop("seeds"),
+            "clips": patient_info.pop("clips"),
+            "needles": [oc.to_dict() for oc in occluders],
+            "detector": asdict(detector),
+            "display": asdict(display),
+            "shutter_settings": asdict(shutter),
+        }
+    )
     return image, info
 
 
-def _photons(features: Features, R, t, camera: Camera, imaging: ImagingModel, body, occluders, bg: np.ndarray,
-             mag: float, focal: float, sigma_det: float) -> np.ndarray:
+def _photons(
+    features: Features,
+    R,
+    t,
+    camera: Camera,
+    imaging: ImagingModel,
+    body,
+    occluders,
+    bg: np.ndarray,
+    mag: float,
+    focal: float,
+    sigma_det: float,
+) -> np.ndarray:
     """I/I0 (H, W) as the detector reads it: the patient's transmission (its own focal blur)
     times the fiducial's on the photon field, through the fiducial's focal blur, the
     detector's line spread and the pixels (:func:`.render.detected_deficit`). The patient's
@@ -279,11 +374,11 @@ def _photons(features: Features, R, t, camera: Camera, imaging: ImagingModel, bo
         su, sv = blur_sigma_px(camera, total, float(t[2]))
         D = detected_deficit(field, su, sv, window(Tp, (v0, u0), (h, w)))
         H, W = T.shape
-        D = D[r0 - v0:min(v0 + h, H) - v0, c0 - u0:min(u0 + w, W) - u0]
+        D = D[r0 - v0 : min(v0 + h, H) - v0, c0 - u0 : min(u0 + w, W) - u0]
         # the patient detected on its own (pixel grid) and the fiducial's deficit detected
         # with it on the photon field are two discretisations: where the patient changes
         # sharply under a dense part the difference can dip below zero photons
-        T[r0:r0 + D.shape[0], c0:c0 + D.shape[1]] -= D
+        T[r0 : r0 + D.shape[0], c0 : c0 + D.shape[1]] -= D
         np.maximum(T, 0.0, out=T)
     return T
 
@@ -294,13 +389,14 @@ def _patient(condition: str, rng, box, shape, pixel: float, mag: float) -> tuple
     kinds = ("pelvis", "spine") if condition == "strong-anatomy" else tuple(KIND_WEIGHTS)
     w = np.array([KIND_WEIGHTS[k] for k in kinds])
     kind = str(rng.choice(kinds, p=w / w.sum()))
-    p_seed = int(rng.integers(2 ** 31))
+    p_seed = int(rng.integers(2**31))
     model = patient_model(kind, p_seed, max(shape) * pixel / mag)
     model = over_body(model, box, shape, pixel, mag)
     landmark = None
     if condition == "strong-anatomy":
-        model, landmark = _strong_placement(model, rng, ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), shape,
-                                            pixel, mag)
+        model, landmark = _strong_placement(
+            model, rng, ((box[0] + box[2]) / 2, (box[1] + box[3]) / 2), shape, pixel, mag
+        )
     thickness = 2 * model.body.half_depth * model.placement.scale
     # automatic exposure control raises the kV (and the beam hardens) through a thicker patient
     energy = float(np.clip(50.0 + 0.1 * (thickness - 150.0), 50.0, 70.0))
@@ -315,7 +411,16 @@ def _patient(condition: str, rng, box, shape, pixel: float, mag: float) -> tuple
         if n_clips:
             bg = bg + clips(shape, n_clips, rng, c, 1.5 * spread, pixel, mag, energy)
     sub = bg[::4, ::4]
-    return bg, {"kind": kind, "seed": p_seed, "thickness_mm": thickness, "magnification": mag,
-                "placement": asdict(model.placement), "landmark": landmark, "energy_kev": energy,
-                "texture_amplitude": model.texture_amplitude, "seeds": n_seeds, "clips": n_clips,
-                "line_integral": (float(bg.min()), float(np.percentile(sub, 99.9)), float(bg.max()))}
+    return bg, {
+        "kind": kind,
+        "seed": p_seed,
+        "thickness_mm": thickness,
+        "magnification": mag,
+        "placement": asdict(model.placement),
+        "landmark": landmark,
+        "energy_kev": energy,
+        "texture_amplitude": model.texture_amplitude,
+        "seeds": n_seeds,
+        "clips": n_clips,
+        "line_integral": (float(bg.min()), float(np.percentile(sub, 99.9)), float(bg.max())),
+    }

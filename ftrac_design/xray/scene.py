@@ -55,6 +55,7 @@ def body_from_source(source: str | None, near: Path | None = None) -> Body | Non
 def body_from_design_file(path: str | Path) -> Body:
     """The body of a design TOML (validated by the design loader); InputError if bad."""
     from ..design import load_design
+
     return Body.from_design(load_design(path))
 
 
@@ -67,12 +68,13 @@ def body_from_features_file(path: str | Path) -> Body | None:
     try:
         data = json.loads(path.read_text("utf-8"))
     except (OSError, ValueError):
-        return None          # load_features reports the file's own problems
+        return None  # load_features reports the file's own problems
     if isinstance(data, dict) and "body" in data:
         try:
             return Body.from_dict(data["body"])
         except (KeyError, ValueError, TypeError) as exc:
-            raise InputError(path, "body", f"an object with outer_diameter > bore_diameter ≥ 0 and length > 0 "
-                                           f"(mm) ({exc})") from None
+            raise InputError(
+                path, "body", f"an object with outer_diameter > bore_diameter ≥ 0 and length > 0 (mm) ({exc})"
+            ) from None
     source = (data.get("design") or {}).get("source") if isinstance(data, dict) else None
     return body_from_source(source, path.parent)

@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-Extent = tuple[float, float, float, float]   # x_min, x_max, y_min, y_max (mm)
+Extent = tuple[float, float, float, float]  # x_min, x_max, y_min, y_max (mm)
 
 
 def _local(x: np.ndarray, y: np.ndarray, center: tuple[float, float], angle: float):
@@ -162,8 +162,13 @@ class Column:
 
     def extent(self) -> Extent:
         """Bounding box in the plane (mm)."""
-        return _ellipse_extent(self.center, self.half_width * 1.0001, self.half_height * 1.0001, self.angle,
-                               pad=0.5 * min(self.half_width, self.half_height))
+        return _ellipse_extent(
+            self.center,
+            self.half_width * 1.0001,
+            self.half_height * 1.0001,
+            self.angle,
+            pad=0.5 * min(self.half_width, self.half_height),
+        )
 
     def chords(self, x: np.ndarray, y: np.ndarray, px: float) -> tuple[np.ndarray, np.ndarray]:
         """(wall, core) chords (mm) at (x, y) (mm)."""
@@ -230,9 +235,9 @@ def capsule_chord(x: np.ndarray, y: np.ndarray, p0: np.ndarray, p1: np.ndarray, 
         add(np.where(h2 > 0, c[2] - h, 0.0), np.where(h2 > 0, c[2] + h, 0.0))
     if L > 0:
         e = axis / L
-        wx, wy = x - p0[0], y - p0[1]          # ray point at z = p0_z, relative to p0
+        wx, wy = x - p0[0], y - p0[1]  # ray point at z = p0_z, relative to p0
         we = wx * e[0] + wy * e[1]
-        Ax, Ay, Az = wx - we * e[0], wy - we * e[1], -we * e[2]   # part of w across the axis
+        Ax, Ay, Az = wx - we * e[0], wy - we * e[1], -we * e[2]  # part of w across the axis
         Bx, By, Bz = -e[2] * e[0], -e[2] * e[1], 1.0 - e[2] * e[2]  # part of the ray direction (0,0,1) across it
         bb = Bx * Bx + By * By + Bz * Bz
         if bb > 1e-12:
@@ -241,14 +246,14 @@ def capsule_chord(x: np.ndarray, y: np.ndarray, p0: np.ndarray, p1: np.ndarray, 
             sq = np.sqrt(np.maximum(disc, 0.0))
             s_lo, s_hi = (-ab - sq) / bb, (-ab + sq) / bb
             if abs(e[2]) > 1e-12:
-                t_a, t_b = -we / e[2], (L - we) / e[2]     # the end planes along the ray
+                t_a, t_b = -we / e[2], (L - we) / e[2]  # the end planes along the ray
                 s_lo, s_hi = np.maximum(s_lo, np.minimum(t_a, t_b)), np.minimum(s_hi, np.maximum(t_a, t_b))
             else:
                 inside = (we >= 0) & (we <= L)
                 s_hi = np.where(inside, s_hi, -np.inf)
             s_hi = np.where(disc > 0, s_hi, -np.inf)
             add(p0[2] + s_lo, p0[2] + s_hi)
-        else:                                   # axis along the beam: the cylinder is the disc's prism
+        else:  # axis along the beam: the cylinder is the disc's prism
             inside = Ax * Ax + Ay * Ay < radius * radius
             add(np.where(inside, min(p0[2], p1[2]), 0.0), np.where(inside, max(p0[2], p1[2]), 0.0))
     return np.where(hi > lo, hi - lo, 0.0)
@@ -256,4 +261,4 @@ def capsule_chord(x: np.ndarray, y: np.ndarray, p0: np.ndarray, p1: np.ndarray, 
 
 def capsule_volume(length: float, radius: float) -> float:
     """Volume (mm³) of a capsule of overall ``length`` (end to end) and ``radius`` (mm)."""
-    return math.pi * radius * radius * (length - 2 * radius) + 4.0 / 3.0 * math.pi * radius ** 3
+    return math.pi * radius * radius * (length - 2 * radius) + 4.0 / 3.0 * math.pi * radius**3

@@ -38,9 +38,19 @@ class SweepRun:
     camera: Camera
 
 
-def render_sweep(features: Features, R0: np.ndarray, t0: np.ndarray, n: int, camera: Camera = Camera(),
-                 imaging: ImagingModel = ImagingModel(), seed: int = 0, body=AUTO, anatomy_strength: float = 1.0,
-                 margin_px: int = 160, **sweep) -> SweepRun:
+def render_sweep(
+    features: Features,
+    R0: np.ndarray,
+    t0: np.ndarray,
+    n: int,
+    camera: Camera = Camera(),
+    imaging: ImagingModel = ImagingModel(),
+    seed: int = 0,
+    body=AUTO,
+    anatomy_strength: float = 1.0,
+    margin_px: int = 160,
+    **sweep,
+) -> SweepRun:
     """``n`` radiographs of ``features`` through a C-arm's swing starting at pose (R0, t0).
 
     Parameters
@@ -63,16 +73,28 @@ def render_sweep(features: Features, R0: np.ndarray, t0: np.ndarray, n: int, cam
     H, W = imaging.image_shape
     bg = None
     if anatomy_strength > 0:
-        bg = anatomy((H + 2 * margin_px, W + 2 * margin_px), seed=seed, pixel_mm=float(np.mean(camera.pixel_size_mm)),
-                     strength=anatomy_strength)
+        bg = anatomy(
+            (H + 2 * margin_px, W + 2 * margin_px),
+            seed=seed,
+            pixel_mm=float(np.mean(camera.pixel_size_mm)),
+            strength=anatomy_strength,
+        )
     o0 = camera.project(t[0])
     raw = np.empty((n, H, W), np.uint16)
     for k in range(n):
         frame_bg = None
         if bg is not None:
             du, dv = np.clip(np.rint(camera.project(t[k]) - o0).astype(int), -margin_px, margin_px)
-            frame_bg = bg[margin_px - dv:margin_px - dv + H, margin_px - du:margin_px - du + W]
-        rad = render(features, R[k], t[k], camera, imaging, rng=np.random.default_rng(seed * 100003 + k),
-                     background=frame_bg, body=body)
+            frame_bg = bg[margin_px - dv : margin_px - dv + H, margin_px - du : margin_px - du + W]
+        rad = render(
+            features,
+            R[k],
+            t[k],
+            camera,
+            imaging,
+            rng=np.random.default_rng(seed * 100003 + k),
+            background=frame_bg,
+            body=body,
+        )
         raw[k] = rad.raw
     return SweepRun(raw, R, t, camera)

@@ -56,22 +56,42 @@ def projected_features(features: Features, R: np.ndarray, t: np.ndarray, camera:
         if theta[5] > 0:
             theta = -theta
         c, _, _ = conic_center_and_axes(theta)
-        out["ellipses"][el.id] = {"conic": [float(x) for x in theta], "center": [float(x) for x in c],
-                                  "projected_center": _uv(camera, R @ el.center + t)}
+        out["ellipses"][el.id] = {
+            "conic": [float(x) for x in theta],
+            "center": [float(x) for x in c],
+            "projected_center": _uv(camera, R @ el.center + t),
+        }
     return out
 
 
-def truth_dict(features: Features, R: np.ndarray, t: np.ndarray, camera: Camera, imaging: ImagingModel,
-               image_name: str = "", body: Body | None = None, occluders: Sequence[Occluder] = (),
-               background: str | None = None) -> dict[str, Any]:
+def truth_dict(
+    features: Features,
+    R: np.ndarray,
+    t: np.ndarray,
+    camera: Camera,
+    imaging: ImagingModel,
+    image_name: str = "",
+    body: Body | None = None,
+    occluders: Sequence[Occluder] = (),
+    background: str | None = None,
+) -> dict[str, Any]:
     """The truth.json object of one rendered image (see module)."""
     R, t = np.asarray(R, float), np.asarray(t, float)
     return {
-        "format": FORMAT, "version": VERSION, "image": image_name,
+        "format": FORMAT,
+        "version": VERSION,
+        "image": image_name,
         "features": features.name,
-        "pose": {"format": "ftrac-pose", "version": 1, "rotation": R.tolist(), "translation_mm": t.tolist(),
-                 "converged": True, "rms_residual_px": 0.0, "covariance": None,
-                 "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"]},
+        "pose": {
+            "format": "ftrac-pose",
+            "version": 1,
+            "rotation": R.tolist(),
+            "translation_mm": t.tolist(),
+            "converged": True,
+            "rms_residual_px": 0.0,
+            "covariance": None,
+            "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
+        },
         "camera": camera.to_dict(),
         "imaging": imaging.to_dict(),
         "body": None if body is None else body.to_dict(),
@@ -104,8 +124,11 @@ def read_truth(path: str | Path) -> dict[str, Any]:
         d["R"] = np.asarray(d["pose"]["rotation"], float).reshape(3, 3)
         d["t"] = np.asarray(d["pose"]["translation_mm"], float).reshape(3)
         c = d["camera"]
-        d["camera_obj"] = Camera(float(c["focal_length_mm"]), tuple(map(float, c["pixel_size_mm"])),
-                                 tuple(map(float, c["principal_point_px"])))
+        d["camera_obj"] = Camera(
+            float(c["focal_length_mm"]),
+            tuple(map(float, c["pixel_size_mm"])),
+            tuple(map(float, c["principal_point_px"])),
+        )
     except (KeyError, TypeError, ValueError):
         raise InputError(path, "pose/camera", "a SPEC §4 pose and a §3 camera") from None
     return d

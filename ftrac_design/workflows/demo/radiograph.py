@@ -30,11 +30,20 @@ def demo_step(out_dir: Path, seed: int = 2005) -> str:
     img = render(features, R[0], t[0], rng=rng, background=bg, image_name="radiograph.png")
     ms = (time.perf_counter() - t0) * 1e3
     img.truth["background"] = f"anatomy seed {seed}"
-    png = write_image(out_dir / "radiograph.png", img.log_image, img.camera, polarity="dense_bright",
-                      bit_depth=16, value_range=(0.0, 6.0), quantity="log")
+    png = write_image(
+        out_dir / "radiograph.png",
+        img.log_image,
+        img.camera,
+        polarity="dense_bright",
+        bit_depth=16,
+        value_range=(0.0, 6.0),
+        quantity="log",
+    )
     write_truth(out_dir / "radiograph.truth.json", img.truth)
     beam = R[0][2]
     tilt = np.degrees(np.arccos(np.clip(beam @ features.nominal_beam_direction, -1, 1)))
-    return (f"radiograph: ftrac_2005 at a workspace pose ({tilt:.1f}° from AP, t = "
-            f"({t[0][0]:.1f}, {t[0][1]:.1f}, {t[0][2]:.1f}) mm), 1024×1024, rendered in {ms:.0f} ms "
-            f"→ {png} (+ radiograph.truth.json)")
+    return (
+        f"radiograph: ftrac_2005 at a workspace pose ({tilt:.1f}° from AP, t = "
+        f"({t[0][0]:.1f}, {t[0][1]:.1f}, {t[0][2]:.1f}) mm), 1024×1024, rendered in {ms:.0f} ms "
+        f"→ {png} (+ radiograph.truth.json)"
+    )

@@ -44,13 +44,16 @@ def demo_step(out_dir: Path) -> str:
         for i in range(2):
             uv = cam.project(X @ R[i].T + t[i]) + segmentation_noise((len(ids),), 0.25, cam.pixel_size_mm, rng)
             fh.write(json.dumps({k: uv[j].round(3).tolist() for j, k in enumerate(ids)}) + "\n")
-    res = reconstruct(features, read_poses(out_dir / "poses.jsonl"), read_points(out_dir / "points.jsonl"), cam,
-                      to="template")
+    res = reconstruct(
+        features, read_poses(out_dir / "poses.jsonl"), read_points(out_dir / "points.jsonl"), cam, to="template"
+    )
     (out_dir / "reconstruction.json").write_text(json.dumps(res, indent=2) + "\n", encoding="utf-8")
     TF = features.frames["template_from_fiducial"]
-    lines = ["reconstruct: 2 simulated views of ftrac_2005, 20° apart, 0.25 mm segmentation error; "
-             "poses solved, then beads and seeds triangulated",
-             f"{'id':>4s} {'|error| F mm':>13s} {'σ (3-D) mm':>11s}   position in template frame T (mm)"]
+    lines = [
+        "reconstruct: 2 simulated views of ftrac_2005, 20° apart, 0.25 mm segmentation error; "
+        "poses solved, then beads and seeds triangulated",
+        f"{'id':>4s} {'|error| F mm':>13s} {'σ (3-D) mm':>11s}   position in template frame T (mm)",
+    ]
     errs = []
     for k in ids:
         e = res["points"][k]
@@ -63,6 +66,8 @@ def demo_step(out_dir: Path) -> str:
         p = e["position_mm"]
         lines.append(f"{k:>4s} {err:13.2f} {sig:11.2f}   ({p[0]:7.2f}, {p[1]:7.2f}, {p[2]:7.2f})")
     truth_T = X @ TF[:3, :3].T + TF[:3, 3]
-    lines.append(f"mean |error| {np.mean(errs):.2f} mm over {len(errs)} points; T = template_from_fiducial · P_F "
-                 f"(e.g. B1 truth in T: {np.round(truth_T[0], 2).tolist()}); files in {out_dir}")
+    lines.append(
+        f"mean |error| {np.mean(errs):.2f} mm over {len(errs)} points; T = template_from_fiducial · P_F "
+        f"(e.g. B1 truth in T: {np.round(truth_T[0], 2).tolist()}); files in {out_dir}"
+    )
     return "\n".join(lines)

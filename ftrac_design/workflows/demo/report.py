@@ -17,6 +17,8 @@ def demo_step(out_dir: Path) -> str:
     t0 = time.perf_counter()
     path = report_for_build(out_dir, poses=2000, atlas_step_deg=4.0)
     kb = path.stat().st_size / 1024
-    return (f"Report -> {path} ({kb:.0f} KB, one self-contained HTML page: render, parameters, features, "
-            f"design rules cnc + fdm, score, atlas, bill of materials, wire cut list, file hashes; "
-            f"{time.perf_counter() - t0:.1f} s)")
+    return (
+        f"Report -> {path} ({kb:.0f} KB, one self-contained HTML page: render, parameters, features, "
+        f"design rules cnc + fdm, score, atlas, bill of materials, wire cut list, file hashes; "
+        f"{time.perf_counter() - t0:.1f} s)"
+    )
