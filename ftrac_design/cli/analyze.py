@@ -62,6 +62,51 @@ def workspace_options(fn):
     return fn
 
 
+def image_score_options(atlas: bool = False):
+    """Options shared by ``analyze``, ``compare`` and ``report``: the image-true score's sample
+    (``--score-images``, ``--score-seed``), with ``atlas`` its blind-spot atlas
+    (``--image-atlas-step-deg``), and the processes that render and track (``--workers``)."""
+    opts = [
+        click.option(
+            "--score-images",
+            type=click.IntRange(min=0),
+            default=100,
+            show_default=True,
+            help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
+            "patient), the same images for every design; 0 = the paper's feature-level model only",
+        ),
+        click.option(
+            "--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample"
+        ),
+    ]
+    if atlas:
+        opts.append(
+            click.option(
+                "--image-atlas-step-deg",
+                type=click.FloatRange(min=0.0, max=45.0),
+                default=20.0,
+                show_default=True,
+                help="the image-true blind-spot atlas: grid step over the sphere of view directions, each "
+                "direction imaged (clean) and tracked at 2 rolls; 0 = none",
+            )
+        )
+    opts.append(
+        click.option(
+            "--workers",
+            type=click.IntRange(min=0),
+            default=None,
+            help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
+        )
+    )
+
+    def decorate(fn):
+        for opt in reversed(opts):
+            fn = opt(fn)
+        return fn
+
+    return decorate
+
+
 def overrides(
     poses, seed, cone_deg, roll_range_deg, depth_mm, depth_range_mm, lateral_mm, segmentation_error_mm, **extra
 ) -> dict:
@@ -168,29 +213,7 @@ def overrides(
     show_default=True,
     help="imaging: focal spot size (FWHM)",
 )
-@click.option(
-    "--score-images",
-    type=click.IntRange(min=0),
-    default=100,
-    show_default=True,
-    help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
-    "patient); 0 = the paper's feature-level model only",
-)
-@click.option("--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample")
-@click.option(
-    "--image-atlas-step-deg",
-    type=click.FloatRange(min=0.0, max=45.0),
-    default=20.0,
-    show_default=True,
-    help="the image-true blind-spot atlas: grid step over the sphere of view directions, each direction "
-    "imaged (clean) and tracked at 2 rolls; 0 = none",
-)
-@click.option(
-    "--workers",
-    type=click.IntRange(min=0),
-    default=None,
-    help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
-)
+@image_score_options(atlas=True)
 @click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
 @click.option(
     "--report",
@@ -242,7 +265,7 @@ def command(
     from tqdm import tqdm
 
     from ..analysis.subject import load_subject, settings_for
-    from ..workflows.analyze import atlas_directions, format_summary, run_analysis
+    from ..workflows.analyze import ImageScoring, atlas_directions, format_summary, run_analysis
 
     subject = load_subject(source)
     settings, thresholds = settings_for(
@@ -295,21 +318,11 @@ def command(
             return bound(progress=progress)
 
         total += imaging_poses
-    trial = None
-    if score_images:
-        from ..imagescore import TrialSettings
-
-        trial = TrialSettings(images=score_images, seed=score_seed)
-        total += score_images * len(trial.conditions)
-    atlas_settings = None
-    if image_atlas_step_deg:
-        from ..imagescore.atlas import AtlasSettings
-
-        atlas_settings = AtlasSettings(step_deg=image_atlas_step_deg, seed=score_seed)
-        total += round(360 / image_atlas_step_deg) * round(180 / image_atlas_step_deg) * atlas_settings.rolls
+    scoring = ImageScoring.from_options(score_images, score_seed, image_atlas_step_deg, workers)
+    total += scoring.images()
     with contextlib.ExitStack() as stack:
         executor = None
-        if (trial is not None or atlas_settings is not None) and workers != 0:
+        if scoring.any and workers != 0:
             from ..optimize.execution import open_executor
 
             executor, _ = stack.enter_context(open_executor(None, workers))
@@ -325,9 +338,9 @@ def command(
             not no_plots,
             bar.update,
             imaging=pixel_level,
-            trial=trial,
+            trial=scoring.trial,
             executor=executor,
-            image_atlas_settings=atlas_settings,
+            image_atlas_settings=scoring.atlas,
         )
     click.echo(format_summary(doc, format_imaging))
     click.echo(f"wrote {out_dir / 'analysis.json'}" + (f" and {', '.join(doc['files'])}" if doc["files"] else ""))

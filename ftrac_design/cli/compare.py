@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from .analyze import overrides, workspace_options
+from .analyze import image_score_options, overrides, workspace_options
 
 
 @click.command("compare")
@@ -19,21 +19,7 @@ from .analyze import overrides, workspace_options
     help="overlay plot to write [default: outputs/compare.png]; compare.json beside it",
 )
 @workspace_options
-@click.option(
-    "--score-images",
-    type=click.IntRange(min=0),
-    default=100,
-    show_default=True,
-    help="the image-true score: workspace poses rendered and tracked per condition, the same images "
-    "for every design; 0 = the paper's feature-level model only",
-)
-@click.option("--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample")
-@click.option(
-    "--workers",
-    type=click.IntRange(min=0),
-    default=None,
-    help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
-)
+@image_score_options()
 def command(
     sources: tuple[Path, ...],
     output: Path | None,

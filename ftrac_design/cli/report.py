@@ -16,6 +16,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
+from .analyze import image_score_options
 
 
 @click.command("report")
@@ -48,26 +49,7 @@ from ..errors import InputError
     show_default=True,
     help="profile of the build made from a design file (the page shows the rules of both)",
 )
-@click.option(
-    "--score-images",
-    type=click.IntRange(min=0),
-    default=100,
-    show_default=True,
-    help="when the analysis is run: images per condition of the image-true score (0 = none)",
-)
-@click.option(
-    "--image-atlas-step-deg",
-    type=click.FloatRange(min=0.0, max=45.0),
-    default=20.0,
-    show_default=True,
-    help="when the analysis is run: grid step of the image-true atlas (0 = none)",
-)
-@click.option(
-    "--workers",
-    type=click.IntRange(min=0),
-    default=None,
-    help="processes for the image-true score [default: one per core; 0 = this process]",
-)
+@image_score_options(atlas=True)
 def command(
     source: Path,
     output: Path | None,
@@ -75,8 +57,9 @@ def command(
     poses: int | None,
     profile: str,
     score_images: int = 100,
-    workers: int | None = None,
+    score_seed: int = 0,
     image_atlas_step_deg: float = 20.0,
+    workers: int | None = None,
 ) -> int:
     """Write one HTML page for a design: render, parameters, features, design rules (cnc and
     fdm), score and atlas, bill of materials, wire cut list, output files with sha256, versions.
@@ -84,7 +67,10 @@ def command(
     Images are embedded and the style is inline: the file opens with no network.
     """
     from ..design.presets import known_presets, resolve_design
+    from ..workflows.analyze import ImageScoring
     from ..workflows.report import report_for_build
+
+    scoring = ImageScoring.from_options(score_images, score_seed, image_atlas_step_deg, workers)
 
     if not source.is_dir():  # a build directory is reported as it is; anything else may be a preset
         source = resolve_design(source)
@@ -104,12 +90,10 @@ def command(
             output,
             analysis_dir,
             poses=poses,
-            score_images=score_images,
-            workers=workers,
-            image_atlas_step_deg=image_atlas_step_deg,
+            scoring=scoring,
         )
     elif source.suffix.lower() == ".toml" or source.is_file():
-        path = _report_design(source, output, analysis_dir, poses, profile, score_images, workers, image_atlas_step_deg)
+        path = _report_design(source, output, analysis_dir, poses, profile, scoring)
     else:
         raise InputError(
             source, None, f"a design file (.toml), a build directory or a preset ({known_presets()}) (file not found)"
@@ -124,9 +108,7 @@ def _report_design(
     analysis_dir: Path | None,
     poses: int | None,
     profile: str,
-    score_images: int,
-    workers: int | None,
-    image_atlas_step_deg: float,
+    scoring,
 ) -> Path:
     from ..cad.build import build_fiducial
     from ..design import load_design
@@ -144,7 +126,5 @@ def _report_design(
             poses=poses,
             build_kept=False,
             design=design,
-            score_images=score_images,
-            workers=workers,
-            image_atlas_step_deg=image_atlas_step_deg,
+            scoring=scoring,
         )

@@ -25,7 +25,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -104,6 +104,41 @@ def _check_output_dir(out_dir: Path) -> None:
 def default_output_dir(features: Features) -> Path:
     """``outputs/<design name>/analysis``."""
     return Path("outputs") / features.name / "analysis"
+
+
+@dataclass(frozen=True)
+class ImageScoring:
+    """The image-true part of an analysis, resolved once from the command line: the score's sample
+    (None: not computed), its atlas' grid (None: not computed) and the processes that render and
+    track (None: one per core; 0: this process)."""
+
+    trial: TrialSettings | None = field(default_factory=TrialSettings)
+    atlas: AtlasSettings | None = field(default_factory=AtlasSettings)
+    workers: int | None = None
+
+    @classmethod
+    def from_options(
+        cls, score_images: int, score_seed: int = 0, image_atlas_step_deg: float = 0.0, workers: int | None = None
+    ) -> "ImageScoring":
+        """From the commands' ``--score-images``, ``--score-seed``, ``--image-atlas-step-deg`` and
+        ``--workers`` (0 images or a 0° step: that part is not computed)."""
+        return cls(
+            TrialSettings(images=score_images, seed=score_seed) if score_images else None,
+            AtlasSettings(step_deg=image_atlas_step_deg, seed=score_seed) if image_atlas_step_deg else None,
+            workers,
+        )
+
+    @property
+    def any(self) -> bool:
+        """Whether any image is rendered."""
+        return self.trial is not None or self.atlas is not None
+
+    def images(self) -> int:
+        """How many images it renders and tracks (for progress bars)."""
+        n = self.trial.images * len(self.trial.conditions) if self.trial is not None else 0
+        if self.atlas is not None:
+            n += round(360 / self.atlas.step_deg) * round(180 / self.atlas.step_deg) * self.atlas.rolls
+        return n
 
 
 def subject_body(subject: Subject):

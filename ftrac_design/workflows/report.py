@@ -7,11 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..report import collect, write_report
-
-#: images per condition of the image-true score when a report runs the analysis itself
-DEFAULT_SCORE_IMAGES = 100
-#: grid step (degrees) of the image-true atlas when a report runs the analysis itself
-DEFAULT_IMAGE_ATLAS_STEP_DEG = 20.0
+from .analyze import ImageScoring
 
 
 def report_for_build(
@@ -23,17 +19,15 @@ def report_for_build(
     atlas_step_deg: float = 2.0,
     build_kept: bool = True,
     design=None,
-    score_images: int = DEFAULT_SCORE_IMAGES,
-    workers: int | None = None,
-    image_atlas_step_deg: float = DEFAULT_IMAGE_ATLAS_STEP_DEG,
+    scoring: ImageScoring | None = None,
 ) -> Path:
     """Write the report of ``build_dir`` (default ``build_dir/report.html``); returns its path.
 
     The analysis comes from ``analysis_dir``, else ``build_dir/analysis/``; if neither holds
     one and ``run_analysis_if_missing``, it is run at the design's settings (``poses``
-    overrides the number of workspace poses; ``score_images`` per condition for the image-true
-    score and ``image_atlas_step_deg`` for its atlas, 0 for none, on ``workers`` processes) into a
-    temporary directory that is not kept.
+    overrides the number of workspace poses; ``scoring`` the image-true score and atlas, default
+    :class:`~ftrac_design.workflows.analyze.ImageScoring`'s) into a temporary directory that is not
+    kept.
     """
     import tempfile
 
@@ -47,9 +41,7 @@ def report_for_build(
                 Path(tmp) / "analysis",
                 poses,
                 atlas_step_deg,
-                score_images,
-                workers,
-                image_atlas_step_deg,
+                scoring if scoring is not None else ImageScoring(),
             )
             r = collect(build_dir, design, Path(tmp) / "analysis", build_kept)
             return write_report(r, output)
@@ -81,9 +73,7 @@ def _analyse(
     out_dir: Path,
     poses: int | None,
     atlas_step_deg: float,
-    score_images: int,
-    workers: int | None,
-    image_atlas_step_deg: float,
+    scoring: ImageScoring,
 ) -> None:
     """Run the analysis of a build at its design's settings, with plots and the image-true score."""
     from ..analysis.subject import Subject, settings_for
@@ -96,16 +86,12 @@ def _analyse(
         design = parse_design(read_manifest(build_dir)["design"].get("parameters"), build_dir / "manifest.json")
     subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json", design)
     settings, thresholds = settings_for(subject, poses=poses)
-    if not score_images and not image_atlas_step_deg:
+    if not scoring.any:
         run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
         return
-    from ..imagescore import TrialSettings
-    from ..imagescore.atlas import AtlasSettings
     from ..optimize.execution import open_executor
 
-    trial = TrialSettings(images=score_images) if score_images else None
-    atlas = AtlasSettings(step_deg=image_atlas_step_deg) if image_atlas_step_deg else None
-    with open_executor(None, workers) as (executor, _):
+    with open_executor(None, scoring.workers) as (executor, _):
         run_analysis(
             subject,
             settings,
@@ -113,7 +99,7 @@ def _analyse(
             out_dir,
             atlas_step_deg,
             True,
-            trial=trial,
+            trial=scoring.trial,
             executor=executor,
-            image_atlas_settings=atlas,
+            image_atlas_settings=scoring.atlas,
         )
