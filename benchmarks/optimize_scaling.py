@@ -18,7 +18,9 @@ negative values mean noise or turbo). Every executor must return the same result
 baseline (checked: design hashes and figures identical).
 
 Run: ``.venv/bin/python benchmarks/optimize_scaling.py [--evaluations 96] [--poses 2000]
-[--rounds 3] [--workers 1 2] [--scheduler tcp://HOST:8786]``. On a 16-core machine:
+[--rounds 3] [--workers 1 2] [--scheduler tcp://HOST:8786] [--score-images N]``; with
+``--score-images`` the feasible candidates are scored on the image-true score (rendered and tracked
+images, :mod:`ftrac_design.imagescore`) instead. On a 16-core machine:
 ``--workers 1 2 4 8 16``; against a cluster, start ``dask scheduler`` and ``dask worker
 tcp://HOST:8786 --nthreads 1 --nworkers 16`` (in the same environment) and pass
 ``--scheduler tcp://HOST:8786``.
@@ -102,16 +104,30 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--scheduler", default=None, help="a Dask scheduler address to measure too")
+    ap.add_argument(
+        "--score-images",
+        type=int,
+        default=0,
+        help="score feasible candidates on this many rendered, tracked images per condition (the image-true "
+        "score, as `optimize --score-images`) instead of the feature-level model",
+    )
     args = ap.parse_args()
     print(f"machine: {machine()}")
     cands = candidates(args.evaluations)
-    settings = EvalSettings(("cnc",), AnalysisSettings(poses=args.poses))
+    trial = None
+    if args.score_images:
+        from ftrac_design.imagescore import TrialSettings
+
+        trial = TrialSettings(images=args.score_images)
+    settings = EvalSettings(("cnc",), AnalysisSettings(poses=args.poses), image_trial=trial)
     base = measure("in-process (baseline)", SerialExecutor(), 1, cands, settings, args.rounds, None, None)
     ref = key(run_batch(SerialExecutor(), cands, settings)[1])
     c0 = base["wall_s"] / len(cands)
     feas = sum(k[1] for k in ref)
     print(
-        f"{len(cands)} candidates, {feas} feasible (scored at {args.poses} poses); own cost c0 = "
+        f"{len(cands)} candidates, {feas} feasible (scored "
+        + (f"on {args.score_images} rendered images per condition" if trial else f"at {args.poses} poses")
+        + f"); own cost c0 = "
         f"{1e3 * c0:.1f} ms per evaluation (in-process, best of {args.rounds} rounds)"
     )
     rows = [dict(base, speedup=1.0, overhead_ms=0.0)]
