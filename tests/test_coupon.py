@@ -155,7 +155,10 @@ def test_coupon_command_builds_a_valid_part(tmp_path):
         "coupon.png",
         "coupon.step",
         "coupon.stl",
+        "drawing_coupon.pdf",
+        "drawing_coupon.svg",
     ]
+    _drawing_states_the_plan(out, load_design("ftrac_mini"))
     mesh = trimesh.load(out / "coupon.stl")
     assert mesh.is_volume
     c = plan_coupon(load_design("ftrac_mini"), "cnc")
@@ -164,3 +167,64 @@ def test_coupon_command_builds_a_valid_part(tmp_path):
     removed = blank - mesh.volume
     engraved_max = len(c.steps) * 5 * c.label_height**2 * 0.1  # five characters of the label's height, 0.1 deep
     assert v.reference_mm3 * 0.99 < removed < v.reference_mm3 * 1.01 + engraved_max
+
+
+def _svg_dims(path) -> dict[str, str]:
+    """{dimension key: printed text} of a drawing (texts under ``dim.coupon.<key>`` groups)."""
+    import xml.etree.ElementTree as ET
+
+    ns = "{http://www.w3.org/2000/svg}"
+    found: dict[str, str] = {}
+
+    def walk(el, gid):
+        own = el.get("id", gid) if el.tag == f"{ns}g" else gid
+        if el.tag == f"{ns}text" and own:
+            found[own] = "".join(el.itertext())
+        for child in el:
+            walk(child, own)
+
+    walk(ET.parse(path).getroot(), None)
+    return {k[len("dim.coupon.") :]: v for k, v in found.items() if k.startswith("dim.coupon.")} | {
+        k: v for k, v in found.items() if k.startswith("tb.")
+    }
+
+
+def _value(text: str) -> float:
+    import re
+
+    m = re.match(r"^[ØR]?(-?\d+\.\d+)", text)
+    assert m, text
+    return float(m.group(1))
+
+
+def _drawing_states_the_plan(out, design):
+    """Every step's A, z, size, depth, part Ø and fit printed as the plan has them (to the printed
+    0.001 mm / 0.01°), the profile's fit-critical tolerance on every size, the design file's sha256."""
+    import hashlib
+
+    from ftrac_design.cad.profiles import drawing_tolerances
+    from ftrac_design.design.presets import preset_path
+
+    c = plan_coupon(design, "cnc")
+    printed = _svg_dims(out / "drawing_coupon.svg")
+    crit = drawing_tolerances("cnc").critical
+    cuts = {k.id: k for k in (*c.plan.slots, *c.plan.pockets)}
+    R = c.stock.outer_radius
+    assert abs(_value(printed["coupon.outer_diameter"]) - 2 * R) <= 5e-4
+    assert abs(_value(printed["coupon.length"]) - 2 * c.stock.half_length) <= 5e-4
+    for st in c.steps:
+        cut = cuts[st.id]
+        z = (cut.z0 + cut.z1) / 2 if st.kind == "groove" else cut.z
+        expect = {
+            "A": math.degrees(st.azimuth) % 360,
+            "z": z,
+            "size": st.size,
+            "depth": R - cut.floor_radius,
+            "part": st.part_diameter,
+            "fit": st.part_diameter - st.size,
+        }
+        for key, value in expect.items():
+            tol = 5e-3 if key == "A" else 5e-4
+            assert abs(_value(printed[f"{st.id}.{key}"]) - value) <= tol + 1e-9, (st.id, key, printed[f"{st.id}.{key}"])
+        assert f"±{crit:.3f}" in printed[f"{st.id}.size"] and printed[f"{st.id}.size"].endswith("◆")
+    assert printed["tb.sha256"] == hashlib.sha256(preset_path("ftrac_mini").read_bytes()).hexdigest()

@@ -84,7 +84,8 @@ def command(
     stepped around the profile's values, each engraved with its size.
 
     Writes coupon.step, coupon.stl, coupon.png, coupon.csv (the steps, with their A position
-    and fit: fill in which holds), and under cnc coupon.ngc with its verification.
+    and fit: fill in which holds), drawing_coupon.svg/.pdf (the dimensioned drawing), and under
+    cnc coupon.ngc with its verification.
     """
     from ..design import load_design
     from ..errors import GoalError, InputError
@@ -101,7 +102,7 @@ def command(
     except ValueError as exc:
         raise GoalError(f"{d.name}: {exc}") from exc
     out = output or Path("outputs") / f"{d.name}_coupon"
-    return _write(c, out, post, d.manufacturing.cnc)
+    return _write(d, c, out, post, d.manufacturing.cnc)
 
 
 def _feed_back(d, profile: str, fit: tuple[float, float], path: Path) -> int:
@@ -120,7 +121,7 @@ def _feed_back(d, profile: str, fit: tuple[float, float], path: Path) -> int:
     return 0
 
 
-def _write(c, out: Path, post: str, cnc) -> int:
+def _write(d, c, out: Path, post: str, cnc) -> int:
     from ..cad.coupon import build_coupon, coupon_csv
     from ..cad.export import export_step, export_stl
     from ..errors import GoalError
@@ -142,6 +143,9 @@ def _write(c, out: Path, post: str, cnc) -> int:
         from ..cad.render import render_png
 
         render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
+        from ..cad.coupon_drawing import write_coupon_drawing
+
+        write_coupon_drawing(d, c, solid, tmp)
         if c.profile == "cnc":
             pockets = [p.diameter for p in c.plan.pockets]
             tools = tooling(cnc, min(pockets) if pockets else None)
