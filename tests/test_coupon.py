@@ -228,3 +228,23 @@ def _drawing_states_the_plan(out, design):
             assert abs(_value(printed[f"{st.id}.{key}"]) - value) <= tol + 1e-9, (st.id, key, printed[f"{st.id}.{key}"])
         assert f"±{crit:.3f}" in printed[f"{st.id}.size"] and printed[f"{st.id}.size"].endswith("◆")
     assert printed["tb.sha256"] == hashlib.sha256(preset_path("ftrac_mini").read_bytes()).hexdigest()
+
+
+@pytest.mark.xdist_group("cad")
+def test_fdm_coupon_is_a_3mf_with_its_print_settings(tmp_path):
+    """Printed, the coupon comes as a 3MF (read back by trimesh: the STL's triangles and volume) with
+    the slicer settings the fdm profile assumes."""
+    import json
+
+    import trimesh
+
+    out = tmp_path / "c"
+    assert main(["coupon", "ftrac_mini", "--profile", "fdm", "-o", str(out)]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "coupon.3mf" in names and "print_settings.json" in names and "coupon.ngc" not in names
+    stl = trimesh.load(out / "coupon.stl")
+    scene = trimesh.load(out / "coupon.3mf")
+    (mesh,) = scene.geometry.values() if isinstance(scene, trimesh.Scene) else (scene,)
+    assert len(mesh.faces) == len(stl.faces) and abs(mesh.volume - stl.volume) <= 1e-6 * stl.volume
+    settings = json.loads((out / "print_settings.json").read_text())
+    assert settings["profile"] == "fdm" and settings["design"] == "ftrac_mini"

@@ -84,8 +84,8 @@ def command(
     stepped around the profile's values, each engraved with its size.
 
     Writes coupon.step, coupon.stl, coupon.png, coupon.csv (the steps, with their A position
-    and fit: fill in which holds), drawing_coupon.svg/.pdf (the dimensioned drawing), and under
-    cnc coupon.ngc with its verification.
+    and fit: fill in which holds), drawing_coupon.svg/.pdf (the dimensioned drawing), under cnc
+    coupon.ngc with its verification, under fdm coupon.3mf and print_settings.json.
     """
     from ..design import load_design
     from ..errors import GoalError, InputError
@@ -146,6 +146,13 @@ def _write(d, c, out: Path, post: str, cnc) -> int:
         from ..cad.coupon_drawing import write_coupon_drawing
 
         write_coupon_drawing(d, c, solid, tmp)
+        if c.profile == "fdm":  # printed: the part as a 3MF with the slicer settings the profile assumes
+            from ..cad.export import BODY_COLOR
+            from ..cad.fdm import print_settings_document, read_stl_part, write_3mf
+
+            part = read_stl_part(tmp / "coupon.stl", "coupon", BODY_COLOR)
+            write_3mf(tmp / "coupon.3mf", [part], f"{c.design}_coupon", f"{c.design} press-fit coupon (fdm profile)")
+            write_json_atomic(tmp / "print_settings.json", print_settings_document(d))
         if c.profile == "cnc":
             pockets = [p.diameter for p in c.plan.pockets]
             tools = tooling(cnc, min(pockets) if pockets else None)
