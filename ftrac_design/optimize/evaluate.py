@@ -192,6 +192,18 @@ def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | No
     return out
 
 
+def candidate_figures(design, features, settings: EvalSettings) -> dict[str, float] | None:
+    """The figures a candidate is judged by: the image-true score's (:func:`image_figures`) when
+    ``settings.image_trial`` is set, else the paper's model with the candidate's own parts' error
+    factors (:func:`score_figures`; stock sizes other than the start's carry theirs). None when the
+    candidate cannot be scored (too few right images; singular somewhere in the workspace)."""
+    if settings.image_trial is not None:
+        from ..xray import Body
+
+        return image_figures(features, Body.from_design(design), settings.image_trial)
+    return score_figures(features, settings.analysis.for_parts(design.analysis))
+
+
 def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
     """Rules, then (if they all pass) the score of the candidate design ``data``.
 
@@ -251,13 +263,7 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
         if p5 < lim:
             out["violation"] += -m + 1e-6
     if out["violation"] == 0.0:
-        if settings.image_trial is not None:
-            from ..xray import Body
-
-            figures = image_figures(features, Body.from_design(design), settings.image_trial)
-        else:
-            # the candidate's own parts: stock sizes other than the start's carry their error factors
-            figures = score_figures(features, settings.analysis.for_parts(design.analysis))
+        figures = candidate_figures(design, features, settings)
         if figures is None:
             reason = (
                 "tracked right in fewer than 20 of its images"

@@ -363,16 +363,10 @@ def run_search(
         if start["figures"] is None:
             from ..design.loader import parse_design
             from ..features import compute_features
-            from .evaluate import score_figures
+            from .evaluate import candidate_figures
 
             d = parse_design(space.base)
-            if settings.image_trial is not None:
-                from ..xray import Body
-                from .evaluate import image_figures
-
-                fig = image_figures(compute_features(d), Body.from_design(d), settings.image_trial)
-            else:
-                fig = score_figures(compute_features(d), settings.analysis.for_parts(d.analysis))
+            fig = candidate_figures(d, compute_features(d), settings)
             if fig is None:
                 raise InputError(
                     space.base.get("name"),

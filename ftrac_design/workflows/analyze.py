@@ -212,14 +212,13 @@ def run_analysis(
     _check_output_dir(out_dir)
     t0 = time.perf_counter()
     records = None
+    body = subject_body(subject) if trial is not None or image_atlas_settings is not None else None
     if trial is not None:
         trial = replace(trial, workspace=settings.workspace, camera=settings.camera)
-        body = subject_body(subject)
         records = run_trial(subject.features, body, trial, executor, progress)
         trial_seconds = time.perf_counter() - t0
     img_atlas = None
     if image_atlas_settings is not None:
-        body = subject_body(subject)
         image_atlas_settings = replace(
             image_atlas_settings, depth_mm=settings.workspace.depth_mm, camera=settings.camera
         )
