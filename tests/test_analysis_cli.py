@@ -80,7 +80,11 @@ def test_design_file_thresholds_and_command_line_override(tmp_path):
 BAD = [
     ("missing file", ["analyze", "{tmp}/nope.toml"], "nope.toml"),
     ("wrong kind of file", ["analyze", "{tmp}/x.txt"], "a design file (.toml), a features file (.json) or a preset"),
-    ("unknown preset", ["analyze", "ftrac_2006"], "or a preset (ftrac_2005, ftrac_mini, ftrac_mini_opt,"),
+    (
+        "unknown preset",
+        ["analyze", "ftrac_2006"],
+        "or a preset (ftrac_2005, ftrac_mini, ftrac_mini_imgopt, ftrac_mini_opt,",
+    ),
     ("unknown preset file", ["analyze", "ftrac_2006.toml"], "file not found (nor a preset: ftrac_2005, ftrac_mini,"),
     ("bad features", ["analyze", "{tmp}/bad.json"], "bad.json"),
     ("bad analysis key", ["analyze", "{tmp}/bad.toml"], "analysis.cone_deg"),

@@ -111,7 +111,7 @@ def test_to_toml_round_trips_every_preset():
         assert round_values({"a": [0.123456, -0.0], "b": 2}) == {"a": [0.1235, 0.0], "b": 2}
 
 
-ALL_PRESETS = ("ftrac_2005", "ftrac_mini", "ftrac_mini_opt", "ftrac_mini_stock", "nine_bead")
+ALL_PRESETS = ("ftrac_2005", "ftrac_mini", "ftrac_mini_imgopt", "ftrac_mini_opt", "ftrac_mini_stock", "nine_bead")
 
 
 def test_a_preset_name_resolves_to_its_shipped_file(tmp_path, monkeypatch):
@@ -153,7 +153,7 @@ def test_presets_command_lists_every_preset_and_space(capsys):
         line = next(x for x in lines if x.split()[:1] == [name])
         assert load_design(name).description[:40] in line
     spaces = sorted(p.stem for p in SPACES_DIR.glob("*.toml"))
-    assert len(spaces) == 4 and all(any(x.split()[:1] == [s] and len(x.split()) > 3 for x in lines) for s in spaces)
+    assert len(spaces) == 6 and all(any(x.split()[:1] == [s] and len(x.split()) > 3 for x in lines) for s in spaces)
     assert main(["presets", "--paths"]) == 0
     assert str(MODELS / "nine_bead.toml") in capsys.readouterr().out
 

@@ -10,8 +10,11 @@ from ftrac_design.design import load_design
 from ftrac_design.design.presets import resolve_design
 from ftrac_design.features import compute_features
 from ftrac_design.imagescore import (
+    WRONG_SIGMA,
     TrialSettings,
     condition_figures,
+    error_sigma,
+    outcome,
     paired_ratios,
     run_images,
     run_trial,
@@ -63,6 +66,47 @@ def test_paired_ratio_of_a_scaled_trial_is_the_scale_exactly():
     assert p["translation_p95_ratio_95ci"] == pytest.approx([1.3] * 2)
     assert p["rotation_p95_ratio"] == pytest.approx(0.5)
     assert paired_ratios(a, b, "anatomy") is None
+
+
+def test_pooled_paired_ratio_matches_images_by_condition_and_index():
+    rng = np.random.default_rng(5)
+    t, r = rng.gamma(2.0, 0.1, 40), rng.gamma(2.0, 0.02, 40)
+    a = _records(t[:20], r[:20], ["right"] * 20) + _records(t[20:], r[20:], ["right"] * 20, "anatomy")
+    # the same indices k in both conditions: pooling by index alone would pair the wrong images
+    b = _records(2 * t[:20], r[:20], ["right"] * 20) + _records(2 * t[20:], r[20:], ["right"] * 20, "anatomy")
+    p = paired_ratios(a, b, None)
+    assert p["images"] == 40
+    assert p["translation_p95_ratio"] == pytest.approx(2.0)
+    assert p["rotation_p95_ratio"] == pytest.approx(1.0)
+    assert p["translation_p95_ratio_95ci"] == pytest.approx([2.0, 2.0])
+    # an image refused by one design drops out of the pairs
+    b[0]["outcome"] = "refused"
+    assert paired_ratios(a, b, None)["images"] == 39
+
+
+def test_error_sigma_is_the_mahalanobis_distance():
+    s = np.array([1e-3, 2e-3, 3e-3, 0.5, 1.0, 2.0])
+    e = np.array([2e-3, -2e-3, 3e-3, 1.0, 0.0, -4.0])
+    assert error_sigma(e, np.diag(s**2)) == pytest.approx(np.sqrt(np.sum((e / s) ** 2)))
+    q, _ = np.linalg.qr(np.random.default_rng(1).normal(size=(6, 6)))
+    cov = q @ np.diag(s**2) @ q.T  # a rotated covariance: the distance of the rotated error is the same
+    assert error_sigma(q @ e, cov) == pytest.approx(np.sqrt(np.sum((e / s) ** 2)), rel=1e-9)
+    assert error_sigma(e, None) is None
+    assert error_sigma(e, np.full((6, 6), np.nan)) is None
+    assert error_sigma(e, np.zeros((6, 6))) is None
+
+
+def test_a_pose_is_wrong_only_when_far_and_inconsistent_with_its_own_covariance():
+    # inside the absolute thresholds: right, however small its covariance
+    assert outcome(0.5, 2.0, 100.0) == "right"
+    # beyond them but as far as its covariance says it may be: the tail of an honest error
+    assert outcome(0.4, 4.5, 3.0) == "right"
+    assert outcome(1.2, 1.0, WRONG_SIGMA - 1e-9) == "right"
+    # beyond both: a confident wrong pose
+    assert outcome(0.4, 4.5, WRONG_SIGMA + 1e-9) == "wrong"
+    assert outcome(130.0, 1.0, 5e3) == "wrong"
+    # no covariance to judge by: the thresholds alone
+    assert outcome(0.4, 3.1, None) == "wrong" and outcome(0.4, 2.9, None) == "right"
 
 
 def test_trial_is_reproducible_and_independent_of_the_executor(ftrac_2005):

@@ -306,7 +306,11 @@ def test_optimize_takes_a_preset_and_a_shipped_space_by_name(tmp_path, capsys):
     rc = main(["optimize", "ftrac_mini", "--space", "ftrac_mini_wide", "-o", str(tmp_path / "out"), "--no-build"])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "Traceback" not in err[0]
-    assert "ftrac_mini_wide" in err[0] and "nor a shipped space: ftrac_2005_ellipses, ftrac_mini_layout," in err[0]
+    assert (
+        "ftrac_mini_wide" in err[0]
+        and "nor a shipped space: ftrac_2005_ellipses, ftrac_2005_images, ftrac_mini_images, ftrac_mini_layout,"
+        in err[0]
+    )
     assert not (tmp_path / "out").exists()
 
 
@@ -377,6 +381,8 @@ def test_optimize_command_writes_a_best_design_that_passes_check_and_builds(tmp_
         ("ftrac_mini_layout.toml", "ftrac_mini.toml"),
         ("ftrac_mini_size.toml", "ftrac_mini.toml"),
         ("ftrac_2005_ellipses.toml", "ftrac_2005.toml"),
+        ("ftrac_mini_images.toml", "ftrac_mini.toml"),
+        ("ftrac_2005_images.toml", "ftrac_2005.toml"),
     ],
 )
 def test_committed_spaces_parse_and_hold_their_start_design(space_file, design_file):
@@ -466,3 +472,60 @@ def test_demo_step_runs_a_search_and_its_image_check(tmp_path):
     doc = json.loads((tmp_path / "optimize" / "summary.json").read_text())
     assert doc["run"]["evaluations"] == 12 and doc["best"]["verification"]["images"]["images"] == 6
     assert "rendered: 6 radiographs" in text and "(right " in text
+
+
+@pytest.mark.slow
+def test_search_on_the_image_true_score_is_rechecked_on_a_fresh_image_true_trial(tmp_path):
+    """Candidates scored on rendered, tracked images (clean and over a patient); the winner and
+    the start re-run on a trial the search never saw, both conditions, with paired ratios."""
+    from ftrac_design.imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
+    from ftrac_design.workflows.optimize import optimize
+    from ftrac_design.xray import Body
+
+    space = tmp_path / "space.toml"
+    space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [29.0, 31.0]\n[search]\npopsize = 2\n')
+    design = preset_path("ftrac_2005")
+    doc = optimize(
+        design,
+        tmp_path / "opt",
+        space,
+        objective="max",
+        evaluations=2,
+        seed=4,
+        workers=0,
+        verify_poses=100,
+        solver_images=0,
+        build=False,
+        progress=False,
+        check_images=12,
+        score_images=24,
+    )
+    assert doc["settings"]["image_trial"] == {"images": 24, "seed": 4, "conditions": ["clean", "anatomy"]}
+    for e in [doc["start"]] + [
+        json.loads(x) for x in (tmp_path / "opt" / "evaluations.jsonl").read_text().splitlines()[2:]
+    ]:
+        if e.get("figures"):
+            f = e["figures"]
+            assert {"refused_pct", "wrong_pct", "clean_translation_p95_mm", "anatomy_rotation_p95_deg"} <= set(f)
+            # the objective's figure: the geometric mean of the conditions' p95s
+            assert f["translation_p95_mm"] == pytest.approx(
+                np.sqrt(f["clean_translation_p95_mm"] * f["anatomy_translation_p95_mm"])
+            )
+    check = doc["best"]["image_true_check"]
+    assert "images" not in doc["best"]["verification"]  # no second, clean-only check beside it
+    assert set(check["paired"]) == {"clean", "anatomy", "pooled"}
+    assert check["start"]["clean"]["images"] == check["best"]["anatomy"]["images"] == 12
+    # the fresh trial is the documented one, reproducible from the summary alone
+    fresh_seed = 1_000_003 + 2 * 4 + 5
+    d = load_design(design)
+    records = run_trial(compute_features(d), Body.from_design(d), TrialSettings(images=12, seed=fresh_seed))
+    assert trial_figures(records, fresh_seed) == check["start"]
+    best = tomllib.loads((tmp_path / "opt" / "best.toml").read_text())
+    if best["ellipses"][0]["tilt_deg"] == pytest.approx(30.0, abs=1e-9):  # the start won: ratios are 1
+        assert check["paired"]["pooled"]["translation_p95_ratio"] == pytest.approx(1.0)
+    pooled = check["paired"]["pooled"]
+    per_condition = [p["images"] for p in (check["paired"]["clean"], check["paired"]["anatomy"]) if p]
+    right = sum(check[d][c]["right"] for d in ("start",) for c in ("clean", "anatomy"))
+    assert pooled is None or max(per_condition, default=0) <= pooled["images"] <= right
+    assert paired_ratios(records, records, None)["translation_p95_ratio"] == pytest.approx(1.0)
+    assert "image-true check" in (tmp_path / "opt" / "comparison.txt").read_text()

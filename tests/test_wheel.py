@@ -102,7 +102,7 @@ def test_the_wheel_ships_the_presets_and_runs_the_demo_from_anywhere(tmp_path):
     names = set(zipfile.ZipFile(wheel).namelist())
     presets = sorted(PRESETS_DIR.glob("*.toml"))
     spaces = sorted(SPACES_DIR.glob("*.toml"))
-    assert len(presets) == 5 and len(spaces) == 4
+    assert len(presets) == 6 and len(spaces) == 6
     missing = [p.name for p in presets if f"ftrac_design/presets/{p.name}" not in names]
     missing += [f"spaces/{p.name}" for p in spaces if f"ftrac_design/presets/spaces/{p.name}" not in names]
     assert not missing, f"the wheel lacks {missing}"

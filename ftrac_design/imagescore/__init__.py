@@ -12,7 +12,18 @@ of the right poses' errors with their intervals.
 """
 
 from .figures import condition_figures, paired_ratios, trial_figures
-from .trial import CONDITIONS, WRONG_DEG, WRONG_MM, Condition, TrialSettings, run_images, run_trial
+from .trial import (
+    CONDITIONS,
+    WRONG_DEG,
+    WRONG_MM,
+    WRONG_SIGMA,
+    Condition,
+    TrialSettings,
+    error_sigma,
+    outcome,
+    run_images,
+    run_trial,
+)
 
 __all__ = [
     "CONDITIONS",
@@ -20,6 +31,9 @@ __all__ = [
     "TrialSettings",
     "WRONG_DEG",
     "WRONG_MM",
+    "WRONG_SIGMA",
+    "error_sigma",
+    "outcome",
     "condition_figures",
     "paired_ratios",
     "run_images",

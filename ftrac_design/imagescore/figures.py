@@ -66,18 +66,18 @@ def trial_figures(records: Sequence[dict[str, Any]], seed: int = 0) -> dict[str,
 
 
 def paired_ratios(
-    reference: Sequence[dict[str, Any]], other: Sequence[dict[str, Any]], condition: str, seed: int = 0
+    reference: Sequence[dict[str, Any]], other: Sequence[dict[str, Any]], condition: str | None, seed: int = 0
 ) -> dict[str, Any] | None:
     """p95 of ``other`` over p95 of ``reference`` (translation and rotation) over the images of
-    ``condition`` both got right, with a paired bootstrap 95 % interval; None when fewer than
-    :data:`MIN_RIGHT` images are shared.
+    ``condition`` (None: of every condition, pooled) both got right, with a paired bootstrap 95 %
+    interval; None when fewer than :data:`MIN_RIGHT` images are shared.
 
     Parameters
     ----------
     reference, other : sequence of dict
         Two trials' records at the same settings (the same poses and draws).
-    condition : str
-        Which condition's images.
+    condition : str or None
+        Which condition's images; None pools every condition's.
     seed : int
         Seed of the bootstrap.
 
@@ -86,8 +86,15 @@ def paired_ratios(
     dict or None
         ``images``, ``translation_p95_ratio``, ``translation_p95_ratio_95ci``, ``rotation_…``.
     """
-    a = {r["k"]: r for r in reference if r["condition"] == condition and r["outcome"] == "right"}
-    b = {r["k"]: r for r in other if r["condition"] == condition and r["outcome"] == "right"}
+
+    def right(records: Sequence[dict[str, Any]]) -> dict[tuple[str, int], dict[str, Any]]:
+        return {
+            (r["condition"], r["k"]): r
+            for r in records
+            if r["outcome"] == "right" and condition in (None, r["condition"])
+        }
+
+    a, b = right(reference), right(other)
     common = sorted(set(a) & set(b))
     if len(common) < MIN_RIGHT:
         return None

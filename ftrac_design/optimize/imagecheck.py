@@ -84,3 +84,51 @@ def paired_p95_ratio(start: dict, best: dict, boot: int = 2000, seed: int = 0) -
         out[f"{name}_p95_ratio"] = float(np.percentile(y, 95) / np.percentile(x, 95))
         out[f"{name}_p95_ratio_95ci"] = [float(v) for v in np.percentile(bs, [2.5, 97.5])]
     return out
+
+
+def image_true_check(start_data: dict, best_data: dict, trial, executor=None, progress: bool = False) -> dict:
+    """The winner of an image-scored search against its start on a fresh image-true trial: both
+    designs rendered at the same ``trial`` (an :class:`~ftrac_design.imagescore.TrialSettings`
+    whose seed the search never used; clean and over a patient, common random numbers) and
+    tracked with the default options.
+
+    Parameters
+    ----------
+    start_data, best_data : dict
+        The two designs' TOML data.
+    trial : ftrac_design.imagescore.TrialSettings
+        The fresh sample.
+    executor : concurrent.futures.Executor or None
+        Where the images are made and tracked (None: here).
+    progress : bool
+        Show a progress bar.
+
+    Returns
+    -------
+    dict
+        ``settings`` (the trial's imaging model), ``start`` and ``best`` (per-condition figures,
+        :func:`ftrac_design.imagescore.trial_figures`), ``paired`` (best over start per condition
+        and ``pooled`` over every condition, :func:`ftrac_design.imagescore.paired_ratios`; None
+        where fewer than 20 images were right for both).
+    """
+    from tqdm import tqdm
+
+    from ..design.loader import parse_design
+    from ..features import compute_features
+    from ..imagescore import paired_ratios, run_trial, trial_figures
+    from ..xray import Body
+
+    records = {}
+    total = 2 * trial.images * len(trial.conditions)
+    with tqdm(total=total, desc="image-true check", unit="image", leave=False, disable=not progress) as bar:
+        for name, data in (("start", start_data), ("best", best_data)):
+            design = parse_design(data)
+            records[name] = run_trial(compute_features(design), Body.from_design(design), trial, executor, bar.update)
+    paired = {c: paired_ratios(records["start"], records["best"], c, trial.seed) for c in trial.conditions}
+    paired["pooled"] = paired_ratios(records["start"], records["best"], None, trial.seed)
+    return {
+        "settings": trial.describe(),
+        "start": trial_figures(records["start"], trial.seed),
+        "best": trial_figures(records["best"], trial.seed),
+        "paired": paired,
+    }

@@ -40,6 +40,53 @@ def image_rows(start: dict, best: dict) -> str:
     return head + "\n" + _aligned(rows) + "\n"
 
 
+def image_true_rows(check: dict) -> str:
+    """Start vs best on the fresh image-true trial (:func:`.imagecheck.image_true_check`) as a
+    table per condition and the paired p95 ratios."""
+
+    def g(v, fmt="{:.3f}"):
+        return "-" if v is None else fmt.format(v)
+
+    rows = [("condition", "design", "images", "refused %", "wrong %", "t median mm", "t p95", "r median °", "r p95")]
+    for cond in check["start"]:
+        for name in ("start", "best"):
+            d = check[name][cond]
+            rows.append(
+                (
+                    cond,
+                    name,
+                    str(d["images"]),
+                    g(d["refused_pct"], "{:.1f}"),
+                    g(d["wrong_pct"], "{:.1f}"),
+                    g(d["translation_median_mm"]),
+                    g(d["translation_p95_mm"]),
+                    g(d["rotation_median_deg"]),
+                    g(d["rotation_p95_deg"]),
+                )
+            )
+    ratios = [("paired p95 best / start", "images", "translation [95 % CI]", "rotation [95 % CI]")]
+    for cond, p in check["paired"].items():
+        if p is None:
+            ratios.append((cond, "-", "-", "-"))
+            continue
+        ci_t, ci_r = p["translation_p95_ratio_95ci"], p["rotation_p95_ratio_95ci"]
+        ratios.append(
+            (
+                cond,
+                str(p["images"]),
+                f"{p['translation_p95_ratio']:.3f} [{ci_t[0]:.3f}, {ci_t[1]:.3f}]",
+                f"{p['rotation_p95_ratio']:.3f} [{ci_r[0]:.3f}, {ci_r[1]:.3f}]",
+            )
+        )
+    w = check["settings"]["wrong_if_beyond"]
+    head = (
+        f"image-true check: fresh rendered radiographs, the same poses, noise and patients for both, "
+        f"tracked with the default options; errors of the right poses, wrong = > {w['rotation_deg']:g}° or "
+        f"> {w['translation_mm']:g} mm off and > {w['sigma']:g}σ by its own covariance"
+    )
+    return head + "\n" + _aligned(rows) + "\n\n" + _aligned(ratios) + "\n"
+
+
 def _aligned(rows: list[tuple[str, ...]]) -> str:
     """Rows as text columns: the first left-aligned, the rest right-aligned."""
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
@@ -226,5 +273,19 @@ def format_summary(doc: dict) -> str:
                 f"{pr['translation_p95_ratio']:.2f} (95 % bootstrap {pr['translation_p95_ratio_95ci'][0]:.2f}–"
                 f"{pr['translation_p95_ratio_95ci'][1]:.2f}), rotation {pr['rotation_p95_ratio']:.2f} "
                 f"({pr['rotation_p95_ratio_95ci'][0]:.2f}–{pr['rotation_p95_ratio_95ci'][1]:.2f})"
+            )
+    check = doc["best"].get("image_true_check")
+    if check:
+        for cond, p in check["paired"].items():
+            if p is None:
+                continue
+            d0 = check["start"].get(cond, {})
+            d1 = check["best"].get(cond, {})
+            wrong = f"; wrong {d0['wrong_pct']:.1f} -> {d1['wrong_pct']:.1f} %" if d0 and d1 else ""
+            out.append(
+                f"image-true check, {cond}: p95 ratio best / start over {p['images']} images both got right: "
+                f"translation {p['translation_p95_ratio']:.2f} ({p['translation_p95_ratio_95ci'][0]:.2f}–"
+                f"{p['translation_p95_ratio_95ci'][1]:.2f}), rotation {p['rotation_p95_ratio']:.2f} "
+                f"({p['rotation_p95_ratio_95ci'][0]:.2f}–{p['rotation_p95_ratio_95ci'][1]:.2f}){wrong}"
             )
     return "\n".join(out)

@@ -380,7 +380,9 @@ def _image_score(block: dict | None, png: bytes | None) -> str:
         f"<p><b>Image-true score.</b> {_num(m['images_per_condition'])} workspace poses per condition (seed "
         f"{_num(m['seed'])}) rendered and tracked with the defaults; a pose more than "
         f"{_num(m['wrong_if_beyond']['rotation_deg'])}° or {_num(m['wrong_if_beyond']['translation_mm'])} mm off "
-        f"is wrong. Clean: {_num(m['clean']['photons_per_px'])} quanta/px, {_num(m['clean']['energy_kev'])} keV, "
+        f"and more than {_num(m['wrong_if_beyond'].get('sigma'))} standard deviations from the truth by its own "
+        f"covariance is a confident wrong pose. Clean: {_num(m['clean']['photons_per_px'])} quanta/px, "
+        f"{_num(m['clean']['energy_kev'])} keV, "
         f"focal spot {_num(m['clean']['focal_spot_mm'])} mm; anatomy: {_e(m['anatomy']['patient'])}, "
         f"raw counts. p95 over the right poses, 95 % bootstrap interval in brackets.</p>"
     )

@@ -353,8 +353,9 @@ def format_image_score(name: str, block: dict) -> str:
     m = block["model"]
     out = [
         f"{name}: image-true score — {m['images_per_condition']} rendered images per condition, seed {m['seed']}, "
-        f"tracked with the defaults (right within {m['wrong_if_beyond']['rotation_deg']:g}° and "
-        f"{m['wrong_if_beyond']['translation_mm']:g} mm)"
+        f"tracked with the defaults (wrong: beyond {m['wrong_if_beyond']['rotation_deg']:g}° or "
+        f"{m['wrong_if_beyond']['translation_mm']:g} mm and {m['wrong_if_beyond'].get('sigma', 0):g}σ "
+        "by its own covariance)"
     ]
     for cond, f in block["figures"].items():
         out.append(

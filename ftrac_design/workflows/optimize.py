@@ -9,6 +9,7 @@ is removed.
 
 from __future__ import annotations
 
+import contextlib
 import shutil
 from concurrent.futures import Executor
 from pathlib import Path
@@ -90,30 +91,30 @@ def optimize(
         f"ftrac-design optimize {design_path} --objective {objective} --evaluations {evaluations} --seed {seed}"
     )
     try:
-        if executor is not None:
-            res = run_search(
-                space, settings, config, executor, log, resume, progress, type(executor).__name__, stop_after=stop_after
-            )
-        else:
-            with open_executor(scheduler, workers) as (ex, name):
-                res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
+        with contextlib.ExitStack() as stack:
+            if executor is not None:
+                ex, name = executor, type(executor).__name__
+            else:
+                ex, name = stack.enter_context(open_executor(scheduler, workers))
+            res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
+            with atomic_directory(out_dir) as tmp:
+                doc = write_outputs(
+                    res,
+                    tmp,
+                    log,
+                    command_line,
+                    verify_poses or space.search.get("verify_poses", VERIFY_POSES),
+                    SOLVER_IMAGES if solver_images is None else solver_images,
+                    build,
+                    profiles[0],
+                    space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
+                    progress,
+                    ex,
+                )
     except BaseException:
         if not log.exists() or not log.stat().st_size:  # nothing to resume: leave nothing behind
             shutil.rmtree(work, ignore_errors=True)
         raise
-    with atomic_directory(out_dir) as tmp:
-        doc = write_outputs(
-            res,
-            tmp,
-            log,
-            command_line,
-            verify_poses or space.search.get("verify_poses", VERIFY_POSES),
-            SOLVER_IMAGES if solver_images is None else solver_images,
-            build,
-            profiles[0],
-            space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
-            progress,
-        )
     shutil.rmtree(work, ignore_errors=True)
     if doc.get("best") is None:
         raise GoalError(f"no feasible candidate in {len(res.entries)} evaluations; outputs in {out_dir}")

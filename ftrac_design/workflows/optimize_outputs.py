@@ -7,7 +7,8 @@ Output directory (written atomically: a temporary sibling renamed into place):
 - ``summary.json`` — format ``ftrac-optimize`` v1: run, space, start and best (parameters,
   figures on the search sample and on fresh poses, Monte-Carlo solver errors, rules), front
 - ``comparison.txt`` — start vs best: score (as ``compare`` prints it), rules (as ``check``),
-  atlas
+  atlas, and the check on rendered images (for a search on the image-true score: a fresh trial,
+  clean and over a patient, with paired p95 ratios)
 - ``pareto.json`` / ``pareto.csv`` / ``pareto.png`` — the non-dominated feasible candidates
 - ``convergence.png`` — best objective so far and feasible share per generation
 - ``evaluations.jsonl`` — the evaluation log
@@ -18,6 +19,8 @@ from __future__ import annotations
 
 import json
 import shutil
+from concurrent.futures import Executor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,7 +29,7 @@ from ..design.writer import round_values, to_toml
 from ..fileio import write_json_atomic, write_text_atomic
 from ..optimize.plots import plot_convergence, plot_front
 from ..optimize.search import SearchResult, objective_names
-from ..optimize.tables import comparison, front_table, image_rows
+from ..optimize.tables import comparison, front_table, image_rows, image_true_rows
 from ..optimize.verify import verify
 
 FORMAT = "ftrac-optimize"
@@ -66,9 +69,12 @@ def write_outputs(
     profile: str,
     check_images: int = 0,
     progress: bool = False,
+    executor: Executor | None = None,
 ) -> dict:
     """Write every output of a finished search into ``tmp`` (the caller renames it);
-    ``check_images`` rendered radiographs of start and best are tracked (:mod:`ftrac_design.optimize.imagecheck`)."""
+    ``check_images`` rendered radiographs of start and best are tracked (:mod:`ftrac_design.optimize.imagecheck`):
+    clean ones for a search on the paper's model; for a search on the image-true score, a fresh
+    image-true trial of that many images per condition, made on ``executor``."""
     from ..design.loader import parse_design
 
     seed = res.config.seed
@@ -110,18 +116,31 @@ def write_outputs(
     }
     settings = res.settings.analysis
     doc["start"]["verification"] = verify(start_data, settings, verify_poses, solver_images, vseed)
-    if check_images:
+    on_images = res.settings.image_trial is not None
+    # an image-scored winner is re-checked by the score's own kind of trial, on seeds it never saw
+    clean_check = check_images if not on_images else 0
+    if clean_check:
         from ..optimize.imagecheck import image_check
 
         doc["start"]["verification"]["images"] = image_check(start_data, settings, check_images, vseed + 3, progress)
     if best_data is not None:
+        scored_by = (
+            f"the image-true score ({res.settings.image_trial.images} rendered, tracked images per condition, "
+            f"seed {res.settings.image_trial.seed})"
+            if on_images
+            else f"the paper's feature-level model on {res.settings.analysis.poses} search poses"
+        )
+        checks = (
+            f"a fresh image-true trial of {check_images} images per condition"
+            if on_images and check_images
+            else "the Monte-Carlo solver check" + (" and the rendered-image check" if check_images else "")
+        )
         header = (
             f"{best_data['name']}: found by `{command_line}`\n"
             f"(ftrac-design optimize: {res.config.objective} objective, seed {seed}, {len(res.entries)} "
-            f"evaluations, {res.settings.analysis.poses} search poses; start design "
-            f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses,\n"
-            f"the Monte-Carlo solver check{' and the rendered-image check' if check_images else ''} are in "
-            f"summary.json beside it."
+            f"evaluations, scored by {scored_by}; start design "
+            f"{res.start.get('design_sha256', '')[:12]}). Predicted p95 errors on {verify_poses} fresh poses\n"
+            f"and {checks} are in summary.json beside it."
         )
         text = design_toml(best_data, header, res.settings.profiles)
         write_text_atomic(tmp / "best.toml", text)
@@ -130,8 +149,8 @@ def write_outputs(
         written = tomllib.loads(text)
         parse_design(written, tmp / "best.toml")  # build accepts what we wrote
         v = verify(written, settings, verify_poses, solver_images, vseed)
-        if check_images:
-            v["images"] = image_check(written, settings, check_images, vseed + 3, progress)
+        if clean_check:
+            v["images"] = image_check(written, settings, clean_check, vseed + 3, progress)
         doc["best"] = {
             "index": res.best["index"],
             "generation": res.best["generation"],
@@ -153,7 +172,7 @@ def write_outputs(
                 "translation_rms": m1["translation_rms_mm"] / m0["translation_rms_mm"] - 1,
                 "rotation_rms": m1["rotation_rms_deg"] / m0["rotation_rms_deg"] - 1,
             }
-        if check_images:
+        if clean_check:
             i0, i1 = doc["start"]["verification"]["images"], v["images"]
             change = {}
             for key in ("translation_p95_mm", "rotation_p95_deg", "translation_median_mm", "rotation_median_deg"):
@@ -164,8 +183,14 @@ def write_outputs(
             change["paired"] = paired_p95_ratio(i0, i1)
             doc["best"]["change_on_images"] = change
         text_cmp, cmp_doc = comparison(start_data, written, settings, res.settings.profiles, verify_poses, vseed)
-        if check_images:
+        if clean_check:
             text_cmp += "\n" + image_rows(doc["start"]["verification"]["images"], v["images"])
+        if check_images and on_images:
+            from ..optimize.imagecheck import image_true_check
+
+            fresh = replace(res.settings.image_trial, images=check_images, seed=vseed + 5)
+            doc["best"]["image_true_check"] = image_true_check(start_data, written, fresh, executor, progress)
+            text_cmp += "\n" + image_true_rows(doc["best"]["image_true_check"])
         write_text_atomic(tmp / "comparison.txt", text_cmp)
         doc["comparison"] = cmp_doc
         if build:
