@@ -4,13 +4,20 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 JOBS ?= 2
+# every package `make` installs, pinned with hashes: made from pyproject.toml by `make lock`
+LOCK := requirements/test.lock
+UV := uv==0.13.9
+# the newest releases pyproject.toml allows, for `make test-latest`
+LATEST := .venv-latest
 
-.PHONY: demo test install bench clean chromium docs
+.PHONY: demo test install bench clean chromium docs lock test-latest
 
-$(STAMP): pyproject.toml
+# the locked versions exactly (hash-checked, nothing resolved), then the package itself
+$(STAMP): pyproject.toml $(LOCK)
 	$(PY) -m venv $(VENV)
-	$(BIN)/pip install -q --upgrade pip
-	$(BIN)/pip install -q -e ".[test,bench]"
+	$(BIN)/pip install -q --require-hashes --no-deps -r $(LOCK)
+	$(BIN)/pip install -q --no-deps --no-build-isolation -e .
+	$(BIN)/pip check
 	touch $(STAMP)
 
 install: $(STAMP)
@@ -22,6 +29,31 @@ demo: $(STAMP)
 # installed here when missing and we are root (elsewhere the test skips, or fails under CI)
 test: $(STAMP) chromium
 	$(BIN)/python -m pytest -n $(JOBS) --dist loadgroup -q
+
+# the lock again from pyproject.toml's ranges (the newest versions they allow today), with
+# uv in a throw-away environment; commit the result after `make test` passes on it
+lock:
+	rm -rf .venv-lock && $(PY) -m venv .venv-lock && .venv-lock/bin/pip install -q $(UV)
+	.venv-lock/bin/uv pip compile pyproject.toml --extra test --extra bench --universal \
+		--python-version 3.11 --generate-hashes -q -o $(LOCK)
+	rm -rf .venv-lock
+
+# the suite on the newest releases pyproject.toml allows (a separate venv, resolved now), with
+# which packages moved from the lock; then the tracking tests on OpenCV 4.x in the same venv,
+# and every pose of a fixed image set compared between OpenCV 5.x and 4.x
+test-latest: chromium
+	rm -rf $(LATEST) && $(PY) -m venv $(LATEST)
+	$(LATEST)/bin/pip install -q --upgrade --upgrade-strategy eager -e ".[test,bench]"
+	$(LATEST)/bin/pip freeze --all --exclude-editable > $(LATEST)/resolved.txt
+	$(LATEST)/bin/python requirements/moved.py $(LOCK) $(LATEST)/resolved.txt
+	$(LATEST)/bin/python -m pytest -n $(JOBS) --dist loadgroup -q
+	$(LATEST)/bin/python tests/pose_record.py write $(LATEST)/poses-latest.json
+	$(LATEST)/bin/pip install -q "opencv-python-headless>=4.9,<5"
+	$(LATEST)/bin/pip freeze --all --exclude-editable > $(LATEST)/resolved-opencv4.txt
+	$(LATEST)/bin/python requirements/moved.py $(LOCK) $(LATEST)/resolved-opencv4.txt
+	$(LATEST)/bin/python -m pytest -n $(JOBS) -q tests/test_track.py tests/test_track_determinism.py \
+		tests/test_segment.py tests/test_segment_conditioning.py tests/test_run_tracker.py tests/test_images_track.py
+	$(LATEST)/bin/python tests/pose_record.py compare $(LATEST)/poses-latest.json
 
 chromium:
 	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
@@ -38,4 +70,4 @@ bench: $(STAMP)
 	for f in benchmarks/*.py; do $(BIN)/python $$f || exit 1; done
 
 clean:
-	rm -rf $(VENV) outputs site
+	rm -rf $(VENV) $(LATEST) outputs site

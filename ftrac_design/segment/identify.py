@@ -5,7 +5,7 @@ design: each labelling hypothesis is a pose, and a pose predicts the whole image
 
 1. **Bead hypotheses** (RANSAC over triplets, exhaustive over the model): three detected
    blobs spread over the image are matched with every ordered, non-collinear triplet of
-   model beads; P3P (OpenCV's Gao et al. solver) gives up to four poses for each; every
+   model beads; P3P (:mod:`ftrac_design.pose.p3p`, all model triplets at once) gives up to four poses for each; every
    pose projects all the model beads, and a hypothesis scores the number of beads that
    land on a distinct detected blob. Line designs need no special case (their 4/3/2 beads
    per line make the labelling unique), and free-bead designs such as ``nine_bead`` work
@@ -23,12 +23,12 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..features.model import Features
-from ..pose import Camera, so3
+from ..pose import Camera
+from ..pose.p3p import bearings, p3p
 from .ridges import RidgePoints
 
 
@@ -121,57 +121,58 @@ def _model_triplets(P: np.ndarray) -> np.ndarray:
 
 def _p3p_poses(objs: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """Every P3P pose (R (k, 3, 3), t (k, 3)) of the model triplets ``objs`` (m, 3, 3) seen at
-    the image triplet ``img`` (3, 2) px, or None."""
-    rs, ts = [], []
-    for obj in objs:
-        try:
-            nsol, rvecs, tvecs = cv2.solveP3P(obj, img, K, None, flags=cv2.SOLVEPNP_P3P)
-        except cv2.error:
-            continue
-        rs += rvecs[:nsol]
-        ts += tvecs[:nsol]
-    if not rs:
-        return None
-    # all P3P solutions' rotations at once (one cv2.Rodrigues per solution cost more
-    # than the solutions' projections)
-    return so3.exp(np.asarray(rs, float).reshape(-1, 3)), np.asarray(ts, float).reshape(-1, 3)
+    the image triplet ``img`` (3, 2) px (:func:`ftrac_design.pose.p3p.p3p`), or None."""
+    R, t, _ = p3p(objs, bearings(img, K))
+    return (R, t) if len(R) else None
+
+
+def _labellings_of(
+    model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The bead labelling of each pose (R (k, 3, 3), t (k, 3)): per model bead the blob of
+    ``tree`` within ``tol_px`` of its projection (−1 for none), one blob per bead — a blob two
+    beads land on goes to the nearer, the lower bead index on a tie. Returns the labellings
+    (k, P), their matched counts (k,) and RMS distances (k,) px."""
+    P = len(model)
+    proj, Z = project(camera, R, t, model)
+    front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
+    proj = np.where(np.isfinite(proj), proj, 1e9)  # a degenerate pose matches nothing
+    d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
+    d, j = d.reshape(len(R), P), j.reshape(len(R), P)
+    hit = np.isfinite(d) & front[:, None]
+    idx = np.arange(P)
+    same = (j[:, :, None] == j[:, None, :]) & hit[:, :, None] & hit[:, None, :]
+    nearer = (d[:, None, :] < d[:, :, None]) | ((d[:, None, :] == d[:, :, None]) & (idx[None, :] < idx[:, None]))
+    keep = hit & ~(same & nearer).any(-1)
+    count = keep.sum(1)
+    with np.errstate(invalid="ignore"):
+        rms = np.sqrt(np.where(keep, d * d, 0.0).sum(1) / np.maximum(count, 1))
+    return np.where(keep, j, -1), count, rms
 
 
 def _collect_matches(
     best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
 ) -> None:
-    """Add to ``best`` (match key → hypothesis, the lower RMS kept) the labellings of the
-    poses (R, t) that put at least four model beads within ``tol_px`` of a blob of ``tree``."""
-    P = len(model)
-    proj, Z = project(camera, R, t, model)
-    front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
-    proj = np.where(np.isfinite(proj), proj, 1e9)  # a degenerate P3P solution matches nothing
-    d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
-    d, j = d.reshape(len(R), P), j.reshape(len(R), P)
-    hit = np.isfinite(d) & front[:, None]
-    count = hit.sum(1)
-    for r in np.argsort(-count, kind="stable")[:64]:
-        if count[r] < 4:
-            break
-        match: dict[int, int] = {}
-        taken: dict[int, float] = {}
-        # one blob per bead: the nearer bead keeps a shared blob
-        for b in np.argsort(d[r]):
-            if not hit[r, b]:
-                continue
-            blob = int(j[r, b])
-            if blob in taken:
-                continue
-            taken[blob] = d[r, b]
-            match[int(b)] = blob
-        key = tuple(sorted(match.items()))
-        if not key:
-            continue
-        rms = float(np.sqrt(np.mean([taken[v] ** 2 for v in match.values()])))
-        h = BeadHypothesis(R[r], t[r], match, len(match), rms)
+    """Add to ``best`` (labelling → hypothesis, the lower RMS kept) the labellings of the
+    poses (R, t) that put at least four model beads on distinct blobs of ``tree``.
+
+    Every such labelling is kept, whatever the order or the number of the poses that give it:
+    P3P solutions of one triplet that are the same pose give the same labelling, and which
+    of them was listed first decides nothing (a cut to the first 64 poses by matched count
+    once let the solver's order pick among ties)."""
+    lab, count, rms = _labellings_of(model, camera, tree, R, t, tol_px)
+    sel = np.flatnonzero(count >= 4)
+    if len(sel) == 0:
+        return
+    # the lowest RMS of each distinct labelling (ties: the pose listed first, the same pose)
+    o = sel[np.lexsort((rms[sel],) + tuple(lab[sel].T[::-1]))]
+    first = np.r_[True, (lab[o][1:] != lab[o][:-1]).any(1)]
+    for r in o[first]:
+        key = tuple(int(x) for x in lab[r])
         old = best.get(key)
-        if old is None or h.rms_px < old.rms_px:
-            best[key] = h
+        if old is None or rms[r] < old.rms_px:
+            match = {b: int(x) for b, x in enumerate(lab[r]) if x >= 0}
+            best[key] = BeadHypothesis(R[r], t[r], match, int(count[r]), float(rms[r]))
 
 
 def bead_hypotheses(
@@ -228,8 +229,9 @@ def bead_hypotheses(
         if tried >= 8 and top < 4:
             # eight triplets of the strongest blobs and not four balls in a row: not here
             break
-    ranked = sorted(best.values(), key=lambda h: (-h.count, h.rms_px))
-    return ranked[:keep]
+    # ties broken by the labelling itself: the ranking depends on no order of discovery
+    ranked = sorted(best.items(), key=lambda kv: (-kv[1].count, kv[1].rms_px, kv[0]))
+    return [h for _, h in ranked[:keep]]
 
 
 @dataclass

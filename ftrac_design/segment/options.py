@@ -89,10 +89,15 @@ class TrackOptions:
     #: this many pixels (a 1024² search cost ~0.3 s and found what the regions had not in
     #: too few images to pay for it)
     whole_image_px: int = 512 * 512
-    #: wall-clock seconds after which no further region, polarity or labelling is tried
-    #: (the one under way finishes): the answer so far, or why none was found. A bound on
-    #: the time per image whatever it shows; images that track need far less (0.1–0.5 s)
-    time_budget_s: float = 1.5
+    #: the work one image may cost, counted: each search of a region or a whole image (for
+    #: each polarity tried) and each labelling refined is one unit; once spent, no further
+    #: polarity, region or labelling is tried and the answer so far is given. The answer
+    #: depends on this count, never on the machine's speed
+    max_work: int = 24
+    #: wall-clock seconds after which no further search or labelling starts (the one under
+    #: way finishes): a safety net for an image whose counted work runs far longer than any
+    #: benchmark image's, not the bound that decides an ordinary image's answer
+    time_budget_s: float = 4.0
     #: χ² charged per pixel of ridge the pose leaves unexplained and of predicted wire the
     #: image does not show (:func:`~.evidence.image_agreement`)
     agreement_chi2_per_px: float = 1.0

@@ -32,16 +32,46 @@ from .options import TrackOptions, TrackResult, failed_result
 from .region import fiducial_regions, shifted, view_limited
 
 
-def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], deadline: float) -> list[Labelling]:
-    """The best distinct labellings refined, each with its agreement with the image (until
-    ``deadline``, a :func:`time.monotonic` time, has passed)."""
+class Budget:
+    """The work one image may cost: searches (a polarity's region, or its whole image) and
+    labellings refined, counted; wall-clock seconds only as a safety net.
+
+    What an image is tracked to depends on the counts alone, so the same image gives the
+    same answer on a fast machine, a slow one and one busy with other work; the seconds
+    (``TrackOptions.time_budget_s``) stop the search only on an image so unusual that its
+    counted work takes far longer than any benchmark image's (one of them being under way
+    always finishes)."""
+
+    def __init__(self, opts: TrackOptions, start: float | None = None):
+        self.work = opts.max_work
+        self.deadline = (time.monotonic() if start is None else start) + opts.time_budget_s
+        self.timed_out = False
+
+    def spent(self) -> bool:
+        """Whether no further search or labelling may start."""
+        if self.work <= 0:
+            return True
+        if time.monotonic() > self.deadline:
+            self.timed_out = True
+            return True
+        return False
+
+    def charge(self, units: int = 1) -> None:
+        """Count ``units`` of work done."""
+        self.work -= units
+
+
+def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budget) -> list[Labelling]:
+    """The best distinct labellings refined, each with its agreement with the image (one unit
+    of ``budget`` each; none once it is spent, but the first)."""
     out: list[Labelling] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     for h in hyps[:4]:
-        if out and time.monotonic() > deadline:
+        if out and budget.spent():
             break
         if h.count < max(4, hyps[0].count - 2):
             continue
+        budget.charge()
         try:
             lab = evaluate(scene, h)
         except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError) as exc:
@@ -136,10 +166,12 @@ def _track_density(
     pol: str,
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
-    deadline: float = math.inf,
+    budget: Budget | None = None,
 ) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
     where ``valid``, with local noise ``noise``."""
+    budget = budget or Budget(opts)
+    budget.charge()
     scene = detect(g, features, camera, opts, valid, noise)
     blur = fitted_blur(scene)
     if blur is not None and blur > max(opts.blur_px * opts.blur_redetect, 1.1):
@@ -173,7 +205,7 @@ def _track_density(
         return failed_result(
             f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads, ridges, diag
         )
-    evaluated = _labellings(scene, hyps, deadline)
+    evaluated = _labellings(scene, hyps, budget)
     if not evaluated:
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
@@ -283,7 +315,7 @@ def _track(
     body,
     formation_hint: str | None,
 ) -> TrackResult:
-    start = time.monotonic()
+    budget = Budget(options or TrackOptions())
     if isinstance(body, str):
         from ..xray.scene import body_from_source
 
@@ -305,14 +337,15 @@ def _track(
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
     tried: list[TrackResult] = []
-    deadline = start + opts.time_budget_s
     for pol in _polarities(opts, polarity_hint, small, sc.disc_px, form):
-        if tried and time.monotonic() > deadline:
-            tried[0].diagnostics["time_budget_spent"] = True
+        if tried and budget.spent():
             break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, body, sc, deadline)
+        res = _track_conditioned(cond, small, features, camera, opts, body, sc, budget)
         res.diagnostics["formation"] = cond.formation
+        res.diagnostics["work"] = opts.max_work - budget.work
+        if budget.timed_out:
+            res.diagnostics["time_budget_spent"] = True
         if res.pose.converged:
             if tried:
                 res.diagnostics["polarity_tried"] = [t.polarity for t in tried] + [pol]
@@ -326,7 +359,7 @@ def _track(
 
 
 def _track_conditioned(
-    cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, sc, deadline: float
+    cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, sc, budget: Budget
 ) -> TrackResult:
     """:func:`track_image` on a conditioned image: in each region where the fiducial may be
     (most likely first) until one gives a pose; the whole image when none is found."""
@@ -351,8 +384,7 @@ def _track_conditioned(
             )
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
-        if first is not None and time.monotonic() > deadline:
-            first.diagnostics["time_budget_spent"] = True
+        if first is not None and budget.spent():
             return first
         crop_cam = replace(
             camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
@@ -366,7 +398,7 @@ def _track_conditioned(
             pol,
             None if valid is None else valid[r0:r1, c0:c1],
             noise.crop(r0, r1, c0, c1),
-            deadline,
+            budget,
         )
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
@@ -376,6 +408,6 @@ def _track_conditioned(
     if regions:
         # a region was looked at and gave nothing: its answer, unless a whole-image search is
         # cheap enough to be worth it (a small image)
-        if img.size > opts.whole_image_px or time.monotonic() > deadline:
+        if img.size > opts.whole_image_px or budget.spent():
             return first
-    return _track_density(img, features, camera, opts, body, pol, valid, noise, deadline)
+    return _track_density(img, features, camera, opts, body, pol, valid, noise, budget)
