@@ -1,6 +1,12 @@
 """Atomic file and directory writes (a failed run never leaves half-written output) and the
 strict JSON / JSON Lines reading every input file shares (finite numbers only; errors name
-the file and line)."""
+the file and line).
+
+Every temporary name (:func:`temporary_file`, :func:`temporary_directory`) gets the mode a
+plain ``open`` / ``mkdir`` would give it under the user's umask (0644 / 0755 under 022),
+not ``mkstemp``'s 0600 or ``mkdtemp``'s 0700: what is renamed into place is readable by
+whoever may read the rest of the output (a colleague on a shared drive, a web server).
+"""
 
 from __future__ import annotations
 
@@ -25,11 +31,72 @@ def sha256_file(path: str | Path) -> str:
     return h.hexdigest()
 
 
+def current_umask() -> int:
+    """The process's umask (e.g. ``0o022``).
+
+    Read from ``/proc/self/status`` where the kernel reports it, so no other thread sees a
+    changed umask; elsewhere set and restored at once.
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o077)
+    os.umask(mask)
+    return mask
+
+
+def plain_mode(path: str | Path, directory: bool = False) -> None:
+    """Give ``path`` the mode ``open`` (0666) or ``mkdir`` (0777) would have given it under the
+    current umask."""
+    os.chmod(path, (0o777 if directory else 0o666) & ~current_umask())
+
+
+def temporary_file(final: str | Path, suffix: str | None = None) -> tuple[int, Path]:
+    """A new hidden temporary file beside ``final`` with a plain file's mode (see the module).
+
+    Parameters
+    ----------
+    final : the path the file will be renamed to; its folder must exist.
+    suffix : the temporary name's suffix (default: ``final``'s, so writers that go by the
+        suffix pick the right format).
+
+    Returns
+    -------
+    (fd, path) : an open descriptor (the caller closes it) and the temporary path.
+    """
+    final = Path(final)
+    sfx = final.suffix if suffix is None else suffix
+    fd, tmp = tempfile.mkstemp(prefix=f".{final.stem if suffix is None else final.name}.", suffix=sfx, dir=final.parent)
+    try:
+        os.fchmod(fd, 0o666 & ~current_umask())
+    except BaseException:
+        os.close(fd)
+        os.unlink(tmp)
+        raise
+    return fd, Path(tmp)
+
+
+def temporary_directory(final: str | Path) -> Path:
+    """A new hidden temporary directory beside ``final`` with a plain directory's mode."""
+    final = Path(final)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+    try:
+        plain_mode(tmp, directory=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return tmp
+
+
 def write_text_atomic(path: str | Path, text: str) -> Path:
     """Write ``text`` to ``path`` via a temporary file in the same folder, then rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = temporary_file(path, suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
@@ -47,10 +114,10 @@ def atomic_file(path: str | Path) -> Iterator[Path]:
     name (e.g. matplotlib); on success it is renamed to ``path``, on failure removed."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+    fd, tmp = temporary_file(path)
     os.close(fd)
     try:
-        yield Path(tmp)
+        yield tmp
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(FileNotFoundError):
@@ -72,7 +139,7 @@ def atomic_directory(final: str | Path) -> Iterator[Path]:
     """
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent))
+    tmp = temporary_directory(final)
     try:
         yield tmp
     except BaseException:

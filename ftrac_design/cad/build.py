@@ -7,7 +7,6 @@ only when the whole build succeeded (:func:`ftrac_design.fileio.atomic_directory
 from __future__ import annotations
 
 import contextlib
-import os
 import platform
 import time
 from dataclasses import dataclass, field
@@ -94,13 +93,6 @@ def _occ_errors(name: str) -> Iterator[None]:
         raise CadError(f"{name}: OpenCASCADE failed ({type(exc).__name__}: {exc})") from exc
 
 
-def _umask_mode(path: Path, mode: int = 0o777) -> None:
-    """Give a mkdtemp/mkstemp path (0700/0600) the mode a plain mkdir/open would give it."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, mode & ~umask)
-
-
 class _Clock:
     def __init__(self) -> None:
         self.t0 = time.perf_counter()
@@ -173,7 +165,6 @@ def build_fiducial(
     report = enforce_rules(design, features, profile, force)
     clock.lap("features")
     with atomic_directory(out_dir) as tmp, _occ_errors(design.name):
-        _umask_mode(tmp)
         write_features(tmp / "features.json", features)
         body = build_body(plan)
         slot = key_slot_tool(design, profile)
@@ -235,8 +226,6 @@ def build_fiducial(
         manifest["build_time_s"] = round(clock.total, 3)
         manifest["timings_s"] = dict(clock.laps)
         write_json_atomic(tmp / "manifest.json", manifest)
-        for f in tmp.iterdir():  # mkstemp files are 0600; give them a plain file's mode
-            _umask_mode(f, 0o666)
     clock.lap("finish")
     return BuildResult(out_dir, manifest, dict(clock.laps))
 

@@ -40,7 +40,6 @@ import contextlib
 import json
 import math
 import os
-import tempfile
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Callable
@@ -49,6 +48,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..features import Features
+from ..fileio import temporary_file
 from ..images import DistortionModel, Frame, read_frames, undistort_image
 from ..pose import Camera, Pose
 from ..segment import TrackOptions, TrackResult, track_image
@@ -370,12 +370,12 @@ class TrackOutputs:
         """A fresh temporary file beside ``final`` (same suffix), renamed to it by :meth:`commit`."""
         try:
             final.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=f".{final.stem}.", suffix=final.suffix, dir=final.parent)
+            fd, tmp = temporary_file(final)
         except OSError as exc:
             raise InputError(final, None, f"a writable output path ({exc.strerror or exc})") from None
         os.close(fd)
-        self._temps.append((Path(tmp), final))
-        return Path(tmp)
+        self._temps.append((tmp, final))
+        return tmp
 
     def add(self, outcome: FrameOutcome) -> None:
         """Append one frame's pose and observation text."""
