@@ -148,9 +148,10 @@ def command(
 ) -> int:
     """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
 
-    IMAGE is a file (PNG/TIFF/JPEG, NumPy .npy, DICOM: XA, RF, DX, CR, Enhanced XA/XRF, a video:
-    MP4/AVI/MKV/MOV/WebM) or a directory of them (a run, natural order of names); multi-frame
-    DICOM, multi-page TIFF, (n, H, W) .npy and video are runs: one pose per frame, in order,
+    IMAGE is a file (PNG/TIFF/JPEG, a workstation's or grabber's BMP/GIF/WebP, NumPy .npy, DICOM:
+    XA, RF, DX, CR, Enhanced XA/XRF, a video: MP4/AVI/MKV/MOV/WebM) or a directory of them (a run,
+    natural order of names); multi-frame DICOM, multi-page TIFF, animated GIF/WebP, (n, H, W) .npy
+    and video are runs: one pose per frame, in order,
     with "frame", "time_s", "status" (tracked / re-identified / lost) and "timing". A run's
     frames are tracked from the previous frames' poses and identified from scratch where that
     is not confirmed (--independent: every frame from scratch). The

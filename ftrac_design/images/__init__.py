@@ -2,7 +2,7 @@
 standard into :class:`Frame` objects on the detector's own pixel grid, and the writers.
 
 - :func:`read_frames` / :func:`read_frame` / :func:`frame_count` — a file (PNG, TIFF, JPEG,
-  NumPy ``.npy``, DICOM; found by content, the suffix as a fallback) or a directory of them
+  BMP, GIF, WebP, NumPy ``.npy``, DICOM; found by content, the suffix as a fallback) or a directory of them
   (a run, natural order of names); multi-frame DICOM, multi-page TIFF and ``(n, H, W)``
   arrays are runs; frames are decoded one at a time.
 - :func:`read_image` — the first frame as the old ``(pixels, camera, meta)`` tuple.
@@ -73,8 +73,9 @@ over several frames); ``need_camera=False`` gives ``camera=None`` instead. The p
 point without a tag is the image centre ((W − 1)/2, (H − 1)/2); ``Frame.camera_source`` says
 which source each intrinsic came from.
 
-Rasters: 8/16-bit PNG, TIFF (8/16/32-bit integers, floats; each page a frame; pages of
-different shapes refused naming the page), JPEG (a note: lossy); colour → Rec. 709 grey and
+Rasters: 8/16-bit PNG, TIFF (8/16/32-bit integers, floats; palette, bilevel, MinIsWhite, CMYK;
+each page a frame; pages of different shapes refused naming the page), JPEG (a note: lossy),
+BMP, GIF and WebP (screen captures and grabbers; an animated one is a run); colour → Rec. 709 grey and
 alpha dropped, with notes; our note's camera, polarity, formation and linear map are used.
 NumPy: ``allow_pickle=False``; (n, H, W) is a run; an ``.npz`` named ``.npy`` is refused.
 """

@@ -28,6 +28,9 @@ from .video import read_video_frames, video_frame_count
 _COUNT: dict[str, Callable[[Path], int]] = {
     "png": pil_frame_count,
     "jpeg": pil_frame_count,
+    "bmp": pil_frame_count,
+    "gif": pil_frame_count,
+    "webp": pil_frame_count,
     "tiff": tiff_frame_count,
     "npy": npy_frame_count,
     "dicom": dicom_frame_count,
@@ -47,7 +50,9 @@ def run_files(path: str | Path) -> list[Path]:
     if path.is_dir():
         files = sorted((p for p in path.iterdir() if looks_like_image(p)), key=lambda p: natural_key(p.name))
         if not files:
-            raise InputError(path, None, "a directory holding image files (PNG, TIFF, JPEG, NumPy .npy, DICOM)")
+            raise InputError(
+                path, None, "a directory holding image files (PNG, TIFF, JPEG, BMP, GIF, WebP, NumPy .npy, DICOM)"
+            )
         return files
     if not path.is_file():
         raise InputError(path, None, "an existing image file or directory of frames")

@@ -1,5 +1,10 @@
 """Which image format a file holds, found by its first bytes (magic numbers), with its
-suffix as a fallback for formats without one (a DICOM stream with no preamble)."""
+suffix as a fallback for formats without one (a DICOM stream with no preamble).
+
+Besides the detector's own formats (DICOM, TIFF, PNG, NumPy), what a C-arm workstation's
+screen capture or a frame grabber writes: BMP (Windows bitmaps, 1/4/8-bit palette, 16/24/32-bit),
+GIF and WebP (still or animated), JPEG.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +13,7 @@ from typing import Literal
 
 from ..errors import InputError
 
-ImageFormat = Literal["png", "tiff", "jpeg", "npy", "dicom", "video"]
+ImageFormat = Literal["png", "tiff", "jpeg", "bmp", "gif", "webp", "npy", "dicom", "video"]
 
 SUFFIXES: dict[str, ImageFormat] = {
     ".png": "png",
@@ -16,6 +21,10 @@ SUFFIXES: dict[str, ImageFormat] = {
     ".tiff": "tiff",
     ".jpg": "jpeg",
     ".jpeg": "jpeg",
+    ".bmp": "bmp",
+    ".dib": "bmp",
+    ".gif": "gif",
+    ".webp": "webp",
     ".npy": "npy",
     ".dcm": "dicom",
     ".dicom": "dicom",
@@ -34,6 +43,15 @@ _MAGIC: tuple[tuple[bytes, ImageFormat], ...] = (
     (b"MM\x00+", "tiff"),
     (b"\xff\xd8\xff", "jpeg"),
     (b"\x93NUMPY", "npy"),
+    (b"GIF87a", "gif"),
+    (b"GIF89a", "gif"),
+)
+#: the sizes of the BMP info headers Windows and OS/2 define (BITMAPCOREHEADER … BITMAPV5HEADER):
+#: "BM" alone is too weak a magic number
+_BMP_INFO_SIZES = (12, 16, 40, 52, 56, 64, 108, 124)
+#: every format the intake reads, as the refusal names them
+FORMATS_READ = (
+    "an image file (PNG, TIFF, JPEG, BMP, GIF, WebP, NumPy .npy, DICOM) or a video (MP4, AVI, MKV, MOV, WebM)"
 )
 
 
@@ -45,6 +63,10 @@ def content_format(head: bytes) -> ImageFormat | Literal["zip"] | None:
     for magic, fmt in _MAGIC:
         if head.startswith(magic):
             return fmt
+    if head.startswith(b"BM") and len(head) >= 18 and int.from_bytes(head[14:18], "little") in _BMP_INFO_SIZES:
+        return "bmp"
+    if head.startswith(b"RIFF") and head[8:12] == b"WEBP":
+        return "webp"
     if head.startswith(b"PK\x03\x04") or head.startswith(b"PK\x05\x06"):
         return "zip"
     # ISO base media (MP4, MOV: an "ftyp" box first), AVI (RIFF … "AVI "), Matroska / WebM (EBML)
@@ -85,12 +107,7 @@ def image_format(path: str | Path) -> tuple[ImageFormat, tuple[str, ...]]:
     if by_content in (None, "zip"):
         if by_suffix is not None and by_content is None:
             return by_suffix, ()
-        raise InputError(
-            path,
-            None,
-            "an image file (PNG, TIFF, JPEG, NumPy .npy, DICOM) or a video (MP4, AVI, "
-            "MKV, MOV, WebM), found by its content or suffix",
-        )
+        raise InputError(path, None, f"{FORMATS_READ}, found by its content or suffix")
     notes = ()
     if by_suffix is not None and by_suffix != by_content:
         notes = (f"suffix {path.suffix} but the content is {by_content.upper()}: read as {by_content.upper()}",)
