@@ -268,15 +268,19 @@ def test_the_camera_from_an_image_messages_spacing_and_metadata(frames):
     assert link.image_camera(back, pix.shape, frames.camera)[0] == frames.camera
 
 
+def _raw_image(timestamp: float) -> link.RawMessage:
+    return link.RawMessage(2, "IMAGE", "Image", {"timestamp": timestamp, "device_name": "Image"}, bytearray(), 0)
+
+
 def test_the_inbox_drops_the_oldest_and_counts_per_connection():
     from ftrac_design.workflows.serve import FrameInbox, InboxItem
 
     inbox = FrameInbox(2)
     for k in range(5):
-        inbox.put(InboxItem({"timestamp": 1000.0 + k, "device_name": "Image"}, bytearray(), 0, 1 + (k == 4), k, 0.0))
+        inbox.put(InboxItem(_raw_image(1000.0 + k), 1 + (k == 4), k, 0.0))
     assert inbox.dropped == {1: 3}
     assert [inbox.get(0).timestamp, inbox.get(0).timestamp, inbox.get(0.01)] == [1003.0, 1004.0, None]
-    inbox.put(InboxItem({"timestamp": 2000.0, "device_name": "Image"}, bytearray(), 0, 3, 0, 0.0))
+    inbox.put(InboxItem(_raw_image(2000.0), 3, 0, 0.0))
     assert inbox.discard_connection(3) == 1 and inbox.get(0.01) is None
 
 

@@ -34,6 +34,15 @@ import click
     help="Frames per second [default: the poses' time_s, else 30].",
 )
 @click.option(
+    "--header-version",
+    type=click.Choice(["1", "2"]),
+    default="2",
+    show_default=True,
+    help="OpenIGTLink header version until the server sends a message (then the version it speaks): 2 for "
+    "3D Slicer 4.8+ and PLUS 2.6+ (metadata: TransformStatus, full-precision pose); 1 for the reference "
+    "library 1.x (a pose without a solution is then a STATUS NoPose, not a TRANSFORM).",
+)
+@click.option(
     "--timeout",
     "timeout_s",
     type=click.FloatRange(min=0.0),
@@ -42,14 +51,23 @@ import click
     help="Seconds to wait for the server to accept the connection.",
 )
 def command(
-    poses_path: Path, host: str, port: int, name: str, space: str, rate_hz: float | None, timeout_s: float
+    poses_path: Path,
+    host: str,
+    port: int,
+    name: str,
+    space: str,
+    rate_hz: float | None,
+    timeout_s: float,
+    header_version: str = "2",
 ) -> int:
     """Send each pose of POSES (pose.json or JSON Lines from `track`/`solve`) as a TRANSFORM.
 
     The client connects to HOST:PORT (in 3D Slicer: OpenIGTLinkIF, a server connector on port
     18944), then sends one TRANSFORM per pose, in order, paced by the poses' time_s (or --rate):
     Slicer shows the run as a moving transform --name. A pose without a solution is sent as the
-    identity with TransformStatus INVALID. Exit 2 when POSES is bad or no server answers.
+    identity with TransformStatus INVALID (header version 2), or as a STATUS NoPose (version 1).
+    Messages go in the header version the server speaks once it has sent one, --header-version
+    before. Exit 2 when POSES is bad or no server answers.
     """
     from tqdm import tqdm
 
@@ -62,7 +80,13 @@ def command(
     check_transform_name(name, "name")
     poses = read_pose_records(poses_path)
     options = serve_mod.PushOptions(
-        host=host, port=port, name=name, space=space, rate_hz=rate_hz, connect_timeout_s=timeout_s
+        host=host,
+        port=port,
+        name=name,
+        space=space,
+        rate_hz=rate_hz,
+        connect_timeout_s=timeout_s,
+        header_version=int(header_version),
     )
     with tqdm(
         total=len(poses), desc="push", unit="pose", file=sys.stderr, disable=len(poses) <= 3 or not sys.stderr.isatty()

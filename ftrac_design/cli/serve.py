@@ -70,7 +70,8 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
     "--valid-only",
     is_flag=True,
     help="Send no TRANSFORM for a frame without a pose (PLUS's SendValidTransformsOnly); by default it "
-    "gets the identity with TransformStatus INVALID and the reason.",
+    "gets the identity with TransformStatus INVALID and the reason (a header-version-1 client: a STATUS "
+    "NoPose either way).",
 )
 @click.option(
     "--distortion",
@@ -121,8 +122,11 @@ def command(
     frame's pose as `track` tracks a run (the full identification when the fiducial is lost or
     jumps; --independent: every frame alone), and answered by a TRANSFORM named --name
     (default FiducialToCArm: the pose, fiducial frame F into C-arm frame X), stamped with the
-    IMAGE's timestamp; its header-v2 metadata carry TransformStatus, the full-precision pose,
-    covariance, frame index, drops and timings. A malformed message is answered by a STATUS
+    IMAGE's timestamp. Each client is answered in the OpenIGTLink header version it speaks (the
+    highest it has sent, as PLUS does): in version 2 the TRANSFORM's metadata carry
+    TransformStatus, the full-precision pose, covariance, frame index, drops and timings; in
+    version 1 (no metadata) a frame without a pose gets a STATUS NoPose of the same name and
+    timestamp instead of a TRANSFORM. A malformed message is answered by a STATUS
     error and the server goes on; a client may disconnect and reconnect. Ctrl-C stops it and
     prints a summary.
     """

@@ -12,14 +12,34 @@ grid (SPEC §1); one slice, one component (grey). The camera of a frame is, in t
 
 A frame with none of these, or with values out of range, is answered by a STATUS error.
 
-**TRANSFORM out** (header version 2), named ``FiducialToCArm`` by default, timestamped with
-the IMAGE's timestamp. Its matrix is float32 (the protocol's) and by default RAS (see
-:mod:`ftrac_design.igt`); the metadata (:data:`METADATA_KEYS`) carry the pose at full
-precision in SPEC §4's own terms, its status, covariance and timings.
+**Header versions.** Each connection is answered in the header version its client speaks,
+as PLUS answers (``PlusIgtlClientInfo::ClientHeaderVersion``): version 1 until the client has
+sent a message of a higher one, then the highest it has sent, at most :data:`MAX_HEADER_VERSION`
+(2, OpenIGTLink 3's; :class:`PeerVersion`). :func:`answer_messages` composes a frame's answer:
+
+- **version 2** — a TRANSFORM, named ``FiducialToCArm`` by default, timestamped with the IMAGE's
+  timestamp, with an extended header and metadata (:data:`METADATA_KEYS`: the pose at full
+  precision in SPEC §4's own terms, its status, covariance and timings); a frame without a pose
+  gets the identity with ``TransformStatus`` INVALID and the reason.
+- **version 1** — the protocol as the reference library 1.x and older PLUS builds speak it: no
+  extended header, no metadata. A frame with a pose gets a plain TRANSFORM (the matrix, float32);
+  a frame without one gets **no TRANSFORM** (an identity would put the fiducial at the X-ray
+  source) but a STATUS of the same device name and the IMAGE's timestamp, code
+  :data:`STATUS_NOT_FOUND` (lost) or :data:`STATUS_UNKNOWN_ERROR` (the tracker failed), error
+  name ``NoPose``, text ``frame K: <reason>``: that is how a version-1 client learns a frame was
+  refused.
+
+The matrix is float32 (the protocol's) and by default RAS (see :mod:`ftrac_design.igt`).
 
 **STATUS** (the protocol's status message, which pyigtl does not provide; :func:`status_message_class`): code, sub-code,
 error name (≤ 20 bytes) and text. Codes used: 0 invalid packet (a malformed message), 9
-checksum error, 12 unknown message type, 10 configuration error (no camera for a frame).
+checksum error, 12 unknown message type, 10 configuration error (no camera for a frame), 4 not
+found and 2 unknown error (a version-1 client's frame without a pose).
+
+**Framing** (:func:`read_message`): the fixed 58-byte header (:data:`HEADER`: version, type,
+device, timestamp, body size, CRC-64 of the body), then the body. A header of an unknown
+version, with non-ASCII names or an absurd body size, and a message that stalls, cannot be
+trusted: :class:`FramingError`.
 """
 
 from __future__ import annotations
@@ -27,9 +47,13 @@ from __future__ import annotations
 import functools
 import json
 import math
+import socket
 import struct
+import threading
+import time
+from dataclasses import dataclass
 from types import ModuleType
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
@@ -41,9 +65,25 @@ from .frames import Space, in_space, pose_matrix
 #: STATUS codes (OpenIGTLink protocol)
 STATUS_INVALID_PACKET = 0
 STATUS_OK = 1
+STATUS_UNKNOWN_ERROR = 2
+STATUS_NOT_FOUND = 4
 STATUS_CONFIGURATION_ERROR = 10
 STATUS_CHECKSUM_ERROR = 9
 STATUS_UNKNOWN_INSTRUCTION = 12
+
+#: an OpenIGTLink header version: 1 (the protocol 1 and 2, no extended header) or 2 (OpenIGTLink 3:
+#: extended header and metadata)
+HeaderVersion = Literal[1, 2]
+#: the highest header version spoken here
+MAX_HEADER_VERSION: HeaderVersion = 2
+#: the fixed header of every OpenIGTLink message: version, type, device, timestamp, body size, CRC
+HEADER = struct.Struct(">H12s20sIIQQ")
+#: the largest body accepted: a 4096² frame of 8-byte pixels plus room for headers and metadata
+MAX_BODY_BYTES = 4096 * 4096 * 8 + (1 << 20)
+#: seconds a started message may stall before the connection is given up
+STALL_S = 5.0
+#: the STATUS error name a version-1 client gets for a frame without a pose
+NO_POSE = "NoPose"
 
 #: the most pixels one frame may hold (a 4096 × 4096 detector)
 MAX_FRAME_PIXELS = 4096 * 4096
@@ -131,8 +171,15 @@ def image_message(fields: dict[str, Any], body: bytes | bytearray) -> Any:
     return msg
 
 
-def status_message(code: int, text: str, device_name: str, timestamp: float | None = None) -> Any:
-    """A STATUS reply: ``code``, error name ``"OK"`` or ``"Error"``, ``text`` on one line.
+def status_message(
+    code: int,
+    text: str,
+    device_name: str,
+    timestamp: float | None = None,
+    version: HeaderVersion = MAX_HEADER_VERSION,
+    error_name: str | None = None,
+) -> Any:
+    """A STATUS reply: ``code``, an error name, ``text`` on one line.
 
     Parameters
     ----------
@@ -140,16 +187,15 @@ def status_message(code: int, text: str, device_name: str, timestamp: float | No
     text : what was wrong (or what happened).
     device_name : the device the reply is about (≤ 20 bytes; cut).
     timestamp : the message's timestamp (s since 1970), default now.
+    version : the header version to send it in.
+    error_name : the error name (≤ 20 bytes), default ``"OK"`` or ``"Error"`` by the code.
     """
+    if error_name is None:
+        error_name = "OK" if code == STATUS_OK else "Error"
     msg = status_message_class()(
-        code,
-        0,
-        "OK" if code == STATUS_OK else "Error",
-        " ".join(str(text).split()),
-        timestamp=timestamp,
-        device_name=device_name[:20],
+        code, 0, error_name, " ".join(str(text).split()), timestamp=timestamp, device_name=device_name[:20]
     )
-    msg.header_version = 2
+    msg.header_version = int(version)
     return msg
 
 
@@ -241,8 +287,20 @@ def _json_or_null(a: Any) -> str:
     return json.dumps(arr.tolist()) if np.isfinite(arr).all() else "null"
 
 
-def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: float, extra: dict[str, str]) -> Any:
-    """The TRANSFORM answering one frame (header version 2).
+def has_pose(pose: dict[str, Any]) -> bool:
+    """Whether a SPEC §4 pose object holds a solved pose (``converged``, rotation and translation)."""
+    return bool(pose.get("converged")) and pose.get("rotation") is not None and pose.get("translation_mm") is not None
+
+
+def transform_message(
+    pose: dict[str, Any],
+    name: str,
+    space: Space,
+    timestamp: float,
+    extra: dict[str, str],
+    version: HeaderVersion = MAX_HEADER_VERSION,
+) -> Any:
+    """The TRANSFORM answering one frame.
 
     Parameters
     ----------
@@ -251,15 +309,19 @@ def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: 
     space : the matrix's coordinates: ``"ras"`` (``S M S``, for Slicer) or ``"lps"`` (M).
     timestamp : the answered IMAGE's timestamp (s since 1970).
     extra : further metadata (frame, timings, …; strings).
+    version : the header version: 2 carries the metadata, 1 the matrix alone.
 
     Returns
     -------
-    pyigtl TransformMessage with :data:`METADATA_KEYS` filled.
+    pyigtl TransformMessage; in version 2 with :data:`METADATA_KEYS` filled, in version 1 with
+    no metadata.
     """
-    ok = bool(pose.get("converged")) and pose.get("rotation") is not None and pose.get("translation_mm") is not None
+    ok = has_pose(pose)
     M = in_space(pose_matrix(pose["rotation"], pose["translation_mm"]), space) if ok else np.eye(4)
     msg = pyigtl().TransformMessage(M, timestamp=timestamp, device_name=name)
-    msg.header_version = 2
+    msg.header_version = int(version)
+    if version < 2:
+        return msg
     rms = pose.get("rms_residual_px")
     meta = {
         "TransformStatus": "OK" if ok else "INVALID",
@@ -278,8 +340,179 @@ def transform_message(pose: dict[str, Any], name: str, space: Space, timestamp: 
     return msg
 
 
+def refusal_message(pose: dict[str, Any], name: str, timestamp: float, frame: int | None = None) -> Any:
+    """The version-1 answer to a frame without a pose: a STATUS named ``name``, stamped with the
+    IMAGE's ``timestamp``, code :data:`STATUS_NOT_FOUND` (the fiducial was lost) or
+    :data:`STATUS_UNKNOWN_ERROR` (the tracker failed, status ``error``), error name
+    :data:`NO_POSE`, text ``frame K: <reason>``."""
+    code = STATUS_UNKNOWN_ERROR if pose.get("status") == "error" else STATUS_NOT_FOUND
+    why = " ".join(str(pose.get("error") or "no pose").split())
+    text = f"frame {frame}: {why}" if frame is not None else why
+    return status_message(code, text, name, timestamp, version=1, error_name=NO_POSE)
+
+
+def answer_messages(
+    pose: dict[str, Any],
+    name: str,
+    space: Space,
+    timestamp: float,
+    extra: dict[str, str],
+    version: HeaderVersion,
+    valid_only: bool = False,
+) -> list[Any]:
+    """What answers one frame in header ``version`` (see the module): version 2, its TRANSFORM
+    (none for a frame without a pose when ``valid_only``); version 1, a plain TRANSFORM, or a
+    STATUS :data:`NO_POSE` for a frame without a pose.
+
+    Parameters
+    ----------
+    pose : the frame's SPEC §4 pose object.
+    name, space, timestamp, extra : as :func:`transform_message` (``extra["frame"]``, when
+        given, is named in a version-1 refusal).
+    version : the client's header version.
+    valid_only : send no TRANSFORM for a frame without a pose.
+
+    Returns
+    -------
+    list of pyigtl messages (zero or one).
+    """
+    ok = has_pose(pose)
+    if version < 2 and not ok:
+        frame = extra.get("frame")
+        return [refusal_message(pose, name, timestamp, int(frame) if frame is not None else None)]
+    if valid_only and not ok:
+        return []
+    return [transform_message(pose, name, space, timestamp, extra, version)]
+
+
 def pose_from_metadata(meta: dict[str, str]) -> tuple[np.ndarray, np.ndarray] | None:
     """(R, t) at full precision from a TRANSFORM's metadata, or None when it has no pose."""
     if meta.get("TransformStatus") != "OK":
         return None
     return np.array(json.loads(meta["rotation"]), float), np.array(json.loads(meta["translation_mm"]), float)
+
+
+# ----------------------------------------------------------------------------- header versions
+class PeerVersion:
+    """The header version to answer a peer in: 1 until it has sent a message of a higher one,
+    then the highest it has sent, at most :data:`MAX_HEADER_VERSION` (PLUS's rule). Safe to
+    share between threads.
+
+    Parameters
+    ----------
+    start : the version before the peer has said anything (1 for a client of ``serve``).
+    """
+
+    def __init__(self, start: HeaderVersion = 1):
+        self._version: int = int(start)
+        self._lock = threading.Lock()
+
+    @property
+    def version(self) -> HeaderVersion:
+        """The version to send in now."""
+        return self._version  # type: ignore[return-value]
+
+    def heard(self, version: int) -> HeaderVersion:
+        """The peer sent a message of header ``version``: raise ours to it (bounded); the version now."""
+        with self._lock:
+            if version > self._version:
+                self._version = min(int(version), MAX_HEADER_VERSION)
+            return self._version  # type: ignore[return-value]
+
+
+def packed(msg: Any, version: HeaderVersion) -> bytes:
+    """``msg`` (a pyigtl message) as bytes in header ``version``: version 1 drops the metadata
+    (which only the extended header can carry)."""
+    msg.header_version = int(version)
+    if version < 2:
+        msg.metadata = {}
+    return msg.pack()
+
+
+# ----------------------------------------------------------------------------- framing
+class FramingError(Exception):
+    """The byte stream cannot be trusted any more (a bad header, a stalled message): answer, then close."""
+
+
+class ConnectionClosed(Exception):
+    """The peer closed the connection."""
+
+
+@dataclass
+class RawMessage:
+    """One message as read off the socket: its header fields and its body, not yet checked.
+
+    Attributes
+    ----------
+    version : the header version.
+    type, device : the message type and device name (ASCII).
+    fields : pyigtl's parsed header (``timestamp``, ``device_name``, …) for unpacking the body.
+    body : the body bytes.
+    crc : the CRC-64 the header states for the body.
+    """
+
+    version: int
+    type: str
+    device: str
+    fields: dict[str, Any]
+    body: bytearray
+    crc: int
+
+    @property
+    def timestamp(self) -> float:
+        """The message's timestamp (s since 1970)."""
+        return float(self.fields["timestamp"])
+
+    def crc_ok(self) -> bool:
+        """Whether the body's CRC-64 is the header's."""
+        return crc64(self.body) == self.crc
+
+
+def recv_exact(sock: socket.socket, buf: memoryview, started: bool) -> bool:
+    """Fill ``buf`` from ``sock`` (whose timeout is short).
+
+    Returns False when nothing arrived within the socket's timeout and ``started`` is False (no
+    message yet); raises ConnectionClosed at the end of the stream and FramingError when a started
+    message stalls for :data:`STALL_S`.
+    """
+    got, last = 0, time.monotonic()
+    while got < len(buf):
+        try:
+            n = sock.recv_into(buf[got:])
+        except socket.timeout:
+            if got == 0 and not started:
+                return False
+            if time.monotonic() - last > STALL_S:
+                raise FramingError(f"message stalled for {STALL_S:.0f} s") from None
+            continue
+        if n == 0:
+            raise ConnectionClosed()
+        got += n
+        last = time.monotonic()
+    return True
+
+
+def read_message(sock: socket.socket) -> RawMessage | None:
+    """The next message on ``sock``, or None when none started within the socket's timeout.
+
+    Raises FramingError for a header that cannot be trusted (a version other than 1 or 2,
+    non-ASCII names, a body over :data:`MAX_BODY_BYTES`) or a stalled message, ConnectionClosed
+    at the end of the stream. The CRC is not checked here (:meth:`RawMessage.crc_ok`).
+    """
+    head = bytearray(HEADER.size)
+    if not recv_exact(sock, memoryview(head), started=False):
+        return None
+    version, mtype, device, _, _, size, crc = HEADER.unpack(head)
+    try:
+        mtype_s = mtype.rstrip(b"\0 ").decode("ascii")
+        device_s = device.rstrip(b"\0 ").decode("ascii")
+    except UnicodeDecodeError:
+        raise FramingError("a message header whose type and device name are ASCII") from None
+    if version not in (1, 2) or size > MAX_BODY_BYTES:
+        raise FramingError(
+            f"a message header of version 1 or 2 with a body of at most {MAX_BODY_BYTES} bytes "
+            f"(got version {version}, {size} bytes)"
+        )
+    body = bytearray(size)
+    recv_exact(sock, memoryview(body), started=True)
+    return RawMessage(version, mtype_s, device_s, parse_header(head), body, crc)

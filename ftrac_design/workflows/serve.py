@@ -1,17 +1,19 @@
 """``ftrac-design serve`` and ``push``: poses live over OpenIGTLink (pyigtl, the ``live`` extra).
 
 **Server.** A client (PLUS, a frame grabber's software, a script) connects and sends IMAGE
-messages; each frame is tracked and answered by a TRANSFORM (:mod:`ftrac_design.igt.link`
-says what it carries). One client at a time; when it leaves, the server waits for the next.
+messages; each frame is tracked and answered by a TRANSFORM, in the header version the client
+speaks (:mod:`ftrac_design.igt.link` says what each version carries and how a version-1 client
+learns a frame was refused). One client at a time; when it leaves, the server waits for the next.
 
 - **Threads.** The server's thread (a ``socketserver.TCPServer``, one connection at a time)
-  reads the socket and puts each IMAGE in the inbox; the calling (main) thread tracks frames
-  from the inbox and queues the answers, which the server thread sends between reads. pyigtl
-  packs and unpacks the messages. The server is created in the calling thread because it
-  installs SIGINT/SIGTERM handlers there: Ctrl-C (or SIGTERM) raises KeyboardInterrupt in that
-  thread, :func:`serve` leaves its loop, closes the socket and returns its summary (pyigtl's
-  own server shuts down inside its signal handler, where the interrupted thread may hold a lock
-  the socket thread needs).
+  reads the socket (:func:`ftrac_design.igt.link.read_message`: the wire framing) and puts each
+  IMAGE in the inbox; the calling (main) thread tracks frames from the inbox and queues the
+  answers, which the server thread sends between reads. pyigtl packs and unpacks the messages.
+  Both threads count into the :class:`ServeSummary`, which holds its own lock. The server is
+  created in the calling thread because it installs SIGINT/SIGTERM handlers there: Ctrl-C (or
+  SIGTERM) raises KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the
+  socket and returns its summary (pyigtl's own server shuts down inside its signal handler,
+  where the interrupted thread may hold a lock the socket thread needs).
 - **A bounded inbox.** The socket thread only reads: a frame is checked and decoded (CRC,
   pixels, camera) when the tracker takes it, so a frame that is dropped costs its bytes only.
   At most ``queue`` frames wait; a frame arriving at a full inbox pushes out the OLDEST, which
@@ -35,7 +37,8 @@ when the fiducial is lost, jumps or fails the tests); :func:`frame_by_frame_trac
 (``serve --independent``) tracks each frame alone exactly as ``track`` tracks an image.
 
 **Client** (:func:`push_poses`): the poses of a ``track`` run sent as TRANSFORMs to a listening
-OpenIGTLink server (3D Slicer's OpenIGTLinkIF, port 18944), paced by their ``time_s`` or a rate.
+OpenIGTLink server (3D Slicer's OpenIGTLinkIF, port 18944), paced by their ``time_s`` or a rate,
+in the header version the server speaks once it has sent a message (``header_version`` before).
 """
 
 from __future__ import annotations
@@ -45,7 +48,6 @@ import math
 import signal
 import socket
 import socketserver
-import struct
 import sys
 import threading
 import time
@@ -65,15 +67,9 @@ from .track_run import TrackSetup, failed_pose_dict, one_line, track_pixels
 
 #: OpenIGTLink's default port (3D Slicer's OpenIGTLinkIF and PLUS use it)
 DEFAULT_PORT = 18944
-#: the fixed header of every OpenIGTLink message: version, type, device, timestamp, body size, CRC
-HEADER = struct.Struct(">H12s20sIIQQ")
-#: the largest body accepted: a 4096² frame of 8-byte pixels plus room for headers and metadata
-MAX_BODY_BYTES = 4096 * 4096 * 8 + (1 << 20)
 #: Python's thread switch interval while serving (s): the socket thread waits at most this for
 #: the GIL when the tracker holds it, so reading keeps up with the sender (default 5 ms)
 SWITCH_INTERVAL_S = 0.0005
-#: seconds a started message may stall before the connection is given up
-STALL_S = 5.0
 
 
 class Tracker(Protocol):
@@ -199,17 +195,13 @@ class InboxItem:
 
     Attributes
     ----------
-    fields : its parsed header (pyigtl's ``parse_header``).
-    body : its body bytes.
-    crc : the CRC its header states.
+    message : the message as read (header fields, body, stated CRC).
     connection, index : the connection it came on and its 0-based index among the IMAGE
         messages of that connection.
     received : when it was fully read (``time.perf_counter``).
     """
 
-    fields: dict[str, Any]
-    body: bytearray
-    crc: int
+    message: link.RawMessage
     connection: int
     index: int
     received: float
@@ -217,17 +209,19 @@ class InboxItem:
     @property
     def timestamp(self) -> float:
         """The IMAGE's timestamp (s since 1970)."""
-        return float(self.fields["timestamp"])
+        return self.message.timestamp
 
     @property
     def device(self) -> str:
         """The IMAGE's device name."""
-        return str(self.fields["device_name"])
+        return self.message.device
 
 
 @dataclass
 class ServeSummary:
-    """What a :func:`serve` session did (totals over all connections)."""
+    """What a :func:`serve` session did (totals over all connections). The socket thread and the
+    tracking thread both count: :meth:`count` and :meth:`latency` hold the summary's own lock.
+    """
 
     connections: int = 0
     received: int = 0
@@ -237,6 +231,18 @@ class ServeSummary:
     undelivered: int = 0
     bad_messages: int = 0
     latencies_ms: list[float] = field(default_factory=list)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False, compare=False)
+
+    def count(self, **added: int) -> None:
+        """Add to counters by name, atomically (e.g. ``count(answered=1, tracked=1)``)."""
+        with self._lock:
+            for name, n in added.items():
+                setattr(self, name, getattr(self, name) + n)
+
+    def latency(self, ms: float) -> None:
+        """Record one delivered answer's latency (ms)."""
+        with self._lock:
+            self.latencies_ms.append(ms)
 
     def line(self) -> str:
         """One line: the counts and the latency's median and maximum."""
@@ -293,35 +299,6 @@ class FrameInbox:
             return n
 
 
-class _Framing(Exception):
-    """The byte stream cannot be trusted any more (bad header): answer, then close."""
-
-
-class _Closed(Exception):
-    """The client closed the connection."""
-
-
-def _recv_into(sock: socket.socket, buf: memoryview, started: bool) -> bool:
-    """Fill ``buf`` from ``sock``. False when nothing arrived within the socket's timeout and
-    ``started`` is False (no message yet); raises _Closed at the end of the stream and _Framing
-    when a started message stalls for :data:`STALL_S`."""
-    got, last = 0, time.monotonic()
-    while got < len(buf):
-        try:
-            n = sock.recv_into(buf[got:])
-        except socket.timeout:
-            if got == 0 and not started:
-                return False
-            if time.monotonic() - last > STALL_S:
-                raise _Framing(f"message stalled for {STALL_S:.0f} s") from None
-            continue
-        if n == 0:
-            raise _Closed()
-        got += n
-        last = time.monotonic()
-    return True
-
-
 class _Handler(socketserver.BaseRequestHandler):
     """One client connection: read one message, send what is queued, repeat."""
 
@@ -338,12 +315,12 @@ class _Handler(socketserver.BaseRequestHandler):
             while not srv.stop_requested:
                 try:
                     srv.receive_one(sock, conn)
-                except _Framing as exc:
+                except link.FramingError as exc:
                     srv.reply_error(link.STATUS_INVALID_PACKET, f"{exc}; closing this connection", "", conn)
                     srv.flush(sock)
                     break
                 srv.flush(sock)
-        except (_Closed, OSError):
+        except (link.ConnectionClosed, OSError):
             pass
         finally:
             srv.connection_closed(conn)
@@ -351,7 +328,8 @@ class _Handler(socketserver.BaseRequestHandler):
 
 class IgtlServer(socketserver.TCPServer):
     """The OpenIGTLink server: one client at a time, a bounded inbox, counted drops,
-    per-connection state and STATUS answers to bad messages (see the module).
+    per-connection state (its header version, :class:`~ftrac_design.igt.link.PeerVersion`) and
+    STATUS answers to bad messages (see the module).
 
     Create it in the main thread: it installs its SIGINT/SIGTERM handlers there (they raise
     KeyboardInterrupt); :meth:`close` stops it and puts the previous handlers back.
@@ -373,8 +351,10 @@ class IgtlServer(socketserver.TCPServer):
         self.connection = 0
         self.connected = False
         self.stop_requested = False
-        self.outgoing: collections.deque[Any] = collections.deque(maxlen=self.MAX_OUTGOING)
+        #: (message, header version) waiting to be sent to the current connection
+        self.outgoing: collections.deque[tuple[Any, link.HeaderVersion]] = collections.deque(maxlen=self.MAX_OUTGOING)
         self._frames: dict[int, int] = collections.defaultdict(int)
+        self._versions: dict[int, link.PeerVersion] = collections.defaultdict(link.PeerVersion)
         self._lock = threading.Lock()
         try:
             super().__init__((options.host, options.port), _Handler)
@@ -410,14 +390,18 @@ class IgtlServer(socketserver.TCPServer):
             if signal.getsignal(s) == self._signal_handler:
                 signal.signal(s, h)
 
+    def version_of(self, conn: int) -> link.HeaderVersion:
+        """The header version connection ``conn`` is answered in now."""
+        return self._versions[conn].version
+
     def connection_opened(self, address: Any) -> int:
         """A client connected: a new connection number; stale answers are forgotten."""
         with self._lock:
             self.connection += 1
             self.outgoing.clear()
-            self.summary.connections += 1
             self.connected = True
             conn = self.connection
+        self.summary.count(connections=1)
         self._say(f"client {address[0]}:{address[1]} connected (connection {conn})")
         return conn
 
@@ -426,80 +410,78 @@ class IgtlServer(socketserver.TCPServer):
         n = self.inbox.discard_connection(conn)
         with self._lock:
             self.connected = False
-            self.summary.undelivered += n
-        self._say(f"connection {conn} closed: {self._frames[conn]} frames received, {self.inbox.dropped[conn]} dropped")
+        self.summary.count(undelivered=n)
+        self._say(
+            f"connection {conn} closed: {self._frames[conn]} frames received, {self.inbox.dropped[conn]} dropped; "
+            f"answered in header version {self.version_of(conn)}"
+        )
 
     def flush(self, sock: socket.socket) -> None:
-        """Send every queued answer (OSError when the client is gone)."""
+        """Send every queued answer, each in its header version (OSError when the client is gone)."""
         while True:
             with self._lock:
                 if not self.outgoing:
                     return
-                msg = self.outgoing.popleft()
-            sock.sendall(msg.pack())
+                msg, version = self.outgoing.popleft()
+            sock.sendall(link.packed(msg, version))
 
     def reply(self, msg: Any, conn: int) -> bool:
-        """Queue ``msg`` for connection ``conn``; False (and counted) when it has closed."""
+        """Queue ``msg`` for connection ``conn`` in its header version now; False (and counted
+        undelivered) when it has closed."""
+        version = self.version_of(conn)
         with self._lock:
-            if conn != self.connection or not self.connected:
-                self.summary.undelivered += 1
-                return False
-            self.outgoing.append(msg)
-            return True
+            live = conn == self.connection and self.connected
+            if live:
+                self.outgoing.append((msg, version))
+        if not live:
+            self.summary.count(undelivered=1)
+        return live
+
+    def discard_stale(self, item: InboxItem) -> None:
+        """Drop a frame whose connection has closed (counted undelivered)."""
+        self.summary.count(undelivered=1)
 
     def reply_error(self, code: int, text: str, device: str, conn: int, timestamp: float | None = None) -> None:
-        """Answer a bad message with a STATUS (and count it)."""
-        with self._lock:
-            self.summary.bad_messages += 1
-        self.reply(link.status_message(code, text, device or "ftrac-design", timestamp), conn)
+        """Answer a bad message with a STATUS in the connection's header version (and count it)."""
+        self.summary.count(bad_messages=1)
+        msg = link.status_message(code, text, device or "ftrac-design", timestamp, version=self.version_of(conn))
+        self.reply(msg, conn)
         self._say(f"connection {conn}: bad message: {one_line(text)}")
 
     def receive_one(self, sock: socket.socket, conn: int) -> None:
-        """Read one message (or return after the socket's timeout) and deal with it."""
-        head = bytearray(HEADER.size)
-        if not _recv_into(sock, memoryview(head), started=False):
+        """Read one message (or return after the socket's timeout) and deal with it: the
+        connection's header version follows the client's; an IMAGE goes to the inbox."""
+        raw = link.read_message(sock)
+        if raw is None:
             return
-        version, mtype, device, sec, frac, size, crc = HEADER.unpack(head)
-        try:
-            mtype_s = mtype.rstrip(b"\0 ").decode("ascii")
-            device_s = device.rstrip(b"\0 ").decode("ascii")
-        except UnicodeDecodeError:
-            raise _Framing("a message header whose type and device name are ASCII") from None
-        if version not in (1, 2) or size > MAX_BODY_BYTES:
-            raise _Framing(
-                f"a message header of version 1 or 2 with a body of at most {MAX_BODY_BYTES} bytes "
-                f"(got version {version}, {size} bytes)"
-            )
-        body = bytearray(size)
-        _recv_into(sock, memoryview(body), started=True)
-        fields = link.parse_header(head)
-        if mtype_s == "STATUS":
+        self._versions[conn].heard(raw.version)
+        if raw.type == "STATUS":
             # a peer's status is information, not a request: answering it could ping-pong
             return
-        if mtype_s != "IMAGE":
+        if raw.type != "IMAGE":
             self.reply_error(
                 link.STATUS_UNKNOWN_INSTRUCTION,
-                f"{mtype_s} {device_s!r}: only IMAGE messages are tracked; message ignored",
-                device_s,
+                f"{raw.type} {raw.device!r}: only IMAGE messages are tracked; message ignored",
+                raw.device,
                 conn,
-                fields["timestamp"],
+                raw.timestamp,
             )
             return
         with self._lock:
             index = self._frames[conn]
             self._frames[conn] += 1
-            self.summary.received += 1
-        self.inbox.put(InboxItem(fields, body, crc, conn, index, time.perf_counter()))
+        self.summary.count(received=1)
+        self.inbox.put(InboxItem(raw, conn, index, time.perf_counter()))
 
     def decode(self, item: InboxItem) -> tuple[np.ndarray, Camera] | None:
         """The pixels and camera of a queued IMAGE, or None after answering a bad one with a STATUS
         (CRC mismatch 9, malformed 0, no camera 10)."""
         name, conn, ts = item.device, item.connection, item.timestamp
-        if link.crc64(item.body) != item.crc:
+        if not item.message.crc_ok():
             self.reply_error(link.STATUS_CHECKSUM_ERROR, f"IMAGE {name!r}: CRC mismatch; frame ignored", name, conn, ts)
             return None
         try:
-            msg = link.image_message(item.fields, item.body)
+            msg = link.image_message(item.message.fields, item.message.body)
             pixels = link.image_pixels(msg)
         except InputError as exc:
             self.reply_error(link.STATUS_INVALID_PACKET, f"IMAGE {name!r}: {exc}", name, conn, ts)
@@ -534,9 +516,30 @@ def _guarded(tracker: Tracker, pixels: np.ndarray, camera: Camera, time_s: float
         return d
 
 
+def _compose(
+    options: ServeOptions, pose: dict[str, Any], item: InboxItem, extra: dict[str, str], version: link.HeaderVersion
+) -> tuple[list[Any], bool]:
+    """The messages answering one frame in the client's header ``version`` and whether it has a
+    pose; a tracker's pose that cannot be sent becomes that frame's error."""
+    try:
+        msgs = link.answer_messages(
+            pose, options.name, options.space, item.timestamp, extra, version, options.valid_only
+        )
+        return msgs, link.has_pose(pose)
+    except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
+        pose = {
+            **failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
+            "status": "error",
+        }
+        msgs = link.answer_messages(
+            pose, options.name, options.space, item.timestamp, extra, version, options.valid_only
+        )
+        return msgs, False
+
+
 def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
-    """Track one frame from the inbox and queue its TRANSFORM for its connection."""
-    options = server.options
+    """Track one frame from the inbox and queue its answer for its connection, in the header
+    version the client speaks (:func:`ftrac_design.igt.link.answer_messages`)."""
     start = time.perf_counter()
     decoded = server.decode(item)
     if decoded is None:
@@ -544,32 +547,29 @@ def answer_frame(server: IgtlServer, tracker: Tracker, item: InboxItem) -> None:
     begin = time.perf_counter()
     pose = _guarded(tracker, *decoded, item.timestamp)
     done = time.perf_counter()
-    try:
-        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
-    except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
-        pose = {
-            **failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
-            "status": "error",
-        }
-        msg = link.transform_message(pose, options.name, options.space, item.timestamp, {})
-    ok = msg.metadata["TransformStatus"] == "OK"
-    with server._lock:
-        server.summary.answered += 1
-        server.summary.tracked += int(ok)
-    if options.valid_only and not ok:
-        return
-    msg.metadata.update(
-        {
-            "frame": str(item.index),
-            "image_device": item.device,
-            "dropped": str(server.inbox.dropped[item.connection]),
-            "queue_ms": f"{1e3 * (start - item.received):.3f}",
-            "track_ms": f"{1e3 * (done - begin):.3f}",
-            "latency_ms": f"{1e3 * (time.perf_counter() - item.received):.3f}",
-        }
+    extra = {
+        "frame": str(item.index),
+        "image_device": item.device,
+        "dropped": str(server.inbox.dropped[item.connection]),
+        "queue_ms": f"{1e3 * (start - item.received):.3f}",
+        "track_ms": f"{1e3 * (done - begin):.3f}",
+    }
+    msgs, ok = _compose(server.options, pose, item, extra, server.version_of(item.connection))
+    server.summary.count(answered=1, tracked=int(ok))
+    for msg in msgs:
+        latency_ms = 1e3 * (time.perf_counter() - item.received)
+        if msg.header_version > 1:
+            msg.metadata["latency_ms"] = f"{latency_ms:.3f}"
+        if server.reply(msg, item.connection):
+            server.summary.latency(latency_ms)
+
+
+def _progress_line(server: IgtlServer, reported: int) -> str:
+    s = server.summary
+    lat = s.latencies_ms[reported:]
+    return f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} dropped" + (
+        f"; latency median {np.median(lat):.0f} ms" if lat else ""
     )
-    if server.reply(msg, item.connection):
-        server.summary.latencies_ms.append(float(msg.metadata["latency_ms"]))
 
 
 def _answer_until_stopped(
@@ -584,19 +584,12 @@ def _answer_until_stopped(
         if item is None:
             continue
         if item.connection != server.connection:
-            server.summary.undelivered += 1
+            server.discard_stale(item)
             continue
         answer_frame(server, tracker, item)
         if report_s and log is not None and time.monotonic() - last_report > report_s:
-            s = server.summary
-            lat = s.latencies_ms[reported:]
-            print(
-                f"{s.received} frames received, {s.answered} answered, {sum(server.inbox.dropped.values())} "
-                f"dropped" + (f"; latency median {np.median(lat):.0f} ms" if lat else ""),
-                file=log,
-                flush=True,
-            )
-            last_report, reported = time.monotonic(), len(s.latencies_ms)
+            print(_progress_line(server, reported), file=log, flush=True)
+            last_report, reported = time.monotonic(), len(server.summary.latencies_ms)
 
 
 def serve(
@@ -660,6 +653,9 @@ class PushOptions:
     space : ``"ras"`` (3D Slicer) or ``"lps"``.
     rate_hz : frames per second; None: paced by the poses' ``time_s`` (else 30 per second).
     connect_timeout_s : how long to wait for the server.
+    header_version : the OpenIGTLink header version to send in until the server has sent a
+        message (then the highest version it has sent, at most 2): 2 (OpenIGTLink 3, 3D Slicer
+        4.8 and later; metadata) or 1 (the reference library 1.x, older PLUS builds).
     """
 
     host: str = "127.0.0.1"
@@ -668,15 +664,57 @@ class PushOptions:
     space: Space = "ras"
     rate_hz: float | None = None
     connect_timeout_s: float = 10.0
+    header_version: link.HeaderVersion = link.MAX_HEADER_VERSION
+
+
+def _connect(options: PushOptions) -> Any:
+    """A pyigtl client connected to the server, or InputError after ``connect_timeout_s``."""
+    client = link.pyigtl().OpenIGTLinkClient(options.host, options.port)
+    deadline = time.monotonic() + options.connect_timeout_s
+    while not client.is_connected():
+        if time.monotonic() > deadline:
+            client.stop()
+            raise InputError(
+                None,
+                None,
+                f"an OpenIGTLink server listening at {options.host}:{options.port} "
+                f"(none answered within {options.connect_timeout_s:g} s)",
+                parameter="port",
+            )
+        time.sleep(0.01)
+    return client
+
+
+def server_version(client: Any, default: link.HeaderVersion) -> link.HeaderVersion:
+    """The header version to send to the server ``client`` is connected to: the highest version
+    of the messages it has sent (at most 2), else ``default`` while it has sent none."""
+    try:
+        heard = [int(m.header_version) for m in list(client.incoming_messages.values())]
+    except RuntimeError:  # the receiving thread changed the store meanwhile: ask again next time
+        heard = []
+    return min(max(heard), link.MAX_HEADER_VERSION) if heard else default  # type: ignore[return-value]
+
+
+def _pose_object(p: PoseRecord) -> dict[str, Any]:
+    return {
+        "converged": p.converged,
+        "rotation": p.R.tolist() if p.converged else None,
+        "translation_mm": p.t.tolist() if p.converged else None,
+        "covariance": None if p.covariance is None else p.covariance.tolist(),
+        "status": p.status,
+        "error": p.error,
+    }
 
 
 def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable[[int], None] | None = None) -> int:
-    """Send each pose as a TRANSFORM to a listening OpenIGTLink server, in order, paced.
+    """Send each pose as a TRANSFORM to a listening OpenIGTLink server, in order, paced, in the
+    header version the server speaks (:func:`server_version`).
 
     Parameters
     ----------
-    poses : the run (SPEC §4 records); one without a pose is sent INVALID (identity).
-    options : server, names, pace.
+    poses : the run (SPEC §4 records); one without a pose is sent INVALID (identity) in header
+        version 2, as a STATUS ``NoPose`` in version 1 (see :mod:`ftrac_design.igt.link`).
+    options : server, names, pace, header version.
     progress : called with the number sent after each (e.g. a progress bar's update).
 
     Returns
@@ -684,41 +722,21 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
     int : how many were sent. Raises InputError when no server answers at host:port within
     ``connect_timeout_s``.
     """
-    OpenIGTLinkClient = link.pyigtl().OpenIGTLinkClient
     check_transform_name(options.name, "name")
-    client = OpenIGTLinkClient(options.host, options.port)
+    client = _connect(options)
     try:
-        deadline = time.monotonic() + options.connect_timeout_s
-        while not client.is_connected():
-            if time.monotonic() > deadline:
-                raise InputError(
-                    None,
-                    None,
-                    f"an OpenIGTLink server listening at {options.host}:{options.port} "
-                    f"(none answered within {options.connect_timeout_s:g} s)",
-                    parameter="port",
-                )
-            time.sleep(0.01)
         times = send_times(poses, options.rate_hz)
         start, wall0 = times[0], time.monotonic()
         for k, (p, t) in enumerate(zip(poses, times)):
             wait = wall0 + (t - start) - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
-            pose = {
-                "converged": p.converged,
-                "rotation": p.R.tolist() if p.converged else None,
-                "translation_mm": p.t.tolist() if p.converged else None,
-                "covariance": None if p.covariance is None else p.covariance.tolist(),
-                "status": p.status,
-                "error": p.error,
-            }
             extra = {"frame": str(p.frame if p.frame is not None else k)}
             if p.time_s is not None:
                 extra["time_s"] = repr(p.time_s)
-            client.send_message(
-                link.transform_message(pose, options.name, options.space, time.time(), extra), wait=True
-            )
+            version = server_version(client, options.header_version)
+            for msg in link.answer_messages(_pose_object(p), options.name, options.space, time.time(), extra, version):
+                client.send_message(msg, wait=True)
             if progress is not None:
                 progress(k + 1)
         return len(poses)
