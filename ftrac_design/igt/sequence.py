@@ -1,7 +1,7 @@
 """PLUS-style sequence files holding a tracked run: one transform per frame, its status and time.
 
-PLUS and 3D Slicer's Sequences module store a tracked run as a MetaImage (``.seq.mha``) or
-NRRD (``.seq.nrrd``) header with per-frame fields (frame number ``NNNN`` zero-padded to 4):
+PLUS and 3D Slicer's Sequences module store a tracked run of linear transforms as a MetaImage
+(``.seq.mha``) header with per-frame fields (frame number ``NNNN`` zero-padded to 4):
 
 - ``Seq_FrameNNNN_FrameNumber``: the 0-based index in the run;
 - ``Seq_FrameNNNN_<Name>Transform``: the 4×4 matrix, 16 numbers row by row (Slicer reads it
@@ -13,10 +13,13 @@ NRRD (``.seq.nrrd``) header with per-frame fields (frame number ``NNNN`` zero-pa
 - ``Seq_FrameNNNN_ImageStatus``: ``INVALID`` — the file holds the transforms only.
 
 The ``.seq.mha`` is laid out as Slicer writes a transform-only sequence (``DimSize = 0 0 N``,
-``ElementDataFile = LOCAL`` last, no pixel data). The ``.seq.nrrd`` holds the same fields as
-NRRD key/value pairs (``key:=value``) over a 1 × 1 × N ``uint8`` placeholder of zeros (NRRD has
-no empty image), so any NRRD reader opens it. ``FtracTransformSpace`` says whether the
-matrices are RAS (default, for Slicer) or our LPS numbers unchanged.
+``ElementDataFile = LOCAL`` last, no pixel data); Slicer's ``vtkMRMLLinearTransformSequenceStorageNode``
+reads it as one linear transform per frame, indexed by the timestamps (rounded to 1 ms).
+``FtracTransformSpace`` says whether the matrices are RAS (default, for Slicer) or our LPS
+numbers unchanged. No ``.seq.nrrd`` is written: Slicer reads a ``.seq.nrrd`` as a sequence of
+images or of grid transforms, and its linear-transform sequence reader parses only MetaImage
+headers (a ``.seq.nrrd`` of these fields loads as one transform). :func:`read_sequence_fields`
+still reads either header, as PLUS writes both.
 """
 
 from __future__ import annotations
@@ -31,7 +34,7 @@ from ..errors import InputError
 from ..fileio import atomic_file, read_text_input
 from .frames import Space, check_transform_name
 
-SequenceFormat = Literal["mha", "nrrd"]
+SequenceFormat = Literal["mha"]
 PREFIX = "Seq_Frame"
 
 
@@ -84,12 +87,12 @@ def frame_fields(frames: list[SequenceFrame], name: str) -> list[tuple[str, str]
 
 
 def sequence_bytes(frames: list[SequenceFrame], name: str, fmt: SequenceFormat, space: Space) -> bytes:
-    """The whole file (header and, for NRRD, the placeholder data) as bytes.
+    """The whole file (a header with no pixel data) as bytes.
 
     Parameters
     ----------
     frames, name : as :func:`frame_fields`.
-    fmt : ``"mha"`` or ``"nrrd"``.
+    fmt : ``"mha"`` (the one format written).
     space : what the matrices are in (``"ras"`` or ``"lps"``), recorded in the file.
     """
     if not frames:
@@ -113,20 +116,7 @@ def sequence_bytes(frames: list[SequenceFrame], name: str, fmt: SequenceFormat, 
         ]
         body = [f"{k} = {v}" for k, v in fields]
         return ("\n".join(head + body + ["ElementDataFile = LOCAL"]) + "\n").encode("ascii")
-    if fmt == "nrrd":
-        head = [
-            "NRRD0004",
-            "# a tracked run written by ftrac-design: transforms only (1 x 1 placeholder pixels)",
-            "type: uint8",
-            "dimension: 3",
-            f"sizes: 1 1 {n}",
-            "kinds: domain domain list",
-            "encoding: raw",
-            f"FtracTransformSpace:={space.upper()}",
-        ]
-        body = [f"{k}:={v}" for k, v in fields]
-        return ("\n".join(head + body) + "\n\n").encode("ascii") + bytes(n)
-    raise InputError(None, None, f'"mha" or "nrrd", got {fmt!r}', parameter="fmt")
+    raise InputError(None, None, f'"mha", got {fmt!r}', parameter="fmt")
 
 
 def write_sequence(path: str | Path, frames: list[SequenceFrame], name: str, fmt: SequenceFormat, space: Space) -> Path:
