@@ -1,14 +1,14 @@
 """The exports 3D Slicer, ITK and PLUS read: ``.tfm`` read back by ITK itself (SimpleITK) gives
 the matrix written, in LPS and ITK's resampling direction, checked on poses whose answer is
-known by hand; markups round trip in LPS; sequence headers read back by pynrrd and by field;
-``ftrac-design export`` refuses bad pose files with one line and writes nothing."""
+known by hand; markups round trip in LPS; sequence headers read back by field (3D Slicer's own
+readers: test_igt_slicer.py); ``ftrac-design export`` (and ``--scene``) refuses bad input with
+one line and writes nothing."""
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
 
-import nrrd
 import numpy as np
 import pytest
 import SimpleITK as sitk
@@ -204,11 +204,10 @@ def _matrix_field(v: str) -> np.ndarray:
     return np.array([float(x) for x in v.split()]).reshape(4, 4)
 
 
-@pytest.mark.parametrize("suffix", [".seq.mha", ".seq.nrrd"])
 @pytest.mark.parametrize("space", ["ras", "lps"])
-def test_sequence_header_fields(run_file, suffix, space, tmp_path, capsys):
+def test_sequence_header_fields(run_file, space, tmp_path, capsys):
     path, Ms = run_file
-    out = tmp_path / f"run{suffix}"
+    out = tmp_path / "run.seq.mha"
     assert main(["export", str(path), "-o", str(out), "--space", space]) == 0
     f = read_sequence_fields(out)
     for k, M in ((0, Ms[0]), (2, Ms[2])):
@@ -218,13 +217,7 @@ def test_sequence_header_fields(run_file, suffix, space, tmp_path, capsys):
     assert np.array_equal(_matrix_field(f["Seq_Frame0001_FiducialToCArmTransform"]), np.eye(4))
     assert [float(f[f"Seq_Frame{k:04d}_Timestamp"]) for k in range(3)] == [0.0, 0.04, 0.08]
     assert f["FtracTransformSpace"] == space.upper()
-    if suffix == ".seq.mha":
-        assert f["DimSize"] == "0 0 3" and out.read_text().rstrip().endswith("ElementDataFile = LOCAL")
-    else:
-        # an independent NRRD reader opens it: header fields and the 1 × 1 × 3 placeholder
-        data, header = nrrd.read(str(out))
-        assert data.shape == (1, 1, 3) and header["Seq_Frame0002_FiducialToCArmTransformStatus"] == "OK"
-        assert np.array_equal(_matrix_field(header["Seq_Frame0002_FiducialToCArmTransform"]), in_space(Ms[2], space))
+    assert f["DimSize"] == "0 0 3" and out.read_text().rstrip().endswith("ElementDataFile = LOCAL")
 
 
 def test_sequence_without_times_uses_the_line_index(tmp_path):
@@ -288,3 +281,67 @@ def test_export_refuses_an_unknown_suffix_and_a_bad_name(run_file, tmp_path, cap
     assert main(["export", str(path), "-o", str(tmp_path / "x.seq.mha"), "--name", "Fiducial_CArm"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 2 and "--output" in err and "--name" in err
+
+
+# --------------------------------------------------------------------------- export --scene, bad input
+def _features_and_model(tmp_path):
+    from ftrac_design.design import load_design
+    from ftrac_design.design.presets import PRESETS_DIR
+    from ftrac_design.features import compute_features
+
+    build = tmp_path / "build"
+    build.mkdir()
+    write_features(build / "features.json", compute_features(load_design(PRESETS_DIR / "nine_bead.toml")))
+    # a binary STL of one triangle (the build's is larger; the scene copies its triangles unchanged)
+    tri = np.zeros(1, dtype=[("n", "<f4", 3), ("v", "<f4", (3, 3)), ("a", "<u2")])
+    tri["v"] = [[[0, 0, 0], [1, 0, 0], [0, 1, 0]]]
+    (build / "fiducial.stl").write_bytes(b"made by a test".ljust(80, b"\0") + (1).to_bytes(4, "little") + tri.tobytes())
+    return build
+
+
+def test_a_scene_holds_the_models_triangles_with_an_lps_header_and_only_frames_with_a_pose(run_file, tmp_path):
+    path, Ms = run_file
+    build = _features_and_model(tmp_path)
+    out = tmp_path / "scene"
+    assert main(["export", str(path), "--scene", str(out), "--features", str(build / "features.json")]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["beads.mrk.json", "fiducial.stl", "run.seq.mha", "scene.mrml"]
+    stl, src = (out / "fiducial.stl").read_bytes(), (build / "fiducial.stl").read_bytes()
+    assert stl.startswith(b"SPACE=LPS") and stl[80:] == src[80:]
+    f = read_sequence_fields(out / "run.seq.mha")
+    assert "Seq_Frame0002_FiducialToCArmTransform" not in f  # 3 lines, one without a pose
+    assert np.array_equal(_matrix_field(f["Seq_Frame0001_FiducialToCArmTransform"]), in_space(Ms[2], "ras"))
+    # an earlier scene is replaced whole
+    assert main(["export", str(path), "--scene", str(out), "--features", str(build / "features.json")]) == 0
+
+
+@pytest.mark.parametrize(
+    "case, key",
+    [
+        ("no features", "--features"),
+        ("no model", "fiducial.stl"),
+        ("lps", "--space"),
+        ("occupied", "--scene"),
+        ("both", "--output"),
+    ],
+)
+def test_export_scene_bad_input_exits_2_with_one_line_and_writes_nothing(run_file, tmp_path, capsys, case, key):
+    path, _ = run_file
+    build = _features_and_model(tmp_path)
+    out = tmp_path / "scene"
+    args = ["export", str(path), "--scene", str(out), "--features", str(build / "features.json")]
+    if case == "no features":
+        args = args[:4]
+    elif case == "no model":
+        (build / "fiducial.stl").unlink()
+    elif case == "lps":
+        args += ["--space", "lps"]
+    elif case == "occupied":
+        out.mkdir()
+        (out / "notes.txt").write_text("mine")
+    else:
+        args += ["-o", str(tmp_path / "x.tfm")]
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and key in err and "Traceback" not in err
+    assert not out.exists() or [p.name for p in out.iterdir()] == ["notes.txt"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]

@@ -3,8 +3,11 @@
 The scene is a folder: ``scene.mrml`` (MRML, Slicer's XML scene) and the files it names, each in
 a format Slicer's own storage nodes read:
 
-- ``fiducial.stl`` — the fiducial's model in F (as ``ftrac-design build`` writes it), read as
-  **LPS** (``vtkMRMLModelStorageNode``, ``coordinateSystem="LPS"``), like all our numbers;
+- ``fiducial.stl`` — the fiducial's model in F (as ``ftrac-design build`` writes it), its
+  triangles unchanged and its header saying ``SPACE=LPS``, so ``vtkMRMLModelStorageNode`` reads it
+  as **LPS** like all our numbers (Slicer takes the coordinate system from a model file's header
+  first; a scene's ``coordinateSystem`` attribute alone is overridden for scenes of older
+  versions);
 - ``beads.mrk.json`` — the beads' centres in F as a point list (``vtkMRMLMarkupsJsonStorageNode``,
   LPS, :mod:`.markups`);
 - ``run.seq.mha`` — the run's poses as a linear-transform sequence
@@ -22,7 +25,6 @@ source, ``+z`` toward the detector, read as LPS).
 from __future__ import annotations
 
 import json
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -61,6 +63,16 @@ class SceneContent:
     poses: list[tuple[float, np.ndarray]]
     name: str
     run_name: str
+
+
+def stl_in_lps(data: bytes) -> bytes:
+    """The STL ``data`` with its header saying ``SPACE=LPS`` (Slicer's convention, read from a
+    binary STL's 80-byte header or an ASCII STL's ``solid`` line); the triangles are untouched."""
+    if data.lstrip().startswith(b"solid"):
+        first, _, rest = data.partition(b"\n")
+        return first.rstrip(b"\r") + b" SPACE=LPS\n" + rest
+    header = b"SPACE=LPS; fiducial frame F, mm; " + data[:80].rstrip(b"\0 ")
+    return header[:80].ljust(80, b"\0") + data[80:]
 
 
 def _matrix_text(M: np.ndarray) -> str:
@@ -147,7 +159,8 @@ def scene_xml(content: SceneContent) -> str:
     return "\n".join(
         [
             '<?xml version="1.0" encoding="UTF-8"?>',
-            '<MRML version="Slicer4.4.0">',
+            # the oldest Slicer that reads every node here (markups JSON, sequence browsers)
+            '<MRML version="Slicer4.11.0">',
             *scene_nodes(content),
             "</MRML>",
             "",
@@ -174,7 +187,7 @@ def write_scene_files(folder: Path, content: SceneContent) -> list[Path]:
     if not content.beads:
         raise InputError(None, None, "a features file with at least one bead", parameter="features")
     try:
-        shutil.copyfile(content.model_stl, folder / MODEL_FILE)
+        (folder / MODEL_FILE).write_bytes(stl_in_lps(Path(content.model_stl).read_bytes()))
     except OSError as exc:
         raise InputError(content.model_stl, None, f"a readable STL model ({exc.strerror or exc})") from None
 
