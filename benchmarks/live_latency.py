@@ -11,8 +11,17 @@ the live p50 to it is what the link and the server add. The first answers (warm-
 The target is p99 ≤ 50 ms for ftrac_2005; the server's default tracker follows the run from frame
 to frame (``--independent``: every frame alone, passed through to the server).
 
-    .venv/bin/python benchmarks/live_latency.py                     # ftrac_2005, 1024², 10 s a rate
-    .venv/bin/python benchmarks/live_latency.py --design ftrac_mini --seconds 5
+**Independent frames** (``--frames independent``): frames that do not follow each other — the
+C-arm moved between shots, a new patient — rendered at unrelated workspace poses, sent one every
+``--gap`` seconds (so none waits for another), to the server with its default (run) tracker and
+with ``--independent``. Each needs the full identification; the bound is ``track`` on one image:
+``track_image`` on the same frames in this process. The run tracker first tries the frame from
+the previous pose, which fails on an unrelated frame: that attempt is the difference between the
+two servers. The server's own part (IMAGE received → answer queued: CRC, decoding, tracking,
+composing) is reported beside the tracking alone.
+
+    .venv/bin/python benchmarks/live_latency.py                     # ftrac_2005, 1024², both kinds
+    .venv/bin/python benchmarks/live_latency.py --design ftrac_mini --seconds 5 --frames smooth
 """
 
 from __future__ import annotations
@@ -132,34 +141,35 @@ def transport_ms(frame: np.ndarray, cam, rounds: int = 10) -> tuple[float, float
     return float(np.median(pack)), float(np.median(decode))
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--design", default="ftrac_2005")
-    ap.add_argument("--size", type=int, default=1024, help="frame side, pixels")
-    ap.add_argument("--distinct", type=int, default=60, help="frames of the swing, sent forward then backward")
-    ap.add_argument("--independent", action="store_true", help="the server tracks every frame alone")
-    ap.add_argument("--seconds", type=float, default=10.0, help="sending time per rate")
-    ap.add_argument("--warmup", type=int, default=3)
-    a = ap.parse_args()
-    out = Path("outputs/bench_live")
-    fr = sweep_frames(out, a.design, a.distinct, a.size)
-    cam = fr.camera
-    print(
-        f"{machine()}; {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
-        f"{'every frame alone' if a.independent else 'run (from the previous pose)'}; shared 2-core machine: "
-        f"figures are inflated by the other jobs' load"
-    )
-    body = body_from_features_file(fr.features_path)
+def baseline_ms(fr) -> np.ndarray:
+    """``track_image`` alone on each frame, in this process (ms; one warm-up call first)."""
     from ftrac_design.features import load_features
 
+    body = body_from_features_file(fr.features_path)
     features = load_features(fr.features_path)
-    track_image(fr.pixels[0], features, cam, body=body)
+    track_image(fr.pixels[0], features, fr.camera, body=body)
     base = []
     for img in fr.pixels:
         t = time.perf_counter()
-        track_image(img, features, cam, body=body)
+        track_image(img, features, fr.camera, body=body)
         base.append(1e3 * (time.perf_counter() - t))
-    base = np.array(base)
+    return np.array(base)
+
+
+def _stats(ms: np.ndarray) -> str:
+    p50, p99 = np.percentile(ms, [50, 99])
+    return f"p50 {p50:.1f} ms, p99 {p99:.1f} ms, max {ms.max():.1f} ms"
+
+
+def smooth_run(a: argparse.Namespace) -> None:
+    """The swing, forward then backward, at 15 and 30 frames/s, then closed loop."""
+    fr = sweep_frames(Path("outputs/bench_live"), a.design, a.distinct, a.size)
+    cam = fr.camera
+    print(
+        f"smooth run: {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
+        f"{'every frame alone' if a.independent else 'run (from the previous pose)'}"
+    )
+    base = baseline_ms(fr)
     print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
     pk, dc = transport_ms(fr.pixels[0], cam)
     print(
@@ -169,15 +179,8 @@ def main() -> None:
     # forward then backward: frame k of the stream is a neighbour of frame k − 1
     order = list(range(len(fr.pixels))) + list(range(len(fr.pixels) - 2, 0, -1))
     stream = fr.pixels[order]
-    server = Server(
-        [
-            "--features",
-            str(fr.features_path),
-            "--camera",
-            str(fr.camera_path),
-            *(["--independent"] if a.independent else []),
-        ]
-    )
+    extra = ["--independent"] if a.independent else []
+    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path), *extra])
     try:
         client = recording_client(server.port)
         closed_loop(client, stream, cam, a.warmup, 0.0)
@@ -187,12 +190,11 @@ def main() -> None:
             lat, dropped = open_loop(client, stream, cam, rate, n, stamp)
             own = _server_latency(client, stamp, stamp + n)
             stamp += 10_000.0
-            p50, p99 = np.percentile(lat, [50, 99])
+            p99 = np.percentile(lat, 99)
             print(
-                f"{rate:.0f} frames/s: {n} sent, {len(lat)} answered, {dropped} dropped; latency p50 {p50:.1f} ms, "
-                f"p99 {p99:.1f} ms, max {lat.max():.1f} ms; p50 / baseline track {p50 / np.median(base):.2f}; "
-                f"target p99 ≤ 50 ms: {'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → "
-                f"sent) p50 {np.median(own):.1f} ms, p99 {np.percentile(own, 99):.1f} ms"
+                f"{rate:.0f} frames/s: {n} sent, {len(lat)} answered, {dropped} dropped; latency {_stats(lat)}; "
+                f"p50 / baseline track {np.median(lat) / np.median(base):.2f}; target p99 ≤ 50 ms: "
+                f"{'met' if p99 <= 50 else 'MISSED'}; in the server alone (received → sent) {_stats(own)}"
             )
             time.sleep(1.0)
         rate = closed_loop(client, stream, cam, max(2 * a.distinct, 20), stamp)
@@ -204,6 +206,68 @@ def main() -> None:
     finally:
         rc, text, err = server.interrupt()
     print(text.strip().splitlines()[-1])
+
+
+def _independent_latencies(fr, extra: list[str], gap_s: float) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Each frame sent alone, ``gap_s`` apart, to a fresh server: (send → answer ms, the server's
+    own ms, the answers' statuses)."""
+    server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path), *extra])
+    try:
+        client = recording_client(server.port)
+        # warm-up on a frame of its own (imports, first allocations): every measured frame then
+        # follows an unrelated one, as after the C-arm moved
+        closed_loop(client, fr.pixels[-1:], fr.camera, 1, 0.0)
+        shots = fr.pixels[:-1]
+        lat, _ = open_loop(client, shots, fr.camera, 1.0 / gap_s, len(shots), 1000.0)
+        own = _server_latency(client, 1000.0, 1000.0 + len(shots))
+        status = [m.metadata.get("status", "?") for m in client.incoming_messages.log if m.timestamp >= 1000.0]
+        client.stop()
+    finally:
+        server.interrupt()
+    return lat, own, status
+
+
+def independent_run(a: argparse.Namespace) -> None:
+    """Unrelated frames (a C-arm moved between shots), one every ``gap`` s: the run tracker and
+    ``--independent`` against ``track_image`` on one image."""
+    from igt_support import rendered_frames
+
+    fr = rendered_frames(
+        Path("outputs/bench_live_independent"), a.count + 1, shape=(a.size, a.size), design=a.design, seed=11
+    )
+    print(
+        f"independent frames: {a.design}, {a.count} {a.size}² frames at unrelated workspace poses, "
+        f"one every {a.gap:g} s"
+    )
+    base = baseline_ms(fr)[:-1]
+    print(f"bound: track_image on one image, in-process: {_stats(base)}")
+    for label, extra in (("run tracker (default)", []), ("--independent", ["--independent"])):
+        lat, own, status = _independent_latencies(fr, extra, a.gap)
+        kinds = {s: status.count(s) for s in sorted(set(status))}
+        print(
+            f"serve, {label}: {len(lat)} answered {kinds}; send → TRANSFORM {_stats(lat)}; in the server "
+            f"(received → queued) {_stats(own)}; p50 / track_image p50 {np.median(lat) / np.median(base):.2f}, "
+            f"p99 / track_image p99 {np.percentile(lat, 99) / np.percentile(base, 99):.2f}"
+        )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--design", default="ftrac_2005")
+    ap.add_argument("--size", type=int, default=1024, help="frame side, pixels")
+    ap.add_argument("--frames", choices=["smooth", "independent", "both"], default="both")
+    ap.add_argument("--distinct", type=int, default=60, help="frames of the swing, sent forward then backward")
+    ap.add_argument("--independent", action="store_true", help="smooth run: the server tracks every frame alone")
+    ap.add_argument("--seconds", type=float, default=10.0, help="sending time per rate")
+    ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument("--count", type=int, default=30, help="independent frames")
+    ap.add_argument("--gap", type=float, default=0.5, help="seconds between independent frames")
+    a = ap.parse_args()
+    print(f"{machine()}; shared 2-core machine: figures are inflated by the other jobs' load")
+    if a.frames in ("smooth", "both"):
+        smooth_run(a)
+    if a.frames in ("independent", "both"):
+        independent_run(a)
 
 
 if __name__ == "__main__":
