@@ -6,10 +6,12 @@
 - :mod:`.tfm` — ITK text transform files (``.tfm``): ``AffineTransform_double_3_3`` in LPS, in
   ITK's resampling direction (the file holds the inverse of the point mapping).
 - :mod:`.markups` — 3D Slicer markups (``.mrk.json``, LPS).
-- :mod:`.sequence` — PLUS-style sequence files (``.seq.mha`` header, ``.seq.nrrd``) holding a
-  tracked run's transforms, statuses and timestamps.
+- :mod:`.sequence` — PLUS-style sequence files (``.seq.mha``) holding a tracked run's
+  transforms, statuses and timestamps.
+- :mod:`.scene` — a 3D Slicer scene (MRML) of a run: the model and beads under the moving
+  transform, the sequence and its browser.
 - :mod:`.link` — OpenIGTLink messages (pyigtl, the ``live`` extra): IMAGE in, TRANSFORM and
-  STATUS out, the metadata keys both sides use.
+  STATUS out in the peer's header version, the metadata keys both sides use, the wire framing.
 
 **The one convention.** The numbers in our files (fiducial frame F, C-arm frame X, SPEC §1)
 are read by Slicer as **LPS** coordinates — as Slicer reads any file that does not say
