@@ -7,6 +7,8 @@ JOBS ?= 2
 # every package `make` installs, pinned with hashes: made from pyproject.toml by `make lock`
 LOCK := requirements/test.lock
 UV := uv==0.13.9
+# where the CPU build of PyTorch lies on the machines we test on (requirements/overrides.txt)
+FIND_LINKS := $(wildcard /opt/wheels)
 # the newest releases pyproject.toml allows, for `make test-latest`
 LATEST := .venv-latest
 
@@ -35,7 +37,8 @@ test: $(STAMP) chromium
 lock:
 	rm -rf .venv-lock && $(PY) -m venv .venv-lock && .venv-lock/bin/pip install -q $(UV)
 	.venv-lock/bin/uv pip compile pyproject.toml --extra test --extra bench --universal \
-		--python-version 3.11 --generate-hashes -q -o $(LOCK)
+		--python-version 3.11 --generate-hashes -q --override requirements/overrides.txt \
+		$(if $(FIND_LINKS),--find-links $(FIND_LINKS)) -o $(LOCK)
 	rm -rf .venv-lock
 
 # the suite on the newest releases pyproject.toml allows (a separate venv, resolved now), with
@@ -43,7 +46,7 @@ lock:
 # and every pose of a fixed image set compared between OpenCV 5.x and 4.x
 test-latest: chromium
 	rm -rf $(LATEST) && $(PY) -m venv $(LATEST)
-	$(LATEST)/bin/pip install -q --upgrade --upgrade-strategy eager -e ".[test,bench]"
+	$(LATEST)/bin/pip install -q --upgrade --upgrade-strategy eager -c requirements/overrides.txt -e ".[test,bench]"
 	$(LATEST)/bin/pip freeze --all --exclude-editable > $(LATEST)/resolved.txt
 	$(LATEST)/bin/python requirements/moved.py $(LOCK) $(LATEST)/resolved.txt
 	$(LATEST)/bin/python -m pytest -n $(JOBS) --dist loadgroup -q

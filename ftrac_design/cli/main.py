@@ -35,6 +35,7 @@ COMMANDS = {
     "export": "export",
     "gcode": "gcode",
     "coupon": "coupon",
+    "train-detector": "train_detector",
 }
 
 

@@ -95,6 +95,9 @@ class Scene:
     derivs: dict[str, np.ndarray] | None = None
     #: the blob detector's response over its noise (:func:`.beads.blob_response`)
     blob_snr: np.ndarray | None = None
+    #: the learned detector's detections in this image's pixels (:mod:`ftrac_design.detector`),
+    #: or None on the classical path
+    learned: object | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -112,6 +115,18 @@ class Scene:
         if self.blob_snr is None:
             return np.zeros(len(uv))
         return bilinear(self.blob_snr, np.asarray(uv, float).reshape(-1, 2))
+
+    def learned_ball(self, uv: np.ndarray) -> np.ndarray:
+        """The learned detector's ball probability at points ``uv`` (n, 2) px (0 on the classical path)."""
+        if self.learned is None:
+            return np.zeros(len(uv))
+        return self.learned.ball_probability(np.asarray(uv, float).reshape(-1, 2))
+
+    def learned_wire(self, uv: np.ndarray) -> np.ndarray:
+        """The learned detector's wire probability at points ``uv`` (n, 2) px (0 on the classical path)."""
+        if self.learned is None:
+            return np.zeros(len(uv))
+        return self.learned.wire_probability(np.asarray(uv, float).reshape(-1, 2))
 
     def noise_at(self, uv: np.ndarray) -> np.ndarray:
         """The local noise σ at points ``uv`` (n, 2) px."""
@@ -312,6 +327,30 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
     return b.take(order)
 
 
+def _learned_candidates(
+    T: np.ndarray, starts: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, opts: TrackOptions
+) -> Beads:
+    """The blurred-sphere fits at the learned detector's ball candidates ``starts`` (n, 2) px,
+    most probable first: those that look like a ball, in the detector's order, at most
+    3 × the design's balls + 6. Each fit's ``response`` is the classical blob detector's
+    response over its noise at the fitted centre (what the rest of the path reads as a ball's
+    SNR)."""
+    P = len(features.points)
+    H, W = T.shape
+    starts = np.asarray(starts, float).reshape(-1, 2)
+    starts = starts[(starts[:, 0] >= 0) & (starts[:, 1] >= 0) & (starts[:, 0] <= W - 1) & (starts[:, 1] <= H - 1)]
+    if len(starts) == 0:
+        z = np.zeros(0)
+        return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
+    resp, _, _, nr = blob_response(T, sc.bead_radius_px, noise)
+    snr = bilinear((resp / nr).astype(np.float32), starts)
+    b, ok = ball_fits(T, starts, snr, sc.bead_radius_px, noise, opts)
+    b = b.take(ok)
+    if len(b):
+        b.response[:] = bilinear((resp / nr).astype(np.float32), b.uv)
+    return b.take(np.arange(min(len(b), 3 * P + 6)))
+
+
 def detect(
     g: np.ndarray,
     features: Features,
@@ -319,6 +358,7 @@ def detect(
     opts: TrackOptions,
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
+    learned=None,
 ) -> Scene:
     """Background-free image and its local noise, fitted bead candidates and ridge points of the
     density image ``g`` (dense = bright).
@@ -330,6 +370,9 @@ def detect(
     valid : (H, W) bool, True where ``g`` can be read; nothing is detected elsewhere.
     noise : the local noise of ``g`` (:class:`.image.NoiseField`, of the whole image when
         ``g`` is a crop of it); measured on ``g`` when not given.
+    learned : the learned detector's detections in ``g``'s pixels (:mod:`ftrac_design.detector`):
+        its ball candidates (most probable first) are fitted instead of the classical blob
+        detector's, and the scene keeps them as evidence; None for the classical path.
 
     Returns
     -------
@@ -342,7 +385,12 @@ def detect(
     nmap = noise.at(sc.ridge_sigma_px)
     if valid is not None:
         T[~valid] = 0.0
-    beads = _bead_candidates(T, features, sc, nmap, opts) if features.points else None
+    if not features.points:
+        beads = None
+    elif learned is not None:
+        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, opts)
+    else:
+        beads = _bead_candidates(T, features, sc, nmap, opts)
     d = derivatives(T, sc.ridge_sigma_px)
     ridges = None
     if features.lines or features.ellipses:
@@ -351,7 +399,7 @@ def detect(
     if features.points:
         resp, _, _, nr = blob_response(T, sc.bead_radius_px, nmap)
         snr = (resp / nr).astype(np.float32)
-    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
+    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr, learned)
 
 
 def fitted_blur(scene: Scene) -> float | None:

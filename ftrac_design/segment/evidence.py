@@ -68,6 +68,30 @@ def wire_support(
     return out
 
 
+def learned_wire_support(
+    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = 8.0
+) -> dict[str, float]:
+    """The learned detector's view of each wire pose (R, t) predicts: id → the median wire
+    probability over the curve's readable samples (as :func:`wire_support` samples them);
+    empty on the classical path. A blurred wire whose ridge reads under one noise unit can
+    still be plain to the network, which saw thousands of them at every blur."""
+    if scene.learned is None:
+        return {}
+    out: dict[str, float] = {}
+    for fid, (_, pts, _) in _free_samples(scene, R, t, bead_radius_px).items():
+        if len(pts) * 0.5 >= min_free_px:
+            out[fid] = float(np.median(scene.learned_wire(pts)))
+    return out
+
+
+def learned_confirms_wires(scene: Scene, R: np.ndarray, t: np.ndarray, min_probability: float = 0.3) -> bool:
+    """Whether the learned detector shows every readable wire pose (R, t) predicts (median
+    probability ≥ ``min_probability``; at least two wires): the evidence that confirms a ball
+    labelling where the wires' contours could not be measured. False on the classical path."""
+    sup = learned_wire_support(scene, R, t, scene.bead_exclusion())
+    return len(sup) >= 2 and min(sup.values()) >= min_probability
+
+
 def image_agreement(
     scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, tol_px: float, min_snr: float = 3.0
 ) -> tuple[float, float]:

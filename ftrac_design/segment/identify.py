@@ -132,7 +132,8 @@ def _labellings_of(
     """The bead labelling of each pose (R (k, 3, 3), t (k, 3)): per model bead the blob of
     ``tree`` within ``tol_px`` of its projection (−1 for none), one blob per bead — a blob two
     beads land on goes to the nearer, the lower bead index on a tie. Returns the labellings
-    (k, P), their matched counts (k,) and RMS distances (k,) px."""
+    (k, P), their matched counts (k,) and RMS distances (k,) px (counts are worked out only
+    where at least four beads land on a blob; the rest read 0)."""
     P = len(model)
     proj, Z = project(camera, R, t, model)
     front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
@@ -140,14 +141,24 @@ def _labellings_of(
     d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
     d, j = d.reshape(len(R), P), j.reshape(len(R), P)
     hit = np.isfinite(d) & front[:, None]
+    lab = np.full((len(R), P), -1)
+    count = np.zeros(len(R), int)
+    rms = np.full(len(R), np.inf)
+    # a pose with fewer than four beads on blobs keeps fewer still: the one-blob-per-bead rule
+    # is worked out only for the others (a few of the hundreds of P3P poses)
+    many = np.flatnonzero(hit.sum(1) >= 4)
+    if len(many) == 0:
+        return lab, count, rms
+    d, j, hit = d[many], j[many], hit[many]
     idx = np.arange(P)
     same = (j[:, :, None] == j[:, None, :]) & hit[:, :, None] & hit[:, None, :]
     nearer = (d[:, None, :] < d[:, :, None]) | ((d[:, None, :] == d[:, :, None]) & (idx[None, :] < idx[:, None]))
     keep = hit & ~(same & nearer).any(-1)
-    count = keep.sum(1)
+    count[many] = keep.sum(1)
     with np.errstate(invalid="ignore"):
-        rms = np.sqrt(np.where(keep, d * d, 0.0).sum(1) / np.maximum(count, 1))
-    return np.where(keep, j, -1), count, rms
+        rms[many] = np.sqrt(np.where(keep, d * d, 0.0).sum(1) / np.maximum(count[many], 1))
+    lab[many] = np.where(keep, j, -1)
+    return lab, count, rms
 
 
 def _collect_matches(

@@ -310,7 +310,11 @@ def misfit(scene: Scene, lab: Labelling) -> float:
     # not counted as clearly unexplained
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
     inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)
-    shown = scene.ball_evidence(uv) >= opts.bead_present_snr if len(uv) else np.zeros(0, bool)
+    shown = (
+        (scene.ball_evidence(uv) >= opts.bead_present_snr) | (scene.learned_ball(uv) >= 0.5)
+        if len(uv)
+        else np.zeros(0, bool)
+    )
     for k, p in enumerate(features.points):
         if inside[k] and p.id not in obs.points and (p.id not in lab.dropped or p.id in lab.removed):
             unexplained += 1

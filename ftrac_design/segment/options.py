@@ -24,6 +24,12 @@ class TrackOptions:
 
     #: "auto", "dense-dark" (raw detector counts) or "dense-bright" (log/display image)
     polarity: Polarity = "auto"
+    #: where the fiducial is, its polarity and its ball candidates: "learned" (the network of
+    #: :mod:`ftrac_design.detector`, through ONNX Runtime), "classical" (blob detector and
+    #: half-size search), or "auto" (learned when ONNX Runtime and the network are installed)
+    detector: Literal["auto", "learned", "classical"] = "auto"
+    #: threads ONNX Runtime may use for the learned detector
+    detector_threads: int = 1
     #: source-to-fiducial over source-to-detector distance assumed to size the filters
     #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)
     magnification: float = 1.5

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..features.model import Features
 from ..pose import Camera, so3
-from . import acceptance, identify
+from . import acceptance, identify, learned
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
 from .conditioning import FORMATIONS, condition, formation_of
 from .detection import Scene, detect, fitted_blur, scales
@@ -167,17 +167,19 @@ def _track_density(
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
     budget: Budget | None = None,
+    det=None,
 ) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
-    where ``valid``, with local noise ``noise``."""
+    where ``valid``, with local noise ``noise``; ``det`` the learned detector's detections in
+    ``g``'s pixels, or None for the classical path."""
     budget = budget or Budget(opts)
     budget.charge()
-    scene = detect(g, features, camera, opts, valid, noise)
+    scene = detect(g, features, camera, opts, valid, noise, det)
     blur = fitted_blur(scene)
     if blur is not None and blur > max(opts.blur_px * opts.blur_redetect, 1.1):
         # a blurrier image than the filters are sized for: detected again at its own blur
         opts = replace(opts, blur_px=blur)
-        scene = detect(g, features, camera, opts, valid, noise)
+        scene = detect(g, features, camera, opts, valid, noise, det)
     beads, ridges = scene.beads, scene.ridges
     diag: dict[str, Any] = {
         "blobs": 0 if beads is None else len(beads),
@@ -279,7 +281,16 @@ def track_image(
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
-def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px: int, form: str) -> list[str]:
+def _polarities(
+    opts: TrackOptions,
+    hint: str | None,
+    small: np.ndarray,
+    sc,
+    form: str,
+    img: np.ndarray,
+    det,
+    balls: int,
+) -> list[str]:
     """The polarities to try, in order: the one asked for or the file's; else both — linear
     counts (integers beyond 8 bits) dense-dark first and a log image (non-integer values)
     dense-bright first, as detectors and log converters write them; a display frame's in the
@@ -294,7 +305,12 @@ def _polarities(opts: TrackOptions, hint: str | None, small: np.ndarray, disc_px
         return ["dense-dark", "dense-bright"]
     if form == "log":
         return ["dense-bright", "dense-dark"]
-    first = detect_polarity(small, max(disc_px // 2, 2))
+    if det is not None:
+        # the learned detector's balls, darker or brighter than around them
+        order = learned.polarity_order(img, det, sc, balls)
+        if order is not None:
+            return order
+    first = detect_polarity(small, max(sc.disc_px // 2, 2))
     return [first, "dense-bright" if first == "dense-dark" else "dense-dark"]
 
 
@@ -337,11 +353,14 @@ def _track(
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
     tried: list[TrackResult] = []
-    for pol in _polarities(opts, polarity_hint, small, sc.disc_px, form):
+    det = learned.detections(img, sc, opts) if features.points else None
+    pols = _polarities(opts, polarity_hint, small, sc, form, img, det, len(features.points))
+    for pol in pols:
         if tried and budget.spent():
             break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, body, sc, budget)
+        res = _track_conditioned(cond, small, features, camera, opts, body, sc, budget, det)
+        res.diagnostics["detector"] = "classical" if det is None else "learned"
         res.diagnostics["formation"] = cond.formation
         res.diagnostics["work"] = opts.max_work - budget.work
         if budget.timed_out:
@@ -358,30 +377,54 @@ def _track(
     return tried[0]
 
 
+def _classical_regions(img, valid, small: np.ndarray, noise: NoiseField, features, sc, opts) -> list:
+    """The classical guess of where the fiducial may be (:func:`.region.fiducial_regions`), on
+    the half-size image when its balls survive halving, else at full size."""
+    if small.shape == img.shape or not opts.roi:
+        return []
+    if sc.bead_radius_px / 2 >= opts.min_region_bead_px:
+        vs = (
+            None
+            if valid is None
+            else cv2.resize(
+                valid.astype(np.uint8), (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST
+            ).astype(bool)
+        )
+        gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
+        return fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
+    # balls too small to survive halving (ftrac_mini's 1 mm: 0.85 px): looked for at full size
+    return fiducial_regions(
+        img, features, sc, opts, valid, opts.max_regions, factor=1, noise=noise.at(sc.ridge_sigma_px)
+    )
+
+
 def _track_conditioned(
-    cond, small: np.ndarray, features: Features, camera: Camera, opts: TrackOptions, body, sc, budget: Budget
+    cond,
+    small: np.ndarray,
+    features: Features,
+    camera: Camera,
+    opts: TrackOptions,
+    body,
+    sc,
+    budget: Budget,
+    det=None,
 ) -> TrackResult:
     """:func:`track_image` on a conditioned image: in each region where the fiducial may be
-    (most likely first) until one gives a pose; the whole image when none is found."""
+    (most likely first) until one gives a pose; the whole image when none is found. With the
+    learned detector's detections ``det``, its regions and ball candidates, and no whole-image
+    search: where it sees no cluster of balls there is no fiducial to find."""
     img, valid, pol = cond.density, cond.valid, cond.polarity
     noise = NoiseField(img, valid, sc.disc_px)
-    regions: list[tuple[int, int, int, int]] = []
-    if small.shape != img.shape and opts.roi:
-        if sc.bead_radius_px / 2 >= opts.min_region_bead_px:
-            vs = (
-                None
-                if valid is None
-                else cv2.resize(
-                    valid.astype(np.uint8), (small.shape[1], small.shape[0]), interpolation=cv2.INTER_NEAREST
-                ).astype(bool)
+    if det is not None:
+        regions = learned.regions(det, features, sc, opts, img.shape)
+        if not regions:
+            return failed_result(
+                f"no fiducial found: the learned detector saw {len(det.beads_uv)} ball candidates, "
+                "no cluster of three that could be the fiducial's",
+                pol,
             )
-            gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
-            regions = fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
-        else:
-            # balls too small to survive halving (ftrac_mini's 1 mm: 0.85 px): looked for at full size
-            regions = fiducial_regions(
-                img, features, sc, opts, valid, opts.max_regions, factor=1, noise=noise.at(sc.ridge_sigma_px)
-            )
+    else:
+        regions = _classical_regions(img, valid, small, noise, features, sc, opts)
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
         if first is not None and budget.spent():
@@ -399,6 +442,7 @@ def _track_conditioned(
             None if valid is None else valid[r0:r1, c0:c1],
             noise.crop(r0, r1, c0, c1),
             budget,
+            None if det is None else det.crop(r0, c0),
         )
         res = shifted(res, camera, c0, r0)
         res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
@@ -408,6 +452,6 @@ def _track_conditioned(
     if regions:
         # a region was looked at and gave nothing: its answer, unless a whole-image search is
         # cheap enough to be worth it (a small image)
-        if img.size > opts.whole_image_px or budget.spent():
+        if det is not None or img.size > opts.whole_image_px or budget.spent():
             return first
     return _track_density(img, features, camera, opts, body, pol, valid, noise, budget)

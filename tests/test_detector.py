@@ -1,0 +1,207 @@
+"""The learned feature detector: its input, its targets, training, ONNX export, the shipped
+network on rendered images, and the tracker without ONNX Runtime."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+import pytest
+
+from ftrac_design import detector
+from ftrac_design.design import load_design
+from ftrac_design.detector.decode import decode
+from ftrac_design.detector.normalise import STRIDE, network_input, working_scale
+from ftrac_design.errors import MissingDependencyError
+from ftrac_design.features import compute_features
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace
+from ftrac_design.segment import TrackOptions, track_image
+from ftrac_design.segment.identify import project
+from ftrac_design.training.dataset import build_dataset
+from ftrac_design.training.targets import target_maps
+from ftrac_design.xray import Body, render
+
+torch = pytest.importorskip("torch")
+#: the tests of the shipped network need its weights in the package (``ftrac-design train-detector``)
+shipped = pytest.mark.skipif(
+    not detector.available(), reason="no shipped detector weights in ftrac_design/detector/models"
+)
+
+
+def test_working_scale_brings_a_ball_to_the_working_radius():
+    assert working_scale(3.41) == 2 and working_scale(1.7) == 1 and working_scale(0.5) == 1
+    assert working_scale(5.2) == 3
+
+
+def test_input_is_the_same_for_any_gain_and_offset_and_flips_with_polarity():
+    """The normalisation reads a·I + b as I for a > 0 (a display's window, a detector's gain)
+    and as the other polarity for a < 0."""
+    rng = np.random.default_rng(0)
+    img = rng.normal(1000, 30, (96, 128)).astype(np.float32)
+    img[40:44, 50:54] -= 300
+    a = network_input(img, 1)
+    b = network_input(3.0 * img + 500, 1)
+    c = network_input(-2.0 * img + 7, 1)
+    assert a.shape == (2, 96, 128)
+    np.testing.assert_allclose(a, b, atol=2e-4)
+    np.testing.assert_allclose(a, -c, atol=2e-4)
+
+
+@pytest.mark.parametrize("scale", [1, 2, 3])
+def test_targets_decode_back_to_the_true_ball_centres(scale):
+    """A ball's target map, decoded as the network's output would be, gives back its centre
+    (to 10⁻⁴ px) at every working scale: the grid, the offsets and the decoder agree."""
+    rng = np.random.default_rng(scale)
+    H = W = 64 * scale
+    uv = rng.uniform(10, H - 10, (5, 2))
+    cells = (H // scale // STRIDE, W // scale // STRIDE)
+    y, _ = target_maps(uv, [], np.ones((H, W), bool), scale, cells)
+    maps = np.zeros((6,) + cells, np.float32)
+    maps[0] = np.log(np.clip(y[0], 1e-6, 1 - 1e-6) / (1 - np.clip(y[0], 1e-6, 1 - 1e-6)))
+    maps[1:3] = y[1:3]
+    det = decode(maps, scale, (H, W), min_score=0.5)
+    assert len(det.beads_uv) == len(uv)
+    for p in uv:
+        assert np.min(np.linalg.norm(det.beads_uv - p, axis=1)) < 1e-4
+
+
+def test_wire_targets_follow_the_centre_line():
+    """A straight wire at 30°: its cells' target is largest on the line, and its direction is
+    (cos 60°, sin 60°)."""
+    s = 1
+    t = np.linspace(0, 1, 400)[:, None]
+    line = np.array([10.0, 20.0]) + t * 60 * np.array([np.cos(np.pi / 6), np.sin(np.pi / 6)])
+    y, wt = target_maps(np.zeros((0, 2)), [line], np.ones((64, 96), bool), s, (32, 48))
+    on = y[3] > 0.9
+    assert on.sum() > 10
+    np.testing.assert_allclose(y[4][on], np.cos(np.pi / 3), atol=1e-6)
+    np.testing.assert_allclose(y[5][on], np.sin(np.pi / 3), atol=1e-6)
+    assert (wt[4] == (y[3] > 0.5)).all()
+
+
+def test_the_data_set_is_the_same_with_any_number_of_workers():
+    a = build_dataset(3, seed=5, workers=1)
+    b = build_dataset(3, seed=5, workers=2)
+    for k in a.__dataclass_fields__:
+        np.testing.assert_array_equal(getattr(a, k), getattr(b, k))
+    c = build_dataset(3, seed=6, workers=1)
+    assert not np.array_equal(a.x, c.x)
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """A network trained for 40 steps on a handful of scenes, exported and carded."""
+    from ftrac_design.training.run import TrainConfig, train
+
+    out = tmp_path_factory.mktemp("tiny")
+    cfg = TrainConfig(scenes=6, val_scenes=2, steps=40, batch=8, workers=1, threads=1)
+    card = train(cfg, out, command="test", progress=False)
+    return out, card
+
+
+def test_a_tiny_training_run_lowers_the_loss_and_writes_its_card(tiny):
+    out, card = tiny
+    assert card["loss"]["last"] < 0.9 * card["loss"]["first"]
+    assert (out / "detector.onnx").is_file() and (out / "detector.pt").is_file()
+    on_disk = json.loads((out / "detector.json").read_text())
+    assert on_disk["sha256"] == card["sha256"] and on_disk["config"]["steps"] == 40
+    assert set(on_disk["validation"]["all"]) >= {"ball_recall", "ball_precision", "wire_recall", "wire_precision"}
+
+
+def test_training_twice_gives_the_same_weights(tiny, tmp_path):
+    from ftrac_design.training.run import TrainConfig, train
+
+    out, card = tiny
+    again = train(
+        TrainConfig(scenes=6, val_scenes=2, steps=40, batch=8, workers=1, threads=1), tmp_path, progress=False
+    )
+    assert again["torch_sha256"] == card["torch_sha256"]
+
+
+def _torch_net(folder):
+    from ftrac_design.training.net import DetectorNet
+
+    card = json.loads((folder / "detector.json").read_text())
+    net = DetectorNet(tuple(card["config"]["widths"]))
+    net.load_state_dict(torch.load(folder / "detector.pt", weights_only=True))
+    return net.eval()
+
+
+@pytest.mark.parametrize("which", ["tiny", pytest.param("shipped", marks=shipped)])
+def test_onnx_gives_what_pytorch_gives(tiny, which):
+    """The exported network and the PyTorch one agree on a fixed input (10⁻⁴ on logits of
+    order 10), for the tiny run and for the shipped weights; the output is (6, h/2, w/2)."""
+    folder = tiny[0] if which == "tiny" else detector.runtime.model_dir()
+    net = detector.load_detector(folder)
+    x = network_input(np.random.default_rng(3).normal(size=(200, 264)).astype(np.float32), 1)
+    got = net.maps(x)
+    assert got.shape == (6, x.shape[1] // 2, x.shape[2] // 2)
+    with torch.no_grad():
+        want = _torch_net(folder)(torch.from_numpy(x[None]))[0].numpy()
+    np.testing.assert_allclose(got, want, atol=1e-4)
+
+
+@shipped
+def test_the_shipped_network_must_match_its_card(tmp_path):
+    import shutil
+
+    for f in ("detector.onnx", "detector.json"):
+        shutil.copy(detector.runtime.model_dir() / f, tmp_path / f)
+    card = json.loads((tmp_path / "detector.json").read_text())
+    card["sha256"] = "0" * 64
+    (tmp_path / "detector.json").write_text(json.dumps(card))
+    with pytest.raises(Exception, match="sha256"):
+        detector.load_detector(tmp_path)
+
+
+@pytest.fixture(scope="module")
+def f2005():
+    d = load_design("ftrac_2005")
+    return compute_features(d), Body.from_design(d)
+
+
+@shipped
+def test_the_shipped_network_finds_every_ball_of_a_rendered_image(f2005):
+    """ftrac_2005 at three poses, clean: each ball projected in the image has a candidate
+    within 1.5 px among the network's twelve most probable, and the thresholded map covers
+    most of each wire."""
+    features, body = f2005
+    R, t = Workspace().sample(3, features.nominal_beam_direction, np.random.default_rng(12))
+    net = detector.load_detector()
+    for k in range(3):
+        rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(k), body=body)
+        det = net.detect(rad.raw, 3.41)
+        truth = project(Camera(), R[k], t[k], features.point_centers())[0]
+        d = np.linalg.norm(det.beads_uv[:12, None] - truth[None], axis=-1).min(0)
+        merged = np.linalg.norm(truth[:, None] - truth[None], axis=-1) + 1e9 * np.eye(len(truth))
+        assert np.all(d[merged.min(1) > 8] < 1.5), d
+        from ftrac_design.segment.identify import curve_samples
+
+        for fid, (_, pts) in curve_samples(features, Camera(), R[k], t[k]).items():
+            assert np.mean(det.wire_probability(pts) > 0.5) > 0.6, fid
+
+
+def test_without_onnx_runtime_the_classical_detectors_track(f2005, monkeypatch):
+    """ONNX Runtime missing: "auto" tracks with the classical detectors, "learned" stops with
+    the one-line error naming the extra."""
+    features, body = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
+    monkeypatch.setitem(sys.modules, "onnxruntime", None)  # `import onnxruntime` fails
+    monkeypatch.setattr(detector.runtime.importlib.util, "find_spec", lambda name: None)
+    detector.runtime._LOADED.clear()
+    res = track_image(rad.raw, features, Camera(), body=body)
+    assert res.pose.converged and res.diagnostics["detector"] == "classical"
+    with pytest.raises(MissingDependencyError, match="detect"):
+        track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"), body=body)
+
+
+@shipped
+def test_the_learned_path_tracks_and_says_so(f2005):
+    features, body = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
+    res = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"), body=body)
+    assert res.pose.converged and res.diagnostics["detector"] == "learned"
