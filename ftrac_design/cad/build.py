@@ -6,23 +6,22 @@ only when the whole build succeeded (:func:`ftrac_design.fileio.atomic_directory
 
 from __future__ import annotations
 
-import contextlib
 import os
 import platform
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from .. import __version__
 from ..design.schema import Design
-from ..errors import require
 from ..features import Features, compute_features, write_features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, sha256_file, write_json_atomic
-from .drawings import DRAWING_FILES
-from .fdm import FDM_FILES
-from .plan import BodyPlan, plan_body, stl_tolerances
-from .profiles import CutSizes, Profile, cut_sizes
+from ..manufacture.drawings import DRAWING_FILES
+from ..manufacture.fdm import FDM_FILES
+from ..manufacture.plan import STL_VOLUME_TOLERANCE, BodyPlan, plan_body, stl_tolerances
+from ..manufacture.profiles import CutSizes, Profile, cut_sizes
+from .occ import occ_errors, require_cad_packages
 
 MANIFEST_FORMAT = "ftrac-build-manifest"
 MANIFEST_VERSION = 1
@@ -56,10 +55,6 @@ def output_files(profile: Profile) -> tuple[str, ...]:
     return (*OUTPUT_FILES[:-1], *extra, OUTPUT_FILES[-1])
 
 
-#: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
-STL_VOLUME_TOLERANCE = 0.005
-
-
 @dataclass
 class BuildResult:
     """What a build wrote and how long each stage took."""
@@ -79,19 +74,6 @@ def _check_output_dir(out_dir: Path) -> None:
     check_output_dir(
         out_dir, "an earlier build's output", lambda d: json_format_is(d / "manifest.json", MANIFEST_FORMAT)
     )
-
-
-@contextlib.contextmanager
-def _occ_errors(name: str) -> Iterator[None]:
-    """Turn an exception raised inside OpenCASCADE into :class:`CadError` (exit 1)."""
-    from OCP.Standard import Standard_Failure
-
-    from .body import CadError
-
-    try:
-        yield
-    except Standard_Failure as exc:
-        raise CadError(f"{name}: OpenCASCADE failed ({type(exc).__name__}: {exc})") from exc
 
 
 def _umask_mode(path: Path, mode: int = 0o777) -> None:
@@ -117,23 +99,6 @@ class _Clock:
         return time.perf_counter() - self.t0
 
 
-def require_cad_packages(render: bool = True) -> None:
-    """Raise :class:`~ftrac_design.errors.MissingDependencyError` before anything is built when
-    the ``cad`` extra is not installed.
-
-    Parameters
-    ----------
-    render : bool
-        Whether the build renders its picture (pyvista is needed only then).
-    """
-    require("cadquery", "cad", "building the CAD parts")
-    require("OCP", "cad", "building the CAD parts (OpenCascade)")
-    require("trimesh", "cad", "building the CAD parts (the STL check)")
-    require("ezdxf", "cad", "building the CAD parts (the unwrapped DXF)")
-    if render:
-        require("pyvista", "cad", "building the CAD parts (the render)")
-
-
 def build_fiducial(
     design: Design,
     out_dir: str | Path | None = None,
@@ -155,12 +120,12 @@ def build_fiducial(
     require_cad_packages(render)
     import cadquery as cq
 
+    from ..manufacture.fdm import write_fdm_files
+    from ..manufacture.manifest import enforce_rules, manufacturing_manifest
     from .body import CadError, build_body, single_solid, volume
     from .drawings import write_drawings
-    from .export import build_assembly, export_assembly, export_step, export_stl
-    from .fdm import write_fdm_files
-    from .fixture import add_to_assembly, fixture_parts
-    from .manufacture import enforce_rules, manufacturing_manifest, write_manufacturing_files
+    from .export import BODY_COLOR, build_assembly, export_assembly, export_step, export_stl, write_manufacturing_files
+    from .fixture import CONNECTOR_COLOR, MOUNT_COLOR, add_to_assembly, fixture_parts
     from .mount import key_slot_tool
     from .parts import bead_parts, wire_parts
 
@@ -172,7 +137,7 @@ def build_fiducial(
     plan = plan_body(design, features, cuts)
     report = enforce_rules(design, features, profile, force)
     clock.lap("features")
-    with atomic_directory(out_dir) as tmp, _occ_errors(design.name):
+    with atomic_directory(out_dir) as tmp, occ_errors(design.name):
         _umask_mode(tmp)
         write_features(tmp / "features.json", features)
         body = build_body(plan)
@@ -199,7 +164,7 @@ def build_fiducial(
         write_drawings(design, features, plan, body, fixture, profile, tmp)
         clock.lap("drawings")
         if profile == "fdm":
-            write_fdm_files(design, tmp)
+            write_fdm_files(design, tmp, {"body": BODY_COLOR, "mount": MOUNT_COLOR, "connector": CONNECTOR_COLOR})
             clock.lap("fdm_files")
         if render:
             from .render import render_png
@@ -244,7 +209,7 @@ def build_fiducial(
 def _write_program(design: Design, profile: Profile, post: str, out_dir: Path) -> dict[str, Any] | None:
     """Write the body's program (cnc only); its manifest entry, or why there is none."""
     from ..fileio import write_text_atomic
-    from .gcode import body_program
+    from ..manufacture.gcode import body_program
 
     if profile != "cnc":
         return None

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
 from ..machining.post import DEFAULT_POST, POSTS
+from ..manufacture.profiles import PROFILES
 
 
 @click.command("build")

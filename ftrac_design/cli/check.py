@@ -9,8 +9,8 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
 from ..errors import GoalError
+from ..manufacture.profiles import PROFILES
 
 
 @click.command("check")
@@ -32,8 +32,8 @@ def command(design: Path, profile: str, as_json: bool) -> int:
     limit, and the verdict — ok, warn (within the limit, short of the recommended value),
     FAIL (a violation) or n/a. Exits 1 if any rule fails.
     """
-    from ..cad.rules import check_design
     from ..design import load_design
+    from ..manufacture.rules import check_design
 
     d = load_design(design)
     report = check_design(d, profile)

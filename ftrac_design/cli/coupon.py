@@ -8,8 +8,8 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
 from ..machining.post import DEFAULT_POST, POSTS
+from ..manufacture.profiles import PROFILES
 
 
 def _pair(ctx, param, value):
@@ -95,7 +95,7 @@ def command(
         if interference is None or write_design is None:
             raise InputError(None, None, "--interference and --write-design together", parameter="interference")
         return _feed_back(d, profile, interference, write_design)
-    from ..cad.coupon import plan_coupon
+    from ..manufacture.coupon import plan_coupon
 
     try:
         c = plan_coupon(d, profile, step, count)
@@ -122,7 +122,7 @@ def _feed_back(d, profile: str, fit: tuple[float, float], path: Path) -> int:
 
 
 def _write(d, c, out: Path, post: str, cnc) -> int:
-    from ..cad.coupon import build_coupon, coupon_csv
+    from ..cad.coupon import build_coupon
     from ..cad.export import export_step, export_stl
     from ..errors import GoalError
     from ..fileio import atomic_directory, check_output_dir, write_json_atomic, write_text_atomic
@@ -131,6 +131,7 @@ def _write(d, c, out: Path, post: str, cnc) -> int:
     from ..machining.post import emit
     from ..machining.simulate import verify
     from ..machining.toolpath import plan_program
+    from ..manufacture.coupon import coupon_csv
 
     check_output_dir(out, "an earlier coupon", lambda p: (p / "coupon.csv").is_file())
 
@@ -143,12 +144,13 @@ def _write(d, c, out: Path, post: str, cnc) -> int:
         from ..cad.render import render_png
 
         render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
-        from ..cad.coupon_drawing import write_coupon_drawing
+        from ..cad.views import SolidViews
+        from ..manufacture.coupon_drawing import write_coupon_drawing
 
-        write_coupon_drawing(d, c, solid, tmp)
+        write_coupon_drawing(d, c, SolidViews(solid, exact=True), tmp)
         if c.profile == "fdm":  # printed: the part as a 3MF with the slicer settings the profile assumes
             from ..cad.export import BODY_COLOR
-            from ..cad.fdm import print_settings_document, read_stl_part, write_3mf
+            from ..manufacture.fdm import print_settings_document, read_stl_part, write_3mf
 
             part = read_stl_part(tmp / "coupon.stl", "coupon", BODY_COLOR)
             write_3mf(tmp / "coupon.3mf", [part], f"{c.design}_coupon", f"{c.design} press-fit coupon (fdm profile)")

@@ -83,9 +83,9 @@ def command(
     `track --distortion`; prints the number of beads and the fit's residuals. Exit 2 on bad
     input (nothing is written).
     """
+    from ..calibration.gridcal import estimate_distortion
     from ..images.distortion import write_distortion
     from ..pose.observation import camera_from_dict, read_camera
-    from ..segment.gridcal import estimate_distortion
     from ..xray import read_image
 
     for key, v in (("--pitch", pitch_mm), ("--pixel-mm", pixel_mm), ("--bead-mm", bead_mm)):
@@ -128,7 +128,7 @@ def command(
     try:
         with contextlib.ExitStack() as stack:
             if plot_path is not None:
-                from ..segment.gridplot import draw_grid_fit
+                from ..calibration.gridplot import draw_grid_fit
 
                 # drawn under a temporary name, renamed only once the model is written too
                 tmp = stack.enter_context(atomic_file(plot_path))

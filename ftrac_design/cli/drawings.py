@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
+from ..manufacture.profiles import PROFILES
 
 
 @click.command("drawings")

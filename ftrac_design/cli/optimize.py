@@ -9,7 +9,7 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
+from ..manufacture.profiles import PROFILES
 
 OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotation", "accuracy-diameter")
 

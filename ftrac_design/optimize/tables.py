@@ -132,9 +132,9 @@ def comparison(
     """Start vs best side by side: score, rules of each profile, whole-sphere atlas."""
     from ..analysis.atlas import blind_spot_atlas
     from ..analysis.score import Thresholds, score_design
-    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..features import compute_features
+    from ..manufacture.rules import check_design
 
     designs = {"start": parse_design(start), "best": parse_design(best)}
     feats = {k: compute_features(d) for k, d in designs.items()}

@@ -41,9 +41,9 @@ def design_toml(data: dict, header: str, profiles: tuple[str, ...] = ()) -> str:
     0.0001° (far below any tolerance) when the rounded design stays valid and fails no rule
     of ``profiles`` that ``data`` passes (a winner sits on its limits: rounding can push a
     "> 0" gap to −0.000), else exact."""
-    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..errors import InputError
+    from ..manufacture.rules import check_design
 
     def failed(d: dict) -> set[str]:
         design = parse_design(d)

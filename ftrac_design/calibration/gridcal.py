@@ -2,9 +2,9 @@
 
 Steps:
 
-1. **Beads.** The image becomes a density image (:func:`.image.to_density`, polarity detected
+1. **Beads.** The image becomes a density image (:func:`ftrac_design.segment.image.to_density`, polarity detected
    or given), its background is removed by a top-hat and every blob at the bead scale is fitted
-   with the blurred-sphere model (:mod:`.beads`). The bead radius is measured when not given
+   with the blurred-sphere model (:mod:`ftrac_design.segment.beads`). The bead radius is measured when not given
    (scale selection on the scale-normalised Laplacian). A round intensifier field is found as
    the bright (dense) surround of the opened background, when one stands out; beads whose
    fitting patch leaves the field or the image are dropped (a bead cut by the edge has a
@@ -43,8 +43,8 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..images.distortion import DistortionModel, design_matrix, identity_coefficients, monomial_exponents, n_terms
-from .beads import blob_candidates, fit_beads
-from .image import derivatives, detect_polarity, noise_sigma, to_density, top_hat
+from ..segment.beads import blob_candidates, fit_beads
+from ..segment.image import derivatives, detect_polarity, noise_sigma, to_density, top_hat
 
 Polarity = Literal["auto", "dense-dark", "dense-bright"]
 

@@ -144,6 +144,12 @@ def plan_body(design: Design, features: Features, cuts: CutSizes) -> BodyPlan:
     return BodyPlan(R, design.bore_radius, design.half_length, over, tuple(ell), tuple(lines), tuple(pockets))
 
 
+#: absolute chord tolerance (mm) and angular tolerance (rad) of the mount's and connector's STLs
+FIXTURE_STL_TOLERANCE = (0.01, 0.1)
+#: an STL's enclosed volume must agree with the exact B-rep volume to this fraction
+STL_VOLUME_TOLERANCE = 0.005
+
+
 def stl_tolerances(cuts: CutSizes, design: Design) -> tuple[float, float]:
     """(chord tolerance mm, angular tolerance rad) for the body's STL.
 
