@@ -10,18 +10,12 @@ from pathlib import Path
 import click
 
 from ..errors import GoalError
-from ..manufacture.profiles import PROFILES
+from .options import design_argument, profile_option
 
 
 @click.command("check")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile whose cut sizes and limits apply",
-)
+@design_argument()
+@profile_option("manufacturing profile whose cut sizes and limits apply")
 @click.option(
     "--json", "as_json", is_flag=True, default=False, help="print the report as one JSON object instead of a table"
 )

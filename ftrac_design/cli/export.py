@@ -11,6 +11,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
+from .options import FILE, link_options, output_option
 
 #: output suffix → format
 SUFFIXES = {".tfm": "tfm", ".mrk.json": "mrk", ".seq.mha": "mha", ".mha": "mha", ".seq.nrrd": "nrrd", ".nrrd": "nrrd"}
@@ -29,13 +30,9 @@ def _format_of(output: Path, fmt: str | None) -> str:
 
 
 @click.command("export")
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    required=True,
-    help="The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.",
+@click.argument("input_path", metavar="INPUT", type=FILE)
+@output_option(
+    "The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.", kind="file", required=True
 )
 @click.option(
     "--format",
@@ -50,18 +47,9 @@ def _format_of(output: Path, fmt: str | None) -> str:
     default=None,
     help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).",
 )
-@click.option(
-    "--name",
-    default="FiducialToCArm",
-    show_default=True,
-    help="The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform).",
-)
-@click.option(
-    "--space",
-    type=click.Choice(["ras", "lps"]),
-    default="ras",
-    show_default=True,
-    help="Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).",
+@link_options(
+    "Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).",
+    "The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform).",
 )
 def command(input_path: Path, output: Path, fmt: str | None, index: int | None, name: str, space: str) -> int:
     """Write INPUT as a 3D Slicer / ITK / PLUS file.

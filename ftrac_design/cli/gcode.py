@@ -11,9 +11,9 @@ from pathlib import Path
 
 import click
 
-from ..machining.post import DEFAULT_POST, POSTS
+from ..machining.post import POSTS
 from ..machining.simulate import GRID, TOLERANCE
-from ..manufacture.profiles import PROFILES
+from .options import design_argument, output_option, post_option, profile_option
 
 
 def _table(v, cycle: dict[str, float] | None) -> list[str]:
@@ -36,29 +36,12 @@ def _table(v, cycle: dict[str, float] | None) -> list[str]:
 
 
 @click.command("gcode")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile: sets groove widths and pocket diameters",
-)
-@click.option(
-    "--post",
-    type=click.Choice(list(POSTS)),
-    default=DEFAULT_POST,
-    show_default=True,
-    help="the control the program is written for",
-)
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it "
-    "as <file>.verify.json",
+@design_argument()
+@profile_option()
+@post_option()
+@output_option(
+    "program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it as <file>.verify.json",
+    kind="file",
 )
 @click.option(
     "--check",

@@ -15,21 +15,12 @@ def demo_score(design_path: str | Path, out_dir: str | Path) -> dict[str, Any]:
     from ..analysis.subject import load_subject, settings_for
     from ..imagescore import TrialSettings
     from ..imagescore.atlas import AtlasSettings
-    from ..optimize.execution import open_executor
-    from ..workflows.analyze import run_analysis
+    from ..workflows.analyze import AnalysisPlan, ImageScoring, run_analysis
 
     subject = load_subject(design_path)
     settings, thresholds = settings_for(subject)
-    with open_executor() as (executor, _):
-        doc, _ = run_analysis(
-            subject,
-            settings,
-            thresholds,
-            Path(out_dir),
-            trial=TrialSettings(images=50),
-            executor=executor,
-            image_atlas_settings=AtlasSettings(step_deg=45.0),
-        )
+    scoring = ImageScoring(TrialSettings(images=50), AtlasSettings(step_deg=45.0))
+    doc, _ = run_analysis(subject, AnalysisPlan(settings, thresholds, Path(out_dir), scoring=scoring))
     return doc
 
 

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 
 from ..design.schema import Design
 from ..machining.model import CutPlan, PocketCut, SlotCut, Stock, pocket_tool_diameter
+from ..machining.simulate import Verification
 from .profiles import Profile, cut_sizes, rule_limits
 
 #: plain length at the −z end for the chuck, mm
@@ -171,3 +172,57 @@ def coupon_csv(c: Coupon) -> str:
     for s in c.steps:
         rows.append(f"{s.kind},{s.index},{s.size:.3f},{math.degrees(s.azimuth):.2f},{s.part_diameter:g},{s.fit:+.3f},")
     return "\n".join(rows) + "\n"
+
+
+@dataclass(frozen=True)
+class CouponProgram:
+    """The coupon's 4-axis program, read back and verified against the coupon's cuts."""
+
+    filename: str
+    text: str
+    cycle_time_s: dict[str, float]
+    verification: Verification
+
+    def verify_document(self) -> dict:
+        """``<program>.verify.json``: the cycle time and the verification."""
+        return {"cycle_time_s": self.cycle_time_s, **self.verification.as_dict()}
+
+
+def coupon_program(c: Coupon, post: str, cnc) -> CouponProgram:
+    """Plan, post, read back and verify the coupon's program (cnc), the way the body's is.
+
+    Parameters
+    ----------
+    c : Coupon
+        The coupon's plan.
+    post : str
+        The control (a key of :data:`ftrac_design.machining.post.POSTS`).
+    cnc : ftrac_design.design.schema.CncProfile
+        The design's CNC settings (its end mills).
+
+    Returns
+    -------
+    CouponProgram
+        The program and its verification.
+    """
+    from ..machining.gcode import cycle_time, parse_gcode
+    from ..machining.model import tooling
+    from ..machining.post import POSTS, emit
+    from ..machining.simulate import verify
+    from ..machining.toolpath import plan_program
+
+    pockets = [p.diameter for p in c.plan.pockets]
+    tools = tooling(cnc, min(pockets) if pockets else None)
+    text = emit(
+        plan_program(c.plan, tools, title=f"{c.design} coupon"),
+        post,
+        [
+            f"{c.design} press-fit coupon, profile {c.profile}, step {c.step_mm:g} mm",
+            "sizes and A positions in coupon.csv; machine convention as the body's",
+        ],
+    )
+    parsed = parse_gcode(text, "the coupon program")
+    v = verify(
+        parsed, c.plan, tools={tools.groove.number: tools.groove.diameter, tools.pocket.number: tools.pocket.diameter}
+    )
+    return CouponProgram("coupon" + POSTS[post].suffix, text, cycle_time(parsed), v)

@@ -1,5 +1,6 @@
-"""``ftrac-design compare``'s image-true part: every design's trial on the same sample (common random
-numbers) and each design's paired p95 ratios against the first, with their intervals."""
+"""``ftrac-design compare``: every design's image-true trial on the same sample (common random
+numbers) and each design's paired p95 ratios against the first, with their intervals; the
+paper's model's figures side by side; ``compare.json``."""
 
 from __future__ import annotations
 
@@ -93,3 +94,106 @@ def image_table(scores: Sequence[dict[str, Any]], trial: TrialSettings) -> list[
             for r in rows
         ]
     return lines
+
+
+#: the paper's model's table: column headings
+MODEL_COLUMNS = (
+    "design",
+    "t p95 mm",
+    "t worst",
+    "depth p95",
+    "r p95 °",
+    "r worst",
+    "cond med",
+    "cond worst",
+    "overlap",
+    "clear p5 px",
+    "verdict",
+)
+
+
+def _model_row(s) -> tuple[str, ...]:
+    f = s.figures
+
+    def g(v):
+        return "inf" if v is None else f"{v:.3f}"
+
+    return (
+        s.name,
+        g(f["translation_mm"]["p95"]),
+        g(f["translation_mm"]["worst"]),
+        g(f["translation_p95_per_axis_mm"][2]),
+        g(f["rotation_deg"]["p95"]),
+        g(f["rotation_deg"]["worst"]),
+        "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
+        "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
+        f"{100 * s.segmentability.overlap_share:.1f} %",
+        g(s.segmentability.clearance_p5_px),
+        "PASS" if s.passed else "FAIL",
+    )
+
+
+def model_table(scores: Sequence[Any], base) -> list[str]:
+    """The paper's model's figures of each design, one line each under a line on the workspace.
+
+    Parameters
+    ----------
+    scores : sequence of DesignScore
+        Each design's score (:func:`ftrac_design.analysis.score.score_design`).
+    base : AnalysisSettings
+        The workspace and noise they share.
+
+    Returns
+    -------
+    list of str
+        The lines.
+    """
+    rows = [MODEL_COLUMNS, *(_model_row(s) for s in scores)]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    ws = base.workspace
+    head = (
+        f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
+        f"{ws.depth_range_mm:g} mm, {base.noise_text} (predicted 1σ, 3-D RMS)"
+        + "".join(
+            f"; {s.name}: beads ×{s.settings.bead_error_factor:.3g}, wires ×{s.settings.wire_error_factor:.3g}"
+            for s in scores
+            if s.settings.error_factors != (1.0, 1.0)
+        )
+    )
+    body = ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))) for r in rows]
+    return [head, *body]
+
+
+def compare_document(scores: Sequence[Any], base, images: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """``compare.json``: the shared settings and, per design, its figures, thresholds, verdict,
+    segmentability and image-true score (None without one).
+
+    Parameters
+    ----------
+    scores : sequence of DesignScore
+        Each design's score.
+    base : AnalysisSettings
+        The workspace and noise they share.
+    images : sequence of dict or None
+        :func:`image_scores`' result, in the same order.
+
+    Returns
+    -------
+    dict
+        The document (format ``ftrac-compare``, version 1).
+    """
+    table = []
+    for s, im in zip(scores, images or [None] * len(scores)):
+        d = s.to_dict()
+        seg = {k: d["segmentability"][k] for k in ("overlap_share", "clearance_px", "kinds")}
+        table.append(
+            {
+                "design": s.name,
+                "figures": s.figures,
+                "thresholds": d["thresholds"],
+                "passed": s.passed,
+                "segmentability": seg,
+                "image_score": im,
+            }
+        )
+    return {"format": "ftrac-compare", "version": 1, "settings": base.to_dict(), "designs": table}
