@@ -6,12 +6,12 @@ from pathlib import Path
 
 import click
 
-from .options import image_score_options, output_option, workspace_options
+from .options import OUT_FILE, image_score_options, output_option, workspace_options
 
 
 @click.command("compare")
 @click.argument("sources", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
-@output_option("overlay plot to write [default: outputs/compare.png]; compare.json beside it", kind="file")
+@output_option("overlay plot to write [default: outputs/compare.png]; compare.json beside it", type=OUT_FILE)
 @workspace_options()
 @image_score_options()
 def command(

@@ -10,7 +10,7 @@ import click
 
 from ..errors import InputError
 from ..fileio import atomic_file
-from .options import FILE, camera_option, output_option, polarity_option
+from .options import FILE, OUT_FILE, camera_option, output_option, polarity_option
 
 
 @click.command("distortion")
@@ -40,7 +40,7 @@ from .options import FILE, camera_option, output_option, polarity_option
     help="Bead diameter on the plate, mm (default: measured on the image).",
 )
 @output_option(
-    "Where to write the ftrac-distortion model.", kind="file", default=Path("distortion.json"), show_default=True
+    "Where to write the ftrac-distortion model.", type=OUT_FILE, default=Path("distortion.json"), show_default=True
 )
 @click.option(
     "--plot",

@@ -11,7 +11,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import FILE, link_options, output_option
+from .options import FILE, OUT_FILE, link_options, output_option
 
 #: output suffix → format
 SUFFIXES = {".tfm": "tfm", ".mrk.json": "mrk", ".seq.mha": "mha", ".mha": "mha", ".seq.nrrd": "nrrd", ".nrrd": "nrrd"}
@@ -32,7 +32,9 @@ def _format_of(output: Path, fmt: str | None) -> str:
 @click.command("export")
 @click.argument("input_path", metavar="INPUT", type=FILE)
 @output_option(
-    "The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.", kind="file", required=True
+    "The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha, .seq.nrrd.",
+    type=OUT_FILE,
+    required=True,
 )
 @click.option(
     "--format",

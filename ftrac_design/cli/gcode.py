@@ -13,7 +13,7 @@ import click
 
 from ..machining.post import POSTS
 from ..machining.simulate import GRID, TOLERANCE
-from .options import design_argument, output_option, post_option, profile_option
+from .options import OUT_FILE, design_argument, output_option, post_option, profile_option
 
 
 def _table(v, cycle: dict[str, float] | None) -> list[str]:
@@ -41,7 +41,7 @@ def _table(v, cycle: dict[str, float] | None) -> list[str]:
 @post_option()
 @output_option(
     "program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it as <file>.verify.json",
-    kind="file",
+    type=OUT_FILE,
 )
 @click.option(
     "--check",

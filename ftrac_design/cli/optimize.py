@@ -14,7 +14,7 @@ from .options import (
     min_clearance_option,
     output_option,
     poses_option,
-    profile_option,
+    profiles_option,
     score_images_option,
     workers_option,
 )
@@ -55,7 +55,7 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     show_default=True,
     help="seeds the optimiser and the search's pose sample",
 )
-@profile_option("design rules that constrain the search; repeat for both [default: cnc]", multiple=True)
+@profiles_option("design rules that constrain the search; repeat for both [default: cnc]")
 @click.option(
     "--scheduler",
     default=None,
@@ -98,10 +98,10 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     "3.6 at seed 1]",
 )
 @score_images_option(
-    0,
     "score candidates on this many rendered, tracked images per condition (clean, over a patient; "
     "the image-true score, the same images for every candidate) instead of the paper's "
     "feature-level model; each candidate then costs ~0.2–0.5 s per image",
+    default=0,
 )
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
 @click.option(
@@ -122,14 +122,9 @@ def command(
     resume: bool,
     output: Path | None,
     poses: int | None,
-    verify_poses: int | None,
-    solver_images: int | None,
-    check_images: int | None,
-    min_clearance_px: float | None,
-    min_ellipse_view_deg: float | None,
     no_build: bool,
     print_space: bool,
-    score_images: int = 0,
+    **checks,
 ) -> int:
     """Optimise the layout of DESIGN (a .toml file or a preset's name) under the design rules.
 
@@ -142,6 +137,8 @@ def command(
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
     """
+    # **checks: --verify-poses, --solver-images, --check-images, --min-clearance-px,
+    # --min-ellipse-view-deg and --score-images, named as optimize() takes them
     from ..optimize.setup import prepare, read_design
     from ..optimize.tables import format_summary
     from ..workflows.optimize import optimize
@@ -171,14 +168,9 @@ def command(
             workers,
             resume=resume,
             poses=poses,
-            verify_poses=verify_poses,
-            solver_images=solver_images,
             build=not no_build,
             command_line=cmd,
-            min_clearance_px=min_clearance_px,
-            min_ellipse_view_deg=min_ellipse_view_deg,
-            check_images=check_images,
-            score_images=score_images,
+            **checks,
         )
     except KeyboardInterrupt:
         click.echo(

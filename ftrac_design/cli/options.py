@@ -49,6 +49,43 @@ def stack(*decorators: Decorator) -> Decorator:
     return decorate
 
 
+class SharedOption:
+    """One option as every command that takes it declares it: its flags and parameter name, its
+    type and default, and a help text a command may replace with its own words.
+
+    Parameters
+    ----------
+    *decls : str
+        The flags and, last, the parameter's name (``"--features", "features_path"``).
+    **attrs
+        :func:`click.option`'s attributes (``type``, ``default``, ``help``, …).
+    """
+
+    def __init__(self, *decls: str, **attrs):
+        self.decls = decls
+        self.attrs = attrs
+
+    def __call__(self, help: str | None = None, **override) -> Decorator:
+        """The option as a click decorator.
+
+        Parameters
+        ----------
+        help : str or None
+            This command's help (None: the shared one).
+        **override
+            Attributes this command sets otherwise (``default``, ``required``, ``type``).
+
+        Returns
+        -------
+        callable
+            The click option.
+        """
+        attrs = {**self.attrs, **override}
+        if help is not None:
+            attrs["help"] = help
+        return click.option(*self.decls, **attrs)
+
+
 def design_argument(dir_okay: bool = True) -> Decorator:
     """``DESIGN``: a design file or a preset's name (:func:`ftrac_design.design.presets.resolve_design`).
 
@@ -65,251 +102,69 @@ def design_argument(dir_okay: bool = True) -> Decorator:
     return click.argument("design", type=click.Path(path_type=Path, dir_okay=dir_okay))
 
 
-def features_option(help: str = "features.json written by `ftrac-design build`.") -> Decorator:
-    """``--features FILE`` (required) → ``features_path``.
-
-    Parameters
-    ----------
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--features", "features_path", required=True, type=FILE, help=help)
+#: ``--features FILE`` (required) → ``features_path``
+features_option = SharedOption(
+    "--features", "features_path", required=True, type=FILE, help="features.json written by `ftrac-design build`."
+)
+#: ``--camera FILE`` → ``camera_path`` (None when not given)
+camera_option = SharedOption("--camera", "camera_path", type=FILE, default=None, help="SPEC §3 camera object (JSON).")
+#: ``-o/--output`` → ``output``: a file or a directory (``type=OUT_FILE`` / ``OUT_DIR`` for one of them)
+output_option = SharedOption("-o", "--output", "output", type=click.Path(path_type=Path), default=None)
+#: an output that is a file
+OUT_FILE = click.Path(path_type=Path, dir_okay=False)
+#: an output that is a directory
+OUT_DIR = click.Path(path_type=Path, file_okay=False)
 
 
-def camera_option(help: str = "SPEC §3 camera object (JSON).") -> Decorator:
-    """``--camera FILE`` → ``camera_path`` (None when not given).
-
-    Parameters
-    ----------
-    help : str
-        The option's help (what the camera overrides in this command).
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--camera", "camera_path", type=FILE, default=None, help=help)
+def _choice(flag: str, choices, default: str, help: str | None = None) -> SharedOption:
+    return SharedOption(flag, type=click.Choice(list(choices)), default=default, show_default=True, help=help)
 
 
-def output_option(
-    help: str, kind: str = "path", default: Path | None = None, required: bool = False, show_default: bool = False
-) -> Decorator:
-    """``-o/--output`` → ``output``.
-
-    Parameters
-    ----------
-    help : str
-        What is written there, and the default.
-    kind : {"path", "file", "dir"}
-        Whether the output is a file, a directory or either.
-    default : pathlib.Path or None
-        The default output.
-    required : bool
-        Whether it must be given.
-    show_default : bool
-        Whether ``--help`` shows ``default``.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    ok = {"path": {}, "file": {"dir_okay": False}, "dir": {"file_okay": False}}[kind]
-    return click.option(
-        "-o",
-        "--output",
-        "output",
-        type=click.Path(path_type=Path, **ok),
-        default=default,
-        required=required,
-        show_default=show_default,
-        help=help,
-    )
-
-
-def profile_option(
-    help: str = "manufacturing profile: sets groove widths and pocket diameters", multiple: bool = False
-) -> Decorator:
-    """``--profile cnc|fdm`` → ``profile`` (default cnc), or with ``multiple`` ``profiles``
-    (repeatable, empty when not given).
-
-    Parameters
-    ----------
-    help : str
-        What the profile decides in this command.
-    multiple : bool
-        Whether the option repeats.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    if multiple:
-        return click.option("--profile", "profiles", type=click.Choice(PROFILES), multiple=True, help=help)
-    return click.option("--profile", type=click.Choice(PROFILES), default="cnc", show_default=True, help=help)
-
-
-def post_option(help: str = "the control the program is written for") -> Decorator:
-    """``--post linuxcnc|fanuc`` → ``post`` (:data:`ftrac_design.machining.post.POSTS`).
-
-    Parameters
-    ----------
-    help : str
-        Which program the post writes, in this command.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--post", type=click.Choice(list(POSTS)), default=DEFAULT_POST, show_default=True, help=help)
-
-
-def polarity_option(help: str = "dense-dark: raw detector counts; dense-bright: log/display image.") -> Decorator:
-    """``--polarity auto|dense-dark|dense-bright`` → ``polarity`` (default auto).
-
-    Parameters
-    ----------
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--polarity", type=click.Choice(POLARITIES), default="auto", show_default=True, help=help)
-
-
-def distortion_option(help: str) -> Decorator:
-    """``--distortion FILE|none`` → ``distortion_path``: an ``ftrac-distortion`` model, or
-    ``none`` for a detector that does not distort.
-
-    Parameters
-    ----------
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--distortion", "distortion_path", type=FILE, default=None, help=help)
-
-
-def refine_option(help: str) -> Decorator:
-    """``--refine none|intensity`` → ``refine`` (default none).
-
-    Parameters
-    ----------
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option(
-        "--refine", type=click.Choice(["none", "intensity"]), default="none", show_default=True, help=help
-    )
-
-
-def independent_option(help: str) -> Decorator:
-    """``--independent`` (a flag) → ``independent``: every frame tracked alone, no prior.
-
-    Parameters
-    ----------
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--independent", is_flag=True, help=help)
-
-
-def poses_option(help: str = "random workspace poses scored [default: the design's, else 20000]") -> Decorator:
-    """``--poses N`` (at least 100) → ``poses`` (None: the design's or the command's default).
-
-    Parameters
-    ----------
-    help : str
-        Which poses, in this command.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--poses", type=click.IntRange(min=100), default=None, help=help)
-
-
-def workers_option(
-    help: str = "processes rendering and tracking the score's images [default: one per core; 0 = this process]",
-) -> Decorator:
-    """``--workers N`` → ``workers`` (None: one per core; 0: this process).
-
-    Parameters
-    ----------
-    help : str
-        What the workers do, in this command.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--workers", type=click.IntRange(min=0), default=None, help=help)
-
-
-def min_clearance_option(help: str) -> Decorator:
-    """``--min-clearance-px PX`` → ``min_clearance_px``: the 5th-percentile smallest image
-    clearance between features, px beyond their widths.
-
-    Parameters
-    ----------
-    help : str
-        How the command uses it (a pass threshold, a search constraint).
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--min-clearance-px", type=float, default=None, help=help)
-
-
-def score_images_option(
-    default: int = 100,
-    help: str = "the image-true score: workspace poses rendered and tracked per condition (clean, over a "
+#: ``--profile cnc|fdm`` → ``profile`` (default cnc)
+profile_option = _choice("--profile", PROFILES, "cnc", "manufacturing profile: sets groove widths and pocket diameters")
+#: ``--profile cnc|fdm``, repeatable → ``profiles`` (empty when not given)
+profiles_option = SharedOption("--profile", "profiles", type=click.Choice(PROFILES), multiple=True)
+#: ``--post linuxcnc|fanuc`` → ``post`` (:data:`ftrac_design.machining.post.POSTS`)
+post_option = _choice("--post", POSTS, DEFAULT_POST, "the control the program is written for")
+#: ``--polarity auto|dense-dark|dense-bright`` → ``polarity`` (default auto)
+polarity_option = _choice(
+    "--polarity", POLARITIES, "auto", "dense-dark: raw detector counts; dense-bright: log/display image."
+)
+#: ``--distortion FILE|none`` → ``distortion_path``: an ftrac-distortion model, or none (a flat panel)
+distortion_option = SharedOption("--distortion", "distortion_path", type=FILE, default=None)
+#: ``--refine none|intensity`` → ``refine`` (default none)
+refine_option = _choice("--refine", ("none", "intensity"), "none")
+#: ``--independent`` (a flag): every frame tracked alone, no prior
+independent_option = SharedOption("--independent", is_flag=True)
+#: ``--poses N`` (at least 100) → ``poses`` (None: the design's or the command's default)
+poses_option = SharedOption(
+    "--poses",
+    type=click.IntRange(min=100),
+    default=None,
+    help="random workspace poses scored [default: the design's, else 20000]",
+)
+#: ``--workers N`` → ``workers`` (None: one per core; 0: this process)
+workers_option = SharedOption(
+    "--workers",
+    type=click.IntRange(min=0),
+    default=None,
+    help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
+)
+#: ``--min-clearance-px PX`` → ``min_clearance_px``: 5th-percentile image clearance between features
+min_clearance_option = SharedOption("--min-clearance-px", type=float, default=None)
+#: ``--score-images N`` → ``score_images``: the image-true score's images per condition
+score_images_option = SharedOption(
+    "--score-images",
+    type=click.IntRange(min=0),
+    default=100,
+    show_default=True,
+    help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
     "patient), the same images for every design; 0 = the paper's feature-level model only",
-) -> Decorator:
-    """``--score-images N`` → ``score_images``: the image-true score's images per condition.
-
-    Parameters
-    ----------
-    default : int
-        Images per condition when not given (0: the score is not computed).
-    help : str
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--score-images", type=click.IntRange(min=0), default=default, show_default=True, help=help)
+)
+#: ``--host ADDRESS`` (default 127.0.0.1)
+host_option = SharedOption("--host", default="127.0.0.1", show_default=True)
+#: ``--port N`` (default 18944, OpenIGTLink's; ``type=click.IntRange(0, 65535)`` lets a server take any free one)
+port_option = SharedOption("--port", type=click.IntRange(1, 65535), default=18944, show_default=True)
 
 
 def workspace_options() -> Decorator:
@@ -472,37 +327,3 @@ def link_options(
         click.option("--name", default="FiducialToCArm", show_default=True, help=name_help),
         click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True, help=space_help),
     )
-
-
-def host_option(help: str) -> Decorator:
-    """``--host ADDRESS`` (default 127.0.0.1).
-
-    Parameters
-    ----------
-    help : str
-        Which address: the one listened on, or the server's.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--host", default="127.0.0.1", show_default=True, help=help)
-
-
-def port_option(lowest: int = 1, help: str | None = None) -> Decorator:
-    """``--port N`` (default 18944, OpenIGTLink's).
-
-    Parameters
-    ----------
-    lowest : int
-        The smallest port accepted (0: any free one, for a server).
-    help : str or None
-        The option's help.
-
-    Returns
-    -------
-    callable
-        The click option.
-    """
-    return click.option("--port", type=click.IntRange(lowest, 65535), default=18944, show_default=True, help=help)

@@ -17,7 +17,7 @@ import click
 import numpy as np
 
 from ..errors import InputError
-from .options import FILE, camera_option, features_option, imaging_options, output_option
+from .options import FILE, OUT_DIR, camera_option, features_option, imaging_options, output_option
 
 _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
 
@@ -88,7 +88,9 @@ def _parse_occluder(text: str, frame: str):
     help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the poses, the noise and the anatomy.")
-@output_option("output directory (new, or a previous radiograph output, which is replaced).", kind="dir", required=True)
+@output_option(
+    "output directory (new, or a previous radiograph output, which is replaced).", type=OUT_DIR, required=True
+)
 @click.option("--format", "fmt", type=click.Choice(list(_EXT)), default="png", show_default=True)
 @click.option(
     "--output-kind",

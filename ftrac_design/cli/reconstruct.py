@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from .options import FILE as _FILE
-from .options import POSITIVE, camera_option, features_option, output_option
+from .options import OUT_FILE, POSITIVE, camera_option, features_option, output_option
 
 
 @click.command("reconstruct")
@@ -71,7 +71,7 @@ from .options import POSITIVE, camera_option, features_option, output_option
 )
 @output_option(
     "Where to write the ftrac-reconstruction JSON ('-' for stdout).",
-    kind="file",
+    type=OUT_FILE,
     default=Path("reconstruction.json"),
     show_default=True,
 )

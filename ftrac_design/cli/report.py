@@ -16,12 +16,14 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import image_score_options, output_option, poses_option, profile_option
+from .options import OUT_FILE, image_score_options, output_option, poses_option, profile_option
 
 
 @click.command("report")
 @click.argument("source", type=click.Path(path_type=Path))
-@output_option("HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]", kind="file")
+@output_option(
+    "HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]", type=OUT_FILE
+)
 @click.option(
     "--analysis",
     "analysis_dir",

@@ -33,7 +33,7 @@ from .track import _setup
     "it each IMAGE must carry metadata 'camera' (JSON) or 'focal_length_mm' (the pixel pitch is then "
     "the message's spacing)."
 )
-@port_option(0, "TCP port (0: any free one, printed).")
+@port_option("TCP port (0: any free one, printed).", type=click.IntRange(0, 65535))
 @host_option(
     "Address to listen on: 127.0.0.1 accepts this machine only; 0.0.0.0 every interface (the "
     "C-arm's network: the link is neither authenticated nor encrypted)."

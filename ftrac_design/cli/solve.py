@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import FILE, POSITIVE, features_option, output_option
+from .options import FILE, OUT_FILE, POSITIVE, features_option, output_option
 
 
 @click.command("solve")
@@ -17,7 +17,7 @@ from .options import FILE, POSITIVE, features_option, output_option
 @output_option(
     "Where to write: pose.json for one observation, JSON Lines for several "
     "(default pose.json / poses.jsonl in the current directory; '-' for stdout).",
-    kind="file",
+    type=OUT_FILE,
 )
 @click.option(
     "--segmentation-error-mm",

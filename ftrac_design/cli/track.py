@@ -18,6 +18,7 @@ import click
 
 from ..errors import InputError
 from .options import (
+    OUT_FILE,
     camera_option,
     distortion_option,
     features_option,
@@ -97,7 +98,7 @@ def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
     "pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
     "(default pose.json / poses.jsonl). The segmented observations go beside it "
     "(<stem>.observation.json / <stem>.observations.jsonl).",
-    kind="file",
+    type=OUT_FILE,
 )
 @click.option(
     "--overlay",

@@ -52,16 +52,6 @@ def run_cli(args: list[str | Path]) -> tuple[int, str, str]:
 
 
 def command_line(args: list[str | Path]) -> str:
-    """How a user types ``args``: ``$ ftrac-design …`` with paths relative where possible.
-
-    Parameters
-    ----------
-    args : list of str or pathlib.Path
-        The command and its arguments.
-
-    Returns
-    -------
-    str
-        The line, with its ``$`` prompt.
-    """
+    """How a user types ``args`` (as :func:`run_cli` takes them): ``$ ftrac-design …``, each
+    path relative where it can be (:func:`relative`); returns the line."""
     return "$ ftrac-design " + " ".join(str(relative(a)) if isinstance(a, Path) else str(a) for a in args)

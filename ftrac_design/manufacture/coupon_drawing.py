@@ -81,23 +81,9 @@ def coupon_dimensions(c: Coupon, tol: DrawingTolerances) -> list[Dim]:
 
 def coupon_sheet(design: Design, c: Coupon, views: PartViews, tb: TitleBlock) -> _Sheet:
     """The coupon's sheet: front view (from −y), end view (from +z), the steps' table, notes and
-    the title block.
-
-    Parameters
-    ----------
-    design : Design
-        The design whose wire and balls the coupon tests.
-    c : Coupon
-        The coupon's plan.
-    views : PartViews
-        The coupon solid's projections (frame F of the coupon: axis +z, origin at mid-length).
-    tb : TitleBlock
-        The title block's design name, sha256 and date.
-
-    Returns
-    -------
-    Sheet
-        The drawn sheet.
+    the title block, for ``design``'s wire and balls; ``c`` the coupon's plan, ``views`` its
+    solid's projections (the coupon's frame: axis +z, origin at mid-length), ``tb`` the title
+    block's design name, sha256 and date. Returns the drawn sheet.
     """
     tol = drawing_tolerances(c.profile)
     D = _dims(coupon_dimensions(c, tol))

@@ -366,10 +366,8 @@ def body_sheet(
         The design, its features and the body's cut plan (frame F).
     views : PartViews
         The finished body's projections and sections.
-    profile : {"cnc", "fdm"}
-        The manufacturing profile (cut sizes and tolerances).
-    tb : TitleBlock
-        The title block's design name, sha256 and date.
+    profile, tb
+        As :func:`mount_sheet`.
     key_slot : (width, depth) or None
         The slot across face B for the mount's key, mm.
 
@@ -670,23 +668,9 @@ def _mount_tables(sheet: Sheet, m, tol: DrawingTolerances, D: dict[str, Dim]) ->
 def connector_sheet(design: Design, conn_part, views: PartViews, profile: Profile, tb: TitleBlock) -> Sheet:
     """The connector's sheet: front (pocket face), side and a section through the pocket.
 
-    Parameters
-    ----------
-    design : Design
-        The design whose template the connector fits.
-    conn_part : ftrac_design.cad.connector.ConnectorPart
-        The connector's layout (frame T) and cut sizes.
-    views : PartViews
-        The connector solid's projections and sections (exact hidden-line removal).
-    profile : {"cnc", "fdm"}
-        The manufacturing profile (tolerances).
-    tb : TitleBlock
-        The title block's design name, sha256 and date.
-
-    Returns
-    -------
-    Sheet
-        The drawn sheet.
+    The parameters are :func:`mount_sheet`'s, for the connector: ``conn_part`` a
+    :class:`~ftrac_design.cad.connector.ConnectorPart` (frame T) and ``views`` its solid's; the
+    drawn sheet is returned.
     """
     tol = drawing_tolerances(profile)
     D = _dims(connector_dimensions(conn_part, tol))

@@ -8,6 +8,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from typing import Any
 
+from ..analysis.score import FIGURE_COLUMNS, figure_cells
 from ..analysis.subject import Subject
 from ..imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
 from .analyze import subject_body
@@ -97,38 +98,17 @@ def image_table(scores: Sequence[dict[str, Any]], trial: TrialSettings) -> list[
 
 
 #: the paper's model's table: column headings
-MODEL_COLUMNS = (
-    "design",
-    "t p95 mm",
-    "t worst",
-    "depth p95",
-    "r p95 °",
-    "r worst",
-    "cond med",
-    "cond worst",
-    "overlap",
-    "clear p5 px",
-    "verdict",
-)
+MODEL_COLUMNS = ("design", *FIGURE_COLUMNS, "overlap", "clear p5 px", "verdict")
 
 
 def _model_row(s) -> tuple[str, ...]:
-    f = s.figures
-
-    def g(v):
-        return "inf" if v is None else f"{v:.3f}"
-
+    seg = s.segmentability
+    clear = "inf" if seg.clearance_p5_px is None else f"{seg.clearance_p5_px:.3f}"
     return (
         s.name,
-        g(f["translation_mm"]["p95"]),
-        g(f["translation_mm"]["worst"]),
-        g(f["translation_p95_per_axis_mm"][2]),
-        g(f["rotation_deg"]["p95"]),
-        g(f["rotation_deg"]["worst"]),
-        "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
-        "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
-        f"{100 * s.segmentability.overlap_share:.1f} %",
-        g(s.segmentability.clearance_p5_px),
+        *figure_cells(s.figures),
+        f"{100 * seg.overlap_share:.1f} %",
+        clear,
         "PASS" if s.passed else "FAIL",
     )
 
