@@ -1,8 +1,8 @@
 """Where the preset design files and search spaces live, found in one place.
 
-The presets ship inside the package as data (``ftrac_design/presets/*.toml``: ``ftrac_2005``,
-``ftrac_mini``, ``nine_bead``, …; search spaces in ``ftrac_design/presets/spaces/``), read
-through :mod:`importlib.resources`, so an installed wheel has them as a checkout does. Every
+The presets are the design files in ``models/`` (``ftrac_2005``, ``ftrac_mini``, ``nine_bead``,
+…; search spaces in ``models/spaces/``), shipped inside the package as ``ftrac_design.presets``
+and read through :mod:`importlib.resources`, so an installed wheel has them as a checkout does. Every
 room that needs one asks this module rather than walking up from its own file, and every
 command that takes a design path also takes a preset's name (:func:`resolve_design`).
 """
