@@ -48,10 +48,12 @@ class CouponStep:
 
     @property
     def label(self) -> str:
+        """The size as engraved: three decimals, mm."""
         return f"{self.size:.3f}"
 
     @property
     def id(self) -> str:
+        """``W<size>`` for a groove, ``P<size>`` for a pocket."""
         return f"{'W' if self.kind == 'groove' else 'P'}{self.label}"
 
 

@@ -51,6 +51,7 @@ class Dim:
 
     @property
     def decimals(self) -> int:
+        """Decimals printed, by the unit (degrees or mm)."""
         return DEG_DECIMALS if self.unit == "deg" else MM_DECIMALS
 
     def text(self) -> str:

@@ -132,6 +132,7 @@ class Sheet:
 
     @staticmethod
     def text(ax, x, y, s, gid=None, size=FONT_PT, **kw):
+        """Text ``s`` at (x, y) of ``ax``, its SVG group id ``gid`` (so a test can read it back)."""
         t = ax.text(x, y, s, fontsize=size, **kw)
         if gid:
             t.set_gid(gid)

@@ -68,6 +68,7 @@ class BodyProgram:
 
     @property
     def filename(self) -> str:
+        """``body.ngc``, or the post's suffix (``body.nc`` for fanuc)."""
         return "body" + POSTS[self.post].suffix
 
     def summary(self) -> dict[str, Any]:

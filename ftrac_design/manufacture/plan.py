@@ -106,6 +106,7 @@ class BodyPlan:
 
     @property
     def n_cuts(self) -> int:
+        """Grooves and pockets in all."""
         return len(self.ellipse_grooves) + len(self.line_grooves) + len(self.pockets)
 
 

@@ -96,6 +96,7 @@ class RuleResult:
         return f"{self.rule}: {self.title} is {val} ({self.where}); limit {lim}"
 
     def as_dict(self) -> dict[str, Any]:
+        """The result as plain JSON, with its one-line message."""
         d = asdict(self)
         d["message"] = self.message
         return d
@@ -113,17 +114,21 @@ class CheckReport:
 
     @property
     def violations(self) -> list[RuleResult]:
+        """The rules that fail."""
         return [r for r in self.results if r.verdict == "fail"]
 
     @property
     def warnings(self) -> list[RuleResult]:
+        """The rules within their limit but short of the recommended value."""
         return [r for r in self.results if r.verdict == "warn"]
 
     @property
     def ok(self) -> bool:
+        """Whether no rule fails."""
         return not self.violations
 
     def result(self, rule: str) -> RuleResult:
+        """The result of the rule named ``rule`` (KeyError if there is none)."""
         for r in self.results:
             if r.rule == rule:
                 return r
@@ -131,6 +136,7 @@ class CheckReport:
 
     @property
     def summary(self) -> str:
+        """One line: the design, the profile, the counts of rules, violations and warnings."""
         n, w = len(self.violations), len(self.warnings)
         return (
             f"{self.design} ({self.profile}): {len(self.results)} rules, "
@@ -138,6 +144,7 @@ class CheckReport:
         )
 
     def as_dict(self) -> dict[str, Any]:
+        """The report as ``check --json`` prints it (format ``ftrac-check``)."""
         return {
             "format": CHECK_FORMAT,
             "version": CHECK_VERSION,
