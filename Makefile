@@ -15,7 +15,7 @@ LATEST := .venv-latest
 .PHONY: demo test install bench clean chromium docs lock test-latest
 
 # the locked versions exactly (hash-checked, nothing resolved), then the package itself
-$(STAMP): pyproject.toml $(LOCK)
+$(STAMP): pyproject.toml setup.py $(LOCK)
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install -q --require-hashes --no-deps -r $(LOCK)
 	$(BIN)/pip install -q --no-deps --no-build-isolation -e .

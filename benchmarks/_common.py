@@ -28,7 +28,7 @@ def machine() -> str:
 
 
 def load(name: str):
-    """Features of the preset ``name`` (``ftrac_design/presets/<name>.toml``)."""
+    """Features of the preset ``name`` (``models/<name>.toml``)."""
     from ftrac_design.design import load_design
     from ftrac_design.features import compute_features
 

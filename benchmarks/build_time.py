@@ -28,10 +28,10 @@ def main() -> None:
 
     from ftrac_design.cad.body import build_body
     from ftrac_design.cad.build import build_fiducial
-    from ftrac_design.cad.plan import plan_body
-    from ftrac_design.cad.profiles import cut_sizes
     from ftrac_design.design import load_design
     from ftrac_design.features import compute_features
+    from ftrac_design.manufacture.plan import plan_body
+    from ftrac_design.manufacture.profiles import cut_sizes
 
     print(f"machine: {machine()}, CadQuery {cq.__version__}")
     tmp = Path(tempfile.mkdtemp(prefix="ftrac-bench-build-"))

@@ -17,13 +17,13 @@ import time
 
 from _common import machine
 
-from ftrac_design.cad.gcode import body_program
-from ftrac_design.cad.plan import plan_body
-from ftrac_design.cad.profiles import cut_sizes
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.machining.gcode import parse_gcode
 from ftrac_design.machining.simulate import GRID, verify
+from ftrac_design.manufacture.gcode import body_program
+from ftrac_design.manufacture.plan import plan_body
+from ftrac_design.manufacture.profiles import cut_sizes
 
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 

@@ -26,11 +26,11 @@ import numpy as np
 from _common import machine
 from scipy.optimize import minimize
 
-from ftrac_design.cad.rules import check_design
 from ftrac_design.design.loader import parse_design
 from ftrac_design.design.presets import resolve_design, resolve_space
 from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features
+from ftrac_design.manufacture.rules import check_design
 from ftrac_design.optimize.evaluate import evaluate_candidate, min_ellipse_view_deg, rule_margins, score_figures
 from ftrac_design.optimize.setup import prepare
 from ftrac_design.optimize.space import _line_geometry

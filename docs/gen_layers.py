@@ -24,7 +24,7 @@ from matplotlib.patches import FancyArrowPatch, FancyBboxPatch  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "docs" / "img" / "layers.png"
 #: box colours: the entry points green, the one room that may import CadQuery amber, the rest blue
-COLOURS = {"demo": "#d9ead3", "demo_carm": "#d9ead3", "cli": "#d9ead3", "cad": "#f4d6a0"}
+COLOURS = {"demo": "#d9ead3", "cli": "#d9ead3", "cad": "#f4d6a0"}
 
 
 def contract_layers(pyproject: Path = ROOT / "pyproject.toml") -> list[list[str]]:

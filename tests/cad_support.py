@@ -20,11 +20,11 @@ from conftest import MODELS, PRESETS, ROOT  # noqa: E402,F401  (one list of pres
 from scipy.integrate import quad
 from scipy.spatial import cKDTree
 
-from ftrac_design.cad.profiles import CutSizes, cut_sizes
 from ftrac_design.design import load_design
 from ftrac_design.design.schema import Design
 from ftrac_design.features import compute_features
 from ftrac_design.features.model import Features
+from ftrac_design.manufacture.profiles import CutSizes, cut_sizes
 
 PROFILES = ("cnc", "fdm")
 

@@ -11,9 +11,9 @@ import cad_support as S
 import pytest
 
 from ftrac_design.cad.build import OUTPUT_FILES
-from ftrac_design.cad.profiles import cut_sizes
 from ftrac_design.cli.main import main
 from ftrac_design.fileio import sha256_file
+from ftrac_design.manufacture.profiles import cut_sizes
 
 pytestmark = pytest.mark.xdist_group("cad")
 

@@ -32,7 +32,7 @@ def test_volume_matches_analytic_estimate(preset, profile):
     """V(STEP or B-rep) lies within the derived tolerance of the estimate plus the neglected
     overlaps (see cad_support.VolumeEstimate); the overlaps only ever add volume."""
     from ftrac_design.cad.body import build_body, volume
-    from ftrac_design.cad.plan import plan_body
+    from ftrac_design.manufacture.plan import plan_body
 
     d, f, cuts = S.design_features_cuts(preset, profile)
     if profile == "cnc":
@@ -133,7 +133,7 @@ def _corners_in_section(mesh, origin, normal, corners, tol) -> int:
 
 def test_plan_floors_seat_the_centre_lines(preset):
     """The planned cut floors are one wire or ball radius below the feature centre-lines."""
-    from ftrac_design.cad.plan import plan_body
+    from ftrac_design.manufacture.plan import plan_body
 
     d, f, cuts = S.design_features_cuts(preset)
     plan = plan_body(d, f, cuts)
@@ -168,7 +168,7 @@ def test_ellipse_spine_refuses_a_drifted_centre_line():
 @pytest.mark.slow
 def test_cut_strategies_agree():
     from ftrac_design.cad.body import build_body, volume
-    from ftrac_design.cad.plan import plan_body
+    from ftrac_design.manufacture.plan import plan_body
 
     d, f, cuts = S.design_features_cuts("ftrac_2005")
     plan = plan_body(d, f, cuts)

@@ -23,7 +23,7 @@ def _body(preset: str, profile: str):
     if profile == "cnc":
         return S.step_body(preset).val()
     from ftrac_design.cad.body import build_body
-    from ftrac_design.cad.plan import plan_body
+    from ftrac_design.manufacture.plan import plan_body
 
     d, f, cuts = S.design_features_cuts(preset, profile)
     return build_body(plan_body(d, f, cuts))

@@ -9,8 +9,6 @@ import math
 import numpy as np
 import pytest
 
-from ftrac_design.cad.coupon import coupon_csv, plan_coupon
-from ftrac_design.cad.profiles import cut_sizes
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
 from ftrac_design.machining.gcode import parse_gcode
@@ -18,6 +16,8 @@ from ftrac_design.machining.model import SlotCut, tooling
 from ftrac_design.machining.post import emit
 from ftrac_design.machining.simulate import verify
 from ftrac_design.machining.toolpath import plan_program
+from ftrac_design.manufacture.coupon import coupon_csv, plan_coupon
+from ftrac_design.manufacture.profiles import cut_sizes
 
 
 @pytest.mark.parametrize("preset, profile", [("ftrac_2005", "cnc"), ("ftrac_mini", "fdm"), ("nine_bead", "cnc")])
@@ -202,8 +202,8 @@ def _drawing_states_the_plan(out, design):
     0.001 mm / 0.01°), the profile's fit-critical tolerance on every size, the design file's sha256."""
     import hashlib
 
-    from ftrac_design.cad.profiles import drawing_tolerances
     from ftrac_design.design.presets import preset_path
+    from ftrac_design.manufacture.profiles import drawing_tolerances
 
     c = plan_coupon(design, "cnc")
     printed = _svg_dims(out / "drawing_coupon.svg")

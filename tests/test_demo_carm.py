@@ -1,4 +1,4 @@
-"""The demo's C-arm step (:mod:`ftrac_design.demo_carm`): what it prints is what it wrote.
+"""The demo's C-arm step (:mod:`ftrac_design.demo.carm`): what it prints is what it wrote.
 
 The step runs once (≈ 6 s) into a temporary directory, which is the working directory while
 it runs so that printed paths are relative; every printed number is recomputed from the
@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ftrac_design.demo_carm import (
+from ftrac_design.demo.carm import (
     CAMERA,
     SHAPE,
     CarmDemoSettings,

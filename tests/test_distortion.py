@@ -8,6 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from ftrac_design.calibration.gridcal import estimate_distortion
+from ftrac_design.calibration.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.cli.main import main
 from ftrac_design.errors import InputError
 from ftrac_design.images.distortion import (
@@ -20,8 +22,6 @@ from ftrac_design.images.distortion import (
     undistort_image,
     write_distortion,
 )
-from ftrac_design.segment.gridcal import estimate_distortion
-from ftrac_design.segment.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.xray import write_image
 
 SHAPE = (512, 512)

@@ -181,6 +181,42 @@ def test_the_architecture_page_and_its_picture_show_the_contract_layers():
     )
 
 
+def where_things_are(page: Path = DOCS / "architecture.md") -> list[tuple[str, str]]:
+    """(path, what) of each row of the architecture page's "Where things are" table."""
+    text = page.read_text(encoding="utf-8").split("## Where things are", 1)[1].split("\n## ", 1)[0]
+    rows = []
+    for line in text.splitlines():
+        m = re.match(r"\|\s*`([^`]+)`\s*\|(.*)\|\s*$", line)
+        if m:
+            rows.append((m.group(1), m.group(2)))
+    return rows
+
+
+def test_the_architecture_page_names_every_room_once_and_only_its_own_files():
+    rows = where_things_are()
+    rooms = sorted(p.name for p in (ROOT / "ftrac_design").iterdir() if (p / "__init__.py").is_file())
+    named = [path.split("/")[1] for path, _ in rows if path.startswith("ftrac_design/")]
+    assert sorted(named) == rooms, f"each room once: the page has {sorted(named)}, the package {rooms}"
+    wrong = []
+    for path, what in rows:
+        if not path.startswith("ftrac_design/"):
+            continue
+        for cited in re.findall(r"`([\w/]+\.py)`", what):
+            # a bare module name is the room's own; a path with a folder is from the package root
+            target = ROOT / "ftrac_design" / cited if "/" in cited else ROOT / path / cited
+            if not target.is_file():
+                wrong.append(f"{path}: {cited}")
+    assert not wrong, f"the rows cite modules their room does not have: {wrong}"
+
+
+def test_the_room_table_reader_reads_rows(tmp_path):
+    page = tmp_path / "a.md"
+    page.write_text(
+        "## Where things are\n\n| path | what |\n| --- | --- |\n| `ftrac_design/x` | one (`a.py`) |\n\n## Next\n"
+    )
+    assert where_things_are(page) == [("ftrac_design/x", " one (`a.py`) ")]
+
+
 @pytest.mark.skipif(importlib.util.find_spec("mkdocs") is None, reason="mkdocs is not installed (make installs it)")
 @pytest.mark.timeout(600)
 def test_the_site_builds_strict_with_no_warning(tmp_path):

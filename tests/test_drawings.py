@@ -77,7 +77,7 @@ def agrees(text: str, expected: float) -> bool:
     return abs(value - expected) <= 0.5 * 10**-dec + 1e-9
 
 
-# ---- values computed here, independently of cad.dimensions ---------------------------------
+# ---- values computed here, independently of manufacture.dimensions ---------------------------------
 
 
 def _azimuth(p) -> float:
@@ -220,7 +220,7 @@ def test_every_groove_and_pocket_is_drawn():
 
 
 def test_tolerances_are_the_profiles():
-    from ftrac_design.cad.profiles import CNC_GENERAL_TOLERANCE, CNC_TOLERANCE, FDM_TOLERANCE
+    from ftrac_design.manufacture.profiles import CNC_GENERAL_TOLERANCE, CNC_TOLERANCE, FDM_TOLERANCE
 
     for profile, gen, crit in (("cnc", CNC_GENERAL_TOLERANCE, CNC_TOLERANCE), ("fdm", FDM_TOLERANCE, FDM_TOLERANCE)):
         R = S.design_of(PRESET).body.outer_diameter / 2
@@ -398,7 +398,7 @@ def test_3mf_units_names_colours_by_lib3mf():
 
 
 def test_print_settings_state_what_the_profile_assumes():
-    from ftrac_design.cad.profiles import FDM_WALL_MIN, FDM_WALL_RECOMMENDED, cut_sizes
+    from ftrac_design.manufacture.profiles import FDM_WALL_MIN, FDM_WALL_RECOMMENDED, cut_sizes
 
     d = S.design_of(PRESET)
     doc = json.loads((S.build(PRESET, "fdm").out_dir / "print_settings.json").read_text())

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 from scipy.special import ellipe, ellipk
 
-from ftrac_design.cad.gcode import body_program
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design
 from ftrac_design.errors import InputError
@@ -33,6 +32,7 @@ from ftrac_design.machining.model import (
 from ftrac_design.machining.post import POSTS, emit
 from ftrac_design.machining.simulate import Grid, placement_step, reference_layer, scallop, union_volume, verify
 from ftrac_design.machining.toolpath import plan_program
+from ftrac_design.manufacture.gcode import body_program
 
 R = 5.0
 STOCK = Stock(R, 0.0, 2.0)

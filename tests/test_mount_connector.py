@@ -21,8 +21,8 @@ from fixture_support import (
     stl_mesh,
 )
 
-from ftrac_design.cad.profiles import cut_sizes
 from ftrac_design.features.mounting import connector_layout, mount_layout, template_from_mount, transform_points
+from ftrac_design.manufacture.profiles import cut_sizes
 
 pytestmark = pytest.mark.xdist_group("cad")
 
@@ -197,8 +197,8 @@ def test_derived_mount_sizes():
 @pytest.mark.parametrize("preset", PRESETS)
 @pytest.mark.parametrize("profile", PROFILES)
 def test_bill_of_materials(preset, profile):
-    from ftrac_design.cad.bom import ISO4762_LENGTHS, bill_of_materials
     from ftrac_design.features import compute_features
+    from ftrac_design.manufacture.bom import ISO4762_LENGTHS, bill_of_materials
 
     d = design_of(preset)
     f = compute_features(d)

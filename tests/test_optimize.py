@@ -71,9 +71,9 @@ def test_body_scale_and_stock_sizes(base):
 
 
 def test_connector_follows_the_mount_when_the_body_grows(base):
-    from ftrac_design.cad.rules import check_design
     from ftrac_design.design.loader import parse_design
     from ftrac_design.features.mounting import mount_layout
+    from ftrac_design.manufacture.rules import check_design
 
     # at Ø38 the mount's z hole pattern steps from 50 to 75 mm and the block from 64 to 89 mm;
     # with the connector axis fixed at 50 mm the block reached 4.5 mm below the template's edge
@@ -439,9 +439,9 @@ def test_paired_p95_ratio_of_image_checks():
 
 def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(base):
     """A winner sits on its limits: best.toml's 0.1 µm rounding must not push a rule over."""
-    from ftrac_design.cad.rules import check_design
     from ftrac_design.design.loader import parse_design
     from ftrac_design.design.writer import round_values as _round
+    from ftrac_design.manufacture.rules import check_design
     from ftrac_design.workflows.optimize_outputs import design_toml
 
     def gap(d):
@@ -466,7 +466,7 @@ def test_written_design_keeps_exact_values_where_rounding_would_break_a_rule(bas
 
 
 def test_demo_step_runs_a_search_and_its_image_check(tmp_path):
-    from ftrac_design.workflows.demo.optimize import demo_step
+    from ftrac_design.demo.optimize import demo_step
 
     text = demo_step(tmp_path)
     doc = json.loads((tmp_path / "optimize" / "summary.json").read_text())

@@ -325,7 +325,7 @@ def test_cli_camera_per_line_extension(files):
 
 
 def test_demo_step(tmp_path):
-    from ftrac_design.workflows.demo.reconstruct import demo_step
+    from ftrac_design.demo.reconstruct import demo_step
 
     text = demo_step(tmp_path)
     assert "mean |error|" in text and (tmp_path / "reconstruction.json").exists()

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 from fuzz_support import assert_clean, run_cli
 
+from ftrac_design.demo.report import demo_step
 from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.report import SECTIONS
 from ftrac_design.report.browser import dump_dom, find_chromium, screenshot
-from ftrac_design.workflows.demo.report import demo_step
 
 MODELS = PRESETS_DIR
 # one worker builds the module's fixture once (``make test`` runs -n 2 --dist loadgroup)

@@ -13,12 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from ftrac_design.cad.profiles import PROFILES, cut_sizes, rule_limits
-from ftrac_design.cad.rules import RULES, check_design
 from ftrac_design.cli.main import main
 from ftrac_design.design import load_design, parse_design
 from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.errors import InputError
+from ftrac_design.manufacture.profiles import PROFILES, cut_sizes, rule_limits
+from ftrac_design.manufacture.rules import RULES, check_design
 
 MODELS = PRESETS_DIR
 
@@ -228,7 +228,7 @@ def test_check_bad_profile_is_usage_error(capsys):
 
 def test_rules_do_not_import_cadquery():
     code = (
-        "import sys, ftrac_design.cad.rules as r, ftrac_design.cli.check;"
+        "import sys, ftrac_design.manufacture.rules as r, ftrac_design.cli.check;"
         "from ftrac_design.design import load_design;"
         f"r.check_design(load_design({str(MODELS / 'ftrac_2005.toml')!r}));"
         "assert 'cadquery' not in sys.modules and 'OCP' not in sys.modules"

@@ -8,8 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from ftrac_design.cad.profiles import PROFILES, cut_sizes
-from ftrac_design.cad.unwrap import (
+from ftrac_design.design import load_design
+from ftrac_design.design.presets import PRESETS_DIR
+from ftrac_design.features import compute_features
+from ftrac_design.manufacture.profiles import PROFILES, cut_sizes
+from ftrac_design.manufacture.unwrap import (
     CSV_COLUMNS,
     LAYERS,
     STEP_DEG,
@@ -19,9 +22,6 @@ from ftrac_design.cad.unwrap import (
     write_grooves_csv,
     write_grooves_dxf,
 )
-from ftrac_design.design import load_design
-from ftrac_design.design.presets import PRESETS_DIR
-from ftrac_design.features import compute_features
 
 MODELS = PRESETS_DIR
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")

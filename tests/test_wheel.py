@@ -70,8 +70,9 @@ def build_wheel(tmp: Path) -> Path:
         The one ``ftrac_design-*.whl`` written to ``tmp/dist``.
     """
     src = tmp / "src"
-    shutil.copytree(ROOT / "ftrac_design", src / "ftrac_design", ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
-    for name in ("pyproject.toml", "README.md"):
+    for folder in ("ftrac_design", "models"):  # the package, and the design files the build maps in
+        shutil.copytree(ROOT / folder, src / folder, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    for name in ("pyproject.toml", "setup.py", "README.md"):
         shutil.copy2(ROOT / name, src / name)
     isolation = ["--no-build-isolation"] if _offline_backend() else []  # else pip fetches the backend
     _run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", *isolation, "-w", tmp / "dist", src], tmp)

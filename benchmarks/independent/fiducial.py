@@ -80,7 +80,7 @@ class FiducialScene:
 
 
 def design_path(preset: str) -> Path:
-    """The design file of ``preset``: a preset's name (``ftrac_design/presets/``) or a design TOML path."""
+    """The design file of ``preset``: a preset's name (``models/``) or a design TOML path."""
     return resolve_design(preset)
 
 

@@ -104,66 +104,36 @@ def blind_spot_atlas(
     separation_deg: float = 15.0,
     progress: Callable[[int], None] | None = None,
 ) -> Atlas:
-    """Map ``features`` over the whole sphere (``step_deg`` grid) and the workspace cone."""
+    """Map ``features`` over the whole sphere (``step_deg`` grid) and the workspace cone.
+
+    Parameters
+    ----------
+    features : Features
+        The design's features.
+    settings : AnalysisSettings
+        Depth, camera, noise and the workspace cone.
+    step_deg : float
+        The sphere grid's step, degrees.
+    n_worst : int
+        How many worst view directions to report.
+    separation_deg : float
+        The smallest angle between two reported worst directions, degrees.
+    progress : callable or None
+        Called with the number of directions done.
+
+    Returns
+    -------
+    Atlas
+        The sphere's and the cone's analyses, the worst directions and each feature's blind share.
+    """
     lon, lat, d = sphere_grid(step_deg)
     depth = settings.workspace.depth_mm
-    R, t = isocentre_poses(d.reshape(-1, 3), depth)
-    sph = analyse_poses(
-        features,
-        R,
-        t,
-        settings.camera,
-        settings.noise,
-        settings.contour,
-        detail=True,
-        leave_one_out=False,
-        progress=progress,
-    )
+    sph = _analyse_directions(features, d, depth, settings, progress)
     pol, az, dc = cone_grid(features.nominal_beam_direction, settings.workspace.cone_deg)
-    Rc, tc = isocentre_poses(dc.reshape(-1, 3), depth)
-    cone = analyse_poses(
-        features,
-        Rc,
-        tc,
-        settings.camera,
-        settings.noise,
-        settings.contour,
-        detail=True,
-        leave_one_out=False,
-        progress=progress,
-    )
+    cone = _analyse_directions(features, dc, depth, settings, progress)
     ref = np.median(sph.rank_ratio, 0)
     blind = {fid: float(np.mean(sph.rank_ratio[:, f] < BLIND_FACTOR * ref[f])) for f, fid in enumerate(sph.layout.ids)}
-    # worst: closest to losing rank (largest condition number, or for a design that cannot
-    # fix all six DOF the smallest σ_r/σ₁), ties by predicted error
-    m = sph.overall
-    order = np.lexsort((-np.nan_to_num(m.translation_rms_mm, posinf=1e300), sph.rank_deficiency()))
-    beams = sph.beam_directions()
-    cos_sep = np.cos(np.radians(separation_deg))
-    chosen: list[int] = []
-    for i in order:
-        if all(beams[i] @ beams[j] < cos_sep for j in chosen):
-            chosen.append(int(i))
-            if len(chosen) == n_worst:
-                break
-    polar, azim = angle_from(features.nominal_beam_direction, beams[chosen])
-    worst = []
-    for k, i in enumerate(chosen):
-        worst.append(
-            {
-                "beam_direction": [float(v) for v in beams[i]],
-                "lon_deg": float(lon.flat[i]),
-                "lat_deg": float(lat.flat[i]),
-                "angle_from_nominal_deg": float(polar[k]),
-                "azimuth_deg": float(azim[k]),
-                "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
-                "condition": _finite(m.condition[i]),
-                "rank_ratio": float(sph.rank_deficiency()[i]),
-                "translation_error_mm": _finite(m.translation_rms_mm[i]),
-                "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
-                "responsible": sph.responsible(i, ref, BLIND_FACTOR),
-            }
-        )
+    worst = _worst_directions(features, settings, sph, lon, lat, ref, n_worst, separation_deg)
     return Atlas(
         features.name,
         lon,
@@ -177,3 +147,52 @@ def blind_spot_atlas(
         worst,
         blind,
     )
+
+
+def _analyse_directions(features: Features, directions: np.ndarray, depth: float, settings, progress):
+    """The analysis at the isocentre pose of each view direction."""
+    R, t = isocentre_poses(directions.reshape(-1, 3), depth)
+    return analyse_poses(
+        features,
+        R,
+        t,
+        settings.camera,
+        settings.noise,
+        settings.contour,
+        detail=True,
+        leave_one_out=False,
+        progress=progress,
+    )
+
+
+def _worst_directions(features, settings, sph, lon, lat, ref, n_worst: int, separation_deg: float) -> list[dict]:
+    """The view directions closest to losing rank (largest condition number, or for a design that
+    cannot fix all six DOF the smallest σ_r/σ₁; ties by predicted error), each at least
+    ``separation_deg`` from the others, with the features responsible."""
+    m = sph.overall
+    order = np.lexsort((-np.nan_to_num(m.translation_rms_mm, posinf=1e300), sph.rank_deficiency()))
+    beams = sph.beam_directions()
+    cos_sep = np.cos(np.radians(separation_deg))
+    chosen: list[int] = []
+    for i in order:
+        if all(beams[i] @ beams[j] < cos_sep for j in chosen):
+            chosen.append(int(i))
+            if len(chosen) == n_worst:
+                break
+    polar, azim = angle_from(features.nominal_beam_direction, beams[chosen])
+    return [
+        {
+            "beam_direction": [float(v) for v in beams[i]],
+            "lon_deg": float(lon.flat[i]),
+            "lat_deg": float(lat.flat[i]),
+            "angle_from_nominal_deg": float(polar[k]),
+            "azimuth_deg": float(azim[k]),
+            "in_workspace": bool(polar[k] <= settings.workspace.cone_deg),
+            "condition": _finite(m.condition[i]),
+            "rank_ratio": float(sph.rank_deficiency()[i]),
+            "translation_error_mm": _finite(m.translation_rms_mm[i]),
+            "rotation_error_deg": _finite(m.rotation_rms_deg[i]),
+            "responsible": sph.responsible(i, ref, BLIND_FACTOR),
+        }
+        for k, i in enumerate(chosen)
+    ]

@@ -212,16 +212,64 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     """Image clearance between features (px beyond their widths; negative = overlap): its
     distribution over the workspace poses, overall and per pair kind, and the smallest
     clearance over every view direction (Mollweide) and over the workspace cone (polar),
-    with the overlap boundary. ``seg`` is a :class:`~.segmentability.Segmentability`,
-    ``seg_atlas`` a :class:`~.segmentability.SegmentabilityAtlas`."""
-    from matplotlib.colors import TwoSlopeNorm
+    with the overlap boundary.
 
-    from ..pose.simulate import cone_directions
-    from .segmentability import PAIR_KINDS
+    Parameters
+    ----------
+    seg : Segmentability
+        The clearances over the workspace poses (:class:`~.segmentability.Segmentability`).
+    seg_atlas : SegmentabilityAtlas
+        The smallest clearance per view direction (:class:`~.segmentability.SegmentabilityAtlas`).
+    path : str or pathlib.Path
+        The PNG to write.
+    thresholds : Thresholds or None
+        Draws ``min_clearance_px`` where it is set.
+
+    Returns
+    -------
+    pathlib.Path
+        The file written.
+    """
+    from matplotlib.colors import TwoSlopeNorm
 
     plt = pyplot()
     fig = plt.figure(figsize=(16, 4.8))
-    ax = fig.add_subplot(1, 3, 1)
+    _clearance_cdfs(fig.add_subplot(1, 3, 1), seg, thresholds)
+    sph, cone = seg_atlas.sphere_grid(), seg_atlas.cone_grid()
+    vals = np.concatenate([sph[np.isfinite(sph)], cone[np.isfinite(cone)]])
+    vmin = min(-1.0, float(vals.min())) if vals.size else -1.0
+    vmax = max(1.0, min(20.0, float(np.percentile(vals, 95)))) if vals.size else 1.0
+    norm = TwoSlopeNorm(vcenter=0.0, vmin=vmin, vmax=vmax)
+    _clearance_sphere(fig, fig.add_subplot(1, 3, 2, projection="mollweide"), seg_atlas, sph, norm)
+    ax = fig.add_subplot(1, 3, 3, projection="polar")
+    pcm = ax.pcolormesh(
+        np.radians(seg_atlas.azimuth),
+        seg_atlas.polar,
+        np.clip(cone, vmin, vmax),
+        cmap="RdYlBu",
+        norm=norm,
+        shading="nearest",
+    )
+    if (cone < 0).any() and (cone > 0).any():
+        ax.contour(np.radians(seg_atlas.azimuth), seg_atlas.polar, cone, levels=[0.0], colors="k", linewidths=0.6)
+    ax.set_theta_zero_location("N")
+    ax.set_rlim(0, seg_atlas.cone_deg)
+    ax.tick_params(labelsize=7)
+    _colorbar(fig, pcm, ax, "smallest clearance, px", 0.1)
+    ax.set_title("the workspace cone\n(radius: ° from nominal; up: tilted toward +z)", fontsize=10, pad=14)
+    fig.suptitle(
+        f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
+        f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs",
+        fontsize=11,
+        y=1.07,
+    )
+    return save_figure(fig, path)
+
+
+def _clearance_cdfs(ax, seg, thresholds) -> None:
+    """The clearances' distributions over the workspace poses: the smallest counted and each pair kind's."""
+    from .segmentability import PAIR_KINDS
+
     pc = seg.pairs
     m = seg.clearance_px
     colours = dict(zip(PAIR_KINDS, ("tab:red", "tab:orange", "tab:gray", "tab:blue", "tab:green", "tab:purple")))
@@ -250,14 +298,14 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7)
     ax.set_title(f"overlap at {100 * seg.overlap_share:.1f} % of {m.size} workspace poses", fontsize=10)
-    sph, cone = seg_atlas.sphere_grid(), seg_atlas.cone_grid()
-    vals = np.concatenate([sph[np.isfinite(sph)], cone[np.isfinite(cone)]])
-    vmin = min(-1.0, float(vals.min())) if vals.size else -1.0
-    vmax = max(1.0, min(20.0, float(np.percentile(vals, 95)))) if vals.size else 1.0
-    norm = TwoSlopeNorm(vcenter=0.0, vmin=vmin, vmax=vmax)
-    ax = fig.add_subplot(1, 3, 2, projection="mollweide")
+
+
+def _clearance_sphere(fig, ax, seg_atlas, sph: np.ndarray, norm) -> None:
+    """The smallest clearance over every view direction, with the workspace cone's rim."""
+    from ..pose.simulate import cone_directions
+
     lon, lat = np.radians(seg_atlas.lon), np.radians(seg_atlas.lat)
-    pcm = ax.pcolormesh(lon, lat, np.clip(sph, vmin, vmax), cmap="RdYlBu", norm=norm, shading="nearest")
+    pcm = ax.pcolormesh(lon, lat, np.clip(sph, norm.vmin, norm.vmax), cmap="RdYlBu", norm=norm, shading="nearest")
     if (sph < 0).any() and (sph > 0).any():
         ax.contour(lon, lat, sph, levels=[0.0], colors="k", linewidths=0.6)
     nb = seg_atlas.nominal_beam / np.linalg.norm(seg_atlas.nominal_beam)
@@ -272,26 +320,3 @@ def plot_segmentability(seg, seg_atlas, path: str | Path, thresholds=None) -> Pa
     ax.tick_params(labelsize=7)
     _colorbar(fig, pcm, ax, "smallest clearance, px (black: 0)", 0.08)
     ax.set_title("every view direction (magenta: the workspace cone)", fontsize=10)
-    ax = fig.add_subplot(1, 3, 3, projection="polar")
-    pcm = ax.pcolormesh(
-        np.radians(seg_atlas.azimuth),
-        seg_atlas.polar,
-        np.clip(cone, vmin, vmax),
-        cmap="RdYlBu",
-        norm=norm,
-        shading="nearest",
-    )
-    if (cone < 0).any() and (cone > 0).any():
-        ax.contour(np.radians(seg_atlas.azimuth), seg_atlas.polar, cone, levels=[0.0], colors="k", linewidths=0.6)
-    ax.set_theta_zero_location("N")
-    ax.set_rlim(0, seg_atlas.cone_deg)
-    ax.tick_params(labelsize=7)
-    _colorbar(fig, pcm, ax, "smallest clearance, px", 0.1)
-    ax.set_title("the workspace cone\n(radius: ° from nominal; up: tilted toward +z)", fontsize=10, pad=14)
-    fig.suptitle(
-        f"{seg.name}: image clearance between features at the isocentre (maps) and over the workspace "
-        f"(left); stretch {seg.settings.stretch_px:g} px for wire pairs",
-        fontsize=11,
-        y=1.07,
-    )
-    return save_figure(fig, path)

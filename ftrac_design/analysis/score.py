@@ -292,3 +292,40 @@ def score_design(
         seg = _segmentability(features, settings.camera, R[:k], t[:k], settings.clearance)
         checks += segmentability_checks(seg, thresholds)
     return DesignScore(features.name, settings, thresholds, pa, figures, checks, groups, per_feature, worst, seg)
+
+
+#: :func:`figure_cells`' column headings
+FIGURE_COLUMNS = ("t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst")
+
+
+def figure_cells(figures: dict) -> tuple[str, ...]:
+    """A design score's headline figures as table cells (:data:`FIGURE_COLUMNS`): translation p95
+    and worst (mm), depth p95 (mm), rotation p95 and worst (°), median and worst condition.
+
+    Parameters
+    ----------
+    figures : dict
+        :attr:`DesignScore.figures`.
+
+    Returns
+    -------
+    tuple of str
+        The cells, ``inf`` where a figure is unbounded.
+    """
+
+    def g(v):
+        return "inf" if v is None else f"{v:.3f}"
+
+    def whole(v):
+        return "inf" if v is None else f"{v:.0f}"
+
+    f = figures
+    return (
+        g(f["translation_mm"]["p95"]),
+        g(f["translation_mm"]["worst"]),
+        g(f["translation_p95_per_axis_mm"][2]),
+        g(f["rotation_deg"]["p95"]),
+        g(f["rotation_deg"]["worst"]),
+        whole(f["condition"]["median"]),
+        whole(f["condition"]["worst"]),
+    )

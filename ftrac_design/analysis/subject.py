@@ -56,56 +56,59 @@ def load_subject(path: str | Path) -> Subject:
     raise InputError(path, None, f"a design file (.toml), a features file (.json) or a preset ({known_presets()})")
 
 
+#: the design file's ``[analysis]`` keys (:class:`~ftrac_design.design.schema.Analysis`) by the
+#: setting each one sets: a field of :class:`~ftrac_design.pose.simulate.Workspace`,
+#: :class:`~.score.AnalysisSettings` or :class:`~.score.Thresholds`, which the command line's
+#: flags are named after (``--depth-mm`` → ``depth_mm``)
+FILE_KEYS = {
+    "cone_deg": "cone_deg",
+    "depth_mm": "depth",
+    "depth_range_mm": "depth_range",
+    "lateral_mm": "lateral",
+    "roll_range_deg": "roll_range_deg",
+    "segmentation_error_mm": "segmentation_error",
+    "bead_error_factor": "bead_error_factor",
+    "wire_error_factor": "wire_error_factor",
+    "poses": "poses",
+    "max_translation_mm": "max_translation",
+    "max_rotation_deg": "max_rotation_deg",
+    "max_condition": "max_condition",
+    "max_overlap_share": "max_overlap_share",
+    "min_clearance_px": "min_clearance_px",
+}
+_WORKSPACE = ("cone_deg", "depth_mm", "depth_range_mm", "lateral_mm")
+_SETTINGS = ("segmentation_error_mm", "bead_error_factor", "wire_error_factor", "poses", "seed")
+_THRESHOLDS = ("max_translation_mm", "max_rotation_deg", "max_condition", "max_overlap_share", "min_clearance_px")
+
+
 def settings_for(subject: Subject, **overrides: Any) -> tuple[AnalysisSettings, Thresholds]:
     """Settings and thresholds: the defaults, then the design's [analysis] table, then the
-    command line's ``overrides`` (None = not given). Keys as :class:`~ftrac_design.design.schema.Analysis`."""
+    caller's ``overrides``.
+
+    Parameters
+    ----------
+    subject : Subject
+        What is analysed (its design's [analysis] table, when it has one).
+    **overrides
+        Settings by their field's name (``depth_mm=650.0``, ``roll_range_deg=(0, 90)``,
+        ``max_translation_mm=0.5``, ``seed=1``); None = not given.
+
+    Returns
+    -------
+    (AnalysisSettings, Thresholds)
+        The settings and the thresholds.
+    """
+    unknown = set(overrides) - set(FILE_KEYS) - {"seed"}
+    if unknown:
+        raise TypeError(f"settings_for: no such setting {sorted(unknown)}")
     vals: dict[str, Any] = {}
     if subject.spec is not None:
-        vals.update(subject.spec.model_dump())
+        spec = subject.spec.model_dump()
+        vals.update({field: spec[key] for field, key in FILE_KEYS.items() if key in spec})
     vals.update({k: v for k, v in overrides.items() if v is not None})
-    s, th = AnalysisSettings(), Thresholds()
-    ws = replace(
-        Workspace(),
-        **{
-            k: vals[k2]
-            for k, k2 in (
-                ("cone_deg", "cone_deg"),
-                ("depth_mm", "depth"),
-                ("depth_range_mm", "depth_range"),
-                ("lateral_mm", "lateral"),
-            )
-            if k2 in vals
-        },
-    )
+    ws = replace(Workspace(), **{k: vals[k] for k in _WORKSPACE if k in vals})
     if "roll_range_deg" in vals:
         ws = replace(ws, roll_deg=tuple(float(v) for v in vals["roll_range_deg"]))
-    s = replace(
-        s,
-        workspace=ws,
-        **{
-            k: vals[k2]
-            for k, k2 in (
-                ("segmentation_error_mm", "segmentation_error"),
-                ("bead_error_factor", "bead_error_factor"),
-                ("wire_error_factor", "wire_error_factor"),
-                ("poses", "poses"),
-                ("seed", "seed"),
-            )
-            if k2 in vals
-        },
-    )
-    th = replace(
-        th,
-        **{
-            k: vals[k2]
-            for k, k2 in (
-                ("max_translation_mm", "max_translation"),
-                ("max_rotation_deg", "max_rotation_deg"),
-                ("max_condition", "max_condition"),
-                ("max_overlap_share", "max_overlap_share"),
-                ("min_clearance_px", "min_clearance_px"),
-            )
-            if k2 in vals
-        },
-    )
+    s = replace(AnalysisSettings(), workspace=ws, **{k: vals[k] for k in _SETTINGS if k in vals})
+    th = replace(Thresholds(), **{k: vals[k] for k in _THRESHOLDS if k in vals})
     return s, th

@@ -1,5 +1,5 @@
 """The fiducial body in CadQuery: a hollow cylinder with a groove along every wire and a
-pocket for every bead (the cuts are planned in :mod:`ftrac_design.cad.plan`).
+pocket for every bead (the cuts are planned in :mod:`ftrac_design.manufacture.plan`).
 
 Ellipse grooves are swept with the cylinder surface as the sweep's support
 (``BRepOffsetAPI_MakePipeShell.SetMode(face)``): the rectangular section stays normal to the
@@ -31,7 +31,7 @@ from OCP.TopTools import TopTools_ListOfShape
 
 from ..errors import GoalError
 from ..features.model import EllipseFeature
-from .plan import BodyPlan, EllipseGroove, LineGroove, Pocket
+from ..manufacture.plan import BodyPlan, EllipseGroove, LineGroove, Pocket
 
 #: relative accuracy of :func:`volume`
 VOLUME_EPS = 1e-9

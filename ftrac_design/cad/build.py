@@ -6,22 +6,21 @@ only when the whole build succeeded (:func:`ftrac_design.fileio.atomic_directory
 
 from __future__ import annotations
 
-import contextlib
 import platform
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from .. import __version__
 from ..design.schema import Design
-from ..errors import require
 from ..features import Features, compute_features, write_features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, sha256_file, write_json_atomic
-from .drawings import DRAWING_FILES
-from .fdm import FDM_FILES
-from .plan import BodyPlan, plan_body, stl_tolerances
-from .profiles import CutSizes, Profile, cut_sizes
+from ..manufacture.drawings import DRAWING_FILES
+from ..manufacture.fdm import FDM_FILES
+from ..manufacture.plan import STL_VOLUME_TOLERANCE, BodyPlan, plan_body, stl_tolerances
+from ..manufacture.profiles import CutSizes, Profile, cut_sizes
+from .occ import occ_errors, require_cad_packages
 
 MANIFEST_FORMAT = "ftrac-build-manifest"
 MANIFEST_VERSION = 1
@@ -55,10 +54,6 @@ def output_files(profile: Profile) -> tuple[str, ...]:
     return (*OUTPUT_FILES[:-1], *extra, OUTPUT_FILES[-1])
 
 
-#: the STL's enclosed volume must agree with the exact B-rep volume to this fraction
-STL_VOLUME_TOLERANCE = 0.005
-
-
 @dataclass
 class BuildResult:
     """What a build wrote and how long each stage took."""
@@ -80,19 +75,6 @@ def _check_output_dir(out_dir: Path) -> None:
     )
 
 
-@contextlib.contextmanager
-def _occ_errors(name: str) -> Iterator[None]:
-    """Turn an exception raised inside OpenCASCADE into :class:`CadError` (exit 1)."""
-    from OCP.Standard import Standard_Failure
-
-    from .body import CadError
-
-    try:
-        yield
-    except Standard_Failure as exc:
-        raise CadError(f"{name}: OpenCASCADE failed ({type(exc).__name__}: {exc})") from exc
-
-
 class _Clock:
     def __init__(self) -> None:
         self.t0 = time.perf_counter()
@@ -107,23 +89,6 @@ class _Clock:
     @property
     def total(self) -> float:
         return time.perf_counter() - self.t0
-
-
-def require_cad_packages(render: bool = True) -> None:
-    """Raise :class:`~ftrac_design.errors.MissingDependencyError` before anything is built when
-    the ``cad`` extra is not installed.
-
-    Parameters
-    ----------
-    render : bool
-        Whether the build renders its picture (pyvista is needed only then).
-    """
-    require("cadquery", "cad", "building the CAD parts")
-    require("OCP", "cad", "building the CAD parts (OpenCascade)")
-    require("trimesh", "cad", "building the CAD parts (the STL check)")
-    require("ezdxf", "cad", "building the CAD parts (the unwrapped DXF)")
-    if render:
-        require("pyvista", "cad", "building the CAD parts (the render)")
 
 
 def build_fiducial(
@@ -145,15 +110,11 @@ def build_fiducial(
     :class:`~ftrac_design.cad.body.CadError` (exit 1) when OCC cannot build a part.
     """
     require_cad_packages(render)
-    import cadquery as cq
-
-    from .body import CadError, build_body, single_solid, volume
+    from ..manufacture.fdm import write_fdm_files
+    from ..manufacture.manifest import enforce_rules, manufacturing_manifest
     from .drawings import write_drawings
-    from .export import build_assembly, export_assembly, export_step, export_stl
-    from .fdm import write_fdm_files
-    from .fixture import add_to_assembly, fixture_parts
-    from .manufacture import enforce_rules, manufacturing_manifest, write_manufacturing_files
-    from .mount import key_slot_tool
+    from .export import BODY_COLOR, build_assembly, export_assembly, write_manufacturing_files
+    from .fixture import CONNECTOR_COLOR, MOUNT_COLOR, add_to_assembly, fixture_parts
     from .parts import bead_parts, wire_parts
 
     out_dir = Path(out_dir) if out_dir is not None else default_output_dir(design)
@@ -164,22 +125,13 @@ def build_fiducial(
     plan = plan_body(design, features, cuts)
     report = enforce_rules(design, features, profile, force)
     clock.lap("features")
-    with atomic_directory(out_dir) as tmp, _occ_errors(design.name):
+    with atomic_directory(out_dir) as tmp, occ_errors(design.name):
         write_features(tmp / "features.json", features)
-        body = build_body(plan)
-        slot = key_slot_tool(design, profile)
-        if slot is not None:  # the mount's key engages a slot across the z = -L/2 end face
-            body = single_solid(body.cut(slot), f"{design.name} key slot")
+        body = _body_solid(design, plan, profile)
         clock.lap("body")
         parts = wire_parts(features, design.half_length + design.outer_radius) + bead_parts(features)
         clock.lap("parts")
-        export_step(body, tmp / "fiducial.step")
-        stl_tol, stl_ang = stl_tolerances(cuts, design)
-        stl = export_stl(body, tmp / "fiducial.stl", stl_tol, stl_ang)
-        body_volume = volume(body)
-        stl_rel = stl.volume / body_volume - 1.0
-        if not stl.watertight or abs(stl_rel) > STL_VOLUME_TOLERANCE:
-            raise CadError(f"fiducial.stl: watertight={stl.watertight}, volume off by {stl_rel:+.3%} from the B-rep")
+        stl = _export_body(body, design, cuts, tmp)
         clock.lap("export_body")
         fixture = fixture_parts(design, features, profile)
         made = write_manufacturing_files(design, features, profile, tmp, parts=fixture)
@@ -190,35 +142,12 @@ def build_fiducial(
         write_drawings(design, features, plan, body, fixture, profile, tmp)
         clock.lap("drawings")
         if profile == "fdm":
-            write_fdm_files(design, tmp)
+            write_fdm_files(design, tmp, {"body": BODY_COLOR, "mount": MOUNT_COLOR, "connector": CONNECTOR_COLOR})
             clock.lap("fdm_files")
         if render:
-            from .render import render_png
-
-            sizes = [x.diameter for x in (design.wire, design.bead) if x is not None]
-            render_png(
-                body,
-                parts,
-                tmp / "render.png",
-                title=f"{design.name}  ({profile})",
-                part_size=min(sizes) if sizes else None,
-            )
+            _render(body, parts, design, profile, tmp)
         clock.lap("render")
-        manifest = _manifest(
-            design,
-            features,
-            cuts,
-            plan,
-            body_volume,
-            parts,
-            stl,
-            (stl_tol, stl_ang),
-            stl_rel,
-            tmp,
-            force,
-            profile,
-            cq.__version__,
-        )
+        manifest = _manifest(design, features, cuts, plan, parts, stl, tmp, force, profile)
         manifest["manufacturing"] = manufacturing_manifest(design, features, profile, report, made)
         if gcode is not None:
             manifest["manufacturing"]["gcode"] = gcode
@@ -230,10 +159,61 @@ def build_fiducial(
     return BuildResult(out_dir, manifest, dict(clock.laps))
 
 
+def _body_solid(design: Design, plan: BodyPlan, profile: Profile):
+    """The body cut to its plan, with the slot across the z = -L/2 end face that the mount's key engages."""
+    from .body import build_body, single_solid
+    from .mount import key_slot_tool
+
+    body = build_body(plan)
+    slot = key_slot_tool(design, profile)
+    if slot is not None:
+        body = single_solid(body.cut(slot), f"{design.name} key slot")
+    return body
+
+
+@dataclass(frozen=True)
+class _BodyStl:
+    """The body's STL as written and checked: its report, tolerances and the B-rep's volume."""
+
+    report: Any
+    tolerances: tuple[float, float]
+    body_volume: float
+    volume_vs_brep: float
+
+
+def _export_body(body, design: Design, cuts: CutSizes, tmp: Path) -> _BodyStl:
+    """fiducial.step and fiducial.stl; the STL must be closed and hold the B-rep's volume."""
+    from .body import CadError, volume
+    from .export import export_step, export_stl
+
+    export_step(body, tmp / "fiducial.step")
+    stl_tol, stl_ang = stl_tolerances(cuts, design)
+    stl = export_stl(body, tmp / "fiducial.stl", stl_tol, stl_ang)
+    body_volume = volume(body)
+    stl_rel = stl.volume / body_volume - 1.0
+    if not stl.watertight or abs(stl_rel) > STL_VOLUME_TOLERANCE:
+        raise CadError(f"fiducial.stl: watertight={stl.watertight}, volume off by {stl_rel:+.3%} from the B-rep")
+    return _BodyStl(stl, (stl_tol, stl_ang), body_volume, stl_rel)
+
+
+def _render(body, parts: list, design: Design, profile: Profile, tmp: Path) -> None:
+    """render.png: the body with its wires and beads."""
+    from .render import render_png
+
+    sizes = [x.diameter for x in (design.wire, design.bead) if x is not None]
+    render_png(
+        body,
+        parts,
+        tmp / "render.png",
+        title=f"{design.name}  ({profile})",
+        part_size=min(sizes) if sizes else None,
+    )
+
+
 def _write_program(design: Design, profile: Profile, post: str, out_dir: Path) -> dict[str, Any] | None:
     """Write the body's program (cnc only); its manifest entry, or why there is none."""
     from ..fileio import write_text_atomic
-    from .gcode import body_program
+    from ..manufacture.gcode import body_program
 
     if profile != "cnc":
         return None
@@ -258,37 +238,15 @@ def _manifest(
     features: Features,
     cuts: CutSizes,
     plan: BodyPlan,
-    body_volume: float,
     parts: list,
-    stl,
-    stl_tols: tuple[float, float],
-    stl_rel: float,
+    stl: _BodyStl,
     tmp: Path,
     force: bool,
     profile: Profile,
-    cq_version: str,
 ) -> dict[str, Any]:
-    import math
+    """manifest.json's object, but for the manufacturing entry and the timings the build adds."""
+    import cadquery as cq
 
-    blank = math.pi * (plan.outer_radius**2 - plan.bore_radius**2) * 2 * plan.half_length
-    wires = [p for p in parts if p.kind == "wire"]
-    beads = [p for p in parts if p.kind == "bead"]
-    lengths = {f.id: round(features.wire_length(f.id), 4) for f in (*features.ellipses, *features.lines)}
-    pieces = []
-    for ln in features.lines:
-        for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
-            pieces.append(
-                {
-                    "name": f"wire_{ln.id}_{k}",
-                    "feature": ln.id,
-                    "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4),
-                }
-            )
-    files = {}
-    for name in output_files(profile):
-        p = tmp / name
-        if p.exists() and name != "manifest.json":
-            files[name] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
     return {
         "format": MANIFEST_FORMAT,
         "version": MANIFEST_VERSION,
@@ -301,40 +259,74 @@ def _manifest(
         "profile": profile,
         "cut_sizes": cuts.as_dict(),
         "force": force,
-        "files": files,
+        "files": _file_hashes(tmp, profile),
         "features": {"points": len(features.points), "lines": len(features.lines), "ellipses": len(features.ellipses)},
-        "wires": {
-            "diameter_mm": design.wire.diameter if design.wire else None,
-            "material": design.wire.material if design.wire else None,
-            "length_mm": lengths,
-            "total_length_mm": round(sum(lengths.values()), 4),
-            "line_pieces": pieces,
-        },
+        "wires": _wires_entry(design, features),
         "beads": {
             "count": len(features.points),
             "diameter_mm": design.bead.diameter if design.bead else None,
             "material": design.bead.material if design.bead else None,
         },
-        "volumes_mm3": {
-            "body": round(body_volume, 4),
-            "blank": round(blank, 4),
-            "removed": round(blank - body_volume, 4),
-            "wires": round(sum(p.volume for p in wires), 4),
-            "beads": round(sum(p.volume for p in beads), 4),
-        },
+        "volumes_mm3": _volumes_entry(plan, parts, stl.body_volume),
         "stl": {
-            "chord_tolerance_mm": stl_tols[0],
-            "angular_tolerance_rad": stl_tols[1],
-            "triangles": stl.triangles,
-            "watertight": stl.watertight,
-            "repaired": stl.repaired,
-            "volume_mm3": round(stl.volume, 4),
-            "volume_vs_brep": stl_rel,
+            "chord_tolerance_mm": stl.tolerances[0],
+            "angular_tolerance_rad": stl.tolerances[1],
+            "triangles": stl.report.triangles,
+            "watertight": stl.report.watertight,
+            "repaired": stl.report.repaired,
+            "volume_mm3": round(stl.report.volume, 4),
+            "volume_vs_brep": stl.volume_vs_brep,
         },
         "versions": {
             "ftrac_design": __version__,
-            "cadquery": cq_version,
+            "cadquery": cq.__version__,
             "ocp": _ocp_version(),
             "python": platform.python_version(),
         },
+    }
+
+
+def _file_hashes(tmp: Path, profile: Profile) -> dict[str, dict[str, Any]]:
+    """sha256 and size of every file the build wrote (the manifest itself excepted)."""
+    files = {}
+    for name in output_files(profile):
+        p = tmp / name
+        if p.exists() and name != "manifest.json":
+            files[name] = {"sha256": sha256_file(p), "bytes": p.stat().st_size}
+    return files
+
+
+def _wires_entry(design: Design, features: Features) -> dict[str, Any]:
+    """The wires' diameter, material, each feature's length and each straight piece to cut."""
+    lengths = {f.id: round(features.wire_length(f.id), 4) for f in (*features.ellipses, *features.lines)}
+    pieces = []
+    for ln in features.lines:
+        for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
+            pieces.append(
+                {
+                    "name": f"wire_{ln.id}_{k}",
+                    "feature": ln.id,
+                    "length_mm": round(float(((b - a) ** 2).sum() ** 0.5), 4),
+                }
+            )
+    return {
+        "diameter_mm": design.wire.diameter if design.wire else None,
+        "material": design.wire.material if design.wire else None,
+        "length_mm": lengths,
+        "total_length_mm": round(sum(lengths.values()), 4),
+        "line_pieces": pieces,
+    }
+
+
+def _volumes_entry(plan: BodyPlan, parts: list, body_volume: float) -> dict[str, float]:
+    """The body's, the blank's and the removed volume, and the wires' and beads' (mm³)."""
+    import math
+
+    blank = math.pi * (plan.outer_radius**2 - plan.bore_radius**2) * 2 * plan.half_length
+    return {
+        "body": round(body_volume, 4),
+        "blank": round(blank, 4),
+        "removed": round(blank - body_volume, 4),
+        "wires": round(sum(p.volume for p in parts if p.kind == "wire"), 4),
+        "beads": round(sum(p.volume for p in parts if p.kind == "bead"), 4),
     }

@@ -24,8 +24,8 @@ import numpy as np
 
 from ..design.schema import Design
 from ..features.mounting import ConnectorLayout, Pin, connector_layout
+from ..manufacture.profiles import CutSizes, Profile, cut_sizes
 from .body import single_solid
-from .profiles import CutSizes, Profile, cut_sizes
 
 OVERSHOOT = 0.5
 

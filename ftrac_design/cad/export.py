@@ -7,16 +7,25 @@
   written file is read back with trimesh; if it is not a closed volume (zero-area triangles
   at sphere poles, duplicate vertices) it is cleaned and rewritten.
 - Assembly STEP: body, wires and beads as named, coloured parts.
+- The mount's and the connector's STEP and STL (frames M and T) and the unrolled grooves
+  (``grooves.csv``, ``grooves.dxf``) that a build writes beside the body
+  (:func:`write_manufacturing_files`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cadquery as cq
 import numpy as np
 
+from ..design.schema import Design
+from ..features.model import Features
+from ..manufacture.plan import FIXTURE_STL_TOLERANCE, STL_VOLUME_TOLERANCE
+from ..manufacture.profiles import Profile, cut_sizes
+from ..manufacture.unwrap import unwrap_features, write_grooves_csv, write_grooves_dxf
 from .body import CadError
 from .parts import Part
 
@@ -90,3 +99,62 @@ def mesh_arrays(shape: cq.Shape, tolerance: float, angular_tolerance: float = 0.
     """(vertices (n, 3), triangles (m, 3)) of ``shape`` for rendering."""
     verts, tris = shape.copy().tessellate(tolerance, angular_tolerance)
     return np.array([v.toTuple() for v in verts], float), np.array(tris, dtype=np.int64).reshape(-1, 3)
+
+
+def write_manufacturing_files(
+    design: Design, features: Features, profile: Profile, out_dir: Path, parts: list
+) -> dict[str, Any]:
+    """Write the mount, connector and groove files into ``out_dir``; returns per-file facts.
+
+    Parameters
+    ----------
+    design, features : Design, Features
+        The design and its features.
+    profile : {"cnc", "fdm"}
+        The manufacturing profile (the grooves' cut widths).
+    out_dir : pathlib.Path
+        Where the files go.
+    parts : list
+        The :func:`~ftrac_design.cad.fixture.fixture_parts` built for the assembly; the mount's
+        and the connector's ``local`` solids are exported.
+
+    Returns
+    -------
+    dict
+        Per part: its frame, volume, bounding box and STL check; ``grooves``: the polyline and
+        pocket counts.
+    """
+    info: dict[str, Any] = {}
+    for p in parts:
+        if p.kind in ("mount", "connector"):
+            info[p.name] = _export_fixture_part(p, out_dir)
+    paths = unwrap_features(features, design.outer_radius, cut_sizes(design, profile))
+    write_grooves_csv(out_dir / "grooves.csv", paths)
+    write_grooves_dxf(
+        out_dir / "grooves.dxf", paths, design.outer_radius, design.half_length, design.mount.socket_depth
+    )
+    info["grooves"] = {
+        "polylines": sum(p.kind != "pocket" for p in paths),
+        "pockets": sum(p.kind == "pocket" for p in paths),
+    }
+    return info
+
+
+def _export_fixture_part(p, out_dir: Path) -> dict[str, Any]:
+    """STEP and checked STL of one fixture part in its own frame; its manifest facts."""
+    export_step(p.local, out_dir / f"{p.name}.step")
+    stl = export_stl(p.local, out_dir / f"{p.name}.stl", *FIXTURE_STL_TOLERANCE)
+    vol = float(p.local.Volume())
+    rel = stl.volume / vol - 1.0
+    if not stl.watertight or abs(rel) > STL_VOLUME_TOLERANCE:
+        raise CadError(f"{p.name}.stl: watertight={stl.watertight}, volume off by {rel:+.3%} from the B-rep")
+    bb = p.local.BoundingBox()
+    return {
+        "frame": p.frame,
+        "volume_mm3": round(vol, 4),
+        "bbox_mm": [
+            [round(bb.xmin, 6), round(bb.ymin, 6), round(bb.zmin, 6)],
+            [round(bb.xmax, 6), round(bb.ymax, 6), round(bb.zmax, 6)],
+        ],
+        "stl": {"triangles": stl.triangles, "watertight": stl.watertight, "volume_vs_brep": rel},
+    }

@@ -5,7 +5,7 @@ pocket past the end mill's corner radii) with
 
 - a **socket** for the cylinder's ``z = −L/2`` end, from the top face down to the socket
   floor at ``z = 0`` of M, cut at the profile's press-fit diameter
-  (:attr:`~ftrac_design.cad.profiles.CutSizes.socket_diameter`);
+  (:attr:`~ftrac_design.manufacture.profiles.CutSizes.socket_diameter`);
 - a **key** — a tongue across the socket floor — that engages a slot across the
   cylinder's end face (:func:`key_slot_tool`), fixing the cylinder's azimuth positively;
 - **three mutually orthogonal sets of through holes** for socket-head cap screws
@@ -28,9 +28,9 @@ import numpy as np
 
 from ..design.schema import Design
 from ..features.mounting import Hole, MountLayout, mount_from_fiducial, mount_layout
+from ..manufacture.profiles import CutSizes, Profile, cut_sizes
 from .body import single_solid
 from .placement import placed, rigid_inverse
-from .profiles import CutSizes, Profile, cut_sizes
 
 #: how far a cutting tool reaches past the faces it opens (only keeps the booleans off
 #: coincident faces), mm
@@ -52,7 +52,7 @@ class MountPart:
 
     Args:
         layout: nominal geometry in M (:func:`~ftrac_design.features.mounting.mount_layout`).
-        cuts: the profile's cut sizes (:func:`~ftrac_design.cad.profiles.cut_sizes`).
+        cuts: the profile's cut sizes (:func:`~ftrac_design.manufacture.profiles.cut_sizes`).
 
     Attributes:
         socket_diameter: socket as cut (CNC: cylinder Ø − interference; FDM: Ø + press allowance).

@@ -1,7 +1,7 @@
 """The bought parts as solids: wires and beads, seated on the feature centre-lines.
 
 They are separate solids for the assembly, the render and the bill of materials; the body
-is not cut by them (its grooves and pockets are planned in :mod:`ftrac_design.cad.plan`).
+is not cut by them (its grooves and pockets are planned in :mod:`ftrac_design.manufacture.plan`).
 
 - An ellipse wire is a circle of the wire diameter swept once around the seated ellipse
   (a closed ring; in the shop it is a length of wire bent into the groove).

@@ -7,15 +7,14 @@
   face larger than the part) and returns the cut faces as closed loops in the plane's
   2-D frame, ready to hatch.
 
-A view is given by a :class:`ViewFrame`: the 2-D x axis ``x_dir`` and the direction
-``toward_viewer`` (pointing from the part to the eye); the 2-D y axis is
-``toward_viewer × x_dir``. All coordinates mm, in the part's own frame (F for the body, M
-for the mount, T for the connector).
+- :class:`SolidViews` hands both to the drawings' sheets
+  (:mod:`ftrac_design.manufacture.drawings`), which draw them without CadQuery.
+
+The frames and the 2-D results are :mod:`ftrac_design.manufacture.views`. All coordinates mm,
+in the part's own frame (F for the body, M for the mount, T for the connector).
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import cadquery as cq
 import numpy as np
@@ -34,46 +33,17 @@ from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_REVERSED, TopAbs_WIRE
 from OCP.TopExp import TopExp_Explorer
 from OCP.TopoDS import TopoDS, TopoDS_Shape
 
+from ..manufacture.views import Projection, Section, ViewFrame, chain
+
 #: chord deflection of the polylines, mm (far below a drawn line's width at any drawing scale)
 DEFLECTION = 0.005
 #: chord of the triangulation the fast hidden-line removal works on, mm
 MESH_DEFLECTION = 0.01
 
 
-@dataclass(frozen=True)
-class ViewFrame:
-    """A parallel view: ``x_dir`` is the drawing's +x, ``toward_viewer`` points at the eye."""
-
-    name: str
-    x_dir: tuple[float, float, float]
-    toward_viewer: tuple[float, float, float]
-    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-    @property
-    def y_dir(self) -> np.ndarray:
-        return np.cross(self.toward_viewer, self.x_dir)
-
-    def to_2d(self, p: np.ndarray) -> np.ndarray:
-        """Points (n, 3) in the part frame → (n, 2) in the view."""
-        q = np.atleast_2d(np.asarray(p, float)) - np.asarray(self.origin, float)
-        return np.column_stack([q @ np.asarray(self.x_dir, float), q @ self.y_dir])
-
-    def ax2(self) -> gp_Ax2:
-        return gp_Ax2(gp_Pnt(*self.origin), gp_Dir(*self.toward_viewer), gp_Dir(*self.x_dir))
-
-
-@dataclass(frozen=True)
-class Projection:
-    """Visible and hidden edges of one view, each a polyline (n, 2) in mm."""
-
-    frame: ViewFrame
-    visible: tuple[np.ndarray, ...]
-    hidden: tuple[np.ndarray, ...]
-
-    def bounds(self) -> tuple[float, float, float, float]:
-        """(xmin, xmax, ymin, ymax) of every edge."""
-        pts = np.vstack(self.visible + self.hidden)
-        return float(pts[:, 0].min()), float(pts[:, 0].max()), float(pts[:, 1].min()), float(pts[:, 1].max())
+def _ax2(frame: ViewFrame) -> gp_Ax2:
+    """The view's axes as OpenCASCADE's: origin, the eye direction and the drawing's +x."""
+    return gp_Ax2(gp_Pnt(*frame.origin), gp_Dir(*frame.toward_viewer), gp_Dir(*frame.x_dir))
 
 
 def _edge_polylines(shape: TopoDS_Shape) -> list[np.ndarray]:
@@ -105,7 +75,7 @@ def project(solid: cq.Shape, frame: ViewFrame, exact: bool = False) -> Projectio
     if exact:
         hlr = HLRBRep_Algo()
         hlr.Add(solid.wrapped)
-        hlr.Projector(HLRAlgo_Projector(frame.ax2()))
+        hlr.Projector(HLRAlgo_Projector(_ax2(frame)))
         hlr.Update()
         hlr.Hide()
         h = HLRBRep_HLRToShape(hlr)
@@ -114,7 +84,7 @@ def project(solid: cq.Shape, frame: ViewFrame, exact: bool = False) -> Projectio
         BRepMesh_IncrementalMesh(mesh.wrapped, MESH_DEFLECTION, False, 0.1, True)
         poly = HLRBRep_PolyAlgo()
         poly.Load(mesh.wrapped)
-        poly.Projector(HLRAlgo_Projector(frame.ax2()))
+        poly.Projector(HLRAlgo_Projector(_ax2(frame)))
         poly.Update()
         h = HLRBRep_PolyHLRToShape()
         h.Update(poly)
@@ -126,58 +96,6 @@ def project(solid: cq.Shape, frame: ViewFrame, exact: bool = False) -> Projectio
     hidden = [*_edge_polylines(h.HCompound()), *_edge_polylines(h.OutLineHCompound())]
     # the projector's 2-D frame is the Ax2's (x_dir, toward_viewer × x_dir) about its origin
     return Projection(frame, tuple(chain(visible)), tuple(chain(hidden)))
-
-
-def chain(polylines: list[np.ndarray], tol: float = 1e-6) -> list[np.ndarray]:
-    """Join polylines that share end points into longer ones (a mesh's hidden-line removal
-    returns one short edge per triangle side; drawing them one by one is slow)."""
-
-    def key(p: np.ndarray) -> tuple[int, int]:
-        return int(round(p[0] / tol)), int(round(p[1] / tol))
-
-    ends: dict[tuple[int, int], list[int]] = {}
-    for i, pl in enumerate(polylines):
-        ends.setdefault(key(pl[0]), []).append(i)
-        ends.setdefault(key(pl[-1]), []).append(i)
-    used = [False] * len(polylines)
-
-    def extend(path: list[np.ndarray]) -> None:
-        while True:
-            cand = [j for j in ends.get(key(path[-1][-1]), []) if not used[j]]
-            if not cand:
-                return
-            j = cand[0]
-            used[j] = True
-            nxt = polylines[j]
-            path.append(nxt[1:] if key(nxt[0]) == key(path[-1][-1]) else nxt[::-1][1:])
-
-    out = []
-    for i, pl in enumerate(polylines):
-        if used[i]:
-            continue
-        used[i] = True
-        fwd = [pl]
-        extend(fwd)
-        back = [pl[::-1]]
-        extend(back)
-        joined = np.vstack([*[b[::-1] for b in back[:0:-1]], *fwd]) if len(back) > 1 else np.vstack(fwd)
-        out.append(joined)
-    return out
-
-
-@dataclass(frozen=True)
-class Section:
-    """The faces a plane cuts from a solid: each face as (outer loop, inner loops), mm in 2-D."""
-
-    frame: ViewFrame
-    faces: tuple[tuple[np.ndarray, tuple[np.ndarray, ...]], ...]
-
-    def loops(self) -> list[np.ndarray]:
-        return [loop for outer, inner in self.faces for loop in (outer, *inner)]
-
-    def bounds(self) -> tuple[float, float, float, float]:
-        pts = np.vstack(self.loops())
-        return float(pts[:, 0].min()), float(pts[:, 0].max()), float(pts[:, 1].min()), float(pts[:, 1].max())
 
 
 def _wire_loop(wire, frame: ViewFrame) -> np.ndarray:
@@ -219,3 +137,28 @@ def section(solid: cq.Shape, frame: ViewFrame) -> Section:
                 inner.append(_wire_loop(w, frame))
         faces.append((_wire_loop(outer, frame), tuple(inner)))
     return Section(frame, tuple(faces))
+
+
+class SolidViews:
+    """A CAD solid's views for a sheet (:class:`~ftrac_design.manufacture.views.PartViews`).
+
+    Parameters
+    ----------
+    solid : cadquery.Shape
+        The part, in its own frame.
+    exact : bool
+        Exact hidden-line removal (the mount's, the connector's and the coupon's few analytic
+        faces) rather than on a fine mesh (the body's swept grooves; see :func:`project`).
+    """
+
+    def __init__(self, solid: cq.Shape, exact: bool = False):
+        self.solid = solid
+        self.exact = exact
+
+    def project(self, frame: ViewFrame) -> Projection:
+        """The hidden-line projection of the solid in ``frame``."""
+        return project(self.solid, frame, exact=self.exact)
+
+    def section(self, frame: ViewFrame) -> Section:
+        """The solid cut by the plane through ``frame.origin`` normal to ``toward_viewer``."""
+        return section(self.solid, frame)

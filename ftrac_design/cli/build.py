@@ -6,35 +6,15 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
-from ..machining.post import DEFAULT_POST, POSTS
+from .options import design_argument, output_option, post_option, profile_option
 
 
 @click.command("build")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="output directory [default: outputs/<design name>/]",
-)
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile: sets groove widths and pocket diameters",
-)
+@design_argument()
+@output_option("output directory [default: outputs/<design name>/]")
+@profile_option()
 @click.option("--force", is_flag=True, default=False, help="build even if the design breaks a manufacturing rule")
-@click.option(
-    "--post",
-    type=click.Choice(list(POSTS)),
-    default=DEFAULT_POST,
-    show_default=True,
-    help="control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for",
-)
+@post_option("control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for")
 @click.option(
     "--report",
     is_flag=True,

@@ -9,19 +9,13 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
 from ..errors import GoalError
+from .options import design_argument, profile_option
 
 
 @click.command("check")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile whose cut sizes and limits apply",
-)
+@design_argument()
+@profile_option("manufacturing profile whose cut sizes and limits apply")
 @click.option(
     "--json", "as_json", is_flag=True, default=False, help="print the report as one JSON object instead of a table"
 )
@@ -32,8 +26,8 @@ def command(design: Path, profile: str, as_json: bool) -> int:
     limit, and the verdict — ok, warn (within the limit, short of the recommended value),
     FAIL (a violation) or n/a. Exits 1 if any rule fails.
     """
-    from ..cad.rules import check_design
     from ..design import load_design
+    from ..manufacture.rules import check_design
 
     d = load_design(design)
     report = check_design(d, profile)

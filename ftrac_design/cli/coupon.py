@@ -8,8 +8,7 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
-from ..machining.post import DEFAULT_POST, POSTS
+from .options import design_argument, output_option, post_option, profile_option
 
 
 def _pair(ctx, param, value):
@@ -25,22 +24,9 @@ def _pair(ctx, param, value):
 
 
 @click.command("coupon")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile whose groove width and pocket diameter the steps centre on",
-)
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="output directory [default: outputs/<design name>_coupon/]",
-)
+@design_argument()
+@profile_option("manufacturing profile whose groove width and pocket diameter the steps centre on")
+@output_option("output directory [default: outputs/<design name>_coupon/]")
 @click.option(
     "--step",
     type=click.FloatRange(min=0.001, max=0.5),
@@ -48,13 +34,7 @@ def _pair(ctx, param, value):
     help="mm between sizes [default: 0.01 cnc, 0.05 fdm]",
 )
 @click.option("--count", type=click.IntRange(min=1, max=15), default=7, show_default=True, help="sizes of each kind")
-@click.option(
-    "--post",
-    type=click.Choice(list(POSTS)),
-    default=DEFAULT_POST,
-    show_default=True,
-    help="control the coupon's program is written for (cnc)",
-)
+@post_option("control the coupon's program is written for (cnc)")
 @click.option(
     "--interference",
     callback=_pair,
@@ -95,7 +75,7 @@ def command(
         if interference is None or write_design is None:
             raise InputError(None, None, "--interference and --write-design together", parameter="interference")
         return _feed_back(d, profile, interference, write_design)
-    from ..cad.coupon import plan_coupon
+    from ..manufacture.coupon import plan_coupon
 
     try:
         c = plan_coupon(d, profile, step, count)
@@ -122,58 +102,19 @@ def _feed_back(d, profile: str, fit: tuple[float, float], path: Path) -> int:
 
 
 def _write(d, c, out: Path, post: str, cnc) -> int:
-    from ..cad.coupon import build_coupon, coupon_csv
-    from ..cad.export import export_step, export_stl
     from ..errors import GoalError
     from ..fileio import atomic_directory, check_output_dir, write_json_atomic, write_text_atomic
-    from ..machining.gcode import cycle_time, parse_gcode
-    from ..machining.model import tooling
-    from ..machining.post import emit
-    from ..machining.simulate import verify
-    from ..machining.toolpath import plan_program
+    from ..manufacture.coupon import coupon_program
 
     check_output_dir(out, "an earlier coupon", lambda p: (p / "coupon.csv").is_file())
-
-    verdict = None
+    program = None
     with atomic_directory(out) as tmp:
-        solid = build_coupon(c)
-        export_step(solid, tmp / "coupon.step")
-        stl = export_stl(solid, tmp / "coupon.stl", 0.005, 0.1)
-        write_text_atomic(tmp / "coupon.csv", coupon_csv(c))
-        from ..cad.render import render_png
-
-        render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
-        from ..cad.coupon_drawing import write_coupon_drawing
-
-        write_coupon_drawing(d, c, solid, tmp)
-        if c.profile == "fdm":  # printed: the part as a 3MF with the slicer settings the profile assumes
-            from ..cad.export import BODY_COLOR
-            from ..cad.fdm import print_settings_document, read_stl_part, write_3mf
-
-            part = read_stl_part(tmp / "coupon.stl", "coupon", BODY_COLOR)
-            write_3mf(tmp / "coupon.3mf", [part], f"{c.design}_coupon", f"{c.design} press-fit coupon (fdm profile)")
-            write_json_atomic(tmp / "print_settings.json", print_settings_document(d))
+        stl = _write_solid_files(d, c, tmp)
         if c.profile == "cnc":
-            pockets = [p.diameter for p in c.plan.pockets]
-            tools = tooling(cnc, min(pockets) if pockets else None)
-            text = emit(
-                plan_program(c.plan, tools, title=f"{c.design} coupon"),
-                post,
-                [
-                    f"{c.design} press-fit coupon, profile {c.profile}, step {c.step_mm:g} mm",
-                    "sizes and A positions in coupon.csv; machine convention as the body's",
-                ],
-            )
-            parsed = parse_gcode(text, "the coupon program")
-            v = verify(
-                parsed,
-                c.plan,
-                tools={tools.groove.number: tools.groove.diameter, tools.pocket.number: tools.pocket.diameter},
-            )
-            name = "coupon" + POSTS[post].suffix
-            write_text_atomic(tmp / name, text)
-            write_json_atomic(tmp / f"{name}.verify.json", {"cycle_time_s": cycle_time(parsed), **v.as_dict()})
-            verdict = v
+            program = coupon_program(c, post, cnc)
+            write_text_atomic(tmp / program.filename, program.text)
+            write_json_atomic(tmp / f"{program.filename}.verify.json", program.verify_document())
+        verdict = program.verification if program is not None else None
         if verdict is not None and not verdict.ok:
             raise GoalError(
                 f"{c.design} coupon: its program does not cut the coupon (deviation "
@@ -189,3 +130,28 @@ def _write(d, c, out: Path, post: str, cnc) -> int:
             f"{verdict.gouges} gouges, volume {verdict.volume_difference:+.3%}"
         )
     return 0
+
+
+def _write_solid_files(d, c, tmp: Path):
+    """The coupon's solid and what is made from it: STEP, STL, the steps' CSV, the render, the
+    drawing and, under fdm, the 3MF with its print settings. Returns the STL's report."""
+    from ..cad.coupon import build_coupon
+    from ..cad.export import BODY_COLOR, export_step, export_stl
+    from ..cad.render import render_png
+    from ..cad.views import SolidViews
+    from ..fileio import write_json_atomic, write_text_atomic
+    from ..manufacture.coupon import coupon_csv
+    from ..manufacture.coupon_drawing import write_coupon_drawing
+    from ..manufacture.fdm import print_settings_document, read_stl_part, write_3mf
+
+    solid = build_coupon(c)
+    export_step(solid, tmp / "coupon.step")
+    stl = export_stl(solid, tmp / "coupon.stl", 0.005, 0.1)
+    write_text_atomic(tmp / "coupon.csv", coupon_csv(c))
+    render_png(solid, [], tmp / "coupon.png", title=f"{c.design} press-fit coupon ({c.profile})")
+    write_coupon_drawing(d, c, SolidViews(solid, exact=True), tmp)
+    if c.profile == "fdm":  # printed: the part as a 3MF with the slicer settings the profile assumes
+        part = read_stl_part(tmp / "coupon.stl", "coupon", BODY_COLOR)
+        write_3mf(tmp / "coupon.3mf", [part], f"{c.design}_coupon", f"{c.design} press-fit coupon (fdm profile)")
+        write_json_atomic(tmp / "print_settings.json", print_settings_document(d))
+    return stl

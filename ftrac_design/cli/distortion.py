@@ -10,10 +10,11 @@ import click
 
 from ..errors import InputError
 from ..fileio import atomic_file
+from .options import FILE, OUT_FILE, camera_option, output_option, polarity_option
 
 
 @click.command("distortion")
-@click.argument("grid_image", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("grid_image", type=FILE)
 @click.option(
     "--pitch",
     "pitch_mm",
@@ -28,21 +29,9 @@ from ..fileio import atomic_file
     default=None,
     help="Detector pixel pitch, mm (else from --camera or the image's header).",
 )
-@click.option(
-    "--camera",
-    "camera_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="SPEC §3 camera object (JSON); its pixel size is used.",
-)
+@camera_option("SPEC §3 camera object (JSON); its pixel size is used.")
 @click.option("--degree", type=int, default=5, show_default=True, help="Degree of the distortion polynomial (1–8).")
-@click.option(
-    "--polarity",
-    type=click.Choice(["auto", "dense-dark", "dense-bright"]),
-    default="auto",
-    show_default=True,
-    help="dense-dark: raw detector counts; dense-bright: log/display image.",
-)
+@polarity_option()
 @click.option(
     "--bead-mm",
     "bead_mm",
@@ -50,18 +39,13 @@ from ..fileio import atomic_file
     default=None,
     help="Bead diameter on the plate, mm (default: measured on the image).",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=Path("distortion.json"),
-    show_default=True,
-    help="Where to write the ftrac-distortion model.",
+@output_option(
+    "Where to write the ftrac-distortion model.", type=OUT_FILE, default=Path("distortion.json"), show_default=True
 )
 @click.option(
     "--plot",
     "plot_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=FILE,
     default=None,
     help="Also write a PNG of the measured and fitted displacements and the residuals.",
 )
@@ -83,9 +67,9 @@ def command(
     `track --distortion`; prints the number of beads and the fit's residuals. Exit 2 on bad
     input (nothing is written).
     """
+    from ..calibration.gridcal import estimate_distortion
     from ..images.distortion import write_distortion
     from ..pose.observation import camera_from_dict, read_camera
-    from ..segment.gridcal import estimate_distortion
     from ..xray import read_image
 
     for key, v in (("--pitch", pitch_mm), ("--pixel-mm", pixel_mm), ("--bead-mm", bead_mm)):
@@ -128,7 +112,7 @@ def command(
     try:
         with contextlib.ExitStack() as stack:
             if plot_path is not None:
-                from ..segment.gridplot import draw_grid_fit
+                from ..calibration.gridplot import draw_grid_fit
 
                 # drawn under a temporary name, renamed only once the model is written too
                 tmp = stack.enter_context(atomic_file(plot_path))

@@ -7,26 +7,13 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
+from .options import design_argument, output_option, profile_option
 
 
 @click.command("drawings")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="output directory [default: outputs/<design name>/drawings/]",
-)
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile: sets the cut sizes and tolerances drawn",
-)
+@design_argument()
+@output_option("output directory [default: outputs/<design name>/drawings/]")
+@profile_option("manufacturing profile: sets the cut sizes and tolerances drawn")
 @click.option("--png", is_flag=True, default=False, help="also write each sheet as PNG")
 def command(design: Path, output: Path | None, profile: str, png: bool) -> int:
     """Draw DESIGN (a .toml file or a preset's name): drawing_body, drawing_mount and

@@ -13,6 +13,7 @@ from typing import Literal
 import click
 
 from ..errors import InputError
+from .options import FILE, link_options
 
 ExportFormat = Literal["tfm", "mrk", "mha"]
 #: output suffix → format
@@ -103,7 +104,7 @@ def _export_scene(input_path: Path, scene: Path, features: Path | None, model: P
 
 
 @click.command("export")
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("input_path", metavar="INPUT", type=FILE)
 @click.option(
     "-o",
     "--output",
@@ -146,18 +147,9 @@ def _export_scene(input_path: Path, scene: Path, features: Path | None, model: P
     default=None,
     help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).",
 )
-@click.option(
-    "--name",
-    default="FiducialToCArm",
-    show_default=True,
-    help="The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform, scene node).",
-)
-@click.option(
-    "--space",
-    type=click.Choice(["ras", "lps"]),
-    default="ras",
-    show_default=True,
-    help="Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).",
+@link_options(
+    "Sequence files: the matrices' coordinates, ras for 3D Slicer (default) or lps (SPEC §4's numbers).",
+    "The transform's PLUS name <From>To<To> (.tfm comment, sequence field <name>Transform, scene node).",
 )
 def command(
     input_path: Path,

@@ -11,9 +11,9 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
-from ..machining.post import DEFAULT_POST, POSTS
+from ..machining.post import POSTS
 from ..machining.simulate import GRID, TOLERANCE
+from .options import OUT_FILE, design_argument, output_option, post_option, profile_option
 
 
 def _table(v, cycle: dict[str, float] | None) -> list[str]:
@@ -36,29 +36,12 @@ def _table(v, cycle: dict[str, float] | None) -> list[str]:
 
 
 @click.command("gcode")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=True))
-@click.option(
-    "--profile",
-    type=click.Choice(PROFILES),
-    default="cnc",
-    show_default=True,
-    help="manufacturing profile: sets groove widths and pocket diameters",
-)
-@click.option(
-    "--post",
-    type=click.Choice(list(POSTS)),
-    default=DEFAULT_POST,
-    show_default=True,
-    help="the control the program is written for",
-)
-@click.option(
-    "-o",
-    "--output",
-    "output",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it "
-    "as <file>.verify.json",
+@design_argument()
+@profile_option()
+@post_option()
+@output_option(
+    "program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it as <file>.verify.json",
+    type=OUT_FILE,
 )
 @click.option(
     "--check",
@@ -90,12 +73,12 @@ def command(
     docs/guide/machining.md); it is read back, the tools are swept through the stock and
     the result is compared with the CAD's cuts: max deviation, gouges, removed volume.
     """
-    from ..cad.gcode import body_program
     from ..design import load_design
     from ..errors import GoalError, InputError
     from ..fileio import read_text_input, write_json_atomic, write_text_atomic
     from ..machining.gcode import cycle_time, parse_gcode
     from ..machining.simulate import verify
+    from ..manufacture.gcode import body_program
 
     d = load_design(design)
     try:
@@ -139,8 +122,8 @@ def command(
 
 
 def _tools(design, profile: str):
-    from ..cad.profiles import cut_sizes
     from ..machining.model import tooling
+    from ..manufacture.profiles import cut_sizes
 
     t = tooling(design.manufacturing.cnc, cut_sizes(design, profile).pocket_diameter or None)
     return (t.groove,) if t.pocket is t.groove else (t.groove, t.pocket)

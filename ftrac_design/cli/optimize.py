@@ -9,13 +9,21 @@ from pathlib import Path
 
 import click
 
-from ..cad.profiles import PROFILES
+from .options import (
+    design_argument,
+    min_clearance_option,
+    output_option,
+    poses_option,
+    profiles_option,
+    score_images_option,
+    workers_option,
+)
 
 OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotation", "accuracy-diameter")
 
 
 @click.command("optimize")
-@click.argument("design", type=click.Path(path_type=Path, dir_okay=False))
+@design_argument(dir_okay=False)
 @click.option(
     "--space",
     "space",
@@ -47,39 +55,17 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     show_default=True,
     help="seeds the optimiser and the search's pose sample",
 )
-@click.option(
-    "--profile",
-    "profiles",
-    type=click.Choice(PROFILES),
-    multiple=True,
-    help="design rules that constrain the search; repeat for both [default: cnc]",
-)
+@profiles_option("design rules that constrain the search; repeat for both [default: cnc]")
 @click.option(
     "--scheduler",
     default=None,
     metavar="ADDR",
     help="Dask scheduler, e.g. tcp://host:8786 [default: $DASK_SCHEDULER_ADDRESS, else local processes]",
 )
-@click.option(
-    "--workers",
-    type=click.IntRange(min=0),
-    default=None,
-    help="local worker processes; 0 = in this process [default: one per core]",
-)
+@workers_option("local worker processes; 0 = in this process [default: one per core]")
 @click.option("--resume", is_flag=True, default=False, help="continue the interrupted run whose log is in DIR.partial/")
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="output directory [default: outputs/<design name>/optimize/]",
-)
-@click.option(
-    "--poses",
-    type=click.IntRange(min=100),
-    default=None,
-    help="workspace poses of the (fixed) search sample [default: space's, else 2000]",
-)
+@output_option("output directory [default: outputs/<design name>/optimize/]")
+@poses_option("workspace poses of the (fixed) search sample [default: space's, else 2000]")
 @click.option(
     "--verify-poses",
     type=click.IntRange(min=100),
@@ -99,12 +85,9 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     help="rendered radiographs of start and best tracked with no initial guess, the winner's "
     "check beyond the noise model (0 = skip) [default: 200]",
 )
-@click.option(
-    "--min-clearance-px",
-    type=float,
-    default=None,
-    help="segmentability constraint: 5th percentile of the smallest image clearance between "
-    "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]",
+@min_clearance_option(
+    "segmentability constraint: 5th percentile of the smallest image clearance between "
+    "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]"
 )
 @click.option(
     "--min-ellipse-view-deg",
@@ -114,14 +97,11 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
     "3.6 at seed 1]",
 )
-@click.option(
-    "--score-images",
-    type=click.IntRange(min=0),
-    default=0,
-    show_default=True,
-    help="score candidates on this many rendered, tracked images per condition (clean, over a patient; "
+@score_images_option(
+    "score candidates on this many rendered, tracked images per condition (clean, over a patient; "
     "the image-true score, the same images for every candidate) instead of the paper's "
     "feature-level model; each candidate then costs ~0.2–0.5 s per image",
+    default=0,
 )
 @click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
 @click.option(
@@ -142,14 +122,9 @@ def command(
     resume: bool,
     output: Path | None,
     poses: int | None,
-    verify_poses: int | None,
-    solver_images: int | None,
-    check_images: int | None,
-    min_clearance_px: float | None,
-    min_ellipse_view_deg: float | None,
     no_build: bool,
     print_space: bool,
-    score_images: int = 0,
+    **checks,
 ) -> int:
     """Optimise the layout of DESIGN (a .toml file or a preset's name) under the design rules.
 
@@ -162,6 +137,8 @@ def command(
     --resume. Writes best.toml, summary.json, comparison.txt, pareto.json/.csv/.png,
     convergence.png, evaluations.jsonl and build/ into the output directory.
     """
+    # **checks: --verify-poses, --solver-images, --check-images, --min-clearance-px,
+    # --min-ellipse-view-deg and --score-images, named as optimize() takes them
     from ..optimize.setup import prepare, read_design
     from ..optimize.tables import format_summary
     from ..workflows.optimize import optimize
@@ -191,14 +168,9 @@ def command(
             workers,
             resume=resume,
             poses=poses,
-            verify_poses=verify_poses,
-            solver_images=solver_images,
             build=not no_build,
             command_line=cmd,
-            min_clearance_px=min_clearance_px,
-            min_ellipse_view_deg=min_ellipse_view_deg,
-            check_images=check_images,
-            score_images=score_images,
+            **checks,
         )
     except KeyboardInterrupt:
         click.echo(

@@ -8,24 +8,14 @@ from pathlib import Path
 
 import click
 
+from .options import FILE, host_option, link_options, port_option
+
 
 @click.command("push")
-@click.argument("poses_path", metavar="POSES", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--host", default="127.0.0.1", show_default=True, help="The OpenIGTLink server (3D Slicer).")
-@click.option("--port", type=click.IntRange(1, 65535), default=18944, show_default=True)
-@click.option(
-    "--name",
-    default="FiducialToCArm",
-    show_default=True,
-    help="TRANSFORM device name, PLUS <From>To<To>, at most 20 characters.",
-)
-@click.option(
-    "--space",
-    type=click.Choice(["ras", "lps"]),
-    default="ras",
-    show_default=True,
-    help="The matrix's coordinates: ras for 3D Slicer, lps for the SPEC §4 pose unchanged.",
-)
+@click.argument("poses_path", metavar="POSES", type=FILE)
+@host_option("The OpenIGTLink server (3D Slicer).")
+@port_option()
+@link_options("The matrix's coordinates: ras for 3D Slicer, lps for the SPEC §4 pose unchanged.")
 @click.option(
     "--rate",
     "rate_hz",

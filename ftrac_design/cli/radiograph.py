@@ -10,15 +10,16 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import click
 import numpy as np
 
 from ..errors import InputError
+from .options import FILE, OUT_DIR, camera_option, features_option, imaging_options, output_option
 
 _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
-_POS = click.FloatRange(min=0.0, min_open=True)
 
 
 def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -72,17 +73,11 @@ def _parse_occluder(text: str, frame: str):
 
 
 @click.command("radiograph")
-@click.option(
-    "--features",
-    "features_path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="features.json written by `ftrac-design build`.",
-)
+@features_option()
 @click.option(
     "--pose",
     "pose_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=FILE,
     default=None,
     help="SPEC §4 pose.json (or JSON Lines of poses): one image per pose.",
 )
@@ -93,12 +88,8 @@ def _parse_occluder(text: str, frame: str):
     help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).",
 )
 @click.option("--seed", type=int, default=0, show_default=True, help="seed of the poses, the noise and the anatomy.")
-@click.option(
-    "-o",
-    "--output",
-    required=True,
-    type=click.Path(file_okay=False, path_type=Path),
-    help="output directory (new, or a previous radiograph output, which is replaced).",
+@output_option(
+    "output directory (new, or a previous radiograph output, which is replaced).", type=OUT_DIR, required=True
 )
 @click.option("--format", "fmt", type=click.Choice(list(_EXT)), default="png", show_default=True)
 @click.option(
@@ -110,29 +101,8 @@ def _parse_occluder(text: str, frame: str):
     show_default=True,
     help="log: flat-field −ln(I/I0), dense = bright; raw: detector counts, dense = dark.",
 )
-@click.option(
-    "--energy-kev",
-    type=click.FloatRange(40.0, 100.0),
-    default=60.0,
-    show_default=True,
-    help="effective energy for the attenuation coefficients.",
-)
-@click.option(
-    "--dose",
-    type=_POS,
-    default=1.0e4,
-    show_default=True,
-    help="unattenuated quanta per pixel (sets the quantum noise).",
-)
+@imaging_options()
 @click.option("--no-noise", is_flag=True, default=False, help="noise-free image.")
-@click.option("--focal-spot-mm", type=click.FloatRange(min=0.0), default=0.6, show_default=True)
-@click.option(
-    "--detector-blur-px",
-    type=click.FloatRange(min=0.0),
-    default=0.7,
-    show_default=True,
-    help="Gaussian σ of the detector line-spread, pixels.",
-)
 @click.option(
     "--bit-depth",
     type=click.IntRange(8, 16),
@@ -168,17 +138,11 @@ def _parse_occluder(text: str, frame: str):
     show_default=True,
     help="frame of the --occluder coordinates: fiducial F or camera X.",
 )
-@click.option(
-    "--camera",
-    "camera_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].",
-)
+@camera_option("SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].")
 @click.option(
     "--design",
     "design_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+    type=FILE,
     default=None,
     help="design TOML (or a preset's name) giving the body when features.json does not (its 'body' key "
     "or design.source).",
@@ -192,11 +156,7 @@ def command(
     output: Path,
     fmt: str,
     kind: str,
-    energy_kev: float,
-    dose: float,
     no_noise: bool,
-    focal_spot_mm: float,
-    detector_blur_px: float,
     bit_depth: int,
     image_size,
     background: str | None,
@@ -205,20 +165,20 @@ def command(
     camera_path: Path | None,
     design_path: Path | None,
     no_body: bool,
+    energy_kev: float = 60.0,
+    dose: float = 1.0e4,
+    focal_spot_mm: float = 0.6,
+    detector_blur_px: float = 0.7,
 ) -> int:
     """Render simulated radiographs of a fiducial with their truth (pose, camera, projected features).
 
     Exactly one of --pose and --workspace-sample. Bad input exits 2 with one line and writes nothing.
     """
-    from tqdm import tqdm
-
     from ..features import load_features
-    from ..fileio import atomic_directory, check_output_dir, write_text_atomic
-    from ..images import read_frame, write_image
     from ..pose.camera import Camera
     from ..pose.observation import read_camera
     from ..pose.simulate import Workspace
-    from ..xray import ImagingModel, anatomy, body_from_design_file, body_from_features_file, render, write_truth
+    from ..xray import ImagingModel
 
     if (pose_path is None) == (workspace_sample is None):
         raise click.UsageError("give exactly one of --pose POSE.json and --workspace-sample N")
@@ -232,90 +192,155 @@ def command(
         photons_per_px=None if no_noise else dose,
         bit_depth=bit_depth,
     )
-    if no_body:
-        body = None
-    elif design_path is not None:
-        body = body_from_design_file(design_path)
-    else:
-        body = body_from_features_file(features_path)
-        if body is None:
-            raise InputError(
-                features_path,
-                "body",
-                "the fiducial's body: a 'body' key, a design.source that can be "
-                "found, --design DESIGN.toml, or --no-body",
-            )
-    occluders = [_parse_occluder(o, occluder_frame) for o in occluder]
-    bg_image = None
-    if background and background != "anatomy":
-        # modality values: the linear map our PNG/TIFF/DICOM record is applied on reading
-        bg_image = read_frame(background, 0, camera, need_camera=False).pixels.astype(np.float64)
-        if bg_image.shape != imaging.image_shape:
-            raise InputError(
-                background,
-                "pixels",
-                f"a background of {imaging.image_shape[0]} × {imaging.image_shape[1]} pixels, got {bg_image.shape}",
-            )
+    scene = _Scene(
+        features,
+        camera,
+        imaging,
+        _body(features_path, design_path, no_body),
+        [_parse_occluder(o, occluder_frame) for o in occluder],
+        _Background.read(background, camera, imaging, seed),
+    )
     rng = np.random.default_rng(seed)
     if pose_path is not None:
         Rs, ts = read_poses(pose_path)
     else:
         Rs, ts = Workspace().sample(workspace_sample, features.nominal_beam_direction, rng)
-    output = Path(output)
-    check_output_dir(output, "a previous radiograph output", lambda d: (d / "truth.jsonl").exists(), parameter=None)
-    ext = _EXT[fmt]
-    lines = []
-    try:
-        with atomic_directory(output) as tmp:
-            for i in tqdm(range(len(Rs)), desc="radiograph", unit="image", disable=len(Rs) < 4):
-                name = f"img_{i:04d}{ext}"
-                bg, bg_desc = bg_image, (str(background) if background else None)
-                if background == "anatomy":
-                    bg = anatomy(
-                        imaging.image_shape,
-                        seed=seed * 100003 + i,
-                        pixel_mm=min(camera.pixel_size_mm),
-                        energy_kev=energy_kev,
-                    )
-                    bg_desc = f"anatomy seed {seed * 100003 + i}"
-                try:
-                    img = render(
-                        features,
-                        Rs[i],
-                        ts[i],
-                        camera,
-                        imaging,
-                        rng=np.random.default_rng([seed, i]),
-                        background=bg,
-                        occluders=occluders,
-                        body=body,
-                        image_name=name,
-                    )
-                except ValueError as exc:
-                    raise InputError(
-                        pose_path or features_path, f"pose {i + 1}", f"a pose that can be imaged ({exc})"
-                    ) from None
-                img.truth["background"] = bg_desc
-                img.truth["output"] = kind
-                if kind == "log":
-                    write_image(
-                        tmp / name,
-                        img.log_image,
-                        camera,
-                        polarity="dense_bright",
-                        bit_depth=16 if imaging.bit_depth > 8 else 8,
-                        value_range=None if fmt == "npy" else (0.0, 6.0),
-                        quantity="log",
-                    )
-                else:
-                    write_image(tmp / name, img.raw, camera, polarity="dense_dark", quantity="raw")
-                write_truth(tmp / f"img_{i:04d}.truth.json", img.truth)
-                lines.append(json.dumps(img.truth, allow_nan=False))
-            write_text_atomic(tmp / "truth.jsonl", "".join(line + "\n" for line in lines))
-    except OSError as exc:
-        raise InputError(output, None, f"a writable output directory ({exc.strerror})") from None
+    _write_images(Path(output), scene, Rs, ts, seed, fmt, kind, pose_path or features_path)
     click.echo(
         f"wrote {len(Rs)} {kind} image(s) ({fmt}, {imaging.image_shape[1]}×{imaging.image_shape[0]}) "
         f"with truth to {output}"
     )
     return 0
+
+
+def _body(features_path: Path, design_path: Path | None, no_body: bool):
+    """The fiducial's body: none, the design file's, or the one features.json names (exit 2 without one)."""
+    from ..xray import body_from_design_file, body_from_features_file
+
+    if no_body:
+        return None
+    if design_path is not None:
+        return body_from_design_file(design_path)
+    body = body_from_features_file(features_path)
+    if body is None:
+        raise InputError(
+            features_path,
+            "body",
+            "the fiducial's body: a 'body' key, a design.source that can be found, --design DESIGN.toml, or --no-body",
+        )
+    return body
+
+
+@dataclass(frozen=True)
+class _Background:
+    """What is added behind the fiducial: a line-integral image read once, the seeded anatomy
+    (one per image), or nothing."""
+
+    source: str | None
+    image: np.ndarray | None
+    seed: int
+    pixel_mm: float
+    energy_kev: float
+    shape: tuple[int, int]
+
+    @classmethod
+    def read(cls, background: str | None, camera, imaging, seed: int) -> "_Background":
+        from ..images import read_frame
+
+        image = None
+        if background and background != "anatomy":
+            # modality values: the linear map our PNG/TIFF/DICOM record is applied on reading
+            image = read_frame(background, 0, camera, need_camera=False).pixels.astype(np.float64)
+            if image.shape != imaging.image_shape:
+                raise InputError(
+                    background,
+                    "pixels",
+                    f"a background of {imaging.image_shape[0]} × {imaging.image_shape[1]} pixels, got {image.shape}",
+                )
+        return cls(background, image, seed, min(camera.pixel_size_mm), imaging.energy_kev, imaging.image_shape)
+
+    def for_image(self, i: int) -> tuple[np.ndarray | None, str | None]:
+        """Image ``i``'s background and how the truth file names it."""
+        if self.source != "anatomy":
+            return self.image, (str(self.source) if self.source else None)
+        from ..xray import anatomy
+
+        s = self.seed * 100003 + i
+        return anatomy(self.shape, seed=s, pixel_mm=self.pixel_mm, energy_kev=self.energy_kev), f"anatomy seed {s}"
+
+
+@dataclass(frozen=True)
+class _Scene:
+    """Everything an image of the run shares."""
+
+    features: object
+    camera: object
+    imaging: object
+    body: object
+    occluders: list
+    background: _Background
+
+
+def _write_images(output: Path, scene: _Scene, Rs, ts, seed: int, fmt: str, kind: str, pose_source: Path) -> None:
+    """Render every pose into ``output`` atomically: the images, their truth files and truth.jsonl."""
+    from tqdm import tqdm
+
+    from ..fileio import atomic_directory, check_output_dir, write_text_atomic
+    from ..xray import write_truth
+
+    check_output_dir(output, "a previous radiograph output", lambda d: (d / "truth.jsonl").exists(), parameter=None)
+    lines = []
+    try:
+        with atomic_directory(output) as tmp:
+            for i in tqdm(range(len(Rs)), desc="radiograph", unit="image", disable=len(Rs) < 4):
+                name = f"img_{i:04d}{_EXT[fmt]}"
+                img = _render_one(scene, Rs[i], ts[i], seed, i, name, pose_source)
+                img.truth["output"] = kind
+                _write_image(tmp / name, img, scene, fmt, kind)
+                write_truth(tmp / f"img_{i:04d}.truth.json", img.truth)
+                lines.append(json.dumps(img.truth, allow_nan=False))
+            write_text_atomic(tmp / "truth.jsonl", "".join(line + "\n" for line in lines))
+    except OSError as exc:
+        raise InputError(output, None, f"a writable output directory ({exc.strerror})") from None
+
+
+def _render_one(scene: _Scene, R, t, seed: int, i: int, name: str, pose_source: Path):
+    """Image ``i`` at pose (R, t), its background noted in its truth (exit 2 for a pose that cannot be imaged)."""
+    from ..xray import render
+
+    bg, bg_desc = scene.background.for_image(i)
+    try:
+        img = render(
+            scene.features,
+            R,
+            t,
+            scene.camera,
+            scene.imaging,
+            rng=np.random.default_rng([seed, i]),
+            background=bg,
+            occluders=scene.occluders,
+            body=scene.body,
+            image_name=name,
+        )
+    except ValueError as exc:
+        raise InputError(pose_source, f"pose {i + 1}", f"a pose that can be imaged ({exc})") from None
+    img.truth["background"] = bg_desc
+    return img
+
+
+def _write_image(path: Path, img, scene: _Scene, fmt: str, kind: str) -> None:
+    """One image as the log image (dense = bright) or the raw counts (dense = dark)."""
+    from ..images import write_image
+
+    if kind == "log":
+        write_image(
+            path,
+            img.log_image,
+            scene.camera,
+            polarity="dense_bright",
+            bit_depth=16 if scene.imaging.bit_depth > 8 else 8,
+            value_range=None if fmt == "npy" else (0.0, 6.0),
+            quantity="log",
+        )
+    else:
+        write_image(path, img.raw, scene.camera, polarity="dense_dark", quantity="raw")

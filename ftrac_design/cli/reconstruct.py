@@ -8,17 +8,12 @@ from pathlib import Path
 
 import click
 
-_FILE = click.Path(dir_okay=False, path_type=Path)
+from .options import FILE as _FILE
+from .options import OUT_FILE, POSITIVE, camera_option, features_option, output_option
 
 
 @click.command("reconstruct")
-@click.option(
-    "--features",
-    "features_path",
-    required=True,
-    type=_FILE,
-    help="features.json (its frames.template_from_fiducial gives the template frame).",
-)
+@features_option("features.json (its frames.template_from_fiducial gives the template frame).")
 @click.option(
     "--poses",
     "poses_path",
@@ -33,13 +28,9 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
     type=_FILE,
     help="JSON Lines, one {id: [u, v]} object per image, in the order of --poses.",
 )
-@click.option(
-    "--camera",
-    "camera_path",
-    type=_FILE,
-    default=None,
-    help='SPEC §3 camera object for every image; overrides a "camera" key in a pose or points '
-    "line (an extension of SPEC §4/§5).",
+@camera_option(
+    'SPEC §3 camera object for every image; overrides a "camera" key in a pose or points '
+    "line (an extension of SPEC §4/§5)."
 )
 @click.option(
     "--to",
@@ -59,7 +50,7 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
 )
 @click.option(
     "--noise-px",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=POSITIVE,
     default=None,
     help="Image-point noise, pixels per axis [default: 0.102 mm at the detector, the paper's "
     "0.25 mm uniform segmentation error, in each image's pixels].",
@@ -78,13 +69,11 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
     show_default=True,
     help="Machining tolerance of the template connector, σ mm per axis, added to the uncertainty with --to template.",
 )
-@click.option(
-    "-o",
-    "--output",
-    type=_FILE,
+@output_option(
+    "Where to write the ftrac-reconstruction JSON ('-' for stdout).",
+    type=OUT_FILE,
     default=Path("reconstruction.json"),
     show_default=True,
-    help="Where to write the ftrac-reconstruction JSON ('-' for stdout).",
 )
 def command(
     features_path: Path,

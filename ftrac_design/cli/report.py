@@ -16,17 +16,13 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .analyze import image_score_options
+from .options import OUT_FILE, image_score_options, output_option, poses_option, profile_option
 
 
 @click.command("report")
 @click.argument("source", type=click.Path(path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
-    help="HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]",
+@output_option(
+    "HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]", type=OUT_FILE
 )
 @click.option(
     "--analysis",
@@ -36,19 +32,8 @@ from .analyze import image_score_options
     help="an `ftrac-design analyze` output directory to show [default: BUILD_DIR/analysis if present, "
     "else the analysis is run]",
 )
-@click.option(
-    "--poses",
-    type=click.IntRange(min=100),
-    default=None,
-    help="workspace poses when the analysis is run [default: the design's, else 20000]",
-)
-@click.option(
-    "--profile",
-    type=click.Choice(["cnc", "fdm"]),
-    default="cnc",
-    show_default=True,
-    help="profile of the build made from a design file (the page shows the rules of both)",
-)
+@poses_option("workspace poses when the analysis is run [default: the design's, else 20000]")
+@profile_option("profile of the build made from a design file (the page shows the rules of both)")
 @image_score_options(atlas=True)
 def command(
     source: Path,

@@ -12,51 +12,35 @@ from pathlib import Path
 
 import click
 
+from .options import (
+    camera_option,
+    distortion_option,
+    features_option,
+    host_option,
+    independent_option,
+    link_options,
+    polarity_option,
+    port_option,
+    refine_option,
+)
 from .track import _setup
-
-_FILE = click.Path(dir_okay=False, path_type=Path)
 
 
 @click.command("serve")
-@click.option(
-    "--features", "features_path", required=True, type=_FILE, help="features.json written by `ftrac-design build`."
-)
-@click.option(
-    "--camera",
-    "camera_path",
-    type=_FILE,
-    default=None,
-    help="SPEC §3 camera object (JSON) for every frame; overrides what a frame's metadata says. Without "
+@features_option()
+@camera_option(
+    "SPEC §3 camera object (JSON) for every frame; overrides what a frame's metadata says. Without "
     "it each IMAGE must carry metadata 'camera' (JSON) or 'focal_length_mm' (the pixel pitch is then "
-    "the message's spacing).",
+    "the message's spacing)."
 )
-@click.option(
-    "--port",
-    type=click.IntRange(0, 65535),
-    default=18944,
-    show_default=True,
-    help="TCP port (0: any free one, printed).",
+@port_option("TCP port (0: any free one, printed).", type=click.IntRange(0, 65535))
+@host_option(
+    "Address to listen on: 127.0.0.1 accepts this machine only; 0.0.0.0 every interface (the "
+    "C-arm's network: the link is neither authenticated nor encrypted)."
 )
-@click.option(
-    "--host",
-    default="127.0.0.1",
-    show_default=True,
-    help="Address to listen on: 127.0.0.1 accepts this machine only; 0.0.0.0 every interface (the "
-    "C-arm's network: the link is neither authenticated nor encrypted).",
-)
-@click.option(
-    "--name",
-    default="FiducialToCArm",
-    show_default=True,
-    help="TRANSFORM device name, PLUS <From>To<To>, at most 20 characters.",
-)
-@click.option(
-    "--space",
-    type=click.Choice(["ras", "lps"]),
-    default="ras",
-    show_default=True,
-    help="The TRANSFORM matrix's coordinates: ras for 3D Slicer (our LPS numbers converted), lps for the "
-    "SPEC §4 pose unchanged. The metadata carry the SPEC §4 pose either way.",
+@link_options(
+    "The TRANSFORM matrix's coordinates: ras for 3D Slicer (our LPS numbers converted), lps for the "
+    "SPEC §4 pose unchanged. The metadata carry the SPEC §4 pose either way."
 )
 @click.option(
     "--queue",
@@ -73,33 +57,15 @@ _FILE = click.Path(dir_okay=False, path_type=Path)
     "gets the identity with TransformStatus INVALID and the reason (a header-version-1 client: a STATUS "
     "NoPose either way).",
 )
-@click.option(
-    "--distortion",
-    "distortion_path",
-    type=_FILE,
-    default=None,
-    help="ftrac-distortion model: every frame is undistorted before tracking (as for `track`); 'none': "
-    "the detector does not distort.",
+@distortion_option(
+    "ftrac-distortion model: every frame is undistorted before tracking (as for `track`); 'none': "
+    "the detector does not distort."
 )
-@click.option(
-    "--polarity",
-    type=click.Choice(["auto", "dense-dark", "dense-bright"]),
-    default="auto",
-    show_default=True,
-    help="How dense matter looks in the frames (as for `track`).",
-)
-@click.option(
-    "--refine",
-    type=click.Choice(["none", "intensity"]),
-    default="none",
-    show_default=True,
-    help="intensity: refine each pose on the image intensities (slower).",
-)
-@click.option(
-    "--independent",
-    is_flag=True,
-    help="Track every frame alone with the full identification (no prior), as `track --independent`; "
-    "by default each frame starts from the previous frame's pose.",
+@polarity_option("How dense matter looks in the frames (as for `track`).")
+@refine_option("intensity: refine each pose on the image intensities (slower).")
+@independent_option(
+    "Track every frame alone with the full identification (no prior), as `track --independent`; "
+    "by default each frame starts from the previous frame's pose."
 )
 def command(
     features_path: Path,

@@ -8,28 +8,20 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
+from .options import FILE, OUT_FILE, POSITIVE, features_option, output_option
 
 
 @click.command("solve")
-@click.option(
-    "--features",
-    "features_path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="features.json written by `ftrac-design build`.",
-)
-@click.argument("observations", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="Where to write: pose.json for one observation, JSON Lines for several "
+@features_option()
+@click.argument("observations", nargs=-1, required=True, type=FILE)
+@output_option(
+    "Where to write: pose.json for one observation, JSON Lines for several "
     "(default pose.json / poses.jsonl in the current directory; '-' for stdout).",
+    type=OUT_FILE,
 )
 @click.option(
     "--segmentation-error-mm",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=POSITIVE,
     default=0.25,
     show_default=True,
     help="Expected segmentation error (the paper's uniform error magnitude, mm at the detector); "

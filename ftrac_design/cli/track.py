@@ -17,6 +17,16 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
+from .options import (
+    OUT_FILE,
+    camera_option,
+    distortion_option,
+    features_option,
+    independent_option,
+    output_option,
+    polarity_option,
+    refine_option,
+)
 
 
 def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path | None, polarity: str, refine: str):
@@ -74,66 +84,44 @@ def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
         click.echo(f"{path}: overlay not drawn: {type(exc).__name__}: {one_line(exc)}", err=True)
 
 
+def _output_paths(output: Path | None, several: bool) -> tuple[Path, str, Path]:
+    """The pose file (default pose.json, or poses.jsonl for several frames), its stem, and the
+    observations file beside it."""
+    if output is None:
+        output = Path("poses.jsonl" if several else "pose.json")
+    stem = output.name[: -len(output.suffix)] if output.suffix else output.name
+    return output, stem, output.with_name(f"{stem}.observations.jsonl" if several else f"{stem}.observation.json")
+
+
 @click.command("track")
-@click.option(
-    "--features",
-    "features_path",
-    required=True,
-    type=click.Path(dir_okay=False, path_type=Path),
-    help="features.json written by `ftrac-design build`.",
-)
+@features_option()
 @click.argument("images", nargs=-1, required=True, type=click.Path(path_type=Path))
-@click.option(
-    "--camera",
-    "camera_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="SPEC §3 camera object (JSON) used for every frame; overrides what the files say.",
-)
-@click.option(
-    "--distortion",
-    "distortion_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
+@camera_option("SPEC §3 camera object (JSON) used for every frame; overrides what the files say.")
+@distortion_option(
+    "ftrac-distortion model (from `ftrac-design distortion`): each frame is undistorted onto the "
     "pinhole grid before tracking; frames must have the model's image_shape. 'none': the detector "
     "does not distort (a flat panel). Without it an image intensifier's distortion of up to ~2 mm "
-    "at 100 mm is allowed for in each pose's covariance (DX/CR DICOM images excepted).",
+    "at 100 mm is allowed for in each pose's covariance (DX/CR DICOM images excepted)."
 )
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
+@output_option(
+    "pose.json when there is one frame in all, else JSON Lines, one pose per frame in order "
     "(default pose.json / poses.jsonl). The segmented observations go beside it "
     "(<stem>.observation.json / <stem>.observations.jsonl).",
+    type=OUT_FILE,
 )
 @click.option(
     "--overlay",
     is_flag=True,
     help="Also write <stem>_<image stem>[_<frame>]_overlay.png per frame beside OUT (the frame index for runs).",
 )
-@click.option(
-    "--polarity",
-    type=click.Choice(["auto", "dense-dark", "dense-bright"]),
-    default="auto",
-    show_default=True,
-    help="How dense matter looks (dense-dark: raw detector counts; dense-bright: "
-    "log/display image); overrides the file's. auto: the file's, else found.",
+@polarity_option(
+    "How dense matter looks (dense-dark: raw detector counts; dense-bright: "
+    "log/display image); overrides the file's. auto: the file's, else found."
 )
-@click.option(
-    "--refine",
-    type=click.Choice(["none", "intensity"]),
-    default="none",
-    show_default=True,
-    help="intensity: refine the pose on the image intensities (needs ftrac_design.intensity).",
-)
-@click.option(
-    "--independent",
-    is_flag=True,
-    help="Track every frame of a run alone with the full identification, no prior (default: each frame "
-    "from the previous frames' poses, identified from scratch only where that is not confirmed).",
+@refine_option("intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
+@independent_option(
+    "Track every frame of a run alone with the full identification, no prior (default: each frame "
+    "from the previous frames' poses, identified from scratch only where that is not confirmed)."
 )
 def command(
     features_path: Path,
@@ -174,10 +162,7 @@ def command(
     inputs = validate_inputs(list(images), setup.camera, setup.distortion, setup.distortion_path)
     total = sum(i.frames for i in inputs)
     several = total > 1
-    if output is None:
-        output = Path("poses.jsonl" if several else "pose.json")
-    stem = output.name[: -len(output.suffix)] if output.suffix else output.name
-    obs_path = output.with_name(f"{stem}.observations.jsonl" if several else f"{stem}.observation.json")
+    output, stem, obs_path = _output_paths(output, several)
     lines: list[tuple[bool, str]] = []
     with (
         TrackOutputs(output, obs_path) as outputs,

@@ -1,8 +1,8 @@
 """Where the preset design files and search spaces live, found in one place.
 
-The presets ship inside the package as data (``ftrac_design/presets/*.toml``: ``ftrac_2005``,
-``ftrac_mini``, ``nine_bead``, …; search spaces in ``ftrac_design/presets/spaces/``), read
-through :mod:`importlib.resources`, so an installed wheel has them as a checkout does. Every
+The presets are the design files in ``models/`` (``ftrac_2005``, ``ftrac_mini``, ``nine_bead``,
+…; search spaces in ``models/spaces/``), shipped inside the package as ``ftrac_design.presets``
+and read through :mod:`importlib.resources`, so an installed wheel has them as a checkout does. Every
 room that needs one asks this module rather than walking up from its own file, and every
 command that takes a design path also takes a preset's name (:func:`resolve_design`).
 """
@@ -74,6 +74,13 @@ def _stem(name: str) -> str:
     return name[:-5] if name.endswith(".toml") else name
 
 
+def _shipped(folder: Path, name: str, what: str, known) -> Path:
+    path = folder / f"{_stem(name)}.toml"
+    if not path.is_file():
+        raise InputError(path, None, f"{what} ({known()})")
+    return path
+
+
 def preset_path(name: str) -> Path:
     """The design file of the preset ``name`` (``"ftrac_2005"``; a ``.toml`` suffix is allowed).
 
@@ -87,10 +94,7 @@ def preset_path(name: str) -> Path:
     pathlib.Path
         Its path. Raises :class:`InputError` naming the presets there are when it does not exist.
     """
-    path = PRESETS_DIR / f"{_stem(name)}.toml"
-    if not path.is_file():
-        raise InputError(path, None, f"a preset design ({known_presets()})")
-    return path
+    return _shipped(PRESETS_DIR, name, "a preset design", known_presets)
 
 
 def space_path(name: str) -> Path:
@@ -104,12 +108,9 @@ def space_path(name: str) -> Path:
     Returns
     -------
     pathlib.Path
-        Its path. Raises :class:`InputError` naming the spaces there are when it does not exist.
+        Its path; :class:`InputError` naming the shipped spaces when there is no such space.
     """
-    path = SPACES_DIR / f"{_stem(name)}.toml"
-    if not path.is_file():
-        raise InputError(path, None, f"a shipped search space ({known_spaces()})")
-    return path
+    return _shipped(SPACES_DIR, name, "a shipped search space", known_spaces)
 
 
 def _resolve(source: str | Path, folder: Path) -> Path:

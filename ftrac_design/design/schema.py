@@ -280,7 +280,7 @@ class Connector(_Strict):
 
 
 class CncProfile(_Strict):
-    """CNC milling of acetal with press-fitted wires and balls (see ``cad.profiles``)."""
+    """CNC milling of acetal with press-fitted wires and balls (see ``manufacture.profiles``)."""
 
     tool_diameter: Pos = Field(default=0.4, description="smallest end mill available for grooves, mm")
     wire_interference: NonNeg = Field(default=0.02, description="wire diameter minus groove width, mm")
@@ -308,7 +308,7 @@ class CncProfile(_Strict):
 
 
 class FdmProfile(_Strict):
-    """FDM printing with a 0.4 mm nozzle; wires and balls glued in (see ``cad.profiles``)."""
+    """FDM printing with a 0.4 mm nozzle; wires and balls glued in (see ``manufacture.profiles``)."""
 
     nozzle_diameter: Pos = Field(default=0.4, description="nozzle (extrusion) width, mm")
     wire_clearance: NonNeg = Field(default=0.15, description="gap per side between wire and groove wall, mm")

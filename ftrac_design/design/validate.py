@@ -101,9 +101,23 @@ def mounting_errors(design: Design) -> list[tuple[str, str]]:
 
 
 def _feature_errors(design: Design) -> list[tuple[str, str]]:
-    errs: list[tuple[str, str]] = []
-    L2, rb = design.half_length, design.bore_radius
+    errs = _missing_tables(design)
+    if errs:
+        return errs
+    rw = design.wire.diameter / 2.0 if design.wire else 0.0
+    rbead = design.bead.diameter / 2.0 if design.bead else 0.0
+    return (
+        _duplicate_ids(design)
+        + _seats_in_the_wall(design, rw, rbead)
+        + _features_in_the_length(design, rw, rbead)
+        + _wires_apart(design, rw)
+        + _beads_apart(design, rw, rbead)
+    )
 
+
+def _missing_tables(design: Design) -> list[tuple[str, str]]:
+    """The tables and depths that the design's features need."""
+    errs: list[tuple[str, str]] = []
     if (design.ellipses or design.lines) and design.wire is None:
         errs.append(("wire", "a [wire] table is required when the design has ellipses or lines"))
     has_beads = any(l.beads_z for l in design.lines) or bool(design.beads)
@@ -115,9 +129,11 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
         errs.append(("seating.line_wire_depth", "a depth (mm) when the design has lines"))
     if not (design.ellipses or design.lines or design.beads):
         errs.append(("ellipses", "a design needs at least one ellipse, line or bead"))
-    if errs:
-        return errs
+    return errs
 
+
+def _duplicate_ids(design: Design) -> list[tuple[str, str]]:
+    errs: list[tuple[str, str]] = []
     ids: dict[str, str] = {}
     named = [(f"ellipses[{i}].id", e.id) for i, e in enumerate(design.ellipses)]
     named += [(f"lines[{i}].id", l.id) for i, l in enumerate(design.lines)]
@@ -126,10 +142,13 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
         if ident in ids:
             errs.append((key, f'a unique id ("{ident}" is also used by {ids[ident]})'))
         ids.setdefault(ident, key)
+    return errs
 
-    rw = design.wire.diameter / 2.0 if design.wire else 0.0
-    rbead = design.bead.diameter / 2.0 if design.bead else 0.0
 
+def _seats_in_the_wall(design: Design, rw: float, rbead: float) -> list[tuple[str, str]]:
+    """Wires and beads seated in the wall, not reaching the bore."""
+    errs: list[tuple[str, str]] = []
+    rb = design.bore_radius
     if design.ellipses:
         d = design.seating.ellipse_wire_depth
         if design.ellipse_seat_radius - rw <= rb:
@@ -151,8 +170,13 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
             )
     if design.beads and design.free_bead_seat_radius - rbead <= rb:
         errs.append(("seating.free_bead_depth", "a depth that leaves the beads inside the wall"))
+    return errs
 
-    # every feature inside the body's length
+
+def _features_in_the_length(design: Design, rw: float, rbead: float) -> list[tuple[str, str]]:
+    """Every feature inside the body's length, each line's beads on it and apart."""
+    errs: list[tuple[str, str]] = []
+    L2 = design.half_length
     for i, e in enumerate(design.ellipses):
         reach = design.ellipse_seat_radius * math.tan(e.tilt_rad) + rw / math.cos(e.tilt_rad)
         if abs(e.z_center) + reach > L2:
@@ -184,8 +208,12 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
     for i, b in enumerate(design.beads):
         if abs(b.z) + rbead > L2:
             errs.append((f"beads[{i}].z", f"a bead inside the body's length (±{L2} mm)"))
+    return errs
 
-    # ellipse wires must not cross or touch each other
+
+def _wires_apart(design: Design, rw: float) -> list[tuple[str, str]]:
+    """Ellipse wires that neither cross nor touch, and line wires seated clear of them in depth."""
+    errs: list[tuple[str, str]] = []
     phi = np.linspace(0.0, 2.0 * math.pi, _SAMPLES, endpoint=False)
     for i in range(len(design.ellipses)):
         for j in range(i + 1, len(design.ellipses)):
@@ -199,7 +227,6 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
                         f"(wire diameter {2 * rw} mm)",
                     )
                 )
-
     # a line wire passes under an ellipse wire: the radial step must clear both wires
     if design.ellipses and design.lines:
         step = design.line_seat_radius - design.ellipse_seat_radius
@@ -211,8 +238,12 @@ def _feature_errors(design: Design) -> list[tuple[str, str]]:
                     f"in depth where they cross; they are {abs(step):.3f} mm apart",
                 )
             )
+    return errs
 
-    # beads must not touch an ellipse wire or another bead
+
+def _beads_apart(design: Design, rw: float, rbead: float) -> list[tuple[str, str]]:
+    """Beads that touch neither an ellipse wire nor another bead."""
+    errs: list[tuple[str, str]] = []
     beads = bead_centers(design)
     if design.ellipses and beads:
         for k in range(len(design.ellipses)):

@@ -4,8 +4,8 @@ This is the one place where the mount's and the connector's dimensions, hole pos
 the transforms ``mount_from_fiducial`` / ``template_from_fiducial`` are computed. The CAD
 (:mod:`ftrac_design.cad.mount`, :mod:`ftrac_design.cad.connector`) builds its solids from
 these layouts and places them in the assembly by these transforms; the design rules
-(:mod:`ftrac_design.cad.rules`) measure the same layouts. A layout holds *nominal* sizes;
-a manufacturing profile (:func:`ftrac_design.cad.profiles.cut_sizes`) only changes how big
+(:mod:`ftrac_design.manufacture.rules`) measure the same layouts. A layout holds *nominal* sizes;
+a manufacturing profile (:func:`ftrac_design.manufacture.profiles.cut_sizes`) only changes how big
 each hole is cut, never where it is.
 
 Frames (all mm):

@@ -99,19 +99,7 @@ def image_atlas(
     """
     lon, lat, d = sphere_grid(settings.step_deg)
     dirs = d.reshape(-1, 3)
-    tasks = [list(range(i, min(i + CHUNK, len(dirs)))) for i in range(0, len(dirs), CHUNK)]
-    records: list[dict[str, Any]] = []
-    if executor is None:
-        for idx in tasks:
-            records += _direction_records(features, body, settings, dirs, idx)
-            if progress:
-                progress(len(idx) * settings.rolls)
-    else:
-        futures = [executor.submit(_direction_records, features, body, settings, dirs, idx) for idx in tasks]
-        for fut, idx in zip(futures, tasks):
-            records += fut.result()
-            if progress:
-                progress(len(idx) * settings.rolls)
+    records = _track_directions(features, body, settings, dirs, executor, progress)
     right = np.zeros(len(dirs))
     median = np.full(len(dirs), np.nan)
     for i in range(len(dirs)):
@@ -149,6 +137,24 @@ def image_atlas(
             for i in order
         ],
     }
+
+
+def _track_directions(features, body, settings: AtlasSettings, dirs: np.ndarray, executor, progress) -> list[dict]:
+    """Every direction's images made and tracked, in chunks (here, or on ``executor``), in order."""
+    tasks = [list(range(i, min(i + CHUNK, len(dirs)))) for i in range(0, len(dirs), CHUNK)]
+    records: list[dict[str, Any]] = []
+    if executor is None:
+        for idx in tasks:
+            records += _direction_records(features, body, settings, dirs, idx)
+            if progress:
+                progress(len(idx) * settings.rolls)
+    else:
+        futures = [executor.submit(_direction_records, features, body, settings, dirs, idx) for idx in tasks]
+        for fut, idx in zip(futures, tasks):
+            records += fut.result()
+            if progress:
+                progress(len(idx) * settings.rolls)
+    return records
 
 
 def plot_image_atlas(atlas: dict[str, Any], path: str | Path, title: str = "") -> Path:

@@ -216,7 +216,59 @@ def _log_of(image: np.ndarray, polarity: RefinePolarity) -> np.ndarray:
 
 @dataclass(frozen=True)
 class RefineOptions:
-    """How :func:`refine_intensity` fits (each option explained in its docstring)."""
+    """How :func:`refine_intensity` fits.
+
+    ``background`` — the model of what lies under the fiducial:
+
+    - ``"spline"``: a tensor cubic B-spline with knots every ``background_spline_px`` (12) px,
+      fitted jointly with the gain (:mod:`.background`); white noise stays white, so the fit
+      is maximum likelihood and its bound is :func:`.bound.pixel_information` with
+      ``nuisance=True, background_spline_px=12``;
+    - ``"polynomial"``: the polynomial of ``background_degree`` (the plain model);
+    - ``"highpass"``: image and model minus their Gaussian blur of ``highpass_px`` (8) px —
+      colours the noise (up to 29 % efficiency lost on clean images), but over an anatomy-like
+      background its errors were the smallest we measured;
+    - ``"auto"`` (default): the spline (the polynomial if ``background_spline_px`` is None),
+      unless its χ² per degree of freedom at the start exceeds ``clutter_chi2`` (3: clean
+      images give 1.0–2.1 from a start a few bound-σ off, anatomy 1.6–14), then the high-pass
+      (never with ``highpass_px=0``). The choice is ``IntensityResult.background_model``.
+
+    ``robust`` = c (default 3): Huber weights at full resolution (residuals beyond c σ
+    down-weighted; ``robust_loss="tukey"``: Tukey's biweight, zero beyond c σ) against
+    clutter such as bone edges, recomputed from the residual at the pose each round reached
+    (``reweight_rounds`` rounds of iteratively reweighted least squares, the Poisson weights
+    with them). ``background="polynomial", robust=None`` is the plain gain + quadratic model.
+    Figures: ``benchmarks/intensity_accuracy.py``, ``docs/how/intensity.md``.
+
+    Each scale (and round) stops when a step is smaller than ``step_sigma`` of the estimate's
+    own σ in the Mahalanobis norm ``√(δᵀ H δ / s²)`` (H the Gauss–Newton information, s² the
+    fitted χ² per degree of freedom; at full resolution with Poisson weights, s ≈ 1 and this
+    is the step in units of the pixel-level bound), or moves the features by less than
+    ``tolerance`` px, or (``ftol`` > 0) lowers the objective by less than ``ftol`` of itself.
+    Why 0.3 σ and not tighter: steps on forward differences do not converge much below it —
+    their Jacobian changes with the pose by the sub-samples' silhouette crossings, so
+    the iterates wander by ~0.2 σ — and the polishing step below lands within 0.01–0.05 σ RMS
+    of where a 0.01 σ rule ends, at 15 % less CPU (120 paired images).
+    A coarse scale stops at 0.3 σ or ``step_sigma`` if larger (it only brings the pose into the
+    fine scale's basin). The rule is tested on the Gauss–Newton step proposed at each new
+    linearisation, before a trial render: a converged scale costs no trial (nor a cascade of
+    rejected ones), and its last linearisation serves the next scale and the polishing step.
+
+    ``scales``: the smoothing scales (px, ending at 0) in order, or ``"auto"`` (default):
+    ``coarse_scales`` (2 px) then full resolution where the first Gauss–Newton step at full
+    resolution moves the features by more than ``coarse_px`` (1) px, else full resolution
+    only. From the feature path's starts (10–50 bound-σ, well under a pixel) a 1 px scale
+    first cost 2–3 iterations and changed nothing on clean images; over anatomy it ended
+    further off (RMS error / bound 3.0–6.0 vs 2.6–4.9 on the same 30 ftrac_2005 images;
+    ``benchmarks/intensity_feature_start.py``).
+    ``polish`` (default): one last Gauss–Newton step on a central-difference Jacobian — the
+    LM steps on forward differences stop where ``J_fwdᵀ W r = 0``, which is not the
+    objective's minimum (0.1–0.23 σ RMS from it; ``benchmarks/intensity_depth_check.py
+    stopping``); its central differences add six backward renders to the last forward ones
+    (taken at the same pose). The covariance uses that last Jacobian, or a fresh
+    central-difference one with ``central_covariance``. ``central_steps=True`` takes every LM step on central
+    differences (twice the renders).
+    """
 
     #: "dense_bright" (a log image) or "dense_dark" (raw counts)
     polarity: RefinePolarity = "dense_bright"
@@ -272,65 +324,34 @@ def refine_intensity(
 ) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
 
-    ``options`` (:class:`RefineOptions`, default its defaults) with any of its fields
-    overridden by keyword (``scales=(0.0,)``, ``background="spline"``, …); an unknown keyword
-    raises TypeError. The options:
+    Parameters
+    ----------
+    features : Features
+        The fiducial.
+    image : numpy.ndarray
+        (H, W): a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or raw
+        counts (``"dense_dark"``).
+    camera : Camera
+        The image's camera.
+    R0, t0 : numpy.ndarray
+        The start pose (F → X; mm).
+    imaging : ImagingModel
+        Blur, energy and dose (weights; ``photons_per_px=None``: uniform weights and a covariance
+        scaled by the fitted residual).
+    roi : (row0, col0, rows, cols) or None
+        The region fitted (default: the fiducial at the start plus 12 px).
+    body : Body, None or AUTO
+        The fiducial's body.
+    options : RefineOptions or None
+        How it fits (:class:`RefineOptions`, which explains each option; default its defaults).
+    **overrides
+        Fields of ``options`` set by keyword (``scales=(0.0,)``, ``background="spline"``, …); an
+        unknown keyword raises TypeError.
 
-    ``image``: a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or
-    raw counts (``"dense_dark"``). ``imaging`` supplies the blur, the energy and the dose
-    (weights; ``photons_per_px=None``: uniform weights and a covariance scaled by the fitted
-    residual). ``roi`` = (row0, col0, rows, cols), default the fiducial at the start plus 12 px.
-
-    ``background`` — the model of what lies under the fiducial:
-
-    - ``"spline"``: a tensor cubic B-spline with knots every ``background_spline_px`` (12) px,
-      fitted jointly with the gain (:mod:`.background`); white noise stays white, so the fit
-      is maximum likelihood and its bound is :func:`.bound.pixel_information` with
-      ``nuisance=True, background_spline_px=12``;
-    - ``"polynomial"``: the polynomial of ``background_degree`` (the plain model);
-    - ``"highpass"``: image and model minus their Gaussian blur of ``highpass_px`` (8) px —
-      colours the noise (up to 29 % efficiency lost on clean images), but over an anatomy-like
-      background its errors were the smallest we measured;
-    - ``"auto"`` (default): the spline (the polynomial if ``background_spline_px`` is None),
-      unless its χ² per degree of freedom at the start exceeds ``clutter_chi2`` (3: clean
-      images give 1.0–2.1 from a start a few bound-σ off, anatomy 1.6–14), then the high-pass
-      (never with ``highpass_px=0``). The choice is ``IntensityResult.background_model``.
-
-    ``robust`` = c (default 3): Huber weights at full resolution (residuals beyond c σ
-    down-weighted; ``robust_loss="tukey"``: Tukey's biweight, zero beyond c σ) against
-    clutter such as bone edges, recomputed from the residual at the pose each round reached
-    (``reweight_rounds`` rounds of iteratively reweighted least squares, the Poisson weights
-    with them). ``background="polynomial", robust=None`` is the plain gain + quadratic model.
-    Figures: ``benchmarks/intensity_accuracy.py``, ``docs/how/intensity.md``.
-
-    Each scale (and round) stops when a step is smaller than ``step_sigma`` of the estimate's
-    own σ in the Mahalanobis norm ``√(δᵀ H δ / s²)`` (H the Gauss–Newton information, s² the
-    fitted χ² per degree of freedom; at full resolution with Poisson weights, s ≈ 1 and this
-    is the step in units of the pixel-level bound), or moves the features by less than
-    ``tolerance`` px, or (``ftol`` > 0) lowers the objective by less than ``ftol`` of itself.
-    Why 0.3 σ and not tighter: steps on forward differences do not converge much below it —
-    their Jacobian changes with the pose by the sub-samples' silhouette crossings, so
-    the iterates wander by ~0.2 σ — and the polishing step below lands within 0.01–0.05 σ RMS
-    of where a 0.01 σ rule ends, at 15 % less CPU (120 paired images).
-    A coarse scale stops at 0.3 σ or ``step_sigma`` if larger (it only brings the pose into the
-    fine scale's basin). The rule is tested on the Gauss–Newton step proposed at each new
-    linearisation, before a trial render: a converged scale costs no trial (nor a cascade of
-    rejected ones), and its last linearisation serves the next scale and the polishing step.
-
-    ``scales``: the smoothing scales (px, ending at 0) in order, or ``"auto"`` (default):
-    ``coarse_scales`` (2 px) then full resolution where the first Gauss–Newton step at full
-    resolution moves the features by more than ``coarse_px`` (1) px, else full resolution
-    only. From the feature path's starts (10–50 bound-σ, well under a pixel) a 1 px scale
-    first cost 2–3 iterations and changed nothing on clean images; over anatomy it ended
-    further off (RMS error / bound 3.0–6.0 vs 2.6–4.9 on the same 30 ftrac_2005 images;
-    ``benchmarks/intensity_feature_start.py``).
-    ``polish`` (default): one last Gauss–Newton step on a central-difference Jacobian — the
-    LM steps on forward differences stop where ``J_fwdᵀ W r = 0``, which is not the
-    objective's minimum (0.1–0.23 σ RMS from it; ``benchmarks/intensity_depth_check.py
-    stopping``); its central differences add six backward renders to the last forward ones
-    (taken at the same pose). The covariance uses that last Jacobian, or a fresh
-    central-difference one with ``central_covariance``. ``central_steps=True`` takes every LM step on central
-    differences (twice the renders).
+    Returns
+    -------
+    IntensityResult
+        The refined pose, its covariance and how the fit went.
     """
     if hasattr(R0, "pose") and isinstance(features, np.ndarray):
         # the call form of cli/track.py, refine_fn(image, features, camera, track_result):
@@ -352,9 +373,17 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
         roi = roi_around(features, R0, t0, camera, Yfull.shape, body)
     v0, u0, h, w = roi
     Y = Yfull[v0 : v0 + h, u0 : u0 + w]
-    model = RoiModel(features, camera, imaging, body, roi)
-    steps = model.steps(t0) / STEP_PX  # parameter change that moves features ~1 px
+    fit = _Refinement(RoiModel(features, camera, imaging, body, roi), Y, imaging, o, R0, t0)
+    for scale in fit.scales():
+        fit.at_scale(scale)
+    if o.polish and fit.prob is not None and fit.prob.scale == 0 and not o.central_steps:
+        fit.polish()
+    return fit.result(R0, t0, roi)
 
+
+def _background_mode(o: RefineOptions, model: RoiModel, Y: np.ndarray, imaging: ImagingModel, R0, t0) -> str:
+    """The background model the options ask for; "auto" takes the spline (or the polynomial)
+    unless the start's χ² per degree of freedom says the image is cluttered (then the high-pass)."""
     if o.background not in ("auto", "spline", "polynomial", "highpass"):
         raise ValueError("background: 'auto', 'spline', 'polynomial' or 'highpass'")
     if o.background == "highpass" and not o.highpass_px > 0:
@@ -380,189 +409,238 @@ def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOption
             c, r, _, _, _ = probe.cost(R0, t0)
             if imaging.noisy and c / max(r.size - 6 - probe.n_nuisance, 1) > o.clutter_chi2:
                 mode = "highpass"
+    return mode
 
-    def problem(scale: float, huber: bool) -> _Problem:
+
+class _Refinement:
+    """One refinement's state as it runs: the pose, the current scale's objective and its fit at
+    the pose (cost, residual, gain, background, projected model column), the last linearisation,
+    the history and the message."""
+
+    def __init__(self, model: RoiModel, Y: np.ndarray, imaging: ImagingModel, o: RefineOptions, R0, t0):
+        self.model, self.Y, self.imaging, self.o = model, Y, imaging, o
+        self.steps = model.steps(t0) / STEP_PX  # parameter change that moves features ~1 px
+        self.mode = _background_mode(o, model, Y, imaging, R0, t0)
+        self.R, self.t = R0.copy(), t0.copy()
+        self.history: list = []
+        self.iterations, self.message, self.J, self.prob, self.Jraw = 0, "", None, None, None
+        self.last: dict = {}  # the last forward differences: pose, value, J
+
+    def problem(self, scale: float, huber: bool) -> _Problem:
+        o = self.o
         return _Problem(
-            model,
-            Y,
-            imaging,
+            self.model,
+            self.Y,
+            self.imaging,
             scale,
             o.background_degree,
-            o.highpass_px if mode == "highpass" else 0.0,
+            o.highpass_px if self.mode == "highpass" else 0.0,
             o.robust if huber else None,
-            o.background_spline_px if mode == "spline" else None,
+            o.background_spline_px if self.mode == "spline" else None,
             o.robust_loss,
         )
 
-    R, t = R0.copy(), t0.copy()
-    history, iterations, message, J, prob = [], 0, "", None, None
-    last = {}  # the last forward differences: pose, value, J
-
-    def forward(R, t):
+    def forward(self, R, t):
         """Forward differences of the (unsmoothed) log image at (R, t); the last pose's are
         kept (a scale's last, converged linearisation is the next scale's first, and the
         polishing step's central differences reuse them)."""
         key = (R.tobytes(), t.tobytes())
-        if last.get("key") != key:
-            L0 = model.log_image(R, t)
-            last.update(key=key, value=L0, J=model._differences(R, t, "log", central=o.central_steps, value=L0)[1])
-        return last["J"]
+        if self.last.get("key") != key:
+            L0 = self.model.log_image(R, t)
+            J = self.model._differences(R, t, "log", central=self.o.central_steps, value=L0)[1]
+            self.last.update(key=key, value=L0, J=J)
+        return self.last["J"]
 
-    scales = o.scales
-    if isinstance(scales, str):
+    def scales(self) -> tuple[float, ...]:
+        o = self.o
+        scales = o.scales
+        if not isinstance(scales, str):
+            return scales
         if scales != "auto":
             raise ValueError("scales: 'auto' or a tuple of smoothing scales (px) ending at 0")
-        scales = (0.0,)
-        if o.coarse_scales:
-            # the coarse scales only where the start is far: where the first Gauss–Newton step
-            # at full resolution (no Huber) moves the features by more than coarse_px. Its
-            # linearisation is the first iteration's, whichever scale comes first: no extra render.
-            # From the feature path (~10–50 bound-σ, well under a pixel) the 1 px scale cost
-            # 2–3 iterations and, over anatomy, moved the pose into worse minima (RMS error /
-            # bound 3.0–6.0 with it, 2.6–4.9 without, same 30 images).
-            p0 = problem(0.0, False)
-            _, r0, g0, _, lp0 = p0.cost(R, t)
-            p0.set_weights(g0, r0)
-            _, r0, g0, _, lp0 = p0.cost(R, t)
-            J0 = p0.project_jacobian(p0.smooth(forward(R, t)).reshape(6, -1) * g0, lp0)
-            try:
-                d0 = np.linalg.solve(_dot(J0 * p0.w, J0), _dot(J0 * p0.w, r0))
-                far = not np.max(np.abs(d0) / steps) <= o.coarse_px
-            except np.linalg.LinAlgError:
-                far = True
-            if far:
-                scales = tuple(o.coarse_scales) + (0.0,)
-    for scale in scales:
+        # the coarse scales only where the start is far: where the first Gauss–Newton step
+        # at full resolution (no Huber) moves the features by more than coarse_px. Its
+        # linearisation is the first iteration's, whichever scale comes first: no extra render.
+        # From the feature path (~10–50 bound-σ, well under a pixel) the 1 px scale cost
+        # 2–3 iterations and, over anatomy, moved the pose into worse minima (RMS error /
+        # bound 3.0–6.0 with it, 2.6–4.9 without, same 30 images).
+        if o.coarse_scales and self._far():
+            return tuple(o.coarse_scales) + (0.0,)
+        return (0.0,)
+
+    def _far(self) -> bool:
+        R, t = self.R, self.t
+        p0 = self.problem(0.0, False)
+        _, r0, g0, _, lp0 = p0.cost(R, t)
+        p0.set_weights(g0, r0)
+        _, r0, g0, _, lp0 = p0.cost(R, t)
+        J0 = p0.project_jacobian(p0.smooth(self.forward(R, t)).reshape(6, -1) * g0, lp0)
+        try:
+            d0 = np.linalg.solve(_dot(J0 * p0.w, J0), _dot(J0 * p0.w, r0))
+            return not np.max(np.abs(d0) / self.steps) <= self.o.coarse_px
+        except np.linalg.LinAlgError:
+            return True
+
+    def at_scale(self, scale: float) -> None:
+        """The rounds at one smoothing scale: weights from the residual at the pose reached, then
+        Levenberg–Marquardt, until the weights move nothing."""
+        o = self.o
         # robust weights only at full resolution: at a coarse scale far from the pose the
         # largest residuals are the fiducial's own misaligned wires
         huber = bool(o.robust) and scale == 0
-        prob, Jraw = problem(scale, huber), None
-        for _round in range(max(int(o.reweight_rounds), 1) if huber or imaging.noisy else 1):
-            cst, r, g, b, lp = prob.cost(R, t)
+        self.prob, self.Jraw = self.problem(scale, huber), None
+        prob = self.prob
+        for _round in range(max(int(o.reweight_rounds), 1) if huber or self.imaging.noisy else 1):
+            _, r, g, _, _ = prob.cost(self.R, self.t)
             prob.set_weights(g, r)
-            cst, r, g, b, lp = prob.cost(R, t)
-            dof = max(r.size - 6 - prob.n_nuisance, 1)
-            if _round > 0 and Jraw is not None:
-                # new weights: is a step still due? (the last linearisation, re-projected: no render)
-                Jt = prob.project_jacobian(Jraw, lp)
-                Ht = _dot(Jt * prob.w, Jt)
-                try:
-                    dt = np.linalg.solve(Ht, _dot(Jt * prob.w, r))
-                except np.linalg.LinAlgError:
-                    dt = np.full(6, np.inf)
-                if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(cst / dof, 1e-300)) < o.step_sigma:
-                    J = Jt
-                    break
-            lam, moved, this_round = 1e-3, 0, []  # the objective's weights change between rounds
-            # a coarse scale only brings the pose into the fine scale's basin
-            rule = o.step_sigma if scale == 0 else max(o.step_sigma, 0.3)
-            for _ in range(o.max_iterations):
-                iterations += 1
-                Jraw = prob.smooth(forward(R, t)).reshape(6, -1) * g
-                J = prob.project_jacobian(Jraw, lp)
-                H = _dot(J * prob.w, J)
-                grad = _dot(J * prob.w, r)
-                D = np.diag(H).copy()
-                s2 = max(cst / dof, 1e-300)
-                # converged when the Gauss–Newton step from here is below the rule: stop before
-                # rendering a trial (a rejected cascade costs up to 8 renders), and the polishing
-                # step below reuses this linearisation
-                try:
-                    dgn = np.linalg.solve(H, grad)
-                    if math.sqrt(max(float(dgn @ H @ dgn), 0.0) / s2) < rule:
-                        break
-                except np.linalg.LinAlgError:
-                    pass
-                accepted = False
-                for _ in range(8):
-                    try:
-                        dx = np.linalg.solve(H + lam * np.diag(D), grad)
-                    except np.linalg.LinAlgError:
-                        lam *= 10
-                        continue
-                    Rn, tn = perturb(R, t, dx)
-                    cn, rn, gn, bn, lpn = prob.cost(Rn, tn)
-                    if cn < cst:
-                        R, t, cst, r, g, b, lp = Rn, tn, cn, rn, gn, bn, lpn
-                        lam = max(lam / 3, 1e-7)
-                        accepted = True
-                        moved += 1
-                        break
-                    lam *= 4
-                history.append((scale, cst, lam))
-                this_round.append((scale, cst, lam))
-                if not accepted:
-                    message = f"no decrease at scale {scale:g} px"
-                    break
-                if np.max(np.abs(dx) / steps) < o.tolerance or history_drop(this_round) < o.ftol * cst:
-                    break
+            self.cst, self.r, self.g, self.b, self.lp = prob.cost(self.R, self.t)
+            dof = max(self.r.size - 6 - prob.n_nuisance, 1)
+            if _round > 0 and self.Jraw is not None and self._settled(dof):
+                break
+            moved = self._levenberg_marquardt(scale, dof)
             if not moved and _round > 0:
                 break  # reweighting moved nothing: converged
-    if o.polish and prob is not None and prob.scale == 0 and not o.central_steps:
-        # LM on forward differences stops where J_fwdᵀ W r = 0, not at the objective's minimum
-        # (0.1–0.23 σ RMS from it on ftrac_2005: intensity_depth_check.py stopping): one
-        # Gauss–Newton step on central differences, kept if it lowers the objective
-        iterations += 1
+
+    def _settled(self, dof: int) -> bool:
+        """With new weights: is a step still due? (the last linearisation, re-projected: no render)"""
+        prob = self.prob
+        Jt = prob.project_jacobian(self.Jraw, self.lp)
+        Ht = _dot(Jt * prob.w, Jt)
+        try:
+            dt = np.linalg.solve(Ht, _dot(Jt * prob.w, self.r))
+        except np.linalg.LinAlgError:
+            dt = np.full(6, np.inf)
+        if math.sqrt(max(float(dt @ Ht @ dt), 0.0) / max(self.cst / dof, 1e-300)) < self.o.step_sigma:
+            self.J = Jt
+            return True
+        return False
+
+    def _levenberg_marquardt(self, scale: float, dof: int) -> int:
+        """One round's iterations (the objective's weights change between rounds); the steps taken."""
+        o, prob = self.o, self.prob
+        lam, moved, this_round = 1e-3, 0, []
+        # a coarse scale only brings the pose into the fine scale's basin
+        rule = o.step_sigma if scale == 0 else max(o.step_sigma, 0.3)
+        for _ in range(o.max_iterations):
+            self.iterations += 1
+            self.Jraw = prob.smooth(self.forward(self.R, self.t)).reshape(6, -1) * self.g
+            J = self.J = prob.project_jacobian(self.Jraw, self.lp)
+            H = _dot(J * prob.w, J)
+            grad = _dot(J * prob.w, self.r)
+            D = np.diag(H).copy()
+            s2 = max(self.cst / dof, 1e-300)
+            # converged when the Gauss–Newton step from here is below the rule: stop before
+            # rendering a trial (a rejected cascade costs up to 8 renders), and the polishing
+            # step below reuses this linearisation
+            try:
+                dgn = np.linalg.solve(H, grad)
+                if math.sqrt(max(float(dgn @ H @ dgn), 0.0) / s2) < rule:
+                    break
+            except np.linalg.LinAlgError:
+                pass
+            accepted, lam, dx = self._damped_step(H, D, grad, lam)
+            moved += accepted
+            self.history.append((scale, self.cst, lam))
+            this_round.append((scale, self.cst, lam))
+            if not accepted:
+                self.message = f"no decrease at scale {scale:g} px"
+                break
+            if np.max(np.abs(dx) / self.steps) < o.tolerance or history_drop(this_round) < o.ftol * self.cst:
+                break
+        return moved
+
+    def _damped_step(self, H, D, grad, lam: float):
+        """A step that lowers the objective, the damping raised until one does (8 tries); taken
+        when found. Returns (taken, the damping, the step)."""
+        dx = None
+        for _ in range(8):
+            try:
+                dx = np.linalg.solve(H + lam * np.diag(D), grad)
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            Rn, tn = perturb(self.R, self.t, dx)
+            cn, rn, gn, bn, lpn = self.prob.cost(Rn, tn)
+            if cn < self.cst:
+                self.R, self.t, self.cst, self.r, self.g, self.b, self.lp = Rn, tn, cn, rn, gn, bn, lpn
+                return True, max(lam / 3, 1e-7), dx
+            lam *= 4
+        return False, lam, dx
+
+    def polish(self) -> None:
+        """LM on forward differences stops where J_fwdᵀ W r = 0, not at the objective's minimum
+        (0.1–0.23 σ RMS from it on ftrac_2005: intensity_depth_check.py stopping): one
+        Gauss–Newton step on central differences, kept if it lowers the objective."""
+        model, prob, R, t = self.model, self.prob, self.R, self.t
+        self.iterations += 1
         L0 = model.log_image(R, t)
-        if last.get("key") == (R.tobytes(), t.tobytes()):
-            Jc = model.central_from_forward(R, t, L0, last["J"])  # six renders, not twelve
+        if self.last.get("key") == (R.tobytes(), t.tobytes()):
+            Jc = model.central_from_forward(R, t, L0, self.last["J"])  # six renders, not twelve
         else:
             Jc = model._differences(R, t, "log", central=True, value=L0)[1]
-        J = prob.project_jacobian(prob.smooth(Jc).reshape(6, -1) * g, lp)
+        J = self.J = prob.project_jacobian(prob.smooth(Jc).reshape(6, -1) * self.g, self.lp)
         H = _dot(J * prob.w, J)
         try:
-            dx = np.linalg.solve(H, _dot(J * prob.w, r))
+            dx = np.linalg.solve(H, _dot(J * prob.w, self.r))
             Rn, tn = perturb(R, t, dx)
             cn, rn, gn, bn, lpn = prob.cost(Rn, tn)
-            if cn < cst:
-                R, t, cst, r, g, b, lp = Rn, tn, cn, rn, gn, bn, lpn
-            history.append((0.0, cst, 0.0))
+            if cn < self.cst:
+                self.R, self.t, self.cst, self.r, self.g, self.b, self.lp = Rn, tn, cn, rn, gn, bn, lpn
+            self.history.append((0.0, self.cst, 0.0))
         except np.linalg.LinAlgError:
             pass
-    # the image objective: full resolution, the weights of the last round (or, without a
-    # full-resolution stage, from the start); start and end on the same weights
-    full = prob if prob is not None and prob.scale == 0 else problem(0.0, bool(o.robust))
-    if full is not prob:
-        _, r, g, _, _ = full.cost(R0, t0)
-        full.set_weights(g, r)
-    cost_start = full.cost(R0, t0)[0]
-    c_end, r, g, b, lp = full.cost(R, t)
-    converged = True
-    if c_end > cost_start:
-        R, t, converged, message = R0.copy(), t0.copy(), False, "refinement did not lower the objective; start kept"
+
+    def result(self, R0, t0, roi) -> IntensityResult:
+        """The image objective at full resolution, the weights of the last round (or, without a
+        full-resolution stage, from the start), start and end on the same weights; the start
+        kept where the end is no lower."""
+        prob = self.prob
+        full = prob if prob is not None and prob.scale == 0 else self.problem(0.0, bool(self.o.robust))
+        if full is not prob:
+            _, r, g, _, _ = full.cost(R0, t0)
+            full.set_weights(g, r)
+        cost_start = full.cost(R0, t0)[0]
+        R, t, converged, message = self.R, self.t, True, self.message
         c_end, r, g, b, lp = full.cost(R, t)
-    # covariance: information of the pose with gain and background unknown (the weights the
-    # objective used, so that cost_end stays comparable)
-    if o.central_covariance or J is None or full is not prob or not converged:
-        L0, Jc = model.jacobian(R, t)
-        Jc = full.project_jacobian(full.smooth(Jc).reshape(6, -1) * g, lp)
-    else:
-        Jc = J  # already projected at (R, t)'s last linearisation
-    F = _dot(Jc * full.w, Jc)
-    try:
-        cov = np.linalg.inv((F + F.T) / 2)
-        if not imaging.noisy:
-            cov *= c_end / max(r.size - 6 - full.n_nuisance, 1)
-    except np.linalg.LinAlgError:
-        cov = None
-    rms = float(math.sqrt(np.mean(r * r)))
-    return IntensityResult(
-        R,
-        t,
-        cov,
-        converged,
-        cost_start,
-        c_end,
-        iterations,
-        float(g),
-        b,
-        roi,
-        rms,
-        message,
-        history,
-        full.n_nuisance,
-        mode,
-    )
+        if c_end > cost_start:
+            R, t, converged, message = R0.copy(), t0.copy(), False, "refinement did not lower the objective; start kept"
+            c_end, r, g, b, lp = full.cost(R, t)
+        cov = self._covariance(full, R, t, g, lp, r, c_end, converged)
+        rms = float(math.sqrt(np.mean(r * r)))
+        return IntensityResult(
+            R,
+            t,
+            cov,
+            converged,
+            cost_start,
+            c_end,
+            self.iterations,
+            float(g),
+            b,
+            roi,
+            rms,
+            message,
+            self.history,
+            full.n_nuisance,
+            self.mode,
+        )
+
+    def _covariance(self, full: _Problem, R, t, g, lp, r, c_end: float, converged: bool):
+        """Information of the pose with gain and background unknown (the weights the objective
+        used, so that cost_end stays comparable), inverted; None where singular."""
+        if self.o.central_covariance or self.J is None or full is not self.prob or not converged:
+            L0, Jc = self.model.jacobian(R, t)
+            Jc = full.project_jacobian(full.smooth(Jc).reshape(6, -1) * g, lp)
+        else:
+            Jc = self.J  # already projected at (R, t)'s last linearisation
+        F = _dot(Jc * full.w, Jc)
+        try:
+            cov = np.linalg.inv((F + F.T) / 2)
+            if not self.imaging.noisy:
+                cov *= c_end / max(r.size - 6 - full.n_nuisance, 1)
+        except np.linalg.LinAlgError:
+            cov = None
+        return cov
 
 
 def refine_track_result(

@@ -109,131 +109,183 @@ def parse_gcode(text: str, source: str | Path = "<program>") -> ParsedProgram:
     Raises :class:`InputError` (naming ``source`` and the line) on a word or code outside the subset.
     """
     out = ParsedProgram()
-    pos = [math.nan] * 4
-    motion, absolute, inverse, scale = None, True, False, 1.0
-    feed, rpm, spindle, tool, pending, clamped, feature = 0.0, 0.0, False, None, None, False, None
+    st = _Modal()
     for n, raw in enumerate(text.splitlines(), start=1):
         where = f"line {n}"
-        comments = re.findall(r"\(([^)]*)\)", raw)
-        code = re.sub(r"\([^)]*\)", " ", raw).split(";")[0].strip().upper()
-        for c in comments:
-            cu = c.strip().upper()
-            if cu.startswith("FEATURE "):
-                feature = c.strip().split()[1]
-            elif cu.startswith("END FEATURE"):
-                feature = None
-            _tool_diameters(c, out.tools)
-        if "(" in code or ")" in code:
-            raise InputError(source, where, f"balanced parentheses, got {raw.strip()!r}")
+        code = _code_of(raw, st, out, source, where)
         if not code or code == "%":
             continue
         rest = _WORD.sub(" ", code).strip()
         if rest:
             raise InputError(source, where, f"G-code words (letter and number), got {rest!r}")
         words = _WORD.findall(code)
-        axes: dict[str, float] = {}
-        ij: dict[str, float] = {}
-        m_codes = []
-        for letter, val in words:
-            if letter == "G":
-                g = val.lstrip("0") or "0"
-                g = g[:-2] if g.endswith(".0") else g
-                if g not in _G_OK:
-                    raise InputError(source, where, f"a G code this reader knows ({_known(_G_OK)}), got G{val}")
-                if g in ("0", "1", "2", "3"):
-                    motion = g
-                elif g == "20":
-                    scale = 25.4
-                elif g == "21":
-                    scale = 1.0
-                elif g in ("90", "91"):
-                    absolute = g == "90"
-                elif g in ("93", "94"):
-                    inverse = g == "93"
-            elif letter == "M":
-                m = val.lstrip("0") or "0"
-                if m not in _M_OK:
-                    raise InputError(source, where, f"an M code this reader knows ({_known(_M_OK)}), got M{val}")
-                m_codes.append(m)
-            elif letter in "XYZA":
-                axes[letter] = float(val)
-            elif letter in "IJ":
-                ij[letter] = float(val)
-            elif letter == "F":
-                feed = float(val)
-            elif letter == "S":
-                rpm = float(val)
-            elif letter == "T":
-                pending = int(float(val))
-            elif letter in "NOH":
-                continue
-            else:
-                raise InputError(source, where, f"a word this reader knows (G M X Y Z A I J F S T N O H), got {letter}")
-        for m in m_codes:
-            if m == "6":
-                if pending is None:
-                    raise InputError(source, where, "a T word before M6")
-                tool = pending
-                out.tool_changes.append(tool)
-            elif m == "3":
-                spindle = True
-            elif m == "5":
-                spindle = False
-            elif m == "10":
-                clamped = True
-            elif m == "11":
-                clamped = False
+        axes, ij, m_codes = _read_words(words, st, source, where)
+        _apply_m_codes(m_codes, st, out, source, where)
         if not axes:
             continue
-        if motion is None:
-            raise InputError(source, where, "a motion code (G0, G1, G2, G3) before the first axis word")
-        end = list(pos)
-        for i, ax in enumerate("XYZA"):
-            if ax in axes:
-                v = axes[ax] * (scale if ax != "A" else 1.0)
-                if absolute:
-                    end[i] = v
-                elif math.isnan(pos[i]):
-                    raise InputError(source, where, f"an absolute {ax} before incremental moves (G91)")
-                else:
-                    end[i] = pos[i] + v
-        kind = {"0": "rapid", "1": "feed", "2": "arc", "3": "arc"}[motion]
-        if kind != "rapid" and feed <= 0:
-            raise InputError(source, where, "a feed (F) before the first cutting move")
-        if inverse and kind != "rapid" and "F" not in dict(words):
-            raise InputError(source, where, "an F word on every cutting move in inverse-time mode (G93)")
-        centre = None
-        if kind == "arc":
-            if "I" not in ij and "J" not in ij:
-                raise InputError(source, where, "I and/or J on an arc")
-            centre = (pos[0] + ij.get("I", 0.0) * scale, pos[1] + ij.get("J", 0.0) * scale)
-            r0 = math.hypot(pos[0] - centre[0], pos[1] - centre[1])
-            r1 = math.hypot(end[0] - centre[0], end[1] - centre[1])
-            if abs(r0 - r1) > 1e-3 or abs(end[3] - pos[3]) > 0:
-                raise InputError(source, where, "an arc whose start and end lie on one circle, with A fixed")
-        if kind != "arc" and all((a == b) or (math.isnan(a) and math.isnan(b)) for a, b in zip(pos, end)):
+        mv = _move(n, axes, ij, "F" in dict(words), st, source, where)
+        if mv is None:
             continue
-        f = feed if inverse else feed * scale
-        mv = ParsedMove(
-            n,
-            kind,
-            tuple(pos),
-            tuple(end),
-            "inverse_time" if inverse else "per_minute",
-            f if kind != "rapid" else 0.0,
-            centre,
-            motion == "3",
-            tool,
-            rpm if spindle else 0.0,
-            feature,
-        )
-        if kind != "rapid" and (not spindle or tool is None):
+        if mv.kind != "rapid" and (not st.spindle or st.tool is None):
             out.faults.append(f"line {n}: a cutting move with the spindle stopped or no tool")
-        if clamped and abs(end[3] - pos[3]) > 0 and not math.isnan(pos[3]):
+        if st.clamped and abs(mv.end[3] - mv.start[3]) > 0 and not math.isnan(mv.start[3]):
             out.faults.append(f"line {n}: A moves while the A brake is on (M10)")
         out.moves.append(mv)
-        pos = end
+        st.pos = list(mv.end)
     return out
+
+
+@dataclass
+class _Modal:
+    """The reader's modal state between lines: the position, the motion and distance modes, the
+    feed mode and units, feed, speed, spindle, tool, brake and the feature being cut."""
+
+    pos: list[float] = field(default_factory=lambda: [math.nan] * 4)
+    motion: str | None = None
+    absolute: bool = True
+    inverse: bool = False
+    scale: float = 1.0
+    feed: float = 0.0
+    rpm: float = 0.0
+    spindle: bool = False
+    tool: int | None = None
+    pending: int | None = None
+    clamped: bool = False
+    feature: str | None = None
+
+
+def _code_of(raw: str, st: _Modal, out: ParsedProgram, source, where: str) -> str:
+    """A line's code, upper case, without its comments; the comments name the feature being cut
+    and the tools' diameters."""
+    comments = re.findall(r"\(([^)]*)\)", raw)
+    code = re.sub(r"\([^)]*\)", " ", raw).split(";")[0].strip().upper()
+    for c in comments:
+        cu = c.strip().upper()
+        if cu.startswith("FEATURE "):
+            st.feature = c.strip().split()[1]
+        elif cu.startswith("END FEATURE"):
+            st.feature = None
+        _tool_diameters(c, out.tools)
+    if "(" in code or ")" in code:
+        raise InputError(source, where, f"balanced parentheses, got {raw.strip()!r}")
+    return code
+
+
+def _g_code(val: str, st: _Modal, source, where: str) -> None:
+    g = val.lstrip("0") or "0"
+    g = g[:-2] if g.endswith(".0") else g
+    if g not in _G_OK:
+        raise InputError(source, where, f"a G code this reader knows ({_known(_G_OK)}), got G{val}")
+    if g in ("0", "1", "2", "3"):
+        st.motion = g
+    elif g == "20":
+        st.scale = 25.4
+    elif g == "21":
+        st.scale = 1.0
+    elif g in ("90", "91"):
+        st.absolute = g == "90"
+    elif g in ("93", "94"):
+        st.inverse = g == "93"
+
+
+def _read_words(words, st: _Modal, source, where: str) -> tuple[dict[str, float], dict[str, float], list[str]]:
+    """One line's words: the modal codes and values set on ``st``; the axis words, the arc
+    centre's I and J, and the M codes returned."""
+    axes: dict[str, float] = {}
+    ij: dict[str, float] = {}
+    m_codes = []
+    for letter, val in words:
+        if letter == "G":
+            _g_code(val, st, source, where)
+        elif letter == "M":
+            m = val.lstrip("0") or "0"
+            if m not in _M_OK:
+                raise InputError(source, where, f"an M code this reader knows ({_known(_M_OK)}), got M{val}")
+            m_codes.append(m)
+        elif letter in "XYZA":
+            axes[letter] = float(val)
+        elif letter in "IJ":
+            ij[letter] = float(val)
+        elif letter == "F":
+            st.feed = float(val)
+        elif letter == "S":
+            st.rpm = float(val)
+        elif letter == "T":
+            st.pending = int(float(val))
+        elif letter in "NOH":
+            continue
+        else:
+            raise InputError(source, where, f"a word this reader knows (G M X Y Z A I J F S T N O H), got {letter}")
+    return axes, ij, m_codes
+
+
+def _apply_m_codes(m_codes: list[str], st: _Modal, out: ParsedProgram, source, where: str) -> None:
+    for m in m_codes:
+        if m == "6":
+            if st.pending is None:
+                raise InputError(source, where, "a T word before M6")
+            st.tool = st.pending
+            out.tool_changes.append(st.tool)
+        elif m == "3":
+            st.spindle = True
+        elif m == "5":
+            st.spindle = False
+        elif m == "10":
+            st.clamped = True
+        elif m == "11":
+            st.clamped = False
+
+
+def _end_point(axes: dict[str, float], st: _Modal, source, where: str) -> list[float]:
+    """Where the axis words take the tool (absolute or incremental; inches converted)."""
+    end = list(st.pos)
+    for i, ax in enumerate("XYZA"):
+        if ax in axes:
+            v = axes[ax] * (st.scale if ax != "A" else 1.0)
+            if st.absolute:
+                end[i] = v
+            elif math.isnan(st.pos[i]):
+                raise InputError(source, where, f"an absolute {ax} before incremental moves (G91)")
+            else:
+                end[i] = st.pos[i] + v
+    return end
+
+
+def _move(n: int, axes, ij, has_f: bool, st: _Modal, source, where: str) -> ParsedMove | None:
+    """The move a line with axis words makes (None: it does not move)."""
+    if st.motion is None:
+        raise InputError(source, where, "a motion code (G0, G1, G2, G3) before the first axis word")
+    pos, end = st.pos, _end_point(axes, st, source, where)
+    kind = {"0": "rapid", "1": "feed", "2": "arc", "3": "arc"}[st.motion]
+    if kind != "rapid" and st.feed <= 0:
+        raise InputError(source, where, "a feed (F) before the first cutting move")
+    if st.inverse and kind != "rapid" and not has_f:
+        raise InputError(source, where, "an F word on every cutting move in inverse-time mode (G93)")
+    centre = None
+    if kind == "arc":
+        if "I" not in ij and "J" not in ij:
+            raise InputError(source, where, "I and/or J on an arc")
+        centre = (pos[0] + ij.get("I", 0.0) * st.scale, pos[1] + ij.get("J", 0.0) * st.scale)
+        r0 = math.hypot(pos[0] - centre[0], pos[1] - centre[1])
+        r1 = math.hypot(end[0] - centre[0], end[1] - centre[1])
+        if abs(r0 - r1) > 1e-3 or abs(end[3] - pos[3]) > 0:
+            raise InputError(source, where, "an arc whose start and end lie on one circle, with A fixed")
+    if kind != "arc" and all((a == b) or (math.isnan(a) and math.isnan(b)) for a, b in zip(pos, end)):
+        return None
+    f = st.feed if st.inverse else st.feed * st.scale
+    return ParsedMove(
+        n,
+        kind,
+        tuple(pos),
+        tuple(end),
+        "inverse_time" if st.inverse else "per_minute",
+        f if kind != "rapid" else 0.0,
+        centre,
+        st.motion == "3",
+        st.tool,
+        st.rpm if st.spindle else 0.0,
+        st.feature,
+    )
 
 
 def move_time(m: ParsedMove, machine: Machine) -> float:

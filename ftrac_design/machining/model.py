@@ -1,6 +1,6 @@
 """The stock, the reference cuts and the tools, as plain numbers (mm, radians, frame F).
 
-Reference cuts are the shapes the CAD removes (:mod:`ftrac_design.cad.plan` builds them):
+Reference cuts are the shapes the CAD removes (:mod:`ftrac_design.manufacture.plan` builds them):
 
 - :class:`EllipseCut` — a rectangle ``[-w/2, w/2] × [-floor_depth, top_height]`` swept along
   the seated ellipse in its surface-normal frame: ``u`` across the groove along

@@ -94,67 +94,83 @@ def emit(program: Program, post: str = DEFAULT_POST, header: list[str] | None = 
     if post not in POSTS:
         raise ValueError(f"unknown post {post!r}; expected one of {', '.join(POSTS)}")
     p = POSTS[post]
-    out: list[str] = []
-    n = [0]
-
-    def line(text: str) -> None:
-        if p.line_numbers and not text.startswith("("):
-            n[0] = n[0] % 99999 + 1  # five-digit sequence numbers, wrapping as Fanuc controls allow
-            text = f"N{n[0]} {text}"
-        out.append(text)
-
-    out.append("%")
+    w = _Writer(p)
+    w.out.append("%")
     if p.program_number is not None:
-        out.append(f"O{p.program_number} ({_clean(program.title, True)[:40]})")
+        w.out.append(f"O{p.program_number} ({_clean(program.title, True)[:40]})")
     for h in header or []:
-        out.append(f"({_clean(h, p.upper_comments)})")
-    line(p.preamble)
-    last = [None, None, None, None]  # last written value of each axis (text)
-    mode, feed, clamped = "G94", None, False
+        w.comment(h)
+    w.line(p.preamble)
     for b in program.blocks:
         if isinstance(b, Comment):
-            out.append(f"({_clean(b.text, p.upper_comments)})")
+            w.comment(b.text)
         elif isinstance(b, ToolChange):
-            t = f"{b.tool.number:02d}" if p.two_digit_tools else str(b.tool.number)
-            tl = b.tool
-            desc = (
-                f"T{tl.number}: {tl.diameter:g} mm flat end mill, {tl.rpm:g} rpm, feed {tl.feed:g} mm/min, "
-                f"plunge {tl.plunge_feed:g} mm/min"
-            )
-            out.append(f"({_clean(desc, p.upper_comments)})")
-            line(f"T{t} M6" if not p.two_digit_tools else f"T{t} M06")
-            line(f"G0 G43 H{t} Z{_num(program.safe_z)}")
-            last[2] = _num(program.safe_z)
+            w.tool_change(b.tool, program.safe_z)
         elif isinstance(b, Spindle):
-            line(f"S{b.rpm:.0f} M3" if b.rpm > 0 else "M5")
+            w.line(f"S{b.rpm:.0f} M3" if b.rpm > 0 else "M5")
         elif isinstance(b, Clamp):
-            if p.clamp is not None and b.on != clamped:
-                line(p.clamp[0] if b.on else p.clamp[1])
-            clamped = b.on
+            if p.clamp is not None and b.on != w.clamped:
+                w.line(p.clamp[0] if b.on else p.clamp[1])
+            w.clamped = b.on
         elif isinstance(b, Move):
-            words = []
-            new_mode = (
-                "G93" if b.feed_mode == "inverse_time" and b.kind != "rapid" else ("G94" if b.kind != "rapid" else mode)
-            )
-            if new_mode != mode:
-                words.append(new_mode)
-                mode, feed = new_mode, None
-            words.append({"rapid": "G0", "feed": "G1", "arc": "G3" if b.ccw else "G2"}[b.kind])
-            start = [float(v) if v is not None else 0.0 for v in last]
-            for i, ax in enumerate(AXES):
-                v = _num(b.end[i])
-                if v != last[i] or (b.kind == "arc" and i < 2):
-                    words.append(f"{ax}{v}")
-                    last[i] = v
-            if b.kind == "arc":
-                words.append(f"I{_num(b.centre[0] - start[0])} J{_num(b.centre[1] - start[1])}")
-            if b.kind != "rapid":
-                f = f"{b.f:.3f}" if mode == "G93" else f"{b.f:.1f}"
-                if mode == "G93" or f != feed:
-                    words.append(f"F{f}")
-                    feed = f
-            line(" ".join(words))
-    line("M5")
-    line(p.end)
-    out.append("%")
-    return "\n".join(out) + "\n"
+            w.move(b)
+    w.line("M5")
+    w.line(p.end)
+    w.out.append("%")
+    return "\n".join(w.out) + "\n"
+
+
+class _Writer:
+    """The program's lines as one post writes them, and the modal state they leave: the last
+    value written on each axis (as text), the feed mode and rate, the A-axis clamp."""
+
+    def __init__(self, post: Post):
+        self.p = post
+        self.out: list[str] = []
+        self.n = 0
+        self.last: list[str | None] = [None, None, None, None]
+        self.mode, self.feed, self.clamped = "G94", None, False
+
+    def line(self, text: str) -> None:
+        if self.p.line_numbers and not text.startswith("("):
+            self.n = self.n % 99999 + 1  # five-digit sequence numbers, wrapping as Fanuc controls allow
+            text = f"N{self.n} {text}"
+        self.out.append(text)
+
+    def comment(self, text: str) -> None:
+        self.out.append(f"({_clean(text, self.p.upper_comments)})")
+
+    def tool_change(self, tl, safe_z: float) -> None:
+        t = f"{tl.number:02d}" if self.p.two_digit_tools else str(tl.number)
+        self.comment(
+            f"T{tl.number}: {tl.diameter:g} mm flat end mill, {tl.rpm:g} rpm, feed {tl.feed:g} mm/min, "
+            f"plunge {tl.plunge_feed:g} mm/min"
+        )
+        self.line(f"T{t} M6" if not self.p.two_digit_tools else f"T{t} M06")
+        self.line(f"G0 G43 H{t} Z{_num(safe_z)}")
+        self.last[2] = _num(safe_z)
+
+    def move(self, b: Move) -> None:
+        words = []
+        if b.kind == "rapid":
+            new_mode = self.mode
+        else:
+            new_mode = "G93" if b.feed_mode == "inverse_time" else "G94"
+        if new_mode != self.mode:
+            words.append(new_mode)
+            self.mode, self.feed = new_mode, None
+        words.append({"rapid": "G0", "feed": "G1", "arc": "G3" if b.ccw else "G2"}[b.kind])
+        start = [float(v) if v is not None else 0.0 for v in self.last]
+        for i, ax in enumerate(AXES):
+            v = _num(b.end[i])
+            if v != self.last[i] or (b.kind == "arc" and i < 2):
+                words.append(f"{ax}{v}")
+                self.last[i] = v
+        if b.kind == "arc":
+            words.append(f"I{_num(b.centre[0] - start[0])} J{_num(b.centre[1] - start[1])}")
+        if b.kind != "rapid":
+            f = f"{b.f:.3f}" if self.mode == "G93" else f"{b.f:.1f}"
+            if self.mode == "G93" or f != self.feed:
+                words.append(f"F{f}")
+                self.feed = f
+        self.line(" ".join(words))

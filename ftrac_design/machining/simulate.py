@@ -484,7 +484,30 @@ def verify(
     sim = [stamp(grid, pl, k) for k in range(len(pl.run_names))]
     ref = [reference_layer(grid, c) for c in plan.cuts]
     per: dict[str, dict[str, float]] = {}
-    # overcut: machined surface points outside the reference cuts
+    over_max, gouges, examples = _overcut(grid, plan, sim, tolerance, per)
+    under_max = _undercut(grid, plan, pl, sim, ref, per)
+    bound = max((scallop(placement_step(dd, scallop_mm), dd) for dd in tools.values()), default=0.0)
+    return Verification(
+        grid_mm,
+        bound,
+        max(over_max, 0.0),
+        under_max,
+        gouges,
+        examples,
+        union_volume(grid, sim),
+        union_volume(grid, ref),
+        rapid_faults,
+        list(prog.faults),
+        per,
+        tolerance,
+        volume_tolerance,
+        time.perf_counter() - t0,
+    )
+
+
+def _overcut(grid: Grid, plan: CutPlan, sim: list, tolerance: float, per: dict) -> tuple[float, int, list[str]]:
+    """Machined surface points outside the reference cuts: the deepest (mm), how many go deeper
+    than ``tolerance`` (gouges) and up to five examples; each layer's deepest into ``per``."""
     over_max, gouges, examples = 0.0, 0, []
     for la in sim:
         k, r, _ = _endpoints(la)
@@ -503,7 +526,12 @@ def verify(
                 f"{la.name}: {d[q]:.4f} mm into the material beside {plan.cuts[near[q]].id} at "
                 f"A{math.degrees(th[q]):.3f} X{zz[q]:.4f} r{r[q]:.4f}"
             )
-    # undercut: reference surface points the program leaves in material
+    return over_max, gouges, examples
+
+
+def _undercut(grid: Grid, plan: CutPlan, pl: Placements, sim: list, ref: list, per: dict) -> float:
+    """Reference surface points the program leaves in material: the largest distance (mm) to the
+    machined surface, exact near the tool placements; each cut's into ``per``."""
     under_max = 0.0
     for la in ref:
         k, r, _ = _endpoints(la)
@@ -520,23 +548,7 @@ def verify(
         worst = float(np.max(np.where(open_, d, 0.0)))
         per.setdefault(la.name, {})["undercut_mm"] = worst
         under_max = max(under_max, worst)
-    bound = max((scallop(placement_step(dd, scallop_mm), dd) for dd in tools.values()), default=0.0)
-    return Verification(
-        grid_mm,
-        bound,
-        max(over_max, 0.0),
-        under_max,
-        gouges,
-        examples,
-        union_volume(grid, sim),
-        union_volume(grid, ref),
-        rapid_faults,
-        list(prog.faults),
-        per,
-        tolerance,
-        volume_tolerance,
-        time.perf_counter() - t0,
-    )
+    return under_max
 
 
 __all__ = [

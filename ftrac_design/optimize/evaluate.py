@@ -6,7 +6,7 @@ process pool, a Dask cluster) can run it and the result does not depend on where
 
 - **Schema**: a candidate the design schema refuses is *refused* (violation
   :data:`REFUSED_VIOLATION`, no rules, no score).
-- **Rules** (:func:`ftrac_design.cad.rules.check_design`, every rule of every profile asked
+- **Rules** (:func:`ftrac_design.manufacture.rules.check_design`, every rule of every profile asked
   for) as graded margins: ``(measured − limit) / scale`` for "at least" rules and
   ``(limit − measured) / scale`` for "at most" rules, scale = |limit| (the recommended
   value where the limit is 0, else 1 mm), so a wall 10 % short of its limit is −0.1
@@ -107,7 +107,7 @@ def min_ellipse_view_deg(features, settings: AnalysisSettings) -> float | None:
 
 
 def rule_margins(report) -> tuple[dict[str, float], float]:
-    """Normalised margins of a :class:`~ftrac_design.cad.rules.CheckReport` (keys
+    """Normalised margins of a :class:`~ftrac_design.manufacture.rules.CheckReport` (keys
     ``profile:rule``; positive = inside the limit) and the total violation (0 = feasible)."""
     margins: dict[str, float] = {}
     violation = 0.0
@@ -221,10 +221,10 @@ def evaluate_candidate(data: dict, settings: EvalSettings) -> dict:
     ``rotation_p95_deg``, worst values, ``condition_worst``, ``outer_diameter_mm``,
     ``length_mm``) and ``seconds``.
     """
-    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..errors import InputError
     from ..features import compute_features
+    from ..manufacture.rules import check_design
 
     t0 = time.perf_counter()
     out: dict = {

@@ -48,7 +48,7 @@ def local_pool(workers: int) -> ProcessPoolExecutor:
     ctx = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
     if ctx.get_start_method() == "forkserver":
         ctx.set_forkserver_preload(
-            ["ftrac_design.optimize.evaluate", "ftrac_design.cad.rules", "ftrac_design.analysis.poses"]
+            ["ftrac_design.optimize.evaluate", "ftrac_design.manufacture.rules", "ftrac_design.analysis.poses"]
         )
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
 

@@ -313,7 +313,51 @@ def run_search(
         raise InputError(None, None, f"one of {', '.join(OBJECTIVES)}, got {config.objective!r}", parameter="objective")
     if config.multi and len(objective_names(config.objective)) != 2:
         raise InputError(None, None, "two objectives", parameter="objective")
-    log_path = Path(log_path)
+    t_start = time.perf_counter()
+    log = _Log.open(Path(log_path), _log_header(space, settings, config), resume)
+    with contextlib.closing(log.out):
+        start = log.next_logged() or log.write(_start_entry(space, settings, config))
+        names = objective_names(config.objective)
+        x0 = space.start_unit()
+        opt = (
+            _Cma(x0, config, tuple(len(p.choices) if p.choices else 0 for p in space.parameters))
+            if not config.multi
+            else _Nsga2(x0, config)
+        )
+        bar = tqdm(
+            total=config.evaluations, unit="eval", desc="optimize", disable=None if progress else True, leave=False
+        )
+        run = _Generations(space, settings, config, executor, log, start["figures"], bar, stop_after)
+        try:
+            stopped = run.until_done(opt, on_generation)
+        finally:
+            bar.close()
+    best, front = run.best, []
+    feas = [e for e in run.entries if e["feasible"]]
+    if feas:
+        front = _front_of(feas, config)
+        if config.multi:  # the most accurate point of the front is the "best" design
+            best = min(front, key=lambda e: (e["objectives"][names[0]], e["index"]))
+    return SearchResult(
+        space,
+        config,
+        settings,
+        start,
+        run.entries,
+        best,
+        front,
+        time.perf_counter() - t_start,
+        log.counts["evaluated"],
+        log.counts["replayed"],
+        executor_name,
+        stopped,
+        run.history,
+        opt.popsize,
+    )
+
+
+def _log_header(space: SearchSpace, settings: EvalSettings, config: SearchConfig) -> dict:
+    """The log's first line: what makes two runs the same run."""
     header = {
         "kind": "run",
         "format": LOG_FORMAT,
@@ -323,178 +367,192 @@ def run_search(
         "config": config.header(),
         "settings": settings.to_dict(),
     }
-    header = json.loads(json.dumps(header))  # tuples → lists, as the log holds them
-    logged = _read_log(log_path) if resume else []
-    if resume and not logged:
-        raise InputError(log_path, None, "an evaluation log to resume (none found; run without --resume)")
-    if logged:
-        if logged[0] != header:
-            diff = next((k for k in header if logged[0].get(k) != header.get(k)), "header")
-            raise InputError(
-                log_path, diff, "a log of this same run (design, space, objective, seed and settings); it differs here"
-            )
-    elif log_path.exists() and log_path.stat().st_size:
-        raise InputError(log_path, None, "no earlier log (pass --resume to continue it, or remove it)")
-    t_start = time.perf_counter()
-    out = open(log_path, "a", encoding="utf-8")
-    if not logged:
-        out.write(json.dumps(header, allow_nan=False) + "\n")
-    pos = 1  # next logged line to replay
-    counts = {"evaluated": 0, "replayed": 0, "written": 0}
+    return json.loads(json.dumps(header))  # tuples → lists, as the log holds them
 
-    def write(entry: dict) -> None:
-        out.write(json.dumps(entry, allow_nan=False) + "\n")
-        out.flush()
-        counts["written"] += 1
 
-    # the start design: the reference of every ratio, scored even if it breaks a rule
-    if pos < len(logged):
-        start = logged[pos]
-        pos += 1
-        counts["replayed"] += 1
-    else:
-        start = {
-            "kind": "start",
-            "index": 0,
-            "seed": config.seed,
-            **evaluate_candidate(space.base, settings),
-            "parameters": {p.key: p.start for p in space.parameters},
-        }
-        if start["figures"] is None:
-            from ..design.loader import parse_design
-            from ..features import compute_features
-            from .evaluate import candidate_figures
+class _Log:
+    """The evaluation log: the lines an interrupted run left (replayed in order), and the file
+    each new evaluation is appended to."""
 
-            d = parse_design(space.base)
-            fig = candidate_figures(d, compute_features(d), settings)
-            if fig is None:
+    def __init__(self, path: Path, logged: list[dict], out):
+        self.path, self.logged, self.out = path, logged, out
+        self.pos = 1  # next logged line to replay
+        self.counts = {"evaluated": 0, "replayed": 0, "written": 0}
+
+    @classmethod
+    def open(cls, path: Path, header: dict, resume: bool) -> "_Log":
+        logged = _read_log(path) if resume else []
+        if resume and not logged:
+            raise InputError(path, None, "an evaluation log to resume (none found; run without --resume)")
+        if logged:
+            if logged[0] != header:
+                diff = next((k for k in header if logged[0].get(k) != header.get(k)), "header")
                 raise InputError(
-                    space.base.get("name"),
-                    None,
-                    "a start design that is not singular in its workspace and tracks from at least 20 of the images",
+                    path, diff, "a log of this same run (design, space, objective, seed and settings); it differs here"
                 )
-            fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))
-            start["figures"] = fig
-        write(start)
-    ref = start["figures"]
-    names = objective_names(config.objective)
-    start_obj = np.array(objective_values(config.objective, ref, ref))
-    worst = start_obj.copy()
-    x0 = space.start_unit()
-    opt = (
-        _Cma(x0, config, tuple(len(p.choices) if p.choices else 0 for p in space.parameters))
-        if not config.multi
-        else _Nsga2(x0, config)
-    )
-    entries: list[dict] = []
-    history: list[float] = []
-    best: dict | None = None
-    gen = 0
-    stopped = None
-    bar = tqdm(total=config.evaluations, unit="eval", desc="optimize", disable=None if progress else True, leave=False)
-    try:
-        while len(entries) < config.evaluations:
-            xs = opt.ask()
-            batch: list[dict | None] = [None] * len(xs)
-            futures = []
-            for j, x in enumerate(xs):
-                k = len(entries) + j + 1
-                data = space.candidate(x)
-                if pos < len(logged):
-                    e = logged[pos]
-                    if e.get("index") != k or e.get("x") != [float(v) for v in x]:
-                        raise InputError(
-                            log_path,
-                            f"line {pos + 1}",
-                            "the evaluation this run asks for next (the log belongs to another run "
-                            "or another version of the optimiser)",
-                        )
-                    batch[j] = e
-                    pos += 1
-                    counts["replayed"] += 1
-                else:
-                    futures.append((j, k, x, executor.submit(evaluate_candidate, data, settings)))
-            for j, k, x, fut in futures:  # in submission order, whoever finished first
-                res = fut.result()
-                e = {
-                    "kind": "candidate",
-                    "index": k,
-                    "generation": gen,
-                    "seed": config.seed,
-                    "x": [float(v) for v in x],
-                    "parameters": space.values(x),
-                    **res,
-                }
-                if e["feasible"]:
-                    e["objectives"] = dict(zip(names, objective_values(config.objective, e["figures"], ref)))
-                    e["objective_violation"] = objective_violation(config.objective, e["figures"], ref)
-                write(e)
-                batch[j] = e
-                counts["evaluated"] += 1
-                bar.update(1)
-                if stop_after is not None and counts["evaluated"] >= stop_after:
-                    raise _Interrupted(f"stopped after {stop_after} evaluations")
-            bar.update(len(xs) - len(futures))
-            # objective values, then what is told: W + violation for the infeasible
-            for e in batch:
-                if _ok(e):
-                    worst = np.maximum(worst, list(e["objectives"].values()))
-            f = np.array(
-                [
-                    list(e["objectives"].values())
-                    if _ok(e)
-                    else worst + e["violation"] + e.get("objective_violation", 0.0)
-                    for e in batch
-                ]
+        elif path.exists() and path.stat().st_size:
+            raise InputError(path, None, "no earlier log (pass --resume to continue it, or remove it)")
+        log = cls(path, logged, open(path, "a", encoding="utf-8"))
+        if not logged:
+            log.out.write(json.dumps(header, allow_nan=False) + "\n")
+        return log
+
+    def write(self, entry: dict) -> dict:
+        self.out.write(json.dumps(entry, allow_nan=False) + "\n")
+        self.out.flush()
+        self.counts["written"] += 1
+        return entry
+
+    def next_logged(self) -> dict | None:
+        """The next logged line to replay (None: none left)."""
+        if self.pos >= len(self.logged):
+            return None
+        e = self.logged[self.pos]
+        self.pos += 1
+        self.counts["replayed"] += 1
+        return e
+
+
+def _start_entry(space: SearchSpace, settings: EvalSettings, config: SearchConfig) -> dict:
+    """The start design: the reference of every ratio, scored even if it breaks a rule."""
+    start = {
+        "kind": "start",
+        "index": 0,
+        "seed": config.seed,
+        **evaluate_candidate(space.base, settings),
+        "parameters": {p.key: p.start for p in space.parameters},
+    }
+    if start["figures"] is None:
+        from ..design.loader import parse_design
+        from ..features import compute_features
+        from .evaluate import candidate_figures
+
+        d = parse_design(space.base)
+        fig = candidate_figures(d, compute_features(d), settings)
+        if fig is None:
+            raise InputError(
+                space.base.get("name"),
+                None,
+                "a start design that is not singular in its workspace and tracks from at least 20 of the images",
             )
-            g = np.array([[0.0 if _ok(e) else e["violation"] + e.get("objective_violation", 0.0)] for e in batch])
-            opt.tell(xs, f, g)
-            for e in batch:
-                entries.append(e)
-                if (
-                    _ok(e)
-                    and not config.multi
-                    and (best is None or e["objectives"][names[0]] < best["objectives"][names[0]])
-                ):
-                    best = e
-                history.append(best["objectives"][names[0]] if best else math.nan)
-            if best is not None:
-                bar.set_postfix_str(f"best {names[0]} {best['objectives'][names[0]]:.4f}")
-            gen += 1
+        fig.update(outer_diameter_mm=float(d.body.outer_diameter), length_mm=float(d.body.length))
+        start["figures"] = fig
+    return start
+
+
+class _Generations:
+    """The search's generations: each asked of the optimiser, evaluated (or replayed from the
+    log), told back, and the best so far kept."""
+
+    def __init__(self, space, settings, config: SearchConfig, executor, log: _Log, ref: dict, bar, stop_after):
+        self.space, self.settings, self.config, self.executor = space, settings, config, executor
+        self.log, self.ref, self.bar, self.stop_after = log, ref, bar, stop_after
+        self.names = objective_names(config.objective)
+        self.worst = np.array(objective_values(config.objective, ref, ref))
+        self.entries: list[dict] = []
+        self.history: list[float] = []
+        self.best: dict | None = None
+        self.gen = 0
+
+    def until_done(self, opt, on_generation) -> str | None:
+        """Generations until the evaluations are spent or the optimiser stops; why it stopped."""
+        stopped = None
+        while len(self.entries) < self.config.evaluations:
+            xs = opt.ask()
+            batch = self.evaluate(xs)
+            self.tell(opt, xs, batch)
+            self.keep(batch)
+            self.gen += 1
             if on_generation is not None:
-                on_generation(gen)
+                on_generation(self.gen)
             stopped = opt.stopped()
             if stopped:
                 break
-    finally:
-        bar.close()
-        out.close()
-    feas = [e for e in entries if e["feasible"]]
-    front: list[dict] = []
-    if feas:
-        if config.multi:
-            f = np.array([list(e["objectives"].values()) for e in feas])
-        else:  # the translation–rotation trade-off among everything feasible that was scored
-            f = np.array([[e["figures"]["translation_p95_mm"], e["figures"]["rotation_p95_deg"]] for e in feas])
-        front = sorted(
-            (e for e, m in zip(feas, _front_mask(f)) if m),
-            key=lambda e: list(e["objectives"].values())[1] if config.multi else e["figures"]["translation_p95_mm"],
+        return stopped
+
+    def evaluate(self, xs) -> list[dict]:
+        """One generation's entries, in order: replayed from the log, else evaluated on the executor."""
+        batch: list[dict | None] = [None] * len(xs)
+        futures = []
+        for j, x in enumerate(xs):
+            k = len(self.entries) + j + 1
+            data = self.space.candidate(x)
+            e = self.log.next_logged()
+            if e is not None:
+                if e.get("index") != k or e.get("x") != [float(v) for v in x]:
+                    raise InputError(
+                        self.log.path,
+                        f"line {self.log.pos}",
+                        "the evaluation this run asks for next (the log belongs to another run "
+                        "or another version of the optimiser)",
+                    )
+                batch[j] = e
+            else:
+                futures.append((j, k, x, self.executor.submit(evaluate_candidate, data, self.settings)))
+        for j, k, x, fut in futures:  # in submission order, whoever finished first
+            batch[j] = self.log.write(self.entry(k, x, fut.result()))
+            self.log.counts["evaluated"] += 1
+            self.bar.update(1)
+            if self.stop_after is not None and self.log.counts["evaluated"] >= self.stop_after:
+                raise _Interrupted(f"stopped after {self.stop_after} evaluations")
+        self.bar.update(len(xs) - len(futures))
+        return batch
+
+    def entry(self, k: int, x, res: dict) -> dict:
+        """A new evaluation's log entry, with its objectives where it is feasible."""
+        e = {
+            "kind": "candidate",
+            "index": k,
+            "generation": self.gen,
+            "seed": self.config.seed,
+            "x": [float(v) for v in x],
+            "parameters": self.space.values(x),
+            **res,
+        }
+        if e["feasible"]:
+            e["objectives"] = dict(zip(self.names, objective_values(self.config.objective, e["figures"], self.ref)))
+            e["objective_violation"] = objective_violation(self.config.objective, e["figures"], self.ref)
+        return e
+
+    def tell(self, opt, xs, batch: list[dict]) -> None:
+        """Objective values, then what is told: the worst so far plus the violation for the infeasible."""
+        for e in batch:
+            if _ok(e):
+                self.worst = np.maximum(self.worst, list(e["objectives"].values()))
+        f = np.array(
+            [
+                list(e["objectives"].values())
+                if _ok(e)
+                else self.worst + e["violation"] + e.get("objective_violation", 0.0)
+                for e in batch
+            ]
         )
-        if config.multi:  # the most accurate point of the front is the "best" design
-            best = min(front, key=lambda e: (e["objectives"][names[0]], e["index"]))
-    return SearchResult(
-        space,
-        config,
-        settings,
-        start,
-        entries,
-        best,
-        front,
-        time.perf_counter() - t_start,
-        counts["evaluated"],
-        counts["replayed"],
-        executor_name,
-        stopped,
-        history,
-        opt.popsize,
+        g = np.array([[0.0 if _ok(e) else e["violation"] + e.get("objective_violation", 0.0)] for e in batch])
+        opt.tell(xs, f, g)
+
+    def keep(self, batch: list[dict]) -> None:
+        first = self.names[0]
+        for e in batch:
+            self.entries.append(e)
+            if (
+                _ok(e)
+                and not self.config.multi
+                and (self.best is None or e["objectives"][first] < self.best["objectives"][first])
+            ):
+                self.best = e
+            self.history.append(self.best["objectives"][first] if self.best else math.nan)
+        if self.best is not None:
+            self.bar.set_postfix_str(f"best {first} {self.best['objectives'][first]:.4f}")
+
+
+def _front_of(feas: list[dict], config: SearchConfig) -> list[dict]:
+    """The non-dominated feasible entries: on the objectives, or for a single objective on the
+    translation–rotation trade-off among everything feasible that was scored."""
+    if config.multi:
+        f = np.array([list(e["objectives"].values()) for e in feas])
+    else:
+        f = np.array([[e["figures"]["translation_p95_mm"], e["figures"]["rotation_p95_deg"]] for e in feas])
+    return sorted(
+        (e for e, m in zip(feas, _front_mask(f)) if m),
+        key=lambda e: list(e["objectives"].values())[1] if config.multi else e["figures"]["translation_p95_mm"],
     )

@@ -8,7 +8,7 @@ import csv
 import io
 from dataclasses import replace
 
-from ..analysis.score import AnalysisSettings
+from ..analysis.score import FIGURE_COLUMNS, AnalysisSettings, figure_cells
 from .search import SearchResult
 
 
@@ -97,26 +97,9 @@ def _aligned(rows: list[tuple[str, ...]]) -> str:
 
 def _score_rows(named: list[tuple[str, object]]) -> str:
     """Start vs best as ``compare`` prints designs (predicted 1σ, 3-D RMS)."""
-    rows = [("design", "t p95 mm", "t worst", "depth p95", "r p95 °", "r worst", "cond med", "cond worst", "verdict")]
+    rows = [("design", *FIGURE_COLUMNS, "verdict")]
     for name, s in named:
-        f = s.figures
-
-        def g(v):
-            return "inf" if v is None else f"{v:.3f}"
-
-        rows.append(
-            (
-                name,
-                g(f["translation_mm"]["p95"]),
-                g(f["translation_mm"]["worst"]),
-                g(f["translation_p95_per_axis_mm"][2]),
-                g(f["rotation_deg"]["p95"]),
-                g(f["rotation_deg"]["worst"]),
-                "inf" if f["condition"]["median"] is None else f"{f['condition']['median']:.0f}",
-                "inf" if f["condition"]["worst"] is None else f"{f['condition']['worst']:.0f}",
-                "PASS" if s.passed else "FAIL",
-            )
-        )
+        rows.append((name, *figure_cells(s.figures), "PASS" if s.passed else "FAIL"))
     return _aligned(rows)
 
 
@@ -132,9 +115,9 @@ def comparison(
     """Start vs best side by side: score, rules of each profile, whole-sphere atlas."""
     from ..analysis.atlas import blind_spot_atlas
     from ..analysis.score import Thresholds, score_design
-    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..features import compute_features
+    from ..manufacture.rules import check_design
 
     designs = {"start": parse_design(start), "best": parse_design(best)}
     feats = {k: compute_features(d) for k, d in designs.items()}

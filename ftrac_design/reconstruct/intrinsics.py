@@ -244,34 +244,10 @@ def estimate(
     poses = solve_batch(features, obs, _tolerant(opts))
     solved = [i for i, p in enumerate(poses) if p.converged]
     N = len(solved)
-    k = len(params)
     intr = cam0.intrinsics.copy()
     R = np.array([poses[i].rotation for i in solved]).reshape(-1, 3, 3)
     t = np.array([poses[i].translation_mm for i in solved]).reshape(-1, 3)
-
-    R0, t0 = R.copy(), t.copy()
-
-    def refuse(why: str, std=None, cond=float("nan"), corr=None) -> IntrinsicsEstimate:
-        # the start (each image solved with the given camera) is what a refusal leaves the user
-        cov = np.array(
-            [poses[i].covariance if poses[i].covariance is not None else np.full((6, 6), np.nan) for i in solved]
-        ).reshape(-1, 6, 6)
-        return IntrinsicsEstimate(
-            False,
-            why,
-            tuple(params),
-            cam0,
-            cam0.intrinsics.copy(),
-            np.full(k, np.nan) if std is None else std,
-            R0,
-            t0,
-            cov,
-            condition=cond,
-            corr_tz=np.zeros((N, k)) if corr is None else corr,
-            solved=solved,
-            start=poses,
-        )
-
+    refuse = _Refusal(tuple(params), cam0, poses, solved, R.copy(), t.copy())
     if N < min_images:
         return refuse(
             f"{N} solved image{'s' if N != 1 else ''}: shared intrinsics need at least {min_images} "
@@ -284,101 +260,21 @@ def estimate(
         )
         for i in solved
     ]
-    h = parameter_scale(features)
-
-    def set_intr(q: np.ndarray) -> None:
-        for p in probs:
-            p.intr[:] = q
-
-    def evaluate_all(Rs, ts, W=None):
-        out = [residuals(p, Rs[i : i + 1], ts[i : i + 1], None if W is None else W[i]) for i, p in enumerate(probs)]
-        return out
-
-    def normal(ev):
-        n = 6 * N + k
-        A = np.zeros((n, n))
-        g = np.zeros(n)
-        cost = 0.0
-        for i, (rho, J, Kx, _) in enumerate(ev):
-            Ki = Kx[0] @ Bm
-            Ji = J[0] * h
-            s = slice(6 * i, 6 * i + 6)
-            A[s, s] = Ji.T @ Ji
-            A[s, 6 * N :] = Ji.T @ Ki
-            A[6 * N :, s] = A[s, 6 * N :].T
-            A[6 * N :, 6 * N :] += Ki.T @ Ki
-            g[s] = Ji.T @ rho[0]
-            g[6 * N :] += Ki.T @ rho[0]
-            cost += float(rho[0] @ rho[0])
-        return A, g, cost
-
-    Bm = basis(params, intr)
-    lam = 1e-6
-    it = 0
+    joint = _Joint(probs, parameter_scale(features), basis(params, intr), len(params))
     with np.errstate(all="ignore"):
-        ev = evaluate_all(R, t)
-        A, g, cost = normal(ev)
-        for it in range(1, max_iterations + 1):
-            D = np.sqrt(np.maximum(np.diag(A), 1e-300))
-            As = A / np.outer(D, D)
-            step = -np.linalg.solve(As + lam * np.eye(len(D)), g / D) / D
-            dpose = step[: 6 * N].reshape(N, 6) * h
-            Rn = so3.exp(dpose[:, :3]) @ R
-            tn = t + dpose[:, 3:]
-            qn = intr + Bm @ step[6 * N :]
-            set_intr(qn)
-            trial = evaluate_all(Rn, tn, [e[3] for e in ev])
-            tcost = sum(float(e[0][0] @ e[0][0]) for e in trial)
-            if np.isfinite(tcost) and tcost <= cost:
-                R, t, intr = Rn, tn, qn
-                ev = evaluate_all(R, t)
-                A, g, new = normal(ev)
-                done = abs(cost - new) <= 1e-10 * max(cost, 1.0) and np.abs(step[6 * N :]).max() < 1e-6
-                cost = new
-                lam = max(lam / 10, 1e-12)
-                if done:
-                    break
-            else:
-                set_intr(intr)
-                lam *= 10
-                if lam > 1e8:
-                    break
+        R, t, intr, ev, A, cost, it = joint.solve(R, t, intr, max_iterations)
     m = sum(e[0].shape[1] for e in ev)
-    D = np.sqrt(np.maximum(np.diag(A), 1e-300))
-    As = A / np.outer(D, D)
-    ew = np.linalg.eigvalsh(As)
-    cond = float(ew[-1] / ew[0]) if ew[0] > 0 else math.inf
+    As, D, cond = _scaled(A)
     if not cond < MAX_CONDITION:
         return refuse(
             f"the images do not determine {', '.join(params)} (scaled condition number {cond:.2g}: rank-deficient)",
             cond=cond,
         )
-    C = np.linalg.inv(As) / np.outer(D, D)
-    sd = np.sqrt(np.diag(C))
-    std = sd[6 * N :]
-    corr = np.array([[C[6 * i + 5, 6 * N + j] / (sd[6 * i + 5] * sd[6 * N + j]) for j in range(k)] for i in range(N)])
-    # rotation block back from the scaled units h
-    pose_cov = np.array([C[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] * np.outer(h, h) for i in range(N)])
-    kappa = math.sqrt(cost / max(m - 6 * N - k, 1))
-    if not kappa <= opts.max_noise_scale:
-        return refuse(
-            f"residuals stay {kappa:.3g} times the noise model with {', '.join(params)} estimated: "
-            f"other intrinsics (or distortion) are off, or the segmentation is worse than modelled",
-            std,
-            cond,
-            corr,
-        )
-    if not np.all(std < max_relative_std * intr[0]):
-        worst = int(np.argmax(std / intr[0]))
-        return refuse(
-            f"the images bound {params[worst]} only to ±{std[worst]:.3g} px "
-            f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * max_relative_std:g} %; correlation with "
-            f"depth {np.abs(corr[:, worst]).max():.3f}): add images from other directions or keep the "
-            f"nominal calibration",
-            std,
-            cond,
-            corr,
-        )
+    std, corr, pose_cov = joint.covariance(As, D)
+    kappa = math.sqrt(cost / max(m - 6 * N - joint.k, 1))
+    why = _unbound(params, kappa, opts.max_noise_scale, std, intr, corr, max_relative_std)
+    if why is not None:
+        return refuse(why, std, cond, corr)
     return IntrinsicsEstimate(
         True,
         None,
@@ -396,3 +292,149 @@ def estimate(
         solved,
         poses,
     )
+
+
+def _scaled(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """The normal matrix scaled to a unit diagonal, the scale, and its condition number."""
+    D = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    As = A / np.outer(D, D)
+    ew = np.linalg.eigvalsh(As)
+    return As, D, float(ew[-1] / ew[0]) if ew[0] > 0 else math.inf
+
+
+def _unbound(params, kappa: float, max_noise_scale: float, std, intr, corr, max_relative_std: float) -> str | None:
+    """Why the fitted intrinsics are not to be trusted: the residuals stay above the noise
+    model, or the data bound an intrinsic no better than ``max_relative_std`` of fx (None: both fine)."""
+    if not kappa <= max_noise_scale:
+        return (
+            f"residuals stay {kappa:.3g} times the noise model with {', '.join(params)} estimated: "
+            f"other intrinsics (or distortion) are off, or the segmentation is worse than modelled"
+        )
+    if not np.all(std < max_relative_std * intr[0]):
+        worst = int(np.argmax(std / intr[0]))
+        return (
+            f"the images bound {params[worst]} only to ±{std[worst]:.3g} px "
+            f"({100 * std[worst] / intr[0]:.2g} % of fx > {100 * max_relative_std:g} %; correlation with "
+            f"depth {np.abs(corr[:, worst]).max():.3f}): add images from other directions or keep the "
+            f"nominal calibration"
+        )
+    return None
+
+
+@dataclass(frozen=True)
+class _Refusal:
+    """A refused estimate: the start (each image solved with the given camera) is what it leaves the user."""
+
+    params: tuple[str, ...]
+    cam0: Camera
+    poses: list
+    solved: list[int]
+    R0: np.ndarray
+    t0: np.ndarray
+
+    def __call__(self, why: str, std=None, cond=float("nan"), corr=None) -> IntrinsicsEstimate:
+        poses, k, N = self.poses, len(self.params), len(self.solved)
+        cov = np.array(
+            [poses[i].covariance if poses[i].covariance is not None else np.full((6, 6), np.nan) for i in self.solved]
+        ).reshape(-1, 6, 6)
+        return IntrinsicsEstimate(
+            False,
+            why,
+            self.params,
+            self.cam0,
+            self.cam0.intrinsics.copy(),
+            np.full(k, np.nan) if std is None else std,
+            self.R0,
+            self.t0,
+            cov,
+            condition=cond,
+            corr_tz=np.zeros((N, k)) if corr is None else corr,
+            solved=self.solved,
+            start=poses,
+        )
+
+
+class _Joint:
+    """The N images' problems with one set of intrinsics: poses (6 per image, rotation in units
+    of ``h``) and the intrinsics' free parameters (the columns of ``Bm``) fitted together."""
+
+    def __init__(self, probs: list, h: np.ndarray, Bm: np.ndarray, k: int):
+        self.probs, self.h, self.Bm = probs, h, Bm
+        self.N, self.k = len(probs), k
+
+    def set_intr(self, q: np.ndarray) -> None:
+        for p in self.probs:
+            p.intr[:] = q
+
+    def evaluate_all(self, Rs, ts, W=None) -> list:
+        return [
+            residuals(p, Rs[i : i + 1], ts[i : i + 1], None if W is None else W[i]) for i, p in enumerate(self.probs)
+        ]
+
+    def normal(self, ev) -> tuple[np.ndarray, np.ndarray, float]:
+        """The normal matrix, the gradient and the cost of the residuals ``ev``."""
+        N, h = self.N, self.h
+        n = 6 * N + self.k
+        A = np.zeros((n, n))
+        g = np.zeros(n)
+        cost = 0.0
+        for i, (rho, J, Kx, _) in enumerate(ev):
+            Ki = Kx[0] @ self.Bm
+            Ji = J[0] * h
+            s = slice(6 * i, 6 * i + 6)
+            A[s, s] = Ji.T @ Ji
+            A[s, 6 * N :] = Ji.T @ Ki
+            A[6 * N :, s] = A[s, 6 * N :].T
+            A[6 * N :, 6 * N :] += Ki.T @ Ki
+            g[s] = Ji.T @ rho[0]
+            g[6 * N :] += Ki.T @ rho[0]
+            cost += float(rho[0] @ rho[0])
+        return A, g, cost
+
+    def solve(self, R, t, intr, max_iterations: int):
+        """Levenberg–Marquardt from (R, t, intr), the whitening refreshed at each accepted step;
+        returns the poses, intrinsics, residuals, normal matrix, cost and iterations."""
+        N, h = self.N, self.h
+        lam = 1e-6
+        it = 0
+        ev = self.evaluate_all(R, t)
+        A, g, cost = self.normal(ev)
+        for it in range(1, max_iterations + 1):
+            D = np.sqrt(np.maximum(np.diag(A), 1e-300))
+            As = A / np.outer(D, D)
+            step = -np.linalg.solve(As + lam * np.eye(len(D)), g / D) / D
+            dpose = step[: 6 * N].reshape(N, 6) * h
+            Rn = so3.exp(dpose[:, :3]) @ R
+            tn = t + dpose[:, 3:]
+            qn = intr + self.Bm @ step[6 * N :]
+            self.set_intr(qn)
+            trial = self.evaluate_all(Rn, tn, [e[3] for e in ev])
+            tcost = sum(float(e[0][0] @ e[0][0]) for e in trial)
+            if np.isfinite(tcost) and tcost <= cost:
+                R, t, intr = Rn, tn, qn
+                ev = self.evaluate_all(R, t)
+                A, g, new = self.normal(ev)
+                done = abs(cost - new) <= 1e-10 * max(cost, 1.0) and np.abs(step[6 * N :]).max() < 1e-6
+                cost = new
+                lam = max(lam / 10, 1e-12)
+                if done:
+                    break
+            else:
+                self.set_intr(intr)
+                lam *= 10
+                if lam > 1e8:
+                    break
+        return R, t, intr, ev, A, cost, it
+
+    def covariance(self, As: np.ndarray, D: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The intrinsics' σ, each image's depth correlation with them, and each pose's covariance."""
+        N, k, h = self.N, self.k, self.h
+        C = np.linalg.inv(As) / np.outer(D, D)
+        sd = np.sqrt(np.diag(C))
+        std = sd[6 * N :]
+        corr = np.array(
+            [[C[6 * i + 5, 6 * N + j] / (sd[6 * i + 5] * sd[6 * N + j]) for j in range(k)] for i in range(N)]
+        )
+        # rotation block back from the scaled units h
+        pose_cov = np.array([C[6 * i : 6 * i + 6, 6 * i : 6 * i + 6] * np.outer(h, h) for i in range(N)])
+        return std, corr, pose_cov

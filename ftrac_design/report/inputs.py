@@ -151,9 +151,9 @@ def collect(
     from) unless ``design`` is given; without one, only the design's own parts are shown.
     Raises :class:`InputError` for an unreadable build or analysis.
     """
-    from ..cad.rules import check_design
     from ..design.loader import parse_design
     from ..features import compute_features, load_features
+    from ..manufacture.rules import check_design
 
     manifest = render = None
     files: tuple[OutputFile, ...] = ()

@@ -10,5 +10,4 @@ combine (imports flow design → … → workflows → cli).
   resume, executor) and what it writes (winner verified, best design TOML, front, plots, build).
 - :mod:`.report` — ``ftrac-design report`` / ``build --report`` / ``analyze --report``: the HTML
   page, with the design's analysis run first when a build has none.
-- :mod:`.demo` — the steps of ``make demo``.
 """

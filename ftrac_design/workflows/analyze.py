@@ -9,7 +9,7 @@ atlas summary with the worst view directions and the features responsible, the
 segmentability block (image clearances between features over the workspace and the sphere,
 overlap shares per kind and pair, worst poses; :mod:`ftrac_design.analysis.segmentability`), with ``--imaging`` an
 ``imaging`` block (pixel-level vs feature-level predicted errors at a smaller pose sample;
-:mod:`ftrac_design.intensity.workspace`, computed by the caller), and the PNG files
+:mod:`ftrac_design.intensity.workspace`), and the PNG files
 written beside it. Lengths mm, angles degrees (keys say ``_deg``), errors are predicted 1σ.
 
 Two scores, clearly apart: ``image_score`` — the image-true score (:mod:`ftrac_design.imagescore`:
@@ -22,12 +22,13 @@ segmentation error), kept for its per-feature and per-direction insight and its 
 
 from __future__ import annotations
 
+import contextlib
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any
 
 from ..analysis.atlas import Atlas, blind_spot_atlas
 from ..analysis.score import AnalysisSettings, DesignScore, Thresholds, score_design
@@ -37,6 +38,7 @@ from ..features.model import Features
 from ..fileio import atomic_directory, check_output_dir, json_format_is, write_json_atomic
 from ..imagescore import TrialSettings, run_trial, trial_figures
 from ..imagescore.atlas import AtlasSettings, image_atlas, plot_image_atlas
+from ..xray.model import ImagingModel
 
 FORMAT = "ftrac-analysis"
 VERSION = 1
@@ -54,16 +56,6 @@ PAPER_MODEL = (
 )
 #: the segmentability sphere map's grid is no finer than this (~0.1 ms a direction)
 SEGMENTABILITY_ATLAS_STEP_DEG = 3.0
-
-
-class ImagingBlock(Protocol):
-    """What ``run_analysis`` needs of a pixel-level analysis (e.g.
-    :class:`ftrac_design.intensity.workspace.ImagingAnalysis`): its analysis.json block and
-    its picture."""
-
-    def to_dict(self) -> dict[str, Any]: ...
-
-    def plot(self, path: Path) -> Path: ...
 
 
 def analysis_document(
@@ -162,25 +154,61 @@ def image_score_block(trial: TrialSettings, records: list[dict], seconds: float)
     }
 
 
-def run_analysis(
-    subject: Subject,
-    settings: AnalysisSettings,
-    thresholds: Thresholds,
-    out_dir: Path | None,
-    atlas_step_deg: float = 2.0,
-    plots: bool = True,
-    progress: Callable[[int], None] | None = None,
-    imaging: Callable[[Callable[[int], None] | None], ImagingBlock] | None = None,
-    trial: TrialSettings | None = None,
-    executor: Executor | None = None,
-    image_atlas_settings: AtlasSettings | None = None,
-) -> tuple[dict, Path]:
-    """Score and map ``subject``, write analysis.json (+ PNGs) into ``out_dir`` atomically.
+@dataclass(frozen=True)
+class PixelBound:
+    """``analyze --imaging``: the pixel-level Cramér–Rao bound of the pose from rendered
+    radiographs beside the feature-level one, at its own sample of workspace poses."""
 
-    Parameters
+    model: ImagingModel
+    poses: int = 60
+
+    @classmethod
+    def from_options(
+        cls,
+        settings: AnalysisSettings,
+        poses: int = 60,
+        dose: float = 1.0e4,
+        energy_kev: float = 60.0,
+        detector_blur_px: float = 0.7,
+        focal_spot_mm: float = 0.6,
+    ) -> "PixelBound":
+        """From the command's ``--imaging-poses``, ``--dose``, ``--energy-kev``,
+        ``--detector-blur-px`` and ``--focal-spot-mm``; the image as large as the camera's
+        (twice its principal point).
+
+        Parameters
+        ----------
+        settings : AnalysisSettings
+            The analysis' settings (its camera).
+        poses, dose, energy_kev, detector_blur_px, focal_spot_mm
+            The options' values (dose: unattenuated quanta per pixel; keV; px; mm).
+
+        Returns
+        -------
+        PixelBound
+            The imaging model and the poses.
+        """
+        pp = settings.camera.principal_point_px
+        model = ImagingModel(
+            energy_kev=energy_kev,
+            image_shape=(round(2 * pp[1]), round(2 * pp[0])),
+            focal_spot_mm=focal_spot_mm,
+            detector_blur_px=detector_blur_px,
+            photons_per_px=dose,
+        )
+        return cls(model, poses)
+
+
+@dataclass(frozen=True)
+class AnalysisPlan:
+    """Everything an analysis does, resolved once (from the command line, the report, the demo):
+    the paper's model's settings and thresholds, where it writes, the atlas' grid, the image-true
+    score and atlas, and the pixel-level bound.
+
+    Attributes
     ----------
-    subject, settings, thresholds
-        What is analysed, and how (the paper's model's workspace, noise and thresholds).
+    settings, thresholds : AnalysisSettings, Thresholds
+        The workspace, noise, camera and sampling, and the pass/fail limits.
     out_dir : pathlib.Path or None
         Output directory (default :func:`default_output_dir`); replaced only if it holds an
         earlier analysis.
@@ -188,84 +216,170 @@ def run_analysis(
         Grid step of the whole-sphere atlas, degrees.
     plots : bool
         Write the PNGs.
+    scoring : ImageScoring
+        The image-true score's sample and atlas (each None: not computed) and its processes.
+    pixel_bound : PixelBound or None
+        The pixel-level bound (None: not computed).
+    """
+
+    settings: AnalysisSettings
+    thresholds: Thresholds
+    out_dir: Path | None = None
+    atlas_step_deg: float = 2.0
+    plots: bool = True
+    scoring: ImageScoring = field(default_factory=lambda: ImageScoring(None, None))
+    pixel_bound: PixelBound | None = None
+
+    def steps(self) -> int:
+        """How many poses, directions and images the analysis works through (for a progress bar)."""
+        n = self.settings.poses + atlas_directions(self.atlas_step_deg, self.settings.workspace.cone_deg)
+        if self.pixel_bound is not None:
+            n += self.pixel_bound.poses
+        return n + self.scoring.images()
+
+    def trial(self) -> TrialSettings | None:
+        """The image-true score's sample in this analysis' workspace and camera (None: none)."""
+        if self.scoring.trial is None:
+            return None
+        return replace(self.scoring.trial, workspace=self.settings.workspace, camera=self.settings.camera)
+
+    def image_atlas(self) -> AtlasSettings | None:
+        """The image-true atlas' grid at this analysis' depth and camera (None: none)."""
+        if self.scoring.atlas is None:
+            return None
+        return replace(self.scoring.atlas, depth_mm=self.settings.workspace.depth_mm, camera=self.settings.camera)
+
+
+def run_analysis(
+    subject: Subject,
+    plan: AnalysisPlan,
+    progress: Callable[[int], None] | None = None,
+    executor: Executor | None = None,
+) -> tuple[dict, Path]:
+    """Score and map ``subject`` as ``plan`` says, write analysis.json (+ PNGs) atomically.
+
+    Parameters
+    ----------
+    subject : Subject
+        What is analysed.
+    plan : AnalysisPlan
+        What the analysis does.
     progress : callable or None
-        Called with the number of poses, directions or images done.
-    imaging : callable or None
-        A function of the progress callback returning a pixel-level analysis to put beside the
-        feature-level one (the ``imaging`` block and imaging.png), such as
-        :func:`ftrac_design.intensity.workspace.imaging_analysis` with its arguments bound.
-    trial : TrialSettings or None
-        The image-true score's sample (None: not computed); its workspace and camera are those
-        of ``settings``.
+        Called with the number of poses, directions or images done (:meth:`AnalysisPlan.steps`
+        in all).
     executor : concurrent.futures.Executor or None
-        Where the trial's and the image atlas' images are rendered and tracked (None: here).
-    image_atlas_settings : AtlasSettings or None
-        The image-true blind-spot atlas' grid (None: not computed); depth and camera from
-        ``settings``.
+        Where the image-true score's and atlas' images are rendered and tracked; None: the
+        plan's workers (:func:`ftrac_design.optimize.execution.open_executor`; none with 0
+        workers, the images then rendered here).
 
     Returns
     -------
     (dict, pathlib.Path)
         The analysis.json object and the directory written.
     """
-    out_dir = Path(out_dir) if out_dir is not None else default_output_dir(subject.features)
+    out_dir = Path(plan.out_dir) if plan.out_dir is not None else default_output_dir(subject.features)
     _check_output_dir(out_dir)
-    t0 = time.perf_counter()
-    records = None
-    body = subject_body(subject) if trial is not None or image_atlas_settings is not None else None
-    if trial is not None:
-        trial = replace(trial, workspace=settings.workspace, camera=settings.camera)
-        records = run_trial(subject.features, body, trial, executor, progress)
-        trial_seconds = time.perf_counter() - t0
-    img_atlas = None
-    if image_atlas_settings is not None:
-        image_atlas_settings = replace(
-            image_atlas_settings, depth_mm=settings.workspace.depth_mm, camera=settings.camera
+    with contextlib.ExitStack() as stack:
+        if executor is None and plan.scoring.any and plan.scoring.workers != 0:
+            from ..optimize.execution import open_executor
+
+            executor, _ = stack.enter_context(open_executor(None, plan.scoring.workers))
+        results = _analyse(subject, plan, progress, executor)
+    with atomic_directory(out_dir) as tmp:
+        files = _plot(subject, plan, results, tmp) if plan.plots else []
+        doc = analysis_document(subject, results.score, results.atlas, results.seconds, files, results.seg_atlas)
+        doc["paper_model"] = PAPER_MODEL
+        doc["image_score"] = (
+            image_score_block(plan.trial(), results.records, results.trial_seconds)
+            if results.records is not None
+            else None
         )
-        img_atlas = image_atlas(subject.features, body, image_atlas_settings, executor, progress)
-    score = score_design(subject.features, settings, thresholds, progress=progress)
-    atlas = blind_spot_atlas(subject.features, settings, step_deg=atlas_step_deg, progress=progress)
+        doc["image_atlas"] = results.image_atlas
+        if results.pixel is not None:
+            doc["imaging"] = results.pixel.to_dict()
+        write_json_atomic(tmp / "analysis.json", doc)
+    return doc, out_dir
+
+
+@dataclass
+class _Results:
+    """What an analysis computed, before anything is written."""
+
+    score: DesignScore
+    atlas: Atlas
+    seg_atlas: SegmentabilityAtlas
+    seconds: float
+    records: list[dict] | None = None
+    trial_seconds: float = 0.0
+    image_atlas: dict | None = None
+    pixel: Any = None
+
+
+def _analyse(
+    subject: Subject, plan: AnalysisPlan, progress: Callable[[int], None] | None, executor: Executor | None
+) -> _Results:
+    """Every figure of the analysis, in a fixed order (the image-true score first)."""
+    settings, f = plan.settings, subject.features
+    t0 = time.perf_counter()
+    trial, atlas_settings = plan.trial(), plan.image_atlas()
+    body = subject_body(subject) if trial is not None or atlas_settings is not None else None
+    records, trial_seconds = None, 0.0
+    if trial is not None:
+        records = run_trial(f, body, trial, executor, progress)
+        trial_seconds = time.perf_counter() - t0
+    img_atlas = image_atlas(f, body, atlas_settings, executor, progress) if atlas_settings is not None else None
+    score = score_design(f, settings, plan.thresholds, progress=progress)
+    atlas = blind_spot_atlas(f, settings, step_deg=plan.atlas_step_deg, progress=progress)
     seg_atlas = segmentability_atlas(
-        subject.features,
+        f,
         settings.camera,
         settings.workspace.depth_mm,
         settings.workspace.cone_deg,
-        max(atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
+        max(plan.atlas_step_deg, SEGMENTABILITY_ATLAS_STEP_DEG),
         settings.clearance,
     )
-    ia = None
-    if imaging is not None:
-        ia = imaging(progress)
+    pixel = None
+    if plan.pixel_bound is not None:
+        from ..intensity.workspace import imaging_analysis
+
+        b = plan.pixel_bound
+        pixel = imaging_analysis(
+            f,
+            settings.workspace,
+            b.model,
+            b.poses,
+            settings.seed,
+            settings.camera,
+            settings.segmentation_error_mm,
+            settings.contour,
+            progress=progress,
+        )
     seconds = time.perf_counter() - t0
-    with atomic_directory(out_dir) as tmp:
-        files = []
-        if plots:
-            from ..analysis.plots import plot_atlas_cone, plot_atlas_sphere, plot_score, plot_segmentability
+    return _Results(score, atlas, seg_atlas, seconds, records, trial_seconds, img_atlas, pixel)
 
-            plot_score(score, tmp / PLOTS["score"])
-            plot_atlas_sphere(atlas, tmp / PLOTS["sphere"])
-            plot_atlas_cone(atlas, tmp / PLOTS["cone"])
-            plot_segmentability(score.segmentability, seg_atlas, tmp / PLOTS["segmentability"], thresholds)
-            files = list(PLOTS.values())
-            if ia is not None:
-                ia.plot(tmp / "imaging.png")
-                files.append("imaging.png")
-            if records is not None:
-                from ..imagescore.plots import plot_image_score
 
-                plot_image_score(records, tmp / IMAGE_SCORE_PLOT, f"{subject.features.name}: image-true score")
-                files.append(IMAGE_SCORE_PLOT)
-            if img_atlas is not None:
-                plot_image_atlas(img_atlas, tmp / IMAGE_ATLAS_PLOT, f"{subject.features.name}: image-true atlas")
-                files.append(IMAGE_ATLAS_PLOT)
-        doc = analysis_document(subject, score, atlas, seconds, files, seg_atlas)
-        doc["paper_model"] = PAPER_MODEL
-        doc["image_score"] = image_score_block(trial, records, trial_seconds) if records is not None else None
-        doc["image_atlas"] = img_atlas
-        if ia is not None:
-            doc["imaging"] = ia.to_dict()
-        write_json_atomic(tmp / "analysis.json", doc)
-    return doc, out_dir
+def _plot(subject: Subject, plan: AnalysisPlan, r: _Results, tmp: Path) -> list[str]:
+    """Draw the analysis' pictures into ``tmp``; their file names."""
+    from ..analysis.plots import plot_atlas_cone, plot_atlas_sphere, plot_score, plot_segmentability
+
+    name = subject.features.name
+    plot_score(r.score, tmp / PLOTS["score"])
+    plot_atlas_sphere(r.atlas, tmp / PLOTS["sphere"])
+    plot_atlas_cone(r.atlas, tmp / PLOTS["cone"])
+    plot_segmentability(r.score.segmentability, r.seg_atlas, tmp / PLOTS["segmentability"], plan.thresholds)
+    files = list(PLOTS.values())
+    if r.pixel is not None:
+        r.pixel.plot(tmp / "imaging.png")
+        files.append("imaging.png")
+    if r.records is not None:
+        from ..imagescore.plots import plot_image_score
+
+        plot_image_score(r.records, tmp / IMAGE_SCORE_PLOT, f"{name}: image-true score")
+        files.append(IMAGE_SCORE_PLOT)
+    if r.image_atlas is not None:
+        plot_image_atlas(r.image_atlas, tmp / IMAGE_ATLAS_PLOT, f"{name}: image-true atlas")
+        files.append(IMAGE_ATLAS_PLOT)
+    return files
 
 
 def atlas_directions(step_deg: float, cone_deg: float) -> int:
@@ -279,10 +393,20 @@ def _fmt(v) -> str:
     return "inf" if v is None else f"{v:.3g}"
 
 
-def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> str:
+def format_summary(doc: dict) -> str:
     """The score, groups, features and worst directions of an analysis.json object as a few
-    readable lines; ``imaging`` formats its ``imaging`` block where there is one (e.g.
-    :func:`ftrac_design.intensity.workspace.format_imaging`)."""
+    readable lines (its ``imaging`` block too, where it has one).
+
+    Parameters
+    ----------
+    doc : dict
+        An analysis.json object.
+
+    Returns
+    -------
+    str
+        The summary.
+    """
     lines: list[str] = []
     echo = lines.append
     f = doc["figures"]
@@ -325,8 +449,10 @@ def format_summary(doc: dict, imaging: Callable[[dict], str] | None = None) -> s
     sg = doc.get("segmentability")
     if sg:
         echo(format_segmentability(sg))
-    if doc.get("imaging") and imaging is not None:
-        echo(imaging(doc["imaging"]))
+    if doc.get("imaging"):
+        from ..intensity.workspace import format_imaging
+
+        echo(format_imaging(doc["imaging"]))
     at = doc.get("atlas")
     if at:
         echo(f"  atlas: {at['directions']} directions; worst view directions:")

@@ -1,5 +1,6 @@
-"""``ftrac-design compare``'s image-true part: every design's trial on the same sample (common random
-numbers) and each design's paired p95 ratios against the first, with their intervals."""
+"""``ftrac-design compare``: every design's image-true trial on the same sample (common random
+numbers) and each design's paired p95 ratios against the first, with their intervals; the
+paper's model's figures side by side; ``compare.json``."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Executor
 from typing import Any
 
+from ..analysis.score import FIGURE_COLUMNS, figure_cells
 from ..analysis.subject import Subject
 from ..imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
 from .analyze import subject_body
@@ -93,3 +95,85 @@ def image_table(scores: Sequence[dict[str, Any]], trial: TrialSettings) -> list[
             for r in rows
         ]
     return lines
+
+
+#: the paper's model's table: column headings
+MODEL_COLUMNS = ("design", *FIGURE_COLUMNS, "overlap", "clear p5 px", "verdict")
+
+
+def _model_row(s) -> tuple[str, ...]:
+    seg = s.segmentability
+    clear = "inf" if seg.clearance_p5_px is None else f"{seg.clearance_p5_px:.3f}"
+    return (
+        s.name,
+        *figure_cells(s.figures),
+        f"{100 * seg.overlap_share:.1f} %",
+        clear,
+        "PASS" if s.passed else "FAIL",
+    )
+
+
+def model_table(scores: Sequence[Any], base) -> list[str]:
+    """The paper's model's figures of each design, one line each under a line on the workspace.
+
+    Parameters
+    ----------
+    scores : sequence of DesignScore
+        Each design's score (:func:`ftrac_design.analysis.score.score_design`).
+    base : AnalysisSettings
+        The workspace and noise they share.
+
+    Returns
+    -------
+    list of str
+        The lines.
+    """
+    rows = [MODEL_COLUMNS, *(_model_row(s) for s in scores)]
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    ws = base.workspace
+    head = (
+        f"{base.poses} poses within {ws.cone_deg:g}° of each nominal beam, depth {ws.depth_mm:g} ± "
+        f"{ws.depth_range_mm:g} mm, {base.noise_text} (predicted 1σ, 3-D RMS)"
+        + "".join(
+            f"; {s.name}: beads ×{s.settings.bead_error_factor:.3g}, wires ×{s.settings.wire_error_factor:.3g}"
+            for s in scores
+            if s.settings.error_factors != (1.0, 1.0)
+        )
+    )
+    body = ["  ".join(c.ljust(w) if i == 0 else c.rjust(w) for i, (c, w) in enumerate(zip(r, widths))) for r in rows]
+    return [head, *body]
+
+
+def compare_document(scores: Sequence[Any], base, images: Sequence[dict[str, Any]] | None = None) -> dict[str, Any]:
+    """``compare.json``: the shared settings and, per design, its figures, thresholds, verdict,
+    segmentability and image-true score (None without one).
+
+    Parameters
+    ----------
+    scores : sequence of DesignScore
+        Each design's score.
+    base : AnalysisSettings
+        The workspace and noise they share.
+    images : sequence of dict or None
+        :func:`image_scores`' result, in the same order.
+
+    Returns
+    -------
+    dict
+        The document (format ``ftrac-compare``, version 1).
+    """
+    table = []
+    for s, im in zip(scores, images or [None] * len(scores)):
+        d = s.to_dict()
+        seg = {k: d["segmentability"][k] for k in ("overlap_share", "clearance_px", "kinds")}
+        table.append(
+            {
+                "design": s.name,
+                "figures": s.figures,
+                "thresholds": d["thresholds"],
+                "passed": s.passed,
+                "segmentability": seg,
+                "image_score": im,
+            }
+        )
+    return {"format": "ftrac-compare", "version": 1, "settings": base.to_dict(), "designs": table}

@@ -19,7 +19,7 @@ from ..fileio import atomic_directory, check_output_dir, json_format_is
 from ..optimize.execution import open_executor
 from ..optimize.search import Objective, SearchConfig, require_search_packages, run_search
 from ..optimize.setup import prepare
-from .optimize_outputs import FORMAT, write_outputs
+from .optimize_outputs import FORMAT, WinnerChecks, write_outputs
 
 VERIFY_POSES = 20_000
 SOLVER_IMAGES = 1000
@@ -80,15 +80,16 @@ def optimize(
         popsize=popsize or space.search.get("popsize"),
     )
     require_search_packages(config)
-    work = work_dir(out_dir)
-    log = work / "evaluations.jsonl"
-    if resume and not log.exists():
-        raise InputError(log, None, "an interrupted run's log (none found)", parameter="resume")
-    if not resume and work.exists():
-        raise InputError(work, None, "no interrupted run here: resume it, or remove it", parameter="resume")
-    work.mkdir(parents=True, exist_ok=True)
+    log = _log_of(out_dir, resume)
     command_line = command_line or (
         f"ftrac-design optimize {design_path} --objective {objective} --evaluations {evaluations} --seed {seed}"
+    )
+    checks = WinnerChecks(
+        verify_poses or space.search.get("verify_poses", VERIFY_POSES),
+        SOLVER_IMAGES if solver_images is None else solver_images,
+        build,
+        profiles[0],
+        space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
     )
     try:
         with contextlib.ExitStack() as stack:
@@ -98,24 +99,25 @@ def optimize(
                 ex, name = stack.enter_context(open_executor(scheduler, workers))
             res = run_search(space, settings, config, ex, log, resume, progress, name, stop_after=stop_after)
             with atomic_directory(out_dir) as tmp:
-                doc = write_outputs(
-                    res,
-                    tmp,
-                    log,
-                    command_line,
-                    verify_poses or space.search.get("verify_poses", VERIFY_POSES),
-                    SOLVER_IMAGES if solver_images is None else solver_images,
-                    build,
-                    profiles[0],
-                    space.search.get("check_images", CHECK_IMAGES) if check_images is None else check_images,
-                    progress,
-                    ex,
-                )
+                doc = write_outputs(res, tmp, log, command_line, checks, progress, ex)
     except BaseException:
         if not log.exists() or not log.stat().st_size:  # nothing to resume: leave nothing behind
-            shutil.rmtree(work, ignore_errors=True)
+            shutil.rmtree(log.parent, ignore_errors=True)
         raise
-    shutil.rmtree(work, ignore_errors=True)
+    shutil.rmtree(log.parent, ignore_errors=True)
     if doc.get("best") is None:
         raise GoalError(f"no feasible candidate in {len(res.entries)} evaluations; outputs in {out_dir}")
     return doc
+
+
+def _log_of(out_dir: Path, resume: bool) -> Path:
+    """The run's evaluation log in its work directory (made here), after checking that resuming,
+    or not, matches what is there."""
+    work = work_dir(out_dir)
+    log = work / "evaluations.jsonl"
+    if resume and not log.exists():
+        raise InputError(log, None, "an interrupted run's log (none found)", parameter="resume")
+    if not resume and work.exists():
+        raise InputError(work, None, "no interrupted run here: resume it, or remove it", parameter="resume")
+    work.mkdir(parents=True, exist_ok=True)
+    return log

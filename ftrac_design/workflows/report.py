@@ -80,26 +80,10 @@ def _analyse(
     from ..design.loader import parse_design
     from ..features import load_features
     from ..report.inputs import read_manifest
-    from .analyze import run_analysis
+    from .analyze import AnalysisPlan, run_analysis
 
     if design is None:
         design = parse_design(read_manifest(build_dir)["design"].get("parameters"), build_dir / "manifest.json")
     subject = Subject(load_features(build_dir / "features.json"), design.analysis, build_dir / "features.json", design)
     settings, thresholds = settings_for(subject, poses=poses)
-    if not scoring.any:
-        run_analysis(subject, settings, thresholds, out_dir, atlas_step_deg, True)
-        return
-    from ..optimize.execution import open_executor
-
-    with open_executor(None, scoring.workers) as (executor, _):
-        run_analysis(
-            subject,
-            settings,
-            thresholds,
-            out_dir,
-            atlas_step_deg,
-            True,
-            trial=scoring.trial,
-            executor=executor,
-            image_atlas_settings=scoring.atlas,
-        )
+    run_analysis(subject, AnalysisPlan(settings, thresholds, out_dir, atlas_step_deg, True, scoring))

@@ -3,7 +3,7 @@
 A :class:`Dim` is one printed value: its key (unique on its sheet), value, unit, printed
 precision, ± tolerance and whether it is fit-critical. The values come from the same
 sources the CAD is built from — the seated features (:mod:`ftrac_design.features`), the body
-plan (:mod:`ftrac_design.cad.plan`), the mount and connector layouts with the profile's cut
+plan (:mod:`ftrac_design.manufacture.plan`), the mount and connector layouts with the profile's cut
 sizes (:class:`~ftrac_design.cad.mount.MountPart`, :class:`~ftrac_design.cad.connector.
 ConnectorPart`) — so a drawing cannot say something the solid does not.
 
@@ -51,6 +51,7 @@ class Dim:
 
     @property
     def decimals(self) -> int:
+        """Decimals printed, by the unit (degrees or mm)."""
         return DEG_DECIMALS if self.unit == "deg" else MM_DECIMALS
 
     def text(self) -> str:

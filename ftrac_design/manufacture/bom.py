@@ -92,19 +92,60 @@ def _block(size: list[float], profile: Profile) -> list[float]:
 
 
 def bill_of_materials(design: Design, features: Features, profile: Profile = "cnc") -> dict[str, Any]:
-    """The bill of materials as plain JSON (lengths mm)."""
+    """The bill of materials as plain JSON (lengths mm).
+
+    Parameters
+    ----------
+    design, features : Design, Features
+        The design and its features.
+    profile : {"cnc", "fdm"}
+        Machined from stock, or printed.
+
+    Returns
+    -------
+    dict
+        ``profile``, ``stock`` (body, mount, connector), ``wires`` (the pieces to cut; None
+        without a wire), ``beads`` (None without beads), ``screws`` and ``dowel_pins``.
+    """
     mount = mount_layout(design)
     con = connector_layout(design, mount)
-    m, c = design.mount, design.connector
-    allowance = design.manufacturing.wire_cut_allowance
+    beads = None
+    if features.points:
+        beads = {
+            "count": len(features.points),
+            "diameter": design.bead.diameter if design.bead else None,
+            "material": design.bead.material if design.bead else None,
+        }
+    c = design.connector
+    pins = [
+        {
+            "item": f"ISO 2338 {c.pin_diameter:g} m6 x {c.pin_length:g}",
+            "qty": len(con.pins),
+            "use": "connector to the template's grid holes",
+            "grid_nodes": [list(p.node) for p in con.pins],
+            "engagement": c.pin_engagement,
+        }
+    ]
+    return {
+        "profile": profile,
+        "stock": _stock(design, mount, con, profile),
+        "wires": _wires(design, features),
+        "beads": beads,
+        "screws": _screws(design, mount),
+        "dowel_pins": pins,
+    }
 
+
+def _stock(design: Design, mount, con, profile: Profile) -> list[dict[str, Any]]:
+    """The material each part is made from: rod and blocks to machine, or printed parts."""
+    m, c = design.mount, design.connector
     od, L = design.body.outer_diameter, design.body.length
     if profile == "cnc":
         rod = next((d for d in ROD_DIAMETERS if d >= od + 2.0 - 1e-9), math.ceil(od + 2.0))
         body_stock = {"form": "round rod", "diameter": float(rod), "length": L + 2.0 + CHUCK_ALLOWANCE}
     else:
         body_stock = {"form": "printed", "diameter": od, "length": L}
-    stock = [
+    return [
         {"part": "body", "material": design.body.material, "finished": {"diameter": od, "length": L}, **body_stock},
         {
             "part": "mount",
@@ -122,48 +163,38 @@ def bill_of_materials(design: Design, features: Features, profile: Profile = "cn
         },
     ]
 
-    pieces = []
-    for e in features.ellipses:
-        length = e.circumference
-        pieces.append(
-            {
-                "feature": e.id,
-                "piece": f"wire_{e.id}",
-                "shape": "ring",
-                "length": round(length, 3),
-                "cut_length": round(length + allowance, 1),
-            }
-        )
+
+def _wires(design: Design, features: Features) -> dict[str, Any] | None:
+    """The wire pieces to cut (each ellipse a ring, each line's segments straight), with allowance."""
+    allowance = design.manufacturing.wire_cut_allowance
+    lengths = [(e.id, f"wire_{e.id}", "ring", e.circumference) for e in features.ellipses]
     for ln in features.lines:
         for k, (a, b) in enumerate(features.wire_segments(ln.id), start=1):
-            length = float(math.dist(a, b))
-            pieces.append(
-                {
-                    "feature": ln.id,
-                    "piece": f"wire_{ln.id}_{k}",
-                    "shape": "straight",
-                    "length": round(length, 3),
-                    "cut_length": round(length + allowance, 1),
-                }
-            )
-    wires = None
-    if design.wire is not None and pieces:
-        wires = {
-            "diameter": design.wire.diameter,
-            "material": design.wire.material,
-            "cut_allowance": allowance,
-            "pieces": pieces,
-            "total_cut_length": round(sum(p["cut_length"] for p in pieces), 1),
+            lengths.append((ln.id, f"wire_{ln.id}_{k}", "straight", float(math.dist(a, b))))
+    pieces = [
+        {
+            "feature": feature,
+            "piece": piece,
+            "shape": shape,
+            "length": round(length, 3),
+            "cut_length": round(length + allowance, 1),
         }
+        for feature, piece, shape, length in lengths
+    ]
+    if design.wire is None or not pieces:
+        return None
+    return {
+        "diameter": design.wire.diameter,
+        "material": design.wire.material,
+        "cut_allowance": allowance,
+        "pieces": pieces,
+        "total_cut_length": round(sum(p["cut_length"] for p in pieces), 1),
+    }
 
-    beads = None
-    if features.points:
-        beads = {
-            "count": len(features.points),
-            "diameter": design.bead.diameter if design.bead else None,
-            "material": design.bead.material if design.bead else None,
-        }
 
+def _screws(design: Design, mount) -> list[dict[str, Any]]:
+    """The cap screws: the mount onto the connector, and (optional) onto a rotary table per hole set."""
+    m, c = design.mount, design.connector
     screws = []
     zs = mount.set("z")
     if zs:
@@ -196,15 +227,4 @@ def bill_of_materials(design: Design, features: Features, profile: Profile = "cn
                 "thread_engagement": round(n - clamp, 2) if n else None,
             }
         )
-
-    pins = [
-        {
-            "item": f"ISO 2338 {c.pin_diameter:g} m6 x {c.pin_length:g}",
-            "qty": len(con.pins),
-            "use": "connector to the template's grid holes",
-            "grid_nodes": [list(p.node) for p in con.pins],
-            "engagement": c.pin_engagement,
-        }
-    ]
-
-    return {"profile": profile, "stock": stock, "wires": wires, "beads": beads, "screws": screws, "dowel_pins": pins}
+    return screws

@@ -1,6 +1,6 @@
 """The body's 4-axis program from the CAD's own plan (no CadQuery here).
 
-:func:`cut_plan` hands :class:`~ftrac_design.cad.plan.BodyPlan` — the grooves and pockets the
+:func:`cut_plan` hands :class:`~ftrac_design.manufacture.plan.BodyPlan` — the grooves and pockets the
 CAD cuts — to :mod:`ftrac_design.machining` as plain numbers, so the program and the solid
 come from one plan; :func:`body_program` plans, posts and (optionally) verifies it.
 """
@@ -68,6 +68,7 @@ class BodyProgram:
 
     @property
     def filename(self) -> str:
+        """``body.ngc``, or the post's suffix (``body.nc`` for fanuc)."""
         return "body" + POSTS[self.post].suffix
 
     def summary(self) -> dict[str, Any]:

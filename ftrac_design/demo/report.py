@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..report import report_for_build
+from ..workflows.report import report_for_build
 
 
 def demo_step(out_dir: Path) -> str:

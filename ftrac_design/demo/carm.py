@@ -13,7 +13,7 @@
   objects, no covariance, plus ``frame``, ``time_s``, ``condition``, ``seed``,
   ``polarity``, ``intensifier`` and ``c_arm_angle_deg``).
 - ``poses.jsonl`` (+ observations and one overlay per frame): ``ftrac-design track`` run on
-  ``run.dcm`` through :func:`ftrac_design.cli.main.main`, exactly as a user types it.
+  ``run.dcm`` through :func:`ftrac_design.demo.shell.run_cli`, exactly as a user types it.
 - ``distortion/``: a bead-grid plate imaged through an intensifier with a 2 mm-at-100 mm
   pincushion (``grid.dcm``), the model ``ftrac-design distortion`` estimates from it
   (``model.json``, ``fit.png``), one raw frame of ftrac_2005 through the same intensifier
@@ -25,13 +25,11 @@ the truth and the 1σ the pose reports; and for the distorted frame both errors 
 depth σ with and without the model. A frame that is not tracked is reported with the
 tracker's reason and the step goes on.
 
-This module sits beside :mod:`ftrac_design.demo`, above the command line it drives.
+Like every demo step it sits above the command line it drives.
 """
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 import math
 from dataclasses import dataclass
@@ -40,8 +38,9 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .fileio import write_text_atomic
-from .pose.camera import Camera
+from ..fileio import write_text_atomic
+from ..pose.camera import Camera
+from .shell import command_line, relative, run_cli
 
 #: the detector (rows, columns) and the C-arm's intrinsics: the principal point at the image
 #: centre, where intake puts it, written as the Position of Isocenter Projection as well
@@ -89,15 +88,6 @@ class CarmDemoSettings:
     raw_seed: int = 3
 
 
-def relative(path: str | Path) -> Path:
-    """``path`` relative to the working directory when it lies inside it, else as given."""
-    path = Path(path)
-    cwd = Path.cwd()
-    if path.is_absolute() and path.is_relative_to(cwd):
-        return path.relative_to(cwd)
-    return path
-
-
 def c_arm_orbit(
     R: np.ndarray, t: np.ndarray, angles_rad: np.ndarray, isocentre_mm: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -125,25 +115,9 @@ def c_arm_orbit(
     return np.stack(Rs), np.stack(ts)
 
 
-def run_cli(args: list[str | Path]) -> tuple[int, str, str]:
-    """``ftrac-design ARGS`` through :func:`ftrac_design.cli.main.main`, its stdout and
-    stderr captured; returns (exit code, stdout, stderr)."""
-    from .cli.main import main
-
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        rc = main([str(a) for a in args])
-    return rc, out.getvalue(), err.getvalue()
-
-
-def command_line(args: list[str | Path]) -> str:
-    """How a user types ``args``: ``$ ftrac-design …`` with paths relative where possible."""
-    return "$ ftrac-design " + " ".join(str(relative(a)) if isinstance(a, Path) else str(a) for a in args)
-
-
 def truth_object(R: np.ndarray, t: np.ndarray, **extra: Any) -> dict[str, Any]:
     """A true pose as a SPEC §4 object (converged, no covariance) with ``extra`` keys."""
-    from .pose import Pose
+    from ..pose import Pose
 
     return {**Pose(np.asarray(R, float), np.asarray(t, float), True, 0.0, None, {}, 0).to_dict(), **extra}
 
@@ -157,7 +131,7 @@ def pose_report(pose: dict[str, Any], R_true: np.ndarray, t_true: np.ndarray) ->
     rotation: ``t_err_mm`` (3,), ``rot_err_deg`` (|log(R_est R_trueᵀ)|), ``t_sd_mm`` (3,)
     and ``rot_sd_deg`` (3,) from the covariance (NaN without one); camera axes.
     """
-    from .pose.simulate import pose_errors
+    from ..pose.simulate import pose_errors
 
     out: dict[str, Any] = {"converged": bool(pose.get("converged")), "error": pose.get("error")}
     if pose.get("rotation") is None or pose.get("translation_mm") is None:
@@ -215,11 +189,11 @@ def write_run(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> tuple[
     -------
     (the DICOM file, the truth file).
     """
-    from .features import load_features
-    from .images import write_dicom
-    from .pose.simulate import Workspace
-    from .xray.scenario import realistic_image
-    from .xray.scene import body_from_features_file
+    from ..features import load_features
+    from ..images import write_dicom
+    from ..pose.simulate import Workspace
+    from ..xray.scenario import realistic_image
+    from ..xray.scene import body_from_features_file
 
     features = load_features(features_path)
     body = body_from_features_file(features_path)
@@ -309,14 +283,14 @@ def run_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> list[s
 
 def distortion_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> list[str]:
     """The distortion workflow on one frame (see the module); returns the lines printed."""
-    from .features import load_features
-    from .images import distort_image, read_distortion, write_dicom
-    from .images.distortion import radial
-    from .pose.simulate import Workspace
-    from .segment.gridplate import grid_plate, render_grid
-    from .xray import ImagingModel
-    from .xray.scenario import realistic_image
-    from .xray.scene import body_from_features_file
+    from ..calibration.gridplate import grid_plate, render_grid
+    from ..features import load_features
+    from ..images import distort_image, read_distortion, write_dicom
+    from ..images.distortion import radial
+    from ..pose.simulate import Workspace
+    from ..xray import ImagingModel
+    from ..xray.scenario import realistic_image
+    from ..xray.scene import body_from_features_file
 
     d_dir = out_dir / "distortion"
     d_dir.mkdir(parents=True, exist_ok=True)

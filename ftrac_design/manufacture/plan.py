@@ -106,6 +106,7 @@ class BodyPlan:
 
     @property
     def n_cuts(self) -> int:
+        """Grooves and pockets in all."""
         return len(self.ellipse_grooves) + len(self.line_grooves) + len(self.pockets)
 
 
@@ -142,6 +143,12 @@ def plan_body(design: Design, features: Features, cuts: CutSizes) -> BodyPlan:
         depth = R + over - seat_radius(floor)
         pockets.append(Pocket(p, u, floor, cuts.pocket_diameter, depth))
     return BodyPlan(R, design.bore_radius, design.half_length, over, tuple(ell), tuple(lines), tuple(pockets))
+
+
+#: absolute chord tolerance (mm) and angular tolerance (rad) of the mount's and connector's STLs
+FIXTURE_STL_TOLERANCE = (0.01, 0.1)
+#: an STL's enclosed volume must agree with the exact B-rep volume to this fraction
+STL_VOLUME_TOLERANCE = 0.005
 
 
 def stl_tolerances(cuts: CutSizes, design: Design) -> tuple[float, float]:

@@ -179,6 +179,7 @@ def chord_error(path: UnwrappedPath, features: Features) -> float:
 
 
 def grooves_csv_text(paths: list[UnwrappedPath]) -> str:
+    """The ``grooves.csv`` text of ``paths``: one row per sample of each groove or pocket."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(CSV_COLUMNS)

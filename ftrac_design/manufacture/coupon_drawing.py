@@ -3,7 +3,7 @@ coupon's solid, and one row per step — its id, A (°) and z (mm), the cut's wi
 profile's fit-critical tolerance, its depth below the outer surface, the bought part's Ø and the
 fit it gives — so the shop can cut it, inspect it and report which step holds.
 
-Values come from the coupon's plan (:class:`~ftrac_design.cad.coupon.Coupon`), the same cuts the
+Values come from the coupon's plan (:class:`~ftrac_design.manufacture.coupon.Coupon`), the same cuts the
 solid and the program are made from. Frame and conventions as the body's drawing: azimuth A about
 +z from +x toward +y, z from mid-length, depth radially from the outer surface (Ø = datum A).
 """
@@ -20,18 +20,20 @@ from .drawings import Sheet as _Sheet
 from .drawings import (
     TitleBlock,
     _dims,
-    _today,
     datum_flag,
     dim_line,
     draw_projection,
     notes,
     pick_scale,
-    project_exact,
+    save_sheet,
     scale_text,
+    sheet_style,
     table,
     title_block,
+    title_block_for,
 )
 from .profiles import DrawingTolerances, drawing_tolerances
+from .views import PartViews, ViewFrame
 
 PART = "coupon"
 
@@ -77,28 +79,12 @@ def coupon_dimensions(c: Coupon, tol: DrawingTolerances) -> list[Dim]:
     return out
 
 
-def coupon_sheet(design: Design, c: Coupon, solid, tb: TitleBlock) -> _Sheet:
+def coupon_sheet(design: Design, c: Coupon, views: PartViews, tb: TitleBlock) -> _Sheet:
     """The coupon's sheet: front view (from −y), end view (from +z), the steps' table, notes and
-    the title block.
-
-    Parameters
-    ----------
-    design : Design
-        The design whose wire and balls the coupon tests.
-    c : Coupon
-        The coupon's plan.
-    solid : cadquery.Shape
-        The coupon's solid (frame F of the coupon: axis +z, origin at mid-length).
-    tb : TitleBlock
-        The title block's design name, sha256 and date.
-
-    Returns
-    -------
-    Sheet
-        The drawn sheet.
+    the title block, for ``design``'s wire and balls; ``c`` the coupon's plan, ``views`` its
+    solid's projections (the coupon's frame: axis +z, origin at mid-length), ``tb`` the title
+    block's design name, sha256 and date. Returns the drawn sheet.
     """
-    from .views import ViewFrame
-
     tol = drawing_tolerances(c.profile)
     D = _dims(coupon_dimensions(c, tol))
     R, h = c.stock.outer_radius, c.stock.half_length
@@ -109,29 +95,16 @@ def coupon_sheet(design: Design, c: Coupon, solid, tb: TitleBlock) -> _Sheet:
     )
     y0 = 287 - 14 - 2 * h * s - 24
     ax = sheet.view(20, y0, (-R, R, -h, h), s, pad=14)
-    draw_projection(ax, project_exact(solid, ViewFrame("front", (1, 0, 0), (0, -1, 0))))
+    draw_projection(ax, views.project(ViewFrame("front", (1, 0, 0), (0, -1, 0))))
     sheet.text(ax, 0, -h - 10 / s, "FRONT (from −y)", ha="center", size=6.5, weight="bold")
     dim_line(ax, (R, -h), (R, h), (7 / s, 0), D["coupon.length"], PART)
     dim_line(ax, (-R, h), (R, h), (0, 6 / s), D["coupon.outer_diameter"], PART)
     datum_flag(ax, (0, -h), "B", dx=-R - 8 / s, dy=0)
     ax = sheet.view(20 + 2 * R * s + 44, y0 + 2 * h * s - 2 * R * s, (-R, R, -R, R), s, pad=14)
-    draw_projection(ax, project_exact(solid, ViewFrame("end", (1, 0, 0), (0, 0, 1))))
+    draw_projection(ax, views.project(ViewFrame("end", (1, 0, 0), (0, 0, 1))))
     sheet.text(ax, 0, -R - 10 / s, "END (from +z): A = 0 along +x", ha="center", size=6.5, weight="bold")
     datum_flag(ax, (R, 0), "C", dx=6 / s)
-    rows: list[list[Dim | str | None]] = [
-        [
-            st.id,
-            st.kind,
-            D[f"{st.id}.A"],
-            D[f"{st.id}.z"],
-            D[f"{st.id}.size"],
-            D[f"{st.id}.depth"],
-            D[f"{st.id}.part"],
-            D[f"{st.id}.fit"],
-            "",
-        ]
-        for st in c.steps
-    ]
+    rows = _step_rows(c, D)
     fit = "fit (part − cut)" if c.profile == "cnc" else "gap per side"
     x_t = 20.0
     # the table below the views, the notes below the table
@@ -160,26 +133,38 @@ def coupon_sheet(design: Design, c: Coupon, solid, tb: TitleBlock) -> _Sheet:
     return sheet
 
 
-def write_coupon_drawing(design: Design, c: Coupon, solid, out_dir: str | Path, date: str | None = None) -> list[Path]:
+def _step_rows(c: Coupon, D: dict[str, Dim]) -> list[list[Dim | str | None]]:
+    """The steps' table: one row per step, its last column (``holds?``) left for the shop."""
+    return [
+        [
+            st.id,
+            st.kind,
+            D[f"{st.id}.A"],
+            D[f"{st.id}.z"],
+            D[f"{st.id}.size"],
+            D[f"{st.id}.depth"],
+            D[f"{st.id}.part"],
+            D[f"{st.id}.fit"],
+            "",
+        ]
+        for st in c.steps
+    ]
+
+
+def write_coupon_drawing(
+    design: Design, c: Coupon, views: PartViews, out_dir: str | Path, date: str | None = None
+) -> list[Path]:
     """Write ``drawing_coupon.svg`` and ``.pdf`` into ``out_dir``; returns the two paths.
 
     Parameters
     ----------
-    design, c, solid
+    design, c, views
         As :func:`coupon_sheet`.
     out_dir : str or pathlib.Path
         The coupon's output directory.
     date : str or None
         ISO date for the title block (default: today, UTC).
     """
-    import matplotlib
-
-    out_dir = Path(out_dir)
-    tb = TitleBlock(
-        design.name, design.sha256 or "(in-memory design: no file)", "", "", c.profile, "", date or _today()
-    )
-    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "ftrac", "font.family": "DejaVu Sans"}):
-        sheet = coupon_sheet(design, c, solid, tb)
-        svg, pdf = out_dir / "drawing_coupon.svg", out_dir / "drawing_coupon.pdf"
-        sheet.save(svg, pdf)
-    return [svg, pdf]
+    with sheet_style():
+        sheet = coupon_sheet(design, c, views, title_block_for(design, c.profile, date))
+        return save_sheet(sheet, Path(out_dir), "coupon")

@@ -2,9 +2,9 @@
 
 Steps:
 
-1. **Beads.** The image becomes a density image (:func:`.image.to_density`, polarity detected
+1. **Beads.** The image becomes a density image (:func:`ftrac_design.segment.image.to_density`, polarity detected
    or given), its background is removed by a top-hat and every blob at the bead scale is fitted
-   with the blurred-sphere model (:mod:`.beads`). The bead radius is measured when not given
+   with the blurred-sphere model (:mod:`ftrac_design.segment.beads`). The bead radius is measured when not given
    (scale selection on the scale-normalised Laplacian). A round intensifier field is found as
    the bright (dense) surround of the opened background, when one stands out; beads whose
    fitting patch leaves the field or the image are dropped (a bead cut by the edge has a
@@ -43,8 +43,8 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..images.distortion import DistortionModel, design_matrix, identity_coefficients, monomial_exponents, n_terms
-from .beads import blob_candidates, fit_beads
-from .image import derivatives, detect_polarity, noise_sigma, to_density, top_hat
+from ..segment.beads import blob_candidates, fit_beads
+from ..segment.image import derivatives, detect_polarity, noise_sigma, to_density, top_hat
 
 Polarity = Literal["auto", "dense-dark", "dense-bright"]
 
@@ -423,18 +423,7 @@ def estimate_distortion(
             f"found {int(on.sum())} in {span} ({len(found.uv)} beads detected)",
         )
     index, det = idx[on].astype(float), found.uv[on]
-    # a robust (soft-L1) fit first, then plain least squares without the beads beyond 5 σ
-    # (σ per axis from the median residual, Rayleigh), until the set of beads settles
-    used, robust = np.ones(len(det), bool), True
-    for _ in range(6):
-        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust)
-        err = np.hypot(*(det - _apply(model, coef, Hpx, index)).T)
-        new = err <= max(5 * float(np.median(err[used])) / math.sqrt(math.log(4.0)), 1e-3)
-        if new.sum() < need or (not robust and np.array_equal(new, used)):
-            break
-        used, robust = new, False
-    else:
-        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=False)
+    coef, Hpx, used = _fit_dropping_outliers(index, det, model, need)
     ideal = np.c_[index, np.ones(len(index))] @ Hpx.T
     ideal = ideal[:, :2] / ideal[:, 2:3]
     fitted = _apply(model, coef, Hpx, index)
@@ -470,6 +459,25 @@ def estimate_distortion(
         Hpx,
     )
     return model, report
+
+
+def _fit_dropping_outliers(
+    index: np.ndarray, det: np.ndarray, model: DistortionModel, need: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A robust (soft-L1) fit first, then plain least squares without the beads beyond 5 σ (σ
+    per axis from the median residual, Rayleigh), until the set of beads settles; returns the
+    coefficients, the homography and the beads used."""
+    used, robust = np.ones(len(det), bool), True
+    for _ in range(6):
+        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust)
+        err = np.hypot(*(det - _apply(model, coef, Hpx, index)).T)
+        new = err <= max(5 * float(np.median(err[used])) / math.sqrt(math.log(4.0)), 1e-3)
+        if new.sum() < need or (not robust and np.array_equal(new, used)):
+            break
+        used, robust = new, False
+    else:
+        coef, Hpx, _ = fit_grid(index[used], det[used], model, robust=False)
+    return coef, Hpx, used
 
 
 def _apply(model: DistortionModel, coef: np.ndarray, Hpx: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -127,7 +127,7 @@ def cut_sizes(design: Design, profile: Profile = "cnc") -> CutSizes:
 
 @dataclass(frozen=True)
 class RuleLimits:
-    """Design-rule limits of one profile (mm unless stated). See :mod:`ftrac_design.cad.rules`.
+    """Design-rule limits of one profile (mm unless stated). See :mod:`ftrac_design.manufacture.rules`.
 
     ``min_wall``: thinner is a violation; ``recommended_wall``: thinner is a warning.
     ``tool``: the smallest cutter (CNC end mill) or bead (FDM nozzle) that shapes a groove.

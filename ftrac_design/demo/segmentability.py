@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ...analysis.segmentability import ClearanceSettings, segmentability, segmentability_atlas
-from ...pose.camera import Camera
+from ..analysis.segmentability import ClearanceSettings, segmentability, segmentability_atlas
+from ..pose.camera import Camera
 
 
 def demo_step(out_dir, poses: int = 2000) -> str:
@@ -12,12 +12,12 @@ def demo_step(out_dir, poses: int = 2000) -> str:
     (a few seconds). Returns the text to print."""
     from pathlib import Path
 
-    from ...analysis.plots import plot_segmentability
-    from ...analysis.sampling import workspace_poses
-    from ...design import load_design
-    from ...design.presets import preset_path
-    from ...features import compute_features
-    from ...pose.simulate import Workspace
+    from ..analysis.plots import plot_segmentability
+    from ..analysis.sampling import workspace_poses
+    from ..design import load_design
+    from ..design.presets import preset_path
+    from ..features import compute_features
+    from ..pose.simulate import Workspace
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

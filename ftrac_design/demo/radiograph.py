@@ -12,14 +12,14 @@ def demo_step(out_dir: Path, seed: int = 2005) -> str:
     """Render ``ftrac_2005`` at one workspace pose (default imaging model, anatomy-like
     background) into ``out_dir``: ``radiograph.png`` (log image, 16-bit, dense = bright) and
     ``radiograph.truth.json``. Returns the lines the demo prints."""
-    from ...design import load_design
-    from ...design.presets import preset_path
-    from ...features import compute_features
-    from ...images import write_image
-    from ...pose.simulate import Workspace
-    from ...xray.background import anatomy
-    from ...xray.render import render
-    from ...xray.truth import write_truth
+    from ..design import load_design
+    from ..design.presets import preset_path
+    from ..features import compute_features
+    from ..images import write_image
+    from ..pose.simulate import Workspace
+    from ..xray.background import anatomy
+    from ..xray.render import render
+    from ..xray.truth import write_truth
 
     out_dir = Path(out_dir)
     features = compute_features(load_design(preset_path("ftrac_2005")))

@@ -16,7 +16,7 @@ hash only changes when the geometry does); the tests read it back with trimesh a
 lib3mf, the 3MF Consortium's reference implementation.
 
 ``print_settings.json`` holds the slicer settings the fdm cut sizes assume
-(:func:`ftrac_design.cad.profiles.print_settings`) with their sources, and the cut sizes
+(:func:`ftrac_design.manufacture.profiles.print_settings`) with their sources, and the cut sizes
 already built into the parts, which the slicer must not compensate a second time.
 """
 
@@ -165,12 +165,25 @@ def print_settings_document(design: Design) -> dict:
     }
 
 
-def write_fdm_files(design: Design, out_dir: str | Path) -> list[Path]:
-    """Write ``fiducial.3mf`` (from the STLs already in ``out_dir``) and ``print_settings.json``."""
-    from .export import BODY_COLOR
-    from .fixture import CONNECTOR_COLOR, MOUNT_COLOR
+def write_fdm_files(
+    design: Design, out_dir: str | Path, colors: dict[str, tuple[float, float, float, float]]
+) -> list[Path]:
+    """Write ``fiducial.3mf`` (from the STLs already in ``out_dir``) and ``print_settings.json``.
 
-    colors = {"body": BODY_COLOR, "mount": MOUNT_COLOR, "connector": CONNECTOR_COLOR}
+    Parameters
+    ----------
+    design : Design
+        The design built.
+    out_dir : str or pathlib.Path
+        The build's directory, holding ``fiducial.stl``, ``mount.stl`` and ``connector.stl``.
+    colors : dict
+        Each printed part's display colour (RGBA 0–1) by its name in :data:`PRINTED_PARTS`.
+
+    Returns
+    -------
+    list of pathlib.Path
+        The two files written.
+    """
     out_dir = Path(out_dir)
     parts = [read_stl_part(out_dir / stl, name, colors[name]) for name, stl in PRINTED_PARTS]
     desc = f"{design.name} printed parts (fdm profile); design sha256 {design.sha256 or 'none'}"

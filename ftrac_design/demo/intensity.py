@@ -13,15 +13,15 @@ def demo_step(out_dir: Path, seed: int = 13) -> str:
     start the intensity refinement 0.05° / 0.4 mm (depth) off, and compare its error with
     the pixel-level bound and the feature-level bound (0.25 mm segmentation error) at that
     pose. Writes ``intensity.json`` into ``out_dir``; returns the lines the demo prints."""
-    from ...design import load_design
-    from ...design.presets import preset_path
-    from ...features import compute_features
-    from ...fileio import write_json_atomic
-    from ...intensity import imaging_analysis, perturb, pixel_information, refine_intensity
-    from ...intensity.refine import DEFAULT_SPLINE_PX
-    from ...pose import so3
-    from ...pose.simulate import Workspace
-    from ...xray import ImagingModel, render
+    from ..design import load_design
+    from ..design.presets import preset_path
+    from ..features import compute_features
+    from ..fileio import write_json_atomic
+    from ..intensity import imaging_analysis, perturb, pixel_information, refine_intensity
+    from ..intensity.refine import DEFAULT_SPLINE_PX
+    from ..pose import so3
+    from ..pose.simulate import Workspace
+    from ..xray import ImagingModel, render
 
     out_dir = Path(out_dir)
     features = compute_features(load_design(preset_path("ftrac_2005")))

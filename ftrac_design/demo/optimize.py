@@ -9,8 +9,8 @@ def demo_step(out_dir: Path) -> str:
     """A tiny seeded search (~5 s): ftrac_mini's two ellipse tilts, 12 evaluations in this
     process at 300 poses, no CAD build or solver check, 6 rendered radiographs of start and
     best tracked; returns start vs best as text."""
-    from ...design.presets import preset_path
-    from ..optimize import optimize as _optimize
+    from ..design.presets import preset_path
+    from ..workflows.optimize import optimize as _optimize
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

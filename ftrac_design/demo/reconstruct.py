@@ -15,14 +15,14 @@ def demo_step(out_dir: Path) -> str:
 
     import numpy as np
 
-    from ...design import load_design
-    from ...design.presets import preset_path
-    from ...features import compute_features, write_features
-    from ...pose import Camera, solve_batch
-    from ...pose.io import write_poses
-    from ...pose.simulate import cone_directions, rotations_from_beams, segmentation_noise, simulate_observation
-    from ...reconstruct.io import read_points, read_poses
-    from ...reconstruct.pipeline import reconstruct
+    from ..design import load_design
+    from ..design.presets import preset_path
+    from ..features import compute_features, write_features
+    from ..pose import Camera, solve_batch
+    from ..pose.io import write_poses
+    from ..pose.simulate import cone_directions, rotations_from_beams, segmentation_noise, simulate_observation
+    from ..reconstruct.io import read_points, read_poses
+    from ..reconstruct.pipeline import reconstruct
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -2,7 +2,7 @@
 
 ``ftrac-design check`` and ``build`` run :func:`check_design`. Every rule measures one
 value on the design — the worst case over all the places it applies — and compares it with
-a limit taken from the profile (:func:`ftrac_design.cad.profiles.rule_limits`, sources in
+a limit taken from the profile (:func:`ftrac_design.manufacture.profiles.rule_limits`, sources in
 ``docs/reference/manufacturing.md``). A rule *fails* (a violation: ``check`` exits 1,
 ``build`` refuses without ``--force``) when the limit is broken, and *warns* when the value
 is within the limit but short of the recommended one (CNC walls between 1.0 and 1.5 mm, FDM
@@ -12,7 +12,7 @@ is ``n/a``.
 
 Pure numpy on the design, its features (:mod:`ftrac_design.features`) and the mount and
 connector layout (:mod:`ftrac_design.features.mounting`) — no CadQuery, so ``check`` is fast.
-Cut sizes come from the profile (:func:`~ftrac_design.cad.profiles.cut_sizes`); the cut
+Cut sizes come from the profile (:func:`~ftrac_design.manufacture.profiles.cut_sizes`); the cut
 geometry follows the body's cut plan: a groove floor lies one wire radius below the
 seated centre-line, a bead pocket is a flat-bottomed radial hole whose floor lies one
 ball radius below the bead centre, groove and pocket walls run radially from the floor
@@ -96,6 +96,7 @@ class RuleResult:
         return f"{self.rule}: {self.title} is {val} ({self.where}); limit {lim}"
 
     def as_dict(self) -> dict[str, Any]:
+        """The result as plain JSON, with its one-line message."""
         d = asdict(self)
         d["message"] = self.message
         return d
@@ -113,17 +114,21 @@ class CheckReport:
 
     @property
     def violations(self) -> list[RuleResult]:
+        """The rules that fail."""
         return [r for r in self.results if r.verdict == "fail"]
 
     @property
     def warnings(self) -> list[RuleResult]:
+        """The rules within their limit but short of the recommended value."""
         return [r for r in self.results if r.verdict == "warn"]
 
     @property
     def ok(self) -> bool:
+        """Whether no rule fails."""
         return not self.violations
 
     def result(self, rule: str) -> RuleResult:
+        """The result of the rule named ``rule`` (KeyError if there is none)."""
         for r in self.results:
             if r.rule == rule:
                 return r
@@ -131,6 +136,7 @@ class CheckReport:
 
     @property
     def summary(self) -> str:
+        """One line: the design, the profile, the counts of rules, violations and warnings."""
         n, w = len(self.violations), len(self.warnings)
         return (
             f"{self.design} ({self.profile}): {len(self.results)} rules, "
@@ -138,6 +144,7 @@ class CheckReport:
         )
 
     def as_dict(self) -> dict[str, Any]:
+        """The report as ``check --json`` prints it (format ``ftrac-check``)."""
         return {
             "format": CHECK_FORMAT,
             "version": CHECK_VERSION,
@@ -360,101 +367,166 @@ class _Ctx:
     connector: ConnectorLayout
 
 
-def _judge(
-    rule: str,
-    title: str,
-    value: float | None,
-    where: str,
-    limit: float,
-    comparison: str,
-    unit: str = "mm",
-    recommended: float | None = None,
-    source: str = "",
-) -> RuleResult:
-    if value is None:
-        return RuleResult(rule, title, None, limit, comparison, unit, "n/a", where, recommended, source)
-    ok = {">=": value >= limit - 1e-12, ">": value > limit + 1e-12, "<=": value <= limit + 1e-12}[comparison]
-    verdict: Verdict = "ok" if ok else "fail"
-    if ok and recommended is not None:
-        short = value < recommended - 1e-12 if comparison in (">=", ">") else value > recommended + 1e-12
-        if short:
-            verdict = "warn"
-    return RuleResult(
-        rule, title, round(float(value), 6) + 0.0, limit, comparison, unit, verdict, where, recommended, source
-    )
+@dataclass(frozen=True)
+class Limit:
+    """A rule's limit: the value the measure is compared with, the recommended value (a
+    warning short of it) and where the limit comes from."""
+
+    value: float
+    recommended: float | None = None
+    source: str = ""
 
 
-def _worst(items: list[tuple[float, str]]) -> tuple[float | None, str]:
-    if not items:
-        return None, ""
-    v, w = min(items, key=lambda t: t[0])
-    return v, w
+@dataclass(frozen=True)
+class Place:
+    """One place a rule measures: the value there and where it is. ``limit``: the place's own
+    limit, where it depends on the place (a hole's diameter, a ball's radius); ``rank``: what
+    picks the worst place, where it is not the value itself."""
+
+    value: float
+    where: str
+    limit: float | None = None
+    rank: float | None = None
+
+    @property
+    def order(self) -> float:
+        """What the worst place has least of."""
+        return self.value if self.rank is None else self.rank
 
 
-def rule_bore_wall(c: _Ctx) -> RuleResult:
+@dataclass(frozen=True)
+class NotApplicable:
+    """Nothing to measure: why, and the limit the report shows then (the rule's own when None)."""
+
+    why: str
+    limit: Limit | None = None
+
+
+def _wall(c: _Ctx) -> Limit:
+    return Limit(c.limits.min_wall, c.limits.recommended_wall, c.limits.sources["wall"])
+
+
+def _fixed(value: float, source: str = "") -> Callable[[_Ctx], Limit]:
+    return lambda c: Limit(value, source=source)
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One design rule: what it measures over the design (every place it applies) and the
+    limit the worst place is held to.
+
+    Attributes
+    ----------
+    name, title : str
+        The rule's name (``body.bore_wall``) and what it measures, in words.
+    comparison : {">=", ">", "<="}
+        How the worst value must compare with the limit.
+    measure : callable
+        ``measure(context)``: the places measured, or :class:`NotApplicable`.
+    limit : callable
+        ``limit(context)``: the profile's :class:`Limit`.
+    nothing : str
+        What an empty list of places means (the report's ``where`` for ``n/a``).
+    unit : str
+        The measure's unit (``mm``, ``x``).
+    """
+
+    name: str
+    title: str
+    comparison: Literal[">=", ">", "<="]
+    measure: Callable[[_Ctx], list[Place] | NotApplicable]
+    limit: Callable[[_Ctx], Limit]
+    nothing: str = ""
+    unit: str = "mm"
+
+    @property
+    def __name__(self) -> str:
+        """The rule's name, as a function's would be."""
+        return self.name
+
+    def evaluate(self, c: _Ctx) -> RuleResult:
+        """The rule's verdict on the design in ``c``: the worst place against the limit."""
+        found = self.measure(c)
+        if isinstance(found, NotApplicable) or not found:
+            why = found.why if isinstance(found, NotApplicable) else self.nothing
+            lim = found.limit if isinstance(found, NotApplicable) and found.limit is not None else self.limit(c)
+            return RuleResult(
+                self.name,
+                self.title,
+                None,
+                lim.value,
+                self.comparison,
+                self.unit,
+                "n/a",
+                why,
+                lim.recommended,
+                lim.source,
+            )
+        lim = self.limit(c)
+        worst = min(found, key=lambda p: p.order)
+        limit = lim.value if worst.limit is None else worst.limit
+        return RuleResult(
+            self.name,
+            self.title,
+            round(float(worst.value), 6) + 0.0,
+            limit,
+            self.comparison,
+            self.unit,
+            self.verdict(worst.value, limit, lim.recommended),
+            worst.where,
+            lim.recommended,
+            lim.source,
+        )
+
+    def verdict(self, value: float, limit: float, recommended: float | None) -> Verdict:
+        """``fail`` when the limit is broken, ``warn`` when within it but short of ``recommended``."""
+        ok = {">=": value >= limit - 1e-12, ">": value > limit + 1e-12, "<=": value <= limit + 1e-12}[self.comparison]
+        if not ok:
+            return "fail"
+        if recommended is not None:
+            if self.comparison in (">=", ">"):
+                short = value < recommended - 1e-12
+            else:
+                short = value > recommended + 1e-12
+            if short:
+                return "warn"
+        return "ok"
+
+
+def bore_wall(c: _Ctx) -> list[Place]:
     """Wall between the bore and the deepest groove or pocket floor (the thinnest wall of the
     body). Limits: CNC ≥ 1.0 mm feasible / 1.5 mm recommended (zekes3d, Neptune Labs);
     FDM ≥ 0.8 mm = 2 perimeters / 1.2 mm recommended (printparams, layer-one)."""
     R, rb = c.design.outer_radius, c.design.bore_radius
-    items = [(R - b.floor_depth - rb, f"bore to {b.label} floor") for b in c.body]
-    v, w = _worst(items)
-    return _judge(
-        "body.bore_wall",
-        "wall under the deepest cut",
-        v,
-        w or "no cuts",
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+    return [Place(R - b.floor_depth - rb, f"bore to {b.label} floor") for b in c.body]
 
 
-def rule_groove_tool(c: _Ctx) -> RuleResult:
+def groove_tool(c: _Ctx) -> list[Place] | NotApplicable:
     """Groove width vs the smallest tool: a CNC end mill cannot cut a slot narrower than its
     diameter (``manufacturing.cnc.tool_diameter``); an FDM printer cannot leave a gap
     narrower than its extrusion width (``manufacturing.fdm.nozzle_diameter``)."""
-    grooves = [b for b in c.body if b.kind != "pocket"]
-    if not grooves:
-        return _judge("groove.tool", "groove width", None, "no grooves", c.limits.tool, ">=")
-    w = c.cuts.groove_width
-    return _judge(
-        "groove.tool",
-        "groove width",
-        w,
-        f"vs {c.limits.tool:g} mm {c.limits.tool_name}",
-        c.limits.tool,
-        ">=",
-        source=c.limits.sources["tool"],
-    )
+    if not any(b.kind != "pocket" for b in c.body):
+        return NotApplicable("no grooves", Limit(c.limits.tool))
+    return [Place(c.cuts.groove_width, f"vs {c.limits.tool:g} mm {c.limits.tool_name}")]
 
 
-def rule_groove_depth(c: _Ctx) -> RuleResult:
+def groove_depth(c: _Ctx) -> list[Place] | NotApplicable:
     """Deepest groove floor over the end-mill diameter (CNC only): ≤ 4 (violation above),
     ≤ 3 recommended (common CNC guides: pocket depth ≤ 3–4 × tool diameter)."""
     grooves = [b for b in c.body if b.kind != "pocket"]
     if c.limits.max_depth_ratio is None or not grooves:
         why = "no grooves" if not grooves else f"no depth limit for {c.profile}"
-        return _judge("groove.depth", "groove depth / tool", None, why, 0.0, "<=", unit="x")
+        return NotApplicable(why, Limit(0.0))
     g = max(grooves, key=lambda b: b.floor_depth)
-    return _judge(
-        "groove.depth",
-        "groove depth / tool",
-        g.floor_depth / c.limits.tool,
-        f"{g.label}: {g.floor_depth:.3f} mm deep, {c.limits.tool:g} mm end mill",
-        c.limits.max_depth_ratio,
-        "<=",
-        unit="x",
-        recommended=c.limits.recommended_depth_ratio,
-        source=c.limits.sources["depth"],
-    )
+    where = f"{g.label}: {g.floor_depth:.3f} mm deep, {c.limits.tool:g} mm end mill"
+    return [Place(g.floor_depth / c.limits.tool, where)]
 
 
-def rule_crossing(c: _Ctx) -> RuleResult:
+def crossing_clearance(c: _Ctx) -> list[Place]:
     """Radial clearance between a line wire and the ellipse wire that crosses over it
     (``|r_line − r_ellipse| − r_wire,line − r_wire,ellipse``): must be > 0 so the wires do
     not touch; below the process tolerance (CNC ±0.05 mm, FDM ±0.2 mm) it is a warning."""
-    items = []
+    out = []
     for e in c.features.ellipses:
         s = np.linspace(0.0, 2 * math.pi, ELLIPSE_SAMPLES, endpoint=False)
         pts = e.sample(s)
@@ -469,164 +541,93 @@ def rule_crossing(c: _Ctx) -> RuleResult:
                 continue
             rl = math.hypot(ln.start[0], ln.start[1])
             gap = abs(rl - re[k]) - ln.wire_diameter / 2 - e.wire_diameter / 2
-            items.append((gap, f"{ln.id} under {e.id} at z = {z:.2f}"))
-    v, w = _worst(items)
-    return _judge(
-        "wires.crossing_clearance",
-        "clearance between crossing wires",
-        v,
-        w or "no crossings",
-        0.0,
-        ">",
-        recommended=c.limits.tolerance,
-        source=c.limits.sources["tolerance"],
-    )
+            out.append(Place(gap, f"{ln.id} under {e.id} at z = {z:.2f}"))
+    return out
 
 
-def rule_pocket_spacing(c: _Ctx) -> RuleResult:
+def pocket_spacing(c: _Ctx) -> list[Place]:
     """Wall between a bead pocket and every other pocket and every groove other than its own
     line's, at the shallower of the two floors. Limits: the profile's walls."""
     R = c.design.outer_radius
     pockets = [b for b in c.body if b.kind == "pocket"]
-    items = []
+    out = []
     for i, p in enumerate(pockets):
         for q in pockets[i + 1 :]:
-            items.append((_ligament(p, q, R), f"{p.label} to {q.label}"))
+            out.append(Place(_ligament(p, q, R), f"{p.label} to {q.label}"))
         for g in c.body:
             if g.kind == "pocket" or (g.kind == "line" and g.id == p.line):
                 continue
-            items.append((_ligament(p, g, R), f"{p.label} to {g.label}"))
-    v, w = _worst(items)
-    return _judge(
-        "pockets.spacing",
-        "wall between a pocket and its neighbours",
-        v,
-        w or "fewer than two cuts",
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+            out.append(Place(_ligament(p, g, R), f"{p.label} to {g.label}"))
+    return out
 
 
-def rule_groove_spacing(c: _Ctx) -> RuleResult:
+def groove_spacing(c: _Ctx) -> list[Place]:
     """Wall between grooves that do not cross (ellipse–ellipse, line–line), at the shallower
     floor. Limits: the profile's walls."""
     R = c.design.outer_radius
     grooves = [b for b in c.body if b.kind != "pocket"]
-    items = []
+    out = []
     for i, a in enumerate(grooves):
         for b in grooves[i + 1 :]:
             if a.kind != b.kind:
                 continue  # a line and an ellipse cross by design (wires.crossing_clearance)
-            items.append((_ligament(a, b, R), f"{a.label} to {b.label}"))
-    v, w = _worst(items)
-    return _judge(
-        "grooves.spacing",
-        "wall between grooves",
-        v,
-        w or "fewer than two parallel grooves",
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+            out.append(Place(_ligament(a, b, R), f"{a.label} to {b.label}"))
+    return out
 
 
-def rule_retention(c: _Ctx) -> RuleResult:
+def retention(c: _Ctx) -> list[Place] | NotApplicable:
     """Pocket depth at its lowest rim point (the surface curves away across the pocket by
     ``R − √(R² − ρ²)``) vs the ball radius: it must be deeper than the radius so that the
     ball's centre is below the rim and the walls hold the ball (a press fit, or glue)."""
     R = c.design.outer_radius
-    items = []
+    out = []
     for b in c.body:
         if b.kind != "pocket":
             continue
         rho = min(b.width / 2, R)
         depth = b.floor_depth - (R - math.sqrt(R * R - rho * rho))
-        items.append((depth - b.reach, depth, b))
-    if not items:
-        return _judge("pockets.retention", "pocket depth at its rim", None, "no beads", 0.0, ">")
-    _, depth, b = min(items, key=lambda t: t[0])
-    return _judge(
-        "pockets.retention",
-        "pocket depth at its rim",
-        depth,
-        f"{b.label}, ball radius {b.reach:g} mm",
-        b.reach,
-        ">",
-        source="a ball is held by its pocket only if its centre is below the rim",
-    )
+        out.append(Place(depth, f"{b.label}, ball radius {b.reach:g} mm", limit=b.reach, rank=depth - b.reach))
+    return out or NotApplicable("no beads", Limit(0.0))
 
 
-def rule_envelope(c: _Ctx) -> RuleResult:
+def envelope(c: _Ctx) -> list[Place]:
     """Material between every groove or pocket (as the tool cuts it: half a groove width
     beyond the centre-line, including a line groove's rounded ends) and the body's end faces.
     Limits: the profile's walls."""
     L2 = c.design.half_length
-    items = []
+    out = []
     for b in c.body:
         zmax = float(np.max(np.abs(b.points[:, 2]))) + b.width / 2
-        items.append((L2 - zmax, f"{b.label} to the end face"))
-    v, w = _worst(items)
-    return _judge(
-        "body.envelope",
-        "material to the end faces",
-        v,
-        w or "no cuts",
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+        out.append(Place(L2 - zmax, f"{b.label} to the end face"))
+    return out
 
 
-def rule_coverage(c: _Ctx) -> RuleResult:
+def coverage(c: _Ctx) -> list[Place]:
     """Gap between the mount's socket rim (``z = −L/2 + socket_depth`` in F) and the lowest
     point of any wire, bead, groove or pocket: the mount must not cover any feature (> 0)."""
     rim = -c.design.half_length + c.design.mount.socket_depth
-    items = []
+    out = []
     for b in c.body:
         k = int(np.argmin(b.points[:, 2]))
         low = float(b.points[k, 2]) - max(b.width / 2, b.reach)
-        items.append((low - rim, f"{b.id} reaches z = {low:.3f}, socket rim at z = {rim:.3f}"))
-    v, w = _worst(items)
-    return _judge(
-        "mount.coverage",
-        "gap between the socket rim and the nearest feature",
-        v,
-        w or "no features",
-        0.0,
-        ">",
-        source="the mount must not cover a wire or bead (paper §II.A.3)",
-    )
+        out.append(Place(low - rim, f"{b.id} reaches z = {low:.3f}, socket rim at z = {rim:.3f}"))
+    return out
 
 
-def rule_mount_hole_edge(c: _Ctx) -> RuleResult:
+def mount_hole_edge(c: _Ctx) -> list[Place] | NotApplicable:
     """Wall between each mount hole (at cut size) and the block faces it runs along:
     ≥ 1 × the hole's nominal diameter (hole centre ≥ 1.5 d from an edge; bolted-joint
     practice, stricter than EN 1993-1-8's 1.2 d0 for steel because acetal is weaker and creeps)."""
     m = c.mount
-    items = []
+    out = []
     for h in m.holes:
-        piece = _hole_pieces(h, c.cuts)[0]
-        lig = _face_ligament(piece, m.lo, m.hi)
-        items.append((lig / h.diameter, lig, h))
-    if not items:
-        return _judge("mount.hole_edge", "hole wall to block edge", None, "no holes", 0.0, ">=")
-    _, lig, h = min(items, key=lambda t: t[0])
-    return _judge(
-        "mount.hole_edge",
-        "hole wall to block edge",
-        lig,
-        f"hole {h.name} (Ø{h.diameter:g}) in a {m.width:g} x {m.width:g} x {m.height:g} mm block",
-        HOLE_EDGE_FACTOR * h.diameter,
-        ">=",
-        source="edge distance >= 1 x hole diameter (centre at 1.5 d)",
-    )
+        lig = _face_ligament(_hole_pieces(h, c.cuts)[0], m.lo, m.hi)
+        where = f"hole {h.name} (Ø{h.diameter:g}) in a {m.width:g} x {m.width:g} x {m.height:g} mm block"
+        out.append(Place(lig, where, limit=HOLE_EDGE_FACTOR * h.diameter, rank=lig / h.diameter))
+    return out or NotApplicable("no holes", Limit(0.0))
 
 
-def rule_mount_clearance(c: _Ctx) -> RuleResult:
+def mount_clearance(c: _Ctx) -> list[Place]:
     """Walls in the mount between any two cuts of different holes (through hole or
     counterbore), between a hole and the socket, and between a counterbore or the socket and
     the block's faces. Sets that run into each other or into the socket give 0. Limits: the
@@ -634,57 +635,39 @@ def rule_mount_clearance(c: _Ctx) -> RuleResult:
     m = c.mount
     socket = _Cyl("socket", 2, (0.0, 0.0, 0.0), c.cuts.socket_diameter / 2, 0.0, m.socket_depth)
     groups = [[socket]] + [_hole_pieces(h, c.cuts) for h in m.holes]
-    items = []
+    out: list[Place] = []
     for i, ga in enumerate(groups):
         for gb in groups[i + 1 :]:
             for a in ga:
                 for b in gb:
                     bound = _bbox_distance(a, b)
-                    if items and bound >= min(t[0] for t in items) and bound > c.limits.recommended_wall:
+                    if out and bound >= min(p.value for p in out) and bound > c.limits.recommended_wall:
                         continue
-                    items.append((_convex_distance(a, b), f"{a.name} to {b.name}"))
+                    out.append(Place(_convex_distance(a, b), f"{a.name} to {b.name}"))
     for g in groups:
         for piece in g:
             if piece.name.startswith("hole"):
                 continue  # hole_edge rule
-            items.append((_face_ligament(piece, m.lo, m.hi), f"{piece.name} to the block face"))
-    # the socket floor over the holes below it
-    v, w = _worst(items)
-    return _judge(
-        "mount.hole_clearance",
-        "wall between mount cuts",
-        v,
-        w,
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+            out.append(Place(_face_ligament(piece, m.lo, m.hi), f"{piece.name} to the block face"))
+    return out
 
 
-def rule_connector_hole_edge(c: _Ctx) -> RuleResult:
+def connector_hole_edge(c: _Ctx) -> list[Place]:
     """Wall between each connector hole (dowel-pin holes, tapped holes for the mount screws)
     and the plate's edges: ≥ 1 × the hole's nominal diameter, as for the mount."""
     k = c.connector
-    items = []
+    out = []
     for h in k.holes:
         d = c.cuts.pin_hole_diameter if h.kind == "pin" else c.cuts.hole(h.diameter)
         piece = _Cyl(h.name, h.axis, tuple(float(x) for x in h.center), d / 2, h.lo, h.hi)
         lig = _face_ligament(piece, k.lo, k.hi)
-        items.append((lig / h.diameter, lig, h))
-    _, lig, h = min(items, key=lambda t: t[0])
-    return _judge(
-        "connector.hole_edge",
-        "hole wall to plate edge",
-        lig,
-        f"hole {h.name} (Ø{h.diameter:g})",
-        HOLE_EDGE_FACTOR * h.diameter,
-        ">=",
-        source="edge distance >= 1 x hole diameter (centre at 1.5 d)",
-    )
+        out.append(
+            Place(lig, f"hole {h.name} (Ø{h.diameter:g})", limit=HOLE_EDGE_FACTOR * h.diameter, rank=lig / h.diameter)
+        )
+    return out
 
 
-def rule_connector_walls(c: _Ctx) -> RuleResult:
+def connector_walls(c: _Ctx) -> list[Place]:
     """Walls of the connector: the plate around the pocket (at cut size), the pocket floor
     (plate thickness minus pocket depth) and each dowel-pin hole to the pocket. Limits: the
     profile's walls."""
@@ -692,70 +675,111 @@ def rule_connector_walls(c: _Ctx) -> RuleResult:
     size = c.cuts.slide(k.pocket_size)
     plo = k.pocket_center[:2] - size / 2
     phi = k.pocket_center[:2] + size / 2
-    items = [
-        (
-            float(min(plo[0] - k.lo[0], plo[1] - k.lo[1], k.hi[0] - phi[0], k.hi[1] - phi[1])),
-            "pocket to the plate edge",
-        ),
-        (float(k.size[2] - k.pocket_depth), "pocket floor"),
-    ]
+    edge = float(min(plo[0] - k.lo[0], plo[1] - k.lo[1], k.hi[0] - phi[0], k.hi[1] - phi[1]))
+    out = [Place(edge, "pocket to the plate edge"), Place(float(k.size[2] - k.pocket_depth), "pocket floor")]
     for h in k.holes:
         if h.kind != "pin":
             continue
         r = c.cuts.pin_hole_diameter / 2
         dx = max(plo[0] - h.center[0], 0.0, h.center[0] - phi[0])
         dy = max(plo[1] - h.center[1], 0.0, h.center[1] - phi[1])
-        items.append((math.hypot(dx, dy) - r, f"hole {h.name} to the pocket"))
-    v, w = _worst(items)
-    return _judge(
-        "connector.walls",
-        "connector wall",
-        v,
-        w,
-        c.limits.min_wall,
-        ">=",
-        recommended=c.limits.recommended_wall,
-        source=c.limits.sources["wall"],
-    )
+        out.append(Place(math.hypot(dx, dy) - r, f"hole {h.name} to the pocket"))
+    return out
 
 
-def rule_template_clearance(c: _Ctx) -> RuleResult:
+def template_clearance(c: _Ctx) -> list[Place]:
     """Gap between the mount's lower side (``axis_height − width/2`` in T) and the template's
     top edge (``template_edge``): the mount and the cylinder reach over the template along
     ``+z`` and must clear it (> 0)."""
     con = c.design.connector
-    gap = con.axis_height - c.mount.width / 2 - con.template_edge
-    return _judge(
+    low = con.axis_height - c.mount.width / 2
+    return [Place(low - con.template_edge, f"mount from y = {low:g}, template edge at y = {con.template_edge:g}")]
+
+
+_HOLE_EDGE = "edge distance >= 1 x hole diameter (centre at 1.5 d)"
+
+#: every design rule, in the report's order
+RULES: tuple[Rule, ...] = (
+    Rule("body.bore_wall", "wall under the deepest cut", ">=", bore_wall, _wall, "no cuts"),
+    Rule(
+        "groove.tool",
+        "groove width",
+        ">=",
+        groove_tool,
+        lambda c: Limit(c.limits.tool, source=c.limits.sources["tool"]),
+    ),
+    Rule(
+        "groove.depth",
+        "groove depth / tool",
+        "<=",
+        groove_depth,
+        lambda c: Limit(c.limits.max_depth_ratio, c.limits.recommended_depth_ratio, c.limits.sources["depth"]),
+        unit="x",
+    ),
+    Rule(
+        "wires.crossing_clearance",
+        "clearance between crossing wires",
+        ">",
+        crossing_clearance,
+        lambda c: Limit(0.0, c.limits.tolerance, c.limits.sources["tolerance"]),
+        "no crossings",
+    ),
+    Rule(
+        "pockets.spacing",
+        "wall between a pocket and its neighbours",
+        ">=",
+        pocket_spacing,
+        _wall,
+        "fewer than two cuts",
+    ),
+    Rule("grooves.spacing", "wall between grooves", ">=", groove_spacing, _wall, "fewer than two parallel grooves"),
+    Rule(
+        "pockets.retention",
+        "pocket depth at its rim",
+        ">",
+        retention,
+        _fixed(0.0, "a ball is held by its pocket only if its centre is below the rim"),
+    ),
+    Rule("body.envelope", "material to the end faces", ">=", envelope, _wall, "no cuts"),
+    Rule(
+        "mount.coverage",
+        "gap between the socket rim and the nearest feature",
+        ">",
+        coverage,
+        _fixed(0.0, "the mount must not cover a wire or bead (paper §II.A.3)"),
+        "no features",
+    ),
+    Rule("mount.hole_edge", "hole wall to block edge", ">=", mount_hole_edge, _fixed(0.0, _HOLE_EDGE)),
+    Rule("mount.hole_clearance", "wall between mount cuts", ">=", mount_clearance, _wall),
+    Rule("connector.hole_edge", "hole wall to plate edge", ">=", connector_hole_edge, _fixed(0.0, _HOLE_EDGE)),
+    Rule("connector.walls", "connector wall", ">=", connector_walls, _wall),
+    Rule(
         "connector.template_clearance",
         "gap between the mount and the template's top edge",
-        gap,
-        f"mount from y = {con.axis_height - c.mount.width / 2:g}, template edge at y = {con.template_edge:g}",
-        0.0,
         ">",
-        source="the mount reaches over the template's top edge",
-    )
-
-
-RULES: tuple[Callable[[_Ctx], RuleResult], ...] = (
-    rule_bore_wall,
-    rule_groove_tool,
-    rule_groove_depth,
-    rule_crossing,
-    rule_pocket_spacing,
-    rule_groove_spacing,
-    rule_retention,
-    rule_envelope,
-    rule_coverage,
-    rule_mount_hole_edge,
-    rule_mount_clearance,
-    rule_connector_hole_edge,
-    rule_connector_walls,
-    rule_template_clearance,
+        template_clearance,
+        _fixed(0.0, "the mount reaches over the template's top edge"),
+    ),
 )
 
 
 def check_design(design: Design, profile: Profile = "cnc", features: Features | None = None) -> CheckReport:
-    """Run every rule on ``design`` under ``profile``."""
+    """Run every rule on ``design`` under ``profile``.
+
+    Parameters
+    ----------
+    design : Design
+        The design.
+    profile : {"cnc", "fdm"}
+        The manufacturing profile whose cut sizes and limits apply.
+    features : Features or None
+        The design's features, when already computed.
+
+    Returns
+    -------
+    CheckReport
+        Every rule's result, in :data:`RULES` order.
+    """
     features = features if features is not None else compute_features(design)
     cuts = cut_sizes(design, profile)
     mount = mount_layout(design)
@@ -769,4 +793,4 @@ def check_design(design: Design, profile: Profile = "cnc", features: Features | 
         mount,
         connector_layout(design, mount),
     )
-    return CheckReport(design.name, design.source, profile, tuple(rule(ctx) for rule in RULES), cuts.as_dict())
+    return CheckReport(design.name, design.source, profile, tuple(rule.evaluate(ctx) for rule in RULES), cuts.as_dict())

@@ -1,0 +1,329 @@
+"""The command line's shared options, each defined once: its flag, its parameter's name (the
+field it fills, so ``--depth-mm`` arrives as ``depth_mm``), its type, its default and a help
+text that a command may put in its own words.
+
+Each factory returns a click decorator: ``@features_option()``, ``@profile_option("…")``.
+The groups used together (the workspace, the image-true score, the OpenIGTLink link) are one
+decorator each.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import click
+
+from ..machining.post import DEFAULT_POST, POSTS
+from ..manufacture.profiles import PROFILES
+
+Decorator = Callable[[Callable], Callable]
+
+#: a file that must not be a directory (``--features``, ``--camera``, …)
+FILE = click.Path(dir_okay=False, path_type=Path)
+#: a positive number
+POSITIVE = click.FloatRange(min=0.0, min_open=True)
+#: how dense matter looks in an image
+POLARITIES = ("auto", "dense-dark", "dense-bright")
+
+
+def stack(*decorators: Decorator) -> Decorator:
+    """Several options as one decorator, listed as ``--help`` shows them (top to bottom).
+
+    Parameters
+    ----------
+    *decorators : callable
+        click decorators.
+
+    Returns
+    -------
+    callable
+        A decorator applying all of them.
+    """
+
+    def decorate(fn: Callable) -> Callable:
+        for d in reversed(decorators):
+            fn = d(fn)
+        return fn
+
+    return decorate
+
+
+class SharedOption:
+    """One option as every command that takes it declares it: its flags and parameter name, its
+    type and default, and a help text a command may replace with its own words.
+
+    Parameters
+    ----------
+    *decls : str
+        The flags and, last, the parameter's name (``"--features", "features_path"``).
+    **attrs
+        :func:`click.option`'s attributes (``type``, ``default``, ``help``, …).
+    """
+
+    def __init__(self, *decls: str, **attrs):
+        self.decls = decls
+        self.attrs = attrs
+
+    def __call__(self, help: str | None = None, **override) -> Decorator:
+        """The option as a click decorator.
+
+        Parameters
+        ----------
+        help : str or None
+            This command's help (None: the shared one).
+        **override
+            Attributes this command sets otherwise (``default``, ``required``, ``type``).
+
+        Returns
+        -------
+        callable
+            The click option.
+        """
+        attrs = {**self.attrs, **override}
+        if help is not None:
+            attrs["help"] = help
+        return click.option(*self.decls, **attrs)
+
+
+def design_argument(dir_okay: bool = True) -> Decorator:
+    """``DESIGN``: a design file or a preset's name (:func:`ftrac_design.design.presets.resolve_design`).
+
+    Parameters
+    ----------
+    dir_okay : bool
+        Whether a directory of that name is passed through (to be reported by the reader).
+
+    Returns
+    -------
+    callable
+        The click argument ``design`` (a :class:`pathlib.Path`).
+    """
+    return click.argument("design", type=click.Path(path_type=Path, dir_okay=dir_okay))
+
+
+#: ``--features FILE`` (required) → ``features_path``
+features_option = SharedOption(
+    "--features", "features_path", required=True, type=FILE, help="features.json written by `ftrac-design build`."
+)
+#: ``--camera FILE`` → ``camera_path`` (None when not given)
+camera_option = SharedOption("--camera", "camera_path", type=FILE, default=None, help="SPEC §3 camera object (JSON).")
+#: ``-o/--output`` → ``output``: a file or a directory (``type=OUT_FILE`` / ``OUT_DIR`` for one of them)
+output_option = SharedOption("-o", "--output", "output", type=click.Path(path_type=Path), default=None)
+#: an output that is a file
+OUT_FILE = click.Path(path_type=Path, dir_okay=False)
+#: an output that is a directory
+OUT_DIR = click.Path(path_type=Path, file_okay=False)
+
+
+def _choice(flag: str, choices, default: str, help: str | None = None) -> SharedOption:
+    return SharedOption(flag, type=click.Choice(list(choices)), default=default, show_default=True, help=help)
+
+
+#: ``--profile cnc|fdm`` → ``profile`` (default cnc)
+profile_option = _choice("--profile", PROFILES, "cnc", "manufacturing profile: sets groove widths and pocket diameters")
+#: ``--profile cnc|fdm``, repeatable → ``profiles`` (empty when not given)
+profiles_option = SharedOption("--profile", "profiles", type=click.Choice(PROFILES), multiple=True)
+#: ``--post linuxcnc|fanuc`` → ``post`` (:data:`ftrac_design.machining.post.POSTS`)
+post_option = _choice("--post", POSTS, DEFAULT_POST, "the control the program is written for")
+#: ``--polarity auto|dense-dark|dense-bright`` → ``polarity`` (default auto)
+polarity_option = _choice(
+    "--polarity", POLARITIES, "auto", "dense-dark: raw detector counts; dense-bright: log/display image."
+)
+#: ``--distortion FILE|none`` → ``distortion_path``: an ftrac-distortion model, or none (a flat panel)
+distortion_option = SharedOption("--distortion", "distortion_path", type=FILE, default=None)
+#: ``--refine none|intensity`` → ``refine`` (default none)
+refine_option = _choice("--refine", ("none", "intensity"), "none")
+#: ``--independent`` (a flag): every frame tracked alone, no prior
+independent_option = SharedOption("--independent", is_flag=True)
+#: ``--poses N`` (at least 100) → ``poses`` (None: the design's or the command's default)
+poses_option = SharedOption(
+    "--poses",
+    type=click.IntRange(min=100),
+    default=None,
+    help="random workspace poses scored [default: the design's, else 20000]",
+)
+#: ``--workers N`` → ``workers`` (None: one per core; 0: this process)
+workers_option = SharedOption(
+    "--workers",
+    type=click.IntRange(min=0),
+    default=None,
+    help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
+)
+#: ``--min-clearance-px PX`` → ``min_clearance_px``: 5th-percentile image clearance between features
+min_clearance_option = SharedOption("--min-clearance-px", type=float, default=None)
+#: ``--score-images N`` → ``score_images``: the image-true score's images per condition
+score_images_option = SharedOption(
+    "--score-images",
+    type=click.IntRange(min=0),
+    default=100,
+    show_default=True,
+    help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
+    "patient), the same images for every design; 0 = the paper's feature-level model only",
+)
+#: ``--host ADDRESS`` (default 127.0.0.1)
+host_option = SharedOption("--host", default="127.0.0.1", show_default=True)
+#: ``--port N`` (default 18944, OpenIGTLink's; ``type=click.IntRange(0, 65535)`` lets a server take any free one)
+port_option = SharedOption("--port", type=click.IntRange(1, 65535), default=18944, show_default=True)
+
+
+def workspace_options() -> Decorator:
+    """The workspace, noise and sampling of the paper's model (``analyze``, ``compare``), each
+    named as its field of :class:`~ftrac_design.analysis.score.AnalysisSettings` and
+    :class:`~ftrac_design.pose.simulate.Workspace` (``--depth-mm`` → ``depth_mm``); None where
+    not given, so the design's ``[analysis]`` table or the defaults decide
+    (:func:`ftrac_design.analysis.subject.settings_for`).
+
+    Returns
+    -------
+    callable
+        One decorator for ``--poses``, ``--seed``, ``--cone-deg``, ``--roll-range-deg``,
+        ``--depth-mm``, ``--depth-range-mm``, ``--lateral-mm`` and ``--segmentation-error-mm``.
+    """
+    return stack(
+        poses_option(),
+        click.option("--seed", type=int, default=None, help="random seed of the workspace poses [default: 0]"),
+        click.option(
+            "--cone-deg",
+            type=click.FloatRange(min=0.0, max=180.0, min_open=True),
+            default=None,
+            help="workspace: beams within this angle of the nominal beam; 180 = the whole sphere [default: 25]",
+        ),
+        click.option(
+            "--roll-range-deg",
+            type=(float, float),
+            default=None,
+            metavar="FROM TO",
+            help="workspace: roll about the beam drawn from this range [default: 0 360]",
+        ),
+        click.option(
+            "--depth-mm", type=POSITIVE, default=None, help="workspace: source to fiducial origin [default: 667]"
+        ),
+        click.option(
+            "--depth-range-mm",
+            type=click.FloatRange(min=0.0),
+            default=None,
+            help="workspace: ± this about the depth [default: 25]",
+        ),
+        click.option(
+            "--lateral-mm",
+            type=click.FloatRange(min=0.0),
+            default=None,
+            help="workspace: origin within this of the principal ray [default: 25]",
+        ),
+        click.option(
+            "--segmentation-error-mm",
+            type=POSITIVE,
+            default=None,
+            help="the paper's uniform segmentation error magnitude, mm at the detector [default: 0.25]",
+        ),
+    )
+
+
+def image_score_options(atlas: bool = False) -> Decorator:
+    """The image-true score's sample (``--score-images``, ``--score-seed``), with ``atlas`` its
+    blind-spot atlas (``--image-atlas-step-deg``), and the processes that render and track
+    (``--workers``): ``analyze``, ``compare`` and ``report``
+    (:meth:`ftrac_design.workflows.analyze.ImageScoring.from_options`).
+
+    Parameters
+    ----------
+    atlas : bool
+        Whether the command draws the image-true atlas.
+
+    Returns
+    -------
+    callable
+        One decorator for those options.
+    """
+    opts = [
+        score_images_option(),
+        click.option(
+            "--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample"
+        ),
+    ]
+    if atlas:
+        opts.append(
+            click.option(
+                "--image-atlas-step-deg",
+                type=click.FloatRange(min=0.0, max=45.0),
+                default=20.0,
+                show_default=True,
+                help="the image-true blind-spot atlas: grid step over the sphere of view directions, each "
+                "direction imaged (clean) and tracked at 2 rolls; 0 = none",
+            )
+        )
+    return stack(*opts, workers_option())
+
+
+def imaging_options(prefix: str = "") -> Decorator:
+    """The imaging model's physics (:class:`ftrac_design.xray.ImagingModel`): ``--energy-kev``,
+    ``--dose`` (→ its photons per pixel), ``--focal-spot-mm`` and ``--detector-blur-px``
+    (also ``--blur-px``).
+
+    Parameters
+    ----------
+    prefix : str
+        Put before each help (``"imaging: "``).
+
+    Returns
+    -------
+    callable
+        One decorator for the four.
+    """
+    return stack(
+        click.option(
+            "--energy-kev",
+            type=click.FloatRange(40.0, 100.0),
+            default=60.0,
+            show_default=True,
+            help=prefix + "effective beam energy for the attenuation coefficients.",
+        ),
+        click.option(
+            "--dose",
+            type=POSITIVE,
+            default=1.0e4,
+            show_default=True,
+            help=prefix + "unattenuated quanta per detector pixel (sets the quantum noise).",
+        ),
+        click.option(
+            "--focal-spot-mm",
+            type=click.FloatRange(min=0.0),
+            default=0.6,
+            show_default=True,
+            help=prefix + "focal spot size (FWHM).",
+        ),
+        click.option(
+            "--detector-blur-px",
+            "--blur-px",
+            "detector_blur_px",
+            type=click.FloatRange(min=0.0),
+            default=0.7,
+            show_default=True,
+            help=prefix + "Gaussian σ of the detector line-spread, pixels.",
+        ),
+    )
+
+
+def link_options(
+    space_help: str, name_help: str = "TRANSFORM device name, PLUS <From>To<To>, at most 20 characters."
+) -> Decorator:
+    """The transform's name and coordinates as OpenIGTLink, ITK and PLUS files carry them:
+    ``--name`` (default ``FiducialToCArm``) and ``--space ras|lps`` (default ras).
+
+    Parameters
+    ----------
+    space_help : str
+        What the coordinates apply to, in this command.
+    name_help : str
+        Where the name goes, in this command.
+
+    Returns
+    -------
+    callable
+        One decorator for both.
+    """
+    return stack(
+        click.option("--name", default="FiducialToCArm", show_default=True, help=name_help),
+        click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True, help=space_help),
+    )
