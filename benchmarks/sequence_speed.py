@@ -22,6 +22,7 @@ rounds is what it costs when the other jobs leave the machine alone at least onc
 
     .venv/bin/python benchmarks/sequence_speed.py                         # both designs, 120 frames, DICOM
     .venv/bin/python benchmarks/sequence_speed.py --design ftrac_mini --n 60 --format npy
+    .venv/bin/python benchmarks/sequence_speed.py --design ftrac_2005 --n 60 --renderer independent
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 from _common import machine
@@ -41,7 +43,7 @@ from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
-from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
 from ftrac_design.workflows.run_tracker import RunTracker
 from ftrac_design.xray import Body
 from ftrac_design.xray.sweep import render_sweep
@@ -114,7 +116,34 @@ def _round(path: Path, features, cam, body, n: int, desc: str):
     return ms, cpu, answers
 
 
-def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
+def independent_sweep(name: str, R0: np.ndarray, t0: np.ndarray, n: int, cam: Camera, seed: int) -> SimpleNamespace:
+    """The same C-arm swing (``carm_sweep``'s default motion) drawn by the independent renderer
+    (benchmarks/independent/: the built CAD parts over its voxel pelvis, a polychromatic beam,
+    scatter, compound-Poisson noise), the pelvis fixed to the fiducial for the whole run; kept in
+    outputs/independent_run/ for the next run."""
+    from independent import render_independent
+    from independent.fiducial import load_scene
+    from independent.render import patient_placement
+
+    R, t = carm_sweep(R0, t0, n)
+    cache = Path(__file__).resolve().parents[1] / "outputs" / "independent_run" / f"{name}_{n}_{seed}.npy"
+    if cache.is_file():
+        raw = np.load(cache)
+    else:
+        placement = patient_placement(load_scene(name), np.random.default_rng(seed))
+        frames = []
+        for k in tqdm(range(n), desc=f"{name}: rendering (independent renderer)", file=sys.stderr):
+            img, _ = render_independent(
+                name, R[k], t[k], cam, patient=True, seed=seed * 1000 + k, patient_pose=placement
+            )
+            frames.append(img)
+        raw = np.stack(frames)
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        np.save(cache, raw)
+    return SimpleNamespace(raw=raw, rotation=R, translation_mm=t)
+
+
+def run_design(name: str, n: int, fmt: str, seed: int, rounds: int, renderer: str = "package") -> None:
     design = load_design(name)
     features = compute_features(design)
     body = Body.from_design(design)
@@ -125,7 +154,10 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
         1, features.nominal_beam_direction, np.random.default_rng(seed)
     )
     t_render = time.perf_counter()
-    run = render_sweep(features, R0[0], t0[0], n, cam, seed=seed, body=body)
+    if renderer == "independent":
+        run = independent_sweep(name, R0[0], t0[0], n, cam, seed)
+    else:
+        run = render_sweep(features, R0[0], t0[0], n, cam, seed=seed, body=body)
     t_render = time.perf_counter() - t_render
     with tempfile.TemporaryDirectory() as tmp:
         path = _write(run.raw, cam, Path(tmp), fmt)
@@ -142,7 +174,7 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int) -> None:
     same = all([x.status for x in r[2]["run tracker"]] == [x.status for x in answers["run tracker"]] for r in results)
     a, b = ms["run tracker"], ms["frame by frame"]
     print(
-        f"\n{name}: {n} frames of 1024² ({fmt}, {size:.0f} MiB; rendered in {t_render:.0f} s), load average "
+        f"\n{name}: {n} frames of 1024² ({fmt}, {size:.0f} MiB; {renderer} renderer, {t_render:.0f} s), load average "
         f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}"
     )
     print(f"  reading a frame alone: median {np.median(t_read):.1f} ms")
@@ -190,10 +222,16 @@ def main() -> None:
     ap.add_argument(
         "--rounds", type=int, default=3, help="passes over the run; each frame's fastest is also reported (default 3)"
     )
+    ap.add_argument(
+        "--renderer",
+        choices=["package", "independent"],
+        default="package",
+        help="who draws the run: the package's simulator, or the independent renderer over its voxel pelvis",
+    )
     a = ap.parse_args()
     print(machine())
     for name in a.design or ["ftrac_2005", "ftrac_mini"]:
-        run_design(name, a.n, a.format, a.seed, a.rounds)
+        run_design(name, a.n, a.format, a.seed, a.rounds, a.renderer)
 
 
 if __name__ == "__main__":

@@ -21,11 +21,11 @@ from ..errors import InputError
     show_default=True,
     help="folder for detector.onnx and detector.json (the shipped ones: ftrac_design/detector/models)",
 )
-@click.option("--scenes", type=click.IntRange(1), default=4000, show_default=True, help="training scenes")
-@click.option("--val-scenes", type=click.IntRange(1), default=400, show_default=True, help="validation scenes")
+@click.option("--scenes", type=click.IntRange(1), default=5000, show_default=True, help="training scenes")
+@click.option("--val-scenes", type=click.IntRange(1), default=500, show_default=True, help="validation scenes")
 @click.option("--seed", type=int, default=1, show_default=True, help="seed of the training scenes and the weights")
 @click.option("--val-seed", type=int, default=2, show_default=True, help="seed of the validation scenes")
-@click.option("--steps", type=click.IntRange(1), default=3000, show_default=True, help="optimiser steps")
+@click.option("--steps", type=click.IntRange(1), default=5000, show_default=True, help="optimiser steps")
 @click.option("--batch", type=click.IntRange(1), default=32, show_default=True, help="crops per step")
 @click.option("--lr", type=click.FloatRange(min=0, min_open=True), default=2e-3, show_default=True)
 @click.option("--workers", type=click.IntRange(1), default=2, show_default=True, help="processes making scenes")

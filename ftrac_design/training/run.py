@@ -53,11 +53,11 @@ class TrainConfig:
         "cpu" or "cuda".
     """
 
-    scenes: int = 4000
-    val_scenes: int = 400
+    scenes: int = 5000
+    val_scenes: int = 500
     seed: int = 1
     val_seed: int = 2
-    steps: int = 3000
+    steps: int = 5000
     batch: int = 32
     lr: float = 2e-3
     widths: tuple[int, int, int] = (24, 48, 72)
