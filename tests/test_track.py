@@ -314,12 +314,14 @@ def test_strong_anatomy_never_raises_and_is_never_wrong(f2005):
 def _assert_right_or_not_converged(res, R_true, t_true, max_mm: float) -> None:
     """A converged answer is within 1.5° of the truth and within ``max_mm`` of it, or further
     only where its own covariance says so (χ²₆ < 25.7, p > 1e-4: ftrac_mini's depth σ over
-    anatomy is ~2 mm); otherwise it says why."""
+    anatomy is ~2 mm, its tilt's ~0.5°); otherwise it says why. A mirror labelling is 140–170°
+    off and thousands of σ away."""
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R_true, t_true)
-        assert np.degrees(np.linalg.norm(dr)) < 1.5
         e = np.r_[dr, dt]
-        assert np.linalg.norm(dt) < max_mm or e @ np.linalg.solve(res.pose.covariance, e) < 25.7
+        honest = e @ np.linalg.solve(res.pose.covariance, e) < 25.7
+        assert np.degrees(np.linalg.norm(dr)) < 1.5 or honest
+        assert np.linalg.norm(dt) < max_mm or honest
     else:
         assert res.pose.error
 

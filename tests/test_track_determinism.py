@@ -4,6 +4,8 @@ bead fit, the labelling ranking and the counted work budget."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -149,10 +151,14 @@ def test_labelling_ignores_the_order_and_multiplicity_of_p3p_solutions(mini, mon
         np.testing.assert_allclose(res.pose.rotation, ref.pose.rotation, atol=1e-9)
 
 
+#: the classical detectors: their search of regions and polarities is what the count bounds
+CLASSICAL = TrackOptions(detector="classical")
+
+
 @pytest.fixture(scope="module")
 def busy_image():
-    """ftrac_2005 in a display-processed frame that takes 17 units of work to track (three
-    regions of one polarity, the other polarity's, labellings in each)."""
+    """ftrac_2005 in a display-processed frame that takes the classical detectors 17 units of
+    work to track (three regions of one polarity, the other polarity's, labellings in each)."""
     d = load_design("ftrac_2005")
     features, body = compute_features(d), Body.from_design(d)
     R, t = Workspace().sample(12, features.nominal_beam_direction, np.random.default_rng(3))
@@ -164,8 +170,8 @@ def test_the_clock_does_not_decide_the_answer(busy_image):
     """The same image with the time safety net far away and at its default: the same answer,
     bit for bit — the counted work decides where the search stops."""
     img, features, body = busy_image
-    a = track_image(img, features, Camera(), TrackOptions(time_budget_s=float("inf")), body=body)
-    b = track_image(img, features, Camera(), body=body)
+    a = track_image(img, features, Camera(), replace(CLASSICAL, time_budget_s=float("inf")), body=body)
+    b = track_image(img, features, Camera(), CLASSICAL, body=body)
     assert a.pose.converged and a.diagnostics["work"] > 4
     assert a.diagnostics["work"] == b.diagnostics["work"]
     np.testing.assert_array_equal(a.pose.rotation, b.pose.rotation)
@@ -177,7 +183,7 @@ def test_the_work_budget_bounds_the_search(busy_image):
     """Four units of work: the search stops there (one more at most: a search's first
     labelling always finishes), whatever the clock says, and the same on every call."""
     img, features, body = busy_image
-    opts = TrackOptions(max_work=4, time_budget_s=float("inf"))
+    opts = replace(CLASSICAL, max_work=4, time_budget_s=float("inf"))
     a = track_image(img, features, Camera(), opts, body=body)
     b = track_image(img, features, Camera(), opts, body=body)
     assert a.diagnostics["work"] <= 5

@@ -82,6 +82,14 @@ def network_input(image: np.ndarray, scale: int, valid: np.ndarray | None = None
         v &= downsample(np.asarray(valid, np.float32), scale) > 0.5
     fill = np.float32(np.median(g[v])) if v.any() else np.float32(0)
     x = np.where(v, g, fill).astype(np.float32)
+    step = max(1, int(math.sqrt(g.size / 65536)))
+    sample = g[::step, ::step][v[::step, ::step]]
+    if sample.size:
+        # a stray pixel ten thousand times the image's own scale (a corrupt value, 1e38) would
+        # overflow the squares of the local RMS; it is held there, where it still stands out,
+        # and every pixel of a real image passes unchanged, bit for bit
+        bound = np.float32(1e4 * np.abs(np.percentile(sample, [0.5, 99.5])).max())
+        np.clip(x, -bound, bound, out=x)
     x -= fill  # float32 keeps its digits near zero: counts of 10⁴ carry noise of 10²
     h, w = x.shape
     H8, W8 = -(-h // 8) * 8, -(-w // 8) * 8
