@@ -32,7 +32,6 @@ from ftrac_design.images import frame_count, read_frames
 from ftrac_design.pose.simulate import pose_errors
 from ftrac_design.workflows.track_run import failed_pose_dict
 from ftrac_design.xray.scenario import realistic_image
-from ftrac_design.xray.scene import body_from_features_file
 
 SETTINGS = CarmDemoSettings()
 NUM = r"[-+]?\d+\.\d+"
@@ -129,7 +128,6 @@ def test_the_run_is_stored_rotated_and_reads_back_as_rendered(ran, features_2005
         CAMERA,
         SETTINGS.condition,
         SETTINGS.seed,
-        body=body_from_features_file(features_path),
         shape=SHAPE,
     )
     frame = list(read_frames(root / "carm" / "run.dcm"))[1]

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fuzz_support import MODELS
 from test_fuzz_observation import FEATURE_FILES, FEATURES
 
 from ftrac_design.cli.main import main
@@ -23,7 +22,6 @@ from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
 from ftrac_design.workflows.run_tracker import RunTracker
 from ftrac_design.xray import ImagingModel, render
-from ftrac_design.xray.scene import body_from_design_file
 from ftrac_design.xray.sweep import render_sweep
 
 SHAPE = (512, 512)
@@ -40,12 +38,7 @@ SWING = {
 
 
 @pytest.fixture(scope="module")
-def body():
-    return body_from_design_file(MODELS / "ftrac_2005.toml")
-
-
-@pytest.fixture(scope="module")
-def run(body):
+def run():
     features = FEATURES["ftrac_2005"]
     R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
         1, features.nominal_beam_direction, np.random.default_rng(5)
@@ -58,15 +51,14 @@ def run(body):
         CAM,
         ImagingModel(image_shape=SHAPE),
         seed=5,
-        body=body,
         anatomy_strength=0.6,
         margin_px=96,
         **SWING,
     )
 
 
-def _track_all(frames, body, independent=False, times=None):
-    tr = RunTracker(FEATURES["ftrac_2005"], CAM, body=body, independent=independent)
+def _track_all(frames, independent=False, times=None):
+    tr = RunTracker(FEATURES["ftrac_2005"], CAM, independent=independent)
     return [tr.track_frame(f, time_s=None if times is None else times[k]) for k, f in enumerate(frames)]
 
 
@@ -77,13 +69,13 @@ def _errors(answer, R, t) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def tracked(run, body):
-    return _track_all(run.raw, body, times=np.arange(N) / 30.0)
+def tracked(run):
+    return _track_all(run.raw, times=np.arange(N) / 30.0)
 
 
 @pytest.fixture(scope="module")
-def alone(run, body):
-    return _track_all(run.raw, body, independent=True)
+def alone(run):
+    return _track_all(run.raw, independent=True)
 
 
 def test_the_swing_is_smooth_and_starts_where_asked():
@@ -130,8 +122,8 @@ def test_tracked_frames_say_how_they_were_found(tracked):
     json.dumps([a.pose_dict() for a in tracked], allow_nan=False)
 
 
-def test_the_same_frames_give_the_same_answers(run, body, tracked):
-    again = _track_all(run.raw, body, times=np.arange(N) / 30.0)
+def test_the_same_frames_give_the_same_answers(run, tracked):
+    again = _track_all(run.raw, times=np.arange(N) / 30.0)
 
     def strip(d):
         d = dict(d)
@@ -141,19 +133,17 @@ def test_the_same_frames_give_the_same_answers(run, body, tracked):
     assert [strip(a.pose_dict()) for a in again] == [strip(a.pose_dict()) for a in tracked]
 
 
-def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body):
+def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run):
     """Frames 0–4, then frame 10 (a jump ahead), a frame of another view, a blank frame, then
     frames 5–7: no pose is carried past a jump, the blank frame is lost and the frame after
     it is identified from scratch; every pose given out is right."""
     features = FEATURES["ftrac_2005"]
     R1, t1 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(77))
-    foreign = render(
-        features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1), body=body
-    ).raw
+    foreign = render(features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1)).raw
     blank = np.full(SHAPE, int(np.median(run.raw[0])), np.uint16)
     order = [0, 1, 2, 3, 4, 10, "foreign", "blank", 5, 6, 7]
     frames = [foreign if k == "foreign" else blank if k == "blank" else run.raw[k] for k in order]
-    answers = _track_all(frames, body)
+    answers = _track_all(frames)
     status = [a.status for a in answers]
     assert status[5] != "tracked" and status[6] == "re-identified" and status[7] == "lost"
     assert status[8] == "re-identified", status
@@ -171,7 +161,7 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body)
 
 def test_a_tracker_needs_a_camera():
     with pytest.raises(ValueError, match="camera"):
-        RunTracker(FEATURES["ftrac_2005"], body=None).track(np.zeros((64, 64)))
+        RunTracker(FEATURES["ftrac_2005"]).track(np.zeros((64, 64)))
 
 
 def _lines(path: Path) -> list[dict]:

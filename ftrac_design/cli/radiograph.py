@@ -193,10 +193,9 @@ def command(
         bit_depth=bit_depth,
     )
     scene = _Scene(
-        features,
+        _with_body(features, features_path, design_path, no_body),
         camera,
         imaging,
-        _body(features_path, design_path, no_body),
         [_parse_occluder(o, occluder_frame) for o in occluder],
         _Background.read(background, camera, imaging, seed),
     )
@@ -213,22 +212,24 @@ def command(
     return 0
 
 
-def _body(features_path: Path, design_path: Path | None, no_body: bool):
-    """The fiducial's body: none, the design file's, or the one features.json names (exit 2 without one)."""
-    from ..xray import body_from_design_file, body_from_features_file
+def _with_body(features, features_path: Path, design_path: Path | None, no_body: bool):
+    """The features with the body rendered: none (--no-body), the design file's (--design), or
+    the one features.json names (exit 2 without one)."""
+    from dataclasses import replace
+
+    from ..design import load_design
 
     if no_body:
-        return None
+        return replace(features, body=None)
     if design_path is not None:
-        return body_from_design_file(design_path)
-    body = body_from_features_file(features_path)
-    if body is None:
+        return replace(features, body=load_design(design_path).body)
+    if features.body is None:
         raise InputError(
             features_path,
             "body",
             "the fiducial's body: a 'body' key, a design.source that can be found, --design DESIGN.toml, or --no-body",
         )
-    return body
+    return features
 
 
 @dataclass(frozen=True)
@@ -276,7 +277,6 @@ class _Scene:
     features: object
     camera: object
     imaging: object
-    body: object
     occluders: list
     background: _Background
 
@@ -319,7 +319,6 @@ def _render_one(scene: _Scene, R, t, seed: int, i: int, name: str, pose_source: 
             rng=np.random.default_rng([seed, i]),
             background=bg,
             occluders=scene.occluders,
-            body=scene.body,
             image_name=name,
         )
     except ValueError as exc:

@@ -36,12 +36,8 @@ def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path 
     from ..pose.observation import read_camera
     from ..segment import TrackOptions
     from ..workflows.track_run import TrackSetup
-    from ..xray.scene import body_from_features_file, body_from_source
 
     features = load_features(features_path)
-    body = body_from_features_file(features_path)
-    if body is None:
-        body = body_from_source(features.source, features_path.parent)
     camera = read_camera(camera_path) if camera_path is not None else None
     # "none": the detector does not distort (a flat panel); a model: the frames are corrected.
     # Either way no unmodelled distortion is left for the pose covariance to carry
@@ -64,7 +60,7 @@ def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path 
                 "(ftrac_design.intensity); use --refine none",
             ) from None
     return TrackSetup(
-        features, body, options, camera, model, str(distortion_path) if distortion_path is not None else None, refine_fn
+        features, options, camera, model, str(distortion_path) if distortion_path is not None else None, refine_fn
     )
 
 
@@ -173,9 +169,7 @@ def command(
         for inp in inputs:
             # one tracker per run: its frames in order, nothing carried from one IMAGE to the next
             tracker = (
-                RunTracker(setup.features, setup.camera, setup.options, body=setup.body, independent=independent)
-                if inp.run
-                else None
+                RunTracker(setup.features, setup.camera, setup.options, independent=independent) if inp.run else None
             )
             frames = read_frames(inp.path, setup.camera)
             while True:

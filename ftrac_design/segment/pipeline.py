@@ -93,14 +93,14 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budge
     return out
 
 
-def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) -> tuple[Labelling, Scene] | None:
+def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling) -> tuple[Labelling, Scene] | None:
     """The best labelling again, on the image with the body's modelled projection subtracted
     at its pose (:mod:`.body`): the new labelling and the scene it was found on, or None when
     that did not help (the body cannot be modelled there, or the new pose fails where the
     old one had converged)."""
     blur = float(np.median(scene.beads.blur))
     p0 = best.pose
-    inner = ridges_without_body(g, scene, p0, body, blur)
+    inner = ridges_without_body(g, scene, p0, blur)
     if inner is None:
         return None
     merged = merge_ridges(scene.ridges, inner.ridges)
@@ -162,7 +162,6 @@ def _track_density(
     features: Features,
     camera: Camera,
     opts: TrackOptions,
-    body,
     pol: str,
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
@@ -212,8 +211,8 @@ def _track_density(
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
     best, others = evaluated[0], evaluated[1:]
-    if body is not None and best.placed:
-        redone = _with_body_subtracted(g, scene, best, body)
+    if features.body is not None and best.placed:
+        redone = _with_body_subtracted(g, scene, best)
         if redone is not None:
             best, scene = redone
             diag["body_subtracted"] = True
@@ -250,7 +249,6 @@ def track_image(
     camera: Camera,
     options: TrackOptions | None = None,
     polarity_hint: str | None = None,
-    body="auto",
     formation_hint: str | None = None,
 ) -> TrackResult:
     """Segment, identify and solve one image with no initial guess.
@@ -258,15 +256,14 @@ def track_image(
     Parameters
     ----------
     image : (H, W) pixels as stored (raw counts, a log image or a display frame).
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F); where they carry the body
+        (``features.body``), the ridges are found again on the image with the body's modelled
+        projection subtracted (:mod:`.body`).
     camera : the image's intrinsics (SPEC §1).
     options : the image path's settings (default :class:`TrackOptions`).
     polarity_hint : "dense-dark" / "dense-bright" (or "dense_dark" / "dense_bright") when the
         file says how dense matter looks; with ``TrackOptions.polarity`` "auto" and no hint,
         the more likely polarity is tried first and the other when the first finds no pose.
-    body : an :class:`ftrac_design.xray.Body`, None, or "auto" (from the design file named
-        in ``features.source``): lets the ridges be found on the image with the body's
-        modelled projection subtracted (:mod:`.body`).
     formation_hint : "linear", "log" or "display" when the file says (see
         :mod:`.conditioning`); else found from the pixels.
 
@@ -276,7 +273,7 @@ def track_image(
     numerics fail on what the image shows, the pose has ``converged = False`` and the reason.
     """
     try:
-        return _track(image, features, camera, options, polarity_hint, body, formation_hint)
+        return _track(image, features, camera, options, polarity_hint, formation_hint)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
@@ -328,14 +325,9 @@ def _track(
     camera: Camera,
     options: TrackOptions | None,
     polarity_hint: str | None,
-    body,
     formation_hint: str | None,
 ) -> TrackResult:
     budget = Budget(options or TrackOptions())
-    if isinstance(body, str):
-        from ..xray.scene import body_from_source
-
-        body = body_from_source(features.source)
     opts = options or TrackOptions()
     img = np.asarray(image)
     if img.dtype != np.float32:
@@ -359,7 +351,7 @@ def _track(
         if tried and budget.spent():
             break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, body, sc, budget, det)
+        res = _track_conditioned(cond, small, features, camera, opts, sc, budget, det)
         res.diagnostics["detector"] = "classical" if det is None else "learned"
         res.diagnostics["formation"] = cond.formation
         res.diagnostics["work"] = opts.max_work - budget.work
@@ -404,7 +396,6 @@ def _track_conditioned(
     features: Features,
     camera: Camera,
     opts: TrackOptions,
-    body,
     sc,
     budget: Budget,
     det=None,
@@ -437,7 +428,6 @@ def _track_conditioned(
             features,
             crop_cam,
             opts,
-            body,
             pol,
             None if valid is None else valid[r0:r1, c0:c1],
             noise.crop(r0, r1, c0, c1),
@@ -454,4 +444,4 @@ def _track_conditioned(
         # cheap enough to be worth it (a small image)
         if det is not None or img.size > opts.whole_image_px or budget.spent():
             return first
-    return _track_density(img, features, camera, opts, body, pol, valid, noise, budget)
+    return _track_density(img, features, camera, opts, pol, valid, noise, budget)

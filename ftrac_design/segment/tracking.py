@@ -244,14 +244,13 @@ def scene_near(
     search_px: float,
     valid: np.ndarray | None,
     noise: NoiseField,
-    body=None,
     ball_blur_px: float | None = None,
     diag: dict | None = None,
 ) -> Scene:
     """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
     only where pose (R, t) puts the fiducial (see the module).
 
-    The body's modelled projection at (R, t) is subtracted first (``body``; :mod:`.body`),
+    The body's modelled projection at (R, t) is subtracted first (``features.body``; :mod:`.body`),
     then each ball is fitted once, starting at the strongest blob within ``search_px`` of
     its projection, with the predicted wires' pixels left out (as the full path refits its
     balls; a ball the mask leaves too little of is fitted without it). No whole-crop ridge
@@ -264,7 +263,6 @@ def scene_near(
     features, camera, opts : the design, the crop's intrinsics, the options.
     R, t : the predicted pose F → X.
     search_px : how far from its projection a ball is looked for (px).
-    body : ``ftrac_design.xray.Body`` or None.
     ball_blur_px : the balls' fitted blur σ (px) the body and the wire mask are blurred with
         (default ``opts.blur_px``).
     diag : a dict that gets ``body_subtracted`` when the body was subtracted.
@@ -282,8 +280,8 @@ def scene_near(
     empty = np.zeros((0, 2))
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
     scene = Scene(features, camera, opts, sc, T, nmap, None, ridges, valid, None, None)
-    if body is not None:
-        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), body, blur, find_ridges=False)
+    if features.body is not None:
+        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, find_ridges=False)
         if inner is not None:
             T = inner.T
             if diag is not None:
@@ -312,7 +310,6 @@ def track_near(
     context: RunContext,
     options: TrackOptions | None = None,
     search_px: float | None = None,
-    body=None,
     first_stage: int = 0,
 ) -> TrackResult:
     """Track one frame of a run from the predicted pose (R, t): see the module.
@@ -320,15 +317,14 @@ def track_near(
     Parameters
     ----------
     image : (H, W) the frame's pixels as stored.
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F); their body (``features.body``), where known,
+        is subtracted at the predicted pose before the wires are measured (:mod:`.body`).
     camera : the frame's intrinsics (SPEC §1).
     R, t : the predicted pose F → X (rotation (3, 3), translation (3,) mm).
     context : what the run shares (:func:`run_context`).
     options : the image path's settings (default :class:`TrackOptions`); its blur is the context's.
     search_px : how far from its projection a ball is looked for (px); default the stage-one
         bead matching tolerance, max(``match_tol_px``, the ball's radius).
-    body : the fiducial's body (``ftrac_design.xray.Body``) or None: its modelled projection
-        at the predicted pose is subtracted before the wires are measured (:mod:`.body`).
     first_stage : the labelling stage the solve starts at (:func:`.labelling.evaluate`): 0
         (wide tolerances, then tight and thinned) or 2 (tight and thinned only; for a
         prediction known to be within a fraction of a pixel).
@@ -340,7 +336,7 @@ def track_near(
     an image (a failure is a refused pose with its reason).
     """
     try:
-        return _track_near(image, features, camera, R, t, context, options, search_px, body, first_stage)
+        return _track_near(image, features, camera, R, t, context, options, search_px, first_stage)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(
             f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}", context.polarity
@@ -356,7 +352,6 @@ def _track_near(
     context: RunContext,
     options: TrackOptions | None,
     search_px: float | None,
-    body,
     first_stage: int,
 ) -> TrackResult:
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
@@ -393,7 +388,7 @@ def _track_near(
         "formation": cond.formation,
         "blur_px": opts.blur_px,
     }
-    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body, context.ball_blur_px, diag)
+    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, context.ball_blur_px, diag)
     diag["blobs"] = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
         return shifted(

@@ -132,11 +132,10 @@ class RunTracker:
 
     Parameters
     ----------
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F), their body (``features.body``) included
+        where known.
     camera : the intrinsics used when a frame comes without its own (SPEC §1), or None.
     options : the image path's settings (:class:`~ftrac_design.segment.TrackOptions`).
-    body : the fiducial's body (``ftrac_design.xray.Body``), None, or "auto" (from the
-        design named in ``features.source``).
     run_options : :class:`RunOptions`.
     independent : track every frame alone with the full identification (no prior), as
         ``track --independent`` does; the answers carry the same keys.
@@ -154,18 +153,12 @@ class RunTracker:
         camera: Camera | None = None,
         options: TrackOptions | None = None,
         *,
-        body: Any = "auto",
         run_options: RunOptions | None = None,
         independent: bool = False,
     ):
-        if isinstance(body, str):
-            from ..xray.scene import body_from_source
-
-            body = body_from_source(features.source)
         self.features = features
         self.camera = camera
         self.options = options or TrackOptions()
-        self.body = body
         self.run_options = run_options or RunOptions()
         self.independent = independent
         self._state = _State()
@@ -252,15 +245,13 @@ class RunTracker:
         prediction = None if self.independent else self._predict(index, time_s)
         if prediction is not None and st.context is not None:
             fs = 2 if st.last_moved_px <= self.run_options.tight_start_px else 0
-            res = track_near(image, self.features, cam, *prediction, st.context, opts, body=self.body, first_stage=fs)
+            res = track_near(image, self.features, cam, *prediction, st.context, opts, first_stage=fs)
             if res.pose.converged:
                 st.last_moved_px = float(res.diagnostics.get("moved_px") or 0.0)
                 self._accept(index, time_s, res)
                 return FrameAnswer(res, "tracked", index, time_s, 1000 * (time.perf_counter() - start))
             tracking_error = res.pose.error
-        res = track_image(
-            image, self.features, cam, opts, polarity_hint=polarity_hint, body=self.body, formation_hint=formation_hint
-        )
+        res = track_image(image, self.features, cam, opts, polarity_hint=polarity_hint, formation_hint=formation_hint)
         res.diagnostics["path"] = "re-identified" if res.pose.converged else "lost"
         st.last_moved_px = math.inf
         if not res.pose.converged:

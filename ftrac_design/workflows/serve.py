@@ -133,7 +133,7 @@ def run_tracker(setup: TrackSetup) -> Tracker:
     Tracker : returns the frame's SPEC §4 object with ``status``, ``timing``, ``time_s`` and
         ``camera``.
     """
-    tracker = RunTracker(setup.features, setup.camera, setup.options, body=setup.body)
+    tracker = RunTracker(setup.features, setup.camera, setup.options)
     count = iter(range(1 << 62))  # frames in the order they reach the tracker: the run's own count
 
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:

@@ -90,8 +90,7 @@ class TrackSetup:
 
     Attributes
     ----------
-    features : the fiducial (mm, frame F).
-    body : its body (``ftrac_design.xray.Body``) or None.
+    features : the fiducial (mm, frame F), its body included where known.
     options : the tracker's settings (``--polarity``).
     camera : ``--camera`` intrinsics overriding the files', or None.
     distortion : the ``--distortion`` model, or None.
@@ -100,7 +99,6 @@ class TrackSetup:
     """
 
     features: Features
-    body: Any
     options: TrackOptions
     camera: Camera | None = None
     distortion: DistortionModel | None = None
@@ -286,12 +284,11 @@ def track_pixels(
             frame.camera,
             options,
             polarity_hint=frame.polarity,
-            body=setup.body,
             formation_hint=frame.formation,
         )
     if setup.refine is not None and res.pose.converged:
         # the converged pose refined on the pixels; the observation stays the segmented one
-        res = setup.refine(img, setup.features, frame.camera, res, body=setup.body)
+        res = setup.refine(img, setup.features, frame.camera, res)
         if answer is not None:
             answer.result = res
     return img, res, answer
