@@ -26,7 +26,7 @@ from live_latency import sweep_frames  # noqa: E402
 
 from ftrac_design.features import load_features  # noqa: E402
 from ftrac_design.intensity import refine_track_result  # noqa: E402
-from ftrac_design.workflows.run_tracker import RunTracker  # noqa: E402
+from ftrac_design.tracking import RunTracker  # noqa: E402
 
 
 def main() -> None:

@@ -42,7 +42,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.workflows.run_tracker import RunTracker
+from ftrac_design.tracking import RunTracker
 from ftrac_design.xray.sweep import render_sweep
 
 

@@ -470,7 +470,7 @@ def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path
     from ftrac_design.features import compute_features, write_features
     from ftrac_design.pose import Camera
     from ftrac_design.pose.simulate import Workspace
-    from ftrac_design.workflows.run_tracker import RunTracker
+    from ftrac_design.tracking import RunTracker
     from ftrac_design.xray import ImagingModel
     from ftrac_design.xray.sweep import render_sweep
 

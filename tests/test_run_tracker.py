@@ -1,4 +1,4 @@
-"""Runs tracked frame to frame (:class:`ftrac_design.workflows.run_tracker.RunTracker`): as
+"""Runs tracked frame to frame (:class:`ftrac_design.tracking.RunTracker`): as
 accurate as tracking every frame alone, never carrying a wrong pose past a jump, a foreign
 or a blank frame, the same answers for the same frames, and ``track`` on a multi-frame
 DICOM and on a video file.
@@ -20,7 +20,7 @@ from ftrac_design.cli.main import main
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
-from ftrac_design.workflows.run_tracker import RunTracker
+from ftrac_design.tracking import RunTracker
 from ftrac_design.xray import ImagingModel, render
 from ftrac_design.xray.sweep import render_sweep
 

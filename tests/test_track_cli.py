@@ -26,7 +26,8 @@ from ftrac_design.images import distort_image, write_dicom, write_distortion, wr
 from ftrac_design.images.distortion import radial
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.workflows import run_tracker, track_run
+from ftrac_design.tracking import run_tracker
+from ftrac_design.workflows import track_run
 from ftrac_design.xray import ImagingModel, render
 
 SHAPE = (384, 384)

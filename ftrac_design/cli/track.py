@@ -151,7 +151,7 @@ def command(
     from tqdm import tqdm
 
     from ..images import read_frames
-    from ..workflows.run_tracker import RunTracker
+    from ..tracking import RunTracker
     from ..workflows.track_run import TrackOutputs, overlay_name, track_frame, validate_inputs
 
     setup = _setup(features_path, camera_path, distortion_path, polarity, refine)

@@ -116,9 +116,17 @@ def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling) -> tuple
     return lab, inner.with_detections(inner.T, beads2, merged if merged is not None else scene.ridges)
 
 
-def _accept(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[str, Any]) -> None:
-    """Run the acceptance tests on ``best`` (in place: the pose is refused with the first
-    reason found)."""
+def accept_best(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[str, Any]) -> None:
+    """Run the acceptance tests on the best labelling (in place: its pose is refused with the
+    first reason found).
+
+    Parameters
+    ----------
+    scene : what the image shows (:class:`.detection.Scene`).
+    best : the labelling given out, unless refused here.
+    others : the rival labellings (a far one that explains the image about as well refuses it).
+    diag : the result's diagnostics: gets ``alternatives`` and ``wire_support``.
+    """
     pose = best.pose
     if pose.converged:
         for other in others:
@@ -138,9 +146,19 @@ def _accept(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[s
         acceptance.refuse(pose, acceptance.too_little_evidence(scene, best))
 
 
-def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
-    """Per-feature quality of what the pose used: bead fit σ, radius, blur and SNR; each
-    contour point's SNR."""
+def feature_quality(scene: Scene, best: Labelling) -> dict[str, Any]:
+    """Per-feature quality of what the pose used: bead fit σ (px), radius (px), blur (px) and
+    SNR; each contour point's SNR.
+
+    Parameters
+    ----------
+    scene : what the image shows.
+    best : the labelling given out.
+
+    Returns
+    -------
+    dict : ``{"points": {id: {...}}, "lines": {id: {"snr": [...]}}, "ellipses": {...}}``.
+    """
     beads, obs, cont = scene.beads, best.obs, best.contours
     quality: dict[str, Any] = {"points": {}, "lines": {}, "ellipses": {}}
     for fid, j in best.match.items():
@@ -216,7 +234,7 @@ def _track_density(
         if redone is not None:
             best, scene = redone
             diag["body_subtracted"] = True
-    _accept(scene, best, others, diag)
+    accept_best(scene, best, others, diag)
     diag.update(
         {
             "blur_px": scene.opts.blur_px,
@@ -233,7 +251,7 @@ def _track_density(
     return TrackResult(
         best.pose,
         best.obs,
-        _quality(scene, best),
+        feature_quality(scene, best),
         scene.beads,
         scene.ridges,
         pol,

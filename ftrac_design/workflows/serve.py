@@ -32,7 +32,7 @@ learns a frame was refused). One client at a time; when it leaves, the server wa
 :class:`~ftrac_design.workflows.track_run.TrackSetup`, a ``track(image, camera, time_s) -> pose``
 callable (SPEC §4 object) called once per frame, in order, from one thread.
 :func:`run_tracker`, the default, tracks each frame from the previous frame's pose as ``track``
-tracks a run (:class:`~ftrac_design.workflows.run_tracker.RunTracker`: the full identification
+tracks a run (:class:`~ftrac_design.tracking.RunTracker`: the full identification
 when the fiducial is lost, jumps or fails the tests); :func:`frame_by_frame_tracker`
 (``serve --independent``) tracks each frame alone exactly as ``track`` tracks an image.
 
@@ -62,7 +62,7 @@ from ..igt.frames import POSE_TRANSFORM, Space, check_transform_name
 from ..igt.poses import PoseRecord
 from ..images import Frame
 from ..pose import Camera
-from .run_tracker import RunTracker
+from ..tracking import RunTracker
 from .track_run import TrackSetup, failed_pose_dict, one_line, track_pixels
 
 #: OpenIGTLink's default port (3D Slicer's OpenIGTLinkIF and PLUS use it)
@@ -119,7 +119,7 @@ def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
 
 def run_tracker(setup: TrackSetup) -> Tracker:
     """The tracker of a live stream: frames in order through one
-    :class:`~ftrac_design.workflows.run_tracker.RunTracker` (each from the previous frame's pose,
+    :class:`~ftrac_design.tracking.RunTracker` (each from the previous frame's pose,
     the full identification when that fails), undistorted and refined as ``track`` does
     (:func:`~ftrac_design.workflows.track_run.track_pixels`). A dropped frame is simply not seen:
     the next one is predicted from the poses before it, scaled by the frames' times.

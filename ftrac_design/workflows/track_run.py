@@ -27,7 +27,7 @@ ignore keys they do not know):
 - ``distortion``: the ``--distortion`` model file the frame was undistorted with.
 
 A frame of a run (a directory or a multi-frame file) is tracked by the run's
-:class:`~.run_tracker.RunTracker` and its pose object also carries ``status``
+:class:`~ftrac_design.tracking.RunTracker` and its pose object also carries ``status``
 (``"tracked"``: from the previous frames' poses; ``"re-identified"``: by the full
 identification with no prior; ``"lost"``: no pose), ``timing`` (``read_ms`` reading and
 decoding the frame, ``elapsed_ms`` tracking it, ``path`` the status) and, where a tracked
@@ -52,7 +52,7 @@ from ..fileio import temporary_file
 from ..images import DistortionModel, Frame, read_frames, undistort_image
 from ..pose import Camera, Pose
 from ..segment import TrackOptions, TrackResult, track_image
-from .run_tracker import FrameAnswer, RunTracker
+from ..tracking import FrameAnswer, RunTracker
 
 #: the observation written for a frame that has none (nothing segmented)
 EMPTY_OBSERVATION = {
@@ -252,7 +252,7 @@ def track_pixels(
 ) -> tuple[np.ndarray, TrackResult, FrameAnswer | None]:
     """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
     frame's polarity and formation as hints (``TrackOptions.polarity`` overrides) — or, for
-    a frame of a run, the run's ``tracker`` (:class:`~.run_tracker.RunTracker`) — then
+    a frame of a run, the run's ``tracker`` (:class:`~ftrac_design.tracking.RunTracker`) — then
     ``setup.refine`` on a converged pose.
 
     Returns
@@ -309,7 +309,7 @@ def track_frame(
     frame, inp : the frame and the argument it came from.
     setup : what it is tracked with.
     lines : JSON Lines output (True) or a single indented pose.json (False).
-    tracker : the run's :class:`~.run_tracker.RunTracker` (frames of a run), or None (the
+    tracker : the run's :class:`~ftrac_design.tracking.RunTracker` (frames of a run), or None (the
         frame alone). With a tracker the pose object also carries ``status`` ("tracked",
         "re-identified", "lost") and ``timing`` (``read_ms``, ``elapsed_ms``, ``path``).
     read_ms : how long reading the frame took (ms), recorded in ``timing``.

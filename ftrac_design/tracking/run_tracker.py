@@ -7,7 +7,7 @@ in order. For each frame:
 1. **Predict.** From the last two accepted poses of consecutive frames, constant velocity
    (the rotation step R_b R_aᵀ and the translation step repeated, scaled by the time or
    frame step); from one, constant pose; from none, no prediction.
-2. **Track** (:func:`ftrac_design.segment.tracking.track_near`): the model is projected at
+2. **Track** (:func:`ftrac_design.tracking.near.track_near`): the model is projected at
    the prediction, the balls and wires are measured around their projections, the pose is
    solved from the prediction and kept only if the full path's tests pass (per-feature χ²,
    wire support, evidence) and the balls did not move farther from the prediction than
@@ -21,7 +21,7 @@ in order. For each frame:
 becomes the next frame's prior; a refused tracked pose is dropped, and after a lost frame
 the history is empty, so the next frame is identified from scratch.
 
-**What is done once per run** (:class:`~ftrac_design.segment.tracking.RunContext`), from
+**What is done once per run** (:class:`~ftrac_design.tracking.near.RunContext`), from
 the last frame the full identification tracked, and renewed at every re-identification:
 the polarity and the formation (a property of the detector chain and the file, not of the
 view), the blur the filters are sized for and the balls' fitted blur (the focal spot and the
@@ -49,7 +49,7 @@ import numpy as np
 from ..features import Features
 from ..pose import Camera, so3
 from ..segment import TrackOptions, TrackResult, track_image
-from ..segment.tracking import RunContext, run_context, track_near
+from .near import RunContext, run_context, track_near
 
 #: what a frame's answer says about how it was found
 Status = Literal["tracked", "re-identified", "lost"]

@@ -1,7 +1,7 @@
 """One frame of a run tracked from a predicted pose: measured only where the model projects,
 solved from the prediction, and given out only when the full path's tests pass.
 
-:func:`track_image` finds the fiducial with no prior: regions on a half-size image, every
+:func:`~ftrac_design.segment.track_image` finds the fiducial with no prior: regions on a half-size image, every
 bead labelling that the blobs allow, rival labellings refuted. Within a run the previous
 frames say where the fiducial is and which ball is which, so :func:`track_near` does only
 what confirms that:
@@ -49,17 +49,17 @@ import numpy as np
 
 from ..features.model import Features
 from ..pose import Camera, Pose, so3
-from . import identify
-from .beads import blob_response
-from .body import ridges_without_body, wire_mask
-from .conditioning import condition
-from .detection import Scene, ball_fits, scales
-from .image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
-from .labelling import evaluate
-from .options import TrackOptions, TrackResult, failed_result
-from .pipeline import _accept, _quality
-from .region import shifted
-from .ridges import RidgePoints
+from ..segment import identify
+from ..segment.beads import blob_response
+from ..segment.body import ridges_without_body, wire_mask
+from ..segment.conditioning import condition
+from ..segment.detection import Scene, ball_fits, scales
+from ..segment.image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
+from ..segment.labelling import evaluate
+from ..segment.options import TrackOptions, TrackResult, failed_result
+from ..segment.pipeline import accept_best, feature_quality
+from ..segment.region import shifted
+from ..segment.ridges import RidgePoints
 
 
 @dataclass(frozen=True)
@@ -408,7 +408,7 @@ def _track_near(
         return shifted(
             failed_result(f"tracking lost: {lab}", context.polarity, scene.beads, None, diag), camera, c0, r0
         )
-    _accept(scene, lab, [], diag)
+    accept_best(scene, lab, [], diag)
     pose = lab.pose
     moved = (
         _moved_px(crop_cam, features, R, t, pose.rotation, pose.translation_mm)
@@ -434,5 +434,5 @@ def _track_near(
             else None,
         }
     )
-    res = TrackResult(pose, lab.obs, _quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
+    res = TrackResult(pose, lab.obs, feature_quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
     return shifted(res, camera, c0, r0)
