@@ -207,10 +207,10 @@ def smooth_run(a: argparse.Namespace) -> None:
 def track_command_ms(fr) -> np.ndarray:
     """``track`` on one image, in this process: the command's own path (its default settings,
     ``track_pixels``) on each frame alone, as ``serve --independent`` calls it (ms; one warm-up)."""
-    from ftrac_design.cli.track import _setup
     from ftrac_design.workflows.serve import frame_by_frame_tracker
+    from ftrac_design.workflows.track_run import TrackSetup
 
-    track = frame_by_frame_tracker(_setup(fr.features_path, fr.camera_path, None, "auto", "none"))
+    track = frame_by_frame_tracker(TrackSetup.from_options(fr.features_path, fr.camera_path))
     track(fr.pixels[-1].astype(np.float32), fr.camera, 0.0)
     out = []
     for img in fr.pixels[:-1]:

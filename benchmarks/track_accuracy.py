@@ -151,7 +151,8 @@ def run(
         perr.append(np.r_[np.degrees(dr), dt])
         psd.append(np.r_[np.degrees(np.sqrt(np.diag(p.covariance)[:3])), p.std_mm])
         # the noise model at the scale the residuals showed (the covariance's variance factor)
-        vf = math.sqrt(tr.diagnostics.get("variance_factor") or 1.0)
+        vf = tr.diagnostics.variance_factor
+        vf = math.sqrt(vf if vf and math.isfinite(vf) else 1.0)
         noise.append([vf * tr.noise.point_mm, vf * tr.noise.line_mm, vf * tr.noise.ellipse_mm])
         obs = tr.observation
         counts.append(

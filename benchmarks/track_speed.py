@@ -60,7 +60,7 @@ def main():
             ck = time.process_time()
             res = track_image(rads[k].raw, features, cam)
             per_image[r, k] = time.process_time() - ck
-            whole[k] = "roi" not in res.diagnostics
+            whole[k] = res.diagnostics.roi is None
         t2, c2 = time.perf_counter(), time.process_time()
         rr.append((t1 - t0) / a.n)
         tr.append((t2 - t1) / a.n)

@@ -128,8 +128,6 @@ LONG_FUNCTIONS_ALLOWED = {
     "ftrac_design/segment/beads.py:fit_beads",
     "ftrac_design/segment/identify.py:gather_contours",
     "ftrac_design/segment/overlay.py:draw_overlay",
-    "ftrac_design/segment/pipeline.py:_track_density",
-    "ftrac_design/tracking/near.py:_track_near",
     "ftrac_design/xray/patient.py:_pelvis",
     "ftrac_design/xray/scenario.py:realistic_image",
 }

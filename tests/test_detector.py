@@ -193,7 +193,7 @@ def test_without_onnx_runtime_the_classical_detectors_track(f2005, monkeypatch):
     monkeypatch.setattr(detector.runtime.importlib.util, "find_spec", lambda name: None)
     detector.runtime._LOADED.clear()
     res = track_image(rad.raw, features, Camera())
-    assert res.pose.converged and res.diagnostics["detector"] == "classical"
+    assert res.pose.converged and res.diagnostics.detector == "classical"
     with pytest.raises(MissingDependencyError, match="detect"):
         track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
 
@@ -204,4 +204,4 @@ def test_the_learned_path_tracks_and_says_so(f2005):
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
     rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
     res = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
-    assert res.pose.converged and res.diagnostics["detector"] == "learned"
+    assert res.pose.converged and res.diagnostics.detector == "learned"

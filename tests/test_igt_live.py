@@ -440,11 +440,11 @@ def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
 
 
 def test_push_paces_by_time_s_else_the_rate():
-    from ftrac_design.igt.poses import PoseRecord
+    from ftrac_design.pose import Pose, Provenance, TrackedPose
     from ftrac_design.workflows.serve import send_times
 
     def rec(t):
-        return PoseRecord(np.eye(3), np.zeros(3), True, None, t, None, None, None, "x")
+        return TrackedPose(Pose(np.eye(3), np.zeros(3), True, 0.0, None, {}, 0), provenance=Provenance(time_s=t))
 
     assert send_times([rec(5.0), rec(5.5), rec(7.0)], None) == [5.0, 5.5, 7.0]
     assert send_times([rec(5.0), rec(5.5)], 4.0) == [0.0, 0.25]

@@ -143,20 +143,21 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     from dataclasses import dataclass, field
 
     from ftrac_design.intensity import refine_track_result
+    from ftrac_design.pose import Diagnostics
     from ftrac_design.pose.solver import Pose
 
     @dataclass
     class Result:  # the fields of segment.pipeline.TrackResult it uses
         pose: Pose
         polarity: str
-        diagnostics: dict = field(default_factory=dict)
+        diagnostics: Diagnostics = field(default_factory=Diagnostics)
 
     R, t = pose_2005
     img = render(features_2005, R, t, imaging=ImagingModel(), rng=np.random.default_rng(2))
     R0, t0 = perturb(R, t, np.array([2e-4, -1e-4, 1e-4, 0.02, -0.01, 0.3]))
     start = Result(Pose(R0, t0, True, 0.1, np.eye(6), {}, 3), "dense-dark")
     out = refine_track_result(img.raw, features_2005, Camera(), start)
-    assert out.diagnostics["intensity"]["cost_end"] <= out.diagnostics["intensity"]["cost_start"]
+    assert out.diagnostics.intensity.cost_end <= out.diagnostics.intensity.cost_start
     assert np.abs(out.pose.translation_mm - t).max() < 0.1 < np.abs(t0 - t).max()
     assert out.pose.covariance.shape == (6, 6) and out.pose.converged
     failed = Result(Pose(R0, t0, False, np.nan, None, {}, 0, "not found"), "dense-dark")

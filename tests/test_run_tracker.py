@@ -112,14 +112,14 @@ def test_a_run_is_tracked_from_frame_to_frame_as_accurately_as_frame_by_frame(ru
 
 def test_tracked_frames_say_how_they_were_found(tracked):
     for k, a in enumerate(tracked):
-        d = a.pose_dict()
+        d = a.record().to_dict()
         assert d["frame"] == k and d["status"] == a.status and d["timing"]["path"] == a.status
         assert d["timing"]["elapsed_ms"] > 0 and d["time_s"] == pytest.approx(k / 30.0)
         assert d["segmentation"]["path"] == a.status and d["format"] == "ftrac-pose"
         if a.status == "tracked":
             # where the balls moved from the prediction; tight-stage frames within half a pixel
             assert 0 <= d["segmentation"]["moved_px"] < 3.0
-    json.dumps([a.pose_dict() for a in tracked], allow_nan=False)
+    json.dumps([a.record().to_dict() for a in tracked], allow_nan=False)
 
 
 def test_the_same_frames_give_the_same_answers(run, tracked):
@@ -130,7 +130,7 @@ def test_the_same_frames_give_the_same_answers(run, tracked):
         d.pop("timing")
         return d
 
-    assert [strip(a.pose_dict()) for a in again] == [strip(a.pose_dict()) for a in tracked]
+    assert [strip(a.record().to_dict()) for a in again] == [strip(a.record().to_dict()) for a in tracked]
 
 
 def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run):
@@ -156,7 +156,7 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run):
         if a.result.pose.converged:
             dt, dr = _errors(a, R, t)
             assert dt < 2.0 and dr < 0.5, (a.status, dt, dr)
-    assert not answers[7].result.pose.converged and answers[7].pose_dict()["rotation"] is None
+    assert not answers[7].result.pose.converged and answers[7].record().to_dict()["rotation"] is None
 
 
 def test_a_tracker_needs_a_camera():

@@ -76,7 +76,7 @@ def test_symmetric_helix_is_reported_not_guessed():
     rad = render(features, R, t, Camera(), rng=np.random.default_rng(2))
     res = track_image(rad.raw, features, Camera())
     assert not res.pose.converged and "ambiguous" in res.pose.error
-    alts = res.diagnostics["alternatives"]
+    alts = res.diagnostics.alternatives
     errs = [
         np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R, t)[0]))
         for a in alts
@@ -267,7 +267,7 @@ def test_ftrac_mini_near_mirror_labelling_is_not_confident():
             np.degrees(
                 np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R[19], t[19])[0])
             )
-            for a in res.diagnostics["alternatives"]
+            for a in res.diagnostics.alternatives
         ]
         assert min(errs) < 1.5
 

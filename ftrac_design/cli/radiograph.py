@@ -23,38 +23,22 @@ _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
 
 
 def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file."""
-    try:
-        text = path.read_text("utf-8")
-    except OSError as exc:
-        raise InputError(path, None, f"a readable pose file ({exc.strerror})") from None
-    stripped = text.strip()
-    try:
-        objs = (
-            [json.loads(stripped)]
-            if stripped.startswith("{") and "\n{" not in stripped
-            else [json.loads(line) for line in text.splitlines() if line.strip()]
-        )
-    except ValueError:
-        raise InputError(path, None, "a SPEC §4 pose object, or JSON Lines of them") from None
-    if not objs:
-        raise InputError(path, None, "at least one pose")
+    """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file
+    (:func:`ftrac_design.pose.read_tracked_poses`), each a proper rotation with the fiducial in
+    front of the source."""
+    from ..pose import read_tracked_poses
+
     Rs, ts = [], []
-    for i, o in enumerate(objs):
-        where = f"pose {i + 1}: " if len(objs) > 1 else ""
-        try:
-            R = np.asarray(o["rotation"], float).reshape(3, 3)
-            t = np.asarray(o["translation_mm"], float).reshape(3)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(path, f"{where}rotation/translation_mm", "a 3×3 rotation and a 3-vector (mm)") from None
+    for rec in read_tracked_poses(path):
+        R, t = rec.pose.rotation, rec.pose.translation_mm
         if (
             not (np.all(np.isfinite(R)) and np.all(np.isfinite(t)))
             or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
             or np.linalg.det(R) < 0
         ):
-            raise InputError(path, f"{where}rotation", "a proper rotation matrix (orthonormal, det +1)")
+            raise InputError(rec.source, "rotation", "a proper rotation matrix (orthonormal, det +1)")
         if t[2] <= 0:
-            raise InputError(path, f"{where}translation_mm", "the fiducial in front of the source (z > 0)")
+            raise InputError(rec.source, "translation_mm", "the fiducial in front of the source (z > 0)")
         Rs.append(R)
         ts.append(t)
     return np.array(Rs), np.array(ts)

@@ -38,6 +38,7 @@ from threadpoolctl import threadpool_limits
 
 from ..features.model import Features
 from ..pose.camera import Camera
+from ..pose.record import IntensityFit
 from ..xray.model import ImagingModel
 from .background import Nuisance, background_basis
 from .bound import _dot
@@ -678,15 +679,7 @@ def refine_track_result(
         translation_mm=res.translation_mm,
         covariance=cov if cov is not None else pose.covariance,
     )
-    diag = dict(result.diagnostics)
-    diag["intensity"] = {
-        "refined": bool(res.converged),
-        "cost_start": res.cost_start,
-        "cost_end": res.cost_end,
-        "chi2_per_dof": chi2,
-        "iterations": res.iterations,
-        "gain": res.gain,
-        "roi": list(res.roi),
-        "message": res.message,
-    }
-    return replace(result, pose=new_pose, diagnostics=diag)
+    fit = IntensityFit(
+        bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), res.message
+    )
+    return replace(result, pose=new_pose, diagnostics=replace(result.diagnostics, intensity=fit))

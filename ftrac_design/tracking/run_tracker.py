@@ -41,18 +41,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
 
 from ..features import Features
-from ..pose import Camera, so3
+from ..pose import Camera, Provenance, Status, Timing, TrackedPose, so3
 from ..segment import TrackOptions, TrackResult, track_image
 from .near import RunContext, run_context, track_near
-
-#: what a frame's answer says about how it was found
-Status = Literal["tracked", "re-identified", "lost"]
 
 
 @dataclass(frozen=True)
@@ -81,7 +78,7 @@ class FrameAnswer:
     Attributes
     ----------
     result : what was found (the pose, converged or not, the observation, diagnostics).
-    status : "tracked", "re-identified" or "lost".
+    status : "tracked", "re-identified" or "lost" (of :data:`ftrac_design.pose.Status`).
     frame : the frame's index in the run.
     time_s : its time (s) where known, else None.
     elapsed_ms : wall time spent on it (ms), from the call to the answer.
@@ -95,19 +92,17 @@ class FrameAnswer:
     elapsed_ms: float
     tracking_error: str | None = None
 
-    def pose_dict(self) -> dict[str, Any]:
-        """The SPEC §4 pose object with ``frame``, ``time_s`` (where known), ``status`` and
-        ``timing`` (``elapsed_ms``, ``path``) added; ``tracking_error`` when a tracked pose
-        was refused."""
-        d = self.result.pose_dict()
-        d["frame"] = int(self.frame)
-        if self.time_s is not None and math.isfinite(self.time_s):
-            d["time_s"] = float(self.time_s)
-        d["status"] = self.status
-        d["timing"] = {"elapsed_ms": round(self.elapsed_ms, 3), "path": self.status}
-        if self.tracking_error:
-            d["tracking_error"] = self.tracking_error
-        return d
+    def record(self) -> TrackedPose:
+        """The frame's pose as it is written (:class:`~ftrac_design.pose.TrackedPose`): the
+        result's, with ``frame``, ``time_s`` (where known), ``status``, ``timing``
+        (``elapsed_ms``, ``path``) and, when a tracked pose was refused, ``tracking_error``."""
+        time_s = self.time_s if self.time_s is not None and math.isfinite(self.time_s) else None
+        return replace(
+            self.result.record(self.status),
+            provenance=Provenance(frame=int(self.frame), time_s=time_s),
+            timing=Timing(self.elapsed_ms, self.status),
+            tracking_error=self.tracking_error,
+        )
 
 
 @dataclass
@@ -191,15 +186,19 @@ class RunTracker:
 
         Parameters are those of :meth:`track_frame`.
         """
-        return self.track_frame(
-            image,
-            camera,
-            time_s,
-            frame=frame,
-            options=options,
-            polarity_hint=polarity_hint,
-            formation_hint=formation_hint,
-        ).pose_dict()
+        return (
+            self.track_frame(
+                image,
+                camera,
+                time_s,
+                frame=frame,
+                options=options,
+                polarity_hint=polarity_hint,
+                formation_hint=formation_hint,
+            )
+            .record()
+            .to_dict()
+        )
 
     def track_frame(
         self,
@@ -247,12 +246,13 @@ class RunTracker:
             fs = 2 if st.last_moved_px <= self.run_options.tight_start_px else 0
             res = track_near(image, self.features, cam, *prediction, st.context, opts, first_stage=fs)
             if res.pose.converged:
-                st.last_moved_px = float(res.diagnostics.get("moved_px") or 0.0)
+                moved = res.diagnostics.moved_px
+                st.last_moved_px = float(moved) if moved and math.isfinite(moved) else 0.0
                 self._accept(index, time_s, res)
                 return FrameAnswer(res, "tracked", index, time_s, 1000 * (time.perf_counter() - start))
             tracking_error = res.pose.error
         res = track_image(image, self.features, cam, opts, polarity_hint=polarity_hint, formation_hint=formation_hint)
-        res.diagnostics["path"] = "re-identified" if res.pose.converged else "lost"
+        res.diagnostics.path = "re-identified" if res.pose.converged else "lost"
         st.last_moved_px = math.inf
         if not res.pose.converged:
             # nothing carried over a frame without a confirmed pose

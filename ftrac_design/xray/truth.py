@@ -31,6 +31,7 @@ from ..features.model import Features
 from ..fileio import write_json_atomic
 from ..pose.camera import Camera
 from ..pose.fitting import conic_center_and_axes, conic_vector
+from ..pose.record import Pose, TrackedPose
 from ..pose.simulate import projected_conic
 from .materials import material_name
 from .model import ImagingModel, Occluder
@@ -95,16 +96,8 @@ def truth_dict(
         "version": VERSION,
         "image": image_name,
         "features": features.name,
-        "pose": {
-            "format": "ftrac-pose",
-            "version": 1,
-            "rotation": R.tolist(),
-            "translation_mm": t.tolist(),
-            "converged": True,
-            "rms_residual_px": 0.0,
-            "covariance": None,
-            "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
-        },
+        # the true pose: SPEC §4's own keys, exact (no residual, no covariance)
+        "pose": TrackedPose(Pose(R, t, True, 0.0, None, {}, 0)).spec_dict(),
         "camera": camera.to_dict(),
         "imaging": imaging.to_dict(),
         "body": None if features.body is None else body_dict(features.body),
