@@ -67,12 +67,12 @@ def _ball_figures(found: np.ndarray, truth: np.ndarray) -> tuple[int, int, int, 
 
 def one(task) -> dict:
     preset, cond, k, seed, n = task
-    features, body = tr._preset(preset)
+    features = tr._preset(preset)
     img, R, t, cam, _ = tr.make_image(preset, cond, k, seed, n)
     pol, form = "dense-dark", "linear"
     if cond != "clean":
         # the same image again, for the polarity and formation its chain drew
-        img, info = realistic_image(features, R, t, cam, cond, seed * 100_000 + k, body=body)
+        img, info = realistic_image(features, R, t, cam, cond, seed * 100_000 + k)
         pol, form = info["polarity"], info["formation"]
     truth, wire_pts, rb = _truth(features, R, t, cam, img.shape)
     opts = TrackOptions()

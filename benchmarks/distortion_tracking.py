@@ -49,7 +49,7 @@ from ftrac_design.pose import Camera, SolverOptions, refine_pose
 from ftrac_design.pose.observation import CurveObservation, Observation
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, ImagingModel, render
+from ftrac_design.xray import ImagingModel, render
 
 PIXEL_MM = 0.44
 
@@ -76,7 +76,7 @@ def main() -> None:
     ap.add_argument("--s-px", type=float, default=3.0)
     args = ap.parse_args()
     design = load_design("ftrac_2005")
-    features, body = compute_features(design), Body.from_design(design)
+    features = compute_features(design)
     camera, imaging = Camera(), ImagingModel()
     shape = imaging.image_shape
     model = combine(
@@ -87,17 +87,17 @@ def main() -> None:
     rows: dict[str, list] = {k: [] for k in ("ideal", "distorted", "undistort image", "map points")}
     times: dict[str, list] = {"undistort image": [], "map points": []}
     for i, (R, t) in enumerate(zip(Rs, ts)):
-        trans = np.exp(-render(features, R, t, camera, quiet, body=body).line_integral)
+        trans = np.exp(-render(features, R, t, camera, quiet).line_integral)
         ideal = _noisy(trans, imaging, np.random.default_rng(100 + i))
         warped = _noisy(distort_image(trans, model, fill=1.0), imaging, np.random.default_rng(100 + i))
         res = {
-            "ideal": track_image(ideal, features, camera, body=body),
-            "distorted": track_image(warped, features, camera, body=body),
+            "ideal": track_image(ideal, features, camera),
+            "distorted": track_image(warped, features, camera),
         }
         t0 = time.process_time()
         fixed = undistort_image(warped, model)
         times["undistort image"].append(time.process_time() - t0)
-        res["undistort image"] = track_image(fixed, features, camera, body=body)
+        res["undistort image"] = track_image(fixed, features, camera)
         d = res["distorted"]
         if d.pose.converged and d.observation is not None:
             t0 = time.process_time()

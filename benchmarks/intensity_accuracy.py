@@ -46,12 +46,11 @@ from ftrac_design.intensity import RoiModel, perturb
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, ImagingModel, anatomy, render
+from ftrac_design.xray import ImagingModel, anatomy, render
 
 
 def main(n: int = 30, background: bool = False, mode: str = "default", perturbed: bool = False) -> None:
     features = load("ftrac_2005")
-    body = Body(30.0, 50.0, 20.0)
     cam = Camera()
     imaging = ImagingModel()
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(1313))
@@ -60,22 +59,22 @@ def main(n: int = 30, background: bool = False, mode: str = "default", perturbed
     render_cpu, models, std_q, std_s = [], Counter(), [], []
     for k in tqdm(range(n), desc="intensity", unit="image", mininterval=10):
         bg = anatomy(seed=k) if background else None
-        img = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body, background=bg)
+        img = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), background=bg)
         if perturbed:
             x = rng_start.standard_normal(6) * np.array([np.radians(0.05)] * 3 + [0.02, 0.02, 0.4])
             R_s, t_s = perturb(R[k], t[k], x)
             tr = SimpleNamespace(pose=SimpleNamespace(converged=True, rotation=R_s, translation_mm=t_s))
         else:
-            tr = track_image(img.raw.astype(float), features, cam, polarity_hint="dense_dark", body=body)
+            tr = track_image(img.raw.astype(float), features, cam, polarity_hint="dense_dark")
         if not tr.pose.converged:
             skipped += 1
             continue
-        judge = Judge(features, cam, imaging, body, R[k], t[k], background=bg)
+        judge = Judge(features, cam, imaging, R[k], t[k], background=bg)
         res, z, zq, dt = judge.refine(img.raw, tr.pose.rotation, tr.pose.translation_mm, mode, scales=(0.0,))
         times.append(dt)
         models[res.background_model] += 1
         # baseline in the same run: one noise-free render of the refinement's region of interest
-        roi_model = RoiModel(features, cam, imaging, body, res.roi)
+        roi_model = RoiModel(features, cam, imaging, res.roi)
         c1 = time.process_time()
         roi_model.log_image(tr.pose.rotation, tr.pose.translation_mm)
         render_cpu.append(time.process_time() - c1)

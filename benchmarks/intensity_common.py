@@ -45,12 +45,10 @@ class Judge:
     unknown (``spline``); a result is judged against the one matching the background model
     it used (the high-pass against ``quad``, as before)."""
 
-    def __init__(self, features, camera, imaging, body, R_true, t_true, background=None):
-        self.features, self.camera, self.imaging, self.body = features, camera, imaging, body
+    def __init__(self, features, camera, imaging, R_true, t_true, background=None):
+        self.features, self.camera, self.imaging = features, camera, imaging
         self.R, self.t = R_true, t_true
-        self.quad = pixel_information(
-            features, R_true, t_true, camera, imaging, body, background=background, nuisance=True
-        )
+        self.quad = pixel_information(features, R_true, t_true, camera, imaging, background=background, nuisance=True)
         self.background = background
         self._spline = None
 
@@ -63,7 +61,6 @@ class Judge:
                 self.t,
                 self.camera,
                 self.imaging,
-                self.body,
                 background=self.background,
                 nuisance=True,
                 background_spline_px=DEFAULT_SPLINE_PX,
@@ -90,7 +87,6 @@ class Judge:
             R0,
             t0,
             self.imaging,
-            body=self.body,
             polarity="dense_dark",
             **{**MODES[mode], **options},
         )

@@ -34,7 +34,7 @@ from ftrac_design.intensity import perturb, pixel_information, refine_intensity
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body, ImagingModel, render
+from ftrac_design.xray import ImagingModel, render
 
 AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 SAMPLE = 300
@@ -42,14 +42,13 @@ SAMPLE = 300
 
 def main(mode: str, n: int, first: int = 0) -> None:
     features = load("ftrac_2005")
-    body = Body(30.0, 50.0, 20.0)
     cam, imaging = Camera(), ImagingModel()
     R, t = Workspace().sample(SAMPLE, features.nominal_beam_direction, np.random.default_rng(1313))
     # the starts of intensity_accuracy.py's ``perturbed`` mode (the same generator, drawn in order)
     X = np.random.default_rng(7).standard_normal((SAMPLE, 6)) * np.array([np.radians(0.05)] * 3 + [0.02, 0.02, 0.4])
-    plain = {"body": body, "scales": (0.0,), "background": "polynomial", "robust": None}
+    plain = {"scales": (0.0,), "background": "polynomial", "robust": None}
     if mode == "stopping":
-        plain = {"body": body, "scales": (0.0,), "background": "spline"}
+        plain = {"scales": (0.0,), "background": "spline"}
     za, zb = [], []
     for k in tqdm(range(first, min(first + n, SAMPLE)), desc=mode, unit="image"):
         bound = pixel_information(
@@ -58,7 +57,6 @@ def main(mode: str, n: int, first: int = 0) -> None:
             t[k],
             cam,
             imaging,
-            body,
             nuisance=True,
             background_spline_px=12.0 if mode == "stopping" else None,
         )
@@ -69,10 +67,10 @@ def main(mode: str, n: int, first: int = 0) -> None:
 
         if mode == "noisefree":
             clean = replace(imaging, photons_per_px=None)
-            img = render(features, R[k], t[k], cam, clean, body=body)
+            img = render(features, R[k], t[k], cam, clean)
             za.append(z(refine_intensity(features, img.log_image, cam, Rs, ts, clean, **plain)))
         else:
-            img = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body)
+            img = render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k))
             kw = dict(plain, polarity="dense_dark")
             za.append(z(refine_intensity(features, img.raw, cam, Rs, ts, imaging, **kw)))
             exact = (

@@ -30,7 +30,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, ImagingModel, anatomy, render
+from ftrac_design.xray import ImagingModel, anatomy, render
 
 
 def cases(name, n, seed, background, cache: Path):
@@ -41,7 +41,6 @@ def cases(name, n, seed, background, cache: Path):
         return pickle.loads(f.read_bytes())
     design = load_design(name)
     features = compute_features(design)
-    body = Body.from_design(design)
     cam, imaging = Camera(), ImagingModel()
     out, k = [], 0
     N = n
@@ -50,8 +49,8 @@ def cases(name, n, seed, background, cache: Path):
         while k < N:
             rng = np.random.default_rng(seed * 1000 + k)
             bg = anatomy(seed=seed * 1000 + k) if background else None
-            rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg, body=body)
-            p = track_image(rad.raw, features, cam, body=body).pose
+            rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg)
+            p = track_image(rad.raw, features, cam).pose
             k += 1
             bar.update()
             if not p.converged:
@@ -87,12 +86,11 @@ def main():
         opts[k] = ast.literal_eval(v)
     design = load_design(a.name)
     features = compute_features(design)
-    body = Body.from_design(design)
     cam, imaging = Camera(), ImagingModel()
     data = cases(a.name, a.n, a.seed, a.anatomy, a.cache)
     z_i, z_f, cpu, its, worse, models, dist = [], [], [], [], 0, {}, []
     for j, (raw, Rf, tf, Rt, tt, bg) in enumerate(tqdm(data, desc="refining", leave=False)):
-        judge = Judge(features, cam, imaging, body, Rt, tt, background=bg)
+        judge = Judge(features, cam, imaging, Rt, tt, background=bg)
         R0, t0 = (Rf, tf) if a.start == "features" else (Rt, tt)
         res, zi, _, (_, c) = judge.refine(raw, R0, t0, **opts)
         e0 = pose_error6(Rf, tf, Rt, tt)

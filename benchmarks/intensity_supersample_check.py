@@ -23,12 +23,12 @@ from tqdm import tqdm
 from ftrac_design.intensity import pixel_information
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body, ImagingModel
+from ftrac_design.xray import ImagingModel
 
 
 def main(n: int = 20) -> None:
     features = load("ftrac_2005")
-    body, cam = Body(30.0, 50.0, 20.0), Camera()
+    cam = Camera()
     R, t = Workspace().sample(300, features.nominal_beam_direction, np.random.default_rng(1313))
     rel32, rel64 = [], []
     for k in tqdm(range(n), desc="poses", unit="pose"):
@@ -39,7 +39,6 @@ def main(n: int = 20) -> None:
                 t[k],
                 cam,
                 replace(ImagingModel(), supersample=s, single_precision=sp),
-                body,
                 nuisance=True,
             ).std
             for s, sp in ((4, True), (8, True), (8, False))

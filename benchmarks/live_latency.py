@@ -39,7 +39,6 @@ from _common import machine  # noqa: E402
 from igt_support import Server, image_message, recording_client, wait_for  # noqa: E402
 
 from ftrac_design.segment.pipeline import track_image  # noqa: E402
-from ftrac_design.xray.scene import body_from_features_file  # noqa: E402
 
 
 def sweep_frames(out: Path, design: str, n: int, size: int):
@@ -55,16 +54,14 @@ def sweep_frames(out: Path, design: str, n: int, size: int):
     from ftrac_design.pose import Camera
     from ftrac_design.pose.simulate import Workspace
     from ftrac_design.xray import ImagingModel
-    from ftrac_design.xray.scene import body_from_design_file
     from ftrac_design.xray.sweep import render_sweep
 
     cam = Camera(1000.0, (0.44, 0.44), ((size - 1) / 2, (size - 1) / 2))
     features = compute_features(load_design(PRESETS_DIR / f"{design}.toml"))
-    body = body_from_design_file(PRESETS_DIR / f"{design}.toml")
     R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
         1, features.nominal_beam_direction, np.random.default_rng(5)
     )
-    run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=(size, size)), seed=5, body=body)
+    run = render_sweep(features, R0[0], t0[0], n, cam, ImagingModel(image_shape=(size, size)), seed=5)
     out.mkdir(parents=True, exist_ok=True)
     fpath = write_features(out / f"{design}.features.json", features)
     cpath = out / "camera.json"
@@ -145,13 +142,12 @@ def baseline_ms(fr) -> np.ndarray:
     """``track_image`` alone on each frame, in this process (ms; one warm-up call first)."""
     from ftrac_design.features import load_features
 
-    body = body_from_features_file(fr.features_path)
     features = load_features(fr.features_path)
-    track_image(fr.pixels[0], features, fr.camera, body=body)
+    track_image(fr.pixels[0], features, fr.camera)
     base = []
     for img in fr.pixels:
         t = time.perf_counter()
-        track_image(img, features, fr.camera, body=body)
+        track_image(img, features, fr.camera)
         base.append(1e3 * (time.perf_counter() - t))
     return np.array(base)
 
@@ -211,10 +207,10 @@ def smooth_run(a: argparse.Namespace) -> None:
 def track_command_ms(fr) -> np.ndarray:
     """``track`` on one image, in this process: the command's own path (its default settings,
     ``track_pixels``) on each frame alone, as ``serve --independent`` calls it (ms; one warm-up)."""
-    from ftrac_design.cli.track import _setup
     from ftrac_design.workflows.serve import frame_by_frame_tracker
+    from ftrac_design.workflows.track_run import TrackSetup
 
-    track = frame_by_frame_tracker(_setup(fr.features_path, fr.camera_path, None, "auto", "none"))
+    track = frame_by_frame_tracker(TrackSetup.from_options(fr.features_path, fr.camera_path))
     track(fr.pixels[-1].astype(np.float32), fr.camera, 0.0)
     out = []
     for img in fr.pixels[:-1]:

@@ -26,8 +26,7 @@ from live_latency import sweep_frames  # noqa: E402
 
 from ftrac_design.features import load_features  # noqa: E402
 from ftrac_design.intensity import refine_track_result  # noqa: E402
-from ftrac_design.workflows.run_tracker import RunTracker  # noqa: E402
-from ftrac_design.xray.scene import body_from_features_file  # noqa: E402
+from ftrac_design.tracking import RunTracker  # noqa: E402
 
 
 def main() -> None:
@@ -36,15 +35,15 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=12)
     a = ap.parse_args()
     fr = sweep_frames(Path("outputs/bench_refine"), a.design, a.frames, 1024)
-    features, body = load_features(fr.features_path), body_from_features_file(fr.features_path)
-    tracker = RunTracker(features, fr.camera, body=body)
+    features = load_features(fr.features_path)
+    tracker = RunTracker(features, fr.camera)
     track_ms, refine_ms = [], []
     for k, img in enumerate(fr.pixels):
         t0 = time.perf_counter()
         answer = tracker.track_frame(img, fr.camera, float(k))
         t1 = time.perf_counter()
         if answer.result.pose.converged:
-            refine_track_result(img, features, fr.camera, answer.result, body=body)
+            refine_track_result(img, features, fr.camera, answer.result)
         t2 = time.perf_counter()
         track_ms.append(1e3 * (t1 - t0))
         refine_ms.append(1e3 * (t2 - t1))

@@ -45,10 +45,10 @@ def renderer_sigma(features: Features, axis: int, per_mm_columns: tuple[int, int
     info = []
     for ox, oy in np.random.default_rng(0).uniform(0, cam.pixel_size_mm[0] / M, (OFFSETS, 2)):
         t = np.array([ox, oy, DEPTH])
-        I0 = expected_transmission(features, np.eye(3), t, cam, im, body=None).astype(float)
+        I0 = expected_transmission(features, np.eye(3), t, cam, im).astype(float)
         dI = (
-            expected_transmission(features, np.eye(3), t + e, cam, im, body=None).astype(float)
-            - expected_transmission(features, np.eye(3), t - e, cam, im, body=None).astype(float)
+            expected_transmission(features, np.eye(3), t + e, cam, im).astype(float)
+            - expected_transmission(features, np.eye(3), t - e, cam, im).astype(float)
         ) / (2 * h)
         F = im.photons_per_px * dI**2 / I0 / M**2  # object mm → detector mm
         if per_mm_columns is not None:

@@ -46,11 +46,11 @@ KINDS = {"anatomy": 200, "grid plate": 100, "another fiducial": 120, "blank": 40
 
 def anatomy(k: int, seed: int) -> np.ndarray:
     rng = np.random.default_rng([seed, 1, k])
-    features, body = tr._preset("ftrac_2005")
+    features = tr._preset("ftrac_2005")
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     cam = Camera(principal_point_px=(1536.0, 512.0))
     cond = CONDITIONS[k % len(CONDITIONS)]
-    img, _ = realistic_image(features, R[0], t[0], cam, cond, int(rng.integers(2**31)), body=body, shape=(1024, 2048))
+    img, _ = realistic_image(features, R[0], t[0], cam, cond, int(rng.integers(2**31)), shape=(1024, 2048))
     return np.ascontiguousarray(img[:, :1024])
 
 
@@ -72,16 +72,16 @@ def fiducial(k: int, seed: int) -> tuple[np.ndarray, str]:
     """A realistic image of one preset, and the preset it is to be tracked as (another)."""
     rng = np.random.default_rng([seed, 3, k])
     shown = tr.PRESETS[k % 3]
-    features, body = tr._preset(shown)
+    features = tr._preset(shown)
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     cond = ("clean",) + CONDITIONS
     c = cond[int(rng.integers(len(cond)))]
     if c == "clean":
         from ftrac_design.xray import render
 
-        img = render(features, R[0], t[0], Camera(), rng=rng, body=body).raw
+        img = render(features, R[0], t[0], Camera(), rng=rng).raw
     else:
-        img, _ = realistic_image(features, R[0], t[0], Camera(), c, int(rng.integers(2**31)), body=body)
+        img, _ = realistic_image(features, R[0], t[0], Camera(), c, int(rng.integers(2**31)))
     return img, shown
 
 
@@ -130,9 +130,9 @@ def one(task) -> list[dict]:
     for preset in tr.PRESETS:
         if preset == shown:
             continue
-        features, body = tr._preset(preset)
+        features = tr._preset(preset)
         t0 = time.perf_counter()
-        res = track_image(img, features, cam, body=body)
+        res = track_image(img, features, cam)
         rows.append(
             {
                 "kind": kind,

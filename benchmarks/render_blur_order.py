@@ -47,7 +47,7 @@ def sweep(features: Features, supersample: int) -> float:
     im = dataclasses.replace(ImagingModel(), supersample=supersample, single_precision=False)
     step = cam.pixel_size_mm[1] * DEPTH / cam.focal_length_mm / PHASES  # object mm per 1/PHASES px
     images = [
-        expected_transmission(features, np.eye(3), np.array([0.0, k * step, DEPTH]), cam, im, body=None).astype(float)
+        expected_transmission(features, np.eye(3), np.array([0.0, k * step, DEPTH]), cam, im).astype(float)
         for k in range(PHASES + 1)
     ]
     sums = np.array([np.sum(1.0 - I) for I in images])

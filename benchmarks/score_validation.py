@@ -102,7 +102,6 @@ def _trial(name: str, data: dict, images: int, seed: int, executor) -> list[dict
     from ftrac_design.design.loader import parse_design
     from ftrac_design.features import compute_features
     from ftrac_design.imagescore import TrialSettings, run_trial
-    from ftrac_design.xray import Body
 
     path = CACHE / f"{name}_{seed}_{images}.json"
     if path.is_file():
@@ -113,7 +112,7 @@ def _trial(name: str, data: dict, images: int, seed: int, executor) -> list[dict
     design = parse_design(data)
     s = TrialSettings(images=images, seed=seed)
     with tqdm(total=images * len(s.conditions), desc=f"{name} seed {seed}", unit="image", leave=False) as bar:
-        recs = run_trial(compute_features(design), Body.from_design(design), s, executor, bar.update)
+        recs = run_trial(compute_features(design), s, executor, bar.update)
     CACHE.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps(recs))

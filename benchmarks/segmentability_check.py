@@ -31,7 +31,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, ImagingModel, anatomy, render
+from ftrac_design.xray import ImagingModel, anatomy, render
 
 BINS = "-inf,-2,0,1,2.5,inf"
 
@@ -47,7 +47,6 @@ def main() -> None:
     bins = [float(x) for x in a.bins.split(",")]
     design = load_design(a.design)
     features = compute_features(design)
-    body = Body.from_design(design)
     cam = Camera()
     rng = np.random.default_rng(a.seed)
     R, t = Workspace().sample(20_000, features.nominal_beam_direction, rng)
@@ -68,12 +67,10 @@ def main() -> None:
     for b, idx in enumerate(picks):
         for k in tqdm(idx, desc=f"bin {b}", leave=False):
             bg = anatomy(seed=int(k)) if a.background else None
-            rad = render(
-                features, R[k], t[k], cam, ImagingModel(), rng=np.random.default_rng(int(k)), background=bg, body=body
-            )
+            rad = render(features, R[k], t[k], cam, ImagingModel(), rng=np.random.default_rng(int(k)), background=bg)
             status, err = "ok", np.nan
             try:
-                p = track_image(rad.raw, features, cam, body=body).pose
+                p = track_image(rad.raw, features, cam).pose
             except Exception as e:  # noqa: BLE001 — a crash of track is a failure to count, and to report
                 status = f"raised {type(e).__name__}: {str(e)[:50]} (pose {k})"
                 rows.append((b, float(m[k]), pc.kinds[wp[k]], status, err, bool(be[k])))

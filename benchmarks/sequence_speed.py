@@ -44,8 +44,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
-from ftrac_design.workflows.run_tracker import RunTracker
-from ftrac_design.xray import Body
+from ftrac_design.tracking import RunTracker
 from ftrac_design.xray.sweep import render_sweep
 
 
@@ -92,12 +91,12 @@ def _line(name: str, ms: np.ndarray, answers, run) -> str:
     )
 
 
-def _round(path: Path, features, cam, body, n: int, desc: str):
+def _round(path: Path, features, cam, n: int, desc: str):
     """One pass over the run with both trackers, frame by frame interleaved (the same load on
     both): per path, wall and CPU ms per frame (reading included) and the answers."""
     trackers = {
-        "run tracker": RunTracker(features, cam, body=body),
-        "frame by frame": RunTracker(features, cam, body=body, independent=True),
+        "run tracker": RunTracker(features, cam),
+        "frame by frame": RunTracker(features, cam, independent=True),
     }
     readers = {k: read_frames(path) for k in trackers}
     ms = {k: np.zeros(n) for k in trackers}
@@ -146,7 +145,6 @@ def independent_sweep(name: str, R0: np.ndarray, t0: np.ndarray, n: int, cam: Ca
 def run_design(name: str, n: int, fmt: str, seed: int, rounds: int, renderer: str = "package") -> None:
     design = load_design(name)
     features = compute_features(design)
-    body = Body.from_design(design)
     # the principal point where DICOM intake puts it without a tag (the image centre), so that the
     # camera read back from the file is the one the frames were rendered with
     cam = Camera(1000.0, (0.44, 0.44), (511.5, 511.5))
@@ -157,12 +155,12 @@ def run_design(name: str, n: int, fmt: str, seed: int, rounds: int, renderer: st
     if renderer == "independent":
         run = independent_sweep(name, R0[0], t0[0], n, cam, seed)
     else:
-        run = render_sweep(features, R0[0], t0[0], n, cam, seed=seed, body=body)
+        run = render_sweep(features, R0[0], t0[0], n, cam, seed=seed)
     t_render = time.perf_counter() - t_render
     with tempfile.TemporaryDirectory() as tmp:
         path = _write(run.raw, cam, Path(tmp), fmt)
         size = path.stat().st_size / 2**20
-        results = [_round(path, features, cam, body, n, f"{name} round {r + 1}/{rounds}") for r in range(rounds)]
+        results = [_round(path, features, cam, n, f"{name} round {r + 1}/{rounds}") for r in range(rounds)]
         # reading alone, for the record
         t_read = []
         it = read_frames(path)

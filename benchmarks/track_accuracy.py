@@ -41,6 +41,7 @@ import argparse
 import math
 import time
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 from intensity_common import Judge, efficiency
@@ -53,7 +54,7 @@ from ftrac_design.pose import Camera, NoiseModel
 from ftrac_design.pose.fitting import conic_matrix
 from ftrac_design.pose.simulate import ContourSampling, Workspace, pose_errors
 from ftrac_design.segment.pipeline import TrackOptions, track_image
-from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, render
+from ftrac_design.xray import ImagingModel, Occluder, anatomy, render
 
 AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 
@@ -102,7 +103,8 @@ def run(
 ):
     design = load_design(name)  # a design file, or a preset by name
     features = compute_features(design)
-    body = Body.from_design(design)
+    # what the tracker is told: the fiducial with its body, or without (the body is rendered either way)
+    known = features if use_body else replace(features, body=None)
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
     cam = Camera()
     pix = float(np.mean(cam.pixel_size_mm))
@@ -118,10 +120,10 @@ def run(
         rng = np.random.default_rng(seed * 1000 + k)
         bg = anatomy(seed=seed * 1000 + k, strength=bg_strength) if background else None
         occ = (_needle(rng, features),) if needle else ()
-        rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg, body=body, occluders=occ)
+        rad = render(features, R[k], t[k], cam, imaging, rng=rng, background=bg, occluders=occ)
         t0 = time.perf_counter()
         # the simulator's camera is a pinhole: no distortion term in the covariance
-        tr = track_image(rad.raw, features, cam, TrackOptions(distortion_prior_mm=0.0), body=body if use_body else None)
+        tr = track_image(rad.raw, known, cam, TrackOptions(distortion_prior_mm=0.0))
         times.append(time.perf_counter() - t0)
         p = tr.pose
         if tr.observation is not None:
@@ -149,7 +151,8 @@ def run(
         perr.append(np.r_[np.degrees(dr), dt])
         psd.append(np.r_[np.degrees(np.sqrt(np.diag(p.covariance)[:3])), p.std_mm])
         # the noise model at the scale the residuals showed (the covariance's variance factor)
-        vf = math.sqrt(tr.diagnostics.get("variance_factor") or 1.0)
+        vf = tr.diagnostics.variance_factor
+        vf = math.sqrt(vf if vf and math.isfinite(vf) else 1.0)
         noise.append([vf * tr.noise.point_mm, vf * tr.noise.line_mm, vf * tr.noise.ellipse_mm])
         obs = tr.observation
         counts.append(
@@ -162,7 +165,7 @@ def run(
         conv_idx.append(k)
         if len(inten["cpu"]) < intensity:
             # the intensity path on the same image, from this pose (as track --refine intensity)
-            judge = Judge(features, cam, imaging, body if use_body else None, R[k], t[k], background=bg)
+            judge = Judge(known, cam, imaging, R[k], t[k], background=bg)
             ri, zi, zqi, (_, cpu) = judge.refine(rad.raw, p.rotation, p.translation_mm, coarse_scales=(1.0,))
             inten["z_int"].append(zi)
             inten["zq_int"].append(zqi)

@@ -46,7 +46,7 @@ from ftrac_design.images.distortion import combine, distort_image, radial, s_dis
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment import TrackOptions, track_image
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,7 +61,7 @@ _CACHE: dict = {}
 def _preset(name: str):
     if name not in _CACHE:
         d = load_design(name)
-        _CACHE[name] = (compute_features(d), Body.from_design(d))
+        _CACHE[name] = compute_features(d)
     return _CACHE[name]
 
 
@@ -81,7 +81,7 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
     if cache is not None:
         f = cache / f"{preset}_{condition}_{seed}_{n}_{k}.npy"
         if f.is_file() and not condition.startswith("distortion"):
-            features, _ = _preset(preset)
+            features = _preset(preset)
             R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
             return np.load(f), R[k], t[k], Camera(), None
         out = make_image(preset, condition, k, seed, n)
@@ -89,27 +89,27 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
             cache.mkdir(parents=True, exist_ok=True)
             np.save(f, out[0])
         return out
-    features, body = _preset(preset)
+    features = _preset(preset)
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
     R, t = R[k], t[k]
     cam = Camera()
     img_seed = seed * 100_000 + k
     if condition == "clean":
-        rad = render(features, R, t, cam, rng=np.random.default_rng(img_seed), body=body)
+        rad = render(features, R, t, cam, rng=np.random.default_rng(img_seed))
         return rad.raw, R, t, cam, None
     if condition.startswith("distortion"):
-        img, _ = realistic_image(features, R, t, cam, "raw", img_seed, body=body)
+        img, _ = realistic_image(features, R, t, cam, "raw", img_seed)
         model = distortion_model(img.shape, np.random.default_rng(img_seed + 7))
         warped = distort_image(img.astype(np.float32), model)
         return warped, R, t, cam, model
-    img, _ = realistic_image(features, R, t, cam, condition, img_seed, body=body)
+    img, _ = realistic_image(features, R, t, cam, condition, img_seed)
     return img, R, t, cam, None
 
 
 def one(task: tuple) -> dict:
     """Make and track one image; the outcome, the time and this process's peak memory."""
     preset, condition, k, seed, n, cache = task
-    features, body = _preset(preset)
+    features = _preset(preset)
     img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
     t0 = time.perf_counter()
     opts = TrackOptions()
@@ -117,7 +117,7 @@ def one(task: tuple) -> dict:
         # corrected with its model, as `track --distortion` does: no distortion term left
         img = undistort_image(img, model)
         opts = TrackOptions(distortion_prior_mm=0.0)
-    res = track_image(img, features, cam, opts, body=body)
+    res = track_image(img, features, cam, opts)
     wall = time.perf_counter() - t0
     out = {
         "preset": preset,

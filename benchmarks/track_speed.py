@@ -28,7 +28,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 
 
 def main():
@@ -44,24 +44,23 @@ def main():
     a = ap.parse_args()
     design = load_design(a.design)
     features = compute_features(design)
-    body = Body.from_design(design)
     R, t = Workspace().sample(a.n, features.nominal_beam_direction, np.random.default_rng(0))
     cam = Camera()
-    rads = [render(features, R[k], t[k], cam, rng=np.random.default_rng(k), body=body) for k in range(a.n)]
-    track_image(rads[0].raw, features, cam, body=body)  # warm-up (imports, caches)
+    rads = [render(features, R[k], t[k], cam, rng=np.random.default_rng(k)) for k in range(a.n)]
+    track_image(rads[0].raw, features, cam)  # warm-up (imports, caches)
     rr, tr, tc = [], [], []
     per_image = np.full((a.rounds, a.n), np.inf)  # CPU s of each image's track, per round
     whole = np.zeros(a.n, bool)  # answered by the whole-image pass (a retry)
     for r in range(a.rounds):
         t0 = time.perf_counter()
         for k in range(a.n):
-            render(features, R[k], t[k], cam, rng=np.random.default_rng(k), body=body)
+            render(features, R[k], t[k], cam, rng=np.random.default_rng(k))
         t1, c1 = time.perf_counter(), time.process_time()
         for k in range(a.n):
             ck = time.process_time()
-            res = track_image(rads[k].raw, features, cam, body=body)
+            res = track_image(rads[k].raw, features, cam)
             per_image[r, k] = time.process_time() - ck
-            whole[k] = "roi" not in res.diagnostics
+            whole[k] = res.diagnostics.roi is None
         t2, c2 = time.perf_counter(), time.process_time()
         rr.append((t1 - t0) / a.n)
         tr.append((t2 - t1) / a.n)

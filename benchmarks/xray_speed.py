@@ -33,7 +33,7 @@ from scipy.ndimage import gaussian_filter
 
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body, ImagingModel, anatomy, line_integral_box, render
+from ftrac_design.xray import ImagingModel, anatomy, line_integral_box, render
 from ftrac_design.xray.geometry import cylinder_z_chord, sphere_chord, tube_chord
 from ftrac_design.xray.rays import Rays, feature_pieces
 from ftrac_design.xray.render import blur_sigma_px
@@ -43,8 +43,9 @@ N_BASELINE = 3
 ROUNDS = 3
 
 
-def baseline_render(features, R, t, cam, imaging, body, rng):
+def baseline_render(features, R, t, cam, imaging, rng):
     """The straightforward simulator (see module): same physics, no footprints or fast paths."""
+    body = features.body
     H, W = imaging.image_shape
     rays = Rays(cam, R, t)
     s = int(imaging.supersample)
@@ -110,23 +111,22 @@ def timed(fn, n):
 
 def main() -> None:
     features = load("ftrac_2005")
-    body = Body(30.0, 50.0, 20.0)
     cam = Camera()
     imaging = ImagingModel()
     clean = ImagingModel(photons_per_px=None)
     R, t = Workspace().sample(N_POSES, features.nominal_beam_direction, np.random.default_rng(2026))
     bg = anatomy(seed=1)
     for k in range(3):  # warm caches and allocator
-        render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body)
+        render(features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k))
 
     cases = {
-        "geometry only (line_integral_box)": lambda k: line_integral_box(features, R[k], t[k], cam, imaging, body),
-        "noise-free render": lambda k: render(features, R[k], t[k], cam, clean, body=body),
+        "geometry only (line_integral_box)": lambda k: line_integral_box(features, R[k], t[k], cam, imaging),
+        "noise-free render": lambda k: render(features, R[k], t[k], cam, clean),
         "full model (noise, raw, log)": lambda k: render(
-            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body
+            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k)
         ),
         "full model + anatomy background": lambda k: render(
-            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), body=body, background=bg
+            features, R[k], t[k], cam, imaging, rng=np.random.default_rng(k), background=bg
         ),
     }
     best = {name: (math.inf, math.inf) for name in cases}
@@ -138,14 +138,14 @@ def main() -> None:
             best[name] = (min(best[name][0], w), min(best[name][1], c))
             line.append(f"{name.split(' (')[0]} {1e3 * w:.1f}")
         w, c = timed(
-            lambda k: baseline_render(features, R[k], t[k], cam, imaging, body, np.random.default_rng(k)), N_BASELINE
+            lambda k: baseline_render(features, R[k], t[k], cam, imaging, np.random.default_rng(k)), N_BASELINE
         )
         base = (min(base[0], w), min(base[1], c))
         print(f"round {r + 1}: " + ", ".join(line) + f", baseline {1e3 * w:.0f} ms per image")
 
     # the two implementations draw the same image (up to the noise model): check on one pose
-    ours = render(features, R[0], t[0], cam, clean, body=body).line_integral
-    p0 = baseline_render(features, R[0], t[0], cam, imaging, body, np.random.default_rng(0))[2]
+    ours = render(features, R[0], t[0], cam, clean).line_integral
+    p0 = baseline_render(features, R[0], t[0], cam, imaging, np.random.default_rng(0))[2]
     diff = float(np.abs(ours - p0).max())
 
     print(f"\nradiograph simulator, ftrac_2005 + body, 1024 × 1024, {N_POSES} workspace poses, best of {ROUNDS} rounds")

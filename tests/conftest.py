@@ -11,7 +11,6 @@ from ftrac_design.design import load_design
 from ftrac_design.design.presets import PRESETS_DIR
 from ftrac_design.features import compute_features
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body
 
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = PRESETS_DIR
@@ -39,9 +38,9 @@ def features_2005(design_2005):
 
 
 @pytest.fixture(scope="session")
-def f2005(features_2005, design_2005):
-    """ftrac_2005's features and its acetal body, as the radiograph simulator takes them."""
-    return features_2005, Body.from_design(design_2005)
+def f2005(features_2005):
+    """ftrac_2005's features, its acetal body included, as the radiograph simulator takes them."""
+    return features_2005
 
 
 @pytest.fixture(scope="session")

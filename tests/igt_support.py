@@ -23,7 +23,6 @@ from ftrac_design.features import compute_features, write_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.xray import ImagingModel, render
-from ftrac_design.xray.scene import body_from_design_file
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -45,15 +44,12 @@ def rendered_frames(
     """``n`` raw radiographs of ``design`` at workspace poses (seed ``seed``), 0.44 mm pixels, f = 1000 mm."""
     d = load_design(PRESETS_DIR / f"{design}.toml")
     features = compute_features(d)
-    body = body_from_design_file(PRESETS_DIR / f"{design}.toml")
     cam = Camera(1000.0, (0.44, 0.44), ((shape[1] - 1) / 2, (shape[0] - 1) / 2))
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
     pix = np.stack(
         [
             np.asarray(
-                render(
-                    features, R[k], t[k], cam, ImagingModel(image_shape=shape), rng=np.random.default_rng(k), body=body
-                ).raw,
+                render(features, R[k], t[k], cam, ImagingModel(image_shape=shape), rng=np.random.default_rng(k)).raw,
                 np.uint16,
             )
             for k in range(n)

@@ -23,7 +23,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import track_image
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 from ftrac_design.xray.scenario import realistic_image
 
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
@@ -36,28 +36,27 @@ def _images() -> dict[str, tuple[str, np.ndarray]]:
     out = {}
     for preset in PRESETS:
         d = load_design(preset)
-        features, body = compute_features(d), Body.from_design(d)
+        features = compute_features(d)
         R, t = Workspace().sample(PER * len(CONDITIONS), features.nominal_beam_direction, np.random.default_rng(SEED))
         for c, cond in enumerate(CONDITIONS):
             for k in range(PER):
                 i = c * PER + k
                 if cond == "clean":
-                    img = render(features, R[i], t[i], Camera(), rng=np.random.default_rng(SEED + i), body=body).raw
+                    img = render(features, R[i], t[i], Camera(), rng=np.random.default_rng(SEED + i)).raw
                 else:
-                    img = realistic_image(features, R[i], t[i], Camera(), cond, SEED * 1000 + i, body=body)[0]
+                    img = realistic_image(features, R[i], t[i], Camera(), cond, SEED * 1000 + i)[0]
                 out[f"{preset}/{cond}/{k}"] = (preset, img)
     return out
 
 
 def _track(images: dict[str, tuple[str, np.ndarray]]) -> dict[str, dict]:
-    cache: dict[str, tuple] = {}
+    cache: dict[str, object] = {}
     out = {}
     for key, (preset, img) in images.items():
         if preset not in cache:
-            d = load_design(preset)
-            cache[preset] = (compute_features(d), Body.from_design(d))
-        features, body = cache[preset]
-        res = track_image(img, features, Camera(), body=body)
+            cache[preset] = compute_features(load_design(preset))
+        features = cache[preset]
+        res = track_image(img, features, Camera())
         obs = res.observation
         out[key] = {
             "converged": bool(res.pose.converged),

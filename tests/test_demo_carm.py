@@ -29,10 +29,9 @@ from ftrac_design.demo.carm import (
 )
 from ftrac_design.features import compute_features, write_features
 from ftrac_design.images import frame_count, read_frames
+from ftrac_design.pose import TrackedPose
 from ftrac_design.pose.simulate import pose_errors
-from ftrac_design.workflows.track_run import failed_pose_dict
 from ftrac_design.xray.scenario import realistic_image
-from ftrac_design.xray.scene import body_from_features_file
 
 SETTINGS = CarmDemoSettings()
 NUM = r"[-+]?\d+\.\d+"
@@ -129,7 +128,6 @@ def test_the_run_is_stored_rotated_and_reads_back_as_rendered(ran, features_2005
         CAMERA,
         SETTINGS.condition,
         SETTINGS.seed,
-        body=body_from_features_file(features_path),
         shape=SHAPE,
     )
     frame = list(read_frames(root / "carm" / "run.dcm"))[1]
@@ -187,7 +185,7 @@ def test_the_distortion_workflow_prints_what_it_wrote(ran):
 
 
 def test_a_frame_without_a_pose_is_reported_with_the_trackers_reason():
-    pose = failed_pose_dict("identification not confirmed:\n  no wire where the pose puts L1")
+    pose = TrackedPose.failed("identification not confirmed:\n  no wire where the pose puts L1").to_dict()
     r = pose_report(pose, np.eye(3), np.zeros(3))
     assert not r["converged"] and "t_err_mm" not in r
     assert format_errors(r) == "NOT converged: identification not confirmed: no wire where the pose puts L1"

@@ -21,7 +21,7 @@ from ftrac_design.segment import TrackOptions, track_image
 from ftrac_design.segment.identify import project
 from ftrac_design.training.dataset import build_dataset
 from ftrac_design.training.targets import target_maps
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 
 torch = pytest.importorskip("torch")
 #: the tests of the shipped network need its weights in the package (``ftrac-design train-detector``)
@@ -159,7 +159,7 @@ def test_the_shipped_network_must_match_its_card(tmp_path):
 @pytest.fixture(scope="module")
 def f2005():
     d = load_design("ftrac_2005")
-    return compute_features(d), Body.from_design(d)
+    return compute_features(d)
 
 
 @shipped
@@ -167,11 +167,11 @@ def test_the_shipped_network_finds_every_ball_of_a_rendered_image(f2005):
     """ftrac_2005 at three poses, clean: each ball projected in the image has a candidate
     within 1.5 px among the network's twelve most probable, and the thresholded map covers
     most of each wire."""
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(3, features.nominal_beam_direction, np.random.default_rng(12))
     net = detector.load_detector()
     for k in range(3):
-        rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(k), body=body)
+        rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(k))
         det = net.detect(rad.raw, 3.41)
         truth = project(Camera(), R[k], t[k], features.point_centers())[0]
         d = np.linalg.norm(det.beads_uv[:12, None] - truth[None], axis=-1).min(0)
@@ -186,22 +186,22 @@ def test_the_shipped_network_finds_every_ball_of_a_rendered_image(f2005):
 def test_without_onnx_runtime_the_classical_detectors_track(f2005, monkeypatch):
     """ONNX Runtime missing: "auto" tracks with the classical detectors, "learned" stops with
     the one-line error naming the extra."""
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
-    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
     monkeypatch.setitem(sys.modules, "onnxruntime", None)  # `import onnxruntime` fails
     monkeypatch.setattr(detector.runtime.importlib.util, "find_spec", lambda name: None)
     detector.runtime._LOADED.clear()
-    res = track_image(rad.raw, features, Camera(), body=body)
-    assert res.pose.converged and res.diagnostics["detector"] == "classical"
+    res = track_image(rad.raw, features, Camera())
+    assert res.pose.converged and res.diagnostics.detector == "classical"
     with pytest.raises(MissingDependencyError, match="detect"):
-        track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"), body=body)
+        track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
 
 
 @shipped
 def test_the_learned_path_tracks_and_says_so(f2005):
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
-    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
-    res = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"), body=body)
-    assert res.pose.converged and res.diagnostics["detector"] == "learned"
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
+    res = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
+    assert res.pose.converged and res.diagnostics.detector == "learned"

@@ -10,6 +10,7 @@ import pytest
 from conftest import MODELS, PRESETS
 
 from ftrac_design.design import load_design
+from ftrac_design.errors import InputError
 from ftrac_design.features import compute_features, features_to_dict, load_features, write_features
 
 
@@ -166,3 +167,49 @@ def test_wire_pieces_are_every_lines_segments_computed_once(features_2005):
 
 def test_features_dict_is_json(features_2005):
     json.dumps(features_to_dict(features_2005), allow_nan=False)
+
+
+def test_the_body_is_part_of_the_features(preset_features, tmp_path):
+    """The design's body travels with its features: computed from the design, and read back from
+    features.json through the design file its source names, found beside the file or as a preset."""
+    design, f = preset_features
+    assert f.body == design.body
+    assert load_features(write_features(tmp_path / "features.json", f)).body == design.body
+    doc = features_to_dict(f)
+    doc["design"]["source"] = f"/elsewhere/models/{design.name}.toml"  # another checkout: the preset
+    (tmp_path / "moved.json").write_text(json.dumps(doc))
+    assert load_features(tmp_path / "moved.json").body == design.body
+    doc["design"]["source"] = None
+    (tmp_path / "none.json").write_text(json.dumps(doc))
+    assert load_features(tmp_path / "none.json").body is None
+
+
+@pytest.mark.parametrize(
+    "body, toml, key, expected",
+    [
+        ({"outer_diameter": 30.0, "length": -5.0, "bore_diameter": 20.0}, None, "body.length", "greater than 0"),
+        ({"outer_diameter": 30.0, "length": 50.0}, None, "body.bore_diameter", "required"),
+        (None, "[body]\nouter_diameter = 30.0\nlength = 50.0\nbore_diameter = 32.0\n", "design.source", "bore"),
+        (None, "name = \n", "design.source", "TOML"),
+        (None, 'name = "x"\n', "design.source", "[body]"),
+    ],
+)
+def test_a_body_that_cannot_be_loaded_is_bad_input(features_2005, tmp_path, capsys, body, toml, key, expected):
+    """features.json naming a body it cannot load, in its own body key or in the design file its
+    source names: exit 2, one line naming the features file, the key and what was expected."""
+    from ftrac_design.cli.main import main
+
+    doc = features_to_dict(features_2005)
+    if body is not None:
+        doc["body"] = body
+    else:
+        (tmp_path / "design.toml").write_text(toml)
+        doc["design"]["source"] = "design.toml"  # beside the features file
+    path = tmp_path / "features.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError) as err:
+        load_features(path)
+    assert err.value.file == str(path) and err.value.key == key and expected in err.value.expected
+    assert main(["radiograph", "--features", str(path), "--workspace-sample", "1", "-o", str(tmp_path / "rg")]) == 2
+    out = capsys.readouterr().err
+    assert out.count("\n") == 1 and str(path) in out and key in out and not (tmp_path / "rg").exists()

@@ -25,10 +25,9 @@ from ftrac_design.igt.frames import (
     split_transform_name,
 )
 from ftrac_design.igt.markups import read_markups, write_markups
-from ftrac_design.igt.poses import read_pose_records
 from ftrac_design.igt.sequence import SequenceFrame, read_sequence_fields, write_sequence
 from ftrac_design.igt.tfm import read_tfm, tfm_text, write_tfm
-from ftrac_design.pose import so3
+from ftrac_design.pose import read_tracked_poses, so3
 
 RZ90 = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
 RX90 = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
@@ -272,7 +271,7 @@ def test_malformed_pose_files_exit_2_with_one_line_and_write_nothing(text, key, 
     assert not out.exists() and [p.name for p in tmp_path.iterdir()] == ["poses.jsonl"]
     if key is not None and text:
         with pytest.raises(InputError):
-            read_pose_records(src)
+            read_tracked_poses(src)
 
 
 def test_export_refuses_an_unknown_suffix_and_a_bad_name(run_file, tmp_path, capsys):

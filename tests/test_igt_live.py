@@ -440,11 +440,11 @@ def test_valid_only_sends_nothing_for_a_frame_without_a_pose(frames):
 
 
 def test_push_paces_by_time_s_else_the_rate():
-    from ftrac_design.igt.poses import PoseRecord
+    from ftrac_design.pose import Pose, Provenance, TrackedPose
     from ftrac_design.workflows.serve import send_times
 
     def rec(t):
-        return PoseRecord(np.eye(3), np.zeros(3), True, None, t, None, None, None, "x")
+        return TrackedPose(Pose(np.eye(3), np.zeros(3), True, 0.0, None, {}, 0), provenance=Provenance(time_s=t))
 
     assert send_times([rec(5.0), rec(5.5), rec(7.0)], None) == [5.0, 5.5, 7.0]
     assert send_times([rec(5.0), rec(5.5)], 4.0) == [0.0, 0.25]
@@ -470,15 +470,13 @@ def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path
     from ftrac_design.features import compute_features, write_features
     from ftrac_design.pose import Camera
     from ftrac_design.pose.simulate import Workspace
-    from ftrac_design.workflows.run_tracker import RunTracker
+    from ftrac_design.tracking import RunTracker
     from ftrac_design.xray import ImagingModel
-    from ftrac_design.xray.scene import body_from_design_file
     from ftrac_design.xray.sweep import render_sweep
 
     shape, n = (512, 512), 8
     cam = Camera(1000.0, (0.44, 0.44), ((shape[1] - 1) / 2, (shape[0] - 1) / 2))
     features = compute_features(load_design(PRESETS_DIR / "ftrac_2005.toml"))
-    body = body_from_design_file(PRESETS_DIR / "ftrac_2005.toml")
     R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
         1, features.nominal_beam_direction, np.random.default_rng(5)
     )
@@ -490,7 +488,6 @@ def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path
         cam,
         ImagingModel(image_shape=shape),
         seed=5,
-        body=body,
         anatomy_strength=0.6,
         margin_px=96,
         swing_deg=8.0,
@@ -518,7 +515,7 @@ def test_a_run_served_frame_after_frame_equals_offline_track_of_the_run(tmp_path
     answers = _answers(client)
     assert [int(m.metadata["dropped"]) for m in answers] == [0] * n
     assert [m.timestamp for m in answers] == times
-    offline = RunTracker(features, cam, body=body)
+    offline = RunTracker(features, cam)
     ref = [offline.track(pixels[k], cam, times[k]) for k in range(n)]
     statuses = [r["status"] for r in ref]
     assert statuses.count("tracked") >= n - 2, statuses

@@ -21,13 +21,12 @@ from ftrac_design.imagescore import (
     trial_figures,
 )
 from ftrac_design.imagescore import trial as trial_module
-from ftrac_design.xray import Body
 
 
 @pytest.fixture(scope="module")
 def ftrac_2005():
     d = load_design(resolve_design("ftrac_2005"))
-    return compute_features(d), Body.from_design(d)
+    return compute_features(d)
 
 
 def _records(errors_t, errors_r, outcomes, condition="clean"):
@@ -112,10 +111,10 @@ def test_a_pose_is_wrong_only_when_far_and_inconsistent_with_its_own_covariance(
 def test_trial_is_reproducible_and_independent_of_the_executor(ftrac_2005):
     from ftrac_design.optimize.execution import SerialExecutor
 
-    f, body = ftrac_2005
+    f = ftrac_2005
     s = TrialSettings(images=3, seed=11)
-    here = run_trial(f, body, s)
-    assert here == run_trial(f, body, s, SerialExecutor())
+    here = run_trial(f, s)
+    assert here == run_trial(f, s, SerialExecutor())
     assert [(r["condition"], r["k"]) for r in here] == [(c, k) for c in ("clean", "anatomy") for k in range(3)]
     clean = [r for r in here if r["condition"] == "clean"]
     assert all(r["outcome"] == "right" for r in clean)
@@ -126,7 +125,7 @@ def test_trial_is_reproducible_and_independent_of_the_executor(ftrac_2005):
 def test_a_pose_far_from_the_truth_is_wrong_and_no_pose_is_refused(ftrac_2005, monkeypatch):
     from ftrac_design.segment import pipeline
 
-    f, body = ftrac_2005
+    f = ftrac_2005
     s = TrialSettings(images=2, seed=5, conditions=("clean",))
     real = pipeline.track_image
 
@@ -136,7 +135,7 @@ def test_a_pose_far_from_the_truth_is_wrong_and_no_pose_is_refused(ftrac_2005, m
         return res
 
     monkeypatch.setattr(pipeline, "track_image", shifted)
-    recs = run_images(f, body, s, "clean", [0, 1])
+    recs = run_images(f, s, "clean", [0, 1])
     assert [r["outcome"] for r in recs] == ["wrong", "wrong"]
     assert all(r["translation_mm"] == pytest.approx(4.0, abs=0.5) for r in recs)
 
@@ -146,23 +145,23 @@ def test_a_pose_far_from_the_truth_is_wrong_and_no_pose_is_refused(ftrac_2005, m
         return res
 
     monkeypatch.setattr(pipeline, "track_image", refuse)
-    assert [r["outcome"] for r in run_images(f, body, s, "clean", [0])] == ["refused"]
+    assert [r["outcome"] for r in run_images(f, s, "clean", [0])] == ["refused"]
 
 
 def test_common_random_numbers_give_two_designs_the_same_poses_and_draws(ftrac_2005, monkeypatch):
     """Image k's pose and noise do not depend on the design (same nominal beam direction)."""
-    f, body = ftrac_2005
+    f = ftrac_2005
     mini = compute_features(load_design(resolve_design("ftrac_mini")))
     seen = []
 
-    def spy(features, body, condition, R, t, camera, seed, k):
+    def spy(features, condition, R, t, camera, seed, k):
         seen.append((features.name, condition, R.tobytes(), t.tobytes(), seed, k))
         return np.zeros((8, 8))
 
     monkeypatch.setattr(trial_module, "_image", spy)
     s = TrialSettings(images=4, seed=2)
     for feats in (f, mini):
-        run_images(feats, None, s, "anatomy", [1, 3])
+        run_images(feats, s, "anatomy", [1, 3])
     a, b = seen[:2], seen[2:]
     assert [x[1:] for x in a] == [x[1:] for x in b]
 
@@ -250,7 +249,7 @@ def test_the_trial_lifts_the_time_budget(ftrac_2005, monkeypatch):
     options but an unlimited time budget (a loaded machine would otherwise refuse more images)."""
     from ftrac_design.segment import TrackOptions, pipeline
 
-    f, body = ftrac_2005
+    f = ftrac_2005
     seen = []
     real = pipeline.track_image
 
@@ -259,7 +258,7 @@ def test_the_trial_lifts_the_time_budget(ftrac_2005, monkeypatch):
         return real(image, features, camera, options, *a, **k)
 
     monkeypatch.setattr(pipeline, "track_image", spy)
-    run_images(f, body, TrialSettings(images=1, seed=8, conditions=("clean",)), "clean", [0])
+    run_images(f, TrialSettings(images=1, seed=8, conditions=("clean",)), "clean", [0])
     (opts,) = seen
     assert opts.time_budget_s == float("inf")
     assert {k: v for k, v in vars(opts).items() if k != "time_budget_s"} == {
@@ -277,10 +276,10 @@ def test_the_optimiser_scores_a_candidate_on_images(ftrac_2005):
     from ftrac_design.optimize.search import objective_violation
 
     data = tomllib.loads(preset_path("ftrac_2005").read_text())
-    f, body = ftrac_2005
+    f = ftrac_2005
     trial = TrialSettings(images=22, seed=4, conditions=("clean",))
     e = evaluate_candidate(data, EvalSettings(image_trial=trial))
-    recs = run_trial(f, body, trial)
+    recs = run_trial(f, trial)
     right = [r for r in recs if r["outcome"] == "right"]
     assert e["feasible"] and len(right) >= 20
     assert e["figures"]["translation_p95_mm"] == pytest.approx(np.percentile([r["translation_mm"] for r in right], 95))

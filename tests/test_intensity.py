@@ -11,9 +11,7 @@ from ftrac_design.features.model import Features, PointFeature
 from ftrac_design.intensity import RoiModel, perturb, pixel_information, refine_intensity, roi_around
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
-from ftrac_design.xray import Body, ImagingModel, render
-
-BODY = Body(30.0, 50.0, 20.0)
+from ftrac_design.xray import ImagingModel, render
 
 
 def test_bead_jacobian_matches_the_closed_form():
@@ -36,7 +34,7 @@ def test_bead_jacobian_matches_the_closed_form():
     t = np.array([1.0, -2.0, 660.0])
     P = R @ f.points[0].center + t
     roi = roi_around(f, R, t, cam, im.image_shape)
-    model = RoiModel(f, cam, im, None, roi)
+    model = RoiModel(f, cam, im, roi)
     L, J = model.jacobian(R, t)
     v0, u0, h, w = roi
     V, U = np.mgrid[v0 : v0 + h, u0 : u0 + w]
@@ -63,8 +61,8 @@ def test_jacobian_agrees_with_differences_along_any_direction(features_2005, pos
     so(3) perturbation does)."""
     R, t = pose_2005
     im = ImagingModel(photons_per_px=None, single_precision=False)
-    roi = roi_around(features_2005, R, t, Camera(), im.image_shape, BODY)
-    model = RoiModel(features_2005, Camera(), im, BODY, roi)
+    roi = roi_around(features_2005, R, t, Camera(), im.image_shape)
+    model = RoiModel(features_2005, Camera(), im, roi)
     L, J = model.jacobian(R, t)
     x = np.array([0.4, -0.7, 0.3, 0.5, -0.4, 0.6]) * model.steps(t)  # ~0.15 px motion, like the steps
     model.freeze(R, t)
@@ -83,8 +81,8 @@ def test_jacobian_agrees_with_differences_along_any_direction(features_2005, pos
 
 def test_bound_scales_as_one_over_root_dose(features_2005, pose_2005):
     R, t = pose_2005
-    lo = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=2500.0), body=BODY)
-    hi = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY)
+    lo = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=2500.0))
+    hi = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0))
     np.testing.assert_allclose(lo.std / hi.std, 2.0, rtol=1e-9)
     assert np.all(lo.std > 0) and lo.std[5] > lo.std[3]  # depth is the weak axis
     with_bg = pixel_information(
@@ -92,21 +90,18 @@ def test_bound_scales_as_one_over_root_dose(features_2005, pose_2005):
         R,
         t,
         imaging=ImagingModel(photons_per_px=10000.0),
-        body=BODY,
         background=np.full((1024, 1024), 1.0),
     )
     np.testing.assert_allclose(with_bg.std / hi.std, math.exp(0.5), rtol=1e-9)  # e^{-1} of the counts
-    nuis = pixel_information(
-        features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), body=BODY, nuisance=True
-    )
+    nuis = pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=10000.0), nuisance=True)
     assert np.all(nuis.std >= hi.std * (1 - 1e-9))  # unknown gain/background cost information
     with pytest.raises(ValueError):
-        pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=None), body=BODY)
+        pixel_information(features_2005, R, t, imaging=ImagingModel(photons_per_px=None))
 
 
 def test_noise_free_image_refines_to_the_exact_pose(features_2005, pose_2005):
     R, t = pose_2005
-    img = render(features_2005, R, t, imaging=ImagingModel(photons_per_px=None), body=BODY)
+    img = render(features_2005, R, t, imaging=ImagingModel(photons_per_px=None))
     rng = np.random.default_rng(0)
     ax, d = rng.normal(size=3), rng.normal(size=3)
     x = np.concatenate([np.radians(1.0) * ax / np.linalg.norm(ax), 2.0 * d / np.linalg.norm(d)])
@@ -118,7 +113,6 @@ def test_noise_free_image_refines_to_the_exact_pose(features_2005, pose_2005):
         R0,
         t0,
         ImagingModel(photons_per_px=None),
-        body=BODY,
         scales=(4.0, 2.0, 0.0),
     )
     assert res.converged and res.cost_end < 1e-6 * res.cost_start
@@ -130,15 +124,15 @@ def test_noise_free_image_refines_to_the_exact_pose(features_2005, pose_2005):
 def test_refinement_never_ends_worse_than_its_start(features_2005, pose_2005):
     R, t = pose_2005
     im = ImagingModel()
-    img = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(3), body=BODY)
+    img = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(3))
     # from the true pose on a noisy image: it may only lower the objective
-    res = refine_intensity(features_2005, img.raw, Camera(), R, t, im, body=BODY, polarity="dense_dark", scales=(0.0,))
+    res = refine_intensity(features_2005, img.raw, Camera(), R, t, im, polarity="dense_dark", scales=(0.0,))
     assert res.cost_end <= res.cost_start
     assert np.abs(res.translation_mm - t)[:2].max() < 0.01 and res.covariance is not None
     # from far off (10 mm across the view), with no coarse scale: whatever it does, never worse
     R0, t0 = perturb(R, t, np.array([0, 0, 0, 10.0, -6.0, 0]))
     far = refine_intensity(
-        features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark", scales=(0.0,), max_iterations=3
+        features_2005, img.raw, Camera(), R0, t0, im, polarity="dense_dark", scales=(0.0,), max_iterations=3
     )
     assert far.cost_end <= far.cost_start
 
@@ -149,24 +143,25 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     from dataclasses import dataclass, field
 
     from ftrac_design.intensity import refine_track_result
+    from ftrac_design.pose import Diagnostics
     from ftrac_design.pose.solver import Pose
 
     @dataclass
     class Result:  # the fields of segment.pipeline.TrackResult it uses
         pose: Pose
         polarity: str
-        diagnostics: dict = field(default_factory=dict)
+        diagnostics: Diagnostics = field(default_factory=Diagnostics)
 
     R, t = pose_2005
-    img = render(features_2005, R, t, imaging=ImagingModel(), rng=np.random.default_rng(2), body=BODY)
+    img = render(features_2005, R, t, imaging=ImagingModel(), rng=np.random.default_rng(2))
     R0, t0 = perturb(R, t, np.array([2e-4, -1e-4, 1e-4, 0.02, -0.01, 0.3]))
     start = Result(Pose(R0, t0, True, 0.1, np.eye(6), {}, 3), "dense-dark")
-    out = refine_track_result(img.raw, features_2005, Camera(), start, body=BODY)
-    assert out.diagnostics["intensity"]["cost_end"] <= out.diagnostics["intensity"]["cost_start"]
+    out = refine_track_result(img.raw, features_2005, Camera(), start)
+    assert out.diagnostics.intensity.cost_end <= out.diagnostics.intensity.cost_start
     assert np.abs(out.pose.translation_mm - t).max() < 0.1 < np.abs(t0 - t).max()
     assert out.pose.covariance.shape == (6, 6) and out.pose.converged
     failed = Result(Pose(R0, t0, False, np.nan, None, {}, 0, "not found"), "dense-dark")
-    assert refine_track_result(img.raw, features_2005, Camera(), failed, body=BODY) is failed
+    assert refine_track_result(img.raw, features_2005, Camera(), failed) is failed
 
 
 def test_bound_matches_the_spread_of_a_simple_estimator():
@@ -177,14 +172,14 @@ def test_bound_matches_the_spread_of_a_simple_estimator():
     cam = Camera(1000.0, (0.44, 0.44), (32.0, 32.0))
     im = ImagingModel(image_shape=(64, 64), photons_per_px=2000.0)
     R, t = np.eye(3), np.array([0.05, -0.03, 667.0])
-    bound = pixel_information(f, R, t, cam, im, body=None)
+    bound = pixel_information(f, R, t, cam, im)
     sd_tx = 1 / math.sqrt(bound.information[3, 3])
     v0, u0, h, w = bound.roi
-    L, J = RoiModel(f, cam, im, None, bound.roi).jacobian(R, t)
+    L, J = RoiModel(f, cam, im, bound.roi).jacobian(R, t)
     wts = im.photons_per_px * np.exp(-L)
     est = []
     for k in range(200):
-        Y = render(f, R, t, cam, im, rng=np.random.default_rng(100 + k), body=None).log_image[v0 : v0 + h, u0 : u0 + w]
+        Y = render(f, R, t, cam, im, rng=np.random.default_rng(100 + k)).log_image[v0 : v0 + h, u0 : u0 + w]
         est.append(float(np.sum(wts * J[3] * (Y - L)) / np.sum(wts * J[3] ** 2)))
     assert abs(np.mean(est)) < 3 * sd_tx / math.sqrt(200)
     assert np.std(est, ddof=1) == pytest.approx(sd_tx, rel=0.2)
@@ -214,8 +209,8 @@ def test_workspace_imaging_block_scales_as_one_over_root_dose(features_2005):
     from ftrac_design.intensity.workspace import imaging_analysis
     from ftrac_design.pose.problem import NoiseModel
 
-    a = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=1e4), body=BODY)
-    b = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=4e4), body=BODY)
+    a = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=1e4))
+    b = imaging_analysis(features_2005, poses=2, seed=3, imaging=ImagingModel(photons_per_px=4e4))
     np.testing.assert_allclose(b.image_std, a.image_std / 2, rtol=1e-9)
     np.testing.assert_allclose(b.feature_std, a.feature_std, rtol=1e-12)
     da, db = a.to_dict(), b.to_dict()
@@ -278,7 +273,7 @@ def test_central_differences_from_forward_ones_equal_the_direct_central_ones(fea
     give the same central differences as twelve fresh renders (same frozen body pixels)."""
     R, t = pose_2005
     im = ImagingModel()
-    model = RoiModel(features_2005, Camera(), im, BODY, roi_around(features_2005, R, t, Camera(), im.image_shape, BODY))
+    model = RoiModel(features_2005, Camera(), im, roi_around(features_2005, R, t, Camera(), im.image_shape))
     L0 = model.log_image(R, t)
     _, Jf = model._differences(R, t, "log", central=False, value=L0)
     _, Jc = model._differences(R, t, "log", central=True, value=L0)
@@ -292,14 +287,13 @@ def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
     path's), the coarse scales first from a start ~0.5° / 1 mm off; both reach the pose."""
     R, t = pose_2005
     im = ImagingModel(photons_per_px=None)
-    img = render(features_2005, R, t, imaging=im, body=BODY)
+    img = render(features_2005, R, t, imaging=im)
     near = refine_intensity(
         features_2005,
         img.log_image,
         Camera(),
         *perturb(R, t, np.r_[np.radians([0.005] * 3), 0.005, -0.005, 0.05]),
         im,
-        body=BODY,
     )
     assert {h[0] for h in near.history} == {0.0}
     far = refine_intensity(
@@ -308,14 +302,13 @@ def test_auto_schedule_smooths_only_from_a_far_start(features_2005, pose_2005):
         Camera(),
         *perturb(R, t, np.r_[np.radians([0.3, -0.3, 0.25]), 0.6, -0.6, 0.5]),
         im,
-        body=BODY,
         coarse_scales=(4.0, 2.0),
     )
     assert far.history[0][0] == 4.0 and far.history[-1][0] == 0.0
     for res in (near, far):
         assert np.degrees(so3.angle(res.rotation, R)) < 2e-3 and np.abs(res.translation_mm - t).max() < 5e-3
     with pytest.raises(ValueError):
-        refine_intensity(features_2005, img.log_image, Camera(), R, t, im, body=BODY, scales="fast")
+        refine_intensity(features_2005, img.log_image, Camera(), R, t, im, scales="fast")
 
 
 def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005, pose_2005):
@@ -325,12 +318,12 @@ def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005,
 
     R, t = pose_2005
     im = ImagingModel(photons_per_px=1e4)
-    img = render(features_2005, R, t, Camera(), im, rng=np.random.default_rng(5), body=BODY)
+    img = render(features_2005, R, t, Camera(), im, rng=np.random.default_rng(5))
     R0, t0 = perturb(R, t, np.r_[np.radians([0.02, -0.02, 0.01]), 0.05, -0.05, 0.2])
     opts = RefineOptions(polarity="dense_dark", scales=(0.0,), max_iterations=6)
-    a = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, options=opts)
+    a = refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, options=opts)
     b = refine_intensity(
-        features_2005, img.raw, Camera(), R0, t0, im, body=BODY, polarity="dense_dark", scales=(0.0,), max_iterations=6
+        features_2005, img.raw, Camera(), R0, t0, im, polarity="dense_dark", scales=(0.0,), max_iterations=6
     )
     c = refine_intensity(
         features_2005,
@@ -339,11 +332,10 @@ def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005,
         R0,
         t0,
         im,
-        body=BODY,
         options=dataclasses.replace(opts, max_iterations=99),
         max_iterations=6,
     )
     for x in (b, c):
         assert np.array_equal(a.rotation, x.rotation) and np.array_equal(a.translation_mm, x.translation_mm)
     with pytest.raises(TypeError):
-        refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, body=BODY, sigma_step=0.1)
+        refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, sigma_step=0.1)

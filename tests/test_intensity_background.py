@@ -10,9 +10,7 @@ from ftrac_design.intensity import perturb, pixel_information, refine_intensity
 from ftrac_design.intensity.background import Nuisance, TensorSpline, polynomial_basis, schur_information
 from ftrac_design.pose import so3
 from ftrac_design.pose.camera import Camera
-from ftrac_design.xray import Body, ImagingModel, anatomy, render
-
-BODY = Body(30.0, 50.0, 20.0)
+from ftrac_design.xray import ImagingModel, anatomy, render
 
 
 def test_tensor_spline_products_match_its_explicit_basis():
@@ -60,7 +58,7 @@ def test_bound_grows_with_the_nuisance_space(features_2005, pose_2005):
     ≤ gain + 8 px spline (not nested in 12 px, but finer); the spline costs the fiducial
     some information, a few % on ftrac_2005."""
     R, t = pose_2005
-    kw = dict(imaging=ImagingModel(), body=BODY)
+    kw = dict(imaging=ImagingModel())
     known = pixel_information(features_2005, R, t, **kw)
     quad = pixel_information(features_2005, R, t, nuisance=True, **kw)
     s12 = pixel_information(features_2005, R, t, nuisance=True, background_spline_px=12.0, **kw)
@@ -78,9 +76,9 @@ def test_spline_background_recovers_the_pose_under_a_smooth_background(features_
     V, U = np.mgrid[0:1024, 0:1024]
     uv = Camera().project((R @ features_2005.point_centers().T).T + t).mean(0)
     bg = 0.8 * np.exp(-((U - uv[0] - 40) ** 2 + (V - uv[1] + 30) ** 2) / (2 * 70.0**2)) + 1e-3 * (U - 512)
-    img = render(features_2005, R, t, imaging=im, body=BODY, background=bg)
+    img = render(features_2005, R, t, imaging=im, background=bg)
     R0, t0 = perturb(R, t, np.array([np.radians(0.05), -np.radians(0.05), np.radians(0.03), 0.02, -0.02, 0.4]))
-    kw = dict(body=BODY, scales=(0.0,))
+    kw = dict(scales=(0.0,))
     spl = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, im, background="spline", **kw)
     quad = refine_intensity(features_2005, img.log_image, Camera(), R0, t0, im, background="polynomial", **kw)
     err_s = np.r_[so3.angle(spl.rotation, R), np.abs(spl.translation_mm - t)]
@@ -96,14 +94,12 @@ def test_auto_background_takes_the_spline_on_a_clean_image_and_the_high_pass_ove
     R, t = pose_2005
     im = ImagingModel()
     R0, t0 = perturb(R, t, np.array([0, 0, 0, 0.01, -0.01, 0.2]))
-    kw = dict(body=BODY, polarity="dense_dark", scales=(0.0,), max_iterations=2)
-    clean = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(5), body=BODY)
+    kw = dict(polarity="dense_dark", scales=(0.0,), max_iterations=2)
+    clean = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(5))
     a = refine_intensity(features_2005, clean.raw, Camera(), R0, t0, im, **kw)
     assert a.background_model == "spline" and a.cost_end <= a.cost_start
     assert a.n_nuisance == 1 + len(a.background) and a.to_dict()["intensity"]["background"] == "spline"
-    cluttered = render(
-        features_2005, R, t, imaging=im, rng=np.random.default_rng(5), body=BODY, background=anatomy(seed=0)
-    )
+    cluttered = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(5), background=anatomy(seed=0))
     b = refine_intensity(features_2005, cluttered.raw, Camera(), R0, t0, im, **kw)
     assert b.background_model == "highpass" and b.cost_end <= b.cost_start
     with pytest.raises(ValueError):

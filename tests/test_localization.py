@@ -95,10 +95,10 @@ def test_bead_sigma_matches_finite_differences_of_the_renderer():
     for ox, oy in np.random.default_rng(0).uniform(0, cam.pixel_size_mm[0] / M, (6, 2)):
         t = np.array([ox, oy, DEPTH])
         e = np.array([h, 0.0, 0.0])
-        I0 = expected_transmission(f, R, t, cam, im, body=None).astype(float)
+        I0 = expected_transmission(f, R, t, cam, im).astype(float)
         dI = (
-            expected_transmission(f, R, t + e, cam, im, body=None).astype(float)
-            - expected_transmission(f, R, t - e, cam, im, body=None).astype(float)
+            expected_transmission(f, R, t + e, cam, im).astype(float)
+            - expected_transmission(f, R, t - e, cam, im).astype(float)
         ) / (2 * h)
         info.append(im.photons_per_px * np.sum(dI**2 / I0) / M**2)  # object mm → detector mm
     assert bead_sigma_mm(1.0, DEPTH, cam, im) == pytest.approx(1 / np.sqrt(np.mean(info)), rel=0.08)
@@ -116,7 +116,7 @@ def test_size_error_factors_are_ratios_to_the_reference():
 def test_simulated_observation_noise_scales_with_the_factors(f2005):
     from ftrac_design.pose.simulate import simulate_observation
 
-    features = f2005[0]
+    features = f2005
     R, t = np.eye(3), np.array([0.0, 0.0, DEPTH])
     cam = Camera()
     clean = simulate_observation(features, cam, R, t, 0.0, np.random.default_rng(1))

@@ -480,7 +480,6 @@ def test_search_on_the_image_true_score_is_rechecked_on_a_fresh_image_true_trial
     the start re-run on a trial the search never saw, both conditions, with paired ratios."""
     from ftrac_design.imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
     from ftrac_design.workflows.optimize import optimize
-    from ftrac_design.xray import Body
 
     space = tmp_path / "space.toml"
     space.write_text('[parameters]\n"ellipses.E1.tilt_deg" = [29.0, 31.0]\n[search]\npopsize = 2\n')
@@ -518,7 +517,7 @@ def test_search_on_the_image_true_score_is_rechecked_on_a_fresh_image_true_trial
     # the fresh trial is the documented one, reproducible from the summary alone
     fresh_seed = 1_000_003 + 2 * 4 + 5
     d = load_design(design)
-    records = run_trial(compute_features(d), Body.from_design(d), TrialSettings(images=12, seed=fresh_seed))
+    records = run_trial(compute_features(d), TrialSettings(images=12, seed=fresh_seed))
     assert trial_figures(records, fresh_seed) == check["start"]
     best = tomllib.loads((tmp_path / "opt" / "best.toml").read_text())
     if best["ellipses"][0]["tilt_deg"] == pytest.approx(30.0, abs=1e-9):  # the start won: ratios are 1

@@ -26,7 +26,7 @@ from ftrac_design.features.model import Features, LineFeature, PointFeature
 from ftrac_design.intensity import RoiModel, roi_around
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body, ImagingModel, render
+from ftrac_design.xray import ImagingModel, render
 from ftrac_design.xray.geometry import sphere_chord, straight_pieces, tube_chord
 from ftrac_design.xray.rays import Rays, subsample_offsets
 from ftrac_design.xray.render import (
@@ -40,7 +40,6 @@ from ftrac_design.xray.render import (
 
 CAM = Camera(1000.0, (0.44, 0.44), (64.0, 64.0))
 DEPTH = 667.0
-BODY = Body(30.0, 50.0, 20.0)
 
 
 def _features(points=(), lines=()) -> Features:
@@ -48,7 +47,7 @@ def _features(points=(), lines=()) -> Features:
 
 
 def _summed_contrast(features: Features, t: np.ndarray, imaging: ImagingModel) -> float:
-    return float(np.sum(1.0 - expected_transmission(features, np.eye(3), t, CAM, imaging, body=None).astype(float)))
+    return float(np.sum(1.0 - expected_transmission(features, np.eye(3), t, CAM, imaging).astype(float)))
 
 
 @pytest.mark.parametrize("diameter", [0.3, 0.5])
@@ -198,9 +197,9 @@ def test_blur_acts_on_photons_before_the_pixels_like_a_brute_force_render():
     im = ImagingModel(image_shape=(64, 64), photons_per_px=None, single_precision=False)
     cam = Camera(1000.0, (0.44, 0.44), (32.0, 32.0))
     ref = _brute_force(f, t, cam, im)
-    fine = expected_transmission(f, np.eye(3), t, cam, replace(im, supersample=15), body=None).astype(float)
+    fine = expected_transmission(f, np.eye(3), t, cam, replace(im, supersample=15)).astype(float)
     assert np.abs(fine - ref).max() < 1e-3
-    got = expected_transmission(f, np.eye(3), t, cam, im, body=None).astype(float)
+    got = expected_transmission(f, np.eye(3), t, cam, im).astype(float)
     assert np.abs(got - ref).max() < 2e-3
     # the other order, from the same sub-samples: exp of the pixel's mean, then the blur
     p, (v0, u0) = line_integral_box(f, np.eye(3), t, cam, im, None, margin_px=8)
@@ -217,9 +216,9 @@ def test_intensity_model_renders_what_the_renderer_renders(features_2005):
     for sp in (False, True):
         im = ImagingModel(photons_per_px=None, single_precision=sp)
         for k in range(2):
-            roi = roi_around(features_2005, R[k], t[k], Camera(), im.image_shape, BODY)
+            roi = roi_around(features_2005, R[k], t[k], Camera(), im.image_shape)
             v0, u0, h, w = roi
-            L = RoiModel(features_2005, Camera(), im, BODY, roi).log_image(R[k], t[k])
-            Y = render(features_2005, R[k], t[k], imaging=im, body=BODY).line_integral[v0 : v0 + h, u0 : u0 + w]
+            L = RoiModel(features_2005, Camera(), im, roi).log_image(R[k], t[k])
+            Y = render(features_2005, R[k], t[k], imaging=im).line_integral[v0 : v0 + h, u0 : u0 + w]
             assert np.abs(Y).max() > 1.5
             np.testing.assert_allclose(L, Y, rtol=0, atol=1e-5)

@@ -1,4 +1,4 @@
-"""Runs tracked frame to frame (:class:`ftrac_design.workflows.run_tracker.RunTracker`): as
+"""Runs tracked frame to frame (:class:`ftrac_design.tracking.RunTracker`): as
 accurate as tracking every frame alone, never carrying a wrong pose past a jump, a foreign
 or a blank frame, the same answers for the same frames, and ``track`` on a multi-frame
 DICOM and on a video file.
@@ -14,16 +14,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fuzz_support import MODELS
 from test_fuzz_observation import FEATURE_FILES, FEATURES
 
 from ftrac_design.cli.main import main
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
-from ftrac_design.workflows.run_tracker import RunTracker
+from ftrac_design.tracking import RunTracker
 from ftrac_design.xray import ImagingModel, render
-from ftrac_design.xray.scene import body_from_design_file
 from ftrac_design.xray.sweep import render_sweep
 
 SHAPE = (512, 512)
@@ -40,12 +38,7 @@ SWING = {
 
 
 @pytest.fixture(scope="module")
-def body():
-    return body_from_design_file(MODELS / "ftrac_2005.toml")
-
-
-@pytest.fixture(scope="module")
-def run(body):
+def run():
     features = FEATURES["ftrac_2005"]
     R0, t0 = Workspace(cone_deg=10.0, lateral_mm=5.0).sample(
         1, features.nominal_beam_direction, np.random.default_rng(5)
@@ -58,15 +51,14 @@ def run(body):
         CAM,
         ImagingModel(image_shape=SHAPE),
         seed=5,
-        body=body,
         anatomy_strength=0.6,
         margin_px=96,
         **SWING,
     )
 
 
-def _track_all(frames, body, independent=False, times=None):
-    tr = RunTracker(FEATURES["ftrac_2005"], CAM, body=body, independent=independent)
+def _track_all(frames, independent=False, times=None):
+    tr = RunTracker(FEATURES["ftrac_2005"], CAM, independent=independent)
     return [tr.track_frame(f, time_s=None if times is None else times[k]) for k, f in enumerate(frames)]
 
 
@@ -77,13 +69,13 @@ def _errors(answer, R, t) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def tracked(run, body):
-    return _track_all(run.raw, body, times=np.arange(N) / 30.0)
+def tracked(run):
+    return _track_all(run.raw, times=np.arange(N) / 30.0)
 
 
 @pytest.fixture(scope="module")
-def alone(run, body):
-    return _track_all(run.raw, body, independent=True)
+def alone(run):
+    return _track_all(run.raw, independent=True)
 
 
 def test_the_swing_is_smooth_and_starts_where_asked():
@@ -120,40 +112,38 @@ def test_a_run_is_tracked_from_frame_to_frame_as_accurately_as_frame_by_frame(ru
 
 def test_tracked_frames_say_how_they_were_found(tracked):
     for k, a in enumerate(tracked):
-        d = a.pose_dict()
+        d = a.record().to_dict()
         assert d["frame"] == k and d["status"] == a.status and d["timing"]["path"] == a.status
         assert d["timing"]["elapsed_ms"] > 0 and d["time_s"] == pytest.approx(k / 30.0)
         assert d["segmentation"]["path"] == a.status and d["format"] == "ftrac-pose"
         if a.status == "tracked":
             # where the balls moved from the prediction; tight-stage frames within half a pixel
             assert 0 <= d["segmentation"]["moved_px"] < 3.0
-    json.dumps([a.pose_dict() for a in tracked], allow_nan=False)
+    json.dumps([a.record().to_dict() for a in tracked], allow_nan=False)
 
 
-def test_the_same_frames_give_the_same_answers(run, body, tracked):
-    again = _track_all(run.raw, body, times=np.arange(N) / 30.0)
+def test_the_same_frames_give_the_same_answers(run, tracked):
+    again = _track_all(run.raw, times=np.arange(N) / 30.0)
 
     def strip(d):
         d = dict(d)
         d.pop("timing")
         return d
 
-    assert [strip(a.pose_dict()) for a in again] == [strip(a.pose_dict()) for a in tracked]
+    assert [strip(a.record().to_dict()) for a in again] == [strip(a.record().to_dict()) for a in tracked]
 
 
-def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body):
+def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run):
     """Frames 0–4, then frame 10 (a jump ahead), a frame of another view, a blank frame, then
     frames 5–7: no pose is carried past a jump, the blank frame is lost and the frame after
     it is identified from scratch; every pose given out is right."""
     features = FEATURES["ftrac_2005"]
     R1, t1 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(77))
-    foreign = render(
-        features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1), body=body
-    ).raw
+    foreign = render(features, R1[0], t1[0], CAM, ImagingModel(image_shape=SHAPE), rng=np.random.default_rng(1)).raw
     blank = np.full(SHAPE, int(np.median(run.raw[0])), np.uint16)
     order = [0, 1, 2, 3, 4, 10, "foreign", "blank", 5, 6, 7]
     frames = [foreign if k == "foreign" else blank if k == "blank" else run.raw[k] for k in order]
-    answers = _track_all(frames, body)
+    answers = _track_all(frames)
     status = [a.status for a in answers]
     assert status[5] != "tracked" and status[6] == "re-identified" and status[7] == "lost"
     assert status[8] == "re-identified", status
@@ -166,12 +156,12 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run, body)
         if a.result.pose.converged:
             dt, dr = _errors(a, R, t)
             assert dt < 2.0 and dr < 0.5, (a.status, dt, dr)
-    assert not answers[7].result.pose.converged and answers[7].pose_dict()["rotation"] is None
+    assert not answers[7].result.pose.converged and answers[7].record().to_dict()["rotation"] is None
 
 
 def test_a_tracker_needs_a_camera():
     with pytest.raises(ValueError, match="camera"):
-        RunTracker(FEATURES["ftrac_2005"], body=None).track(np.zeros((64, 64)))
+        RunTracker(FEATURES["ftrac_2005"]).track(np.zeros((64, 64)))
 
 
 def _lines(path: Path) -> list[dict]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -17,10 +19,10 @@ from ftrac_design.xray import render
 
 @pytest.fixture(scope="module")
 def rendered(f2005):
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(11))
-    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(11), body=body)
-    return features, body, rad
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(11))
+    return features, rad
 
 
 def test_sphere_profile_closed_forms():
@@ -61,7 +63,7 @@ def test_bead_fit_recovers_a_synthetic_ball_off_grid():
 
 
 def test_polarity_detected_for_raw_and_log(rendered):
-    _, _, rad = rendered
+    _, rad = rendered
     assert detect_polarity(rad.raw.astype(float), 7) == "dense-dark"
     assert detect_polarity(rad.log_image, 7) == "dense-bright"
 
@@ -69,8 +71,9 @@ def test_polarity_detected_for_raw_and_log(rendered):
 def test_ridge_points_lie_on_the_projected_lines(rendered):
     """Steger points near each projected line (wires and beads only, no body), away from
     beads and other features, scatter ≤ 0.1 px about it with a bias ≤ 0.05 px."""
-    features, _, rad0 = rendered
-    rad = render(features, rad0.rotation, rad0.translation_mm, Camera(), rng=np.random.default_rng(3), body=None)
+    features, rad0 = rendered
+    bare = replace(features, body=None)
+    rad = render(bare, rad0.rotation, rad0.translation_mm, Camera(), rng=np.random.default_rng(3))
     g = to_density(rad.raw.astype(float), "dense-dark")
     T = top_hat(g, 8)
     rp = ridge_points(T, 1.35, noise_sigma(T))
@@ -100,8 +103,8 @@ def test_track_observation_matches_the_projection(rendered):
     centres, contour points within 0.1 px (RMS) of the projected lines and ellipses, and no
     shrinkage of the ellipses (mean signed distance |·| ≤ 0.05 px) — the body-edge blur bias
     is removed."""
-    features, body, rad = rendered
-    res = track_image(rad.raw, features, Camera(), body=body)
+    features, rad = rendered
+    res = track_image(rad.raw, features, Camera())
     assert res.pose.converged, res.pose.error
     obs = res.observation
     truth = rad.truth["projected"]
@@ -126,9 +129,9 @@ def test_track_observation_matches_the_projection(rendered):
 
 
 def test_same_input_same_result(rendered):
-    features, body, rad = rendered
-    a = track_image(rad.raw, features, Camera(), body=body)
-    b = track_image(rad.raw, features, Camera(), body=body)
+    features, rad = rendered
+    a = track_image(rad.raw, features, Camera())
+    b = track_image(rad.raw, features, Camera())
     assert np.array_equal(a.pose.rotation, b.pose.rotation)
     assert np.array_equal(a.pose.translation_mm, b.pose.translation_mm)
 

@@ -110,9 +110,9 @@ def test_blob_candidates_keep_balls_and_drop_a_ridge_as_wide():
 def test_guided_contours_lie_on_the_true_curves(f2005):
     """At the true pose of a rendered image, the points measured where each wire is predicted
     lie on the wires' true projections (RMS < 0.25 px) and every wire gets some."""
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
-    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4), body=body)
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
     opts = TrackOptions()
     sc = scales(features, Camera(), opts)
     c = condition(rad.raw, "dense-dark", None, sc.disc_px)
@@ -128,29 +128,27 @@ def test_guided_contours_lie_on_the_true_curves(f2005):
 def test_no_time_budget_means_one_attempt(f2005):
     """With no time at all, one region (or the whole image) is searched and the answer says
     why it stopped; the same image with the default budget is tracked."""
-    features, body = f2005
+    features = f2005
     rng = np.random.default_rng(5)
     img = rng.uniform(900, 1100, (512, 512)).astype(np.float32)
     for k in range(40):  # ball-like clutter in several clusters
         u, v = rng.uniform(20, 490, 2)
         cv2.circle(img, (int(u), int(v)), 3, 300, -1)
-    res = track_image(
-        img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0), body=body
-    )
+    res = track_image(img, features, Camera(principal_point_px=(256.0, 256.0)), TrackOptions(time_budget_s=0.0))
     assert not res.pose.converged and res.pose.error
 
 
 def test_counts_are_tried_dense_dark_first_and_line_integrals_dense_bright(f2005):
     """With no hint, raw counts (beyond 8 bits) are read dense-dark first and a log image's
     line integrals dense-bright first: each is tracked on its first attempt."""
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(6))
-    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(6), body=body)
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(6))
     for img, want in (
         (rad.raw, "dense-dark"),
         (rad.log_image, "dense-bright"),
         (rad.raw.astype(np.float64) + 0.25, "dense-dark"),
     ):  # resampled counts
-        res = track_image(img, features, Camera(), body=body)
+        res = track_image(img, features, Camera())
         assert res.pose.converged and res.polarity == want
-        assert "polarity_tried" not in res.diagnostics
+        assert res.diagnostics.polarity_tried is None

@@ -15,12 +15,12 @@ from ftrac_design.images import write_image
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
 from ftrac_design.segment.pipeline import track_image
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 
 
 def _preset(name):
     d = load_design(preset_path(name))
-    return compute_features(d), Body.from_design(d)
+    return compute_features(d)
 
 
 @pytest.fixture(scope="module")
@@ -31,7 +31,7 @@ def f2005():
 @pytest.fixture(scope="module")
 def features_json(tmp_path_factory, f2005):
     p = tmp_path_factory.mktemp("feat") / "features.json"
-    write_features(p, f2005[0])
+    write_features(p, f2005)
     return p
 
 
@@ -42,10 +42,10 @@ def _pose(features, seed):
 
 @pytest.mark.parametrize("seed", [1, 5])
 def test_track_recovers_ftrac_2005_pose_no_initial_guess(f2005, seed):
-    features, body = f2005
+    features = f2005
     R, t = _pose(features, seed)
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed))
+    res = track_image(rad.raw, features, Camera())
     assert res.pose.converged, res.pose.error
     dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
     assert np.degrees(np.linalg.norm(dr)) < 0.2
@@ -64,19 +64,19 @@ def _even_helix():
     data = tomllib.loads(preset_path("nine_bead").read_text())
     data["beads"] = [{"azimuth_deg": 10.0 + 40.0 * k, "z": -18.0 + 4.5 * k} for k in range(9)]
     d = parse_design(data)
-    return compute_features(d), Body.from_design(d)
+    return compute_features(d)
 
 
 def test_symmetric_helix_is_reported_not_guessed():
     """An evenly spaced helix has a two-fold axis: B1…B9 and B9…B1 give the same image, so
     the pose is ambiguous by construction. track must say so, and offer the true pose among
     its alternatives."""
-    features, body = _even_helix()
+    features = _even_helix()
     R, t = _pose(features, 2)
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(2), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(2))
+    res = track_image(rad.raw, features, Camera())
     assert not res.pose.converged and "ambiguous" in res.pose.error
-    alts = res.diagnostics["alternatives"]
+    alts = res.diagnostics.alternatives
     errs = [
         np.degrees(np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R, t)[0]))
         for a in alts
@@ -87,10 +87,10 @@ def test_symmetric_helix_is_reported_not_guessed():
 def test_nine_bead_graded_helix_is_tracked():
     """The nine_bead preset's graded helix has no symmetry (tests/test_presets.py): the same
     view now gives one confident, right pose."""
-    features, body = _preset("nine_bead")
+    features = _preset("nine_bead")
     R, t = _pose(features, 2)
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(2), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(2))
+    res = track_image(rad.raw, features, Camera())
     assert res.pose.converged, res.pose.error
     dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
     assert np.degrees(np.linalg.norm(dr)) < 0.3
@@ -99,7 +99,7 @@ def test_nine_bead_graded_helix_is_tracked():
 
 def test_scrambled_image_is_not_a_confident_pose(f2005):
     """Beads moved off their wires (a different, wrong fiducial) must not give a converged pose."""
-    features, body = f2005
+    features = f2005
     from dataclasses import replace
 
     from ftrac_design.features.model import PointFeature
@@ -110,8 +110,8 @@ def test_scrambled_image_is_not_a_confident_pose(f2005):
     )
     wrong = replace(features, points=moved)
     R, t = _pose(features, 4)
-    rad = render(wrong, R, t, Camera(), rng=np.random.default_rng(4), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(wrong, R, t, Camera(), rng=np.random.default_rng(4))
+    res = track_image(rad.raw, features, Camera())
     if res.pose.converged:
         # the only acceptable confident answer is one that is right
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
@@ -125,11 +125,11 @@ def _run(args, capsys):
 
 
 def test_cli_png_with_overlay_and_jsonl(tmp_path, f2005, features_json, capsys):
-    features, body = f2005
+    features = f2005
     imgs = []
     for seed in (1, 3):
         R, t = _pose(features, seed)
-        rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed), body=body)
+        rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed))
         p = tmp_path / f"img{seed}.png"
         write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
         imgs.append((p, R, t))
@@ -171,12 +171,12 @@ def test_cli_no_fiducial_exits_1_with_one_line_and_a_pose_object(tmp_path, featu
 def test_cli_truncated_fiducial_exits_1(tmp_path, f2005, features_json, capsys):
     """The fiducial at the image's edge with most of it outside (≤ 2 beads in view): not
     found (exit 1)."""
-    features, body = f2005
+    features = f2005
     R, t = _pose(features, 6)
     t = t.copy()
     # put the origin 60 px beyond the left edge: the beads fall outside the image
     t[0] = (-60 - 512) * 0.44 / 1000 * t[2]
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(6), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(6))
     p = tmp_path / "trunc.png"
     write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
     out = tmp_path / "pose.json"
@@ -187,7 +187,7 @@ def test_cli_truncated_fiducial_exits_1(tmp_path, f2005, features_json, capsys):
 
 
 def test_cli_bad_inputs_exit_2_and_write_nothing(tmp_path, f2005, features_json, capsys):
-    features, body = f2005
+    features = f2005
     bad = tmp_path / "bad.png"
     bad.write_bytes(b"not a png at all")
     out = tmp_path / "o" / "pose.json"
@@ -196,7 +196,7 @@ def test_cli_bad_inputs_exit_2_and_write_nothing(tmp_path, f2005, features_json,
     assert not out.parent.exists() or not any(out.parent.iterdir())
     # a PNG with no camera and no --camera
     R, t = _pose(features, 1)
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1))
     nocam = tmp_path / "nocam.png"
     write_image(nocam, rad.raw)
     rc, so, se = _run(["track", "--features", str(features_json), str(nocam), "-o", str(out)], capsys)
@@ -237,11 +237,11 @@ def test_ftrac_mini_pose_recovered(seed, k):
     test once read half of its raw images as display images, and the ball fit ran off to
     r → 0.3 r₀), the labelling is right, and the error is what the covariance says (χ² of
     the 6-vector error < 22.5, p = 0.001)."""
-    features, body = _preset("ftrac_mini")
+    features = _preset("ftrac_mini")
     R, t = Workspace().sample(max(k + 1, 1), features.nominal_beam_direction, np.random.default_rng(seed))
     R, t = R[k], t[k]
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed * 1000 + k), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(seed * 1000 + k))
+    res = track_image(rad.raw, features, Camera())
     assert res.pose.converged, res.pose.error
     assert len(res.observation.points) >= 5 and res.observation.ellipses
     m2, dr, dt = _mahalanobis2(res.pose, R, t)
@@ -254,10 +254,10 @@ def test_ftrac_mini_near_mirror_labelling_is_not_confident():
     matches 8 balls and both ellipses at κ = 1.3, the right one 7 balls at κ = 0.8. More
     features alone picked the wrong one as a confident pose; now the two are rivals and the
     answer is either right or not converged."""
-    features, body = _preset("ftrac_mini")
+    features = _preset("ftrac_mini")
     R, t = Workspace().sample(20, features.nominal_beam_direction, np.random.default_rng(1))
-    rad = render(features, R[19], t[19], Camera(), rng=np.random.default_rng(1019), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R[19], t[19], Camera(), rng=np.random.default_rng(1019))
+    res = track_image(rad.raw, features, Camera())
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R[19], t[19])
         assert np.degrees(np.linalg.norm(dr)) < 1.5 and np.linalg.norm(dt) < 4.0
@@ -267,7 +267,7 @@ def test_ftrac_mini_near_mirror_labelling_is_not_confident():
             np.degrees(
                 np.linalg.norm(pose_errors(np.array(a["rotation"]), np.array(a["translation_mm"]), R[19], t[19])[0])
             )
-            for a in res.diagnostics["alternatives"]
+            for a in res.diagnostics.alternatives
         ]
         assert min(errs) < 1.5
 
@@ -276,9 +276,9 @@ def test_cli_refine_intensity(tmp_path, f2005, features_json, capsys):
     """--refine intensity: the converged pose refined on the pixels (ftrac_design.intensity)
     stays right, says it was refined, and keeps a covariance."""
     pytest.importorskip("ftrac_design.intensity")
-    features, body = f2005
+    features = f2005
     R, t = _pose(features, 1)
-    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1), body=body)
+    rad = render(features, R, t, Camera(), rng=np.random.default_rng(1))
     p = tmp_path / "img.png"
     write_image(p, rad.raw, camera=Camera(), polarity="dense_dark")
     out = tmp_path / "pose.json"
@@ -299,11 +299,11 @@ def test_strong_anatomy_never_raises_and_is_never_wrong(f2005):
     track must answer — right, or not converged with a reason."""
     from ftrac_design.xray import anatomy
 
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(20, features.nominal_beam_direction, np.random.default_rng(4))
     rng = np.random.default_rng(4000)
-    rad = render(features, R[0], t[0], Camera(), rng=rng, background=anatomy(seed=4000, strength=2.0), body=body)
-    res = track_image(rad.raw, features, Camera(), body=body)
+    rad = render(features, R[0], t[0], Camera(), rng=rng, background=anatomy(seed=4000, strength=2.0))
+    res = track_image(rad.raw, features, Camera())
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R[0], t[0])
         assert np.degrees(np.linalg.norm(dr)) < 0.5 and np.linalg.norm(dt) < 2.0
@@ -332,10 +332,10 @@ def test_ftrac_mini_benchmark_images_never_wrong(k):
     confident wrong poses (near-mirror labellings 136–173° off: the right labelling failed
     its own χ² test, was not among those tested, or 3–4 balls were all that could be used):
     the answer is right or not converged."""
-    features, body = _preset("ftrac_mini")
+    features = _preset("ftrac_mini")
     R, t = Workspace().sample(300, features.nominal_beam_direction, np.random.default_rng(1))
-    rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(1000 + k), body=body)
-    _assert_right_or_not_converged(track_image(rad.raw, features, Camera(), body=body), R[k], t[k], 4.0)
+    rad = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(1000 + k))
+    _assert_right_or_not_converged(track_image(rad.raw, features, Camera()), R[k], t[k], 4.0)
 
 
 @pytest.mark.parametrize("k", [1, 96])
@@ -346,7 +346,7 @@ def test_ftrac_mini_over_anatomy_mirror_labelling_is_not_confident(k):
     0.3 mm wires looked absent over the anatomy. The answer is right or not converged."""
     from ftrac_design.xray import anatomy
 
-    features, body = _preset("ftrac_mini")
+    features = _preset("ftrac_mini")
     R, t = Workspace().sample(200, features.nominal_beam_direction, np.random.default_rng(1))
     rad = render(
         features,
@@ -355,6 +355,5 @@ def test_ftrac_mini_over_anatomy_mirror_labelling_is_not_confident(k):
         Camera(),
         rng=np.random.default_rng(1000 + k),
         background=anatomy(seed=1000 + k, strength=1.0),
-        body=body,
     )
-    _assert_right_or_not_converged(track_image(rad.raw, features, Camera(), body=body), R[k], t[k], 5.0)
+    _assert_right_or_not_converged(track_image(rad.raw, features, Camera()), R[k], t[k], 5.0)

@@ -19,7 +19,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from fuzz_support import MODELS
 from test_fuzz_observation import FEATURE_FILES, FEATURES
 
 from ftrac_design.cli.main import main
@@ -27,9 +26,9 @@ from ftrac_design.images import distort_image, write_dicom, write_distortion, wr
 from ftrac_design.images.distortion import radial
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.workflows import run_tracker, track_run
+from ftrac_design.tracking import run_tracker
+from ftrac_design.workflows import track_run
 from ftrac_design.xray import ImagingModel, render
-from ftrac_design.xray.scene import body_from_design_file
 
 SHAPE = (384, 384)
 #: the principal point where DICOM intake puts it without a tag: the image centre
@@ -50,7 +49,6 @@ def scene():
         CAM,
         ImagingModel(image_shape=SHAPE),
         rng=np.random.default_rng(0),
-        body=body_from_design_file(MODELS / "ftrac_2005.toml"),
     )
     counts = np.asarray(rad.raw, np.uint16)
     log = np.rint((rad.log_image + 0.1) * 20000.0).astype(np.uint16)
@@ -416,7 +414,7 @@ def test_the_files_polarity_and_formation_are_the_trackers_hints(
     tracker's options win over a hint)."""
     seen = []
 
-    def spy(image, features, camera, options=None, polarity_hint=None, body="auto", formation_hint=None):
+    def spy(image, features, camera, options=None, polarity_hint=None, formation_hint=None):
         seen.append((polarity_hint, formation_hint, options.polarity))
         raise RuntimeError("spy")
 

@@ -18,7 +18,7 @@ from ftrac_design.pose.p3p import bearings, p3p
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import TrackOptions, identify, track_image
 from ftrac_design.segment.beads import bilinear_table, sphere_profile, sphere_profile_fast
-from ftrac_design.xray import Body, render
+from ftrac_design.xray import render
 from ftrac_design.xray.scenario import realistic_image
 
 K = np.array([[1500.0, 0, 512], [0, 1500.0, 512], [0, 0, 1]])
@@ -109,7 +109,7 @@ def test_sphere_profile_is_smooth_in_its_parameters():
 @pytest.fixture(scope="module")
 def mini():
     d = load_design("ftrac_mini")
-    return compute_features(d), Body.from_design(d)
+    return compute_features(d)
 
 
 def _shuffled_p3p(monkeypatch, seed):
@@ -132,10 +132,10 @@ def test_labelling_ignores_the_order_and_multiplicity_of_p3p_solutions(mini, mon
     """ftrac_mini's images whose answer once changed with OpenCV's release: the hypotheses and
     the pose are the same whatever order the P3P solutions and model triplets come in, and
     however often an equivalent solution is listed."""
-    features, body = mini
+    features = mini
     R, t = Workspace().sample(k + 1, features.nominal_beam_direction, np.random.default_rng(seed))
-    img = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(seed * 1000 + k), body=body).raw
-    ref = track_image(img, features, Camera(), body=body)
+    img = render(features, R[k], t[k], Camera(), rng=np.random.default_rng(seed * 1000 + k)).raw
+    ref = track_image(img, features, Camera())
     blobs = ref.beads.uv
     model = features.point_centers()
     hyp0 = identify.bead_hypotheses(model, blobs, Camera(), 6.0)
@@ -143,7 +143,7 @@ def test_labelling_ignores_the_order_and_multiplicity_of_p3p_solutions(mini, mon
         with monkeypatch.context() as m:
             _shuffled_p3p(m, s)
             hyp = identify.bead_hypotheses(model, blobs, Camera(), 6.0)
-            res = track_image(img, features, Camera(), body=body)
+            res = track_image(img, features, Camera())
         assert [(h.match, h.count) for h in hyp] == [(h.match, h.count) for h in hyp0]
         np.testing.assert_allclose([h.rms_px for h in hyp], [h.rms_px for h in hyp0], atol=1e-9)
         assert res.pose.converged == ref.pose.converged
@@ -160,44 +160,44 @@ def busy_image():
     """ftrac_2005 in a display-processed frame that takes the classical detectors 17 units of
     work to track (three regions of one polarity, the other polarity's, labellings in each)."""
     d = load_design("ftrac_2005")
-    features, body = compute_features(d), Body.from_design(d)
+    features = compute_features(d)
     R, t = Workspace().sample(12, features.nominal_beam_direction, np.random.default_rng(3))
-    img, _ = realistic_image(features, R[8], t[8], Camera(), "display-dark", 108, body=body)
-    return img, features, body
+    img, _ = realistic_image(features, R[8], t[8], Camera(), "display-dark", 108)
+    return img, features
 
 
 def test_the_clock_does_not_decide_the_answer(busy_image):
     """The same image with the time safety net far away and at its default: the same answer,
     bit for bit — the counted work decides where the search stops."""
-    img, features, body = busy_image
-    a = track_image(img, features, Camera(), replace(CLASSICAL, time_budget_s=float("inf")), body=body)
-    b = track_image(img, features, Camera(), CLASSICAL, body=body)
-    assert a.pose.converged and a.diagnostics["work"] > 4
-    assert a.diagnostics["work"] == b.diagnostics["work"]
+    img, features = busy_image
+    a = track_image(img, features, Camera(), replace(CLASSICAL, time_budget_s=float("inf")))
+    b = track_image(img, features, Camera(), CLASSICAL)
+    assert a.pose.converged and a.diagnostics.work > 4
+    assert a.diagnostics.work == b.diagnostics.work
     np.testing.assert_array_equal(a.pose.rotation, b.pose.rotation)
     np.testing.assert_array_equal(a.pose.translation_mm, b.pose.translation_mm)
-    assert "time_budget_spent" not in b.diagnostics
+    assert b.diagnostics.time_budget_spent is None
 
 
 def test_the_work_budget_bounds_the_search(busy_image):
     """Four units of work: the search stops there (one more at most: a search's first
     labelling always finishes), whatever the clock says, and the same on every call."""
-    img, features, body = busy_image
+    img, features = busy_image
     opts = replace(CLASSICAL, max_work=4, time_budget_s=float("inf"))
-    a = track_image(img, features, Camera(), opts, body=body)
-    b = track_image(img, features, Camera(), opts, body=body)
-    assert a.diagnostics["work"] <= 5
+    a = track_image(img, features, Camera(), opts)
+    b = track_image(img, features, Camera(), opts)
+    assert a.diagnostics.work <= 5
     assert a.pose.converged == b.pose.converged and a.pose.error == b.pose.error
 
 
 def test_with_no_time_at_all_the_first_search_still_finishes(mini):
     """The safety net at zero seconds: an image whose first search finds the pose gives the
     same pose as with all the time in the world."""
-    features, body = mini
+    features = mini
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
-    img = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(2000), body=body).raw
-    a = track_image(img, features, Camera(), TrackOptions(time_budget_s=0.0), body=body)
-    b = track_image(img, features, Camera(), TrackOptions(time_budget_s=float("inf")), body=body)
-    assert b.pose.converged and b.diagnostics["roi"] == a.diagnostics["roi"]
-    assert a.pose.converged and a.diagnostics["work"] == 2  # its first region, its first labelling
+    img = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(2000)).raw
+    a = track_image(img, features, Camera(), TrackOptions(time_budget_s=0.0))
+    b = track_image(img, features, Camera(), TrackOptions(time_budget_s=float("inf")))
+    assert b.pose.converged and b.diagnostics.roi == a.diagnostics.roi
+    assert a.pose.converged and a.diagnostics.work == 2  # its first region, its first labelling
     np.testing.assert_array_equal(a.pose.translation_mm, b.pose.translation_mm)

@@ -24,36 +24,31 @@ PINHOLE = TrackOptions(distortion_prior_mm=0.0)
 
 @pytest.fixture(scope="module")
 def rendered(f2005):
-    features, body = f2005
+    features = f2005
     R, t = Workspace().sample(24, features.nominal_beam_direction, np.random.default_rng(3))
     return (
         R,
         t,
-        [
-            render(features, R[k], t[k], Camera(), rng=np.random.default_rng(300 + k), body=body).raw
-            for k in range(len(R))
-        ],
+        [render(features, R[k], t[k], Camera(), rng=np.random.default_rng(300 + k)).raw for k in range(len(R))],
     )
 
 
 def test_variance_components_scale_the_covariance_and_leave_the_estimate(f2005, rendered):
-    features, body = f2005
+    features = f2005
     R, t, imgs = rendered
     one = track_image(
         imgs[0],
         features,
         Camera(),
         TrackOptions(variance_point=1, variance_line=1, variance_ellipse=1, distortion_prior_mm=0.0),
-        body=body,
     )
     two = track_image(
         imgs[0],
         features,
         Camera(),
         TrackOptions(variance_point=2, variance_line=2, variance_ellipse=2, distortion_prior_mm=0.0),
-        body=body,
     )
-    mixed = track_image(imgs[0], features, Camera(), PINHOLE, body=body)
+    mixed = track_image(imgs[0], features, Camera(), PINHOLE)
     assert one.pose.converged and two.pose.converged and mixed.pose.converged
     for r in (two, mixed):
         assert np.array_equal(r.pose.rotation, one.pose.rotation)
@@ -76,15 +71,15 @@ def test_variance_components_scale_the_covariance_and_leave_the_estimate(f2005, 
 def test_pose_errors_are_near_unit_z_scores(f2005, rendered):
     """24 rendered workspace images of ftrac_2005 (fixed seeds): the error on every axis,
     divided by its reported σ, has a robust spread (the median |z| over 0.6745: 1 for a unit
-    normal) between 0.4 and 1.3 (the former single variance factor gave 1.36 on rx; rz stays
-    conservative, ~0.5; depth is the nearest the bound, 1.27), and no error is beyond 5 σ. The spread is the median's, not the RMS:
-    one image in 24 with a 3.5 σ tilt error (a contour biased by the body's edge) moved
-    the RMS of rx from 1.0 to 1.4."""
-    features, body = f2005
+    normal) between 0.4 and 1.3 (rz stays conservative, ~0.5; depth is the nearest the bound,
+    1.27), and no error is beyond 5 σ. The spread is the median's, not the RMS: one image in 24
+    with a 3.5 σ tilt error (a contour biased by the body's edge) moved the RMS of rx from 1.0
+    to 1.4."""
+    features = f2005
     R, t, imgs = rendered
     z = []
     for k, img in enumerate(imgs):
-        res = track_image(img, features, Camera(), PINHOLE, body=body)
+        res = track_image(img, features, Camera(), PINHOLE)
         if not res.pose.converged:
             continue
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R[k], t[k])
@@ -118,11 +113,11 @@ def _looking_down_a_line(features, depth_mm=650.0):
 def _result(R, t, n_points, error):
     pose = Pose(R, t, False, 1.0, None, {}, 0, error)
     obs = Observation(Camera(), {f"B{k + 1}": np.zeros(2) for k in range(n_points)}, {}, {}, origin="<test>")
-    return TrackResult(pose, obs, {}, None, None, "dense-dark", None, {})
+    return TrackResult(pose, obs, {}, None, None, "dense-dark", None)
 
 
 def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
-    features, _ = f2005
+    features = f2005
     cam, opts = Camera(), TrackOptions()
     R, t, on = _looking_down_a_line(features)
     assert len(on) >= 3
@@ -144,7 +139,7 @@ def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
 
 
 def test_view_limited_only_for_too_little_evidence_that_the_view_caps(f2005):
-    features, _ = f2005
+    features = f2005
     cam, opts = Camera(), TrackOptions()
     R, t, on = _looking_down_a_line(features)
     need = min(opts.min_beads, len(features.points))
@@ -164,10 +159,10 @@ def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):
     by exactly that (a pinhole pose of an intensifier image is biased in depth)."""
     from ftrac_design.segment.noise import distortion_covariance
 
-    features, body = f2005
+    features = f2005
     R, t, imgs = rendered
-    plain = track_image(imgs[1], features, Camera(), PINHOLE, body=body)
-    prior = track_image(imgs[1], features, Camera(), TrackOptions(distortion_prior_mm=1.5), body=body)
+    plain = track_image(imgs[1], features, Camera(), PINHOLE)
+    prior = track_image(imgs[1], features, Camera(), TrackOptions(distortion_prior_mm=1.5))
     assert plain.pose.converged and prior.pose.converged
     assert np.array_equal(plain.pose.translation_mm, prior.pose.translation_mm)
     extra = distortion_covariance(features, plain.observation, plain.pose, plain.noise, 1.5)

@@ -4,18 +4,20 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from ftrac_design.cli.main import main
+from ftrac_design.design import Body
 from ftrac_design.errors import InputError
 from ftrac_design.features import write_features
 from ftrac_design.features.model import EllipseFeature, Features, LineFeature, PointFeature
 from ftrac_design.images import read_image, write_image
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray import Body, ImagingModel, Occluder, anatomy, line_integral_box, read_truth, render, write_truth
+from ftrac_design.xray import ImagingModel, Occluder, anatomy, line_integral_box, read_truth, render, write_truth
 from ftrac_design.xray.geometry import body_chord_uv, cylinder_z_chord, ellipse_pieces, tube_chord, tube_chord_uv
 from ftrac_design.xray.materials import linear_attenuation
 from ftrac_design.xray.rays import Rays
@@ -149,7 +151,7 @@ def test_bead_integrated_attenuation_is_mu_volume_magnification_squared():
     """Σ_pixels p × (s_x s_y) = ∫ p dA_detector = μ ∫ (f/z)² / cos θ dV ≈ μ V M² on the axis."""
     r, z0 = 1.0, 667.0
     f = _features(points=[PointFeature("B", np.zeros(3), 2 * r)])
-    p, _ = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, SMALL, None)
+    p, _ = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, SMALL)
     M = CAM_SMALL.focal_length_mm / z0
     expected = MU_STEEL * 4 / 3 * np.pi * r**3 * M**2 / (0.44 * 0.44)
     assert p.sum() == pytest.approx(expected, rel=2e-3)
@@ -161,7 +163,7 @@ def test_straight_wire_profile_is_the_chord_of_a_circle():
     r, z0 = 0.25, 667.0
     f = _features(lines=[LineFeature("L", np.array([-10.0, 0, 0]), np.array([10.0, 0, 0]), 2 * r)])
     im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, single_precision=False)
-    p, (v0, u0) = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, im, None)
+    p, (v0, u0) = line_integral_box(f, np.eye(3), np.array([0.0, 0.0, z0]), CAM_SMALL, im)
     col = p[:, 128 - u0]
     v = v0 + np.arange(len(col))
     Y = (v - 128.0) * 0.44
@@ -178,14 +180,14 @@ def test_body_chord_through_its_axis():
     f = _features()
     R = _rot_y(90.0)  # F's z axis along camera x
     im = ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=1, single_precision=False)
-    p, (v0, u0) = line_integral_box(f, R, np.array([0.0, 0.0, 667.0]), CAM_SMALL, im, BODY_2005)
+    p, (v0, u0) = line_integral_box(replace(f, body=BODY_2005), R, np.array([0.0, 0.0, 667.0]), CAM_SMALL, im)
     assert p[128 - v0, 128 - u0] == pytest.approx(im.mu("acetal") * 2 * (15.0 - 10.0), rel=1e-12)
 
 
 def test_single_precision_stays_close_to_double(features_2005):
     R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(8))
-    a, oa = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel(), BODY_2005)
-    b, ob = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel(single_precision=False), BODY_2005)
+    a, oa = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel())
+    b, ob = line_integral_box(features_2005, R[0], t[0], Camera(), ImagingModel(single_precision=False))
     assert oa == ob and a.shape == b.shape
     assert np.abs(a - b).max() < 2e-3 and np.mean(np.abs(a - b) > 4e-4) < 1e-3 and a.max() > 1.5
 
@@ -196,7 +198,7 @@ def test_bead_centroid_follows_the_projection():
     for _ in range(4):
         R = Workspace().sample(1, np.array([0, -1.0, 0]), rng)[0][0]
         t = np.array([*rng.uniform(-8, 8, 2), rng.uniform(640, 690)])
-        p, (v0, u0) = line_integral_box(f, R, t, CAM_SMALL, SMALL, None)
+        p, (v0, u0) = line_integral_box(f, R, t, CAM_SMALL, SMALL)
         V, U = np.mgrid[v0 : v0 + p.shape[0], u0 : u0 + p.shape[1]]
         centroid = np.array([(p * U).sum(), (p * V).sum()]) / p.sum()
         np.testing.assert_allclose(centroid, CAM_SMALL.project(t), atol=0.01)
@@ -214,7 +216,6 @@ def test_render_is_pixel_integrated_not_point_sampled():
             t,
             CAM_SMALL,
             ImagingModel(image_shape=(256, 256), photons_per_px=None, supersample=s),
-            body=None,
         )
         p = img.line_integral
         V, U = np.mgrid[0:256, 0:256]
@@ -236,7 +237,6 @@ def test_log_image_variance_is_one_over_expected_counts(dose):
         im,
         rng=np.random.default_rng(0),
         background=bg,
-        body=None,
     )
     var = img.log_image.var()
     assert var == pytest.approx(1.0 / (dose * math.exp(-1.0)), rel=0.05)
@@ -246,9 +246,9 @@ def test_log_image_variance_is_one_over_expected_counts(dose):
 def test_same_seed_same_image_and_polarities(features_2005):
     R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(9))
     im = ImagingModel(image_shape=(256, 256))
-    a = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(5), body=BODY_2005)
-    b = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(5), body=BODY_2005)
-    c = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(6), body=BODY_2005)
+    a = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(5))
+    b = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(5))
+    c = render(features_2005, R[0], t[0], CAM_SMALL, im, rng=np.random.default_rng(6))
     assert np.array_equal(a.raw, b.raw) and np.array_equal(a.log_image, b.log_image)
     assert not np.array_equal(a.raw, c.raw)
     # raw: dense = dark (bead pixel darker than the flat field); log: dense = bright
@@ -273,7 +273,6 @@ def test_blur_acts_on_intensity_and_matches_its_sigma():
                 t,
                 CAM_SMALL,
                 ImagingModel(image_shape=(256, 256), photons_per_px=None, focal_spot_mm=0.0, detector_blur_px=s),
-                body=None,
             ).line_integral
         )
         for s in (0.0, 1.0, 2.5)
@@ -296,7 +295,7 @@ def test_needle_occluder_in_camera_frame():
         detector_blur_px=0,
         single_precision=False,
     )
-    img = render(_features(), _rot_y(30), np.array([0, 0, 667.0]), CAM_SMALL, im, occluders=[occ], body=None)
+    img = render(_features(), _rot_y(30), np.array([0, 0, 667.0]), CAM_SMALL, im, occluders=[occ])
     assert img.line_integral[128, 128] == pytest.approx(im.mu("steel") * 1.0, rel=1e-6)
     assert img.truth["occluders"][0]["frame"] == "X"
 
@@ -308,7 +307,6 @@ def test_truncated_fiducial_renders_its_visible_part(features_2005):
         np.array([45.0, 0.0, 667.0]),
         CAM_SMALL,
         SMALL,
-        body=BODY_2005,
     )
     li = img.line_integral
     assert li[:, -3:].max() > 0.1 and li[:, :20].max() == 0.0
@@ -317,7 +315,7 @@ def test_truncated_fiducial_renders_its_visible_part(features_2005):
 # ----------------------------------------------------------------------------- truth
 def test_truth_projections_and_conics(features_2005, tmp_path):
     R, t = Workspace().sample(1, features_2005.nominal_beam_direction, np.random.default_rng(2))
-    img = render(features_2005, R[0], t[0], imaging=ImagingModel(photons_per_px=None), body=BODY_2005)
+    img = render(features_2005, R[0], t[0], imaging=ImagingModel(photons_per_px=None))
     tr = img.truth
     assert tr["format"] == "ftrac-radiograph-truth" and tr["pose"]["converged"] is True
     cam = Camera()

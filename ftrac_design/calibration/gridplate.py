@@ -113,7 +113,7 @@ def render_grid(
     camera = camera or Camera(1000.0, (0.44, 0.44), ((W - 1) / 2, (H - 1) / 2))
     R, t = pose if pose is not None else plate_pose()
     quiet = replace(imaging, photons_per_px=None)
-    rad = render(plate, R, t, camera, quiet, body=None)
+    rad = render(plate, R, t, camera, quiet)
     trans = np.exp(-rad.line_integral)
     ids = tuple(p.id for p in plate.points)
     ideal = camera.project(plate.point_centers() @ R.T + t)

@@ -49,10 +49,10 @@ def _export_markups(input_path: Path, output: Path) -> None:
 
 def _export_tfm(input_path: Path, output: Path, index: int | None, name: str) -> None:
     from ..igt.frames import pose_matrix
-    from ..igt.poses import read_pose_records
     from ..igt.tfm import write_tfm
+    from ..pose import read_tracked_poses
 
-    poses = read_pose_records(input_path)
+    poses = read_tracked_poses(input_path)
     if index is None and len(poses) > 1:
         raise InputError(input_path, None, f"one pose, or --index K to pick one of its {len(poses)}", parameter="index")
     k = index or 0
@@ -60,28 +60,29 @@ def _export_tfm(input_path: Path, output: Path, index: int | None, name: str) ->
         raise InputError(
             input_path, None, f"at least {k + 1} poses for --index {k}, got {len(poses)}", parameter="index"
         )
-    p = poses[k]
+    p = poses[k].pose
     if not p.converged:
-        raise InputError(p.origin, "converged", f"a solved pose to export, got none ({p.error or 'converged: false'})")
-    write_tfm(output, pose_matrix(p.R, p.t), name, note=f"from {p.origin}")
-    click.echo(f"wrote {output}: {name} from {p.origin}")
+        why = p.error or "converged: false"
+        raise InputError(poses[k].source, "converged", f"a solved pose to export, got none ({why})")
+    write_tfm(output, pose_matrix(p.rotation, p.translation_mm), name, note=f"from {poses[k].source}")
+    click.echo(f"wrote {output}: {name} from {poses[k].source}")
 
 
 def _export_sequence(input_path: Path, output: Path, name: str, space: str) -> None:
     from ..igt.frames import in_space, pose_matrix
-    from ..igt.poses import read_pose_records
     from ..igt.sequence import SequenceFrame, write_sequence
+    from ..pose import read_tracked_poses
 
-    poses = read_pose_records(input_path)
+    poses = read_tracked_poses(input_path)
     frames = [
         SequenceFrame(
-            in_space(pose_matrix(p.R, p.t), space) if p.converged else None,
-            p.time_s if p.time_s is not None else float(k),
+            in_space(pose_matrix(p.pose.rotation, p.pose.translation_mm), space) if p.pose.converged else None,
+            p.provenance.time_s if p.provenance.time_s is not None else float(k),
         )
         for k, p in enumerate(poses)
     ]
     write_sequence(output, frames, name, "mha", space)
-    ok = sum(p.converged for p in poses)
+    ok = sum(p.pose.converged for p in poses)
     click.echo(f"wrote {output}: {len(poses)} frames ({ok} OK, {len(poses) - ok} INVALID), {name}, {space.upper()}")
 
 

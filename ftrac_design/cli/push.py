@@ -61,14 +61,10 @@ def command(
     """
     from tqdm import tqdm
 
-    from ..igt.frames import check_transform_name
-    from ..igt.link import pyigtl
-    from ..igt.poses import read_pose_records
+    from ..pose import read_tracked_poses
     from ..workflows import serve as serve_mod
 
-    pyigtl()
-    check_transform_name(name, "name")
-    poses = read_pose_records(poses_path)
+    # the link's settings first: without the live extra nothing else is worth reading
     options = serve_mod.PushOptions(
         host=host,
         port=port,
@@ -78,6 +74,7 @@ def command(
         connect_timeout_s=timeout_s,
         header_version=int(header_version),
     )
+    poses = read_tracked_poses(poses_path)
     with tqdm(
         total=len(poses), desc="push", unit="pose", file=sys.stderr, disable=len(poses) <= 3 or not sys.stderr.isatty()
     ) as bar:

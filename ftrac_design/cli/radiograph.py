@@ -23,38 +23,22 @@ _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
 
 
 def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file."""
-    try:
-        text = path.read_text("utf-8")
-    except OSError as exc:
-        raise InputError(path, None, f"a readable pose file ({exc.strerror})") from None
-    stripped = text.strip()
-    try:
-        objs = (
-            [json.loads(stripped)]
-            if stripped.startswith("{") and "\n{" not in stripped
-            else [json.loads(line) for line in text.splitlines() if line.strip()]
-        )
-    except ValueError:
-        raise InputError(path, None, "a SPEC §4 pose object, or JSON Lines of them") from None
-    if not objs:
-        raise InputError(path, None, "at least one pose")
+    """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file
+    (:func:`ftrac_design.pose.read_tracked_poses`), each a proper rotation with the fiducial in
+    front of the source."""
+    from ..pose import read_tracked_poses
+
     Rs, ts = [], []
-    for i, o in enumerate(objs):
-        where = f"pose {i + 1}: " if len(objs) > 1 else ""
-        try:
-            R = np.asarray(o["rotation"], float).reshape(3, 3)
-            t = np.asarray(o["translation_mm"], float).reshape(3)
-        except (KeyError, TypeError, ValueError):
-            raise InputError(path, f"{where}rotation/translation_mm", "a 3×3 rotation and a 3-vector (mm)") from None
+    for rec in read_tracked_poses(path):
+        R, t = rec.pose.rotation, rec.pose.translation_mm
         if (
             not (np.all(np.isfinite(R)) and np.all(np.isfinite(t)))
             or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
             or np.linalg.det(R) < 0
         ):
-            raise InputError(path, f"{where}rotation", "a proper rotation matrix (orthonormal, det +1)")
+            raise InputError(rec.source, "rotation", "a proper rotation matrix (orthonormal, det +1)")
         if t[2] <= 0:
-            raise InputError(path, f"{where}translation_mm", "the fiducial in front of the source (z > 0)")
+            raise InputError(rec.source, "translation_mm", "the fiducial in front of the source (z > 0)")
         Rs.append(R)
         ts.append(t)
     return np.array(Rs), np.array(ts)
@@ -193,10 +177,9 @@ def command(
         bit_depth=bit_depth,
     )
     scene = _Scene(
-        features,
+        _with_body(features, features_path, design_path, no_body),
         camera,
         imaging,
-        _body(features_path, design_path, no_body),
         [_parse_occluder(o, occluder_frame) for o in occluder],
         _Background.read(background, camera, imaging, seed),
     )
@@ -213,22 +196,24 @@ def command(
     return 0
 
 
-def _body(features_path: Path, design_path: Path | None, no_body: bool):
-    """The fiducial's body: none, the design file's, or the one features.json names (exit 2 without one)."""
-    from ..xray import body_from_design_file, body_from_features_file
+def _with_body(features, features_path: Path, design_path: Path | None, no_body: bool):
+    """The features with the body rendered: none (--no-body), the design file's (--design), or
+    the one features.json names (exit 2 without one)."""
+    from dataclasses import replace
+
+    from ..design import load_design
 
     if no_body:
-        return None
+        return replace(features, body=None)
     if design_path is not None:
-        return body_from_design_file(design_path)
-    body = body_from_features_file(features_path)
-    if body is None:
+        return replace(features, body=load_design(design_path).body)
+    if features.body is None:
         raise InputError(
             features_path,
             "body",
             "the fiducial's body: a 'body' key, a design.source that can be found, --design DESIGN.toml, or --no-body",
         )
-    return body
+    return features
 
 
 @dataclass(frozen=True)
@@ -276,7 +261,6 @@ class _Scene:
     features: object
     camera: object
     imaging: object
-    body: object
     occluders: list
     background: _Background
 
@@ -319,7 +303,6 @@ def _render_one(scene: _Scene, R, t, seed: int, i: int, name: str, pose_source: 
             rng=np.random.default_rng([seed, i]),
             background=bg,
             occluders=scene.occluders,
-            body=scene.body,
             image_name=name,
         )
     except ValueError as exc:

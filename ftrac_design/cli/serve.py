@@ -23,7 +23,6 @@ from .options import (
     port_option,
     refine_option,
 )
-from .track import _setup
 
 
 @click.command("serve")
@@ -96,16 +95,15 @@ def command(
     error and the server goes on; a client may disconnect and reconnect. Ctrl-C stops it and
     prints a summary.
     """
-    from ..igt.frames import check_transform_name
-    from ..igt.link import pyigtl
-    from ..workflows import serve as serve_mod
+    from dataclasses import replace
 
-    pyigtl()
-    check_transform_name(name, "name")
-    setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
-    options = serve_mod.ServeOptions(
-        host=host, port=port, name=name, space=space, queue=queue, camera=setup.camera, valid_only=valid_only
-    )
+    from ..workflows import serve as serve_mod
+    from ..workflows.track_run import TrackSetup
+
+    # the link's settings first: without the live extra nothing else is worth reading
+    options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue, valid_only=valid_only)
+    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine)
+    options = replace(options, camera=setup.camera)
     factory = serve_mod.frame_by_frame_tracker if independent else serve_mod.run_tracker
     summary = serve_mod.serve(setup, options, factory=factory, log=sys.stdout)
     click.echo(f"stopped: {summary.line()}")

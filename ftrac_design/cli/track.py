@@ -29,45 +29,6 @@ from .options import (
 )
 
 
-def _setup(features_path: Path, camera_path: Path | None, distortion_path: Path | None, polarity: str, refine: str):
-    """The TrackSetup from the options (InputError on any bad one)."""
-    from ..features import load_features
-    from ..images import read_distortion
-    from ..pose.observation import read_camera
-    from ..segment import TrackOptions
-    from ..workflows.track_run import TrackSetup
-    from ..xray.scene import body_from_features_file, body_from_source
-
-    features = load_features(features_path)
-    body = body_from_features_file(features_path)
-    if body is None:
-        body = body_from_source(features.source, features_path.parent)
-    camera = read_camera(camera_path) if camera_path is not None else None
-    # "none": the detector does not distort (a flat panel); a model: the frames are corrected.
-    # Either way no unmodelled distortion is left for the pose covariance to carry
-    no_distortion = distortion_path is not None and str(distortion_path) == "none"
-    if no_distortion:
-        distortion_path = None
-    model = read_distortion(distortion_path) if distortion_path is not None else None
-    options = TrackOptions(polarity=polarity)
-    if no_distortion or model is not None:
-        options = TrackOptions(polarity=polarity, distortion_prior_mm=0.0)
-    refine_fn = None
-    if refine == "intensity":
-        try:
-            from ..intensity import refine_track_result as refine_fn
-        except ImportError:
-            raise InputError(
-                None,
-                "--refine",
-                "intensity refinement, which this installation does not have "
-                "(ftrac_design.intensity); use --refine none",
-            ) from None
-    return TrackSetup(
-        features, body, options, camera, model, str(distortion_path) if distortion_path is not None else None, refine_fn
-    )
-
-
 def _draw(outputs, path: Path, img, setup, res, title: str) -> None:
     """Draw one overlay to a temporary name (renamed with the poses); a picture that cannot
     be drawn is reported and skipped, a disk that cannot take it is bad output (exit 2)."""
@@ -155,10 +116,10 @@ def command(
     from tqdm import tqdm
 
     from ..images import read_frames
-    from ..workflows.run_tracker import RunTracker
-    from ..workflows.track_run import TrackOutputs, overlay_name, track_frame, validate_inputs
+    from ..tracking import RunTracker
+    from ..workflows.track_run import TrackOutputs, TrackSetup, overlay_name, track_frame, validate_inputs
 
-    setup = _setup(features_path, camera_path, distortion_path, polarity, refine)
+    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine)
     inputs = validate_inputs(list(images), setup.camera, setup.distortion, setup.distortion_path)
     total = sum(i.frames for i in inputs)
     several = total > 1
@@ -173,9 +134,7 @@ def command(
         for inp in inputs:
             # one tracker per run: its frames in order, nothing carried from one IMAGE to the next
             tracker = (
-                RunTracker(setup.features, setup.camera, setup.options, body=setup.body, independent=independent)
-                if inp.run
-                else None
+                RunTracker(setup.features, setup.camera, setup.options, independent=independent) if inp.run else None
             )
             frames = read_frames(inp.path, setup.camera)
             while True:

@@ -193,10 +193,8 @@ def write_run(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> tuple[
     from ..images import write_dicom
     from ..pose.simulate import Workspace
     from ..xray.scenario import realistic_image
-    from ..xray.scene import body_from_features_file
 
     features = load_features(features_path)
-    body = body_from_features_file(features_path)
     cam = CAMERA  # the file's geometry tags give it back to `track`
     # frame 0 at the workspace pose the demo's radiograph step draws from the same seed
     R0, t0 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(s.pose_seed))
@@ -204,7 +202,7 @@ def write_run(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> tuple[
     R, t = c_arm_orbit(R0[0], t0[0], angles, s.isocentre_mm)
     frames, truth = [], []
     for k in range(s.frames):
-        img, info = realistic_image(features, R[k], t[k], cam, s.condition, s.seed, body=body, shape=SHAPE)
+        img, info = realistic_image(features, R[k], t[k], cam, s.condition, s.seed, shape=SHAPE)
         if info["formation"] != "display" or (truth and info["polarity"] != truth[0]["polarity"]):
             # one seed draws one display chain, so every frame shares the file's one sign
             raise ValueError(
@@ -290,7 +288,6 @@ def distortion_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) ->
     from ..pose.simulate import Workspace
     from ..xray import ImagingModel
     from ..xray.scenario import realistic_image
-    from ..xray.scene import body_from_features_file
 
     d_dir = out_dir / "distortion"
     d_dir.mkdir(parents=True, exist_ok=True)
@@ -330,9 +327,8 @@ def distortion_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) ->
     )
 
     features = load_features(features_path)
-    body = body_from_features_file(features_path)
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(s.pose_seed + 1))
-    raw, _ = realistic_image(features, R[0], t[0], cam, "raw", s.raw_seed, body=body, shape=SHAPE)
+    raw, _ = realistic_image(features, R[0], t[0], cam, "raw", s.raw_seed, shape=SHAPE)
     frame = write_dicom(
         d_dir / "frame.dcm", distort_image(raw, true_model), cam, kind="xa", relationship="LIN", relationship_sign=1
     )

@@ -7,11 +7,11 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pydantic import ValidationError
+from pydantic import TypeAdapter, ValidationError
 
 from ..errors import InputError
-from .presets import known_presets, resolve_design
-from .schema import Design
+from .presets import PRESETS_DIR, known_presets, resolve_design
+from .schema import Body, Design
 from .validate import geometry_errors
 
 
@@ -33,11 +33,14 @@ _EXPECT = {
     "tuple_type": "a list of 3 numbers",
     "missing": "a value (the key is required)",
     "extra_forbidden": "no such key (unknown key; check its spelling)",
+    # a dataclass's (the body's) words for the same
+    "unexpected_keyword_argument": "no such key (unknown key; check its spelling)",
     "greater_than": "a value greater than {gt}",
     "greater_than_equal": "a value of at least {ge}",
     "less_than": "a value less than {lt}",
     "string_pattern_mismatch": "an identifier (letters, digits, _; starting with a letter)",
     "model_type": "a table",
+    "dataclass_type": "a table",
     "too_short": "at least {min_length} items",
     "too_long": "at most {max_length} items",
     "finite_number": "a finite number",
@@ -66,7 +69,7 @@ def describe_schema_error(err: dict[str, Any], with_input: bool = True) -> tuple
     template = _EXPECT.get(err["type"])
     if template:
         expected = template.format(**(err.get("ctx") or {}))
-        if with_input and err["type"] not in ("missing", "extra_forbidden"):
+        if with_input and err["type"] not in ("missing", "extra_forbidden", "unexpected_keyword_argument"):
             expected += f", got {err.get('input')!r}"
     else:
         expected = err["msg"].removeprefix("Value error, ")
@@ -121,3 +124,71 @@ def load_design(path: str | Path) -> Design:
     design._source = str(path)
     design._sha256 = hashlib.sha256(raw).hexdigest()
     return design
+
+
+def parse_body(data: Any, file: str | Path | None, key: str = "body") -> Body:
+    """Validate a body table (a design file's ``[body]``, features.json's ``body``).
+
+    Parameters
+    ----------
+    data : the parsed table (a mapping of ``outer_diameter``, ``length``, ``bore_diameter`` in mm
+        and ``material``).
+    file : the file it came from, named in errors.
+    key : where the table sits in that file.
+
+    Returns
+    -------
+    Body. Raises :class:`InputError` naming the file, ``key.<field>`` and what was expected.
+    """
+    try:
+        return TypeAdapter(Body).validate_python(data)
+    except ValidationError as exc:
+        sub, expected = describe_schema_error(exc.errors(include_url=False)[0])
+        raise InputError(file, f"{key}.{sub}" if sub else key, expected) from None
+
+
+def design_file_named(source: str, near: Path | None = None) -> Path | None:
+    """The design file a features file's ``design.source`` names, where it can be found: as
+    written (relative to the working directory), relative to ``near`` (the features file's
+    folder), or the shipped preset of that file name (a source ``models/ftrac_2005.toml`` from
+    another machine's checkout finds the shipped ``ftrac_2005``).
+
+    Parameters
+    ----------
+    source : the path as the features file gives it.
+    near : the folder a relative path is also looked for in, or None.
+
+    Returns
+    -------
+    pathlib.Path of the first file found, or None when there is none.
+    """
+    p = Path(source)
+    candidates = [p]
+    if not p.is_absolute() and near is not None:
+        candidates.append(near / p)
+    candidates.append(PRESETS_DIR / p.name)
+    return next((c for c in candidates if c.is_file()), None)
+
+
+def design_body(path: str | Path) -> Body:
+    """The ``[body]`` table of the design file ``path`` (the rest of the file is not validated).
+
+    Parameters
+    ----------
+    path : a design file (TOML).
+
+    Returns
+    -------
+    Body. Raises :class:`InputError` naming the file when it cannot be read, is not TOML or has
+    no valid ``[body]``.
+    """
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text("utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(path, None, f"a readable UTF-8 design file ({exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise InputError(path, None, f"valid TOML ({exc})") from None
+    if "body" not in data:
+        raise InputError(path, "body", "a [body] table (the key is required)")
+    return parse_body(data["body"], path)

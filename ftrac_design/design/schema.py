@@ -21,12 +21,17 @@ from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator
+from pydantic.dataclasses import dataclass
 
 Pos = Annotated[float, Field(gt=0.0)]
 NonNeg = Annotated[float, Field(ge=0.0)]
 Ident = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]{0,31}$")]
 # TOML arrays arrive as lists; strict mode would refuse them as tuples
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+# a pydantic dataclass takes a table only when it is not strict itself: its fields are, one by one
+StrictPos = Annotated[float, Field(gt=0.0, strict=True)]
+StrictNonNeg = Annotated[float, Field(ge=0.0, strict=True)]
+StrictStr = Annotated[str, Field(strict=True)]
 
 
 class _Strict(BaseModel):
@@ -35,13 +40,22 @@ class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True, allow_inf_nan=False)
 
 
-class Body(_Strict):
-    """The hollow cylinder that carries every feature."""
+@dataclass(frozen=True, config=ConfigDict(extra="forbid", allow_inf_nan=False))
+class Body:
+    """The hollow cylinder that carries every feature: about F's z axis, centred at the F origin
+    (mm). The one body of the package: the design's ``[body]``, the fiducial's
+    (:attr:`ftrac_design.features.Features.body`), the one the simulator renders and the tracker
+    subtracts.
 
-    outer_diameter: Pos = Field(description="outer diameter of the cylinder, mm")
-    length: Pos = Field(description="axial length, mm")
-    bore_diameter: NonNeg = Field(description="diameter of the axial through-bore (0 = solid), mm")
-    material: str = Field(default="acetal (POM-C)", description="body material")
+    A plain frozen dataclass, validated as it is made (each size strictly a number): ``Body(30.0,
+    50.0, 20.0)`` or a design file's table. The simulator reads ``material`` through
+    :func:`ftrac_design.xray.materials.material_name` (``"acetal (POM-C)"`` is acetal).
+    """
+
+    outer_diameter: StrictPos = Field(description="outer diameter of the cylinder, mm")
+    length: StrictPos = Field(description="axial length, mm")
+    bore_diameter: StrictNonNeg = Field(description="diameter of the axial through-bore (0 = solid), mm")
+    material: StrictStr = Field(default="acetal (POM-C)", description="body material")
 
     # a field validator (not a model validator) so that the error names body.bore_diameter
     @field_validator("bore_diameter")

@@ -104,7 +104,7 @@ def template_from_fiducial(design: Design) -> np.ndarray:
 
 
 def compute_features(design: Design) -> Features:
-    """All seated features and mounting frames of ``design`` (mm, F)."""
+    """All seated features, mounting frames and the body of ``design`` (mm, F)."""
     return Features(
         name=design.name,
         source=design.source,
@@ -117,4 +117,5 @@ def compute_features(design: Design) -> Features:
             "mount_from_fiducial": mount_from_fiducial(design),
             "template_from_fiducial": template_from_fiducial(design),
         },
+        body=design.body,
     )

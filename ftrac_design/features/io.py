@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from ..design.loader import design_body, design_file_named, parse_body
+from ..design.schema import Body
 from ..errors import InputError
 from ..fileio import write_json_atomic
 from .model import EllipseFeature, Features, LineFeature, PointFeature
@@ -116,9 +118,8 @@ class _Reader:
         return v
 
 
-def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
-    """Validate a parsed ``features.json`` object and build :class:`Features`."""
-    r = _Reader(file)
+def _header(r: _Reader, d: Any) -> tuple[dict, np.ndarray]:
+    """The format, version and units checked; the ``design`` block and the unit beam direction."""
     if not isinstance(d, dict):
         raise r.fail("(top level)", "a JSON object")
     if r.get(d, "format", "") != FORMAT:
@@ -135,24 +136,26 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
     for key in ("name", "source", "sha256"):
         if design.get(key) is not None and not isinstance(design[key], str):
             raise r.fail(f"design.{key}", f"a string, got {design[key]!r}")
-    name = design.get("name") or "unnamed"
     beam = r.vector(r.get(d, "nominal_beam_direction", ""), "nominal_beam_direction")
     if np.linalg.norm(beam) < 1e-9:
         raise r.fail("nominal_beam_direction", "a non-zero vector")
+    return design, beam / np.linalg.norm(beam)
 
-    ids: set[str] = set()
 
-    def new_id(obj: dict, where: str) -> str:
-        ident = r.string(r.get(obj, "id", where), f"{where}.id")
-        if ident in ids:
-            raise r.fail(f"{where}.id", f'a unique id ("{ident}" is used twice)')
-        ids.add(ident)
-        return ident
+def _new_id(r: _Reader, ids: set[str], obj: dict, where: str) -> str:
+    """A feature's id, checked to be a non-empty string used once in the file (added to ``ids``)."""
+    ident = r.string(r.get(obj, "id", where), f"{where}.id")
+    if ident in ids:
+        raise r.fail(f"{where}.id", f'a unique id ("{ident}" is used twice)')
+    ids.add(ident)
+    return ident
 
+
+def _lines(r: _Reader, d: dict, ids: set[str]) -> list[LineFeature]:
     lines = []
     for i, o in enumerate(r.items(d, "lines")):
         w = f"lines[{i}]"
-        ident = new_id(o, w)
+        ident = _new_id(r, ids, o, w)
         s = r.vector(r.get(o, "start", w), f"{w}.start")
         e = r.vector(r.get(o, "end", w), f"{w}.end")
         if np.linalg.norm(e - s) < MIN_SIZE_MM:
@@ -160,12 +163,14 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
         lines.append(
             LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0))
         )
-    line_ids = {ln.id for ln in lines}
+    return lines
 
+
+def _points(r: _Reader, d: dict, ids: set[str], line_ids: set[str]) -> list[PointFeature]:
     points = []
     for i, o in enumerate(r.items(d, "points")):
         w = f"points[{i}]"
-        ident = new_id(o, w)
+        ident = _new_id(r, ids, o, w)
         line = r.get(o, "line", w, None)
         if line is not None and (not isinstance(line, str) or line not in line_ids):
             raise r.fail(f"{w}.line", f"the id of a line in this file, got {line!r}")
@@ -177,11 +182,14 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
                 line,
             )
         )
+    return points
 
+
+def _ellipses(r: _Reader, d: dict, ids: set[str]) -> list[EllipseFeature]:
     ellipses = []
     for i, o in enumerate(r.items(d, "ellipses")):
         w = f"ellipses[{i}]"
-        ident = new_id(o, w)
+        ident = _new_id(r, ids, o, w)
         c = r.vector(r.get(o, "center", w), f"{w}.center")
         u = r.vector(r.get(o, "major_axis", w), f"{w}.major_axis")
         v = r.vector(r.get(o, "minor_axis", w), f"{w}.minor_axis")
@@ -199,7 +207,10 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
                 ident, c, u, v, a, b, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)
             )
         )
+    return ellipses
 
+
+def _frames(r: _Reader, d: dict) -> dict[str, np.ndarray]:
     frames = {}
     fr = r.get(d, "frames", "", {})
     if not isinstance(fr, dict):
@@ -207,25 +218,70 @@ def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
     for k, m in fr.items():
         if not (isinstance(m, list) and len(m) == 4):
             raise r.fail(f"frames.{k}", "a 4x4 matrix (list of 4 rows)")
-        T = np.array([r.vector(row, f"frames.{k}[{i}]", 4) for i, row in enumerate(m)])
-        frames[k] = T
+        frames[k] = np.array([r.vector(row, f"frames.{k}[{i}]", 4) for i, row in enumerate(m)])
+    return frames
 
+
+def body_of(d: dict, file: str | Path | None = None) -> Body | None:
+    """The body a parsed ``features.json`` names: its ``body`` key (our extension: the
+    design's ``[body]`` table as an object), else the ``[body]`` of the design file its
+    ``design.source`` names (:func:`~ftrac_design.design.design_file_named`: as written,
+    beside ``file``, or the shipped preset of that file name).
+
+    Parameters
+    ----------
+    d : the parsed JSON object.
+    file : the features file (its folder is where a relative source is also looked for).
+
+    Returns
+    -------
+    Body, or None when the file has no ``body`` key and names no design file that can be found.
+    A ``body`` key that is not a valid body, or a design file found whose ``[body]`` cannot be
+    read, is bad input: :class:`InputError` naming ``file``, the key and what was expected.
+    """
+    if "body" in d:
+        return parse_body(d["body"], file)
+    source = (d.get("design") or {}).get("source")
+    if not source:
+        return None
+    near = Path(file).parent if file is not None else None
+    path = design_file_named(source, near)
+    if path is None:
+        return None
+    try:
+        return design_body(path)
+    except InputError as exc:
+        raise InputError(file, "design.source", f"a design file whose [body] can be read ({exc})") from None
+
+
+def features_from_dict(d: Any, file: str | Path | None = None) -> Features:
+    """Validate a parsed ``features.json`` object and build :class:`Features`, its body
+    included (:func:`body_of`)."""
+    r = _Reader(file)
+    design, beam = _header(r, d)
+    ids: set[str] = set()
+    lines = _lines(r, d, ids)
+    points = _points(r, d, ids, {ln.id for ln in lines})
+    ellipses = _ellipses(r, d, ids)
+    frames = _frames(r, d)
     if not (points or lines or ellipses):
         raise r.fail("points", "at least one point, line or ellipse")
     return Features(
-        name=str(name),
+        name=str(design.get("name") or "unnamed"),
         source=design.get("source"),
         sha256=design.get("sha256"),
-        nominal_beam_direction=beam / np.linalg.norm(beam),
+        nominal_beam_direction=beam,
         points=tuple(points),
         lines=tuple(lines),
         ellipses=tuple(ellipses),
         frames=frames,
+        body=body_of(d, file),
     )
 
 
 def load_features(path: str | Path) -> Features:
-    """Read and validate ``features.json``; bad input raises :class:`InputError`."""
+    """Read and validate ``features.json``, its body included (:func:`body_of`); bad input raises
+    :class:`InputError`."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

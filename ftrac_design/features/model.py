@@ -1,8 +1,9 @@
-"""The fiducial as the pose solver and the analysis see it: seated feature centre-lines.
+"""The fiducial as the pose solver, the analysis, the simulator and the tracker see it: seated
+feature centre-lines and the body that carries them.
 
-Plain numpy dataclasses with no dependency on the design schema or on CadQuery, so that
-``pose`` and ``analysis`` can load ``features.json`` cheaply. All coordinates are in the
-fiducial frame F (SPEC §1), millimetres.
+Plain numpy dataclasses, no CadQuery; the body is the design's own
+:class:`~ftrac_design.design.Body`. All coordinates are in the fiducial frame F (SPEC §1),
+millimetres.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+
+from ..design.schema import Body
 
 
 @dataclass(frozen=True)
@@ -97,7 +100,10 @@ class Features:
     """Every radiographic feature of one fiducial, plus the frames it is mounted by.
 
     ``frames`` maps a name (``mount_from_fiducial``, ``template_from_fiducial``) to a 4×4
-    homogeneous transform taking F coordinates (mm) into that frame.
+    homogeneous transform taking F coordinates (mm) into that frame. ``body`` is the hollow
+    cylinder the features sit on (the design's, or the one ``features.json`` names), or None
+    where it is not known: then the simulator renders wires and beads only and the tracker
+    subtracts no body.
     """
 
     name: str
@@ -108,6 +114,7 @@ class Features:
     lines: tuple[LineFeature, ...] = ()
     ellipses: tuple[EllipseFeature, ...] = ()
     frames: dict[str, np.ndarray] = field(default_factory=dict)
+    body: Body | None = None
 
     @property
     def ids(self) -> list[str]:
@@ -186,7 +193,7 @@ class Features:
         return float(sum(np.linalg.norm(b - a) for a, b in self.wire_segments(feature_id)))
 
     def subset(self, keep: set[str] | list[str]) -> "Features":
-        """A copy holding only the features whose id is in ``keep`` (frames kept)."""
+        """A copy holding only the features whose id is in ``keep`` (frames and body kept)."""
         keep = set(keep)
         return Features(
             name=self.name,
@@ -197,12 +204,14 @@ class Features:
             lines=tuple(ln for ln in self.lines if ln.id in keep),
             ellipses=tuple(e for e in self.ellipses if e.id in keep),
             frames=dict(self.frames),
+            body=self.body,
         )
 
     def scaled(self, factor: float) -> "Features":
         """A copy with every position, semi-axis, wire and bead diameter multiplied by
         ``factor`` about the F origin (the paper's Fig. 7e size study: same configuration,
-        different size). Frames are dropped: the mount does not scale with it."""
+        different size). Frames are dropped: the mount does not scale with it; the body is kept as
+        it is (the size study scales the features alone)."""
         k = float(factor)
         if not k > 0:
             raise ValueError("scale factor must be positive")
@@ -226,4 +235,5 @@ class Features:
                 for e in self.ellipses
             ),
             frames={},
+            body=self.body,
         )

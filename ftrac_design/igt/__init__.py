@@ -1,8 +1,7 @@
 """Image-guided-therapy conventions and files: how a pose reaches 3D Slicer, ITK and PLUS.
 
 - :mod:`.frames` — the frames' names (PLUS ``<From>To<To>``, ≤ 20 characters), LPS ↔ RAS,
-  4×4 matrices from SPEC §4 poses.
-- :mod:`.poses` — SPEC §4 pose files (one object, or JSON Lines) read strictly for export.
+  4×4 matrices from SPEC §4 poses (read by :func:`ftrac_design.pose.read_tracked_poses`).
 - :mod:`.tfm` — ITK text transform files (``.tfm``): ``AffineTransform_double_3_3`` in LPS, in
   ITK's resampling direction (the file holds the inverse of the point mapping).
 - :mod:`.markups` — 3D Slicer markups (``.mrk.json``, LPS).

@@ -43,7 +43,7 @@ class AtlasSettings:
 
 
 def _direction_records(
-    features: Features, body, settings: AtlasSettings, directions: np.ndarray, indices: Sequence[int]
+    features: Features, settings: AtlasSettings, directions: np.ndarray, indices: Sequence[int]
 ) -> list[dict[str, Any]]:
     from ..xray import ImagingModel, render
 
@@ -59,17 +59,13 @@ def _direction_records(
                 settings.camera,
                 ImagingModel(),
                 rng=np.random.default_rng([settings.seed, int(i), j, 3]),
-                body=body,
             ).raw
-            out.append(
-                {"direction": int(i), "roll": j, **track_record(img, features, body, R[0], t[0], settings.camera)}
-            )
+            out.append({"direction": int(i), "roll": j, **track_record(img, features, R[0], t[0], settings.camera)})
     return out
 
 
 def image_atlas(
     features: Features,
-    body,
     settings: AtlasSettings = AtlasSettings(),
     executor: Executor | None = None,
     progress: Callable[[int], None] | None = None,
@@ -79,9 +75,8 @@ def image_atlas(
     Parameters
     ----------
     features : Features
-        The fiducial (SPEC §2).
-    body : ftrac_design.xray.Body or None
-        Its body, rendered and known to the tracker.
+        The fiducial (SPEC §2); its body (``features.body``), where known, is rendered and known
+        to the tracker.
     settings : AtlasSettings
         Grid, rolls, seed, depth and camera.
     executor : concurrent.futures.Executor or None
@@ -99,7 +94,7 @@ def image_atlas(
     """
     lon, lat, d = sphere_grid(settings.step_deg)
     dirs = d.reshape(-1, 3)
-    records = _track_directions(features, body, settings, dirs, executor, progress)
+    records = _track_directions(features, settings, dirs, executor, progress)
     right = np.zeros(len(dirs))
     median = np.full(len(dirs), np.nan)
     for i in range(len(dirs)):
@@ -139,17 +134,17 @@ def image_atlas(
     }
 
 
-def _track_directions(features, body, settings: AtlasSettings, dirs: np.ndarray, executor, progress) -> list[dict]:
+def _track_directions(features, settings: AtlasSettings, dirs: np.ndarray, executor, progress) -> list[dict]:
     """Every direction's images made and tracked, in chunks (here, or on ``executor``), in order."""
     tasks = [list(range(i, min(i + CHUNK, len(dirs)))) for i in range(0, len(dirs), CHUNK)]
     records: list[dict[str, Any]] = []
     if executor is None:
         for idx in tasks:
-            records += _direction_records(features, body, settings, dirs, idx)
+            records += _direction_records(features, settings, dirs, idx)
             if progress:
                 progress(len(idx) * settings.rolls)
     else:
-        futures = [executor.submit(_direction_records, features, body, settings, dirs, idx) for idx in tasks]
+        futures = [executor.submit(_direction_records, features, settings, dirs, idx) for idx in tasks]
         for fut, idx in zip(futures, tasks):
             records += fut.result()
             if progress:

@@ -101,20 +101,18 @@ class TrialSettings:
 
 
 def _image(
-    features: Features, body, condition: Condition, R: np.ndarray, t: np.ndarray, camera: Camera, seed: int, k: int
+    features: Features, condition: Condition, R: np.ndarray, t: np.ndarray, camera: Camera, seed: int, k: int
 ) -> np.ndarray:
     from ..xray import ImagingModel, render
     from ..xray.scenario import realistic_image
 
     if condition == "clean":
-        return render(features, R, t, camera, ImagingModel(), rng=np.random.default_rng([seed, k, 1]), body=body).raw
-    img, _ = realistic_image(features, R, t, camera, "raw", seed * 1_000_003 + k, body=body)
+        return render(features, R, t, camera, ImagingModel(), rng=np.random.default_rng([seed, k, 1])).raw
+    img, _ = realistic_image(features, R, t, camera, "raw", seed * 1_000_003 + k)
     return img
 
 
-def track_record(
-    image: np.ndarray, features: Features, body, R: np.ndarray, t: np.ndarray, camera: Camera
-) -> dict[str, Any]:
+def track_record(image: np.ndarray, features: Features, R: np.ndarray, t: np.ndarray, camera: Camera) -> dict[str, Any]:
     """Track ``image`` with the default options (time budget lifted) and class the outcome against
     the true pose (R, t) (F → X, mm).
 
@@ -122,8 +120,8 @@ def track_record(
     ----------
     image : numpy.ndarray
         The radiograph.
-    features, body
-        The fiducial and its body (as known to the tracker).
+    features : Features
+        The fiducial, its body (``features.body``) as known to the tracker.
     R, t : numpy.ndarray
         The true pose, SPEC §1.
     camera : Camera
@@ -139,7 +137,7 @@ def track_record(
     from ..segment.options import TrackOptions
     from ..segment.pipeline import track_image
 
-    pose = track_image(image, features, camera, TrackOptions(time_budget_s=math.inf), body=body).pose
+    pose = track_image(image, features, camera, TrackOptions(time_budget_s=math.inf)).pose
     rec: dict[str, Any] = {"outcome": "refused", "translation_mm": None, "rotation_deg": None, "sigma": None}
     if pose.converged:
         dr, dt = pose_errors(pose.rotation, pose.translation_mm, R, t)
@@ -185,16 +183,15 @@ def outcome(rotation_deg: float, translation_mm: float, sigma: float | None) -> 
 
 
 def run_images(
-    features: Features, body, settings: TrialSettings, condition: Condition, indices: Sequence[int]
+    features: Features, settings: TrialSettings, condition: Condition, indices: Sequence[int]
 ) -> list[dict[str, Any]]:
     """Render and track images ``indices`` of one condition; one record per image.
 
     Parameters
     ----------
     features : Features
-        The fiducial (SPEC §2).
-    body : ftrac_design.xray.Body or None
-        Its acetal body (rendered and known to the tracker), or None.
+        The fiducial (SPEC §2); its acetal body (``features.body``), where known, is rendered and
+        known to the tracker.
     settings : TrialSettings
         The sample (poses and draws are fixed by ``settings.seed`` and the index).
     condition : {"clean", "anatomy"}
@@ -212,16 +209,13 @@ def run_images(
     R, t = workspace_poses(settings.workspace, features.nominal_beam_direction, settings.images, settings.seed)
     out = []
     for k in indices:
-        img = _image(features, body, condition, R[k], t[k], settings.camera, settings.seed, int(k))
-        out.append(
-            {"condition": condition, "k": int(k), **track_record(img, features, body, R[k], t[k], settings.camera)}
-        )
+        img = _image(features, condition, R[k], t[k], settings.camera, settings.seed, int(k))
+        out.append({"condition": condition, "k": int(k), **track_record(img, features, R[k], t[k], settings.camera)})
     return out
 
 
 def run_trial(
     features: Features,
-    body,
     settings: TrialSettings,
     executor: Executor | None = None,
     progress: Callable[[int], None] | None = None,
@@ -230,7 +224,7 @@ def run_trial(
 
     Parameters
     ----------
-    features, body, settings
+    features, settings
         As :func:`run_images`.
     executor : concurrent.futures.Executor or None
         Where the images are made and tracked, in chunks of :data:`CHUNK` (None: here, in turn).
@@ -250,11 +244,11 @@ def run_trial(
     if executor is None:
         out = []
         for c, idx in tasks:
-            out += run_images(features, body, settings, c, idx)
+            out += run_images(features, settings, c, idx)
             if progress:
                 progress(len(idx))
         return out
-    futures = [executor.submit(run_images, features, body, settings, c, idx) for c, idx in tasks]
+    futures = [executor.submit(run_images, features, settings, c, idx) for c, idx in tasks]
     out = []
     for fut, (_, idx) in zip(futures, tasks):
         out += fut.result()

@@ -22,8 +22,7 @@ from threadpoolctl import threadpool_limits
 
 from ..features.model import Features
 from ..pose.camera import Camera
-from ..xray.model import Body, ImagingModel
-from ..xray.render import AUTO, resolve_body
+from ..xray.model import ImagingModel
 from .background import background_basis, polynomial_basis  # noqa: F401 (polynomial_basis: re-export)
 from .background import schur_information as _schur
 from .model import RoiModel, roi_around
@@ -68,14 +67,14 @@ def pixel_information(
     t: np.ndarray,
     camera: Camera = Camera(),
     imaging: ImagingModel = ImagingModel(),
-    body: Body | None | str = AUTO,
     background: np.ndarray | None = None,
     roi: tuple[int, int, int, int] | None = None,
     nuisance: bool = False,
     background_degree: int = 2,
     background_spline_px: float | None = None,
 ) -> PixelBound:
-    """Pixel-level Cramér–Rao bound of the pose at (R, t) under ``imaging`` (see the module).
+    """Pixel-level Cramér–Rao bound of the pose at (R, t) under ``imaging`` (see the module); the
+    fiducial's body (``features.body``, where known) is part of the image.
 
     ``background`` (H, W) is a known line-integral image (it lowers the counts); ``roi``
     defaults to the fiducial's projection plus 12 px. ``nuisance=True``: the gain and a smooth
@@ -86,11 +85,10 @@ def pixel_information(
     """
     if not imaging.noisy:
         raise ValueError("a pixel-level bound needs a finite dose (photons_per_px)")
-    body = resolve_body(features, body)
     R, t = np.asarray(R, float), np.asarray(t, float)
     if roi is None:
-        roi = roi_around(features, R, t, camera, imaging.image_shape, body)
-    model = RoiModel(features, camera, imaging, body, roi)
+        roi = roi_around(features, R, t, camera, imaging.image_shape)
+    model = RoiModel(features, camera, imaging, roi)
     I, JI = model.jacobian(R, t, what="transmission")
     v0, u0, h, w = roi
     scale = np.full(I.shape, float(imaging.photons_per_px))

@@ -33,11 +33,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..design import Body
 from ..features.model import Features
 from ..pose import so3
 from ..pose.camera import Camera
 from ..xray.geometry import body_chord_uv, sphere_chord, tube_chord_uv
-from ..xray.model import Body, ImagingModel
+from ..xray.model import ImagingModel
 from ..xray.rays import Rays, capsule_pixels, feature_pieces, project_points, subsample_offsets
 from ..xray.render import (
     BODY_DILATE_PX,
@@ -66,16 +67,17 @@ def roi_around(
     t: np.ndarray,
     camera: Camera,
     shape: tuple[int, int],
-    body: Body | None = None,
     margin_px: int = 12,
 ) -> tuple[int, int, int, int]:
     """(row0, col0, rows, cols): the image rectangle holding the fiducial's projection at
-    (R, t) plus ``margin_px``, clipped to an image of ``shape``."""
+    (R, t) — its features and its body (``features.body``, where known) — plus ``margin_px``,
+    clipped to an image of ``shape``."""
     pts = [features.point_centers()]
     for ln in features.lines:
         pts.append(np.stack([ln.start, ln.end]))
     for el in features.ellipses:
         pts.append(el.sample(np.linspace(0, 2 * np.pi, 64, endpoint=False)))
+    body = features.body
     if body is not None:
         ro, h = body.outer_diameter / 2, body.length / 2
         pts.append(np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)]))
@@ -93,12 +95,12 @@ def roi_around(
 
 @dataclass
 class RoiModel:
-    """Noise-free log image of the fiducial over ``roi`` = (row0, col0, rows, cols); see the module."""
+    """Noise-free log image of the fiducial (its body ``features.body`` included, where known)
+    over ``roi`` = (row0, col0, rows, cols); see the module."""
 
     features: Features
     camera: Camera
     imaging: ImagingModel
-    body: Body | None
     roi: tuple[int, int, int, int]
     body_flags: np.ndarray | None = None
     flag_dilate_px: int = 0
@@ -107,6 +109,11 @@ class RoiModel:
         v0, u0, h, w = self.roi
         self._cu = np.arange(u0, u0 + w, dtype=float)
         self._cv = np.arange(v0, v0 + h, dtype=float)
+
+    @property
+    def body(self) -> Body | None:
+        """The fiducial's body (``features.body``), or None."""
+        return self.features.body
 
     # ------------------------------------------------------------------ rendering
     def field(self, R: np.ndarray, t: np.ndarray) -> SubsampledField:

@@ -38,8 +38,8 @@ from threadpoolctl import threadpool_limits
 
 from ..features.model import Features
 from ..pose.camera import Camera
-from ..xray.model import Body, ImagingModel
-from ..xray.render import AUTO, resolve_body
+from ..pose.record import IntensityFit
+from ..xray.model import ImagingModel
 from .background import Nuisance, background_basis
 from .bound import _dot
 from .model import STEP_PX, RoiModel, perturb, roi_around
@@ -318,7 +318,6 @@ def refine_intensity(
     t0: np.ndarray = None,
     imaging: ImagingModel = ImagingModel(),
     roi: tuple[int, int, int, int] | None = None,
-    body: Body | None | str = AUTO,
     options: RefineOptions | None = None,
     **overrides: Any,
 ) -> IntensityResult:
@@ -327,7 +326,7 @@ def refine_intensity(
     Parameters
     ----------
     features : Features
-        The fiducial.
+        The fiducial, its body (``features.body``, where known) included in the model.
     image : numpy.ndarray
         (H, W): a log image (``polarity="dense_bright"``, −ln(I/I0) up to gain and offset) or raw
         counts (``"dense_dark"``).
@@ -340,8 +339,6 @@ def refine_intensity(
         scaled by the fitted residual).
     roi : (row0, col0, rows, cols) or None
         The region fitted (default: the fiducial at the start plus 12 px).
-    body : Body, None or AUTO
-        The fiducial's body.
     options : RefineOptions or None
         How it fits (:class:`RefineOptions`, which explains each option; default its defaults).
     **overrides
@@ -362,18 +359,17 @@ def refine_intensity(
     # columns), where a threaded BLAS spends more time spinning its threads than multiplying
     # (a banded Cholesky of 391 columns: 217 ms with threads on the loaded 2-core machine)
     with threadpool_limits(1, "blas"):
-        return _refine(features, image, camera, R0, t0, imaging, roi, body, o)
+        return _refine(features, image, camera, R0, t0, imaging, roi, o)
 
 
-def _refine(features, image, camera, R0, t0, imaging, roi, body, o: RefineOptions):
+def _refine(features, image, camera, R0, t0, imaging, roi, o: RefineOptions):
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
-    body = resolve_body(features, body)
     Yfull = _log_of(image, o.polarity)
     if roi is None:
-        roi = roi_around(features, R0, t0, camera, Yfull.shape, body)
+        roi = roi_around(features, R0, t0, camera, Yfull.shape)
     v0, u0, h, w = roi
     Y = Yfull[v0 : v0 + h, u0 : u0 + w]
-    fit = _Refinement(RoiModel(features, camera, imaging, body, roi), Y, imaging, o, R0, t0)
+    fit = _Refinement(RoiModel(features, camera, imaging, roi), Y, imaging, o, R0, t0)
     for scale in fit.scales():
         fit.at_scale(scale)
     if o.polish and fit.prob is not None and fit.prob.scale == 0 and not o.central_steps:
@@ -649,7 +645,6 @@ def refine_track_result(
     camera: Camera,
     result,
     imaging: ImagingModel | None = None,
-    body: Body | None | str = AUTO,
     **options,
 ):
     """``ftrac-design track --refine intensity``: refine a converged
@@ -670,7 +665,6 @@ def refine_track_result(
         pose.rotation,
         pose.translation_mm,
         imaging,
-        body=body,
         polarity=polarity,
         **{"coarse_scales": (1.0,), **options},
     )
@@ -685,15 +679,7 @@ def refine_track_result(
         translation_mm=res.translation_mm,
         covariance=cov if cov is not None else pose.covariance,
     )
-    diag = dict(result.diagnostics)
-    diag["intensity"] = {
-        "refined": bool(res.converged),
-        "cost_start": res.cost_start,
-        "cost_end": res.cost_end,
-        "chi2_per_dof": chi2,
-        "iterations": res.iterations,
-        "gain": res.gain,
-        "roi": list(res.roi),
-        "message": res.message,
-    }
-    return replace(result, pose=new_pose, diagnostics=diag)
+    fit = IntensityFit(
+        bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), res.message
+    )
+    return replace(result, pose=new_pose, diagnostics=replace(result.diagnostics, intensity=fit))

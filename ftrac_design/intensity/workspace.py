@@ -31,8 +31,8 @@ from ..features.model import Features
 from ..pose.camera import Camera
 from ..pose.problem import NoiseModel
 from ..pose.simulate import ContourSampling, Workspace
+from ..xray.materials import material_name
 from ..xray.model import ImagingModel
-from ..xray.render import AUTO, resolve_body
 from .bound import pixel_information
 from .model import PARAMETERS
 
@@ -115,10 +115,10 @@ def imaging_analysis(
     camera: Camera = Camera(),
     segmentation_error_mm: float = 0.25,
     contour: ContourSampling = ContourSampling(),
-    body=AUTO,
     progress: Callable[[int], None] | None = None,
 ) -> ImagingAnalysis:
-    """Image- and feature-level predicted errors at ``poses`` workspace poses (see the module).
+    """Image- and feature-level predicted errors at ``poses`` workspace poses (see the module); the
+    fiducial's body (``features.body``, where known) is part of the images.
 
     ``imaging`` must have a finite dose. Poses where the fiducial does not project into the
     image are skipped (ValueError if all are).
@@ -128,14 +128,14 @@ def imaging_analysis(
 
     if not imaging.noisy:
         raise ValueError("imaging: a finite dose (photons_per_px) is needed for a pixel-level bound")
-    body = resolve_body(features, body)
+    body = features.body
     R, t = workspace_poses(workspace, features.nominal_beam_direction, int(poses), seed)
     layout = feature_layout(features, contour)
     noise = NoiseModel.from_segmentation_error(segmentation_error_mm)
     keep, img_std, npix = [], [], []
     for k in range(len(t)):
         try:
-            b = pixel_information(features, R[k], t[k], camera, imaging, body, nuisance=True)
+            b = pixel_information(features, R[k], t[k], camera, imaging, nuisance=True)
         except (ValueError, np.linalg.LinAlgError):
             b = None
         if b is not None and np.all(np.isfinite(b.std)):
@@ -152,7 +152,7 @@ def imaging_analysis(
     name = (
         None
         if body is None
-        else f"{body.material} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm"
+        else f"{material_name(body.material)} Ø{body.outer_diameter:g}/{body.bore_diameter:g} × {body.length:g} mm"
     )
     return ImagingAnalysis(
         imaging, segmentation_error_mm, R, t, _deg_mm(np.array(img_std)), _deg_mm(feat), np.array(npix), name, seed

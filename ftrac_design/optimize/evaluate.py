@@ -156,7 +156,7 @@ def score_figures(features, settings: AnalysisSettings) -> dict[str, float] | No
     }
 
 
-def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | None:
+def image_figures(features, trial: TrialSettings) -> dict[str, float] | None:
     """The image-true figures of a candidate: per condition of ``trial``, the p95 translation (mm)
     and rotation (deg) errors of the right poses; their geometric means over the conditions (what
     the objective compares, each condition's relative change weighted alike); the percentages of
@@ -169,8 +169,8 @@ def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | No
 
     Parameters
     ----------
-    features, body
-        The candidate fiducial and its body.
+    features : Features
+        The candidate fiducial, its body (``features.body``) included.
     trial : TrialSettings
         The sample (the same for every candidate).
 
@@ -183,7 +183,7 @@ def image_figures(features, body, trial: TrialSettings) -> dict[str, float] | No
     """
     from ..imagescore import run_trial, trial_figures
 
-    records = run_trial(features, body, trial)
+    records = run_trial(features, trial)
     per = trial_figures(records)
     if any(f["translation_p95_mm"] is None for f in per.values()):
         return None
@@ -206,9 +206,7 @@ def candidate_figures(design, features, settings: EvalSettings) -> dict[str, flo
     factors (:func:`score_figures`; stock sizes other than the start's carry theirs). None when the
     candidate cannot be scored (too few right images; singular somewhere in the workspace)."""
     if settings.image_trial is not None:
-        from ..xray import Body
-
-        return image_figures(features, Body.from_design(design), settings.image_trial)
+        return image_figures(features, settings.image_trial)
     return score_figures(features, settings.analysis.for_parts(design.analysis))
 
 

@@ -32,17 +32,16 @@ def image_check(data: dict, settings, images: int, seed: int, progress: bool = F
     from ..features import compute_features
     from ..pose.simulate import pose_errors
     from ..segment.pipeline import track_image
-    from ..xray import Body, ImagingModel, render
+    from ..xray import ImagingModel, render
 
     design = parse_design(data)
     f = compute_features(design)
-    body = Body.from_design(design)
     R, t = workspace_poses(settings.workspace, f.nominal_beam_direction, images, seed)
     cam, imaging = settings.camera, ImagingModel()
     et, er, idx, converged, wrong = [], [], [], 0, 0
     for k in tqdm(range(images), desc=f"images: {f.name}", unit="image", leave=False, disable=not progress):
-        rad = render(f, R[k], t[k], cam, imaging, rng=np.random.default_rng([seed + 1, k]), body=body)
-        p = track_image(rad.raw, f, cam, body=body).pose
+        rad = render(f, R[k], t[k], cam, imaging, rng=np.random.default_rng([seed + 1, k]))
+        p = track_image(rad.raw, f, cam).pose
         if not p.converged:
             continue
         converged += 1
@@ -116,14 +115,13 @@ def image_true_check(start_data: dict, best_data: dict, trial, executor=None, pr
     from ..design.loader import parse_design
     from ..features import compute_features
     from ..imagescore import paired_ratios, run_trial, trial_figures
-    from ..xray import Body
 
     records = {}
     total = 2 * trial.images * len(trial.conditions)
     with tqdm(total=total, desc="image-true check", unit="image", leave=False, disable=not progress) as bar:
         for name, data in (("start", start_data), ("best", best_data)):
             design = parse_design(data)
-            records[name] = run_trial(compute_features(design), Body.from_design(design), trial, executor, bar.update)
+            records[name] = run_trial(compute_features(design), trial, executor, bar.update)
     paired = {c: paired_ratios(records["start"], records["best"], c, trial.seed) for c in trial.conditions}
     paired["pooled"] = paired_ratios(records["start"], records["best"], None, trial.seed)
     return {

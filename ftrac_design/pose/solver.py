@@ -31,7 +31,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
-from typing import Any, Iterable
+from typing import Iterable
 
 import numpy as np
 from scipy.special import chdtrc, fdtrc
@@ -50,10 +50,7 @@ from .problem import (
     project_points,
     rows_where,
 )
-
-FORMAT = "ftrac-pose"
-VERSION = 1
-COVARIANCE_ORDER = ["rx", "ry", "rz", "tx", "ty", "tz"]
+from .record import Pose
 
 
 @dataclass(frozen=True)
@@ -103,67 +100,6 @@ class SolverOptions:
 
 #: shared, since the options are immutable
 _DEFAULTS = SolverOptions()
-
-
-@dataclass
-class Pose:
-    """A solved pose (SPEC §4): ``P_X = rotation @ P_F + translation_mm``."""
-
-    rotation: np.ndarray
-    translation_mm: np.ndarray
-    converged: bool
-    rms_residual_px: float
-    covariance: np.ndarray | None
-    per_feature_residuals_px: dict[str, float]
-    iterations: int
-    error: str | None = None
-    noise_scale: float = float("nan")
-    condition_number: float = float("nan")
-    #: probability of pose residuals at least this large if the pose were right (see SolverOptions)
-    residual_p_value: float = float("nan")
-    starts: int = 1
-    origin: str = ""
-
-    def to_dict(self) -> dict[str, Any]:
-        """The SPEC §4 object, plus diagnostics (readers ignore unknown keys)."""
-
-        def fin(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
-        def mat(a: np.ndarray) -> list | None:
-            a = np.asarray(a, float)
-            return a.tolist() if np.all(np.isfinite(a)) else None
-
-        d: dict[str, Any] = {
-            "format": FORMAT,
-            "version": VERSION,
-            "rotation": mat(self.rotation),
-            "translation_mm": mat(self.translation_mm),
-            "converged": bool(self.converged),
-            "rms_residual_px": fin(self.rms_residual_px),
-            "covariance": None if self.covariance is None else mat(self.covariance),
-            "covariance_order": COVARIANCE_ORDER,
-        }
-        if self.error:
-            d["error"] = self.error
-        d.update(
-            {
-                "per_feature_residuals_px": {k: fin(v) for k, v in self.per_feature_residuals_px.items()},
-                "iterations": int(self.iterations),
-                "starts": int(self.starts),
-                "noise_scale": fin(self.noise_scale),
-                "residual_p_value": fin(self.residual_p_value),
-                "condition_number": fin(self.condition_number),
-            }
-        )
-        if self.origin:
-            d["observation"] = self.origin
-        return d
-
-    @property
-    def std_mm(self) -> np.ndarray:
-        """Predicted standard deviation of the translation (3,), mm, camera axes."""
-        return np.sqrt(np.diag(self.covariance)[3:]) if self.covariance is not None else np.full(3, np.nan)
 
 
 # ----------------------------------------------------------------------------- local solve

@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fileio import json_lines, parse_json, read_text_input
+from ..pose import TrackedPose
 from ..pose.observation import camera_from_dict
 from .frames import RigidTransform, is_rigid
 
@@ -67,55 +68,29 @@ def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
 
 
 def read_poses(path: Path) -> list[dict[str, Any]]:
-    """One dict per line: ``R``, ``t``, ``cov`` (6×6 or None), ``camera`` (or None),
-    ``usable`` and ``why`` (when not), ``origin``."""
+    """One dict per line of a run's poses (each read by :meth:`ftrac_design.pose.TrackedPose.from_dict`):
+    ``R``, ``t``, ``cov`` (6×6, symmetric positive semi-definite, or None), ``camera`` (or
+    None), ``usable`` and ``why`` (when not), ``origin``."""
     out = []
     for origin, d in _json_lines(path, "an ftrac-pose"):
-        fmt = d.get("format", "ftrac-pose")
-        if fmt != "ftrac-pose":
-            raise InputError(origin, "format", f'"ftrac-pose", got {_short(fmt)}')
-        item: dict[str, Any] = {
-            "origin": origin,
-            "usable": True,
-            "why": None,
-            "cov": None,
-            "camera": camera_from_dict(d["camera"], origin) if "camera" in d else None,
-        }
-        conv = d.get("converged", True)
-        if not isinstance(conv, bool):
-            raise InputError(origin, "converged", f"true or false, got {_short(conv)}")
-        if not conv:
-            item.update(
-                usable=False,
-                why=f"pose not solved ({d.get('error', 'converged: false')})",
-                R=np.full((3, 3), np.nan),
-                t=np.full(3, np.nan),
-            )
+        rec = TrackedPose.from_dict(d, origin)
+        pose = rec.pose
+        item: dict[str, Any] = {"origin": origin, "usable": True, "why": None, "cov": None}
+        item["camera"] = rec.provenance.camera
+        if not pose.converged:
+            why = f"pose not solved ({pose.error or 'converged: false'})"
+            item.update(usable=False, why=why, R=np.full((3, 3), np.nan), t=np.full(3, np.nan))
             out.append(item)
             continue
-        for k in ("rotation", "translation_mm"):
-            if k not in d:
-                raise InputError(origin, k, "a value (the key is required)")
-        R = _matrix(d["rotation"], 3, 3, origin, "rotation")
-        if not (np.allclose(R @ R.T, np.eye(3), atol=1e-6) and np.linalg.det(R) > 0):
-            raise InputError(origin, "rotation", "a rotation matrix (orthonormal, determinant +1)")
-        tv = d["translation_mm"]
-        if not isinstance(tv, list) or len(tv) != 3:
-            raise InputError(origin, "translation_mm", f"a list of 3 numbers, got {_short(tv)}")
-        t = np.array([_num(x, origin, f"translation_mm[{i}]") for i, x in enumerate(tv)])
-        cov = d.get("covariance")
+        cov = pose.covariance
         if cov is not None:
-            cov = _matrix(cov, 6, 6, origin, "covariance")
-            order = d.get("covariance_order", ["rx", "ry", "rz", "tx", "ty", "tz"])
-            if order != ["rx", "ry", "rz", "tx", "ty", "tz"]:
-                raise InputError(origin, "covariance_order", '["rx", "ry", "rz", "tx", "ty", "tz"]')
             if not (
                 np.allclose(cov, cov.T, atol=1e-9 * max(1.0, np.abs(cov).max()))
                 and np.linalg.eigvalsh((cov + cov.T) / 2).min() >= -1e-12 * max(1.0, np.abs(cov).max())
             ):
                 raise InputError(origin, "covariance", "a symmetric positive semi-definite 6x6 matrix")
             cov = (cov + cov.T) / 2
-        item.update(R=R, t=t, cov=cov)
+        item.update(R=pose.rotation, t=pose.translation_mm, cov=cov)
         out.append(item)
     return out
 

@@ -1,14 +1,15 @@
 """The tests a labelling's pose must pass before it is given out as converged.
 
-Each test returns the reason a pose is refused (a string) or None. The caller marks the pose
-not converged with that reason: two labellings that explain the image equally well, a pose
-that puts wire on bare background, or too little evidence to confirm a labelling give
-``converged = False`` — never a confident wrong pose.
+Each test returns the reason a pose is refused (a string) or None; :func:`refuse` gives the
+pose refused for that reason (a copy, not converged): two labellings that explain the image
+equally well, a pose that puts wire on bare background, or too little evidence to confirm a
+labelling give ``converged = False`` — never a confident wrong pose.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,13 +25,12 @@ from .labelling import Labelling
 LEARNED_WIRE = 0.25
 
 
-def refuse(pose: Pose, reason: str | None) -> bool:
-    """Mark ``pose`` not converged for ``reason`` (if any); returns whether it was refused."""
+def refuse(pose: Pose, reason: str | None) -> Pose:
+    """``pose`` refused for ``reason``: a copy not converged, the reason as its error; ``pose``
+    itself when there is no reason."""
     if reason is None:
-        return False
-    pose.converged = False
-    pose.error = reason
-    return True
+        return pose
+    return replace(pose, converged=False, error=reason)
 
 
 def wire_support(scene: Scene, pose: Pose) -> tuple[list[str], dict[str, float]]:

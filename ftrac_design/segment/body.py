@@ -34,7 +34,6 @@ def body_density(
     camera: Camera,
     R: np.ndarray,
     t: np.ndarray,
-    body,
     blur_px: float,
     margin_px: int = 8,
     clip: tuple[int, int] | None = None,
@@ -45,27 +44,24 @@ def body_density(
 
     Parameters
     ----------
-    features : the design (only its frame is used: the body alone is rendered).
+    features : the design (its body ``features.body`` alone is rendered).
     camera : intrinsics; (R, t) the pose F → X (mm).
-    body : :class:`ftrac_design.xray.Body`.
     blur_px : Gaussian σ of the image's blur, px (pixel area included).
     clip : (H, W) of the image: the box is cut to it before anything is computed.
 
     Returns
     -------
-    (density (h, w) float64, (row0, col0)), or None when the pose puts the body behind the
-    source, outside ``clip`` or wider than :data:`MAX_BOX_SIDE` × its larger side.
+    (density (h, w) float64, (row0, col0)), or None when the features have no body, or the pose
+    puts it behind the source, outside ``clip`` or wider than :data:`MAX_BOX_SIDE` × its larger side.
     """
     from ..xray import ImagingModel
     from ..xray.render import detected_deficit, line_integral_field
 
-    if not body_box_ok(camera, R, t, body, clip):
+    if features.body is None or not body_box_ok(camera, R, t, features.body, clip):
         return None
     # 3 × 3 sub-samples at the silhouettes: within 1e-3 of the simulator's 5 × 5 there, at a
     # third of the cost
-    field = line_integral_field(
-        features.subset(set()), R, t, camera, ImagingModel(supersample=3), body, margin_px=margin_px
-    )
+    field = line_integral_field(features.subset(set()), R, t, camera, ImagingModel(supersample=3), margin_px=margin_px)
     # the bead fit's blur includes the pixel's own width (variance 1/12), which the
     # detector's pixel integration adds
     s = math.sqrt(max(blur_px**2 - 1.0 / 12.0, 0.0))
@@ -143,14 +139,13 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
     )
 
 
-def ridges_without_body(
-    g: np.ndarray, scene: Scene, pose: Pose, body, blur: float, find_ridges: bool = True
-) -> Scene | None:
-    """The scene over the body's box again after subtracting the body's modelled projection
-    at ``pose`` from the density image ``g``: the background-free image and its second derivatives
-    with that box replaced, and the ridge points found there (those of the box only; none
-    looked for unless ``find_ridges``); None when the body cannot be modelled there."""
-    bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, body, blur, clip=g.shape)
+def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, blur: float, find_ridges: bool = True) -> Scene | None:
+    """The scene over the body's box again after subtracting the modelled projection of the body
+    (``scene.features.body``) at ``pose`` from the density image ``g``: the background-free
+    image and its second derivatives with that box replaced, and the ridge points found there
+    (those of the box only; none looked for unless ``find_ridges``); None when there is no body
+    or it cannot be modelled there."""
+    bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, blur, clip=g.shape)
     if bd is None:
         return None
     B, (v0, u0) = bd

@@ -31,6 +31,14 @@ from .noise import (
 )
 
 
+class NoLabelling(Exception):
+    """A labelling hypothesis that led to no pose (:func:`evaluate`): ``reason`` says why."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason)
+        self.reason = reason
+
+
 @dataclass(frozen=True)
 class Labelling:
     """A labelling's refined pose and what it explains."""
@@ -160,8 +168,9 @@ def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
     return cont
 
 
-def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) -> Labelling | str:
-    """The stages of :func:`evaluate` up to the per-feature tests: a Labelling, or why none."""
+def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) -> Labelling:
+    """The stages of :func:`evaluate` up to the per-feature tests: a Labelling (NoLabelling
+    saying why none)."""
     opts, sc, beads = scene.opts, scene.scales, scene.beads
     R, t = h.R, h.t
     rb = sc.bead_radius_px
@@ -173,7 +182,7 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
         if why is not None:
             # before anything is projected: a pose near the source projects the wires over
             # millions of pixels
-            return why
+            raise NoLabelling(why)
         match, dropped_beads = match_beads(
             scene, R, t, beads, opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep
         )
@@ -189,12 +198,14 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
             # full solve never converged where the refinement had not (0 of 77; ~40 ms each)
             pose = solve_from(scene, obs, noise, R, t, rescue=stage == first_stage)
         except Exception as exc:  # an unusable observation (e.g. collinear contour): stop here
-            return f"segmented features unusable: {exc}"
+            raise NoLabelling(f"segmented features unusable: {exc}") from None
         if not np.all(np.isfinite(pose.rotation)):
             break
         R, t = pose.rotation, pose.translation_mm
         out = Labelling(pose, obs, noise, match, cont, {**dropped_beads, **cont.dropped})
-    return out if out is not None else "no usable features for this labelling"
+    if out is None:
+        raise NoLabelling("no usable features for this labelling")
+    return out
 
 
 def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
@@ -209,16 +220,18 @@ def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
         if worst is None or pv[worst] >= opts.feature_p_value:
             break
         if len(removed) >= opts.max_dropped:
-            pose.converged = False
-            pose.error = (
-                f"features inconsistent with the pose: {worst} (p = {pv[worst]:.1e}) after dropping "
-                f"{', '.join(removed)}; wrong identification or segmentation"
+            pose = replace(
+                pose,
+                converged=False,
+                error=f"features inconsistent with the pose: {worst} (p = {pv[worst]:.1e}) after dropping "
+                f"{', '.join(removed)}; wrong identification or segmentation",
             )
             break
         removed[worst] = f"residual improbable under the measured noise (p = {pv[worst]:.1e})"
         if len(obs.points) + len(obs.lines) + len(obs.ellipses) <= 1:
-            pose.converged = False
-            pose.error = f"no feature consistent with the pose ({worst}: p = {pv[worst]:.1e})"
+            pose = replace(
+                pose, converged=False, error=f"no feature consistent with the pose ({worst}: p = {pv[worst]:.1e})"
+            )
             break
         obs = Observation(
             obs.camera,
@@ -251,7 +264,7 @@ def implausible(scene: Scene, R: np.ndarray, t: np.ndarray) -> str | None:
     return None
 
 
-def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> Labelling | str:
+def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> Labelling:
     """Refine one labelling into a pose with every feature it can see: matching and contour
     gathering with wide tolerances (stage 0), tight ones (1), then tight and thinned (2);
     ``first_stage`` = 2 when the hypothesis's pose is already refined. Then the per-feature
@@ -259,14 +272,16 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> 
 
     Returns
     -------
-    Labelling, or a string saying why no pose came of it.
+    Labelling (its pose converged or not, with the reason).
+
+    Raises
+    ------
+    NoLabelling : no pose came of the hypothesis (its ``reason`` says why).
     """
     lab = _staged_solve(scene, h, first_stage)
-    if isinstance(lab, str):
-        return lab
     why = implausible(scene, lab.pose.rotation, lab.pose.translation_mm)
     if why is not None:
-        return why
+        raise NoLabelling(why)
     lab = _drop_inconsistent(scene, lab)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts)
     if lab.pose.covariance is not None and scene.opts.distortion_prior_mm > 0:

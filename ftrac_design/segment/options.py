@@ -2,13 +2,11 @@
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
-import numpy as np
-
-from ..pose import NoiseModel, Observation, Pose
+from ..pose import Diagnostics, NoiseModel, Observation, Pose, Status, TrackedPose
+from ..pose.record import failed_pose
 from .beads import Beads
 from .image import NoiseLevels
 from .ridges import RidgePoints
@@ -147,7 +145,7 @@ class TrackOptions:
 class TrackResult:
     """What :func:`~ftrac_design.segment.track_image` found: the pose (SPEC §4, converged or
     not, with the reason), the observation it segmented (SPEC §3), per-feature quality, the
-    raw detections (for the overlay) and diagnostics."""
+    raw detections (for the overlay) and what the path saw (:class:`~ftrac_design.pose.Diagnostics`)."""
 
     pose: Pose
     observation: Observation | None
@@ -156,22 +154,17 @@ class TrackResult:
     ridges: RidgePoints | None
     polarity: str
     noise: NoiseModel | None
-    diagnostics: dict[str, Any] = field(default_factory=dict)
+    diagnostics: Diagnostics = field(default_factory=Diagnostics)
     #: the image's noise level function at the ridge scale the pose was found with (not
     #: written out; a run tracker reuses it for the run's next frames)
     noise_levels: NoiseLevels | None = field(default=None, repr=False, compare=False)
 
-    def pose_dict(self) -> dict[str, Any]:
-        """SPEC §4 object plus diagnostics (readers ignore unknown keys)."""
-        d = self.pose.to_dict()
-        d["segmentation"] = {
-            "polarity": self.polarity,
-            "noise_model_mm": None
-            if self.noise is None
-            else {"point": self.noise.point_mm, "line": self.noise.line_mm, "ellipse": self.noise.ellipse_mm},
-            **self.diagnostics,
-        }
-        return d
+    def record(self, status: Status | None = None) -> TrackedPose:
+        """The pose as it is written (:class:`~ftrac_design.pose.TrackedPose`): the SPEC §4 pose
+        with the ``segmentation`` diagnostics (polarity, measured noise model, what the path saw)
+        and ``status`` (a frame's, or None)."""
+        diag = replace(self.diagnostics, polarity=self.polarity, noise_model_mm=self.noise)
+        return TrackedPose(self.pose, status, diag)
 
     def observation_dict(self) -> dict[str, Any] | None:
         """SPEC §3 object plus ``quality`` (per feature; readers ignore unknown keys)."""
@@ -182,19 +175,12 @@ class TrackResult:
         return d
 
 
-def failed_pose(reason: str) -> Pose:
-    """A SPEC §4 pose that was not found: NaN rotation and translation, ``converged`` False
-    and ``reason`` as its error."""
-    nan = np.full(3, np.nan)
-    return Pose(np.full((3, 3), np.nan), nan, False, math.nan, None, {}, 0, reason)
-
-
 def failed_result(
     reason: str,
     polarity: str = "",
     beads: Beads | None = None,
     ridges: RidgePoints | None = None,
-    diagnostics: dict[str, Any] | None = None,
+    diagnostics: Diagnostics | None = None,
 ) -> TrackResult:
     """A :class:`TrackResult` without a pose: nothing was identified, for ``reason``."""
-    return TrackResult(failed_pose(reason), None, {}, beads, ridges, polarity, None, dict(diagnostics or {}))
+    return TrackResult(failed_pose(reason), None, {}, beads, ridges, polarity, None, diagnostics or Diagnostics())

@@ -21,13 +21,13 @@ import cv2
 import numpy as np
 
 from ..features.model import Features
-from ..pose import Camera, so3
+from ..pose import Camera, Diagnostics, so3
 from . import acceptance, identify, learned
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
 from .conditioning import FORMATIONS, condition, formation_of
 from .detection import Scene, detect, fitted_blur, scales
 from .image import NoiseField, detect_polarity
-from .labelling import Labelling, evaluate, with_agreement
+from .labelling import Labelling, NoLabelling, evaluate, with_agreement
 from .options import TrackOptions, TrackResult, failed_result
 from .region import fiducial_regions, shifted, view_limited
 
@@ -74,10 +74,8 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budge
         budget.charge()
         try:
             lab = evaluate(scene, h)
-        except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError) as exc:
+        except (NoLabelling, ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError):
             # one labelling that breaks the numerics is one labelling less, not a lost image
-            lab = f"labelling failed: {type(exc).__name__}: {exc}"
-        if isinstance(lab, str):
             continue
         p = lab.pose
         if any(
@@ -88,26 +86,27 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budge
         seen.append((p.rotation, p.translation_mm))
         if p.converged:
             # a labelling that puts wire on bare background is no candidate, and no rival
-            acceptance.refuse(p, acceptance.absent_wires(scene, p))
+            lab = replace(lab, pose=acceptance.refuse(p, acceptance.absent_wires(scene, p)))
         out.append(with_agreement(scene, lab))
     return out
 
 
-def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) -> tuple[Labelling, Scene] | None:
+def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling) -> tuple[Labelling, Scene] | None:
     """The best labelling again, on the image with the body's modelled projection subtracted
     at its pose (:mod:`.body`): the new labelling and the scene it was found on, or None when
     that did not help (the body cannot be modelled there, or the new pose fails where the
     old one had converged)."""
     blur = float(np.median(scene.beads.blur))
     p0 = best.pose
-    inner = ridges_without_body(g, scene, p0, body, blur)
+    inner = ridges_without_body(g, scene, p0, blur)
     if inner is None:
         return None
     merged = merge_ridges(scene.ridges, inner.ridges)
     h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
     beads2 = refit_beads_off_wires(scene, inner.T, scene.beads, p0)
-    lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, first_stage=2)
-    if isinstance(lab, str):
+    try:
+        lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, first_stage=2)
+    except NoLabelling:
         return None
     # judged on the same ridges as the other labellings
     lab = with_agreement(scene, lab)
@@ -116,31 +115,54 @@ def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling, body) ->
     return lab, inner.with_detections(inner.T, beads2, merged if merged is not None else scene.ridges)
 
 
-def _accept(scene: Scene, best: Labelling, others: list[Labelling], diag: dict[str, Any]) -> None:
-    """Run the acceptance tests on ``best`` (in place: the pose is refused with the first
-    reason found)."""
+def accept_best(scene: Scene, best: Labelling, others: list[Labelling], diag: Diagnostics) -> Labelling:
+    """Run the acceptance tests on the best labelling: the labelling with its pose refused for the
+    first reason found, or as it was.
+
+    Parameters
+    ----------
+    scene : what the image shows (:class:`.detection.Scene`).
+    best : the labelling given out, unless refused here.
+    others : the rival labellings (a far one that explains the image about as well refuses it).
+    diag : the result's diagnostics: gets ``alternatives`` and ``wire_support``.
+
+    Returns
+    -------
+    Labelling : ``best``, its pose refused (``converged`` false, the reason as its error) or not.
+    """
     pose = best.pose
     if pose.converged:
         for other in others:
             r = acceptance.rival(scene, best, other)
             if r is not None:
-                diag["alternatives"] = r[1]
-                acceptance.refuse(pose, r[0])
+                diag.alternatives = r[1]
+                pose = acceptance.refuse(pose, r[0])
                 break
     if pose.converged:
         absent, support = acceptance.wire_support(scene, pose)
-        diag["wire_support"] = support
+        diag.wire_support = support
         if absent:
-            acceptance.refuse(
+            pose = acceptance.refuse(
                 pose, f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
             )
     if pose.converged:
-        acceptance.refuse(pose, acceptance.too_little_evidence(scene, best))
+        pose = acceptance.refuse(pose, acceptance.too_little_evidence(scene, best))
+    return best if pose is best.pose else replace(best, pose=pose)
 
 
-def _quality(scene: Scene, best: Labelling) -> dict[str, Any]:
-    """Per-feature quality of what the pose used: bead fit σ, radius, blur and SNR; each
-    contour point's SNR."""
+def feature_quality(scene: Scene, best: Labelling) -> dict[str, Any]:
+    """Per-feature quality of what the pose used: bead fit σ (px), radius (px), blur (px) and
+    SNR; each contour point's SNR.
+
+    Parameters
+    ----------
+    scene : what the image shows.
+    best : the labelling given out.
+
+    Returns
+    -------
+    dict : ``{"points": {id: {...}}, "lines": {id: {"snr": [...]}}, "ellipses": {...}}``.
+    """
     beads, obs, cont = scene.beads, best.obs, best.contours
     quality: dict[str, Any] = {"points": {}, "lines": {}, "ellipses": {}}
     for fid, j in best.match.items():
@@ -162,7 +184,6 @@ def _track_density(
     features: Features,
     camera: Camera,
     opts: TrackOptions,
-    body,
     pol: str,
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
@@ -181,10 +202,7 @@ def _track_density(
         opts = replace(opts, blur_px=blur)
         scene = detect(g, features, camera, opts, valid, noise, det)
     beads, ridges = scene.beads, scene.ridges
-    diag: dict[str, Any] = {
-        "blobs": 0 if beads is None else len(beads),
-        "ridge_points": 0 if ridges is None else len(ridges),
-    }
+    diag = Diagnostics(blobs=0 if beads is None else len(beads), ridge_points=0 if ridges is None else len(ridges))
     if not features.points:
         return failed_result("identification needs beads; this design has none", pol, beads, ridges, diag)
     if beads is None or len(beads) < 3:
@@ -212,29 +230,19 @@ def _track_density(
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
     best, others = evaluated[0], evaluated[1:]
-    if body is not None and best.placed:
-        redone = _with_body_subtracted(g, scene, best, body)
+    if features.body is not None and best.placed:
+        redone = _with_body_subtracted(g, scene, best)
         if redone is not None:
             best, scene = redone
-            diag["body_subtracted"] = True
-    _accept(scene, best, others, diag)
-    diag.update(
-        {
-            "blur_px": scene.opts.blur_px,
-            "hypotheses": len(hyps),
-            "labellings_tested": len(evaluated),
-            "beads_matched": len(best.obs.points),
-            "dropped": best.dropped,
-            "rejected": best.removed,
-            "pixel_noise": scene.pixel_noise,
-            # the residuals' own scale relative to the noise model (the covariance uses it)
-            "variance_factor": best.variance_factor,
-        }
-    )
+            diag.body_subtracted = True
+    best = accept_best(scene, best, others, diag)
+    diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.opts.blur_px, len(hyps), len(evaluated)
+    # the residuals' own scale relative to the noise model (the covariance uses it)
+    diag.labelled(len(best.obs.points), best.dropped, best.removed, scene.pixel_noise, best.variance_factor)
     return TrackResult(
         best.pose,
         best.obs,
-        _quality(scene, best),
+        feature_quality(scene, best),
         scene.beads,
         scene.ridges,
         pol,
@@ -250,7 +258,6 @@ def track_image(
     camera: Camera,
     options: TrackOptions | None = None,
     polarity_hint: str | None = None,
-    body="auto",
     formation_hint: str | None = None,
 ) -> TrackResult:
     """Segment, identify and solve one image with no initial guess.
@@ -258,15 +265,14 @@ def track_image(
     Parameters
     ----------
     image : (H, W) pixels as stored (raw counts, a log image or a display frame).
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F); where they carry the body
+        (``features.body``), the ridges are found again on the image with the body's modelled
+        projection subtracted (:mod:`.body`).
     camera : the image's intrinsics (SPEC §1).
     options : the image path's settings (default :class:`TrackOptions`).
     polarity_hint : "dense-dark" / "dense-bright" (or "dense_dark" / "dense_bright") when the
         file says how dense matter looks; with ``TrackOptions.polarity`` "auto" and no hint,
         the more likely polarity is tried first and the other when the first finds no pose.
-    body : an :class:`ftrac_design.xray.Body`, None, or "auto" (from the design file named
-        in ``features.source``): lets the ridges be found on the image with the body's
-        modelled projection subtracted (:mod:`.body`).
     formation_hint : "linear", "log" or "display" when the file says (see
         :mod:`.conditioning`); else found from the pixels.
 
@@ -276,7 +282,7 @@ def track_image(
     numerics fail on what the image shows, the pose has ``converged = False`` and the reason.
     """
     try:
-        return _track(image, features, camera, options, polarity_hint, body, formation_hint)
+        return _track(image, features, camera, options, polarity_hint, formation_hint)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
@@ -328,14 +334,9 @@ def _track(
     camera: Camera,
     options: TrackOptions | None,
     polarity_hint: str | None,
-    body,
     formation_hint: str | None,
 ) -> TrackResult:
     budget = Budget(options or TrackOptions())
-    if isinstance(body, str):
-        from ..xray.scene import body_from_source
-
-        body = body_from_source(features.source)
     opts = options or TrackOptions()
     img = np.asarray(image)
     if img.dtype != np.float32:
@@ -359,21 +360,23 @@ def _track(
         if tried and budget.spent():
             break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, body, sc, budget, det)
-        res.diagnostics["detector"] = "classical" if det is None else "learned"
-        res.diagnostics["formation"] = cond.formation
-        res.diagnostics["work"] = opts.max_work - budget.work
+        res = _track_conditioned(cond, small, features, camera, opts, sc, budget, det)
+        diag = res.diagnostics
+        diag.detector = "classical" if det is None else "learned"
+        diag.formation = cond.formation
+        diag.work = opts.max_work - budget.work
         if budget.timed_out:
-            res.diagnostics["time_budget_spent"] = True
+            diag.time_budget_spent = True
         if res.pose.converged:
             if tried:
-                res.diagnostics["polarity_tried"] = [t.polarity for t in tried] + [pol]
+                diag.polarity_tried = [t.polarity for t in tried] + [pol]
             return res
         tried.append(res)
     if len(tried) > 1:
         first = tried[0]
-        first.pose.error = f"{first.pose.error} (as {first.polarity}; as {tried[1].polarity}: {tried[1].pose.error})"
-        first.diagnostics["polarity_tried"] = [t.polarity for t in tried]
+        why = f"{first.pose.error} (as {first.polarity}; as {tried[1].polarity}: {tried[1].pose.error})"
+        first.pose = replace(first.pose, error=why)
+        first.diagnostics.polarity_tried = [t.polarity for t in tried]
     return tried[0]
 
 
@@ -404,7 +407,6 @@ def _track_conditioned(
     features: Features,
     camera: Camera,
     opts: TrackOptions,
-    body,
     sc,
     budget: Budget,
     det=None,
@@ -437,7 +439,6 @@ def _track_conditioned(
             features,
             crop_cam,
             opts,
-            body,
             pol,
             None if valid is None else valid[r0:r1, c0:c1],
             noise.crop(r0, r1, c0, c1),
@@ -445,7 +446,7 @@ def _track_conditioned(
             None if det is None else det.crop(r0, c0),
         )
         res = shifted(res, camera, c0, r0)
-        res.diagnostics["roi"] = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
+        res.diagnostics.roi = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
         if res.pose.converged or view_limited(res, features, camera, img.shape, opts):
             return res
         first = first or res
@@ -454,4 +455,4 @@ def _track_conditioned(
         # cheap enough to be worth it (a small image)
         if det is not None or img.size > opts.whole_image_px or budget.spent():
             return first
-    return _track_density(img, features, camera, opts, body, pol, valid, noise, budget)
+    return _track_density(img, features, camera, opts, pol, valid, noise, budget)

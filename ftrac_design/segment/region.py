@@ -151,5 +151,5 @@ def view_limited(
     ):
         return False
     n = resolvable_beads(features, camera, p, shape, opts)
-    res.diagnostics["beads_resolvable"] = n
+    res.diagnostics.beads_resolvable = n
     return n < need

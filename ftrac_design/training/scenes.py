@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..design import load_design
+from ..design import Body, load_design
 from ..design.loader import parse_design
 from ..design.presets import preset_names
 from ..errors import InputError
@@ -27,7 +27,7 @@ from ..pose.simulate import Workspace
 from ..segment.detection import scales
 from ..segment.identify import curve_samples, project
 from ..segment.options import TrackOptions
-from ..xray import Body, render
+from ..xray import render
 from ..xray.model import ImagingModel
 from ..xray.scenario import CONDITIONS, realistic_image
 
@@ -80,7 +80,7 @@ def _preset(name: str) -> tuple[dict, Features, Body]:
         design = load_design(name)
         with open(design.source, "rb") as f:
             data = tomllib.load(f)
-        _PRESETS[name] = (data, compute_features(design), Body.from_design(design))
+        _PRESETS[name] = (data, compute_features(design), design.body)
     return _PRESETS[name]
 
 
@@ -114,7 +114,7 @@ def random_design(rng: np.random.Generator, presets: tuple[str, ...] | None = No
         cand.setdefault("wire", {})["diameter"] = round(wire * float(rng.uniform(0.8, 1.6)), 2)
         try:
             design = parse_design(cand, f"{name}+space")
-            return compute_features(design), Body.from_design(design), f"{name}+space"
+            return compute_features(design), design.body, f"{name}+space"
         except (InputError, ValueError):
             continue
     return features, body, name
@@ -158,10 +158,10 @@ def make_scene(seed: int, presets: tuple[str, ...] | None = None, side: int | No
     img_seed = int(rng.integers(2**31))
     if condition == "clean":
         imaging = ImagingModel(image_shape=(side, side))
-        rad = render(features, R, t, camera, imaging, rng=np.random.default_rng(img_seed), body=body)
+        rad = render(features, R, t, camera, imaging, rng=np.random.default_rng(img_seed))
         image, valid = rad.raw, np.ones((side, side), bool)
     else:
-        image, info = realistic_image(features, R, t, camera, condition, img_seed, body=body, shape=(side, side))
+        image, info = realistic_image(features, R, t, camera, condition, img_seed, shape=(side, side))
         valid = np.asarray(info["field_mask"], bool)
     uv = project(camera, R, t, features.point_centers())[0] if features.points else np.zeros((0, 2))
     inside = (uv >= 0).all(1) & (uv[:, 0] <= side - 1) & (uv[:, 1] <= side - 1)

@@ -133,15 +133,6 @@ class ImageScoring:
         return n
 
 
-def subject_body(subject: Subject):
-    """The body of what is analysed, as rendered and known to the tracker: the design's, or for a
-    features file the body of the design its ``source`` names when that file exists (else None)."""
-    from ..xray import Body
-    from ..xray.render import AUTO, resolve_body
-
-    return Body.from_design(subject.design) if subject.design is not None else resolve_body(subject.features, AUTO)
-
-
 def image_score_block(trial: TrialSettings, records: list[dict], seconds: float) -> dict[str, Any]:
     """analysis.json's ``image_score`` block: the imaging model, the figures per condition, every
     image's record and the time it took (s)."""
@@ -322,12 +313,11 @@ def _analyse(
     settings, f = plan.settings, subject.features
     t0 = time.perf_counter()
     trial, atlas_settings = plan.trial(), plan.image_atlas()
-    body = subject_body(subject) if trial is not None or atlas_settings is not None else None
     records, trial_seconds = None, 0.0
     if trial is not None:
-        records = run_trial(f, body, trial, executor, progress)
+        records = run_trial(f, trial, executor, progress)
         trial_seconds = time.perf_counter() - t0
-    img_atlas = image_atlas(f, body, atlas_settings, executor, progress) if atlas_settings is not None else None
+    img_atlas = image_atlas(f, atlas_settings, executor, progress) if atlas_settings is not None else None
     score = score_design(f, settings, plan.thresholds, progress=progress)
     atlas = blind_spot_atlas(f, settings, step_deg=plan.atlas_step_deg, progress=progress)
     seg_atlas = segmentability_atlas(

@@ -11,7 +11,6 @@ from typing import Any
 from ..analysis.score import FIGURE_COLUMNS, figure_cells
 from ..analysis.subject import Subject
 from ..imagescore import TrialSettings, paired_ratios, run_trial, trial_figures
-from .analyze import subject_body
 
 
 def image_scores(
@@ -40,7 +39,7 @@ def image_scores(
         and ``vs_first`` (per condition, :func:`ftrac_design.imagescore.paired_ratios`; None for the
         first design).
     """
-    records = [run_trial(s.features, subject_body(s), trial, executor, progress) for s in subjects]
+    records = [run_trial(s.features, trial, executor, progress) for s in subjects]
     out = []
     for i, (s, rec) in enumerate(zip(subjects, records)):
         out.append(

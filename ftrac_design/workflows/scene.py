@@ -16,8 +16,8 @@ from ..errors import InputError
 from ..fileio import atomic_directory, check_output_dir
 from ..igt.frames import pose_matrix
 from ..igt.markups import points_from_file
-from ..igt.poses import read_pose_records
 from ..igt.scene import MODEL_FILE, SCENE_FILE, SceneContent, is_scene_folder, write_scene_files
+from ..pose import read_tracked_poses
 
 #: the first bytes of a binary STL hold an 80-byte header and a triangle count; an ASCII one starts so
 _STL_ASCII = b"solid"
@@ -75,14 +75,17 @@ def write_scene(run: Path, out_dir: Path, features: Path, model: Path | None, na
     run without any pose, or an output folder holding something else.
     """
     check_output_dir(out_dir, "an earlier scene of `export --scene`", is_scene_folder, parameter="scene")
-    records = read_pose_records(run)
+    records = read_tracked_poses(run)
     beads, frame = points_from_file(features)
     if frame != "fiducial":
         raise InputError(features, "format", "a features.json (the beads in the fiducial frame F)")
     poses = [
-        (p.time_s if p.time_s is not None else float(k), pose_matrix(p.R, p.t))
-        for k, p in enumerate(records)
-        if p.converged
+        (
+            r.provenance.time_s if r.provenance.time_s is not None else float(k),
+            pose_matrix(r.pose.rotation, r.pose.translation_mm),
+        )
+        for k, r in enumerate(records)
+        if r.pose.converged
     ]
     if not poses:
         raise InputError(run, None, "at least one pose with a solution (converged) to show in a scene")

@@ -32,7 +32,7 @@ learns a frame was refused). One client at a time; when it leaves, the server wa
 :class:`~ftrac_design.workflows.track_run.TrackSetup`, a ``track(image, camera, time_s) -> pose``
 callable (SPEC §4 object) called once per frame, in order, from one thread.
 :func:`run_tracker`, the default, tracks each frame from the previous frame's pose as ``track``
-tracks a run (:class:`~ftrac_design.workflows.run_tracker.RunTracker`: the full identification
+tracks a run (:class:`~ftrac_design.tracking.RunTracker`: the full identification
 when the fiducial is lost, jumps or fails the tests); :func:`frame_by_frame_tracker`
 (``serve --independent``) tracks each frame alone exactly as ``track`` tracks an image.
 
@@ -59,11 +59,11 @@ import numpy as np
 from ..errors import InputError
 from ..igt import link
 from ..igt.frames import POSE_TRANSFORM, Space, check_transform_name
-from ..igt.poses import PoseRecord
 from ..images import Frame
-from ..pose import Camera
-from .run_tracker import RunTracker
-from .track_run import TrackSetup, failed_pose_dict, one_line, track_pixels
+from ..pose import Camera, TrackedPose
+from ..pose.record import with_provenance
+from ..tracking import RunTracker
+from .track_run import TrackSetup, one_line, track_pixels
 
 #: OpenIGTLink's default port (3D Slicer's OpenIGTLinkIF and PLUS use it)
 DEFAULT_PORT = 18944
@@ -110,16 +110,15 @@ def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
             time_s=time_s,
         )
         _, res, _ = track_pixels(frame, setup)
-        pose = res.pose_dict()
-        pose.update(time_s=time_s, camera=camera.to_dict(), status="tracked" if res.pose.converged else "lost")
-        return pose
+        record = res.record("tracked" if res.pose.converged else "lost")
+        return with_provenance(record, time_s=time_s, camera=camera).to_dict()
 
     return track
 
 
 def run_tracker(setup: TrackSetup) -> Tracker:
     """The tracker of a live stream: frames in order through one
-    :class:`~ftrac_design.workflows.run_tracker.RunTracker` (each from the previous frame's pose,
+    :class:`~ftrac_design.tracking.RunTracker` (each from the previous frame's pose,
     the full identification when that fails), undistorted and refined as ``track`` does
     (:func:`~ftrac_design.workflows.track_run.track_pixels`). A dropped frame is simply not seen:
     the next one is predicted from the poses before it, scaled by the frames' times.
@@ -133,7 +132,7 @@ def run_tracker(setup: TrackSetup) -> Tracker:
     Tracker : returns the frame's SPEC §4 object with ``status``, ``timing``, ``time_s`` and
         ``camera``.
     """
-    tracker = RunTracker(setup.features, setup.camera, setup.options, body=setup.body)
+    tracker = RunTracker(setup.features, setup.camera, setup.options)
     count = iter(range(1 << 62))  # frames in the order they reach the tracker: the run's own count
 
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
@@ -152,16 +151,15 @@ def run_tracker(setup: TrackSetup) -> Tracker:
         except Exception:
             tracker.forget()  # nothing half-known is carried to the next frame
             raise
-        pose = answer.pose_dict()
-        pose.update(time_s=time_s, camera=camera.to_dict())
-        return pose
+        return with_provenance(answer.record(), time_s=time_s, camera=camera).to_dict()
 
     return track
 
 
 @dataclass(frozen=True)
 class ServeOptions:
-    """Settings of :func:`serve`.
+    """Settings of :func:`serve`, checked as they are made: the transform name is a PLUS name
+    and the ``live`` extra (pyigtl) is installed (InputError otherwise).
 
     Attributes
     ----------
@@ -185,6 +183,9 @@ class ServeOptions:
     camera: Camera | None = None
     valid_only: bool = False
     report_s: float = 10.0
+
+    def __post_init__(self) -> None:
+        _live_link(self.name)
 
 
 @dataclass
@@ -511,9 +512,7 @@ def _guarded(tracker: Tracker, pixels: np.ndarray, camera: Camera, time_s: float
             raise TypeError(f"the tracker returned {type(pose).__name__}, not a pose object")
         return pose
     except Exception as exc:  # noqa: BLE001 — one frame's failure must not stop the live session
-        d = failed_pose_dict(f"internal error: {type(exc).__name__}: {one_line(exc)}")
-        d["status"] = "error"
-        return d
+        return TrackedPose.failed(f"internal error: {type(exc).__name__}: {one_line(exc)}", "error").to_dict()
 
 
 def _compose(
@@ -527,10 +526,8 @@ def _compose(
         )
         return msgs, link.has_pose(pose)
     except Exception as exc:  # noqa: BLE001 — a tracker's malformed answer is that frame's error
-        pose = {
-            **failed_pose_dict(f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"),
-            "status": "error",
-        }
+        why = f"internal error: the tracker's pose: {type(exc).__name__}: {one_line(exc)}"
+        pose = TrackedPose.failed(why, "error").to_dict()
         msgs = link.answer_messages(
             pose, options.name, options.space, item.timestamp, extra, version, options.valid_only
         )
@@ -615,8 +612,6 @@ def serve(
     -------
     ServeSummary : totals. Must run in the main thread (the server's signal handlers).
     """
-    check_transform_name(options.name, "name")
-    link.pyigtl()
     tracker = factory(setup)
     server = IgtlServer(options, log)
     switch = sys.getswitchinterval()
@@ -644,7 +639,7 @@ def serve(
 
 @dataclass(frozen=True)
 class PushOptions:
-    """Settings of :func:`push_poses`.
+    """Settings of :func:`push_poses`, checked as they are made (as :class:`ServeOptions`).
 
     Attributes
     ----------
@@ -665,6 +660,16 @@ class PushOptions:
     rate_hz: float | None = None
     connect_timeout_s: float = 10.0
     header_version: link.HeaderVersion = link.MAX_HEADER_VERSION
+
+    def __post_init__(self) -> None:
+        _live_link(self.name)
+
+
+def _live_link(name: str) -> None:
+    """What a live link needs, checked once as its settings are made: the ``live`` extra
+    (pyigtl; MissingDependencyError) and a transform ``name`` PLUS takes (InputError)."""
+    link.pyigtl()
+    check_transform_name(name, "name")
 
 
 def _connect(options: PushOptions) -> Any:
@@ -695,25 +700,15 @@ def server_version(client: Any, default: link.HeaderVersion) -> link.HeaderVersi
     return min(max(heard), link.MAX_HEADER_VERSION) if heard else default  # type: ignore[return-value]
 
 
-def _pose_object(p: PoseRecord) -> dict[str, Any]:
-    return {
-        "converged": p.converged,
-        "rotation": p.R.tolist() if p.converged else None,
-        "translation_mm": p.t.tolist() if p.converged else None,
-        "covariance": None if p.covariance is None else p.covariance.tolist(),
-        "status": p.status,
-        "error": p.error,
-    }
-
-
-def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable[[int], None] | None = None) -> int:
+def push_poses(poses: list[TrackedPose], options: PushOptions, progress: Callable[[int], None] | None = None) -> int:
     """Send each pose as a TRANSFORM to a listening OpenIGTLink server, in order, paced, in the
     header version the server speaks (:func:`server_version`).
 
     Parameters
     ----------
-    poses : the run (SPEC §4 records); one without a pose is sent INVALID (identity) in header
-        version 2, as a STATUS ``NoPose`` in version 1 (see :mod:`ftrac_design.igt.link`).
+    poses : the run (:func:`ftrac_design.pose.read_tracked_poses`); one without a pose is sent
+        INVALID (identity) in header version 2, as a STATUS ``NoPose`` in version 1 (see
+        :mod:`ftrac_design.igt.link`).
     options : server, names, pace, header version.
     progress : called with the number sent after each (e.g. a progress bar's update).
 
@@ -722,7 +717,6 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
     int : how many were sent. Raises InputError when no server answers at host:port within
     ``connect_timeout_s``.
     """
-    check_transform_name(options.name, "name")
     client = _connect(options)
     try:
         times = send_times(poses, options.rate_hz)
@@ -731,11 +725,12 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
             wait = wall0 + (t - start) - time.monotonic()
             if wait > 0:
                 time.sleep(wait)
-            extra = {"frame": str(p.frame if p.frame is not None else k)}
-            if p.time_s is not None:
-                extra["time_s"] = repr(p.time_s)
+            frame, time_s = p.provenance.frame, p.provenance.time_s
+            extra = {"frame": str(frame if frame is not None else k)}
+            if time_s is not None:
+                extra["time_s"] = repr(time_s)
             version = server_version(client, options.header_version)
-            for msg in link.answer_messages(_pose_object(p), options.name, options.space, time.time(), extra, version):
+            for msg in link.answer_messages(p.to_dict(), options.name, options.space, time.time(), extra, version):
                 client.send_message(msg, wait=True)
             if progress is not None:
                 progress(k + 1)
@@ -744,11 +739,11 @@ def push_poses(poses: list[PoseRecord], options: PushOptions, progress: Callable
         client.stop()
 
 
-def send_times(poses: list[PoseRecord], rate_hz: float | None) -> list[float]:
+def send_times(poses: list[TrackedPose], rate_hz: float | None) -> list[float]:
     """When each pose is sent (s from the first): ``k / rate_hz``, else the poses' ``time_s``
     when every pose has one and they do not go back, else 30 per second."""
     n = len(poses)
-    ts = [p.time_s for p in poses]
+    ts = [p.provenance.time_s for p in poses]
     if rate_hz is None and all(t is not None for t in ts) and all(b >= a for a, b in zip(ts, ts[1:])):
         return [float(t) for t in ts]
     rate = rate_hz if rate_hz is not None and math.isfinite(rate_hz) and rate_hz > 0 else 30.0

@@ -27,7 +27,7 @@ ignore keys they do not know):
 - ``distortion``: the ``--distortion`` model file the frame was undistorted with.
 
 A frame of a run (a directory or a multi-frame file) is tracked by the run's
-:class:`~.run_tracker.RunTracker` and its pose object also carries ``status``
+:class:`~ftrac_design.tracking.RunTracker` and its pose object also carries ``status``
 (``"tracked"``: from the previous frames' poses; ``"re-identified"``: by the full
 identification with no prior; ``"lost"``: no pose), ``timing`` (``read_ms`` reading and
 decoding the frame, ``elapsed_ms`` tracking it, ``path`` the status) and, where a tracked
@@ -42,17 +42,20 @@ import math
 import os
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Literal
 
 import numpy as np
 
 from ..errors import InputError
-from ..features import Features
+from ..features import Features, load_features
 from ..fileio import temporary_file
-from ..images import DistortionModel, Frame, read_frames, undistort_image
-from ..pose import Camera, Pose
+from ..images import DistortionModel, Frame, read_distortion, read_frames, undistort_image
+from ..pose import Camera, Provenance, TrackedPose
+from ..pose.io import pose_text
+from ..pose.observation import read_camera
 from ..segment import TrackOptions, TrackResult, track_image
-from .run_tracker import FrameAnswer, RunTracker
+from ..segment.options import Polarity
+from ..tracking import FrameAnswer, RunTracker
 
 #: the observation written for a frame that has none (nothing segmented)
 EMPTY_OBSERVATION = {
@@ -84,15 +87,19 @@ class ImageInput:
     name: str
 
 
+#: DICOM modalities whose images no intensifier distorts (digital and computed radiography)
+FLAT_MODALITIES = ("DX", "CR", "MG")
+
+
 @dataclass(frozen=True)
 class TrackSetup:
-    """What every frame is tracked with.
+    """What every frame is tracked with, each setting resolved once (:meth:`from_options`).
 
     Attributes
     ----------
-    features : the fiducial (mm, frame F).
-    body : its body (``ftrac_design.xray.Body``) or None.
-    options : the tracker's settings (``--polarity``).
+    features : the fiducial (mm, frame F), its body included where known.
+    options : the tracker's settings (``--polarity``; no distortion prior when the frames are
+        undistorted or the detector does not distort).
     camera : ``--camera`` intrinsics overriding the files', or None.
     distortion : the ``--distortion`` model, or None.
     distortion_path : its file (recorded in each pose as ``distortion``).
@@ -100,12 +107,70 @@ class TrackSetup:
     """
 
     features: Features
-    body: Any
     options: TrackOptions
     camera: Camera | None = None
     distortion: DistortionModel | None = None
     distortion_path: str | None = None
     refine: Callable[..., TrackResult] | None = None
+
+    @classmethod
+    def from_options(
+        cls,
+        features_path: str | Path,
+        camera_path: str | Path | None = None,
+        distortion_path: str | Path | None = None,
+        polarity: Polarity = "auto",
+        refine: Literal["none", "intensity"] = "none",
+    ) -> TrackSetup:
+        """The setup of ``track`` and ``serve`` from their options, each file read once.
+
+        Parameters
+        ----------
+        features_path : ``--features``: features.json, its body with it.
+        camera_path : ``--camera``: a SPEC §3 camera for every frame, or None.
+        distortion_path : ``--distortion``: an ftrac-distortion model the frames are undistorted
+            with, ``"none"`` (the detector does not distort: a flat panel), or None (an
+            intensifier's distortion, unknown, is allowed for in each pose's covariance).
+        polarity : ``--polarity``: how dense matter looks ("auto": the file's, else found).
+        refine : ``--refine``: "intensity" refines each converged pose on the pixels.
+
+        Returns
+        -------
+        TrackSetup. InputError (exit 2) on any bad file or option.
+        """
+        features = load_features(features_path)
+        camera = read_camera(camera_path) if camera_path is not None else None
+        # "none": the detector does not distort (a flat panel); a model: the frames are corrected.
+        # Either way no unmodelled distortion is left for the pose covariance to carry
+        flat = distortion_path is not None and str(distortion_path) == "none"
+        model_path = None if flat or distortion_path is None else str(distortion_path)
+        model = read_distortion(model_path) if model_path is not None else None
+        prior = {"distortion_prior_mm": 0.0} if flat or model is not None else {}
+        return cls(features, TrackOptions(polarity=polarity, **prior), camera, model, model_path, _refiner(refine))
+
+    def options_for(self, frame: Frame) -> TrackOptions:
+        """The settings ``frame`` is tracked with: :attr:`options`, with no distortion prior for a
+        DICOM image from a flat panel or a storage plate (:data:`FLAT_MODALITIES`)."""
+        if str(frame.meta.get("modality", "")).upper() in FLAT_MODALITIES:
+            # a DX or CR image comes from a flat panel or a storage plate: nothing distorts it
+            return replace(self.options, distortion_prior_mm=0.0)
+        return self.options
+
+
+def _refiner(refine: str) -> Callable[..., TrackResult] | None:
+    """``--refine``'s step: None, or the intensity path's ``refine_track_result`` (InputError
+    where this installation does not have it)."""
+    if refine != "intensity":
+        return None
+    try:
+        from ..intensity import refine_track_result
+    except ImportError:
+        raise InputError(
+            None,
+            "--refine",
+            "intensity refinement, which this installation does not have (ftrac_design.intensity); use --refine none",
+        ) from None
+    return refine_track_result
 
 
 @dataclass(frozen=True)
@@ -198,27 +263,19 @@ def frame_label(inp: ImageInput, frame: Frame) -> str:
     return frame.source + (f" frame {frame.index}" if inp.run else "")
 
 
-def provenance(frame: Frame, inp: ImageInput, setup: TrackSetup) -> dict[str, Any]:
-    """The keys every pose object of ``frame`` carries beyond the pose (see the module):
-    ``image``, ``frame`` (runs), ``time_s`` (where known), ``camera``, ``camera_source``,
+def provenance(frame: Frame, inp: ImageInput, setup: TrackSetup) -> Provenance:
+    """What every pose of ``frame`` says of where it came from (see the module): ``image``,
+    ``frame`` (runs), ``time_s`` (where known), ``camera``, ``camera_source``,
     ``intake_notes`` and ``distortion`` (with ``--distortion``)."""
-    d: dict[str, Any] = {"image": frame.source}
-    if inp.run:
-        d["frame"] = int(frame.index)
-    if frame.time_s is not None and math.isfinite(frame.time_s):
-        d["time_s"] = float(frame.time_s)
-    d["camera"] = frame.camera.to_dict() if frame.camera is not None else None
-    d["camera_source"] = dict(frame.camera_source)
-    d["intake_notes"] = list(frame.notes)
-    if setup.distortion_path is not None:
-        d["distortion"] = setup.distortion_path
-    return d
-
-
-def failed_pose_dict(error: str) -> dict[str, Any]:
-    """A SPEC §4 object with ``converged: false`` and ``error``, no pose."""
-    nan = np.full(3, np.nan)
-    return Pose(np.full((3, 3), np.nan), nan, False, math.nan, None, {}, 0, error).to_dict()
+    return Provenance(
+        image=frame.source,
+        frame=int(frame.index) if inp.run else None,
+        time_s=float(frame.time_s) if frame.time_s is not None and math.isfinite(frame.time_s) else None,
+        camera=frame.camera,
+        camera_source=dict(frame.camera_source),
+        intake_notes=tuple(frame.notes),
+        distortion=setup.distortion_path,
+    )
 
 
 def to_json(obj: dict[str, Any], lines: bool) -> str:
@@ -245,16 +302,12 @@ def summary_line(label: str, result: TrackResult) -> str:
     )
 
 
-#: DICOM modalities whose images no intensifier distorts (digital and computed radiography)
-FLAT_MODALITIES = ("DX", "CR", "MG")
-
-
 def track_pixels(
     frame: Frame, setup: TrackSetup, tracker: RunTracker | None = None
 ) -> tuple[np.ndarray, TrackResult, FrameAnswer | None]:
     """Track one frame: undistort (``setup.distortion``), :func:`track_image` with the
     frame's polarity and formation as hints (``TrackOptions.polarity`` overrides) — or, for
-    a frame of a run, the run's ``tracker`` (:class:`~.run_tracker.RunTracker`) — then
+    a frame of a run, the run's ``tracker`` (:class:`~ftrac_design.tracking.RunTracker`) — then
     ``setup.refine`` on a converged pose.
 
     Returns
@@ -263,10 +316,7 @@ def track_pixels(
     the steps raise.
     """
     img = frame.pixels if setup.distortion is None else undistort_image(frame.pixels, setup.distortion)
-    options = setup.options
-    if str(frame.meta.get("modality", "")).upper() in FLAT_MODALITIES:
-        # a DX or CR image comes from a flat panel or a storage plate: nothing distorts it
-        options = replace(options, distortion_prior_mm=0.0)
+    options = setup.options_for(frame)
     answer = None
     if tracker is not None:
         answer = tracker.track_frame(
@@ -286,12 +336,11 @@ def track_pixels(
             frame.camera,
             options,
             polarity_hint=frame.polarity,
-            body=setup.body,
             formation_hint=frame.formation,
         )
     if setup.refine is not None and res.pose.converged:
         # the converged pose refined on the pixels; the observation stays the segmented one
-        res = setup.refine(img, setup.features, frame.camera, res, body=setup.body)
+        res = setup.refine(img, setup.features, frame.camera, res)
         if answer is not None:
             answer.result = res
     return img, res, answer
@@ -312,7 +361,7 @@ def track_frame(
     frame, inp : the frame and the argument it came from.
     setup : what it is tracked with.
     lines : JSON Lines output (True) or a single indented pose.json (False).
-    tracker : the run's :class:`~.run_tracker.RunTracker` (frames of a run), or None (the
+    tracker : the run's :class:`~ftrac_design.tracking.RunTracker` (frames of a run), or None (the
         frame alone). With a tracker the pose object also carries ``status`` ("tracked",
         "re-identified", "lost") and ``timing`` (``read_ms``, ``elapsed_ms``, ``path``).
     read_ms : how long reading the frame took (ms), recorded in ``timing``.
@@ -322,27 +371,26 @@ def track_frame(
     (FrameOutcome, pixels tracked, TrackResult); the last two are None when tracking raised
     (the outcome then says ``internal error: <type>: <message>``; with a tracker, status "lost").
     """
-    extra = provenance(frame, inp, setup)
+    prov = provenance(frame, inp, setup)
+    where = {"image": prov.image} | ({"frame": prov.frame} if prov.frame is not None else {})
     label = frame_label(inp, frame)
     try:
         img, res, answer = track_pixels(frame, setup, tracker)
-        pose = {**(answer.pose_dict() if answer is not None else res.pose_dict()), **extra}
-        if answer is not None and read_ms is not None:
-            pose["timing"]["read_ms"] = round(read_ms, 3)
-        obs = res.observation_dict() or dict(EMPTY_OBSERVATION)
-        obs.update({k: extra[k] for k in ("image", "frame") if k in extra})
+        record = replace(answer.record() if answer is not None else res.record(), provenance=prov)
+        if record.timing is not None and read_ms is not None:
+            record = replace(record, timing=replace(record.timing, read_ms=read_ms))
+        obs = (res.observation_dict() or dict(EMPTY_OBSERVATION)) | where
         line = summary_line(label, res) + (f" [{answer.status}, {answer.elapsed_ms:.0f} ms]" if answer else "")
-        outcome = FrameOutcome(to_json(pose, lines), to_json(obs, lines), bool(res.pose.converged), line)
+        outcome = FrameOutcome(pose_text(record, lines), to_json(obs, lines), bool(res.pose.converged), line)
         return outcome, img, res
     except Exception as exc:  # noqa: BLE001 — one frame's failure of any kind must not lose the batch
         error = f"internal error: {type(exc).__name__}: {one_line(exc)}"
-        pose = {**failed_pose_dict(error), **extra}
         if tracker is not None:
             # nothing carried past a frame that raised
             tracker.forget()
-            pose["status"] = "lost"
-        obs = {**EMPTY_OBSERVATION, **{k: extra[k] for k in ("image", "frame") if k in extra}}
-        return FrameOutcome(to_json(pose, lines), to_json(obs, lines), False, f"{label}: {error}"), None, None
+        record = TrackedPose.failed(error, "lost" if tracker is not None else None, prov)
+        obs = EMPTY_OBSERVATION | where
+        return FrameOutcome(pose_text(record, lines), to_json(obs, lines), False, f"{label}: {error}"), None, None
 
 
 class TrackOutputs:

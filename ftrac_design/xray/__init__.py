@@ -2,7 +2,8 @@
 
 - :func:`render` — Beer–Lambert image of a :class:`~ftrac_design.features.Features` at a
   pose, with blur, quantum noise, background and occluders (:mod:`.render`).
-- :class:`ImagingModel`, :class:`Body`, :class:`Occluder`, :class:`Radiograph` (:mod:`.model`).
+- :class:`ImagingModel`, :class:`Occluder`, :class:`Radiograph` (:mod:`.model`); the body
+  rendered is the features' own (:attr:`~ftrac_design.features.Features.body`).
 - :func:`read_image` / :func:`write_image` — re-exported from :mod:`ftrac_design.images`.
 - :func:`anatomy` — a synthetic anatomy-like background (:mod:`.background`).
 - :func:`.patient.patient` / :func:`seeds` — a patient's line integral (spine, ribs, lungs,
@@ -13,13 +14,11 @@
 - truth.json (:mod:`.truth`); attenuation coefficients (:mod:`.materials`).
 """
 
-from .model import Body, ImagingModel, Occluder, Radiograph
+from .model import ImagingModel, Occluder, Radiograph
 from .render import blur_sigma_px, expected_transmission, line_integral_box, render
-from .scene import body_from_design_file, body_from_features_file, body_from_source
 from .truth import projected_features, read_truth, truth_dict, write_truth
 
 __all__ = [
-    "Body",
     "ImagingModel",
     "Occluder",
     "Radiograph",
@@ -27,9 +26,6 @@ __all__ = [
     "expected_transmission",
     "line_integral_box",
     "blur_sigma_px",
-    "body_from_design_file",
-    "body_from_features_file",
-    "body_from_source",
     "projected_features",
     "read_truth",
     "truth_dict",

@@ -1,4 +1,5 @@
-"""Settings and results of the radiograph simulator: imaging model, body, occluders, image.
+"""Settings and results of the radiograph simulator: imaging model, occluders, image (the
+fiducial's body is the design's :class:`~ftrac_design.design.Body`, carried by its features).
 
 The default imaging model (every field's default) is a C-arm with an image-intensifier or
 flat-panel pixel of 0.44 mm (SPEC §1 camera), a 0.6 mm focal spot, a detector line-spread
@@ -113,38 +114,6 @@ class ImagingModel:
         if "image_shape" in kw:
             kw["image_shape"] = tuple(kw["image_shape"])
         return cls(**kw)
-
-
-@dataclass(frozen=True)
-class Body:
-    """The fiducial's body: a hollow cylinder about F's z axis, centred at the F origin (mm).
-
-    Grooves and bead pockets are not modelled (they remove < 1 mm³ of acetal per feature,
-    and the wire/bead steel that fills them is ~35× denser in attenuation).
-    """
-
-    outer_diameter: float
-    length: float
-    bore_diameter: float = 0.0
-    material: str = "acetal"
-
-    @classmethod
-    def from_design(cls, design) -> "Body":
-        """The body of a :class:`~ftrac_design.design.Design`."""
-        b = design.body
-        return cls(float(b.outer_diameter), float(b.length), float(b.bore_diameter), material_name(b.material))
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-ready dict (the optional ``body`` key of features.json / truth.json)."""
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Body":
-        """Inverse of :meth:`to_dict`; ValueError on missing or non-positive sizes."""
-        od, ln, bd = float(d["outer_diameter"]), float(d["length"]), float(d.get("bore_diameter", 0.0))
-        if not (od > 0 and ln > 0 and 0 <= bd < od):
-            raise ValueError("outer_diameter > bore_diameter ≥ 0 and length > 0")
-        return cls(od, ln, bd, material_name(str(d.get("material", "acetal"))))
 
 
 @dataclass(frozen=True)

@@ -42,16 +42,15 @@ import cv2
 import numpy as np
 from scipy.special import erf
 
+from ..design import Body
 from ..features.model import Features
 from ..pose.camera import Camera
 from .geometry import Pieces, body_chord_uv, sphere_chord, straight_pieces, tube_chord_uv
-from .model import Body, ImagingModel, Occluder, Radiograph
+from .model import ImagingModel, Occluder, Radiograph
 from .rays import BODY_ROUGHNESS, Rays, capsule_pixels, feature_pieces, project_points, subsample_offsets
 
 #: Gaussian counts are used when every expected count is at least this
 _GAUSSIAN_MIN_COUNTS = 100.0
-
-AUTO = "auto"
 
 #: body pixels within this many pixels of a rough one (:func:`rough_body_pixels`) are
 #: sub-sampled too. A smooth pixel is detected as if uniform over its area, which ignores
@@ -69,18 +68,6 @@ def _occluder_pieces(occluders: Sequence[Occluder], imaging: ImagingModel, R: np
             a, b = R.T @ (a - t), R.T @ (b - t)
         parts.append(straight_pieces(a, b, oc.diameter / 2, imaging.mu(oc.material), -1 - k))
     return Pieces.concat(parts)
-
-
-def resolve_body(features: Features, body) -> Body | None:
-    """The body to render: ``body`` itself, None, or for ``"auto"`` the body of the design
-    named in ``features.source`` when that file can be found (else None)."""
-    if body is None or isinstance(body, Body):
-        return body
-    if body != AUTO:
-        raise TypeError("body: a Body, None or 'auto'")
-    from .scene import body_from_source
-
-    return body_from_source(features.source)
 
 
 @dataclass
@@ -140,12 +127,12 @@ def line_integral_field(
     t: np.ndarray,
     camera: Camera,
     imaging: ImagingModel,
-    body: Body | None,
     occluders: Sequence[Occluder] = (),
     margin_px: int = 0,
 ) -> SubsampledField:
     """Un-blurred line integral of the fiducial over its bounding box (see :class:`SubsampledField`):
-    every pixel a wire, bead or occluder touches, and the body's rough pixels, sub-sampled.
+    every pixel a wire, bead or occluder touches, and the rough pixels of its body
+    (``features.body``; none when it is None), sub-sampled.
 
     The box is not clipped to the image; ``margin_px`` widens it. Empty: a (0, 0) field.
     """
@@ -188,6 +175,7 @@ def line_integral_field(
         lo.append([rows.min(), cols.min()])
         hi.append([rows.max(), cols.max()])
     body_box = None
+    body = features.body
     if body is not None:
         ro, h = body.outer_diameter / 2, body.length / 2
         corners = np.array([[x, y, z] for x in (-ro, ro) for y in (-ro, ro) for z in (-h, h)])
@@ -213,7 +201,6 @@ def line_integral_box(
     t: np.ndarray,
     camera: Camera,
     imaging: ImagingModel,
-    body: Body | None,
     occluders: Sequence[Occluder] = (),
     margin_px: int = 0,
 ):
@@ -222,7 +209,7 @@ def line_integral_box(
     Returns ``(p, (v0, u0))``: ``p`` (h, w) float64 whose pixel ``p[j, i]`` is image pixel
     (row v0 + j, column u0 + i); the box is not clipped to the image. ``margin_px`` widens it.
     """
-    field = line_integral_field(features, R, t, camera, imaging, body, occluders, margin_px)
+    field = line_integral_field(features, R, t, camera, imaging, occluders, margin_px)
     return field.p, field.origin
 
 
@@ -357,13 +344,12 @@ def transmission_box(
     t: np.ndarray,
     camera: Camera,
     imaging: ImagingModel,
-    body: Body | None,
     occluders: Sequence[Occluder] = (),
 ):
     """Noise-free transmission I/I0 of the fiducial as the detector reads it (blurred photons
     integrated over each pixel, :func:`detected_deficit`) over its bounding box, clipped to
     the image: ``(I (h, w) float32, (row0, col0))``; outside the box I = 1. Empty box: (0, 0) array."""
-    field, (r0, c0) = detector_box(features, R, t, camera, imaging, body, occluders)
+    field, (r0, c0) = detector_box(features, R, t, camera, imaging, occluders)
     if field is None:
         return np.ones((0, 0), np.float32), (0, 0)
     su, sv = blur_sigma_px(camera, imaging, float(np.asarray(t, float)[2]))
@@ -379,7 +365,6 @@ def detector_box(
     t: np.ndarray,
     camera: Camera,
     imaging: ImagingModel,
-    body: Body | None,
     occluders: Sequence[Occluder] = (),
 ):
     """The fiducial's :class:`SubsampledField` with a margin wide enough for the blur, and the
@@ -388,7 +373,7 @@ def detector_box(
     H, W = imaging.image_shape
     su, sv = blur_sigma_px(camera, imaging, float(np.asarray(t, float)[2]))
     margin = int(math.ceil(4 * max(su, sv))) + 2
-    field = line_integral_field(features, R, t, camera, imaging, body, occluders, margin)
+    field = line_integral_field(features, R, t, camera, imaging, occluders, margin)
     v0, u0 = field.origin
     r0, r1 = max(v0, 0), min(v0 + field.p.shape[0], H)
     c0, c1 = max(u0, 0), min(u0 + field.p.shape[1], W)
@@ -403,12 +388,10 @@ def expected_transmission(
     t: np.ndarray,
     camera: Camera = Camera(),
     imaging: ImagingModel = ImagingModel(),
-    body: Body | None | str = AUTO,
     occluders: Sequence[Occluder] = (),
 ) -> np.ndarray:
     """Noise-free blurred transmission I/I0 (H, W) float32 of the fiducial alone (1 = no object)."""
-    body = resolve_body(features, body)
-    Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, body, occluders)
+    Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, occluders)
     out = np.ones(imaging.image_shape, np.float32)
     out[r0 : r0 + Ib.shape[0], c0 : c0 + Ib.shape[1]] = Ib
     return out
@@ -432,21 +415,19 @@ def render(
     rng: np.random.Generator | None = None,
     background: np.ndarray | None = None,
     occluders: Sequence[Occluder] = (),
-    body: Body | None | str = AUTO,
     image_name: str = "",
 ) -> Radiograph:
     """A simulated radiograph of ``features`` at pose (R, t) (F → X, mm) — see the module.
 
     ``background`` (H, W) is a line-integral image (e.g. :func:`.background.anatomy`) added
-    in the log domain; ``occluders`` are extra steel (or other) cylinders; ``body`` is the
-    fiducial's body (``"auto"``: from the design named in ``features.source`` if found,
-    ``None``: wires and beads only). ``rng`` draws the noise (default: a fresh generator).
+    in the log domain; ``occluders`` are extra steel (or other) cylinders; the fiducial's body
+    is ``features.body`` (None: wires and beads only). ``rng`` draws the noise (default: a fresh
+    generator).
     """
     from .truth import truth_dict
 
     R, t = np.asarray(R, float), np.asarray(t, float)
     H, W = imaging.image_shape
-    body = resolve_body(features, body)
     N0 = float(imaging.photons_per_px) if imaging.noisy else 1.0e4
     if background is None:
         line_integral = np.zeros((H, W))
@@ -457,7 +438,7 @@ def render(
             raise ValueError(f"background: an image of shape {(H, W)}, got {bg.shape}")
         line_integral = bg.astype(np.float64)
         N = np.exp(-bg) * np.float32(N0)
-    field, (r0, c0) = detector_box(features, R, t, camera, imaging, body, occluders)
+    field, (r0, c0) = detector_box(features, R, t, camera, imaging, occluders)
     if field is not None:
         # only the box holds the fiducial: the rest of the image is the flat field (or background)
         v0, u0 = field.origin
@@ -488,7 +469,6 @@ def render(
         camera,
         imaging,
         image_name=image_name,
-        body=body,
         occluders=occluders,
         background=None if background is None else "given",
     )

@@ -68,7 +68,7 @@ from .patient import (
     structure_center,
     texture,
 )
-from .render import AUTO, blur_sigma_px, detected_deficit, detector_box, resolve_body, transmission_box, window
+from .render import blur_sigma_px, detected_deficit, detector_box, transmission_box, window
 
 Condition = Literal[
     "raw",
@@ -124,10 +124,10 @@ def _loguniform(rng: np.random.Generator, lo: float, hi: float) -> float:
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def _footprint(features: Features, R, t, camera: Camera, imaging: ImagingModel, body):
+def _footprint(features: Features, R, t, camera: Camera, imaging: ImagingModel):
     """The fiducial's transmission box (focal blur only), its origin (row, col) and its
     footprint (u0, v0, u1, v1) px: the pixels it attenuates by more than 0.1 %."""
-    Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, body, ())
+    Ib, (r0, c0) = transmission_box(features, R, t, camera, imaging, ())
     if Ib.size == 0:
         raise InputError(None, "pose", "a pose that puts the fiducial inside the image")
     jj, ii = np.nonzero(Ib < 0.999)
@@ -264,17 +264,16 @@ def realistic_image(
     camera: Camera = Camera(),
     condition: Condition = "raw",
     seed: int = 0,
-    body=AUTO,
     shape: tuple[int, int] | None = None,
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """A test image of ``features`` at pose (R, t) (F → X, mm) under ``condition`` (see the module).
 
     Parameters
     ----------
-    features, R, t, camera : the fiducial, its pose and the C-arm's intrinsics (SPEC §1).
+    features, R, t, camera : the fiducial (its body ``features.body`` rendered too, where known),
+        its pose and the C-arm's intrinsics (SPEC §1).
     condition : one of :data:`CONDITIONS`.
     seed : draws every setting, the patient and the noise; the same seed gives the same image.
-    body : the fiducial's body (:func:`.render.resolve_body`: a Body, None or "auto").
     shape : image (rows, columns); default twice the principal point.
 
     Returns
@@ -294,7 +293,6 @@ def realistic_image(
     R, t = np.asarray(R, float), np.asarray(t, float)
     rng = np.random.default_rng([int(seed), CONDITIONS.index(condition), 2024])
     pixel = float(np.mean(camera.pixel_size_mm))
-    body = resolve_body(features, body)
     # the fiducial, blurred by its focal spot only (the detector's line spread comes later)
     focal = float(rng.uniform(0.3, 0.7) if condition == "fluoro-dose" else rng.uniform(0.3, 1.2))
     imaging = ImagingModel(image_shape=(H, W), focal_spot_mm=focal, detector_blur_px=0.0, photons_per_px=None)
@@ -303,12 +301,12 @@ def realistic_image(
     sigma_target = float(rng.uniform(1.6, 2.0)) if condition == "blur-2px" else float(rng.uniform(0.5, 0.9))
     sigma_det = math.sqrt(max(sigma_target**2 - sigma_focal**2, 0.0))
     occluders = _needles(features, rng, int(rng.integers(1, 3))) if condition == "seeds-needle" else ()
-    _, _, box = _footprint(features, R, t, camera, imaging, body)
+    _, _, box = _footprint(features, R, t, camera, imaging)
 
     mag = camera.focal_length_mm / (float(t[2]) + float(rng.uniform(-40, 60)))
     bg, patient_info = _patient(condition, rng, box, (H, W), pixel, mag)
 
-    T = _photons(features, R, t, camera, imaging, body, occluders, bg, mag, focal, sigma_det)
+    T = _photons(features, R, t, camera, imaging, occluders, bg, mag, focal, sigma_det)
     counts = _dose(condition, rng)
     n0 = n0_for_counts(bg, counts)
     intensifier = condition == "round-shutter" or (
@@ -348,7 +346,6 @@ def _photons(
     t,
     camera: Camera,
     imaging: ImagingModel,
-    body,
     occluders,
     bg: np.ndarray,
     mag: float,
@@ -367,7 +364,7 @@ def _photons(
         Tp = cv2.GaussianBlur(Tp, (0, 0), patient_focal, borderType=cv2.BORDER_REFLECT)
     T = cv2.GaussianBlur(Tp, (0, 0), sigma_det, borderType=cv2.BORDER_REFLECT) if sigma_det > 0 else Tp.copy()
     total = replace(imaging, detector_blur_px=sigma_det)
-    field, (r0, c0) = detector_box(features, R, t, camera, total, body, occluders)
+    field, (r0, c0) = detector_box(features, R, t, camera, total, occluders)
     if field is not None:
         v0, u0 = field.origin
         h, w = field.p.shape

@@ -18,7 +18,7 @@ from ..pose.camera import Camera
 from ..pose.simulate import carm_sweep
 from .background import anatomy
 from .model import ImagingModel
-from .render import AUTO, render
+from .render import render
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,6 @@ def render_sweep(
     camera: Camera = Camera(),
     imaging: ImagingModel = ImagingModel(),
     seed: int = 0,
-    body=AUTO,
     anatomy_strength: float = 1.0,
     margin_px: int = 160,
     **sweep,
@@ -60,7 +59,6 @@ def render_sweep(
     n : number of frames.
     camera, imaging : the intrinsics and the imaging model (its ``image_shape`` is the frame's).
     seed : the anatomy's seed; frame k's noise has seed ``seed`` × 100003 + k.
-    body : the fiducial's body (:func:`.render.render`'s ``body``).
     anatomy_strength : scales the anatomy (0: none).
     margin_px : how far the anatomy can move with the fiducial (px).
     **sweep : :func:`~ftrac_design.pose.simulate.carm_sweep`'s motion settings.
@@ -94,7 +92,6 @@ def render_sweep(
             imaging,
             rng=np.random.default_rng(seed * 100003 + k),
             background=frame_bg,
-            body=body,
         )
         raw[k] = rad.raw
     return SweepRun(raw, R, t, camera)

@@ -25,13 +25,16 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..design import Body
 from ..errors import InputError
 from ..features.model import Features
 from ..fileio import write_json_atomic
 from ..pose.camera import Camera
 from ..pose.fitting import conic_center_and_axes, conic_vector
+from ..pose.record import Pose, TrackedPose
 from ..pose.simulate import projected_conic
-from .model import Body, ImagingModel, Occluder
+from .materials import material_name
+from .model import ImagingModel, Occluder
 
 FORMAT = "ftrac-radiograph-truth"
 VERSION = 1
@@ -64,6 +67,17 @@ def projected_features(features: Features, R: np.ndarray, t: np.ndarray, camera:
     return out
 
 
+def body_dict(body: Body) -> dict[str, Any]:
+    """The JSON object of a body as truth.json holds it: its sizes (mm) and the material as the
+    simulator names it (:func:`.materials.material_name`: ``"acetal (POM-C)"`` → ``"acetal"``)."""
+    return {
+        "outer_diameter": body.outer_diameter,
+        "length": body.length,
+        "bore_diameter": body.bore_diameter,
+        "material": material_name(body.material),
+    }
+
+
 def truth_dict(
     features: Features,
     R: np.ndarray,
@@ -71,30 +85,22 @@ def truth_dict(
     camera: Camera,
     imaging: ImagingModel,
     image_name: str = "",
-    body: Body | None = None,
     occluders: Sequence[Occluder] = (),
     background: str | None = None,
 ) -> dict[str, Any]:
-    """The truth.json object of one rendered image (see module)."""
+    """The truth.json object of one rendered image (see module); its ``body`` is
+    ``features.body`` with the material as the simulator names it (``"acetal"``)."""
     R, t = np.asarray(R, float), np.asarray(t, float)
     return {
         "format": FORMAT,
         "version": VERSION,
         "image": image_name,
         "features": features.name,
-        "pose": {
-            "format": "ftrac-pose",
-            "version": 1,
-            "rotation": R.tolist(),
-            "translation_mm": t.tolist(),
-            "converged": True,
-            "rms_residual_px": 0.0,
-            "covariance": None,
-            "covariance_order": ["rx", "ry", "rz", "tx", "ty", "tz"],
-        },
+        # the true pose: SPEC §4's own keys, exact (no residual, no covariance)
+        "pose": TrackedPose(Pose(R, t, True, 0.0, None, {}, 0)).spec_dict(),
         "camera": camera.to_dict(),
         "imaging": imaging.to_dict(),
-        "body": None if body is None else body.to_dict(),
+        "body": None if features.body is None else body_dict(features.body),
         "occluders": [o.to_dict() for o in occluders],
         "background": background,
         "projected": projected_features(features, R, t, camera),

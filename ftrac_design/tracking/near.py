@@ -1,7 +1,7 @@
 """One frame of a run tracked from a predicted pose: measured only where the model projects,
 solved from the prediction, and given out only when the full path's tests pass.
 
-:func:`track_image` finds the fiducial with no prior: regions on a half-size image, every
+:func:`~ftrac_design.segment.track_image` finds the fiducial with no prior: regions on a half-size image, every
 bead labelling that the blobs allow, rival labellings refuted. Within a run the previous
 frames say where the fiducial is and which ball is which, so :func:`track_near` does only
 what confirms that:
@@ -42,24 +42,24 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import Any
 
 import cv2
 import numpy as np
 
 from ..features.model import Features
-from ..pose import Camera, Pose, so3
-from . import identify
-from .beads import blob_response
-from .body import ridges_without_body, wire_mask
-from .conditioning import condition
-from .detection import Scene, ball_fits, scales
-from .image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
-from .labelling import evaluate
-from .options import TrackOptions, TrackResult, failed_result
-from .pipeline import _accept, _quality
-from .region import shifted
-from .ridges import RidgePoints
+from ..pose import Camera, Diagnostics, Pose, so3
+from ..segment import identify
+from ..segment.acceptance import refuse
+from ..segment.beads import blob_response
+from ..segment.body import ridges_without_body, wire_mask
+from ..segment.conditioning import condition
+from ..segment.detection import Scene, ball_fits, scales
+from ..segment.image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
+from ..segment.labelling import NoLabelling, evaluate
+from ..segment.options import TrackOptions, TrackResult, failed_result
+from ..segment.pipeline import accept_best, feature_quality
+from ..segment.region import shifted
+from ..segment.ridges import RidgePoints
 
 
 @dataclass(frozen=True)
@@ -103,8 +103,8 @@ def run_context(
     if not result.pose.converged or result.polarity not in ("dense-dark", "dense-bright"):
         return None
     opts = options or TrackOptions()
-    form = str(result.diagnostics.get("formation", "linear"))
-    blur = float(result.diagnostics.get("blur_px", opts.blur_px))
+    form = result.diagnostics.formation or "linear"
+    blur = float(result.diagnostics.blur_px if result.diagnostics.blur_px is not None else opts.blur_px)
     sc0 = scales(features, camera, opts)
     sc = scales(features, camera, replace(opts, blur_px=blur))
     levels = result.noise_levels
@@ -244,14 +244,13 @@ def scene_near(
     search_px: float,
     valid: np.ndarray | None,
     noise: NoiseField,
-    body=None,
     ball_blur_px: float | None = None,
-    diag: dict | None = None,
+    diag: Diagnostics | None = None,
 ) -> Scene:
     """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
     only where pose (R, t) puts the fiducial (see the module).
 
-    The body's modelled projection at (R, t) is subtracted first (``body``; :mod:`.body`),
+    The body's modelled projection at (R, t) is subtracted first (``features.body``; :mod:`.body`),
     then each ball is fitted once, starting at the strongest blob within ``search_px`` of
     its projection, with the predicted wires' pixels left out (as the full path refits its
     balls; a ball the mask leaves too little of is fitted without it). No whole-crop ridge
@@ -264,10 +263,9 @@ def scene_near(
     features, camera, opts : the design, the crop's intrinsics, the options.
     R, t : the predicted pose F → X.
     search_px : how far from its projection a ball is looked for (px).
-    body : ``ftrac_design.xray.Body`` or None.
     ball_blur_px : the balls' fitted blur σ (px) the body and the wire mask are blurred with
         (default ``opts.blur_px``).
-    diag : a dict that gets ``body_subtracted`` when the body was subtracted.
+    diag : diagnostics that get ``body_subtracted`` when the body was subtracted.
 
     Returns
     -------
@@ -282,12 +280,12 @@ def scene_near(
     empty = np.zeros((0, 2))
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
     scene = Scene(features, camera, opts, sc, T, nmap, None, ridges, valid, None, None)
-    if body is not None:
-        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), body, blur, find_ridges=False)
+    if features.body is not None:
+        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, find_ridges=False)
         if inner is not None:
             T = inner.T
             if diag is not None:
-                diag["body_subtracted"] = True
+                diag.body_subtracted = True
     beads, snr = _balls(T, nmap, features, camera, opts, sc, R, t, search_px, blur) if features.points else (None, None)
     d = derivatives(T, sc.ridge_sigma_px)
     return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
@@ -312,7 +310,6 @@ def track_near(
     context: RunContext,
     options: TrackOptions | None = None,
     search_px: float | None = None,
-    body=None,
     first_stage: int = 0,
 ) -> TrackResult:
     """Track one frame of a run from the predicted pose (R, t): see the module.
@@ -320,31 +317,81 @@ def track_near(
     Parameters
     ----------
     image : (H, W) the frame's pixels as stored.
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F); their body (``features.body``), where known,
+        is subtracted at the predicted pose before the wires are measured (:mod:`.body`).
     camera : the frame's intrinsics (SPEC §1).
     R, t : the predicted pose F → X (rotation (3, 3), translation (3,) mm).
     context : what the run shares (:func:`run_context`).
     options : the image path's settings (default :class:`TrackOptions`); its blur is the context's.
     search_px : how far from its projection a ball is looked for (px); default the stage-one
         bead matching tolerance, max(``match_tol_px``, the ball's radius).
-    body : the fiducial's body (``ftrac_design.xray.Body``) or None: its modelled projection
-        at the predicted pose is subtracted before the wires are measured (:mod:`.body`).
     first_stage : the labelling stage the solve starts at (:func:`.labelling.evaluate`): 0
         (wide tolerances, then tight and thinned) or 2 (tight and thinned only; for a
         prediction known to be within a fraction of a pixel).
 
     Returns
     -------
-    TrackResult : converged only when every test passed; ``diagnostics["path"] = "tracked"``,
-    ``diagnostics["moved_px"]`` the balls' RMS move from the prediction. Never raises for
+    TrackResult : converged only when every test passed; ``diagnostics.path = "tracked"``,
+    ``diagnostics.moved_px`` the balls' RMS move from the prediction. Never raises for
     an image (a failure is a refused pose with its reason).
     """
     try:
-        return _track_near(image, features, camera, R, t, context, options, search_px, body, first_stage)
+        return _track_near(image, features, camera, R, t, context, options, search_px, first_stage)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(
             f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}", context.polarity
         )
+
+
+@dataclass(frozen=True)
+class _Crop:
+    """The frame around the predicted fiducial, conditioned: density (dense = bright), where it
+    can be read, its noise, the crop's camera and its corner (col0, row0) in the frame."""
+
+    density: np.ndarray
+    valid: np.ndarray | None
+    noise: NoiseField
+    camera: Camera
+    corner: tuple[int, int]
+    formation: str
+
+
+def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, int, int, int], disc_px: int) -> _Crop:
+    """The frame ``img`` cropped to ``box`` (row0, row1, col0, col1) and conditioned with the run's
+    polarity and formation (:func:`~ftrac_design.segment.conditioning.condition`) against the
+    whole frame's clip levels, its noise read from the run's noise level function."""
+    # the noise is measured on the box grown to the clutter term's tiles (:func:`.image.noise_map`):
+    # the anatomy's clutter is then measured in the tiles the whole frame's would be (other tiles
+    # gave ftrac_mini's depth a quarter more scatter over a 60-frame run); the rest works on the box
+    r0, r1, c0, c1 = box
+    a0, a1, b0, b1 = _on_tiles(box, img.shape, CLUTTER_TILE_PX)
+    crop = img[a0:a1, b0:b1].astype(np.float32)
+    cond = condition(crop, context.polarity, context.formation, disc_px, _clip_levels(img))
+    levels = {context.ridge_sigma_px: context.noise} if context.noise is not None else None
+    inner = (slice(r0 - a0, r1 - a0), slice(c0 - b0, c1 - b0))
+    noise = NoiseField(cond.density, cond.valid, disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0, c1 - b0)
+    density = np.ascontiguousarray(cond.density[inner])
+    valid = None if cond.valid is None else np.ascontiguousarray(cond.valid[inner])
+    crop_cam = replace(
+        camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
+    )
+    return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation)
+
+
+def _confirmed(pose: Pose, crop: _Crop, features: Features, R, t, capture: float, diag: Diagnostics) -> Pose:
+    """``pose`` unless its balls moved from the prediction (R, t) farther than ``capture`` px
+    (RMS) they were matched within: then refused. Records the move and the rotation step."""
+    finite = bool(np.all(np.isfinite(pose.rotation)))
+    moved = _moved_px(crop.camera, features, R, t, pose.rotation, pose.translation_mm) if finite else math.inf
+    diag.moved_px = round(moved, 2) if math.isfinite(moved) else math.nan
+    diag.rotation_step_deg = round(math.degrees(float(so3.angle(pose.rotation, R))), 3) if finite else math.nan
+    if pose.converged and moved > capture:
+        pose = refuse(
+            pose,
+            f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
+            f"put them, more than the {capture:.1f} px they were matched within",
+        )
+    return pose
 
 
 def _track_near(
@@ -356,7 +403,6 @@ def _track_near(
     context: RunContext,
     options: TrackOptions | None,
     search_px: float | None,
-    body,
     first_stage: int,
 ) -> TrackResult:
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
@@ -372,72 +418,24 @@ def _track_near(
     box = predicted_box(features, camera, R, t, img.shape, margin)
     if box is None:
         return failed_result("the predicted fiducial lies outside the image", context.polarity)
-    # the noise is measured on the box grown to the clutter term's tiles (:func:`.image.noise_map`):
-    # the anatomy's clutter is then measured in the tiles the whole frame's would be (other tiles
-    # gave ftrac_mini's depth a quarter more scatter over a 60-frame run); the rest works on the box
-    r0, r1, c0, c1 = box
-    a0, a1, b0, b1 = _on_tiles(box, img.shape, CLUTTER_TILE_PX)
-    crop = img[a0:a1, b0:b1].astype(np.float32)
-    cond = condition(crop, context.polarity, context.formation, sc0.disc_px, _clip_levels(img))
-    levels = {context.ridge_sigma_px: context.noise} if context.noise is not None else None
-    inner = (slice(r0 - a0, r1 - a0), slice(c0 - b0, c1 - b0))
-    noise = NoiseField(cond.density, cond.valid, sc0.disc_px, levels=levels).crop(r0 - a0, r1 - a0, c0 - b0, c1 - b0)
-    density = np.ascontiguousarray(cond.density[inner])
-    valid = None if cond.valid is None else np.ascontiguousarray(cond.valid[inner])
-    crop_cam = replace(
-        camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
+    crop = _crop(img, context, camera, box, sc0.disc_px)
+    (c0, r0), (h, w) = crop.corner, crop.density.shape
+    diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
+    diag.blur_px = opts.blur_px
+    scene = scene_near(
+        crop.density, features, crop.camera, opts, R, t, search, crop.valid, crop.noise, context.ball_blur_px, diag
     )
-    diag: dict[str, Any] = {
-        "path": "tracked",
-        "roi": [int(c0), int(r0), int(c1 - c0), int(r1 - r0)],
-        "formation": cond.formation,
-        "blur_px": opts.blur_px,
-    }
-    scene = scene_near(density, features, crop_cam, opts, R, t, search, valid, noise, body, context.ball_blur_px, diag)
-    diag["blobs"] = 0 if scene.beads is None else len(scene.beads)
+    diag.blobs = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
-        return shifted(
-            failed_result(
-                f"tracking lost: {diag['blobs']} balls found near their predicted places",
-                context.polarity,
-                scene.beads,
-                None,
-                diag,
-            ),
-            camera,
-            c0,
-            r0,
-        )
-    lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
-    if isinstance(lab, str):
-        return shifted(
-            failed_result(f"tracking lost: {lab}", context.polarity, scene.beads, None, diag), camera, c0, r0
-        )
-    _accept(scene, lab, [], diag)
-    pose = lab.pose
-    moved = (
-        _moved_px(crop_cam, features, R, t, pose.rotation, pose.translation_mm)
-        if np.all(np.isfinite(pose.rotation))
-        else math.inf
-    )
-    diag["moved_px"] = round(moved, 2) if math.isfinite(moved) else None
-    if pose.converged and moved > capture:
-        pose.converged = False
-        pose.error = (
-            f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
-            f"put them, more than the {capture:.1f} px they were matched within"
-        )
-    diag.update(
-        {
-            "beads_matched": len(lab.obs.points),
-            "dropped": lab.dropped,
-            "rejected": lab.removed,
-            "pixel_noise": scene.pixel_noise,
-            "variance_factor": lab.variance_factor,
-            "rotation_step_deg": round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
-            if np.all(np.isfinite(pose.rotation))
-            else None,
-        }
-    )
-    res = TrackResult(pose, lab.obs, _quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
+        why = f"tracking lost: {diag.blobs} balls found near their predicted places"
+        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0)
+    try:
+        lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
+    except NoLabelling as exc:
+        why = f"tracking lost: {exc.reason}"
+        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0)
+    lab = accept_best(scene, lab, [], diag)
+    pose = _confirmed(lab.pose, crop, features, R, t, capture, diag)
+    diag.labelled(len(lab.obs.points), lab.dropped, lab.removed, scene.pixel_noise, lab.variance_factor)
+    res = TrackResult(pose, lab.obs, feature_quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
     return shifted(res, camera, c0, r0)

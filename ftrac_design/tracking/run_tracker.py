@@ -7,7 +7,7 @@ in order. For each frame:
 1. **Predict.** From the last two accepted poses of consecutive frames, constant velocity
    (the rotation step R_b R_aᵀ and the translation step repeated, scaled by the time or
    frame step); from one, constant pose; from none, no prediction.
-2. **Track** (:func:`ftrac_design.segment.tracking.track_near`): the model is projected at
+2. **Track** (:func:`ftrac_design.tracking.near.track_near`): the model is projected at
    the prediction, the balls and wires are measured around their projections, the pose is
    solved from the prediction and kept only if the full path's tests pass (per-feature χ²,
    wire support, evidence) and the balls did not move farther from the prediction than
@@ -21,7 +21,7 @@ in order. For each frame:
 becomes the next frame's prior; a refused tracked pose is dropped, and after a lost frame
 the history is empty, so the next frame is identified from scratch.
 
-**What is done once per run** (:class:`~ftrac_design.segment.tracking.RunContext`), from
+**What is done once per run** (:class:`~ftrac_design.tracking.near.RunContext`), from
 the last frame the full identification tracked, and renewed at every re-identification:
 the polarity and the formation (a property of the detector chain and the file, not of the
 view), the blur the filters are sized for and the balls' fitted blur (the focal spot and the
@@ -41,18 +41,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
 
 from ..features import Features
-from ..pose import Camera, so3
+from ..pose import Camera, Provenance, Status, Timing, TrackedPose, so3
 from ..segment import TrackOptions, TrackResult, track_image
-from ..segment.tracking import RunContext, run_context, track_near
-
-#: what a frame's answer says about how it was found
-Status = Literal["tracked", "re-identified", "lost"]
+from .near import RunContext, run_context, track_near
 
 
 @dataclass(frozen=True)
@@ -81,7 +78,7 @@ class FrameAnswer:
     Attributes
     ----------
     result : what was found (the pose, converged or not, the observation, diagnostics).
-    status : "tracked", "re-identified" or "lost".
+    status : "tracked", "re-identified" or "lost" (of :data:`ftrac_design.pose.Status`).
     frame : the frame's index in the run.
     time_s : its time (s) where known, else None.
     elapsed_ms : wall time spent on it (ms), from the call to the answer.
@@ -95,19 +92,17 @@ class FrameAnswer:
     elapsed_ms: float
     tracking_error: str | None = None
 
-    def pose_dict(self) -> dict[str, Any]:
-        """The SPEC §4 pose object with ``frame``, ``time_s`` (where known), ``status`` and
-        ``timing`` (``elapsed_ms``, ``path``) added; ``tracking_error`` when a tracked pose
-        was refused."""
-        d = self.result.pose_dict()
-        d["frame"] = int(self.frame)
-        if self.time_s is not None and math.isfinite(self.time_s):
-            d["time_s"] = float(self.time_s)
-        d["status"] = self.status
-        d["timing"] = {"elapsed_ms": round(self.elapsed_ms, 3), "path": self.status}
-        if self.tracking_error:
-            d["tracking_error"] = self.tracking_error
-        return d
+    def record(self) -> TrackedPose:
+        """The frame's pose as it is written (:class:`~ftrac_design.pose.TrackedPose`): the
+        result's, with ``frame``, ``time_s`` (where known), ``status``, ``timing``
+        (``elapsed_ms``, ``path``) and, when a tracked pose was refused, ``tracking_error``."""
+        time_s = self.time_s if self.time_s is not None and math.isfinite(self.time_s) else None
+        return replace(
+            self.result.record(self.status),
+            provenance=Provenance(frame=int(self.frame), time_s=time_s),
+            timing=Timing(self.elapsed_ms, self.status),
+            tracking_error=self.tracking_error,
+        )
 
 
 @dataclass
@@ -132,11 +127,10 @@ class RunTracker:
 
     Parameters
     ----------
-    features : the design's features (mm, frame F).
+    features : the design's features (mm, frame F), their body (``features.body``) included
+        where known.
     camera : the intrinsics used when a frame comes without its own (SPEC §1), or None.
     options : the image path's settings (:class:`~ftrac_design.segment.TrackOptions`).
-    body : the fiducial's body (``ftrac_design.xray.Body``), None, or "auto" (from the
-        design named in ``features.source``).
     run_options : :class:`RunOptions`.
     independent : track every frame alone with the full identification (no prior), as
         ``track --independent`` does; the answers carry the same keys.
@@ -154,18 +148,12 @@ class RunTracker:
         camera: Camera | None = None,
         options: TrackOptions | None = None,
         *,
-        body: Any = "auto",
         run_options: RunOptions | None = None,
         independent: bool = False,
     ):
-        if isinstance(body, str):
-            from ..xray.scene import body_from_source
-
-            body = body_from_source(features.source)
         self.features = features
         self.camera = camera
         self.options = options or TrackOptions()
-        self.body = body
         self.run_options = run_options or RunOptions()
         self.independent = independent
         self._state = _State()
@@ -198,15 +186,19 @@ class RunTracker:
 
         Parameters are those of :meth:`track_frame`.
         """
-        return self.track_frame(
-            image,
-            camera,
-            time_s,
-            frame=frame,
-            options=options,
-            polarity_hint=polarity_hint,
-            formation_hint=formation_hint,
-        ).pose_dict()
+        return (
+            self.track_frame(
+                image,
+                camera,
+                time_s,
+                frame=frame,
+                options=options,
+                polarity_hint=polarity_hint,
+                formation_hint=formation_hint,
+            )
+            .record()
+            .to_dict()
+        )
 
     def track_frame(
         self,
@@ -252,16 +244,15 @@ class RunTracker:
         prediction = None if self.independent else self._predict(index, time_s)
         if prediction is not None and st.context is not None:
             fs = 2 if st.last_moved_px <= self.run_options.tight_start_px else 0
-            res = track_near(image, self.features, cam, *prediction, st.context, opts, body=self.body, first_stage=fs)
+            res = track_near(image, self.features, cam, *prediction, st.context, opts, first_stage=fs)
             if res.pose.converged:
-                st.last_moved_px = float(res.diagnostics.get("moved_px") or 0.0)
+                moved = res.diagnostics.moved_px
+                st.last_moved_px = float(moved) if moved and math.isfinite(moved) else 0.0
                 self._accept(index, time_s, res)
                 return FrameAnswer(res, "tracked", index, time_s, 1000 * (time.perf_counter() - start))
             tracking_error = res.pose.error
-        res = track_image(
-            image, self.features, cam, opts, polarity_hint=polarity_hint, body=self.body, formation_hint=formation_hint
-        )
-        res.diagnostics["path"] = "re-identified" if res.pose.converged else "lost"
+        res = track_image(image, self.features, cam, opts, polarity_hint=polarity_hint, formation_hint=formation_hint)
+        res.diagnostics.path = "re-identified" if res.pose.converged else "lost"
         st.last_moved_px = math.inf
         if not res.pose.converged:
             # nothing carried over a frame without a confirmed pose
