@@ -13,8 +13,9 @@ says how values are displayed (see :mod:`.dicom_pixels`).
 from __future__ import annotations
 
 import datetime
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal, Sequence
+from typing import Any, Literal, Sequence
 
 import numpy as np
 
@@ -43,41 +44,12 @@ SYNTAX = {
 _T0 = datetime.datetime(2026, 1, 1, 12, 0, 0)
 
 
-def write_dicom(
-    path: str | Path,
-    frames: np.ndarray,
-    camera: Camera | Sequence[Camera] | None,
-    *,
-    kind: Kind = "xa",
-    photometric: Literal["MONOCHROME2", "MONOCHROME1", "RGB"] = "MONOCHROME2",
-    relationship: Literal["LIN", "LOG", "DISP"] | None = None,
-    relationship_sign: int | None = None,
-    fov_rotation_deg: int = 0,
-    fov_horizontal_flip: bool = False,
-    frame_time_ms: float | None = None,
-    frame_time_vector_ms: Sequence[float] | None = None,
-    transfer_syntax: Syntax = "explicit",
-    omit: tuple[str, ...] = (),
-    pixel_spacing_only: bool = False,
-    calibration: Literal["GEOMETRY", "FIDUCIAL"] | None = "GEOMETRY",
-    magnification: float | None = None,
-    isocenter_projection_px: tuple[float, float] | None = None,
-    signed: bool = False,
-    bits_stored: int = 16,
-    rescale: tuple[float, float] | None = None,
-    modality_lut: np.ndarray | None = None,
-    image_comments: str | None = None,
-    presentation_intent: str | None = None,
-) -> Path:
-    """Write a DICOM image or run atomically (see the module).
+@dataclass(frozen=True)
+class DicomTags:
+    """What :func:`write_dicom` writes beside the pixels (its keyword arguments).
 
-    Parameters
+    Attributes
     ----------
-    path : output file.
-    frames : (H, W) or (n, H, W) stored integers on the detector grid; (…, H, W, 3) uint8 with
-        ``photometric="RGB"``.
-    camera : intrinsics (detector-grid pixels), one per frame for a per-frame geometry
-        (enhanced kinds), or None to write no geometry.
     kind : the IOD. Enhanced kinds keep geometry in functional groups.
     photometric, relationship, relationship_sign : Photometric Interpretation, Pixel
         Intensity Relationship (0028,1040) and its Sign (0028,1041).
@@ -98,71 +70,96 @@ def write_dicom(
     rescale : (slope, intercept) Rescale Slope/Intercept (Pixel Value Transformation group for
         enhanced kinds); ``modality_lut`` a Modality LUT Sequence instead (first mapped value 0).
     image_comments, presentation_intent : Image Comments and Presentation Intent Type.
+    """
+
+    kind: Kind = "xa"
+    photometric: Literal["MONOCHROME2", "MONOCHROME1", "RGB"] = "MONOCHROME2"
+    relationship: Literal["LIN", "LOG", "DISP"] | None = None
+    relationship_sign: int | None = None
+    fov_rotation_deg: int = 0
+    fov_horizontal_flip: bool = False
+    frame_time_ms: float | None = None
+    frame_time_vector_ms: Sequence[float] | None = None
+    transfer_syntax: Syntax = "explicit"
+    omit: tuple[str, ...] = ()
+    pixel_spacing_only: bool = False
+    calibration: Literal["GEOMETRY", "FIDUCIAL"] | None = "GEOMETRY"
+    magnification: float | None = None
+    isocenter_projection_px: tuple[float, float] | None = None
+    signed: bool = False
+    bits_stored: int = 16
+    rescale: tuple[float, float] | None = None
+    modality_lut: np.ndarray | None = None
+    image_comments: str | None = None
+    presentation_intent: str | None = None
+
+
+def write_dicom(path: str | Path, frames: np.ndarray, camera: Camera | Sequence[Camera] | None, **tags: Any) -> Path:
+    """Write a DICOM image or run atomically (see the module).
+
+    Parameters
+    ----------
+    path : output file.
+    frames : (H, W) or (n, H, W) stored integers on the detector grid; (…, H, W, 3) uint8 with
+        ``photometric="RGB"``.
+    camera : intrinsics (detector-grid pixels), one per frame for a per-frame geometry
+        (enhanced kinds), or None to write no geometry.
+    **tags : what is written beside the pixels, by keyword: the fields of :class:`DicomTags`
+        (``kind="enhanced-xa"``, ``relationship="LIN"``, ``frame_time_ms=66.7``, …); an unknown
+        keyword raises TypeError.
 
     Returns
     -------
     Path : ``path``.
     """
+    t = DicomTags(**tags)
     path = Path(path)
-    frames, rgb = _frames(frames, photometric)
+    frames, rgb = _frames(frames, t.photometric)
     n = frames.shape[0]
-    cams = _cameras(camera, n, kind)
-    fov = FieldOfView(int(fov_rotation_deg), bool(fov_horizontal_flip), (0.0, 0.0))
+    cams = _cameras(camera, n, t.kind)
+    fov = FieldOfView(int(t.fov_rotation_deg), bool(t.fov_horizontal_flip), (0.0, 0.0))
     stored = np.ascontiguousarray(np.stack([apply_field_of_view(f, fov) for f in frames]))
-    ds = _base(path, kind, stored, n, photometric, rgb, signed, bits_stored, transfer_syntax)
-    if presentation_intent:
-        ds.PresentationIntentType = presentation_intent
-        if kind == "dx" and presentation_intent == "FOR PROCESSING":
+    ds = _base(path, t.kind, stored, n, t.photometric, rgb, t.signed, t.bits_stored, t.transfer_syntax)
+    if t.presentation_intent:
+        ds.PresentationIntentType = t.presentation_intent
+        if t.kind == "dx" and t.presentation_intent == "FOR PROCESSING":
             ds.SOPClassUID = ds.file_meta.MediaStorageSOPClassUID = DX_FOR_PROCESSING
-    if image_comments:
-        ds.ImageComments = image_comments
-    if kind.startswith("enhanced"):
-        from .write_dicom_groups import enhanced_groups
-
-        enhanced_groups(
-            ds,
-            n,
-            cams,
-            fov,
-            relationship,
-            relationship_sign,
-            frame_time_ms,
-            frame_time_vector_ms,
-            pixel_spacing_only,
-            calibration,
-            magnification,
-            rescale,
-            _T0,
-        )
-    else:
-        _legacy_tags(
-            ds,
-            n,
-            cams[0] if cams else None,
-            fov,
-            relationship,
-            relationship_sign,
-            frame_time_ms,
-            frame_time_vector_ms,
-            pixel_spacing_only,
-            calibration,
-            magnification,
-            rescale,
-        )
-    if modality_lut is not None:
-        _modality_lut(ds, np.asarray(modality_lut), bits_stored)
-    if isocenter_projection_px is not None and cams:
-        u, v = isocenter_projection_px
-        ds.PositionOfIsocenterProjection = [float(v), float(u)]
-        sx, sy = cams[0].pixel_size_mm
-        ds.DetectorElementSpacing = [f"{sy:.10g}", f"{sx:.10g}"]
-        if not kind.startswith("enhanced"):
-            ds.FieldOfViewOrigin = ["0", "0"]
-    _omit(ds, omit)
-    _pixel_data(ds, stored, transfer_syntax, bits_stored, signed, rgb)
+    if t.image_comments:
+        ds.ImageComments = t.image_comments
+    _geometry_and_time(ds, t, n, cams, fov)
+    if t.modality_lut is not None:
+        _modality_lut(ds, np.asarray(t.modality_lut), t.bits_stored)
+    _isocenter(ds, t, cams)
+    _omit(ds, t.omit)
+    _pixel_data(ds, stored, t.transfer_syntax, t.bits_stored, t.signed, rgb)
     with atomic_file(path) as tmp:
         ds.save_as(tmp, enforce_file_format=True)
     return path
+
+
+def _geometry_and_time(ds, t: DicomTags, n: int, cams: list[Camera], fov: FieldOfView) -> None:
+    """The tags of the geometry, the pixel relationship, the frames' times and the rescale:
+    in functional groups for the enhanced kinds, at the top level for the others."""
+    timing = (t.frame_time_ms, t.frame_time_vector_ms)
+    spacing = (t.pixel_spacing_only, t.calibration, t.magnification, t.rescale)
+    if t.kind.startswith("enhanced"):
+        from .write_dicom_groups import enhanced_groups
+
+        enhanced_groups(ds, n, cams, fov, t.relationship, t.relationship_sign, *timing, *spacing, _T0)
+    else:
+        cam = cams[0] if cams else None
+        _legacy_tags(ds, n, cam, fov, t.relationship, t.relationship_sign, *timing, *spacing)
+
+
+def _isocenter(ds, t: DicomTags, cams: list[Camera]) -> None:
+    """The isocentre's projection, one detector element per pixel (with a camera)."""
+    if t.isocenter_projection_px is not None and cams:
+        u, v = t.isocenter_projection_px
+        ds.PositionOfIsocenterProjection = [float(v), float(u)]
+        sx, sy = cams[0].pixel_size_mm
+        ds.DetectorElementSpacing = [f"{sy:.10g}", f"{sx:.10g}"]
+        if not t.kind.startswith("enhanced"):
+            ds.FieldOfViewOrigin = ["0", "0"]
 
 
 def _frames(frames: np.ndarray, photometric: str) -> tuple[np.ndarray, bool]:

@@ -446,66 +446,16 @@ def compile_problem(
     intr = np.array([o.camera.intrinsics for o in observations])
     pix = np.array([(o.camera.pixel_size_mm[0] + o.camera.pixel_size_mm[1]) / 2 for o in observations])
 
-    P, L, E = len(point_ids), len(line_ids), len(ellipse_ids)
+    P, E = len(point_ids), len(ellipse_ids)
     p_obs = np.array([[o.points[i] for i in point_ids] for o in observations]).reshape(B, P, 2)
     p_w = np.repeat((pix / noise.point_mm)[:, None], P, 1)
-    fit_chi2 = np.zeros(B)
-    fit_dof = np.zeros(B)
-
-    def fit_all(section: str, ids: list[str], fitter, what: str):
-        """Fit every contour-given curve of ``section`` in one batched call: (B, n) results."""
-        cols = [j for j, fid in enumerate(ids) if getattr(obs0, section)[fid].points is not None]
-        if not cols:
-            return cols, None
-        contours = [getattr(o, section)[ids[j]].points for o in observations for j in cols]
-        keys = [f"{section}.{ids[j]}.points" for _ in observations for j in cols]
-        org = [o.origin for o in observations for _ in cols]
-        fit = _fit_batch(fitter, contours, org, keys, what)
-        # a slice when every curve is contour-given (the usual case) indexes without copying
-        return (slice(None) if len(cols) == len(ids) else cols), fit
-
-    l_n, l_m, l_c = np.zeros((B, L, 2)), np.zeros((B, L, 2)), np.zeros((B, L))
-    l_info, l_from_model = np.full((B, L, 2, 2), np.nan), np.ones(L, bool)
-    l_sig = np.repeat((noise.line_mm / pix)[:, None], L, 1)
-    cols, fit = fit_all("lines", line_ids, fit_line, "a line")
-    if fit is not None:
-        n = fit.normal.size // (2 * B)
-        l_n[:, cols] = fit.normal.reshape(B, n, 2)
-        l_m[:, cols] = fit.anchor.reshape(B, n, 2)
-        l_info[:, cols] = fit.info.reshape(B, n, 2, 2) / l_sig[:, cols, None, None] ** 2
-        fit_chi2 += (fit.rss.reshape(B, n) / l_sig[:, cols] ** 2).sum(1)
-        fit_dof += fit.dof.reshape(B, n).sum(1)
-        l_from_model[cols] = task_scaling == "diagonal"
-    for j in np.flatnonzero(l_from_model):
-        if obs0.lines[line_ids[j]].points is not None:
-            continue
-        lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]), intr[:, 2:4])
-        l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
-
-    e_theta, e_m, e_s = np.zeros((B, E, 6)), np.zeros((B, E, 2)), np.ones((B, E))
-    e_basis, e_info = np.zeros((B, E, 6, 5)), np.full((B, E, 5, 5), np.nan)
-    e_from_model = np.ones(E, bool)
-    e_sig = np.repeat((noise.ellipse_mm / pix)[:, None], E, 1)
-    cols, cf = fit_all("ellipses", ellipse_ids, fit_conic, "an ellipse")
-    if cf is not None:
-        n = cf.scale.size // B
-        e_theta[:, cols] = cf.theta.reshape(B, n, 6)
-        e_m[:, cols] = cf.center.reshape(B, n, 2)
-        e_s[:, cols] = cf.scale.reshape(B, n)
-        e_basis[:, cols] = cf.basis.reshape(B, n, 6, 5)
-        e_info[:, cols] = (
-            cf.info.reshape(B, n, 5, 5)
-            / e_sig[:, cols, None, None] ** 2
-            * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1)
-        )
-        fit_chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
-        fit_dof += cf.dof.reshape(B, n).sum(1)
-        e_from_model[cols] = task_scaling == "diagonal"
-    for j in np.flatnonzero(e_from_model):
-        if obs0.ellipses[ellipse_ids[j]].points is not None:
-            continue
-        cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
-        e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
+    l_n, l_m, l_c, l_info, l_from_model, l_sig, l_chi2, l_dof = _line_arrays(
+        observations, line_ids, noise.line_mm / pix, intr, task_scaling
+    )
+    e_theta, e_m, e_s, e_basis, e_info, e_from_model, e_sig, e_chi2, e_dof = _ellipse_arrays(
+        observations, ellipse_ids, noise.ellipse_mm / pix, task_scaling
+    )
+    fit_chi2, fit_dof = l_chi2 + e_chi2, l_dof + e_dof
     e_kpaper = paper_k(e_theta) if E and distance == "paper" else np.zeros((B, E))
     prob = Problem(
         intr,
@@ -538,6 +488,80 @@ def compile_problem(
     )
     prob._coplanar = coplanar
     return prob
+
+
+def _fit_section(observations: list[Observation], section: str, ids: list[str], fitter, what: str):
+    """Fit every contour-given curve of ``section`` ("lines", "ellipses") in one batched call:
+    the columns of ``ids`` fitted (a slice when every curve is contour-given, the usual case,
+    indexing without a copy) and the (B·n) results, or ([], None)."""
+    obs0 = observations[0]
+    cols = [j for j, fid in enumerate(ids) if getattr(obs0, section)[fid].points is not None]
+    if not cols:
+        return cols, None
+    contours = [getattr(o, section)[ids[j]].points for o in observations for j in cols]
+    keys = [f"{section}.{ids[j]}.points" for _ in observations for j in cols]
+    org = [o.origin for o in observations for _ in cols]
+    fit = _fit_batch(fitter, contours, org, keys, what)
+    return (slice(None) if len(cols) == len(ids) else cols), fit
+
+
+def _line_arrays(observations: list[Observation], line_ids: list[str], sigma: np.ndarray, intr, task_scaling: str):
+    """The lines' arrays of :class:`Problem` (normal, anchor, offset, information, whether the
+    whitening comes from the model, σ px) and their fits' χ² and degrees of freedom (B,);
+    ``sigma`` (B,) the line noise in px."""
+    B, L = len(observations), len(line_ids)
+    chi2, dof = np.zeros(B), np.zeros(B)
+    l_n, l_m, l_c = np.zeros((B, L, 2)), np.zeros((B, L, 2)), np.zeros((B, L))
+    l_info, l_from_model = np.full((B, L, 2, 2), np.nan), np.ones(L, bool)
+    l_sig = np.repeat(sigma[:, None], L, 1)
+    cols, fit = _fit_section(observations, "lines", line_ids, fit_line, "a line")
+    if fit is not None:
+        n = fit.normal.size // (2 * B)
+        l_n[:, cols] = fit.normal.reshape(B, n, 2)
+        l_m[:, cols] = fit.anchor.reshape(B, n, 2)
+        l_info[:, cols] = fit.info.reshape(B, n, 2, 2) / l_sig[:, cols, None, None] ** 2
+        chi2 += (fit.rss.reshape(B, n) / l_sig[:, cols] ** 2).sum(1)
+        dof += fit.dof.reshape(B, n).sum(1)
+        l_from_model[cols] = task_scaling == "diagonal"
+    for j in np.flatnonzero(l_from_model):
+        if observations[0].lines[line_ids[j]].points is not None:
+            continue
+        lf = line_from_coefficients(np.array([o.lines[line_ids[j]].coefficients for o in observations]), intr[:, 2:4])
+        l_n[:, j], l_m[:, j], l_c[:, j] = lf.normal, lf.anchor, lf.offset
+    return l_n, l_m, l_c, l_info, l_from_model, l_sig, chi2, dof
+
+
+def _ellipse_arrays(observations: list[Observation], ellipse_ids: list[str], sigma: np.ndarray, task_scaling: str):
+    """The ellipses' arrays of :class:`Problem` (conic, centre, scale, basis, information,
+    whether the whitening comes from the model, σ px) and their fits' χ² and degrees of
+    freedom (B,); ``sigma`` (B,) the ellipse noise in px."""
+    B, E = len(observations), len(ellipse_ids)
+    chi2, dof = np.zeros(B), np.zeros(B)
+    e_theta, e_m, e_s = np.zeros((B, E, 6)), np.zeros((B, E, 2)), np.ones((B, E))
+    e_basis, e_info = np.zeros((B, E, 6, 5)), np.full((B, E, 5, 5), np.nan)
+    e_from_model = np.ones(E, bool)
+    e_sig = np.repeat(sigma[:, None], E, 1)
+    cols, cf = _fit_section(observations, "ellipses", ellipse_ids, fit_conic, "an ellipse")
+    if cf is not None:
+        n = cf.scale.size // B
+        e_theta[:, cols] = cf.theta.reshape(B, n, 6)
+        e_m[:, cols] = cf.center.reshape(B, n, 2)
+        e_s[:, cols] = cf.scale.reshape(B, n)
+        e_basis[:, cols] = cf.basis.reshape(B, n, 6, 5)
+        e_info[:, cols] = (
+            cf.info.reshape(B, n, 5, 5)
+            / e_sig[:, cols, None, None] ** 2
+            * thin_ellipse_weight(cf, e_sig[:, cols].reshape(-1)).reshape(B, n, 1, 1)
+        )
+        chi2 += (cf.rss.reshape(B, n) / e_sig[:, cols] ** 2).sum(1)
+        dof += cf.dof.reshape(B, n).sum(1)
+        e_from_model[cols] = task_scaling == "diagonal"
+    for j in np.flatnonzero(e_from_model):
+        if observations[0].ellipses[ellipse_ids[j]].points is not None:
+            continue
+        cc = conic_from_coefficients(np.array([o.ellipses[ellipse_ids[j]].coefficients for o in observations]))
+        e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = cc.theta, cc.center, cc.scale, cc.basis
+    return e_theta, e_m, e_s, e_basis, e_info, e_from_model, e_sig, chi2, dof
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -675,79 +699,16 @@ def evaluate(
         Ws.append(prob.p_w)
 
     if L:
-        sl = slice(P, P + 2 * L)
-        q = uv[:, sl].reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
-        nx, ny = prob.l_n[..., 0, None], prob.l_n[..., 1, None]
-        r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]  # (B, L, 2)
-        if refresh:
-            # D = ∂r/∂(ψ, c) has rows (n⊥·(p − m), 1); W = chol(Λ)ᵀ D⁻¹
-            d0 = q[..., 1] * nx - q[..., 0] * ny
-            det = d0[..., 0] - d0[..., 1]
-            Dinv = np.empty((B, L, 2, 2))
-            Dinv[..., 0, 0] = 1.0
-            Dinv[..., 0, 1] = -1.0
-            Dinv[..., 1, 0] = -d0[..., 1]
-            Dinv[..., 1, 1] = d0[..., 0]
-            Dinv /= det[..., None, None]
-            Lt = prob.l_Lt
-            if prob.l_from_model.any():
-                D = np.stack([d0, np.ones_like(d0)], -1)
-                dm = np.swapaxes(D, -1, -2) @ D / prob.l_sig[..., None, None] ** 2
-                Lt = np.where(prob.l_from_model[None, :, None, None], _chol_t(dm), Lt)
-            W = Lt @ Dinv
-            if freeze is not None:
-                W = rows_where(freeze, whitening[len(Ws)], W)
-        else:
-            W = whitening[len(Ws)]
+        prev = whitening[len(Ws)] if whitening is not None else None
+        r, W = _line_residuals(prob, uv[:, P : P + 2 * L], refresh, prev, freeze)
         if reference is not None:
             ref.append((reference[len(Ws)] @ r[..., None]).reshape(B, 2 * L))
         Ws.append(W)
         rho.append((W @ r[..., None]).reshape(B, 2 * L))
         raw.append(r.reshape(B, 2 * L))
     if E:
-        sl = slice(P + 2 * L, P + 2 * L + E * K)
-        s = prob.e_s[..., None]
-        pn = (uv[:, sl].reshape(B, E, K, 2) - prob.e_m[:, :, None, :]) / s[..., None]
-        # with H = ∇²Q and ℓ = (D, E): ∇Q = H p + ℓ and Q = ½ p·(∇Q + ℓ) + F
-        H = prob.e_hess
-        g = pn @ H + prob.e_lin  # (B, E, K, 2)
-        Qv = 0.5 * (pn * (g + prob.e_lin)).sum(-1) + prob.e_F
-        if prob.distance == "sampson":
-            gn2 = (g * g).sum(-1)
-            gn = np.sqrt(gn2)
-            r = s * Qv / gn
-            if refresh:
-                # D = ∂d/∂θ, taken where each model point's distance is measured: at its foot
-                # on the observed conic (one Newton step), where ∂(Q/|∇Q|)/∂θ = ξ/|∇Q|. Taken
-                # at the model points themselves it equals this to first order near the
-                # solution, but far from it (model points off a thin ellipse) DᵀD can become
-                # singular and the whitening explode into false minima.
-                foot = pn - (Qv / gn2)[..., None] * g
-                fg = foot @ H + prob.e_lin
-                D = _xi_basis(foot, prob.e_basis9) * (s / np.sqrt((fg * fg).sum(-1)))[..., None]
-            if jac:
-                # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³
-                duv = g / gn[..., None] - (Qv / (gn2 * gn))[..., None] * (g @ H)
-        else:
-            k = prob.e_kpaper[..., None]
-            r = s * k * Qv
-            if refresh:
-                D = _xi_basis(pn, prob.e_basis9) * (s * k)[..., None]
-            if jac:
-                duv = k[..., None] * g
-        if refresh:
-            Dt = np.swapaxes(D, -1, -2)  # (B, E, 5, K)
-            DtD = Dt @ D
-            Lt = prob.e_Lt
-            if prob.e_from_model.any():
-                Lt = np.where(
-                    prob.e_from_model[None, :, None, None], _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt
-                )
-            W = Lt @ spd_solve(DtD, Dt)  # (B, E, 5, K)
-            if freeze is not None:
-                W = rows_where(freeze, whitening[len(Ws)], W)
-        else:
-            W = whitening[len(Ws)]
+        prev = whitening[len(Ws)] if whitening is not None else None
+        r, W, duv = _ellipse_residuals(prob, uv[:, P + 2 * L : P + 2 * L + E * K], refresh, jac, prev, freeze)
         if reference is not None:
             ref.append((reference[len(Ws)] @ r[..., None]).reshape(B, 5 * E))
         Ws.append(W)
@@ -771,3 +732,79 @@ def evaluate(
     return Evaluation(
         cat(rho), J, cat(raw), dr if raw_jacobian else None, Ws, Z, cat(ref) if reference is not None else None
     )
+
+
+def _line_residuals(prob: Problem, uv: np.ndarray, refresh: bool, prev, freeze) -> tuple[np.ndarray, np.ndarray]:
+    """The lines' raw residuals (B, L, 2) at their model points' projections ``uv`` (B, 2L, 2)
+    and their whitening W (B, L, 2, 2): computed afresh when ``refresh``, where ``freeze`` is
+    False (elsewhere ``prev``), else ``prev`` (see :func:`evaluate`)."""
+    B, L = prob.B, len(prob.line_ids)
+    q = uv.reshape(B, L, 2, 2) - prob.l_m[:, :, None, :]
+    nx, ny = prob.l_n[..., 0, None], prob.l_n[..., 1, None]
+    r = q[..., 0] * nx + q[..., 1] * ny + prob.l_c[..., None]  # (B, L, 2)
+    if not refresh:
+        return r, prev
+    # D = ∂r/∂(ψ, c) has rows (n⊥·(p − m), 1); W = chol(Λ)ᵀ D⁻¹
+    d0 = q[..., 1] * nx - q[..., 0] * ny
+    det = d0[..., 0] - d0[..., 1]
+    Dinv = np.empty((B, L, 2, 2))
+    Dinv[..., 0, 0] = 1.0
+    Dinv[..., 0, 1] = -1.0
+    Dinv[..., 1, 0] = -d0[..., 1]
+    Dinv[..., 1, 1] = d0[..., 0]
+    Dinv /= det[..., None, None]
+    Lt = prob.l_Lt
+    if prob.l_from_model.any():
+        D = np.stack([d0, np.ones_like(d0)], -1)
+        dm = np.swapaxes(D, -1, -2) @ D / prob.l_sig[..., None, None] ** 2
+        Lt = np.where(prob.l_from_model[None, :, None, None], _chol_t(dm), Lt)
+    W = Lt @ Dinv
+    return r, (rows_where(freeze, prev, W) if freeze is not None else W)
+
+
+def _ellipse_residuals(
+    prob: Problem, uv: np.ndarray, refresh: bool, jac: bool, prev, freeze
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The ellipses' raw residuals (B, E, K) at their model points' projections ``uv``
+    (B, E·K, 2), their whitening W (B, E, 5, K) (as :func:`_line_residuals`) and, with ``jac``,
+    each residual's image gradient (B, E, K, 2)."""
+    B, E, K = prob.B, len(prob.ellipse_ids), prob.K
+    s = prob.e_s[..., None]
+    pn = (uv.reshape(B, E, K, 2) - prob.e_m[:, :, None, :]) / s[..., None]
+    # with H = ∇²Q and ℓ = (D, E): ∇Q = H p + ℓ and Q = ½ p·(∇Q + ℓ) + F
+    H = prob.e_hess
+    g = pn @ H + prob.e_lin  # (B, E, K, 2)
+    Qv = 0.5 * (pn * (g + prob.e_lin)).sum(-1) + prob.e_F
+    duv = None
+    if prob.distance == "sampson":
+        gn2 = (g * g).sum(-1)
+        gn = np.sqrt(gn2)
+        r = s * Qv / gn
+        if refresh:
+            # D = ∂d/∂θ, taken where each model point's distance is measured: at its foot
+            # on the observed conic (one Newton step), where ∂(Q/|∇Q|)/∂θ = ξ/|∇Q|. Taken
+            # at the model points themselves it equals this to first order near the
+            # solution, but far from it (model points off a thin ellipse) DᵀD can become
+            # singular and the whitening explode into false minima.
+            foot = pn - (Qv / gn2)[..., None] * g
+            fg = foot @ H + prob.e_lin
+            D = _xi_basis(foot, prob.e_basis9) * (s / np.sqrt((fg * fg).sum(-1)))[..., None]
+        if jac:
+            # exact image gradient of Q/|∇Q|: ∇Q/|∇Q| − Q H∇Q/|∇Q|³
+            duv = g / gn[..., None] - (Qv / (gn2 * gn))[..., None] * (g @ H)
+    else:
+        k = prob.e_kpaper[..., None]
+        r = s * k * Qv
+        if refresh:
+            D = _xi_basis(pn, prob.e_basis9) * (s * k)[..., None]
+        if jac:
+            duv = k[..., None] * g
+    if not refresh:
+        return r, prev, duv
+    Dt = np.swapaxes(D, -1, -2)  # (B, E, 5, K)
+    DtD = Dt @ D
+    Lt = prob.e_Lt
+    if prob.e_from_model.any():
+        Lt = np.where(prob.e_from_model[None, :, None, None], _chol_t(DtD / prob.e_sig[..., None, None] ** 2), Lt)
+    W = Lt @ spd_solve(DtD, Dt)  # (B, E, 5, K)
+    return r, (rows_where(freeze, prev, W) if freeze is not None else W), duv

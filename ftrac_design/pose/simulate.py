@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -264,63 +265,16 @@ def synthetic_problem(
     K = ellipse_model_points
     X, _ = model_layout(features, point_ids, line_ids, ellipse_ids, K)
 
-    def project(P: np.ndarray) -> np.ndarray:
-        Pc = np.einsum("bij,...j->b...i", R, P) + t.reshape((Bn,) + (1,) * (P.ndim - 1) + (3,))
-        return np.stack(
-            [
-                intr[:, 0].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 0] / Pc[..., 2]
-                + intr[:, 2].reshape((Bn,) + (1,) * (P.ndim - 1)),
-                intr[:, 1].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 1] / Pc[..., 2]
-                + intr[:, 3].reshape((Bn,) + (1,) * (P.ndim - 1)),
-            ],
-            -1,
-        )
-
+    project = partial(_project_batch, R, t, intr)
     pts = {p.id: p for p in features.points}
     P_ = len(point_ids)
     p_obs = project(np.array([pts[i].center for i in point_ids]).reshape(-1, 3)) if P_ else np.zeros((Bn, 0, 2))
     p_w = np.full((Bn, P_), pix / noise.point_mm)
-
-    lns = {ln.id: ln for ln in features.lines}
-    L = len(line_ids)
-    l_n, l_m, l_info = np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2, 2))
-    l_sig = np.full((Bn, L), noise.line_mm / pix)
-    if L:
-        s = np.linspace(0.0, 1.0, contour.line)[:, None]
-        P3 = np.stack([lns[i].start + s * (lns[i].end - lns[i].start) for i in line_ids])  # (L, n, 3)
-        q = project(P3)  # (B, L, n, 2)
-        d = q[..., -1, :] - q[..., 0, :]
-        d /= np.linalg.norm(d, axis=-1, keepdims=True)
-        l_n = np.stack([-d[..., 1], d[..., 0]], -1)
-        l_m = q.mean(-2)
-        along = np.einsum("blni,bli->bln", q - l_m[..., None, :], d)
-        l_info[..., 0, 0] = np.sum(along**2, -1)
-        l_info[..., 1, 1] = contour.line
-        l_info /= l_sig[..., None, None] ** 2
-
-    els = {e.id: e for e in features.ellipses}
-    E = len(ellipse_ids)
-    e_theta, e_m, e_s = np.zeros((Bn, E, 6)), np.zeros((Bn, E, 2)), np.ones((Bn, E))
-    e_basis, e_info = np.zeros((Bn, E, 6, 5)), np.zeros((Bn, E, 5, 5))
-    e_sig = np.full((Bn, E), noise.ellipse_mm / pix)
-    sj = np.linspace(0.0, 2 * np.pi, contour.ellipse, endpoint=False)
-    for j, fid in enumerate(ellipse_ids):
-        el = els[fid]
-        q = project(el.sample(sj))  # (B, n, 2)
-        m, sc = normalisation(q, np.ones(q.shape[:-1]))
-        C = projected_conic(el, intr, R, t)
-        N = np.zeros((Bn, 3, 3))
-        N[:, 0, 0] = N[:, 1, 1] = sc
-        N[:, :2, 2] = m
-        N[:, 2, 2] = 1.0
-        th = conic_vector(np.swapaxes(N, -1, -2) @ C @ N)
-        th /= np.linalg.norm(th, axis=-1, keepdims=True)
-        basis = tangent_basis(th)
-        qn = (q - m[:, None, :]) / sc[:, None, None]
-        _, dd = sampson_theta_jacobian(th, qn[..., 0], qn[..., 1])
-        G = dd @ basis
-        e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = th, m, sc, basis
-        e_info[:, j] = np.einsum("bni,bnj->bij", G, G) * (sc * sc / e_sig[:, j] ** 2)[:, None, None]
+    L, E = len(line_ids), len(ellipse_ids)
+    l_n, l_m, l_info, l_sig = _synthetic_lines(features, line_ids, project, Bn, noise.line_mm / pix, contour.line)
+    e_theta, e_m, e_s, e_basis, e_info, e_sig = _synthetic_ellipses(
+        features, ellipse_ids, project, intr, R, t, noise.ellipse_mm / pix, contour.ellipse
+    )
     e_kpaper = paper_k(e_theta) if E else np.zeros((Bn, 0))
     return Problem(
         intr,
@@ -351,6 +305,74 @@ def synthetic_problem(
         [],
         np.full(Bn, pix),
     )
+
+
+def _project_batch(R: np.ndarray, t: np.ndarray, intr: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Points ``P`` (…, 3) mm in F projected at every pose (B, 3, 3), (B, 3) with intrinsics
+    ``intr`` (B, 4): (B, …, 2) px."""
+    Bn = R.shape[0]
+    Pc = np.einsum("bij,...j->b...i", R, P) + t.reshape((Bn,) + (1,) * (P.ndim - 1) + (3,))
+    return np.stack(
+        [
+            intr[:, 0].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 0] / Pc[..., 2]
+            + intr[:, 2].reshape((Bn,) + (1,) * (P.ndim - 1)),
+            intr[:, 1].reshape((Bn,) + (1,) * (P.ndim - 1)) * Pc[..., 1] / Pc[..., 2]
+            + intr[:, 3].reshape((Bn,) + (1,) * (P.ndim - 1)),
+        ],
+        -1,
+    )
+
+
+def _synthetic_lines(features: Features, line_ids: list[str], project, Bn: int, sigma_px: float, samples: int):
+    """The lines' arrays of :func:`synthetic_problem` (normal, anchor, information, σ) for
+    noise-free contours of ``samples`` points, noise ``sigma_px``."""
+    lns = {ln.id: ln for ln in features.lines}
+    L = len(line_ids)
+    l_n, l_m, l_info = np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2)), np.zeros((Bn, L, 2, 2))
+    l_sig = np.full((Bn, L), sigma_px)
+    if L:
+        s = np.linspace(0.0, 1.0, samples)[:, None]
+        P3 = np.stack([lns[i].start + s * (lns[i].end - lns[i].start) for i in line_ids])  # (L, n, 3)
+        q = project(P3)  # (B, L, n, 2)
+        d = q[..., -1, :] - q[..., 0, :]
+        d /= np.linalg.norm(d, axis=-1, keepdims=True)
+        l_n = np.stack([-d[..., 1], d[..., 0]], -1)
+        l_m = q.mean(-2)
+        along = np.einsum("blni,bli->bln", q - l_m[..., None, :], d)
+        l_info[..., 0, 0] = np.sum(along**2, -1)
+        l_info[..., 1, 1] = samples
+        l_info /= l_sig[..., None, None] ** 2
+    return l_n, l_m, l_info, l_sig
+
+
+def _synthetic_ellipses(features: Features, ellipse_ids: list[str], project, intr, R, t, sigma_px: float, samples: int):
+    """The ellipses' arrays of :func:`synthetic_problem` (conic, centre, scale, basis,
+    information, σ) for noise-free contours of ``samples`` points, noise ``sigma_px``."""
+    Bn = R.shape[0]
+    els = {e.id: e for e in features.ellipses}
+    E = len(ellipse_ids)
+    e_theta, e_m, e_s = np.zeros((Bn, E, 6)), np.zeros((Bn, E, 2)), np.ones((Bn, E))
+    e_basis, e_info = np.zeros((Bn, E, 6, 5)), np.zeros((Bn, E, 5, 5))
+    e_sig = np.full((Bn, E), sigma_px)
+    sj = np.linspace(0.0, 2 * np.pi, samples, endpoint=False)
+    for j, fid in enumerate(ellipse_ids):
+        el = els[fid]
+        q = project(el.sample(sj))  # (B, n, 2)
+        m, sc = normalisation(q, np.ones(q.shape[:-1]))
+        C = projected_conic(el, intr, R, t)
+        N = np.zeros((Bn, 3, 3))
+        N[:, 0, 0] = N[:, 1, 1] = sc
+        N[:, :2, 2] = m
+        N[:, 2, 2] = 1.0
+        th = conic_vector(np.swapaxes(N, -1, -2) @ C @ N)
+        th /= np.linalg.norm(th, axis=-1, keepdims=True)
+        basis = tangent_basis(th)
+        qn = (q - m[:, None, :]) / sc[:, None, None]
+        _, dd = sampson_theta_jacobian(th, qn[..., 0], qn[..., 1])
+        G = dd @ basis
+        e_theta[:, j], e_m[:, j], e_s[:, j], e_basis[:, j] = th, m, sc, basis
+        e_info[:, j] = np.einsum("bni,bnj->bij", G, G) * (sc * sc / e_sig[:, j] ** 2)[:, None, None]
+    return e_theta, e_m, e_s, e_basis, e_info, e_sig
 
 
 def pose_errors(R_est: np.ndarray, t_est: np.ndarray, R_true: np.ndarray, t_true: np.ndarray):

@@ -242,81 +242,103 @@ def levenberg_marquardt(
         if B >= 8 and act.sum() <= B // 4:
             # most rows are done: finish the stragglers on a compacted batch instead of
             # recomputing every converged row at every iteration
-            idx = np.flatnonzero(act)
-            sub = levenberg_marquardt(prob.take(idx), None, None, h, max_iterations - it, st.rows(idx), eager[idx])
-            st.R[idx], st.t[idx], st.rho[idx], st.J[idx] = sub.R, sub.t, sub.rho, sub.J
-            st.raw[idx], st.Z[idx], st.cost[idx] = sub.raw, sub.Z, sub.cost
-            st.iters[idx], st.converged[idx], st.fresh[idx], st.lam[idx] = sub.iters, sub.converged, sub.fresh, sub.lam
-            for w, ws in zip(st.W, sub.W):
-                w[idx] = ws
+            _finish_rows(prob, st, np.flatnonzero(act), h, max_iterations - it, eager)
             break
-        Js = st.J * h
-        JsT = np.swapaxes(Js, 1, 2)
-        A = JsT @ Js
-        g = (JsT @ st.rho[..., None])[..., 0]
-        # Marquardt: damp each parameter on its own scale (A is not needed undamped again)
-        A.reshape(B, 36)[:, ::7] *= 1.0 + st.lam[:, None]
-        with np.errstate(all="ignore"):
-            try:
-                step = -np.linalg.solve(A, g[..., None])[..., 0]
-            except np.linalg.LinAlgError:
-                step = -(np.linalg.pinv(A) @ g[..., None])[..., 0]
-            # predicted decrease of the local model, in χ² units: a step that would gain δ
-            # moves the pose by about √δ standard deviations. The inner solve stops at
-            # δ ≤ 1e-7 of the cost; with fresh whitening a row is done at δ ≤ 1e-4 of the
-            # cost (≤ 5 % of a standard deviation for this fiducial's ~30 residuals, a
-            # < 0.3 % loss of efficiency at worst, measured none). On noise-free images the
-            # cost goes to ~0 and the absolute floor takes over.
-            pred = -(g * step).sum(1) - 1e-14
-            tiny = np.abs(step).max(1) < 1e-10
+        step, pred, tiny = _lm_step(st, h)
         flat = (pred <= 1e-7 * st.cost) | tiny
         settled = st.fresh & ((pred <= 1e-4 * st.cost) | tiny)
         st.converged |= act & settled
         act &= ~settled
         move = act & ~flat
         st.iters += act
-        stalled = False
-        if move.any():
-            d = step * h
-            Rn = so3.exp(d[:, :3]) @ st.R
-            tn = st.t + d[:, 3:]
-            if not eager.any():
-                new, trial = _evaluate_state(prob, Rn, tn, whitening=st.W)
-                trial = new.cost
-            elif eager.all():
-                new, trial = _evaluate_state(prob, Rn, tn, reference=st.W)
-            else:
-                new, trial = _evaluate_state(prob, Rn, tn, whitening=st.W, reference=st.W, freeze=~eager)
-            ok = move & (trial < st.cost)
-            # a step that is accepted but gains nothing measurable is no progress either: in
-            # a curved valley pure Gauss–Newton steps can crawl forever, each one a hair better
-            # (a gain of 1e-6 of the cost, ~3e-5 in χ² for ~30 rows, is a step of ~0.005 σ)
-            with np.errstate(invalid="ignore"):
-                stalled = ok & (st.cost - trial <= 1e-14 + 1e-6 * st.cost)
-            if ok.any():
-                worse = ok & eager & ~(new.cost <= st.cost)
-                st.put(ok, new)
-                st.fresh = np.where(ok, eager, st.fresh)
-                eager &= ~worse
-            st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
+        stalled = _take_step(prob, st, step * h, move, eager) if move.any() else False
         done = act & (flat | stalled | (st.lam > 1e6))
-        if not done.any():
-            continue
-        st.converged |= done & st.fresh
-        stale = done & ~st.fresh
-        # at large segmentation errors the whitening can keep moving with the pose so that
-        # the refresh cycle never settles within the noise; after SETTLE_ITERATIONS the
-        # minimum with the whitening of its last refresh (a nearby pose) is accepted — it
-        # differs from the fixed point by far less than a standard deviation
-        settle = stale & (st.iters >= SETTLE_ITERATIONS)
-        st.converged |= settle
-        stale &= ~settle
-        if stale.any():
-            ref = _evaluate_state(prob, st.R, st.t)[0]
-            st.put(stale, ref)
-            st.fresh |= stale
-            st.lam = np.where(stale, _LAMBDA0, st.lam)
+        if done.any():
+            _refresh_done(prob, st, done)
     return st
+
+
+def _finish_rows(prob: Problem, st: _State, idx: np.ndarray, h: np.ndarray, iterations: int, eager: np.ndarray) -> None:
+    """Run :func:`levenberg_marquardt` on the rows ``idx`` alone and put them back into ``st``."""
+    sub = levenberg_marquardt(prob.take(idx), None, None, h, iterations, st.rows(idx), eager[idx])
+    st.R[idx], st.t[idx], st.rho[idx], st.J[idx] = sub.R, sub.t, sub.rho, sub.J
+    st.raw[idx], st.Z[idx], st.cost[idx] = sub.raw, sub.Z, sub.cost
+    st.iters[idx], st.converged[idx], st.fresh[idx], st.lam[idx] = sub.iters, sub.converged, sub.fresh, sub.lam
+    for w, ws in zip(st.W, sub.W):
+        w[idx] = ws
+
+
+def _lm_step(st: _State, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The damped Gauss–Newton step of every row (B, 6) in scaled parameters, its predicted
+    decrease of the cost (B,) and whether it is negligible (B,)."""
+    B = st.R.shape[0]
+    Js = st.J * h
+    JsT = np.swapaxes(Js, 1, 2)
+    A = JsT @ Js
+    g = (JsT @ st.rho[..., None])[..., 0]
+    # Marquardt: damp each parameter on its own scale (A is not needed undamped again)
+    A.reshape(B, 36)[:, ::7] *= 1.0 + st.lam[:, None]
+    with np.errstate(all="ignore"):
+        try:
+            step = -np.linalg.solve(A, g[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            step = -(np.linalg.pinv(A) @ g[..., None])[..., 0]
+        # predicted decrease of the local model, in χ² units: a step that would gain δ
+        # moves the pose by about √δ standard deviations. The inner solve stops at
+        # δ ≤ 1e-7 of the cost; with fresh whitening a row is done at δ ≤ 1e-4 of the
+        # cost (≤ 5 % of a standard deviation for this fiducial's ~30 residuals, a
+        # < 0.3 % loss of efficiency at worst, measured none). On noise-free images the
+        # cost goes to ~0 and the absolute floor takes over.
+        pred = -(g * step).sum(1) - 1e-14
+        tiny = np.abs(step).max(1) < 1e-10
+    return step, pred, tiny
+
+
+def _take_step(prob: Problem, st: _State, d: np.ndarray, move: np.ndarray, eager: np.ndarray) -> np.ndarray:
+    """Try the step ``d`` (B, 6) on the rows ``move``: accept it where it lowers the cost
+    (updating ``st``, the damping, and ``eager`` in place), else damp more. Returns the rows
+    whose accepted step gained nothing measurable (stalled)."""
+    Rn = so3.exp(d[:, :3]) @ st.R
+    tn = st.t + d[:, 3:]
+    if not eager.any():
+        new, trial = _evaluate_state(prob, Rn, tn, whitening=st.W)
+        trial = new.cost
+    elif eager.all():
+        new, trial = _evaluate_state(prob, Rn, tn, reference=st.W)
+    else:
+        new, trial = _evaluate_state(prob, Rn, tn, whitening=st.W, reference=st.W, freeze=~eager)
+    ok = move & (trial < st.cost)
+    # a step that is accepted but gains nothing measurable is no progress either: in
+    # a curved valley pure Gauss–Newton steps can crawl forever, each one a hair better
+    # (a gain of 1e-6 of the cost, ~3e-5 in χ² for ~30 rows, is a step of ~0.005 σ)
+    with np.errstate(invalid="ignore"):
+        stalled = ok & (st.cost - trial <= 1e-14 + 1e-6 * st.cost)
+    if ok.any():
+        worse = ok & eager & ~(new.cost <= st.cost)
+        st.put(ok, new)
+        st.fresh = np.where(ok, eager, st.fresh)
+        eager &= ~worse
+    st.lam = np.where(ok, np.maximum(st.lam * 0.1, 1e-15), np.where(move, st.lam * 10.0, st.lam))
+    return stalled
+
+
+def _refresh_done(prob: Problem, st: _State, done: np.ndarray) -> None:
+    """Rows whose inner solve is ``done``: converged where their whitening was fresh, else the
+    whitening refreshed at their pose and the solve goes on (see :func:`levenberg_marquardt`)."""
+    st.converged |= done & st.fresh
+    stale = done & ~st.fresh
+    # at large segmentation errors the whitening can keep moving with the pose so that
+    # the refresh cycle never settles within the noise; after SETTLE_ITERATIONS the
+    # minimum with the whitening of its last refresh (a nearby pose) is accepted — it
+    # differs from the fixed point by far less than a standard deviation
+    settle = stale & (st.iters >= SETTLE_ITERATIONS)
+    st.converged |= settle
+    stale &= ~settle
+    if stale.any():
+        ref = _evaluate_state(prob, st.R, st.t)[0]
+        st.put(stale, ref)
+        st.fresh |= stale
+        st.lam = np.where(stale, _LAMBDA0, st.lam)
 
 
 # ----------------------------------------------------------------------------- starts

@@ -208,6 +208,49 @@ def fit_beads(
     if n == 0 or min(H, W) < 2 * half + 1:
         z = np.zeros(0)
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
+    y, X, Y, (cx, cy), (py, px) = _patches(img, starts, half)
+    # params: u, v (relative), r, s, A, b0, bx, by
+    p = np.zeros((n, 8))
+    p[:, 0] = starts[:, 0] - cx
+    p[:, 1] = starts[:, 1] - cy
+    p[:, 2] = radius_px
+    p[:, 3] = max(blur_px, 0.5)
+    p[:, 5] = np.percentile(y, 10, axis=1)
+    peak = sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0]
+    p[:, 4] = np.maximum(y.max(1) - p[:, 5], 1e-6) / np.maximum(peak, 1e-9)
+    w0 = np.ones_like(y) if exclude is None else (~np.asarray(exclude, bool)[py, px]).astype(float)
+    sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
+    # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
+    # with σ_prior = 25 % of the expected radius and 0.5 px of blur
+    prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
+    w, J = w0.copy(), None
+    for it in range(iterations):
+        dp, w, J = _step(p, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, max(blur_px, 0.5))
+        # keep the shape parameters physical and the steps modest
+        dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
+        dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
+        dp[:, 3] = np.clip(dp[:, 3], -0.3, 0.3)
+        p += dp
+        p[:, 2] = np.clip(p[:, 2], 0.3 * radius_px, 3.0 * radius_px)
+        p[:, 3] = np.clip(p[:, 3], 0.2, 4.0)
+    sd, rms = _spread(p, y, X, Y, w, J, sn)
+    uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
+    return Beads(
+        uv,
+        p[:, 2],
+        p[:, 3],
+        p[:, 4],
+        sd,
+        rms,
+        np.asarray(response, float) if response is not None else np.full(n, np.nan),
+    )
+
+
+def _patches(img: np.ndarray, starts: np.ndarray, half: int):
+    """The disc of radius ``half`` px around each start (n, 2), inside ``img``: the values
+    (n, m), the coordinates relative to the patch centres (n, m) X and Y, the centres (cx, cy)
+    and the pixels' (rows, columns)."""
+    H, W = img.shape
     off = np.arange(-half, half + 1)
     oy, ox = np.meshgrid(off, off, indexing="ij")
     inside = (ox**2 + oy**2) <= half * half
@@ -220,95 +263,71 @@ def fit_beads(
     y = img[py, px].astype(float)  # (n, m)
     X = px - cx[:, None].astype(float)  # coordinates relative to the patch centre
     Y = py - cy[:, None].astype(float)
-    # params: u, v (relative), r, s, A, b0, bx, by
-    p = np.zeros((n, 8))
-    p[:, 0] = starts[:, 0] - cx
-    p[:, 1] = starts[:, 1] - cy
-    p[:, 2] = radius_px
-    p[:, 3] = max(blur_px, 0.5)
-    p[:, 5] = np.percentile(y, 10, axis=1)
-    peak = sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0]
-    p[:, 4] = np.maximum(y.max(1) - p[:, 5], 1e-6) / np.maximum(peak, 1e-9)
-    w0 = np.ones_like(y) if exclude is None else (~np.asarray(exclude, bool)[py, px]).astype(float)
-    w = w0.copy()
-    eps = np.array([1e-3, 1e-3, 1e-3, 1e-3])
+    return y, X, Y, (cx, cy), (py, px)
 
-    def model(q):
-        rho = np.hypot(X - q[:, 0:1], Y - q[:, 1:2])
-        S = sphere_profile_fast(rho, q[:, 2], q[:, 3])
-        return q[:, 4:5] * S + q[:, 5:6] + q[:, 6:7] * X + q[:, 7:8] * Y, S
 
-    sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
-    cost_scale = 4.685 * sn[:, None]
-    # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
-    # with σ_prior = 25 % of the expected radius and 0.5 px of blur
-    prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
-    X5, Y5 = np.tile(X, (5, 1)), np.tile(Y, (5, 1))
-    for it in range(iterations):
-        # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
-        # element-wise: the same numbers as five separate calls, at a fifth of the overhead)
-        q = np.tile(p, (5, 1))
-        for k in range(4):
-            q[(k + 1) * n : (k + 2) * n, k] += eps[k]
-        S5 = model_S(q, X5, Y5)
-        S = S5[:n]
-        m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
-        res = y - m
-        # Jacobian: numeric for u, v, r, s (through S), analytic for the linear terms
-        J = np.empty(y.shape + (8,))
-        for k in range(4):
-            J[..., k] = (p[:, 4:5] * (S5[(k + 1) * n : (k + 2) * n] - S)) / eps[k]
-        J[..., 4] = S
-        J[..., 5] = 1.0
-        J[..., 6] = X
-        J[..., 7] = Y
-        if it >= 2:
-            # Tukey biweight on the residuals: a wire touching the ball is an outlier
-            # one scale pooled over the candidates fitted together: a ball's own handful of
-            # pixels (a 1 mm ball's patch, less the wires masked out) gives too unstable a
-            # scale, and its centre moved by 0.6 px
-            scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
-            u = np.clip(np.abs(res) / scale, 0, 1)
-            w = (1 - u * u) ** 2 * w0
-        Jw = J * w[..., None]
-        A = np.einsum("nmi,nmj->nij", Jw, J) + 1e-9 * np.eye(8)
-        g = np.einsum("nmi,nm->ni", Jw, res)
-        # weak priors on the radius and the blur: for a ball of a few pixels the blurred
-        # profile is nearly Gaussian and r, σ and A trade off against each other (the
-        # unregularised fit ran off to r → 0.3 r₀ or σ → 4 px on ftrac_mini's 1 mm balls)
-        A[:, 2, 2] += prior_w[0]
-        A[:, 3, 3] += prior_w[1]
-        g[:, 2] += prior_w[0] * (radius_px - p[:, 2])
-        g[:, 3] += prior_w[1] * (max(blur_px, 0.5) - p[:, 3])
-        try:
-            dp = np.linalg.solve(A, g[..., None])[..., 0]
-        except np.linalg.LinAlgError:
-            dp = (np.linalg.pinv(A) @ g[..., None])[..., 0]
-        # keep the shape parameters physical and the steps modest
-        dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
-        dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
-        dp[:, 3] = np.clip(dp[:, 3], -0.3, 0.3)
-        p += dp
-        p[:, 2] = np.clip(p[:, 2], 0.3 * radius_px, 3.0 * radius_px)
-        p[:, 3] = np.clip(p[:, 3], 0.2, 4.0)
-    m, S = model(p)
+#: the numeric Jacobian's steps along u, v, r, s
+_EPS = np.array([1e-3, 1e-3, 1e-3, 1e-3])
+
+
+def _step(p, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float):
+    """One robust Gauss–Newton step of :func:`fit_beads` from parameters ``p`` (n, 8): the step
+    (n, 8), the weights it used and the Jacobian (n, m, 8)."""
+    n = len(p)
+    # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
+    # element-wise: the same numbers as five separate calls, at a fifth of the overhead)
+    q = np.tile(p, (5, 1))
+    for k in range(4):
+        q[(k + 1) * n : (k + 2) * n, k] += _EPS[k]
+    S5 = model_S(q, np.tile(X, (5, 1)), np.tile(Y, (5, 1)))
+    S = S5[:n]
+    m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
+    res = y - m
+    # Jacobian: numeric for u, v, r, s (through S), analytic for the linear terms
+    J = np.empty(y.shape + (8,))
+    for k in range(4):
+        J[..., k] = (p[:, 4:5] * (S5[(k + 1) * n : (k + 2) * n] - S)) / _EPS[k]
+    J[..., 4] = S
+    J[..., 5] = 1.0
+    J[..., 6] = X
+    J[..., 7] = Y
+    if it >= 2:
+        # Tukey biweight on the residuals: a wire touching the ball is an outlier
+        # one scale pooled over the candidates fitted together: a ball's own handful of
+        # pixels (a 1 mm ball's patch, less the wires masked out) gives too unstable a
+        # scale, and its centre moved by 0.6 px
+        scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
+        u = np.clip(np.abs(res) / scale, 0, 1)
+        w = (1 - u * u) ** 2 * w0
+    Jw = J * w[..., None]
+    A = np.einsum("nmi,nmj->nij", Jw, J) + 1e-9 * np.eye(8)
+    g = np.einsum("nmi,nm->ni", Jw, res)
+    # weak priors on the radius and the blur: for a ball of a few pixels the blurred
+    # profile is nearly Gaussian and r, σ and A trade off against each other (the
+    # unregularised fit ran off to r → 0.3 r₀ or σ → 4 px on ftrac_mini's 1 mm balls)
+    A[:, 2, 2] += prior_w[0]
+    A[:, 3, 3] += prior_w[1]
+    g[:, 2] += prior_w[0] * (radius_px - p[:, 2])
+    g[:, 3] += prior_w[1] * (blur_px - p[:, 3])
+    try:
+        dp = np.linalg.solve(A, g[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        dp = (np.linalg.pinv(A) @ g[..., None])[..., 0]
+    return dp, w, J
+
+
+def _spread(p, y, X, Y, w, J, sn) -> tuple[np.ndarray, np.ndarray]:
+    """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units."""
+    rho = np.hypot(X - p[:, 0:1], Y - p[:, 1:2])
+    S = sphere_profile_fast(rho, p[:, 2], p[:, 3])
+    m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
     res = y - m
     wsum = np.maximum(w.sum(1), 1.0)
     rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
     sig2 = sn**2 * np.maximum(rms, 1.0) ** 2
     with np.errstate(all="ignore"):
         cov = np.linalg.pinv(np.einsum("nmi,nmj->nij", J * w[..., None], J) + 1e-12 * np.eye(8)) * sig2[:, None, None]
-    sd = np.sqrt(np.abs(0.5 * (cov[:, 0, 0] + cov[:, 1, 1])))
-    uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
-    return Beads(
-        uv,
-        p[:, 2],
-        p[:, 3],
-        p[:, 4],
-        sd,
-        rms,
-        np.asarray(response, float) if response is not None else np.full(n, np.nan),
-    )
+    return np.sqrt(np.abs(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))), rms
 
 
 def model_S(q: np.ndarray, X: np.ndarray, Y: np.ndarray) -> np.ndarray:

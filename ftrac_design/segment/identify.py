@@ -366,6 +366,30 @@ def gather_contours(
         lo, hi = allp.min(0) - reach_px, allp.max(0) + reach_px
         ridges = ridges.take(np.flatnonzero(((ridges.uv >= lo) & (ridges.uv <= hi)).all(1)))
     uvr = ridges.uv
+    reach, arc, dist, tang, corr = _near_curves(curves, ids, uvr, reach_px, ridge_var_px2)
+    # beads cover the wire ends they butt against and anything under them (only a point
+    # within reach of a curve can be kept, so only those are tested)
+    free = np.ones(len(uvr), bool)
+    if len(features.points) and reach.any():
+        bu = project(camera, R, t, features.point_centers())[0]
+        db = np.linalg.norm(uvr[reach][:, None] - bu[None], axis=-1)
+        free[reach] = (db > np.asarray(bead_radius_px)[None]).all(1)
+    near = dist <= tol_px
+    crowded = (dist <= separation_px).sum(0) > 1
+    cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))  # normal ⟂ tangent → ~0
+    aligned = cosang <= np.sin(np.radians(max_angle_deg))
+    usable = near & ~crowded & free & aligned
+    _keep_points(out, curves, ids, usable, near, arc, uvr, corr, ridges.snr, min_points, thin_px)
+    return out
+
+
+def _near_curves(
+    curves: dict, ids: list[str], uvr: np.ndarray, reach_px: float, ridge_var_px2: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """For ridge points ``uvr`` (n, 2) and the curves ``ids``: whether each point is within
+    ``reach_px`` of some curve (n,), and per curve and point the arc position of its nearest
+    sample (k, n; px), the distance to the curve (k, n; ∞ beyond reach), the curve's tangent
+    (k, n, 2) and an ellipse point's outward shift (k, n, 2; see :func:`gather_contours`)."""
     reach = np.zeros(len(uvr), bool)  # within reach of some curve
     arc = np.zeros((len(ids), len(uvr)))
     dist = np.full((len(ids), len(uvr)), np.inf)
@@ -412,19 +436,27 @@ def gather_contours(
             # signed curvature from three neighbouring samples; its centre side is where the
             # chord's midpoint bends
             corr[k, on] = outward_shift(pts, ridge_var_px2)[jj]
-    # beads cover the wire ends they butt against and anything under them (only a point
-    # within reach of a curve can be kept, so only those are tested)
-    free = np.ones(len(uvr), bool)
-    if len(features.points) and reach.any():
-        bu = project(camera, R, t, features.point_centers())[0]
-        db = np.linalg.norm(uvr[reach][:, None] - bu[None], axis=-1)
-        free[reach] = (db > np.asarray(bead_radius_px)[None]).all(1)
-    near = dist <= tol_px
-    crowded = (dist <= separation_px).sum(0) > 1
-    cosang = np.abs(np.einsum("kni,ni->kn", tang, ridges.normal))  # normal ⟂ tangent → ~0
-    aligned = cosang <= np.sin(np.radians(max_angle_deg))
+    return reach, arc, dist, tang, corr
+
+
+def _keep_points(
+    out: Contours,
+    curves: dict,
+    ids: list[str],
+    usable: np.ndarray,
+    near: np.ndarray,
+    arc: np.ndarray,
+    uvr: np.ndarray,
+    corr: np.ndarray,
+    snr: np.ndarray,
+    min_points: int,
+    thin_px: float,
+) -> None:
+    """Each curve's usable ridge points (``usable`` (k, n)) into ``out``, thinned to one per
+    ``thin_px`` of arc; a curve left with fewer than ``min_points`` is dropped, and counted
+    missing when fewer are even ``near`` it."""
     for k, fid in enumerate(ids):
-        sel = near[k] & ~crowded & free & aligned[k]
+        sel = usable[k]
         kind = curves[fid][0]
         if sel.sum() < min_points:
             cover = near[k].sum()
@@ -446,5 +478,4 @@ def gather_contours(
                 out.dropped[fid] = f"{len(idx)} independent contour points"
                 continue
         (out.lines if kind == "line" else out.ellipses)[fid] = uvr[idx] + corr[k][idx]
-        out.snr[fid] = ridges.snr[idx]
-    return out
+        out.snr[fid] = snr[idx]

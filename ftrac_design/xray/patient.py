@@ -276,6 +276,20 @@ def _shoulders(rng: np.random.Generator, levels: list[dict], half_width: float) 
 
 def _pelvis(rng: np.random.Generator, levels: list[dict]) -> list[Structure]:
     """Sacrum (foramina), iliac wings and crests, pelvic brim, acetabula, femora, pubis, ischia."""
+    out = _sacrum(rng)
+    x_hip = _j(rng, 92.0, 0.05)
+    y_hip = _j(rng, 105.0, 0.05)
+    r_head = _j(rng, 24.0, 0.07)
+    neck_angle = math.radians(float(rng.uniform(125, 135)))
+    for s in (-1, 1):
+        out += _iliac(rng, s, levels, y_hip)
+        out += _hip(rng, s, (s * x_hip, y_hip), r_head, neck_angle)
+        out += _pubis_and_ischium(rng, s, x_hip, y_hip)
+    return out
+
+
+def _sacrum(rng: np.random.Generator) -> list[Structure]:
+    """The sacrum with its foramina, and the coccyx."""
     out = []
     # the sacrum: wide alae on top, narrowing to the apex (a wedge cut from an ellipsoid)
     a_s, b_s = _j(rng, 56.0, 0.06), _j(rng, 62.0, 0.06)
@@ -301,86 +315,95 @@ def _pelvis(rng: np.random.Generator, levels: list[dict]) -> list[Structure]:
                     textured=False,
                 )
             )
-    x_hip = _j(rng, 92.0, 0.05)
-    y_hip = _j(rng, 105.0, 0.05)
-    r_head = _j(rng, 24.0, 0.07)
-    neck_angle = math.radians(float(rng.uniform(125, 135)))
-    for s in (-1, 1):
-        r_wing = _j(rng, 68.0, 0.06)
-        cw = (s * _j(rng, 88.0, 0.05), levels[-1]["y"] - 20 + r_wing)
-        # the wing is a fan: the inferior-medial part (the ilium's body) is cut off toward the hip
-        # seen obliquely (the wing faces 40–50° off the coronal plane): a 10–20 mm chord of a thin
-        # plate; its lower part runs into the acetabulum's roof and the sacro-iliac joint
-        out.append(Structure("iliac wing", Ellipsoid(cw, (r_wing, r_wing), 10.0, 0.0, wall=2.0)))
-        out.append(
-            Structure(
-                "iliac crest",
-                Tube(
-                    cw,
-                    half_width=5.0,
-                    depth=8.0,
-                    wall=1.5,
-                    radius=r_wing - 5.0,
-                    angles=((math.pi * 1.05, math.pi * 1.9) if s > 0 else (math.pi * 1.10, math.pi * 1.95)),
-                ),
-            )
+    return out
+
+
+def _iliac(rng: np.random.Generator, s: int, levels: list[dict], y_hip: float) -> list[Structure]:
+    """One side's iliac wing and crest and pelvic brim (``s`` = ±1: the side)."""
+    out = []
+    r_wing = _j(rng, 68.0, 0.06)
+    cw = (s * _j(rng, 88.0, 0.05), levels[-1]["y"] - 20 + r_wing)
+    # the wing is a fan: the inferior-medial part (the ilium's body) is cut off toward the hip
+    # seen obliquely (the wing faces 40–50° off the coronal plane): a 10–20 mm chord of a thin
+    # plate; its lower part runs into the acetabulum's roof and the sacro-iliac joint
+    out.append(Structure("iliac wing", Ellipsoid(cw, (r_wing, r_wing), 10.0, 0.0, wall=2.0)))
+    out.append(
+        Structure(
+            "iliac crest",
+            Tube(
+                cw,
+                half_width=5.0,
+                depth=8.0,
+                wall=1.5,
+                radius=r_wing - 5.0,
+                angles=((math.pi * 1.05, math.pi * 1.9) if s > 0 else (math.pi * 1.10, math.pi * 1.95)),
+            ),
         )
-        out.append(_arc_tube("pelvic brim", (s * 40, 12), (s * 58, 60), (s * 22, y_hip + 28), 2.5, 11.0, 1.0))
-        c_hip = (s * x_hip, y_hip)
-        out.append(
-            Structure(
-                "acetabulum",
-                Ellipsoid(
-                    c_hip, (r_head + 6.0, r_head + 6.0), r_head + 6.0, 0.0, wall=3.5, clips=((s * 0.5, 1.0, 0.0),)
-                ),
-            )
+    )
+    out.append(_arc_tube("pelvic brim", (s * 40, 12), (s * 58, 60), (s * 22, y_hip + 28), 2.5, 11.0, 1.0))
+    return out
+
+
+def _hip(
+    rng: np.random.Generator, s: int, c_hip: tuple[float, float], r_head: float, neck_angle: float
+) -> list[Structure]:
+    """One side's acetabulum, femoral head, neck, trochanters and shaft (``s`` = ±1: the side)."""
+    out = []
+    out.append(
+        Structure(
+            "acetabulum",
+            Ellipsoid(c_hip, (r_head + 6.0, r_head + 6.0), r_head + 6.0, 0.0, wall=3.5, clips=((s * 0.5, 1.0, 0.0),)),
         )
-        out.append(Structure("femoral head", Ellipsoid(c_hip, (r_head, r_head), r_head, 0.0, wall=1.2)))
-        # the neck runs from the head down and out to the shaft, at the neck–shaft angle to it
-        shaft = np.array([-s * 0.12, 1.0]) / math.hypot(0.12, 1.0)
-        medial = np.array([-s * shaft[1], s * shaft[0]])  # across the shaft, toward the midline
-        to_head = math.cos(neck_angle) * shaft + math.sin(neck_angle) * medial
-        neck_len = _j(rng, 50.0, 0.08)
-        junction = (c_hip[0] - neck_len * to_head[0], c_hip[1] - neck_len * to_head[1])
-        out.append(Structure("femoral neck", Tube(c_hip, junction, _j(rng, 15.0, 0.06), 14.0, wall=2.0)))
-        out.append(
-            Structure(
-                "greater trochanter",
-                Ellipsoid(
-                    (junction[0] + s * 14.0, junction[1] - 12.0), (_j(rng, 17.0), _j(rng, 24.0)), 20.0, 0.0, wall=1.5
-                ),
-            )
+    )
+    out.append(Structure("femoral head", Ellipsoid(c_hip, (r_head, r_head), r_head, 0.0, wall=1.2)))
+    # the neck runs from the head down and out to the shaft, at the neck–shaft angle to it
+    shaft = np.array([-s * 0.12, 1.0]) / math.hypot(0.12, 1.0)
+    medial = np.array([-s * shaft[1], s * shaft[0]])  # across the shaft, toward the midline
+    to_head = math.cos(neck_angle) * shaft + math.sin(neck_angle) * medial
+    neck_len = _j(rng, 50.0, 0.08)
+    junction = (c_hip[0] - neck_len * to_head[0], c_hip[1] - neck_len * to_head[1])
+    out.append(Structure("femoral neck", Tube(c_hip, junction, _j(rng, 15.0, 0.06), 14.0, wall=2.0)))
+    out.append(
+        Structure(
+            "greater trochanter",
+            Ellipsoid(
+                (junction[0] + s * 14.0, junction[1] - 12.0), (_j(rng, 17.0), _j(rng, 24.0)), 20.0, 0.0, wall=1.5
+            ),
         )
-        shaft1 = (junction[0] + 400 * shaft[0], junction[1] + 400 * shaft[1])
-        out.append(
-            Structure("femoral shaft", Tube(junction, shaft1, _j(rng, 14.0, 0.06), 14.0, wall=_j(rng, 6.0, 0.1)))
+    )
+    shaft1 = (junction[0] + 400 * shaft[0], junction[1] + 400 * shaft[1])
+    out.append(Structure("femoral shaft", Tube(junction, shaft1, _j(rng, 14.0, 0.06), 14.0, wall=_j(rng, 6.0, 0.1))))
+    out.append(
+        Structure(
+            "lesser trochanter",
+            Ellipsoid((junction[0] - s * 13.0, junction[1] + 30.0), (9.0, 11.0), 10.0, 0.0, wall=1.2),
         )
-        out.append(
-            Structure(
-                "lesser trochanter",
-                Ellipsoid((junction[0] - s * 13.0, junction[1] + 30.0), (9.0, 11.0), 10.0, 0.0, wall=1.2),
-            )
+    )
+    return out
+
+
+def _pubis_and_ischium(rng: np.random.Generator, s: int, x_hip: float, y_hip: float) -> list[Structure]:
+    """One side's pubic rami and body and ischium, around the obturator foramen (``s`` = ±1)."""
+    out = []
+    out.append(
+        Structure(
+            "superior pubic ramus",
+            Tube((s * (x_hip - 22), y_hip + 10), (s * 14.0, y_hip + 38), _j(rng, 8.5), 10.0, wall=1.5),
         )
-        # pubis and ischium around the obturator foramen
-        out.append(
-            Structure(
-                "superior pubic ramus",
-                Tube((s * (x_hip - 22), y_hip + 10), (s * 14.0, y_hip + 38), _j(rng, 8.5), 10.0, wall=1.5),
-            )
+    )
+    out.append(Structure("pubic body", Ellipsoid((s * 17.0, y_hip + 55), (12.0, 24.0), 12.0, 0.0, wall=1.5)))
+    out.append(
+        Structure(
+            "inferior pubic ramus",
+            Tube((s * 16.0, y_hip + 75), (s * (x_hip - 38), y_hip + 95), _j(rng, 7.0), 9.0, wall=1.5),
         )
-        out.append(Structure("pubic body", Ellipsoid((s * 17.0, y_hip + 55), (12.0, 24.0), 12.0, 0.0, wall=1.5)))
-        out.append(
-            Structure(
-                "inferior pubic ramus",
-                Tube((s * 16.0, y_hip + 75), (s * (x_hip - 38), y_hip + 95), _j(rng, 7.0), 9.0, wall=1.5),
-            )
+    )
+    out.append(
+        Structure(
+            "ischium",
+            Tube((s * (x_hip - 38), y_hip + 95), (s * (x_hip - 18), y_hip + 22), _j(rng, 11.0), 14.0, wall=1.8),
         )
-        out.append(
-            Structure(
-                "ischium",
-                Tube((s * (x_hip - 38), y_hip + 95), (s * (x_hip - 18), y_hip + 22), _j(rng, 11.0), 14.0, wall=1.8),
-            )
-        )
+    )
     return out
 
 

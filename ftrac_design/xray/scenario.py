@@ -257,6 +257,20 @@ def _dose(condition: str, rng) -> float:
     return _loguniform(rng, 200, 3000)
 
 
+def _blurs(
+    condition: str, rng: np.random.Generator, camera: Camera, shape: tuple[int, int], depth_mm: float
+) -> tuple[float, ImagingModel, float, float]:
+    """The focal spot drawn (mm), the imaging model of the fiducial blurred by that spot alone
+    (the detector's line spread comes later), the focal blur σ at ``depth_mm`` and the detector's
+    σ that makes up the total drawn for ``condition`` (px)."""
+    focal = float(rng.uniform(0.3, 0.7) if condition == "fluoro-dose" else rng.uniform(0.3, 1.2))
+    imaging = ImagingModel(image_shape=shape, focal_spot_mm=focal, detector_blur_px=0.0, photons_per_px=None)
+    su, sv = blur_sigma_px(camera, imaging, depth_mm)
+    sigma_focal = math.hypot(su, sv) / math.sqrt(2)
+    sigma_target = float(rng.uniform(1.6, 2.0)) if condition == "blur-2px" else float(rng.uniform(0.5, 0.9))
+    return focal, imaging, sigma_focal, math.sqrt(max(sigma_target**2 - sigma_focal**2, 0.0))
+
+
 def realistic_image(
     features: Features,
     R: np.ndarray,
@@ -293,13 +307,7 @@ def realistic_image(
     R, t = np.asarray(R, float), np.asarray(t, float)
     rng = np.random.default_rng([int(seed), CONDITIONS.index(condition), 2024])
     pixel = float(np.mean(camera.pixel_size_mm))
-    # the fiducial, blurred by its focal spot only (the detector's line spread comes later)
-    focal = float(rng.uniform(0.3, 0.7) if condition == "fluoro-dose" else rng.uniform(0.3, 1.2))
-    imaging = ImagingModel(image_shape=(H, W), focal_spot_mm=focal, detector_blur_px=0.0, photons_per_px=None)
-    su, sv = blur_sigma_px(camera, imaging, float(t[2]))
-    sigma_focal = math.hypot(su, sv) / math.sqrt(2)
-    sigma_target = float(rng.uniform(1.6, 2.0)) if condition == "blur-2px" else float(rng.uniform(0.5, 0.9))
-    sigma_det = math.sqrt(max(sigma_target**2 - sigma_focal**2, 0.0))
+    focal, imaging, sigma_focal, sigma_det = _blurs(condition, rng, camera, (H, W), float(t[2]))
     occluders = _needles(features, rng, int(rng.integers(1, 3))) if condition == "seeds-needle" else ()
     _, _, box = _footprint(features, R, t, camera, imaging)
 
