@@ -8,35 +8,40 @@ from pathlib import Path
 import click
 
 from .options import POSITIVE as _POS
-from .options import image_score_options, imaging_options, min_clearance_option, output_option, workspace_options
+from .options import (
+    flag_option,
+    image_score_options,
+    imaging_options,
+    min_clearance_option,
+    optional_option,
+    output_option,
+    shown_option,
+    workspace_options,
+)
 
 
 @click.command("analyze")
 @click.argument("source", type=click.Path(path_type=Path, dir_okay=False))
 @output_option("output directory [default: outputs/<design name>/analysis/]")
 @workspace_options()
-@click.option(
+@optional_option(
     "--max-translation-mm",
     type=_POS,
-    default=None,
     help="pass only if the worst predicted translation error is within this [default: design's, else 1.0]",
 )
-@click.option(
+@optional_option(
     "--max-rotation-deg",
     type=_POS,
-    default=None,
     help="pass only if the worst predicted rotation error is within this [default: design's, else 0.5]",
 )
-@click.option(
+@optional_option(
     "--max-condition",
     type=click.FloatRange(min=1.0),
-    default=None,
     help="pass only if the worst condition number is within this [default: design's, else 1000]",
 )
-@click.option(
+@optional_option(
     "--max-overlap-share",
     type=click.FloatRange(min=0.0, max=1.0),
-    default=None,
     help="pass only if features' images overlap at no larger share of workspace poses than this "
     "[default: design's, else not judged]",
 )
@@ -44,36 +49,29 @@ from .options import image_score_options, imaging_options, min_clearance_option,
     "pass only if the 5th-percentile smallest image clearance between features is at least this, "
     "px beyond their widths [default: design's, else not judged]"
 )
-@click.option(
+@shown_option(
     "--atlas-step-deg",
     type=click.FloatRange(min=0.5, max=15.0),
     default=2.0,
-    show_default=True,
     help="grid step of the whole-sphere atlas",
 )
-@click.option(
+@flag_option(
     "--imaging",
-    is_flag=True,
-    default=False,
     help="also the pixel-level Cramér–Rao bound of the pose from a rendered radiograph beside the "
     "feature-level one, at a separate sample of --imaging-poses workspace poses (imaging block, "
     "imaging.png)",
 )
-@click.option(
+@shown_option(
     "--imaging-poses",
     type=click.IntRange(min=1),
     default=60,
-    show_default=True,
     help="workspace poses of the image-level bound (~13 renders of the fiducial each)",
 )
 @imaging_options("imaging: ")
 @image_score_options(atlas=True)
-@click.option("--no-plots", is_flag=True, default=False, help="write analysis.json only")
-@click.option(
-    "--report",
-    is_flag=True,
-    default=False,
-    help="also write report.html into the output directory (with the build, for a build's features.json)",
+@flag_option("--no-plots", help="write analysis.json only")
+@flag_option(
+    "--report", help="also write report.html into the output directory (with the build, for a build's features.json)"
 )
 def command(source: Path, output: Path | None, report: bool = False, **options) -> int:
     """Score SOURCE (a design file, a preset's name or a features.json) over the C-arm workspace.

@@ -6,20 +6,17 @@ from pathlib import Path
 
 import click
 
-from .options import design_argument, output_option, post_option, profile_option
+from .options import design_argument, flag_option, output_option, post_option, profile_option
 
 
 @click.command("build")
 @design_argument()
 @output_option("output directory [default: outputs/<design name>/]")
 @profile_option()
-@click.option("--force", is_flag=True, default=False, help="build even if the design breaks a manufacturing rule")
+@flag_option("--force", help="build even if the design breaks a manufacturing rule")
 @post_option("control the body's 4-axis program (body.ngc / body.nc, cnc profile) is written for")
-@click.option(
-    "--report",
-    is_flag=True,
-    default=False,
-    help="also write report.html (one self-contained page; runs the analysis at the design's settings)",
+@flag_option(
+    "--report", help="also write report.html (one self-contained page; runs the analysis at the design's settings)"
 )
 def command(design: Path, output: Path | None, profile: str, force: bool, post: str, report: bool) -> int:
     """Build the fiducial body, wires and beads of DESIGN (a .toml file or a preset's name,

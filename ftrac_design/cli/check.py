@@ -10,15 +10,13 @@ from pathlib import Path
 import click
 
 from ..errors import GoalError
-from .options import design_argument, profile_option
+from .options import design_argument, flag_option, profile_option
 
 
 @click.command("check")
 @design_argument()
 @profile_option("manufacturing profile whose cut sizes and limits apply")
-@click.option(
-    "--json", "as_json", is_flag=True, default=False, help="print the report as one JSON object instead of a table"
-)
+@flag_option("--json", "as_json", help="print the report as one JSON object instead of a table")
 def command(design: Path, profile: str, as_json: bool) -> int:
     """Check DESIGN (a .toml file or a preset's name) against the manufacturing design rules.
 

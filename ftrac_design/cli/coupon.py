@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .options import design_argument, output_option, post_option, profile_option
+from .options import design_argument, optional_option, output_option, post_option, profile_option, shown_option
 
 
 def _pair(ctx, param, value):
@@ -27,13 +27,10 @@ def _pair(ctx, param, value):
 @design_argument()
 @profile_option("manufacturing profile whose groove width and pocket diameter the steps centre on")
 @output_option("output directory [default: outputs/<design name>_coupon/]")
-@click.option(
-    "--step",
-    type=click.FloatRange(min=0.001, max=0.5),
-    default=None,
-    help="mm between sizes [default: 0.01 cnc, 0.05 fdm]",
+@optional_option(
+    "--step", type=click.FloatRange(min=0.001, max=0.5), help="mm between sizes [default: 0.01 cnc, 0.05 fdm]"
 )
-@click.option("--count", type=click.IntRange(min=1, max=15), default=7, show_default=True, help="sizes of each kind")
+@shown_option("--count", type=click.IntRange(min=1, max=15), default=7, help="sizes of each kind")
 @post_option("control the coupon's program is written for (cnc)")
 @click.option(
     "--interference",
@@ -43,11 +40,10 @@ def _pair(ctx, param, value):
     help="the fit that held on the coupon, mm (cnc: interference; fdm: gap per side): "
     "writes DESIGN with it to --write-design instead of making a coupon",
 )
-@click.option(
+@optional_option(
     "--write-design",
     "write_design",
     type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
     help="where --interference writes the updated design (TOML)",
 )
 def command(

@@ -10,7 +10,7 @@ import click
 
 from ..errors import InputError
 from ..fileio import atomic_file
-from .options import FILE, OUT_FILE, camera_option, output_option, polarity_option
+from .options import FILE, OUT_FILE, camera_option, optional_option, output_option, polarity_option, shown_option
 
 
 @click.command("distortion")
@@ -22,31 +22,22 @@ from .options import FILE, OUT_FILE, camera_option, output_option, polarity_opti
     required=True,
     help="Grid pitch of the dewarping plate, mm (centre to centre of neighbouring beads).",
 )
-@click.option(
-    "--pixel-mm",
-    "pixel_mm",
-    type=float,
-    default=None,
-    help="Detector pixel pitch, mm (else from --camera or the image's header).",
+@optional_option(
+    "--pixel-mm", "pixel_mm", type=float, help="Detector pixel pitch, mm (else from --camera or the image's header)."
 )
 @camera_option("SPEC §3 camera object (JSON); its pixel size is used.")
-@click.option("--degree", type=int, default=5, show_default=True, help="Degree of the distortion polynomial (1–8).")
+@shown_option("--degree", type=int, default=5, help="Degree of the distortion polynomial (1–8).")
 @polarity_option()
-@click.option(
-    "--bead-mm",
-    "bead_mm",
-    type=float,
-    default=None,
-    help="Bead diameter on the plate, mm (default: measured on the image).",
+@optional_option(
+    "--bead-mm", "bead_mm", type=float, help="Bead diameter on the plate, mm (default: measured on the image)."
 )
 @output_option(
     "Where to write the ftrac-distortion model.", type=OUT_FILE, default=Path("distortion.json"), show_default=True
 )
-@click.option(
+@optional_option(
     "--plot",
     "plot_path",
     type=FILE,
-    default=None,
     help="Also write a PNG of the measured and fitted displacements and the residuals.",
 )
 def command(

@@ -7,14 +7,14 @@ from pathlib import Path
 
 import click
 
-from .options import design_argument, output_option, profile_option
+from .options import design_argument, flag_option, output_option, profile_option
 
 
 @click.command("drawings")
 @design_argument()
 @output_option("output directory [default: outputs/<design name>/drawings/]")
 @profile_option("manufacturing profile: sets the cut sizes and tolerances drawn")
-@click.option("--png", is_flag=True, default=False, help="also write each sheet as PNG")
+@flag_option("--png", help="also write each sheet as PNG")
 def command(design: Path, output: Path | None, profile: str, png: bool) -> int:
     """Draw DESIGN (a .toml file or a preset's name): drawing_body, drawing_mount and
     drawing_connector as SVG and PDF (the same sheets `build` writes), atomically."""

@@ -13,7 +13,7 @@ from typing import Literal
 import click
 
 from ..errors import InputError
-from .options import FILE, link_options
+from .options import DIR, FILE, OUT_FILE, features_option, link_options, optional_option, output_option
 
 ExportFormat = Literal["tfm", "mrk", "mha"]
 #: output suffix → format
@@ -106,46 +106,31 @@ def _export_scene(input_path: Path, scene: Path, features: Path | None, model: P
 
 @click.command("export")
 @click.argument("input_path", metavar="INPUT", type=FILE)
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
-    help="The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha.",
-)
-@click.option(
+@output_option("The file to write; its suffix picks the format: .tfm, .mrk.json, .seq.mha.", type=OUT_FILE)
+@optional_option(
     "--scene",
     "scene_dir",
-    type=click.Path(file_okay=False, path_type=Path),
-    default=None,
+    type=DIR,
     help="Instead of -o: a 3D Slicer scene folder (scene.mrml, the model, the beads, the run and a sequence "
     "browser) of the run INPUT; needs --features.",
 )
-@click.option(
-    "--features",
-    "features_path",
-    type=click.Path(dir_okay=False, path_type=Path),
+@features_option(
+    "--scene: the build's features.json (the beads); the model is fiducial.stl beside it unless --model.",
+    required=False,
     default=None,
-    help="--scene: the build's features.json (the beads); the model is fiducial.stl beside it unless --model.",
 )
-@click.option(
+@optional_option(
     "--model",
     "model_path",
-    type=click.Path(dir_okay=False, path_type=Path),
-    default=None,
+    type=FILE,
     help="--scene: the fiducial's STL in F (default: fiducial.stl beside --features, as `build` writes it).",
 )
-@click.option(
-    "--format",
-    "fmt",
-    type=click.Choice(["tfm", "mrk", "mha"]),
-    default=None,
-    help="The format, when the suffix does not say.",
+@optional_option(
+    "--format", "fmt", type=click.Choice(["tfm", "mrk", "mha"]), help="The format, when the suffix does not say."
 )
-@click.option(
+@optional_option(
     "--index",
     type=click.IntRange(min=0),
-    default=None,
     help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).",
 )
 @link_options(

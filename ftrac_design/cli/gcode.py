@@ -13,7 +13,15 @@ import click
 
 from ..machining.post import POSTS
 from ..machining.simulate import GRID, TOLERANCE
-from .options import OUT_FILE, design_argument, output_option, post_option, profile_option
+from .options import (
+    OUT_FILE,
+    design_argument,
+    optional_option,
+    output_option,
+    post_option,
+    profile_option,
+    shown_option,
+)
 
 
 def _table(v, cycle: dict[str, float] | None) -> list[str]:
@@ -43,25 +51,22 @@ def _table(v, cycle: dict[str, float] | None) -> list[str]:
     "program file [default: <design name>_body.ngc (.nc for fanuc)]; the check goes beside it as <file>.verify.json",
     type=OUT_FILE,
 )
-@click.option(
+@optional_option(
     "--check",
     "check",
     type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
     help="verify this program (T1 groove, T2 pocket end mill of the design) instead of writing one",
 )
-@click.option(
+@shown_option(
     "--grid",
     type=click.FloatRange(min=0.002, max=0.1),
     default=GRID,
-    show_default=True,
     help="dexel spacing of the simulation at the outer surface, mm",
 )
-@click.option(
+@shown_option(
     "--tolerance",
     type=click.FloatRange(min=0.0, min_open=True),
     default=TOLERANCE,
-    show_default=True,
     help="largest deviation from the CAD's cuts that passes, mm",
 )
 def command(

@@ -11,11 +11,14 @@ import click
 
 from .options import (
     design_argument,
+    flag_option,
     min_clearance_option,
+    optional_option,
     output_option,
     poses_option,
     profiles_option,
     score_images_option,
+    shown_option,
     workers_option,
 )
 
@@ -24,37 +27,28 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 
 @click.command("optimize")
 @design_argument(dir_okay=False)
-@click.option(
+@optional_option(
     "--space",
     "space",
     type=click.Path(path_type=Path, dir_okay=False),
-    default=None,
     help="search space (TOML: [parameters], optional [search], or a shipped space's name: "
     "`ftrac-design presets`) [default: the design's layout "
     "within its envelope; see --print-space]",
 )
-@click.option(
+@shown_option(
     "--objective",
     type=click.Choice(OBJECTIVE_CHOICES),
     default="max",
-    show_default=True,
     help="max/sum/translation/rotation: p95 errors over the start's, CMA-ES; "
     "translation-rotation, accuracy-diameter: Pareto front, NSGA-II",
 )
-@click.option(
+@shown_option(
     "--evaluations",
     type=click.IntRange(min=1),
     default=400,
-    show_default=True,
     help="candidates to evaluate (rounded up to whole generations)",
 )
-@click.option(
-    "--seed",
-    type=click.IntRange(min=0),
-    default=0,
-    show_default=True,
-    help="seeds the optimiser and the search's pose sample",
-)
+@shown_option("--seed", type=click.IntRange(min=0), default=0, help="seeds the optimiser and the search's pose sample")
 @profiles_option("design rules that constrain the search; repeat for both [default: cnc]")
 @click.option(
     "--scheduler",
@@ -63,25 +57,20 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     help="Dask scheduler, e.g. tcp://host:8786 [default: $DASK_SCHEDULER_ADDRESS, else local processes]",
 )
 @workers_option("local worker processes; 0 = in this process [default: one per core]")
-@click.option("--resume", is_flag=True, default=False, help="continue the interrupted run whose log is in DIR.partial/")
+@flag_option("--resume", help="continue the interrupted run whose log is in DIR.partial/")
 @output_option("output directory [default: outputs/<design name>/optimize/]")
 @poses_option("workspace poses of the (fixed) search sample [default: space's, else 2000]")
-@click.option(
-    "--verify-poses",
-    type=click.IntRange(min=100),
-    default=None,
-    help="fresh poses that re-score start and best [default: 20000]",
+@optional_option(
+    "--verify-poses", type=click.IntRange(min=100), help="fresh poses that re-score start and best [default: 20000]"
 )
-@click.option(
+@optional_option(
     "--solver-images",
     type=click.IntRange(min=0),
-    default=None,
     help="simulated images solved for start and best (0 = skip) [default: 1000]",
 )
-@click.option(
+@optional_option(
     "--check-images",
     type=click.IntRange(min=0),
-    default=None,
     help="rendered radiographs of start and best tracked with no initial guess, the winner's "
     "check beyond the noise model (0 = skip) [default: 200]",
 )
@@ -89,10 +78,9 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     "segmentability constraint: 5th percentile of the smallest image clearance between "
     "feature projections over the search poses, px (ftrac_mini: -1.9; 2005: -2.8) [default: none]"
 )
-@click.option(
+@optional_option(
     "--min-ellipse-view-deg",
     type=click.FloatRange(min=0.0, max=90.0),
-    default=None,
     help="no ellipse seen closer to edge-on than this anywhere in the search poses; 0 = off "
     "[default: the start design's own on the search sample: 3.9 for ftrac_mini at seed 0, "
     "3.6 at seed 1]",
@@ -103,13 +91,8 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
     "feature-level model; each candidate then costs ~0.2–0.5 s per image",
     default=0,
 )
-@click.option("--no-build", is_flag=True, default=False, help="do not build the best design (CAD)")
-@click.option(
-    "--print-space",
-    is_flag=True,
-    default=False,
-    help="print the search space (the default one, or --space's) as a file to edit, and exit",
-)
+@flag_option("--no-build", help="do not build the best design (CAD)")
+@flag_option("--print-space", help="print the search space (the default one, or --space's) as a file to edit, and exit")
 def command(
     design: Path,
     space: Path | None,

@@ -112,8 +112,74 @@ camera_option = SharedOption("--camera", "camera_path", type=FILE, default=None,
 output_option = SharedOption("-o", "--output", "output", type=click.Path(path_type=Path), default=None)
 #: an output that is a file
 OUT_FILE = click.Path(path_type=Path, dir_okay=False)
+#: a directory, read or written (``--analysis DIR``, ``--scene DIR``)
+DIR = click.Path(path_type=Path, file_okay=False)
 #: an output that is a directory
-OUT_DIR = click.Path(path_type=Path, file_okay=False)
+OUT_DIR = DIR
+
+
+def flag_option(*decls: str, help: str) -> Decorator:
+    """A switch that is off unless given (``is_flag``, default False).
+
+    Parameters
+    ----------
+    *decls : str
+        The flag and, optionally, the parameter's name.
+    help : str
+        What the switch does.
+
+    Returns
+    -------
+    callable
+        The click option.
+    """
+    return click.option(*decls, is_flag=True, default=False, help=help)
+
+
+def optional_option(*decls: str, type, help: str, **attrs) -> Decorator:
+    """An option that is None unless given (``--pose FILE``, ``--max-condition X``).
+
+    Parameters
+    ----------
+    *decls : str
+        The flags and, optionally, the parameter's name.
+    type : click.ParamType or type
+        Its values' type.
+    help : str
+        What it sets.
+    **attrs
+        Further attributes of :func:`click.option` (``metavar``, ``required``).
+
+    Returns
+    -------
+    callable
+        The click option.
+    """
+    return click.option(*decls, type=type, default=None, help=help, **attrs)
+
+
+def shown_option(*decls: str, type, default, help: str, **attrs) -> Decorator:
+    """An option whose default ``--help`` shows (``show_default``).
+
+    Parameters
+    ----------
+    *decls : str
+        The flags and, optionally, the parameter's name.
+    type : click.ParamType or type
+        Its values' type.
+    default
+        Its value when not given.
+    help : str
+        What it sets.
+    **attrs
+        Further attributes of :func:`click.option` (``metavar``).
+
+    Returns
+    -------
+    callable
+        The click option.
+    """
+    return click.option(*decls, type=type, default=default, show_default=True, help=help, **attrs)
 
 
 def _choice(flag: str, choices, default: str, help: str | None = None) -> SharedOption:

@@ -5,14 +5,11 @@ from __future__ import annotations
 
 import click
 
+from .options import flag_option
+
 
 @click.command("presets")
-@click.option(
-    "--paths",
-    is_flag=True,
-    default=False,
-    help="also print each file's path (to copy a preset as the start of a new design)",
-)
+@flag_option("--paths", help="also print each file's path (to copy a preset as the start of a new design)")
 def command(paths: bool) -> int:
     """List the preset designs and the shipped search spaces, each with a short description.
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .options import FILE, host_option, link_options, port_option
+from .options import FILE, host_option, link_options, optional_option, port_option, shown_option
 
 
 @click.command("push")
@@ -16,28 +16,25 @@ from .options import FILE, host_option, link_options, port_option
 @host_option("The OpenIGTLink server (3D Slicer).")
 @port_option()
 @link_options("The matrix's coordinates: ras for 3D Slicer, lps for the SPEC §4 pose unchanged.")
-@click.option(
+@optional_option(
     "--rate",
     "rate_hz",
     type=click.FloatRange(min=0.0, min_open=True),
-    default=None,
     help="Frames per second [default: the poses' time_s, else 30].",
 )
-@click.option(
+@shown_option(
     "--header-version",
     type=click.Choice(["1", "2"]),
     default="2",
-    show_default=True,
     help="OpenIGTLink header version until the server sends a message (then the version it speaks): 2 for "
     "3D Slicer 4.8+ and PLUS 2.6+ (metadata: TransformStatus, full-precision pose); 1 for the reference "
     "library 1.x (a pose without a solution is then a STATUS NoPose, not a TRANSFORM).",
 )
-@click.option(
+@shown_option(
     "--timeout",
     "timeout_s",
     type=click.FloatRange(min=0.0),
     default=10.0,
-    show_default=True,
     help="Seconds to wait for the server to accept the connection.",
 )
 def command(

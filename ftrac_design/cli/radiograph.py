@@ -17,7 +17,17 @@ import click
 import numpy as np
 
 from ..errors import InputError
-from .options import FILE, OUT_DIR, camera_option, features_option, imaging_options, output_option
+from .options import (
+    FILE,
+    OUT_DIR,
+    camera_option,
+    features_option,
+    flag_option,
+    imaging_options,
+    optional_option,
+    output_option,
+    shown_option,
+)
 
 _EXT = {"png": ".png", "tiff": ".tif", "dicom": ".dcm", "npy": ".npy"}
 
@@ -58,49 +68,38 @@ def _parse_occluder(text: str, frame: str):
 
 @click.command("radiograph")
 @features_option()
-@click.option(
-    "--pose",
-    "pose_path",
-    type=FILE,
-    default=None,
-    help="SPEC §4 pose.json (or JSON Lines of poses): one image per pose.",
+@optional_option(
+    "--pose", "pose_path", type=FILE, help="SPEC §4 pose.json (or JSON Lines of poses): one image per pose."
 )
-@click.option(
+@optional_option(
     "--workspace-sample",
     type=click.IntRange(min=1),
-    default=None,
     help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="seed of the poses, the noise and the anatomy.")
+@shown_option("--seed", type=int, default=0, help="seed of the poses, the noise and the anatomy.")
 @output_option(
     "output directory (new, or a previous radiograph output, which is replaced).", type=OUT_DIR, required=True
 )
 @click.option("--format", "fmt", type=click.Choice(list(_EXT)), default="png", show_default=True)
-@click.option(
+@shown_option(
     "--output-kind",
     "--output-type",
     "kind",
     type=click.Choice(["log", "raw"]),
     default="log",
-    show_default=True,
     help="log: flat-field −ln(I/I0), dense = bright; raw: detector counts, dense = dark.",
 )
 @imaging_options()
-@click.option("--no-noise", is_flag=True, default=False, help="noise-free image.")
-@click.option(
-    "--bit-depth",
-    type=click.IntRange(8, 16),
-    default=16,
-    show_default=True,
-    help="raw quantisation; files hold 8 bits if ≤ 8, else 16.",
+@flag_option("--no-noise", help="noise-free image.")
+@shown_option(
+    "--bit-depth", type=click.IntRange(8, 16), default=16, help="raw quantisation; files hold 8 bits if ≤ 8, else 16."
 )
-@click.option(
+@shown_option(
     "--image-size",
     type=(click.IntRange(min=8), click.IntRange(min=8)),
     default=(1024, 1024),
-    show_default=True,
-    metavar="H W",
     help="image rows and columns.",
+    metavar="H W",
 )
 @click.option(
     "--background",
@@ -115,23 +114,21 @@ def _parse_occluder(text: str, frame: str):
     metavar="x0,y0,z0,x1,y1,z1[,d]",
     help="a steel needle/rod from (x0,y0,z0) to (x1,y1,z1) mm, diameter d (default 1.27); repeatable.",
 )
-@click.option(
+@shown_option(
     "--occluder-frame",
     type=click.Choice(["F", "X"]),
     default="F",
-    show_default=True,
     help="frame of the --occluder coordinates: fiducial F or camera X.",
 )
 @camera_option("SPEC §3 camera JSON [default: f 1000 mm, 0.44 mm pixels, principal point at (512, 512)].")
-@click.option(
+@optional_option(
     "--design",
     "design_path",
     type=FILE,
-    default=None,
     help="design TOML (or a preset's name) giving the body when features.json does not (its 'body' key "
     "or design.source).",
 )
-@click.option("--no-body", is_flag=True, default=False, help="wires and beads only.")
+@flag_option("--no-body", help="wires and beads only.")
 def command(
     features_path: Path,
     pose_path: Path | None,

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from .options import FILE as _FILE
-from .options import OUT_FILE, POSITIVE, camera_option, features_option, output_option
+from .options import OUT_FILE, POSITIVE, camera_option, features_option, optional_option, output_option, shown_option
 
 
 @click.command("reconstruct")
@@ -32,41 +32,36 @@ from .options import OUT_FILE, POSITIVE, camera_option, features_option, output_
     'SPEC §3 camera object for every image; overrides a "camera" key in a pose or points '
     "line (an extension of SPEC §4/§5)."
 )
-@click.option(
+@shown_option(
     "--to",
     "to",
     type=click.Choice(["fiducial", "template"]),
     default="fiducial",
-    show_default=True,
     help="Output frame: F, or the template frame T through features.json's template_from_fiducial.",
 )
-@click.option(
+@optional_option(
     "--transform",
     "transform_path",
     type=_FILE,
-    default=None,
     help="A further rigid 4x4 from the --to frame (e.g. template -> ultrasound): a list of 4 rows, or "
     '{"matrix": …, "name": …, "covariance": 6x6}; applied last.',
 )
-@click.option(
+@optional_option(
     "--noise-px",
     type=POSITIVE,
-    default=None,
     help="Image-point noise, pixels per axis [default: 0.102 mm at the detector, the paper's "
     "0.25 mm uniform segmentation error, in each image's pixels].",
 )
-@click.option(
+@shown_option(
     "--min-parallax-deg",
     type=click.FloatRange(min=0.0),
     default=2.0,
-    show_default=True,
     help="Refuse a point whose widest angle between two views' rays is below this.",
 )
-@click.option(
+@shown_option(
     "--template-sigma-mm",
     type=click.FloatRange(min=0.0),
     default=0.0,
-    show_default=True,
     help="Machining tolerance of the template connector, σ mm per axis, added to the uncertainty with --to template.",
 )
 @output_option(

@@ -16,7 +16,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import OUT_FILE, image_score_options, output_option, poses_option, profile_option
+from .options import OUT_FILE, image_score_options, optional_option, output_option, poses_option, profile_option
 
 
 @click.command("report")
@@ -24,11 +24,10 @@ from .options import OUT_FILE, image_score_options, output_option, poses_option,
 @output_option(
     "HTML file to write [default: BUILD_DIR/report.html; report_<name>.html for a design file]", type=OUT_FILE
 )
-@click.option(
+@optional_option(
     "--analysis",
     "analysis_dir",
     type=click.Path(path_type=Path, file_okay=False),
-    default=None,
     help="an `ftrac-design analyze` output directory to show [default: BUILD_DIR/analysis if present, "
     "else the analysis is run]",
 )

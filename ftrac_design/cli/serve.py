@@ -22,6 +22,7 @@ from .options import (
     polarity_option,
     port_option,
     refine_option,
+    shown_option,
 )
 
 
@@ -41,11 +42,10 @@ from .options import (
     "The TRANSFORM matrix's coordinates: ras for 3D Slicer (our LPS numbers converted), lps for the "
     "SPEC §4 pose unchanged. The metadata carry the SPEC §4 pose either way."
 )
-@click.option(
+@shown_option(
     "--queue",
     type=click.IntRange(min=1),
     default=1,
-    show_default=True,
     help="Frames that may wait for the tracker; a frame arriving at a full queue drops the oldest "
     "(counted in the metadata 'dropped').",
 )

@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import FILE, OUT_FILE, POSITIVE, features_option, output_option
+from .options import FILE, OUT_FILE, POSITIVE, features_option, optional_option, output_option, shown_option
 
 
 @click.command("solve")
@@ -19,32 +19,28 @@ from .options import FILE, OUT_FILE, POSITIVE, features_option, output_option
     "(default pose.json / poses.jsonl in the current directory; '-' for stdout).",
     type=OUT_FILE,
 )
-@click.option(
+@shown_option(
     "--segmentation-error-mm",
     type=POSITIVE,
     default=0.25,
-    show_default=True,
     help="Expected segmentation error (the paper's uniform error magnitude, mm at the detector); "
     "sets the relative weights and the noise scale's reference.",
 )
-@click.option(
+@shown_option(
     "--distance",
     type=click.Choice(["sampson", "paper"]),
     default="sampson",
-    show_default=True,
     help="Ellipse residual: first-order geometric (Sampson) or the paper's K·PᵀMP (Eq. 8).",
 )
-@click.option(
+@shown_option(
     "--starts",
     type=click.IntRange(min=1),
     default=96,
-    show_default=True,
     help="Multi-start seeds used when no closed-form start is possible.",
 )
-@click.option(
+@optional_option(
     "--estimate-intrinsics",
     type=click.Choice(["f", "f,o", "all"]),
-    default=None,
     help="Estimate the C-arm intrinsics shared by all images with their poses (f: focal length at "
     "the given pixel pitch; f,o: and the principal point; all: fx, fy, ox, oy); refused (exit 1, "
     "poses solved with the given camera) where the images do not determine them. See "

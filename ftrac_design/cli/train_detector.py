@@ -10,26 +10,26 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
+from .options import shown_option
 
 
 @click.command("train-detector")
-@click.option(
+@shown_option(
     "-o",
     "--output",
     type=click.Path(file_okay=False, path_type=Path),
     default=Path("outputs/detector"),
-    show_default=True,
     help="folder for detector.onnx and detector.json (the shipped ones: ftrac_design/detector/models)",
 )
-@click.option("--scenes", type=click.IntRange(1), default=5000, show_default=True, help="training scenes")
-@click.option("--val-scenes", type=click.IntRange(1), default=500, show_default=True, help="validation scenes")
-@click.option("--seed", type=int, default=1, show_default=True, help="seed of the training scenes and the weights")
-@click.option("--val-seed", type=int, default=2, show_default=True, help="seed of the validation scenes")
-@click.option("--steps", type=click.IntRange(1), default=5000, show_default=True, help="optimiser steps")
-@click.option("--batch", type=click.IntRange(1), default=32, show_default=True, help="crops per step")
+@shown_option("--scenes", type=click.IntRange(1), default=5000, help="training scenes")
+@shown_option("--val-scenes", type=click.IntRange(1), default=500, help="validation scenes")
+@shown_option("--seed", type=int, default=1, help="seed of the training scenes and the weights")
+@shown_option("--val-seed", type=int, default=2, help="seed of the validation scenes")
+@shown_option("--steps", type=click.IntRange(1), default=5000, help="optimiser steps")
+@shown_option("--batch", type=click.IntRange(1), default=32, help="crops per step")
 @click.option("--lr", type=click.FloatRange(min=0, min_open=True), default=2e-3, show_default=True)
-@click.option("--workers", type=click.IntRange(1), default=2, show_default=True, help="processes making scenes")
-@click.option("--threads", type=click.IntRange(1), default=2, show_default=True, help="PyTorch threads")
+@shown_option("--workers", type=click.IntRange(1), default=2, help="processes making scenes")
+@shown_option("--threads", type=click.IntRange(1), default=2, help="PyTorch threads")
 @click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True)
 def command(output, scenes, val_scenes, seed, val_seed, steps, batch, lr, workers, threads, device) -> int:
     """Train the learned ball and wire detector on this package's own simulator.
