@@ -17,10 +17,11 @@ import numpy as np
 from ..design.schema import Design
 from ..features.model import Features
 from ..features.mounting import connector_layout, mount_layout
+from ..igt.frames import rigid_inverse
 from ..manufacture.profiles import Profile, cut_sizes
 from .connector import ConnectorPart, pin_solid
 from .mount import MountPart
-from .placement import placed, rigid_inverse
+from .placement import placed
 
 #: assembly colours (RGBA): white acetal mount, grey acetal connector, steel pins
 MOUNT_COLOR = (0.97, 0.97, 0.95, 1.0)

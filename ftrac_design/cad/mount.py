@@ -28,9 +28,10 @@ import numpy as np
 
 from ..design.schema import Design
 from ..features.mounting import Hole, MountLayout, mount_from_fiducial, mount_layout
+from ..igt.frames import rigid_inverse
 from ..manufacture.profiles import CutSizes, Profile, cut_sizes
 from .body import single_solid
-from .placement import placed, rigid_inverse
+from .placement import placed
 
 #: how far a cutting tool reaches past the faces it opens (only keeps the booleans off
 #: coincident faces), mm

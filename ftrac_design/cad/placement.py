@@ -13,15 +13,6 @@ import numpy as np
 from OCP.gp import gp_Trsf
 
 
-def rigid_inverse(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid 4×4 transform."""
-    T = np.asarray(T, float)
-    out = np.eye(4)
-    out[:3, :3] = T[:3, :3].T
-    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
-    return out
-
-
 def trsf(T: np.ndarray) -> gp_Trsf:
     """An OCC rigid transformation from a 4×4 matrix (rotation must be orthonormal)."""
     T = np.asarray(T, float)

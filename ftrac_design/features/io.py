@@ -9,7 +9,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -151,33 +151,45 @@ def _new_id(r: _Reader, ids: set[str], obj: dict, where: str) -> str:
     return ident
 
 
+def _entries(r: _Reader, d: dict, key: str, ids: set[str]) -> Iterator[tuple[dict, str, str]]:
+    """Each object of the list ``key``: the object, where it is (``lines[3]``) and its id,
+    checked unique (:func:`_new_id`)."""
+    for i, o in enumerate(r.items(d, key)):
+        w = f"{key}[{i}]"
+        yield o, w, _new_id(r, ids, o, w)
+
+
+def _field_vector(r: _Reader, o: dict, key: str, where: str) -> np.ndarray:
+    """The 3-vector ``key`` of the object at ``where`` (required)."""
+    return r.vector(r.get(o, key, where), f"{where}.{key}")
+
+
+def _wire_diameter(r: _Reader, o: dict, where: str) -> float:
+    """A line's or an ellipse's ``wire_diameter``, mm (0 when not given)."""
+    return r.number(r.get(o, "wire_diameter", where, 0.0), f"{where}.wire_diameter", minimum=0.0)
+
+
 def _lines(r: _Reader, d: dict, ids: set[str]) -> list[LineFeature]:
     lines = []
-    for i, o in enumerate(r.items(d, "lines")):
-        w = f"lines[{i}]"
-        ident = _new_id(r, ids, o, w)
-        s = r.vector(r.get(o, "start", w), f"{w}.start")
-        e = r.vector(r.get(o, "end", w), f"{w}.end")
+    for o, w, ident in _entries(r, d, "lines", ids):
+        s = _field_vector(r, o, "start", w)
+        e = _field_vector(r, o, "end", w)
         if np.linalg.norm(e - s) < MIN_SIZE_MM:
             raise r.fail(f"{w}.end", f"an end-point at least {MIN_SIZE_MM:g} mm from start")
-        lines.append(
-            LineFeature(ident, s, e, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0))
-        )
+        lines.append(LineFeature(ident, s, e, _wire_diameter(r, o, w)))
     return lines
 
 
 def _points(r: _Reader, d: dict, ids: set[str], line_ids: set[str]) -> list[PointFeature]:
     points = []
-    for i, o in enumerate(r.items(d, "points")):
-        w = f"points[{i}]"
-        ident = _new_id(r, ids, o, w)
+    for o, w, ident in _entries(r, d, "points", ids):
         line = r.get(o, "line", w, None)
         if line is not None and (not isinstance(line, str) or line not in line_ids):
             raise r.fail(f"{w}.line", f"the id of a line in this file, got {line!r}")
         points.append(
             PointFeature(
                 ident,
-                r.vector(r.get(o, "center", w), f"{w}.center"),
+                _field_vector(r, o, "center", w),
                 r.number(r.get(o, "diameter", w, 0.0), f"{w}.diameter", minimum=0.0),
                 line,
             )
@@ -187,12 +199,10 @@ def _points(r: _Reader, d: dict, ids: set[str], line_ids: set[str]) -> list[Poin
 
 def _ellipses(r: _Reader, d: dict, ids: set[str]) -> list[EllipseFeature]:
     ellipses = []
-    for i, o in enumerate(r.items(d, "ellipses")):
-        w = f"ellipses[{i}]"
-        ident = _new_id(r, ids, o, w)
-        c = r.vector(r.get(o, "center", w), f"{w}.center")
-        u = r.vector(r.get(o, "major_axis", w), f"{w}.major_axis")
-        v = r.vector(r.get(o, "minor_axis", w), f"{w}.minor_axis")
+    for o, w, ident in _entries(r, d, "ellipses", ids):
+        c = _field_vector(r, o, "center", w)
+        u = _field_vector(r, o, "major_axis", w)
+        v = _field_vector(r, o, "minor_axis", w)
         for key, ax in (("major_axis", u), ("minor_axis", v)):
             if abs(np.linalg.norm(ax) - 1.0) > _ORTHO_TOL:
                 raise r.fail(f"{w}.{key}", f"a unit vector, |{key}| = {np.linalg.norm(ax):.9g}")
@@ -202,11 +212,7 @@ def _ellipses(r: _Reader, d: dict, ids: set[str]) -> list[EllipseFeature]:
         b = r.number(r.get(o, "semi_minor", w), f"{w}.semi_minor", minimum=MIN_SIZE_MM)
         if b > a * (1 + 1e-12):
             raise r.fail(f"{w}.semi_minor", f"a value not above semi_major ({a}), got {b}")
-        ellipses.append(
-            EllipseFeature(
-                ident, c, u, v, a, b, r.number(r.get(o, "wire_diameter", w, 0.0), f"{w}.wire_diameter", minimum=0.0)
-            )
-        )
+        ellipses.append(EllipseFeature(ident, c, u, v, a, b, _wire_diameter(r, o, w)))
     return ellipses
 
 

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Iterator, Literal
 
 import numpy as np
 
@@ -181,6 +181,15 @@ def _z_pitch(design: Design, hs: HoleSet) -> float:
     return grid  # a single hole on the axis never clears; the rules report it
 
 
+def _xy_hole_heights(sets: dict[str, HoleSet], pitches: dict[str, float]) -> Iterator[tuple[HoleSet, float]]:
+    """Each hole of the x and y sets with its height above the sets' common centre, mm."""
+    for a in "xy":
+        u, _ = spread_axes(_AXES.index(a))
+        hs = sets[a]
+        for du, dv in pattern_offsets(hs.pattern, pitches[a]):
+            yield hs, du if u == 2 else dv
+
+
 def mount_layout(design: Design) -> MountLayout:
     """The mount of ``design``: block size, socket, key and the three hole sets (M, mm)."""
     m = design.mount
@@ -192,29 +201,19 @@ def mount_layout(design: Design) -> MountLayout:
 
     # height of the x/y hole group: as high as the socket floor (z = 0) and the top face allow
     z_limits = []
-    for a in "xy":
-        axis = _AXES.index(a)
-        u, v = spread_axes(axis)
-        hs = sets[a]
-        for du, dv in pattern_offsets(hs.pattern, pitches[a]):
-            dz = du if u == 2 else dv
-            z_limits.append(-(dz + hs.diameter / 2 + DESIGN_WALL + SIZE_MARGIN))  # under the socket floor
-            z_limits.append(m.socket_depth - (dz + _edge_need(hs)))  # below the top face
-            if hs.counterbore_diameter:
-                z_limits.append(m.socket_depth - (dz + hs.counterbore_diameter / 2 + DESIGN_WALL + SIZE_MARGIN))
+    for hs, dz in _xy_hole_heights(sets, pitches):
+        z_limits.append(-(dz + hs.diameter / 2 + DESIGN_WALL + SIZE_MARGIN))  # under the socket floor
+        z_limits.append(m.socket_depth - (dz + _edge_need(hs)))  # below the top face
+        if hs.counterbore_diameter:
+            z_limits.append(m.socket_depth - (dz + hs.counterbore_diameter / 2 + DESIGN_WALL + SIZE_MARGIN))
     zc = min(z_limits)
 
     if m.base_height is not None:
         base = m.base_height
     else:
         lowest = 0.0
-        for a in "xy":
-            axis = _AXES.index(a)
-            u, _ = spread_axes(axis)
-            hs = sets[a]
-            for du, dv in pattern_offsets(hs.pattern, pitches[a]):
-                dz = du if u == 2 else dv
-                lowest = min(lowest, zc + dz - _edge_need(hs))
+        for hs, dz in _xy_hole_heights(sets, pitches):
+            lowest = min(lowest, zc + dz - _edge_need(hs))
         base = float(math.ceil(-lowest - 1e-9))
 
     centers = {"x": np.array([0.0, 0.0, zc]), "y": np.array([0.0, 0.0, zc]), "z": np.zeros(3)}

@@ -11,6 +11,7 @@ its frames.
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -88,18 +89,7 @@ def _file_frames(f: Path, camera: Camera | None, need_camera: bool, first: int) 
         frames = read_pil_frames(f, camera, need_camera, first)
     for fr in frames:
         if notes:
-            fr = Frame(
-                fr.pixels,
-                fr.camera,
-                fr.camera_source,
-                fr.formation,
-                fr.polarity,
-                fr.source,
-                fr.index,
-                fr.time_s,
-                notes + fr.notes,
-                fr.meta,
-            )
+            fr = replace(fr, notes=notes + fr.notes)
         yield fr
 
 

@@ -10,6 +10,7 @@ sample are read at 16 bits. A video carries no camera: ``--camera`` gives it. Lo
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -91,18 +92,7 @@ def read_video_frames(path: Path, camera: Camera | None, need_camera: bool, firs
                 path, arr, {}, {**meta, "bits": 8 * arr.dtype.itemsize}, first_index + k, camera, need_camera, notes
             )
             t = vf.time
-            yield Frame(
-                fr.pixels,
-                fr.camera,
-                fr.camera_source,
-                fr.formation,
-                fr.polarity,
-                fr.source,
-                fr.index,
-                float(t) if t is not None else None,
-                fr.notes,
-                fr.meta,
-            )
+            yield replace(fr, time_s=float(t) if t is not None else None)
     except InputError:
         raise
     except Exception as exc:  # a damaged stream: FFmpeg's decoders raise many types

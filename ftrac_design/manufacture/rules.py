@@ -95,6 +95,28 @@ class RuleResult:
             )
         return f"{self.rule}: {self.title} is {val} ({self.where}); limit {lim}"
 
+    def cells(self, missing: str = "-") -> tuple[str, str]:
+        """The measured value and the limit as a table shows them, with the unit (and the
+        recommended value beside the limit).
+
+        Parameters
+        ----------
+        missing : str
+            What stands for both when the rule does not apply.
+
+        Returns
+        -------
+        tuple of str
+            (measured, limit).
+        """
+        if self.measured is None:
+            return missing, missing
+        u = f" {self.unit}" if self.unit else ""
+        lim = f"{self.comparison} {self.limit:g}{u}"
+        if self.recommended is not None:
+            lim += f" (rec. {self.recommended:g})"
+        return f"{self.measured:.3f}{u}", lim
+
     def as_dict(self) -> dict[str, Any]:
         """The result as plain JSON, with its one-line message."""
         d = asdict(self)
@@ -161,11 +183,7 @@ class CheckReport:
         """The report as a plain-text table (one row per rule)."""
         rows = [("rule", "measured", "limit", "verdict", "where")]
         for r in self.results:
-            u = f" {r.unit}" if r.unit else ""
-            meas = "-" if r.measured is None else f"{r.measured:.3f}{u}"
-            lim = "-" if r.measured is None else f"{r.comparison} {r.limit:g}{u}"
-            if r.recommended is not None and r.measured is not None:
-                lim += f" (rec. {r.recommended:g})"
+            meas, lim = r.cells()
             rows.append((r.rule, meas, lim, r.verdict.upper() if r.verdict == "fail" else r.verdict, r.where))
         widths = [max(len(row[i]) for row in rows) for i in range(4)]
         lines = ["  ".join(c.ljust(w) for c, w in zip(row[:4], widths)) + "  " + row[4] for row in rows]

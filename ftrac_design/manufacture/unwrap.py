@@ -105,6 +105,11 @@ def ellipse_parameter_at(e: EllipseFeature, theta: np.ndarray) -> np.ndarray:
     return np.where(xy_dot < 0, s + math.pi, s)
 
 
+def _azimuth_radius(x: np.ndarray) -> tuple[float, float]:
+    """A point's azimuth about the body axis (degrees in [0, 360)) and its distance from it (mm)."""
+    return math.degrees(math.atan2(x[1], x[0])) % 360.0, float(math.hypot(x[0], x[1]))
+
+
 def unwrap_features(
     features: Features, outer_radius: float, cuts: CutSizes, step_deg: float = STEP_DEG
 ) -> list[UnwrappedPath]:
@@ -134,8 +139,7 @@ def unwrap_features(
     for ln in features.lines:
         if np.linalg.norm(ln.end[:2] - ln.start[:2]) > 1e-9:
             raise ValueError(f"line {ln.id} is not parallel to the body axis")
-        th = math.degrees(math.atan2(ln.start[1], ln.start[0])) % 360.0
-        rs = float(math.hypot(ln.start[0], ln.start[1]))
+        th, rs = _azimuth_radius(ln.start)
         out.append(
             UnwrappedPath(
                 ln.id,
@@ -149,8 +153,7 @@ def unwrap_features(
             )
         )
     for p in features.points:
-        th = math.degrees(math.atan2(p.center[1], p.center[0])) % 360.0
-        rs = float(math.hypot(p.center[0], p.center[1]))
+        th, rs = _azimuth_radius(p.center)
         out.append(
             UnwrappedPath(
                 p.id,

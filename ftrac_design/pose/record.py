@@ -425,13 +425,13 @@ class TrackedPose:
         """
         origin = str(origin)
         if not isinstance(d, dict):
-            raise InputError(origin, None, f"a JSON object (an ftrac-pose), got {_short(d)}")
+            raise InputError(origin, None, f"a JSON object (an ftrac-pose), got {short_json(d)}")
         fmt = d.get("format", FORMAT)
         if fmt != FORMAT:
-            raise InputError(origin, "format", f'"{FORMAT}", got {_short(fmt)}')
+            raise InputError(origin, "format", f'"{FORMAT}", got {short_json(fmt)}')
         conv = d.get("converged", True)
         if not isinstance(conv, bool):
-            raise InputError(origin, "converged", f"true or false, got {_short(conv)}")
+            raise InputError(origin, "converged", f"true or false, got {short_json(conv)}")
         order = d.get("covariance_order", COVARIANCE_ORDER)
         if order != COVARIANCE_ORDER:
             raise InputError(origin, "covariance_order", json.dumps(COVARIANCE_ORDER))
@@ -480,23 +480,75 @@ def _provenance_dict(pv: Provenance) -> dict[str, Any]:
     return d
 
 
-def _short(v: Any) -> str:
+def short_json(v: Any) -> str:
+    """A JSON value as an error message quotes it: at most 40 characters.
+
+    Parameters
+    ----------
+    v : any
+        The value read.
+
+    Returns
+    -------
+    str
+        Its JSON text (a float's ``repr``), cut to 37 characters and ``...`` when longer.
+    """
     s = json.dumps(v) if not isinstance(v, float) else repr(v)
     return s if len(s) <= 40 else s[:37] + "..."
 
 
-def _number(v: Any, origin: str, key: str) -> float:
+def finite_number(v: Any, origin: str, key: str) -> float:
+    """A JSON number that must be finite (a bool is not a number).
+
+    Parameters
+    ----------
+    v : any
+        The value read.
+    origin, key : str
+        Where it was read (file or ``file:line``) and its key, for the error.
+
+    Returns
+    -------
+    float
+        The number.
+
+    Raises
+    ------
+    InputError
+        Anything else.
+    """
     if not _is_number(v) or not math.isfinite(v):
-        raise InputError(origin, key, f"a finite number, got {_short(v)}")
+        raise InputError(origin, key, f"a finite number, got {short_json(v)}")
     return float(v)
 
 
-def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
+def number_matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
+    """A JSON matrix: a list of ``rows`` lists of ``cols`` finite numbers.
+
+    Parameters
+    ----------
+    v : any
+        The value read.
+    rows, cols : int
+        Its shape.
+    origin, key : str
+        Where it was read and its key, for the error.
+
+    Returns
+    -------
+    numpy.ndarray
+        The (rows, cols) matrix, float.
+
+    Raises
+    ------
+    InputError
+        Any other shape or a value that is not a finite number (named by its index).
+    """
     if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
         raise InputError(
-            origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), got {_short(v)}"
+            origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), got {short_json(v)}"
         )
-    return np.array([[_number(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
+    return np.array([[finite_number(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
 
 
 def _solution(d: dict, converged: bool, origin: str) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -511,15 +563,15 @@ def _solution(d: dict, converged: bool, origin: str) -> tuple[np.ndarray, np.nda
     for k in ("rotation", "translation_mm"):
         if k not in d:
             raise InputError(origin, k, "a value (the key is required)")
-    R = _matrix(d["rotation"], 3, 3, origin, "rotation")
+    R = number_matrix(d["rotation"], 3, 3, origin, "rotation")
     if not (np.abs(R.T @ R - np.eye(3)).max() < ROTATION_TOL and abs(np.linalg.det(R) - 1) < ROTATION_TOL):
         raise InputError(origin, "rotation", "a rotation matrix (orthonormal, determinant +1)")
     tv = d["translation_mm"]
     if not isinstance(tv, list) or len(tv) != 3:
-        raise InputError(origin, "translation_mm", f"a list of 3 numbers, got {_short(tv)}")
-    t = np.array([_number(x, origin, f"translation_mm[{i}]") for i, x in enumerate(tv)])
+        raise InputError(origin, "translation_mm", f"a list of 3 numbers, got {short_json(tv)}")
+    t = np.array([finite_number(x, origin, f"translation_mm[{i}]") for i, x in enumerate(tv)])
     cov = d.get("covariance")
-    return R, t, None if cov is None else _matrix(cov, 6, 6, origin, "covariance")
+    return R, t, None if cov is None else number_matrix(cov, 6, 6, origin, "covariance")
 
 
 def _lenient(v: Any, shape: tuple[int, ...]) -> np.ndarray:
@@ -545,15 +597,15 @@ def _mapping(v: Any) -> dict:
 def _status(d: dict, origin: str) -> Status | None:
     status = d.get("status")
     if status is not None and status not in STATUSES:
-        raise InputError(origin, "status", f"one of {', '.join(STATUSES)}, got {_short(status)}")
+        raise InputError(origin, "status", f"one of {', '.join(STATUSES)}, got {short_json(status)}")
     return status
 
 
 def _provenance(d: dict, origin: str) -> Provenance:
-    time_s = None if d.get("time_s") is None else _number(d["time_s"], origin, "time_s")
+    time_s = None if d.get("time_s") is None else finite_number(d["time_s"], origin, "time_s")
     frame = d.get("frame")
     if frame is not None and (not isinstance(frame, int) or isinstance(frame, bool) or frame < 0):
-        raise InputError(origin, "frame", f"a frame index (an integer ≥ 0), got {_short(frame)}")
+        raise InputError(origin, "frame", f"a frame index (an integer ≥ 0), got {short_json(frame)}")
     notes = d.get("intake_notes")
     return Provenance(
         image=d["image"] if isinstance(d.get("image"), str) else None,

@@ -19,8 +19,6 @@ Output (format ``ftrac-reconstruction``, version 1): see :func:`result_dict`.
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -30,15 +28,11 @@ from ..errors import InputError
 from ..fileio import json_lines, parse_json, read_text_input
 from ..pose import TrackedPose
 from ..pose.observation import camera_from_dict
+from ..pose.record import finite_number, number_matrix, short_json
 from .frames import RigidTransform, is_rigid
 
 FORMAT = "ftrac-reconstruction"
 VERSION = 1
-
-
-def _short(v: Any) -> str:
-    s = json.dumps(v) if not isinstance(v, float) else repr(v)
-    return s if len(s) <= 40 else s[:37] + "..."
 
 
 def _json_lines(path: Path, what: str) -> list[tuple[str, Any]]:
@@ -46,25 +40,11 @@ def _json_lines(path: Path, what: str) -> list[tuple[str, Any]]:
     out = []
     for origin, d in json_lines(path):
         if not isinstance(d, dict):
-            raise InputError(origin, None, f"a JSON object ({what}), got {_short(d)}")
+            raise InputError(origin, None, f"a JSON object ({what}), got {short_json(d)}")
         out.append((origin, d))
     if not out:
         raise InputError(path, None, f"at least one line ({what}); the file is empty")
     return out
-
-
-def _num(v: Any, origin: str, key: str) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise InputError(origin, key, f"a finite number, got {_short(v)}")
-    return float(v)
-
-
-def _matrix(v: Any, rows: int, cols: int, origin: str, key: str) -> np.ndarray:
-    if not isinstance(v, list) or len(v) != rows or not all(isinstance(r, list) and len(r) == cols for r in v):
-        raise InputError(
-            origin, key, f"a {rows}x{cols} matrix (a list of {rows} rows of {cols} numbers), got {_short(v)}"
-        )
-    return np.array([[_num(x, origin, f"{key}[{i}][{j}]") for j, x in enumerate(r)] for i, r in enumerate(v)])
 
 
 def read_poses(path: Path) -> list[dict[str, Any]]:
@@ -105,8 +85,8 @@ def read_points(path: Path) -> list[dict[str, Any]]:
             if k == "camera":
                 continue
             if not isinstance(v, list) or len(v) != 2:
-                raise InputError(origin, k, f"[u, v] pixel coordinates, got {_short(v)}")
-            pts[k] = np.array([_num(x, origin, f"{k}[{i}]") for i, x in enumerate(v)])
+                raise InputError(origin, k, f"[u, v] pixel coordinates, got {short_json(v)}")
+            pts[k] = np.array([finite_number(x, origin, f"{k}[{i}]") for i, x in enumerate(v)])
         out.append({"origin": origin, "points": pts, "camera": cam})
     return out
 
@@ -121,15 +101,15 @@ def read_transform(path: Path, source: str) -> RigidTransform:
             raise InputError(origin, "matrix", "a 4x4 rigid transform (the key is required)")
         name = d.get("name", name)
         if not isinstance(name, str) or not name:
-            raise InputError(origin, "name", f"a frame name (string), got {_short(name)}")
+            raise InputError(origin, "name", f"a frame name (string), got {short_json(name)}")
         if d.get("covariance") is not None:
-            cov = _matrix(d["covariance"], 6, 6, origin, "covariance")
+            cov = number_matrix(d["covariance"], 6, 6, origin, "covariance")
             if not (np.allclose(cov, cov.T) and np.linalg.eigvalsh(cov).min() >= -1e-12):
                 raise InputError(origin, "covariance", "a symmetric positive semi-definite 6x6 matrix")
-        M = _matrix(d["matrix"], 4, 4, origin, "matrix")
+        M = number_matrix(d["matrix"], 4, 4, origin, "matrix")
         key = "matrix"
     else:
-        M = _matrix(d, 4, 4, origin, "matrix")
+        M = number_matrix(d, 4, 4, origin, "matrix")
         key = "matrix"
     if not is_rigid(M):
         raise InputError(origin, key, "a rigid 4x4 transform (orthonormal rotation, det +1, last row 0 0 0 1), mm")

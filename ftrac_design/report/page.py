@@ -300,11 +300,7 @@ def _rules(r: ReportInputs) -> str:
         body += f'<h3>{_e(profile)} <span class="badge {cls}">{_e(verdict)}</span></h3>'
         rows = []
         for x in rep.results:
-            u = f" {x.unit}" if x.unit else ""
-            meas = "–" if x.measured is None else f"{x.measured:.3f}{u}"
-            lim = "–" if x.measured is None else f"{x.comparison} {x.limit:g}{u}"
-            if x.recommended is not None and x.measured is not None:
-                lim += f" (rec. {x.recommended:g})"
+            meas, lim = x.cells("–")
             v = x.verdict
             rows.append(
                 [

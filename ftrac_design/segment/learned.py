@@ -17,6 +17,7 @@ from .. import detector as learned
 from ..features.model import Features
 from .detection import Scales
 from .options import TrackOptions
+from .region import cluster_boxes, fiducial_extent_px
 
 Boxes = list[tuple[int, int, int, int]]
 
@@ -71,29 +72,4 @@ def regions(
     uv, w = det.beads_uv[keep], det.beads_score[keep]
     if P == 0 or len(uv) < 3:
         return []
-    pts = [features.point_centers()]
-    pts += [np.array([ln.start, ln.end]) for ln in features.lines]
-    pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
-    X = np.concatenate(pts)
-    ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
-    D = ext * opts.magnification * 1.25 / sc.pixel_mm
-    near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
-    H, W = shape
-    alive = np.ones(len(uv), bool)
-    boxes: Boxes = []
-    while len(boxes) < opts.max_regions and alive.sum() >= 3:
-        member = near & alive[None, :] & alive[:, None]
-        score = -np.sort(-np.where(member, w[None, :], 0.0), axis=1)[:, :P].sum(1)
-        k = int(np.argmax(score))
-        if member[k].sum() < 3:
-            break
-        cl = uv[member[k]]
-        lo = cl.min(0) - 0.5 * D - 8
-        hi = cl.max(0) + 0.5 * D + 8
-        c0, r0 = max(int(lo[0]), 0), max(int(lo[1]), 0)
-        c1, r1 = min(int(math.ceil(hi[0])) + 1, W), min(int(math.ceil(hi[1])) + 1, H)
-        inside = (uv[:, 0] >= c0) & (uv[:, 0] < c1) & (uv[:, 1] >= r0) & (uv[:, 1] < r1)
-        alive &= ~inside
-        alive[k] = False
-        boxes.append((r0, r1, c0, c1))
-    return boxes
+    return cluster_boxes(uv, w, P, fiducial_extent_px(features, sc, opts), shape, opts.max_regions)

@@ -51,17 +51,68 @@ def fiducial_regions(
     cand, resp = blob_candidates(T, rb, nmap, 8 * P + 40, opts.bead_min_snr)
     if len(cand) < 3:
         return []
-    # the fiducial's largest extent in pixels at a generous magnification
+    D = fiducial_extent_px(features, sc, opts)
+    uv = factor * cand + 0.5 * (factor - 1)  # reduced pixel i covers full-size fi … fi + f − 1
+    w = np.minimum(resp, 3.0 * opts.bead_min_snr)
+    shape = (factor * gs.shape[0], factor * gs.shape[1])
+    return cluster_boxes(uv, w, P, D, shape, max_regions, max_share=0.6)
+
+
+def fiducial_extent_px(features: Features, sc: Scales, opts: TrackOptions) -> float:
+    """The fiducial's largest extent in pixels at a generous magnification (1.25 ×
+    ``opts.magnification``): the widest a cluster of its balls can be.
+
+    Parameters
+    ----------
+    features : the fiducial (balls, wires' ends, ellipses sampled at 16 points).
+    sc : the image's scales (``pixel_mm``, mm per pixel).
+    opts : the tracking options (``magnification``).
+
+    Returns
+    -------
+    float : the extent, pixels.
+    """
     pts = [features.point_centers()]
     pts += [np.array([ln.start, ln.end]) for ln in features.lines]
     pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
     X = np.concatenate(pts)
     ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
-    D = ext * opts.magnification * 1.25 / sc.pixel_mm
-    uv = factor * cand + 0.5 * (factor - 1)  # reduced pixel i covers full-size fi … fi + f − 1
-    w = np.minimum(resp, 3.0 * opts.bead_min_snr)
+    return ext * opts.magnification * 1.25 / sc.pixel_mm
+
+
+def cluster_boxes(
+    uv: np.ndarray,
+    w: np.ndarray,
+    P: int,
+    D: float,
+    shape: tuple[int, int],
+    max_regions: int,
+    max_share: float | None = None,
+) -> list[tuple[int, int, int, int]]:
+    """Boxes ``(row0, row1, col0, col1)`` around clusters of ball candidates, the heaviest first.
+
+    A cluster is the candidates within ``D`` of one of them, weighed by its ``P`` heaviest; its
+    box is grown by half ``D`` and 8 px and clipped to the image. The candidates inside a box
+    taken are not looked at again; at most ``max_regions`` boxes, and none once fewer than three
+    candidates are left together.
+
+    Parameters
+    ----------
+    uv : (n, 2) candidates' positions (u, v), pixels.
+    w : (n,) their weights.
+    P : the fiducial's balls: how many candidates weigh a cluster.
+    D : the widest a cluster may be, pixels (:func:`fiducial_extent_px`).
+    shape : the image's (rows, columns).
+    max_regions : the most boxes looked for.
+    max_share : a box over this share of the image's area is dropped (but its candidates are
+        still taken); None: none is.
+
+    Returns
+    -------
+    list of (row0, row1, col0, col1) : pixel rows and columns, the ends exclusive.
+    """
     near = np.linalg.norm(uv[:, None] - uv[None], axis=-1) <= D
-    H, W = factor * gs.shape[0], factor * gs.shape[1]
+    H, W = shape
     alive = np.ones(len(uv), bool)
     boxes: list[tuple[int, int, int, int]] = []
     while len(boxes) < max_regions and alive.sum() >= 3:
@@ -79,7 +130,7 @@ def fiducial_regions(
         inside = (uv[:, 0] >= c0) & (uv[:, 0] < c1) & (uv[:, 1] >= r0) & (uv[:, 1] < r1)
         alive &= ~inside
         alive[k] = False
-        if (r1 - r0) * (c1 - c0) <= 0.6 * H * W:
+        if max_share is None or (r1 - r0) * (c1 - c0) <= max_share * H * W:
             boxes.append((r0, r1, c0, c1))
     return boxes
 

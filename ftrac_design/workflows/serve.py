@@ -84,6 +84,21 @@ class Tracker(Protocol):
 TrackerFactory = Callable[[TrackSetup], Tracker]
 
 
+def _stream_frame(image: np.ndarray, camera: Camera, index: int, time_s: float) -> Frame:
+    """A frame that came over OpenIGTLink: its pixels and camera as sent, nothing known of how
+    it was formed."""
+    return Frame(
+        pixels=image,
+        camera=camera,
+        camera_source={},
+        formation=None,
+        polarity=None,
+        source="OpenIGTLink",
+        index=index,
+        time_s=time_s,
+    )
+
+
 def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
     """The default tracker: every frame alone, no prior, exactly as ``ftrac-design track`` tracks
     an image (:func:`~ftrac_design.workflows.track_run.track_pixels`: undistortion, the image
@@ -99,17 +114,7 @@ def frame_by_frame_tracker(setup: TrackSetup) -> Tracker:
     """
 
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
-        frame = Frame(
-            pixels=image,
-            camera=camera,
-            camera_source={},
-            formation=None,
-            polarity=None,
-            source="OpenIGTLink",
-            index=0,
-            time_s=time_s,
-        )
-        _, res, _ = track_pixels(frame, setup)
+        _, res, _ = track_pixels(_stream_frame(image, camera, 0, time_s), setup)
         record = res.record("tracked" if res.pose.converged else "lost")
         return with_provenance(record, time_s=time_s, camera=camera).to_dict()
 
@@ -136,16 +141,7 @@ def run_tracker(setup: TrackSetup) -> Tracker:
     count = iter(range(1 << 62))  # frames in the order they reach the tracker: the run's own count
 
     def track(image: np.ndarray, camera: Camera, time_s: float) -> dict[str, Any]:
-        frame = Frame(
-            pixels=image,
-            camera=camera,
-            camera_source={},
-            formation=None,
-            polarity=None,
-            source="OpenIGTLink",
-            index=next(count),
-            time_s=time_s,
-        )
+        frame = _stream_frame(image, camera, next(count), time_s)
         try:
             _, res, answer = track_pixels(frame, setup, tracker)
         except Exception:

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, replace
-from typing import Any, Literal
+from typing import Any, Literal, get_args
 
 import cv2
 import numpy as np
@@ -82,18 +82,8 @@ Condition = Literal[
     "blur-2px",
     "seeds-needle",
 ]
-CONDITIONS: tuple[str, ...] = (
-    "raw",
-    "log",
-    "display-dark",
-    "display-bright",
-    "round-shutter",
-    "blades",
-    "fluoro-dose",
-    "strong-anatomy",
-    "blur-2px",
-    "seeds-needle",
-)
+#: every condition, in the order of :data:`Condition`
+CONDITIONS: tuple[str, ...] = get_args(Condition)
 #: how often each kind of patient view is drawn (strong-anatomy: pelvis and spine only)
 KIND_WEIGHTS = {"pelvis": 0.4, "spine": 0.2, "abdomen": 0.2, "chest": 0.2}
 #: structures put right behind the fiducial for strong-anatomy, by the kind of view
