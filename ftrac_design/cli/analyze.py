@@ -73,7 +73,7 @@ from .options import (
 @flag_option(
     "--report", help="also write report.html into the output directory (with the build, for a build's features.json)"
 )
-def command(source: Path, output: Path | None, report: bool = False, **options) -> int:
+def command(source: Path, output: Path | None, report: bool, **options) -> int:
     """Score SOURCE (a design file, a preset's name or a features.json) over the C-arm workspace.
 
     The image-true score: a seeded sample of workspace poses rendered clean and over a patient,

@@ -45,7 +45,7 @@ def command(
     space: str,
     rate_hz: float | None,
     timeout_s: float,
-    header_version: str = "2",
+    header_version: str,
 ) -> int:
     """Send each pose of POSES (pose.json or JSON Lines from `track`/`solve`) as a TRANSFORM.
 

@@ -146,10 +146,10 @@ def command(
     camera_path: Path | None,
     design_path: Path | None,
     no_body: bool,
-    energy_kev: float = 60.0,
-    dose: float = 1.0e4,
-    focal_spot_mm: float = 0.6,
-    detector_blur_px: float = 0.7,
+    energy_kev: float,
+    dose: float,
+    focal_spot_mm: float,
+    detector_blur_px: float,
 ) -> int:
     """Render simulated radiographs of a fiducial with their truth (pose, camera, projected features).
 

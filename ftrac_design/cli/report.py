@@ -40,10 +40,10 @@ def command(
     analysis_dir: Path | None,
     poses: int | None,
     profile: str,
-    score_images: int = 100,
-    score_seed: int = 0,
-    image_atlas_step_deg: float = 20.0,
-    workers: int | None = None,
+    score_images: int,
+    score_seed: int,
+    image_atlas_step_deg: float,
+    workers: int | None,
 ) -> int:
     """Write one HTML page for a design: render, parameters, features, design rules (cnc and
     fdm), score and atlas, bill of materials, wire cut list, output files with sha256, versions.

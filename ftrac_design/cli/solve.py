@@ -53,7 +53,7 @@ def command(
     segmentation_error_mm: float,
     distance: str,
     starts: int,
-    estimate_intrinsics: str | None = None,
+    estimate_intrinsics: str | None,
 ) -> int:
     """Solve the 6-DOF pose for each observation (.json, or .jsonl with one per line).
 

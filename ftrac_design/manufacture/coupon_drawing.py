@@ -90,9 +90,7 @@ def coupon_sheet(design: Design, c: Coupon, views: PartViews, tb: TitleBlock) ->
     R, h = c.stock.outer_radius, c.stock.half_length
     s = pick_scale(4 * R, 2 * h, 120, 120)  # the two views side by side across the top left
     sheet = _Sheet(f"{design.name} — press-fit coupon")
-    tb = TitleBlock(
-        tb.design, tb.sha256, "press-fit coupon (coupon.step)", design.body.material, c.profile, scale_text(s), tb.date
-    )
+    tb = tb.of_part("press-fit coupon (coupon.step)", design.body.material, c.profile, scale_text(s))
     y0 = 287 - 14 - 2 * h * s - 24
     ax = sheet.view(20, y0, (-R, R, -h, h), s, pad=14)
     draw_projection(ax, views.project(ViewFrame("front", (1, 0, 0), (0, -1, 0))))

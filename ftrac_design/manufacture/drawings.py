@@ -92,6 +92,27 @@ class TitleBlock:
     date: str
     units: str = "mm"
 
+    def of_part(self, part: str, material: str, profile: Profile, scale: str) -> "TitleBlock":
+        """This design's title block (its name, sha256 and date) for one part's sheet.
+
+        Parameters
+        ----------
+        part : str
+            The part and its file (``"body (fiducial.step)"``).
+        material : str
+            The part's material.
+        profile : {"cnc", "fdm"}
+            The manufacturing profile.
+        scale : str
+            The sheet's scale as written (:func:`scale_text`).
+
+        Returns
+        -------
+        TitleBlock
+            The part's title block, in mm.
+        """
+        return TitleBlock(self.design, self.sha256, part, material, profile, scale, self.date)
+
 
 # ---- drawing primitives ------------------------------------------------------------------
 
@@ -383,9 +404,7 @@ def body_sheet(
     rows = _feature_rows(plan, D)
     lay = _BodyLayout.of(plan, len(rows))
     sheet = Sheet(f"{design.name} — body")
-    tb = TitleBlock(
-        tb.design, tb.sha256, "body (fiducial.step)", design.body.material, profile, lay.scale_text(), tb.date
-    )
+    tb = tb.of_part("body (fiducial.step)", design.body.material, profile, lay.scale_text())
     _body_front_and_section(sheet, plan, views, lay.s, D, a_c)
     _body_end_view(sheet, plan, views, lay, a_c)
     # unrolled outer surface: x = R·A (rad), y = z
@@ -560,9 +579,7 @@ def mount_sheet(design: Design, mount_part, views: PartViews, profile: Profile, 
         (k for k in SCALES if 2 * (m.width * k + 24) + 20 <= 210 and (m.width + m.height) * k + 80 <= 270), SCALES[-1]
     )
     sheet = Sheet(f"{design.name} — mount")
-    tb = TitleBlock(
-        tb.design, tb.sha256, "mount (mount.step, frame M)", design.mount.material, profile, scale_text(s), tb.date
-    )
+    tb = tb.of_part("mount (mount.step, frame M)", design.mount.material, profile, scale_text(s))
     _mount_views(sheet, mount_part, views, s, D)
     _mount_tables(sheet, m, tol, D)
     title_block(sheet, tb)
@@ -680,15 +697,7 @@ def connector_sheet(design: Design, conn_part, views: PartViews, profile: Profil
     sx, sy, t = float(x1 - x0), float(y1 - y0), float(z1 - z0)
     s = pick_scale(sx + t + 60, sy + 30, 205, 240)
     sheet = Sheet(f"{design.name} — template connector")
-    tb = TitleBlock(
-        tb.design,
-        tb.sha256,
-        "connector (connector.step, frame T)",
-        design.connector.material,
-        profile,
-        scale_text(s),
-        tb.date,
-    )
+    tb = tb.of_part("connector (connector.step, frame T)", design.connector.material, profile, scale_text(s))
     _connector_views(sheet, conn_part, views, s, D)
     _connector_tables(sheet, k, tol, D)
     title_block(sheet, tb)
