@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from .options import POSITIVE as _POS
 from .options import (
+    AT_LEAST_ONE,
     flag_option,
     image_score_options,
     imaging_options,
@@ -18,6 +18,7 @@ from .options import (
     shown_option,
     workspace_options,
 )
+from .options import POSITIVE as _POS
 
 
 @click.command("analyze")
@@ -63,7 +64,7 @@ from .options import (
 )
 @shown_option(
     "--imaging-poses",
-    type=click.IntRange(min=1),
+    type=AT_LEAST_ONE,
     default=60,
     help="workspace poses of the image-level bound (~13 renders of the fiducial each)",
 )

@@ -13,7 +13,7 @@ from typing import Literal
 import click
 
 from ..errors import InputError
-from .options import DIR, FILE, OUT_FILE, features_option, link_options, optional_option, output_option
+from .options import COUNT, DIR, FILE, OUT_FILE, features_option, link_options, optional_option, output_option
 
 ExportFormat = Literal["tfm", "mrk", "mha"]
 #: output suffix → format
@@ -130,7 +130,7 @@ def _export_scene(input_path: Path, scene: Path, features: Path | None, model: P
 )
 @optional_option(
     "--index",
-    type=click.IntRange(min=0),
+    type=COUNT,
     help=".tfm from a JSON Lines run: the 0-based line of the pose to write (required for a run).",
 )
 @link_options(

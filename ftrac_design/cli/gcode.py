@@ -15,6 +15,7 @@ from ..machining.post import POSTS
 from ..machining.simulate import GRID, TOLERANCE
 from .options import (
     OUT_FILE,
+    POSITIVE,
     design_argument,
     optional_option,
     output_option,
@@ -65,7 +66,7 @@ def _table(v, cycle: dict[str, float] | None) -> list[str]:
 )
 @shown_option(
     "--tolerance",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=POSITIVE,
     default=TOLERANCE,
     help="largest deviation from the CAD's cuts that passes, mm",
 )

@@ -10,6 +10,8 @@ from pathlib import Path
 import click
 
 from .options import (
+    AT_LEAST_ONE,
+    COUNT,
     design_argument,
     flag_option,
     min_clearance_option,
@@ -44,11 +46,11 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 )
 @shown_option(
     "--evaluations",
-    type=click.IntRange(min=1),
+    type=AT_LEAST_ONE,
     default=400,
     help="candidates to evaluate (rounded up to whole generations)",
 )
-@shown_option("--seed", type=click.IntRange(min=0), default=0, help="seeds the optimiser and the search's pose sample")
+@shown_option("--seed", type=COUNT, default=0, help="seeds the optimiser and the search's pose sample")
 @profiles_option("design rules that constrain the search; repeat for both [default: cnc]")
 @click.option(
     "--scheduler",
@@ -65,12 +67,12 @@ OBJECTIVE_CHOICES = ("max", "sum", "translation", "rotation", "translation-rotat
 )
 @optional_option(
     "--solver-images",
-    type=click.IntRange(min=0),
+    type=COUNT,
     help="simulated images solved for start and best (0 = skip) [default: 1000]",
 )
 @optional_option(
     "--check-images",
-    type=click.IntRange(min=0),
+    type=COUNT,
     help="rendered radiographs of start and best tracked with no initial guess, the winner's "
     "check beyond the noise model (0 = skip) [default: 200]",
 )

@@ -23,6 +23,12 @@ Decorator = Callable[[Callable], Callable]
 FILE = click.Path(dir_okay=False, path_type=Path)
 #: a positive number
 POSITIVE = click.FloatRange(min=0.0, min_open=True)
+#: a number that is not negative
+NON_NEGATIVE = click.FloatRange(min=0.0)
+#: a whole number that is not negative (a count that may be 0: none)
+COUNT = click.IntRange(min=0)
+#: a whole number, at least 1
+AT_LEAST_ONE = click.IntRange(min=1)
 #: how dense matter looks in an image
 POLARITIES = ("auto", "dense-dark", "dense-bright")
 
@@ -212,7 +218,7 @@ poses_option = SharedOption(
 #: ``--workers N`` → ``workers`` (None: one per core; 0: this process)
 workers_option = SharedOption(
     "--workers",
-    type=click.IntRange(min=0),
+    type=COUNT,
     default=None,
     help="processes rendering and tracking the score's images [default: one per core; 0 = this process]",
 )
@@ -221,7 +227,7 @@ min_clearance_option = SharedOption("--min-clearance-px", type=float, default=No
 #: ``--score-images N`` → ``score_images``: the image-true score's images per condition
 score_images_option = SharedOption(
     "--score-images",
-    type=click.IntRange(min=0),
+    type=COUNT,
     default=100,
     show_default=True,
     help="the image-true score: workspace poses rendered and tracked per condition (clean, over a "
@@ -267,13 +273,13 @@ def workspace_options() -> Decorator:
         ),
         click.option(
             "--depth-range-mm",
-            type=click.FloatRange(min=0.0),
+            type=NON_NEGATIVE,
             default=None,
             help="workspace: ± this about the depth [default: 25]",
         ),
         click.option(
             "--lateral-mm",
-            type=click.FloatRange(min=0.0),
+            type=NON_NEGATIVE,
             default=None,
             help="workspace: origin within this of the principal ray [default: 25]",
         ),
@@ -354,7 +360,7 @@ def imaging_options(prefix: str = "") -> Decorator:
         ),
         click.option(
             "--focal-spot-mm",
-            type=click.FloatRange(min=0.0),
+            type=NON_NEGATIVE,
             default=0.6,
             show_default=True,
             help=prefix + "focal spot size (FWHM).",
@@ -363,7 +369,7 @@ def imaging_options(prefix: str = "") -> Decorator:
             "--detector-blur-px",
             "--blur-px",
             "detector_blur_px",
-            type=click.FloatRange(min=0.0),
+            type=NON_NEGATIVE,
             default=0.7,
             show_default=True,
             help=prefix + "Gaussian σ of the detector line-spread, pixels.",

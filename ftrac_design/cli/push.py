@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from .options import FILE, host_option, link_options, optional_option, port_option, shown_option
+from .options import FILE, NON_NEGATIVE, POSITIVE, host_option, link_options, optional_option, port_option, shown_option
 
 
 @click.command("push")
@@ -19,7 +19,7 @@ from .options import FILE, host_option, link_options, optional_option, port_opti
 @optional_option(
     "--rate",
     "rate_hz",
-    type=click.FloatRange(min=0.0, min_open=True),
+    type=POSITIVE,
     help="Frames per second [default: the poses' time_s, else 30].",
 )
 @shown_option(
@@ -33,7 +33,7 @@ from .options import FILE, host_option, link_options, optional_option, port_opti
 @shown_option(
     "--timeout",
     "timeout_s",
-    type=click.FloatRange(min=0.0),
+    type=NON_NEGATIVE,
     default=10.0,
     help="Seconds to wait for the server to accept the connection.",
 )

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..errors import InputError
 from .options import (
+    AT_LEAST_ONE,
     FILE,
     OUT_DIR,
     camera_option,
@@ -73,7 +74,7 @@ def _parse_occluder(text: str, frame: str):
 )
 @optional_option(
     "--workspace-sample",
-    type=click.IntRange(min=1),
+    type=AT_LEAST_ONE,
     help="render this many random workspace poses (SPEC §1 workspace, the analysis sampler).",
 )
 @shown_option("--seed", type=int, default=0, help="seed of the poses, the noise and the anatomy.")

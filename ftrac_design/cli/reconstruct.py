@@ -9,7 +9,16 @@ from pathlib import Path
 import click
 
 from .options import FILE as _FILE
-from .options import OUT_FILE, POSITIVE, camera_option, features_option, optional_option, output_option, shown_option
+from .options import (
+    NON_NEGATIVE,
+    OUT_FILE,
+    POSITIVE,
+    camera_option,
+    features_option,
+    optional_option,
+    output_option,
+    shown_option,
+)
 
 
 @click.command("reconstruct")
@@ -54,13 +63,13 @@ from .options import OUT_FILE, POSITIVE, camera_option, features_option, optiona
 )
 @shown_option(
     "--min-parallax-deg",
-    type=click.FloatRange(min=0.0),
+    type=NON_NEGATIVE,
     default=2.0,
     help="Refuse a point whose widest angle between two views' rays is below this.",
 )
 @shown_option(
     "--template-sigma-mm",
-    type=click.FloatRange(min=0.0),
+    type=NON_NEGATIVE,
     default=0.0,
     help="Machining tolerance of the template connector, σ mm per axis, added to the uncertainty with --to template.",
 )

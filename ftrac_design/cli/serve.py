@@ -13,6 +13,7 @@ from pathlib import Path
 import click
 
 from .options import (
+    AT_LEAST_ONE,
     camera_option,
     distortion_option,
     features_option,
@@ -44,7 +45,7 @@ from .options import (
 )
 @shown_option(
     "--queue",
-    type=click.IntRange(min=1),
+    type=AT_LEAST_ONE,
     default=1,
     help="Frames that may wait for the tracker; a frame arriving at a full queue drops the oldest "
     "(counted in the metadata 'dropped').",

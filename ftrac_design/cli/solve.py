@@ -8,7 +8,16 @@ from pathlib import Path
 import click
 
 from ..errors import InputError
-from .options import FILE, OUT_FILE, POSITIVE, features_option, optional_option, output_option, shown_option
+from .options import (
+    AT_LEAST_ONE,
+    FILE,
+    OUT_FILE,
+    POSITIVE,
+    features_option,
+    optional_option,
+    output_option,
+    shown_option,
+)
 
 
 @click.command("solve")
@@ -34,7 +43,7 @@ from .options import FILE, OUT_FILE, POSITIVE, features_option, optional_option,
 )
 @shown_option(
     "--starts",
-    type=click.IntRange(min=1),
+    type=AT_LEAST_ONE,
     default=96,
     help="Multi-start seeds used when no closed-form start is possible.",
 )
