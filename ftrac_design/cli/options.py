@@ -254,39 +254,26 @@ def workspace_options() -> Decorator:
     """
     return stack(
         poses_option(),
-        click.option("--seed", type=int, default=None, help="random seed of the workspace poses [default: 0]"),
-        click.option(
+        optional_option("--seed", type=int, help="random seed of the workspace poses [default: 0]"),
+        optional_option(
             "--cone-deg",
             type=click.FloatRange(min=0.0, max=180.0, min_open=True),
-            default=None,
             help="workspace: beams within this angle of the nominal beam; 180 = the whole sphere [default: 25]",
         ),
-        click.option(
+        optional_option(
             "--roll-range-deg",
             type=(float, float),
-            default=None,
-            metavar="FROM TO",
             help="workspace: roll about the beam drawn from this range [default: 0 360]",
+            metavar="FROM TO",
         ),
-        click.option(
-            "--depth-mm", type=POSITIVE, default=None, help="workspace: source to fiducial origin [default: 667]"
+        optional_option("--depth-mm", type=POSITIVE, help="workspace: source to fiducial origin [default: 667]"),
+        optional_option("--depth-range-mm", type=NON_NEGATIVE, help="workspace: ± this about the depth [default: 25]"),
+        optional_option(
+            "--lateral-mm", type=NON_NEGATIVE, help="workspace: origin within this of the principal ray [default: 25]"
         ),
-        click.option(
-            "--depth-range-mm",
-            type=NON_NEGATIVE,
-            default=None,
-            help="workspace: ± this about the depth [default: 25]",
-        ),
-        click.option(
-            "--lateral-mm",
-            type=NON_NEGATIVE,
-            default=None,
-            help="workspace: origin within this of the principal ray [default: 25]",
-        ),
-        click.option(
+        optional_option(
             "--segmentation-error-mm",
             type=POSITIVE,
-            default=None,
             help="the paper's uniform segmentation error magnitude, mm at the detector [default: 0.25]",
         ),
     )
@@ -310,17 +297,14 @@ def image_score_options(atlas: bool = False) -> Decorator:
     """
     opts = [
         score_images_option(),
-        click.option(
-            "--score-seed", type=int, default=0, show_default=True, help="seed of the image-true score's sample"
-        ),
+        shown_option("--score-seed", type=int, default=0, help="seed of the image-true score's sample"),
     ]
     if atlas:
         opts.append(
-            click.option(
+            shown_option(
                 "--image-atlas-step-deg",
                 type=click.FloatRange(min=0.0, max=45.0),
                 default=20.0,
-                show_default=True,
                 help="the image-true blind-spot atlas: grid step over the sphere of view directions, each "
                 "direction imaged (clean) and tracked at 2 rolls; 0 = none",
             )
@@ -344,34 +328,25 @@ def imaging_options(prefix: str = "") -> Decorator:
         One decorator for the four.
     """
     return stack(
-        click.option(
+        shown_option(
             "--energy-kev",
             type=click.FloatRange(40.0, 100.0),
             default=60.0,
-            show_default=True,
             help=prefix + "effective beam energy for the attenuation coefficients.",
         ),
-        click.option(
+        shown_option(
             "--dose",
             type=POSITIVE,
             default=1.0e4,
-            show_default=True,
             help=prefix + "unattenuated quanta per detector pixel (sets the quantum noise).",
         ),
-        click.option(
-            "--focal-spot-mm",
-            type=NON_NEGATIVE,
-            default=0.6,
-            show_default=True,
-            help=prefix + "focal spot size (FWHM).",
-        ),
-        click.option(
+        shown_option("--focal-spot-mm", type=NON_NEGATIVE, default=0.6, help=prefix + "focal spot size (FWHM)."),
+        shown_option(
             "--detector-blur-px",
             "--blur-px",
             "detector_blur_px",
             type=NON_NEGATIVE,
             default=0.7,
-            show_default=True,
             help=prefix + "Gaussian σ of the detector line-spread, pixels.",
         ),
     )
@@ -397,5 +372,5 @@ def link_options(
     """
     return stack(
         click.option("--name", default="FiducialToCArm", show_default=True, help=name_help),
-        click.option("--space", type=click.Choice(["ras", "lps"]), default="ras", show_default=True, help=space_help),
+        shown_option("--space", type=click.Choice(["ras", "lps"]), default="ras", help=space_help),
     )
