@@ -205,6 +205,25 @@ def front_table(res: SearchResult) -> tuple[list[dict], str]:
     return rows, buf.getvalue()
 
 
+def _4f(v: float) -> str:
+    return f"{v:.4f}"
+
+
+def _or_dash(v: float | None) -> str:
+    return "-" if v is None else f"{v:.3f}"
+
+
+def _to(start: dict, best: dict, key: str, show=_4f) -> str:
+    """``start -> best`` of the figure ``key``, each as ``show`` writes it."""
+    return f"{show(start[key])} -> {show(best[key])}"
+
+
+def _ratio(p: dict, which: str, ci_note: str = "") -> str:
+    """The p95 ratio best / start of ``which`` (translation, rotation) with its 95 % interval."""
+    lo, hi = p[f"{which}_p95_ratio_95ci"]
+    return f"{p[f'{which}_p95_ratio']:.2f} ({ci_note}{lo:.2f}–{hi:.2f})"
+
+
 def format_summary(doc: dict) -> str:
     """A few lines for the terminal: start vs best on fresh poses and by the solver."""
     r = doc["run"]
@@ -219,43 +238,32 @@ def format_summary(doc: dict) -> str:
     p0, p1 = s0["predicted"], s1["predicted"]
     ch = doc["best"]["change_on_fresh_poses"]
     out.append(
-        f"fresh {s1['poses']} poses, predicted p95: translation {p0['translation_p95_mm']:.4f} -> "
-        f"{p1['translation_p95_mm']:.4f} mm ({ch['translation_p95']:+.1%}), rotation "
-        f"{p0['rotation_p95_deg']:.4f} -> {p1['rotation_p95_deg']:.4f}° ({ch['rotation_p95']:+.1%})"
+        f"fresh {s1['poses']} poses, predicted p95: translation {_to(p0, p1, 'translation_p95_mm')} mm "
+        f"({ch['translation_p95']:+.1%}), rotation {_to(p0, p1, 'rotation_p95_deg')}° ({ch['rotation_p95']:+.1%})"
     )
     if "solver" in s1:
         m0, m1 = s0["solver"], s1["solver"]
         c = doc["best"]["change_by_solver"]
         out.append(
             f"solver, {m1['images']} images ({m0['solved']} / {m1['solved']} solved), RMS: translation "
-            f"{m0['translation_rms_mm']:.4f} -> {m1['translation_rms_mm']:.4f} mm "
-            f"({c['translation_rms']:+.1%}), rotation {m0['rotation_rms_deg']:.4f} -> "
-            f"{m1['rotation_rms_deg']:.4f}° ({c['rotation_rms']:+.1%}); "
-            f"bound at the same poses {m0['predicted_translation_rms_mm']:.4f} -> "
-            f"{m1['predicted_translation_rms_mm']:.4f} mm, {m0['predicted_rotation_rms_deg']:.4f} -> "
-            f"{m1['predicted_rotation_rms_deg']:.4f}°"
+            f"{_to(m0, m1, 'translation_rms_mm')} mm ({c['translation_rms']:+.1%}), rotation "
+            f"{_to(m0, m1, 'rotation_rms_deg')}° ({c['rotation_rms']:+.1%}); bound at the same poses "
+            f"{_to(m0, m1, 'predicted_translation_rms_mm')} mm, {_to(m0, m1, 'predicted_rotation_rms_deg')}°"
         )
     if "images" in s1:
         i0, i1 = s0["images"], s1["images"]
-
-        def g(v, fmt):
-            return "-" if v is None else fmt.format(v)
-
         out.append(
             f"rendered images, {i1['images']} tracked with no initial guess (right / wrong: start "
             f"{i0['right']} / {i0['wrong']}, best {i1['right']} / {i1['wrong']}): p95 translation "
-            f"{g(i0['translation_p95_mm'], '{:.3f}')} -> {g(i1['translation_p95_mm'], '{:.3f}')} mm, rotation "
-            f"{g(i0['rotation_p95_deg'], '{:.3f}')} -> {g(i1['rotation_p95_deg'], '{:.3f}')}°; median "
-            f"{g(i0['translation_median_mm'], '{:.3f}')} -> {g(i1['translation_median_mm'], '{:.3f}')} mm, "
-            f"{g(i0['rotation_median_deg'], '{:.3f}')} -> {g(i1['rotation_median_deg'], '{:.3f}')}°"
+            f"{_to(i0, i1, 'translation_p95_mm', _or_dash)} mm, rotation {_to(i0, i1, 'rotation_p95_deg', _or_dash)}°; "
+            f"median {_to(i0, i1, 'translation_median_mm', _or_dash)} mm, "
+            f"{_to(i0, i1, 'rotation_median_deg', _or_dash)}°"
         )
         pr = doc["best"].get("change_on_images", {}).get("paired")
         if pr:
             out.append(
                 f"  p95 ratio over the {pr['poses']} poses both got right: translation "
-                f"{pr['translation_p95_ratio']:.2f} (95 % bootstrap {pr['translation_p95_ratio_95ci'][0]:.2f}–"
-                f"{pr['translation_p95_ratio_95ci'][1]:.2f}), rotation {pr['rotation_p95_ratio']:.2f} "
-                f"({pr['rotation_p95_ratio_95ci'][0]:.2f}–{pr['rotation_p95_ratio_95ci'][1]:.2f})"
+                f"{_ratio(pr, 'translation', '95 % bootstrap ')}, rotation {_ratio(pr, 'rotation')}"
             )
     check = doc["best"].get("image_true_check")
     if check:
@@ -264,11 +272,9 @@ def format_summary(doc: dict) -> str:
                 continue
             d0 = check["start"].get(cond, {})
             d1 = check["best"].get(cond, {})
-            wrong = f"; wrong {d0['wrong_pct']:.1f} -> {d1['wrong_pct']:.1f} %" if d0 and d1 else ""
+            wrong = f"; wrong {_to(d0, d1, 'wrong_pct', '{:.1f}'.format)} %" if d0 and d1 else ""
             out.append(
                 f"image-true check, {cond}: p95 ratio best / start over {p['images']} images both got right: "
-                f"translation {p['translation_p95_ratio']:.2f} ({p['translation_p95_ratio_95ci'][0]:.2f}–"
-                f"{p['translation_p95_ratio_95ci'][1]:.2f}), rotation {p['rotation_p95_ratio']:.2f} "
-                f"({p['rotation_p95_ratio_95ci'][0]:.2f}–{p['rotation_p95_ratio_95ci'][1]:.2f}){wrong}"
+                f"translation {_ratio(p, 'translation')}, rotation {_ratio(p, 'rotation')}{wrong}"
             )
     return "\n".join(out)
