@@ -8,7 +8,7 @@ default options and no hints, as a user with a PNG of it would:
   the fiducial (the chain's window, noise and shutters computed over the whole frame);
 - **grid plate**: a dewarping plate of steel balls (10–20 per side, 4–12 mm apart, 1.5–3 mm
   balls) through an intensifier's distortion and round field
-  (:func:`ftrac_design.segment.gridplate.render_grid`) — another calibration phantom;
+  (:func:`ftrac_design.calibration.gridplate.render_grid`) — another calibration phantom;
 - **another fiducial**: a realistic image of one preset tracked as another (nine_bead's helix of
   balls as ftrac_2005, ftrac_2005 as ftrac_mini, …);
 - **blank**: constant frames (8-bit, 16-bit, float, black and white);
@@ -36,7 +36,7 @@ from ftrac_design.images.distortion import combine, radial, s_distortion
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import track_image
-from ftrac_design.segment.gridplate import grid_plate, plate_pose, render_grid
+from ftrac_design.calibration.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.xray import ImagingModel
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
