@@ -32,11 +32,11 @@ import _common
 import numpy as np
 import track_realism as tr
 
+from ftrac_design.calibration.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.images.distortion import combine, radial, s_distortion
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import track_image
-from ftrac_design.calibration.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.xray import ImagingModel
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 

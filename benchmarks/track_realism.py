@@ -21,6 +21,8 @@ the same run — the baseline the conditions' times are compared with.
 
     .venv/bin/python benchmarks/track_realism.py                         # 200 per condition, 3 presets
     .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --conditions raw display-dark
+    .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --workers 1 --cache outputs/realism_cache \
+        --detector classical     # the classical detectors' times on the same images as a learned run's
     .venv/bin/python benchmarks/track_realism.py --plot outputs/track_realism_200.json   # the figure of a run
 """
 
@@ -108,15 +110,15 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
 
 def one(task: tuple) -> dict:
     """Make and track one image; the outcome, the time and this process's peak memory."""
-    preset, condition, k, seed, n, cache = task
+    preset, condition, k, seed, n, cache, detector = task
     features = _preset(preset)
     img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
     t0 = time.perf_counter()
-    opts = TrackOptions()
+    opts = TrackOptions(detector=detector)
     if condition == "distortion-corrected":
         # corrected with its model, as `track --distortion` does: no distortion term left
         img = undistort_image(img, model)
-        opts = TrackOptions(distortion_prior_mm=0.0)
+        opts = TrackOptions(distortion_prior_mm=0.0, detector=detector)
     res = track_image(img, features, cam, opts)
     wall = time.perf_counter() - t0
     out = {
@@ -233,6 +235,12 @@ def main() -> None:
     ap.add_argument("--conditions", nargs="+", default=list(ALL), choices=ALL)
     ap.add_argument("--seed", type=int, default=21)
     ap.add_argument("--workers", type=int, default=min(2, os.cpu_count() or 1))
+    ap.add_argument(
+        "--detector",
+        choices=["auto", "learned", "classical"],
+        default="auto",
+        help="TrackOptions.detector (default auto: the learned detector where ONNX Runtime is installed)",
+    )
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
     ap.add_argument(
         "--cache",
@@ -254,8 +262,16 @@ def main() -> None:
     conds = list(args.conditions)
     if "clean" not in conds:
         conds.insert(0, "clean")
-    tasks = [(p, c, k, args.seed, args.n, args.cache) for p in args.presets for c in conds for k in range(args.n)]
-    print(f"track_realism: {len(tasks)} images on {_common.machine()}, {args.workers} worker processes")
+    tasks = [
+        (p, c, k, args.seed, args.n, args.cache, args.detector)
+        for p in args.presets
+        for c in conds
+        for k in range(args.n)
+    ]
+    print(
+        f"track_realism: {len(tasks)} images on {_common.machine()}, {args.workers} worker processes, "
+        f"detector {args.detector}"
+    )
     rows = []
     with ProcessPoolExecutor(args.workers) as pool:
         for r in tqdm(pool.map(one, tasks, chunksize=4), total=len(tasks), desc="track", mininterval=10):
