@@ -24,6 +24,7 @@ import argparse
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import _common
@@ -99,9 +100,11 @@ def one(task) -> dict:
     t0 = time.perf_counter()
     det = net.detect(img, rb)
     out["learned_ms"] = (time.perf_counter() - t0) * 1e3
-    cand = det.beads_uv[det.beads_score >= 0.2][: 3 * P + 6]
+    keep = np.flatnonzero(det.beads_score >= 0.2)[: 3 * P + 6]
+    cand = det.beads_uv[keep]
     out["learned_raw_balls"] = _ball_figures(cand, truth)
-    fitted = detect(cond_img.density, features, cam, opts, cond_img.valid, None, cand).beads
+    strong = replace(det, beads_uv=cand, beads_score=det.beads_score[keep])
+    fitted = detect(cond_img.density, features, cam, opts, cond_img.valid, None, strong).beads
     out["learned_balls"] = _ball_figures(fitted.uv, truth)
     if len(wire_pts):
         p = det.wire_probability(wire_pts)

@@ -8,7 +8,8 @@ ratio and focal spot drawn per image), saved as 16-bit PNG with a truth JSON und
 ``--render``), then tracked with the package's defaults through :func:`track` and printed:
 
 - tracked: converged and right (≤ 1° and ≤ 3 mm);
-- confident wrong: converged but > 1° or > 3 mm off (target 0);
+- confident wrong: converged, > 1° or > 3 mm off, and improbable under the pose's own
+  covariance (χ²₆ > 25.7, p < 1e-4; target 0); far-but-honest: as far, the covariance saying so;
 - not converged, with the reasons;
 - RMS pose error per camera axis (° and mm) over the right ones;
 - render and track time per image (median);
@@ -48,11 +49,11 @@ ROOT = Path(__file__).resolve().parents[1]
 OUT = ROOT / "outputs" / "independent"
 PRESETS = ("ftrac_2005", "ftrac_mini", "nine_bead")
 AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
-WRONG_DEG, WRONG_MM = 1.0, 3.0
+WRONG_DEG, WRONG_MM, CHI2_6 = 1.0, 3.0, 25.7
 
 
 def track(image: np.ndarray, features, camera: Camera, polarity_hint: str | None = None):
-    """The package's tracker with its default options: (converged, R, t, error message).
+    """The package's tracker with its default options: (converged, R, t, covariance, error message).
 
     ``polarity_hint`` ("dense_dark" for raw counts) is what a DICOM header's photometric
     interpretation would tell it; None lets the tracker detect the polarity. The one place
@@ -62,7 +63,8 @@ def track(image: np.ndarray, features, camera: Camera, polarity_hint: str | None
 
     res = track_image(image, features, camera, polarity_hint=polarity_hint)
     p = res.pose
-    return bool(p.converged), np.asarray(p.rotation, float), np.asarray(p.translation_mm, float), p.error
+    cov = None if p.covariance is None else np.asarray(p.covariance, float)
+    return bool(p.converged), np.asarray(p.rotation, float), np.asarray(p.translation_mm, float), cov, p.error
 
 
 def physics(seed: int) -> dict:
@@ -124,19 +126,21 @@ def image_set(preset: str, n: int, seed: int, patient: bool, dose: float, render
 
 def evaluate(feats, items, camera: Camera, polarity_hint: str | None = None) -> dict:
     """Track every image and tally right, confident-wrong and not-converged answers."""
-    errs, wrong, reasons, times = [], [], Counter(), []
+    errs, wrong, far, reasons, times = [], [], [], Counter(), []
     for k, (png, js) in enumerate(tqdm(items, desc="track", leave=False)):
         img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         truth = json.loads(js.read_text(encoding="utf-8"))
         t0 = time.perf_counter()
-        ok, R, t, err = track(img, feats, camera, polarity_hint)
+        ok, R, t, cov, err = track(img, feats, camera, polarity_hint)
         times.append(time.perf_counter() - t0)
         if not ok:
             reasons[(err or "?").split(":")[0][:60]] += 1
             continue
         dr, dt = pose_errors(R, t, np.array(truth["rotation"]), np.array(truth["translation_mm"]))
         if math.degrees(np.linalg.norm(dr)) > WRONG_DEG or np.linalg.norm(dt) > WRONG_MM:
-            wrong.append(k)
+            e = np.r_[dr, dt]
+            honest = cov is not None and float(e @ np.linalg.solve(cov, e)) <= CHI2_6
+            (far if honest else wrong).append(k)
             continue
         errs.append(np.r_[np.degrees(dr), dt])
     errs = np.array(errs).reshape(-1, 6)
@@ -144,6 +148,7 @@ def evaluate(feats, items, camera: Camera, polarity_hint: str | None = None) -> 
         "n": len(items),
         "right": len(errs),
         "wrong": wrong,
+        "far": far,
         "not_converged": sum(reasons.values()),
         "reasons": dict(reasons),
         "rms": np.sqrt(np.mean(errs**2, 0)) if len(errs) else np.full(6, np.nan),
@@ -156,7 +161,8 @@ def show(label: str, r: dict, render_times: list[float]) -> None:
     print(
         f"\n{label}: {n} images — tracked (≤ {WRONG_DEG:g}°, ≤ {WRONG_MM:g} mm) {r['right']} "
         f"({100 * r['right'] / max(n, 1):.0f} %); CONFIDENT WRONG {len(r['wrong'])}"
-        f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; "
+        f"{' ' + str(r['wrong'][:20]) if r['wrong'] else ''}; far-but-honest {len(r['far'])}"
+        f"{' ' + str(r['far'][:20]) if r['far'] else ''}; "
         f"not converged {r['not_converged']} {r['reasons'] or ''}"
     )
     print("                        " + "  ".join(f"{a:>8s}" for a in AXES) + "   (° and mm, camera axes)")
