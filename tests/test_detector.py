@@ -205,3 +205,37 @@ def test_the_learned_path_tracks_and_says_so(f2005):
     rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
     res = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
     assert res.pose.converged and res.diagnostics.detector == "learned"
+
+
+def test_a_learned_ball_reaching_into_unreadable_pixels_is_not_fitted(f2005):
+    """The network's candidate at every true ball of a clean image: each fitted where the
+    image can be read; one whose disc reaches a clipped region (pixels not valid: a display
+    window's white, a shutter) is left out, since its fit would find the clip's edge."""
+    from ftrac_design.detector.decode import Detections
+    from ftrac_design.segment.detection import detect, scales
+
+    features = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(6))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(6))
+    g = -np.log(np.maximum(rad.raw, 1.0) / float(rad.raw.max()))
+    truth = project(Camera(), R[0], t[0], features.point_centers())[0]
+    H, W = g.shape
+    learned = Detections(truth, np.ones(len(truth)), np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 2)), 1, (H, W))
+    opts = TrackOptions()
+    rb = scales(features, Camera(), opts).bead_radius_px
+    alone = np.linalg.norm(truth[:, None] - truth[None], axis=-1) + 1e9 * np.eye(len(truth))
+    k = int(np.argmax(alone.min(1)))  # the ball farthest from the others
+
+    def found(valid):
+        uv = detect(g, features, Camera(), opts, valid, None, learned).beads.uv
+        return np.linalg.norm(truth[:, None] - uv[None], axis=-1).min(1) < 1.0
+
+    everywhere = found(np.ones((H, W), bool))
+    assert everywhere[k] and everywhere.sum() >= len(truth) - 2
+    v = np.ones((H, W), bool)
+    u0, v0 = np.rint(truth[k] + [0.5 * rb, 0]).astype(int)
+    v[v0 - 20 : v0 + 20, u0 : u0 + 40] = False  # a clipped block from half a radius beside the ball
+    clipped = found(v)
+    assert not clipped[k]
+    far = np.linalg.norm(truth - truth[k], axis=1) > 60
+    assert np.array_equal(clipped[far], everywhere[far])

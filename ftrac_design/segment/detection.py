@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from ..features.model import Features
@@ -328,13 +329,23 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
 
 
 def _learned_candidates(
-    T: np.ndarray, starts: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, opts: TrackOptions
+    T: np.ndarray,
+    starts: np.ndarray,
+    features: Features,
+    sc: Scales,
+    noise: np.ndarray,
+    opts: TrackOptions,
+    valid: np.ndarray | None = None,
 ) -> Beads:
     """The blurred-sphere fits at the learned detector's ball candidates ``starts`` (n, 2) px,
     most probable first: those that look like a ball, in the detector's order, at most
     3 × the design's balls + 6. Each fit's ``response`` is the classical blob detector's
     response over its noise at the fitted centre (what the rest of the path reads as a ball's
-    SNR)."""
+    SNR).
+
+    A fit whose ball reaches into pixels that are not ``valid`` (a display window's clipped
+    white or black, a shutter; ``T`` is zero there) is left out: its edge is the clip's, not
+    the ball's, and the network, unlike the classical blob search, proposes balls there too."""
     P = len(features.points)
     H, W = T.shape
     starts = np.asarray(starts, float).reshape(-1, 2)
@@ -346,6 +357,10 @@ def _learned_candidates(
     snr = bilinear((resp / nr).astype(np.float32), starts)
     b, ok = ball_fits(T, starts, snr, sc.bead_radius_px, noise, opts)
     b = b.take(ok)
+    if len(b) and valid is not None and not valid.all():
+        clear = cv2.distanceTransform(valid.astype(np.uint8), cv2.DIST_L2, 3)
+        c = np.clip(np.rint(b.uv).astype(int), 0, [W - 1, H - 1])
+        b = b.take(np.flatnonzero(clear[c[:, 1], c[:, 0]] > sc.bead_radius_px))
     if len(b):
         b.response[:] = bilinear((resp / nr).astype(np.float32), b.uv)
     return b.take(np.arange(min(len(b), 3 * P + 6)))
@@ -388,7 +403,7 @@ def detect(
     if not features.points:
         beads = None
     elif learned is not None:
-        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, opts)
+        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, opts, valid)
     else:
         beads = _bead_candidates(T, features, sc, nmap, opts)
     d = derivatives(T, sc.ridge_sigma_px)
