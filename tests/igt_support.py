@@ -8,6 +8,8 @@ import json
 import os
 import re
 import signal
+import socket
+import struct
 import subprocess
 import sys
 import threading
@@ -184,3 +186,59 @@ def wait_for(pred, timeout_s: float) -> bool:
             return bool(pred())
         time.sleep(0.02)
     return True
+
+
+#: the protocol's 58-byte header, unpacked by hand (not by pyigtl)
+HEADER = struct.Struct(">H12s20sIIQQ")  # version, type, device, seconds, fraction, body size, CRC-64
+POLY = 0x42F0E1EBA9EA3693  # ECMA-182, as the protocol specifies
+MASK = (1 << 64) - 1
+
+
+def _table() -> list[int]:
+    out = []
+    for i in range(256):
+        crc = i << 56
+        for _ in range(8):
+            crc = ((crc << 1) ^ POLY) & MASK if crc & (1 << 63) else (crc << 1) & MASK
+        out.append(crc)
+    return out
+
+
+TABLE = _table()
+
+
+def crc64(data: bytes) -> int:
+    """CRC-64 (ECMA-182, MSB first, no reflection, initial value and final XOR 0)."""
+    crc = 0
+    for b in data:
+        crc = TABLE[((crc >> 56) ^ b) & 0xFF] ^ ((crc << 8) & MASK)
+    return crc
+
+
+def read_reply(sock: socket.socket) -> dict:
+    """The next message, unpacked by the 58-byte header, its CRC checked here."""
+
+    def exact(n: int) -> bytes:
+        buf = b""
+        while len(buf) < n:
+            chunk = sock.recv(n - len(buf))
+            assert chunk, "connection closed"
+            buf += chunk
+        return buf
+
+    version, mtype, device, sec, frac, size, crc = HEADER.unpack(exact(HEADER.size))
+    body = exact(size)
+    assert crc64(body) == crc, "CRC-64 mismatch"
+    content, metadata = body, {}
+    if version == 2:
+        ext, meta_head, meta_body, _ = struct.unpack(">HHII", body[:12])
+        content = body[ext : len(body) - meta_head - meta_body]
+        metadata = {"count": struct.unpack(">H", body[len(body) - meta_head - meta_body :][:2])[0]}
+    return {
+        "version": version,
+        "type": mtype.rstrip(b"\0").decode(),
+        "device": device.rstrip(b"\0").decode(),
+        "timestamp": sec + frac / 2**32,
+        "content": content,
+        "metadata": metadata,
+    }

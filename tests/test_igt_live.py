@@ -18,7 +18,17 @@ import time
 
 import numpy as np
 import pytest
-from igt_support import ROOT, Server, image_message, recording_client, rendered_frames, send_frames, wait_for
+from igt_support import (
+    HEADER,
+    ROOT,
+    Server,
+    image_message,
+    read_reply,
+    recording_client,
+    rendered_frames,
+    send_frames,
+    wait_for,
+)
 
 from ftrac_design.cli.main import main
 from ftrac_design.igt import link
@@ -27,7 +37,6 @@ from ftrac_design.igt.frames import in_space, pose_matrix
 pyigtl = pytest.importorskip("pyigtl")
 
 N_DISTINCT = 30
-HEADER = struct.Struct(">H12s20sIIQQ")
 
 
 @pytest.fixture(scope="module")
@@ -146,22 +155,9 @@ def _raw(mtype: str, device: str, body: bytes, version: int = 2, crc: int | None
 
 
 def _read_reply(sock: socket.socket) -> tuple[str, bytes]:
-    """(type, body) of the next message, decoded by hand from the protocol's header."""
-
-    def exact(n: int) -> bytes:
-        buf = b""
-        while len(buf) < n:
-            chunk = sock.recv(n - len(buf))
-            assert chunk, "connection closed"
-            buf += chunk
-        return buf
-
-    version, mtype, _, _, _, size, _ = HEADER.unpack(exact(HEADER.size))
-    body = exact(size)
-    if version == 2:  # skip the extended header and the metadata for the content
-        ext, meta_head, meta_body, _ = struct.unpack(">HHII", body[:12])
-        body = body[ext : len(body) - meta_head - meta_body]
-    return mtype.rstrip(b"\0").decode(), body
+    """(type, content) of the next message, decoded by hand from the protocol's header."""
+    r = read_reply(sock)
+    return r["type"], r["content"]
 
 
 def _status_code(reply: tuple[str, bytes]) -> tuple[int, str]:

@@ -18,38 +18,23 @@ import time
 
 import numpy as np
 import pytest
-from igt_support import ROOT, Server, image_message, recording_client, rendered_frames, wait_for
+from igt_support import (
+    HEADER,
+    ROOT,
+    Server,
+    crc64,
+    image_message,
+    read_reply,
+    recording_client,
+    rendered_frames,
+    wait_for,
+)
 
 from ftrac_design.cli.main import main
 from ftrac_design.igt import link
 from ftrac_design.igt.frames import in_space, pose_matrix
 
 pyigtl = pytest.importorskip("pyigtl")
-
-HEADER = struct.Struct(">H12s20sIIQQ")  # version, type, device, seconds, fraction, body size, CRC-64
-POLY = 0x42F0E1EBA9EA3693  # ECMA-182, as the protocol specifies
-MASK = (1 << 64) - 1
-
-
-def _table() -> list[int]:
-    out = []
-    for i in range(256):
-        crc = i << 56
-        for _ in range(8):
-            crc = ((crc << 1) ^ POLY) & MASK if crc & (1 << 63) else (crc << 1) & MASK
-        out.append(crc)
-    return out
-
-
-TABLE = _table()
-
-
-def crc64(data: bytes) -> int:
-    """CRC-64 (ECMA-182, MSB first, no reflection, initial value and final XOR 0)."""
-    crc = 0
-    for b in data:
-        crc = TABLE[((crc >> 56) ^ b) & 0xFF] ^ ((crc << 8) & MASK)
-    return crc
 
 
 def test_our_crc_is_the_protocols():
@@ -73,35 +58,6 @@ def v1_image(
     frac = int((timestamp - sec) * 2**32)
     crc = crc64(body) ^ (1 if bad_crc else 0)
     return HEADER.pack(1, b"IMAGE", b"Image", sec, frac, len(body), crc) + body
-
-
-def read_reply(sock: socket.socket) -> dict:
-    """The next message, unpacked by the 58-byte header, its CRC checked here."""
-
-    def exact(n: int) -> bytes:
-        buf = b""
-        while len(buf) < n:
-            chunk = sock.recv(n - len(buf))
-            assert chunk, "connection closed"
-            buf += chunk
-        return buf
-
-    version, mtype, device, sec, frac, size, crc = HEADER.unpack(exact(HEADER.size))
-    body = exact(size)
-    assert crc64(body) == crc, "CRC-64 mismatch"
-    content, metadata = body, {}
-    if version == 2:
-        ext, meta_head, meta_body, _ = struct.unpack(">HHII", body[:12])
-        content = body[ext : len(body) - meta_head - meta_body]
-        metadata = {"count": struct.unpack(">H", body[len(body) - meta_head - meta_body :][:2])[0]}
-    return {
-        "version": version,
-        "type": mtype.rstrip(b"\0").decode(),
-        "device": device.rstrip(b"\0").decode(),
-        "timestamp": sec + frac / 2**32,
-        "content": content,
-        "metadata": metadata,
-    }
 
 
 def transform_matrix(content: bytes) -> np.ndarray:

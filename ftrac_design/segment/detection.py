@@ -334,14 +334,15 @@ def _learned_candidates(
     features: Features,
     sc: Scales,
     noise: np.ndarray,
+    snr: np.ndarray,
     opts: TrackOptions,
     valid: np.ndarray | None = None,
 ) -> Beads:
     """The blurred-sphere fits at the learned detector's ball candidates ``starts`` (n, 2) px,
     most probable first: those that look like a ball, in the detector's order, at most
-    3 × the design's balls + 6. Each fit's ``response`` is the classical blob detector's
-    response over its noise at the fitted centre (what the rest of the path reads as a ball's
-    SNR).
+    3 × the design's balls + 6. Each fit's ``response`` is ``snr`` (H, W), the classical blob
+    detector's response over its noise, at the fitted centre (what the rest of the path reads
+    as a ball's SNR).
 
     A fit whose ball reaches into pixels that are not ``valid`` (a display window's clipped
     white or black, a shutter; ``T`` is zero there) is left out: its edge is the clip's, not
@@ -353,16 +354,14 @@ def _learned_candidates(
     if len(starts) == 0:
         z = np.zeros(0)
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
-    resp, _, _, nr = blob_response(T, sc.bead_radius_px, noise)
-    snr = bilinear((resp / nr).astype(np.float32), starts)
-    b, ok = ball_fits(T, starts, snr, sc.bead_radius_px, noise, opts)
+    b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, opts)
     b = b.take(ok)
     if len(b) and valid is not None and not valid.all():
         clear = cv2.distanceTransform(valid.astype(np.uint8), cv2.DIST_L2, 3)
         c = np.clip(np.rint(b.uv).astype(int), 0, [W - 1, H - 1])
         b = b.take(np.flatnonzero(clear[c[:, 1], c[:, 0]] > sc.bead_radius_px))
     if len(b):
-        b.response[:] = bilinear((resp / nr).astype(np.float32), b.uv)
+        b.response[:] = bilinear(snr, b.uv)
     return b.take(np.arange(min(len(b), 3 * P + 6)))
 
 
@@ -400,20 +399,20 @@ def detect(
     nmap = noise.at(sc.ridge_sigma_px)
     if valid is not None:
         T[~valid] = 0.0
+    snr = None
+    if features.points:
+        resp, _, _, nr = blob_response(T, sc.bead_radius_px, nmap)
+        snr = (resp / nr).astype(np.float32)
     if not features.points:
         beads = None
     elif learned is not None:
-        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, opts, valid)
+        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, snr, opts, valid)
     else:
         beads = _bead_candidates(T, features, sc, nmap, opts)
     d = derivatives(T, sc.ridge_sigma_px)
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    snr = None
-    if features.points:
-        resp, _, _, nr = blob_response(T, sc.bead_radius_px, nmap)
-        snr = (resp / nr).astype(np.float32)
     return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr, learned)
 
 
