@@ -20,7 +20,7 @@ from ftrac_design.cli.main import main
 from ftrac_design.images import read_frames, write_dicom
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, carm_sweep, pose_errors
-from ftrac_design.tracking import RunTracker
+from ftrac_design.tracking import RunOptions, RunTracker
 from ftrac_design.xray import ImagingModel, render
 from ftrac_design.xray.sweep import render_sweep
 
@@ -117,8 +117,10 @@ def test_tracked_frames_say_how_they_were_found(tracked):
         assert d["timing"]["elapsed_ms"] > 0 and d["time_s"] == pytest.approx(k / 30.0)
         assert d["segmentation"]["path"] == a.status and d["format"] == "ftrac-pose"
         if a.status == "tracked":
-            # where the balls moved from the prediction; tight-stage frames within half a pixel
-            assert 0 <= d["segmentation"]["moved_px"] < 3.0
+            # where the balls moved from the prediction: within the 3.4 px they were matched within,
+            # unless the frame was tracked again from where they moved to and confirmed there
+            seg = d["segmentation"]
+            assert 0 <= seg["moved_px"] and ("followed" in seg or seg["moved_px"] < 3.4), (k, seg)
     json.dumps([a.record().to_dict() for a in tracked], allow_nan=False)
 
 
@@ -157,6 +159,29 @@ def test_a_jump_a_foreign_and_a_blank_frame_are_never_tracked_through(run):
             dt, dr = _errors(a, R, t)
             assert dt < 2.0 and dr < 0.5, (a.status, dt, dr)
     assert not answers[7].result.pose.converged and answers[7].record().to_dict()["rotation"] is None
+
+
+@pytest.mark.parametrize("dropped", [(5, 6), (5, 6, 7)])
+def test_frames_after_dropped_ones_are_tracked_not_identified_again(run, dropped):
+    """A live feed drops frames when the tracker falls behind: the frame after the gap is
+    predicted over it from the frames' times and tracked from there, and right; with neither
+    following nor the wider search (``RunOptions(follow=0, wide_search=1)``) it is identified
+    from scratch, the cost that made a late frame make the next one late."""
+    keep = [k for k in range(N) if k not in dropped]
+    times = np.arange(N) / 30.0
+
+    def answers(options):
+        tr = RunTracker(FEATURES["ftrac_2005"], CAM, run_options=options)
+        return [tr.track_frame(run.raw[k], time_s=times[k]) for k in keep]
+
+    after = keep.index(dropped[-1] + 1)
+    now = answers(RunOptions())
+    assert now[after].status == "tracked", [a.tracking_error for a in now]
+    for a, k in zip(now, keep):
+        dt, dr = _errors(a, run.rotation[k], run.translation_mm[k])
+        assert a.result.pose.converged and dt < 2.0 and dr < 0.5, (k, a.status, dt, dr)
+    before = answers(RunOptions(follow=0, wide_search=1.0, max_extrapolation=2.0))
+    assert before[after].status == "re-identified", before[after].result.diagnostics
 
 
 def test_a_tracker_needs_a_camera():

@@ -492,3 +492,25 @@ def test_an_undistorting_detector_narrows_the_covariance(scene, camera_json, tmp
     sz = {k: np.sqrt(np.asarray(v["covariance"])[5, 5]) for k, v in out.items()}
     assert sz["unknown"] > 3 * sz["flat"]
     np.testing.assert_allclose(sz["dx"], sz["flat"], rtol=1e-6)
+
+
+@pytest.mark.parametrize("detector", ["classical", "learned"])
+def test_detector_option_chooses_what_finds_the_features(detector, scene, camera_json, tmp_path, capsys):
+    """``--detector`` reaches the tracker and the pose file says which path found the fiducial;
+    either finds the same fiducial (its pose within its covariance of the truth)."""
+    np.save(tmp_path / "counts.npy", scene["counts"])
+    out = tmp_path / "pose.json"
+    args = ["track", "--features", FEATS, tmp_path / "counts.npy", "--camera", camera_json, "-o", out]
+    rc, _, err = _run([*args, "--detector", detector], capsys)
+    assert rc == 0, err
+    (pose,) = _poses(out)
+    assert pose["segmentation"]["detector"] == detector
+    dr, dt = pose_errors(np.array(pose["rotation"]), np.array(pose["translation_mm"]), scene["R"], scene["t"])
+    e = np.concatenate([np.ravel(dr), np.ravel(dt)])
+    assert float(e @ np.linalg.solve(np.array(pose["covariance"]), e)) < 25.7
+
+
+def test_an_unknown_detector_is_bad_input(scene, camera_json, tmp_path, capsys):
+    np.save(tmp_path / "counts.npy", scene["counts"])
+    rc, _, err = _run(["track", "--features", FEATS, tmp_path / "counts.npy", "--detector", "hough"], capsys)
+    assert rc == 2 and "--detector" in err and "Traceback" not in err

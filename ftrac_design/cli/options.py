@@ -202,6 +202,15 @@ post_option = _choice("--post", POSTS, DEFAULT_POST, "the control the program is
 polarity_option = _choice(
     "--polarity", POLARITIES, "auto", "dense-dark: raw detector counts; dense-bright: log/display image."
 )
+#: ``--detector auto|learned|classical`` → ``detector`` (default auto): how the features are found
+detector_option = _choice(
+    "--detector",
+    ("auto", "learned", "classical"),
+    "auto",
+    "what finds the balls and the fiducial's region: learned (the shipped network, ONNX Runtime: the "
+    "detect extra), classical (blob detector and half-size search), auto (learned where ONNX Runtime "
+    "is installed, else classical). Either way the labelling, the pose and its tests are the same.",
+)
 #: ``--distortion FILE|none`` → ``distortion_path``: an ftrac-distortion model, or none (a flat panel)
 distortion_option = SharedOption("--distortion", "distortion_path", type=FILE, default=None)
 #: ``--refine none|intensity`` → ``refine`` (default none)

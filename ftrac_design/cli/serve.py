@@ -15,6 +15,7 @@ import click
 from .options import (
     AT_LEAST_ONE,
     camera_option,
+    detector_option,
     distortion_option,
     features_option,
     host_option,
@@ -63,6 +64,7 @@ from .options import (
 )
 @polarity_option("How dense matter looks in the frames (as for `track`).")
 @refine_option("intensity: refine each pose on the image intensities (slower).")
+@detector_option()
 @independent_option(
     "Track every frame alone with the full identification (no prior), as `track --independent`; "
     "by default each frame starts from the previous frame's pose."
@@ -80,6 +82,7 @@ def command(
     polarity: str,
     refine: str,
     independent: bool = False,
+    detector: str = "auto",
 ) -> int:
     """Track the fiducial in every IMAGE an OpenIGTLink client sends; answer each with a TRANSFORM.
 
@@ -103,7 +106,7 @@ def command(
 
     # the link's settings first: without the live extra nothing else is worth reading
     options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue, valid_only=valid_only)
-    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine)
+    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine, detector)
     options = replace(options, camera=setup.camera)
     factory = serve_mod.frame_by_frame_tracker if independent else serve_mod.run_tracker
     summary = serve_mod.serve(setup, options, factory=factory, log=sys.stdout)

@@ -20,6 +20,7 @@ from ..errors import InputError
 from .options import (
     OUT_FILE,
     camera_option,
+    detector_option,
     distortion_option,
     features_option,
     independent_option,
@@ -80,6 +81,7 @@ def _output_paths(output: Path | None, several: bool) -> tuple[Path, str, Path]:
     "log/display image); overrides the file's. auto: the file's, else found."
 )
 @refine_option("intensity: refine the pose on the image intensities (needs ftrac_design.intensity).")
+@detector_option()
 @independent_option(
     "Track every frame of a run alone with the full identification, no prior (default: each frame "
     "from the previous frames' poses, identified from scratch only where that is not confirmed)."
@@ -94,6 +96,7 @@ def command(
     polarity: str,
     refine: str,
     independent: bool,
+    detector: str,
 ) -> int:
     """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
 
@@ -119,7 +122,7 @@ def command(
     from ..tracking import RunTracker
     from ..workflows.track_run import TrackOutputs, TrackSetup, overlay_name, track_frame, validate_inputs
 
-    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine)
+    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine, detector)
     inputs = validate_inputs(list(images), setup.camera, setup.distortion, setup.distortion_path)
     total = sum(i.frames for i in inputs)
     several = total > 1

@@ -205,6 +205,8 @@ class Diagnostics:
     path : how a frame of a run was found (its status).
     moved_px : a tracked frame's balls' RMS move from the prediction (px; NaN: no finite pose).
     rotation_step_deg : a tracked frame's rotation from the prediction (° ; NaN: no finite pose).
+    followed : a tracked frame's passes after the first, each from the pose the one before
+        moved to (:func:`ftrac_design.tracking.near.track_near`'s ``follow``).
     intensity : the intensity refinement's account (:class:`IntensityFit`).
     """
 
@@ -233,6 +235,7 @@ class Diagnostics:
     path: Status | None = None
     moved_px: float | None = None
     rotation_step_deg: float | None = None
+    followed: int | None = None
     intensity: IntensityFit | None = None
 
     def labelled(
@@ -310,6 +313,7 @@ _KINDS: dict[str, Any] = {
     "path": str,
     "moved_px": (int, float),
     "rotation_step_deg": (int, float),
+    "followed": int,
 }
 
 

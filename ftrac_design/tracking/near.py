@@ -309,8 +309,9 @@ def track_near(
     t: np.ndarray,
     context: RunContext,
     options: TrackOptions | None = None,
-    search_px: float | None = None,
+    search: float = 1.0,
     first_stage: int = 0,
+    follow: int = 0,
 ) -> TrackResult:
     """Track one frame of a run from the predicted pose (R, t): see the module.
 
@@ -323,24 +324,53 @@ def track_near(
     R, t : the predicted pose F → X (rotation (3, 3), translation (3,) mm).
     context : what the run shares (:func:`run_context`).
     options : the image path's settings (default :class:`TrackOptions`); its blur is the context's.
-    search_px : how far from its projection a ball is looked for (px); default the stage-one
-        bead matching tolerance, max(``match_tol_px``, the ball's radius).
+    search : how far from its projection a ball is looked for, in matching tolerances (the
+        stage-one bead matching tolerance, max(``match_tol_px``, the ball's radius)): more
+        than 1 for a prediction known to be rough (made over several frames); a pose found
+        from balls searched farther than the tolerance moved farther than it and is given out
+        only through ``follow``.
     first_stage : the labelling stage the solve starts at (:func:`.labelling.evaluate`): 0
         (wide tolerances, then tight and thinned) or 2 (tight and thinned only; for a
         prediction known to be within a fraction of a pixel).
+    follow : how many times a pose that passed every test but moved farther than the balls
+        were matched within is taken as the prediction and the frame tracked again from it
+        (from the wide stage). Such a pose is given out only when a pass from it confirms
+        it: the balls matched again around where it puts them, every test passed again, and
+        the pose moved no farther than the matching tolerance from it. A frame that follows
+        a dropped one moves farther than its prediction says; following it is a tracked
+        frame's cost instead of a full identification's.
 
     Returns
     -------
     TrackResult : converged only when every test passed; ``diagnostics.path = "tracked"``,
-    ``diagnostics.moved_px`` the balls' RMS move from the prediction. Never raises for
-    an image (a failure is a refused pose with its reason).
+    ``diagnostics.moved_px`` the balls' RMS move from the prediction (R, t), whatever was
+    followed. Never raises for an image (a failure is a refused pose with its reason).
     """
+    R0, t0 = np.asarray(R, float), np.asarray(t, float)
     try:
-        return _track_near(image, features, camera, R, t, context, options, search_px, first_stage)
+        res, moved_only = _track_near(image, features, camera, R, t, context, options, search, first_stage)
+        for k in range(max(0, int(follow))):
+            if not moved_only:
+                break
+            R, t = res.pose.rotation, res.pose.translation_mm
+            res, moved_only = _track_near(image, features, camera, R, t, context, options, 1.0, 0)
+            _from_prediction(res.diagnostics, camera, features, R0, t0, res.pose, k + 1)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(
             f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}", context.polarity
         )
+    return res
+
+
+def _from_prediction(
+    diag: Diagnostics, camera: Camera, features: Features, R: np.ndarray, t: np.ndarray, pose: Pose, followed: int
+) -> None:
+    """Record in ``diag`` the move and the rotation of ``pose`` from the first prediction (R, t),
+    reached after ``followed`` passes more."""
+    diag.followed = followed
+    if np.all(np.isfinite(pose.rotation)) and np.all(np.isfinite(pose.translation_mm)):
+        diag.moved_px = round(_moved_px(camera, features, R, t, pose.rotation, pose.translation_mm), 2)
+        diag.rotation_step_deg = round(math.degrees(float(so3.angle(pose.rotation, R))), 3)
 
 
 @dataclass(frozen=True)
@@ -378,9 +408,12 @@ def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, 
     return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation)
 
 
-def _confirmed(pose: Pose, crop: _Crop, features: Features, R, t, capture: float, diag: Diagnostics) -> Pose:
+def _confirmed(
+    pose: Pose, crop: _Crop, features: Features, R, t, capture: float, diag: Diagnostics
+) -> tuple[Pose, bool]:
     """``pose`` unless its balls moved from the prediction (R, t) farther than ``capture`` px
-    (RMS) they were matched within: then refused. Records the move and the rotation step."""
+    (RMS) they were matched within: then refused. Records the move and the rotation step;
+    also returns whether the move was its only fault (a pose to follow)."""
     finite = bool(np.all(np.isfinite(pose.rotation)))
     moved = _moved_px(crop.camera, features, R, t, pose.rotation, pose.translation_mm) if finite else math.inf
     diag.moved_px = round(moved, 2) if math.isfinite(moved) else math.nan
@@ -391,7 +424,8 @@ def _confirmed(pose: Pose, crop: _Crop, features: Features, R, t, capture: float
             f"tracking not confirmed: the balls moved {moved:.1f} px (RMS) from where the previous frames "
             f"put them, more than the {capture:.1f} px they were matched within",
         )
-    return pose
+        return pose, True
+    return pose, False
 
 
 def _track_near(
@@ -402,40 +436,41 @@ def _track_near(
     t: np.ndarray,
     context: RunContext,
     options: TrackOptions | None,
-    search_px: float | None,
+    search: float,
     first_stage: int,
-) -> TrackResult:
+) -> tuple[TrackResult, bool]:
+    """:func:`track_near`'s one pass, and whether its pose failed only by moving too far."""
     opts = replace(options or TrackOptions(), blur_px=context.blur_px)
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
-        return failed_result("no finite predicted pose", context.polarity)
+        return failed_result("no finite predicted pose", context.polarity), False
     img = np.asarray(image)
     sc0 = scales(features, camera, replace(opts, blur_px=(options or TrackOptions()).blur_px))
     sc = scales(features, camera, opts)
     capture = max(opts.match_tol_px, sc.bead_radius_px)
-    search = capture if search_px is None else float(search_px)
-    margin = sc.disc_px + 4 * sc.ridge_sigma_px + search + sc.bead_radius_px + 4
+    search_px = capture * max(1.0, float(search))
+    margin = sc.disc_px + 4 * sc.ridge_sigma_px + search_px + sc.bead_radius_px + 4
     box = predicted_box(features, camera, R, t, img.shape, margin)
     if box is None:
-        return failed_result("the predicted fiducial lies outside the image", context.polarity)
+        return failed_result("the predicted fiducial lies outside the image", context.polarity), False
     crop = _crop(img, context, camera, box, sc0.disc_px)
     (c0, r0), (h, w) = crop.corner, crop.density.shape
     diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
     diag.blur_px = opts.blur_px
     scene = scene_near(
-        crop.density, features, crop.camera, opts, R, t, search, crop.valid, crop.noise, context.ball_blur_px, diag
+        crop.density, features, crop.camera, opts, R, t, search_px, crop.valid, crop.noise, context.ball_blur_px, diag
     )
     diag.blobs = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
         why = f"tracking lost: {diag.blobs} balls found near their predicted places"
-        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0)
+        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False
     try:
         lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
     except NoLabelling as exc:
         why = f"tracking lost: {exc.reason}"
-        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0)
+        return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False
     lab = accept_best(scene, lab, [], diag)
-    pose = _confirmed(lab.pose, crop, features, R, t, capture, diag)
+    pose, moved_only = _confirmed(lab.pose, crop, features, R, t, capture, diag)
     diag.labelled(len(lab.obs.points), lab.dropped, lab.removed, scene.pixel_noise, lab.variance_factor)
     res = TrackResult(pose, lab.obs, feature_quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)
-    return shifted(res, camera, c0, r0)
+    return shifted(res, camera, c0, r0), moved_only

@@ -11,7 +11,11 @@ in order. For each frame:
    the prediction, the balls and wires are measured around their projections, the pose is
    solved from the prediction and kept only if the full path's tests pass (per-feature χ²,
    wire support, evidence) and the balls did not move farther from the prediction than
-   they were matched within. Status ``tracked``.
+   they were matched within. A pose that passed every test but moved farther is tracked
+   again from where it moved to and kept when that pass confirms it (``RunOptions.follow``);
+   a frame predicted over dropped frames that is not confirmed is tracked once more with
+   its balls looked for farther out, then confirmed the same way
+   (``RunOptions.wide_search``). Status ``tracked``.
 3. **Re-identify** otherwise — the first frame, after a lost frame, or whenever the
    tracked pose was refused (a jump, a shuffled or foreign frame, a residual test that
    failed): :func:`ftrac_design.segment.track_image` with no prior, as for a single image.
@@ -64,11 +68,19 @@ class RunOptions:
         frame's balls were within this (px, RMS) of their prediction.
     max_extrapolation : a velocity prediction is made over at most this many of the last
         steps (a longer gap predicts the last pose).
+    follow : how many times a tracked pose refused only for moving farther from the
+        prediction than its balls were matched within is taken as the prediction and the
+        frame tracked again (:func:`~ftrac_design.tracking.near.track_near`); 0: refused.
+    wide_search : when a frame predicted over more than one step (frames dropped or
+        skipped) is not confirmed, it is tracked once more with its balls looked for within
+        this many matching tolerances, then followed; 1: no such pass.
     """
 
     prediction: Literal["velocity", "pose"] = "velocity"
     tight_start_px: float = 0.5
-    max_extrapolation: float = 2.0
+    max_extrapolation: float = 6.0
+    follow: int = 1
+    wide_search: float = 2.5
 
 
 @dataclass
@@ -243,8 +255,7 @@ class RunTracker:
         tracking_error = None
         prediction = None if self.independent else self._predict(index, time_s)
         if prediction is not None and st.context is not None:
-            fs = 2 if st.last_moved_px <= self.run_options.tight_start_px else 0
-            res = track_near(image, self.features, cam, *prediction, st.context, opts, first_stage=fs)
+            res = self._track_near(image, cam, opts, *prediction)
             if res.pose.converged:
                 moved = res.diagnostics.moved_px
                 st.last_moved_px = float(moved) if moved and math.isfinite(moved) else 0.0
@@ -268,6 +279,17 @@ class RunTracker:
             self._accept(index, time_s, res)
         return FrameAnswer(res, "re-identified", index, time_s, 1000 * (time.perf_counter() - start), tracking_error)
 
+    def _track_near(self, image: np.ndarray, cam: Camera, opts: TrackOptions, R, t, span: float) -> TrackResult:
+        """The frame tracked from the prediction (R, t) made over ``span`` of the last steps: followed
+        where its pose moved too far, and searched wider where the prediction spans dropped frames."""
+        ro, st = self.run_options, self._state
+        fs = 2 if st.last_moved_px <= ro.tight_start_px else 0
+        res = track_near(image, self.features, cam, R, t, st.context, opts, first_stage=fs, follow=ro.follow)
+        if res.pose.converged or span <= 1.5 or ro.wide_search <= 1.0:
+            return res
+        wide = track_near(image, self.features, cam, R, t, st.context, opts, search=ro.wide_search, follow=ro.follow)
+        return wide if wide.pose.converged else res
+
     def _accept(self, index: int, time_s: float | None, res: TrackResult) -> None:
         """Remember an accepted pose; only consecutive frames' poses make a velocity."""
         h = self._state.history
@@ -276,23 +298,24 @@ class RunTracker:
         h.append(_Accepted(index, time_s, res.pose.rotation.copy(), res.pose.translation_mm.copy()))
         del h[:-2]
 
-    def _predict(self, index: int, time_s: float | None) -> tuple[np.ndarray, np.ndarray] | None:
-        """The predicted pose (R, t) of frame ``index``, or None without an accepted pose
-        of the frame before."""
+    def _predict(self, index: int, time_s: float | None) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """The predicted pose (R, t) of frame ``index`` and how many of the last steps it
+        spans (1 for the next frame of an even run; 1 for a constant pose), or None without
+        an accepted pose of the frame before."""
         h = self._state.history
         if not h or h[-1].frame != index - 1:
             return None
         b = h[-1]
         if self.run_options.prediction == "pose" or len(h) < 2:
-            return b.R, b.t
+            return b.R, b.t, 1.0
         a = h[-2]
         step = _step_ratio(a, b, index, time_s)
         if step is None or step > self.run_options.max_extrapolation:
-            return b.R, b.t
+            return b.R, b.t, 1.0
         w = so3.log(b.R @ a.R.T)
         R = so3.exp(step * w) @ b.R
         t = b.t + step * (b.t - a.t)
-        return R, t
+        return R, t, step
 
 
 def _step_ratio(a: _Accepted, b: _Accepted, index: int, time_s: float | None) -> float | None:

@@ -121,6 +121,7 @@ class TrackSetup:
         distortion_path: str | Path | None = None,
         polarity: Polarity = "auto",
         refine: Literal["none", "intensity"] = "none",
+        detector: Literal["auto", "learned", "classical"] = "auto",
     ) -> TrackSetup:
         """The setup of ``track`` and ``serve`` from their options, each file read once.
 
@@ -133,6 +134,7 @@ class TrackSetup:
             intensifier's distortion, unknown, is allowed for in each pose's covariance).
         polarity : ``--polarity``: how dense matter looks ("auto": the file's, else found).
         refine : ``--refine``: "intensity" refines each converged pose on the pixels.
+        detector : ``--detector``: what finds the features (:attr:`TrackOptions.detector`).
 
         Returns
         -------
@@ -146,7 +148,8 @@ class TrackSetup:
         model_path = None if flat or distortion_path is None else str(distortion_path)
         model = read_distortion(model_path) if model_path is not None else None
         prior = {"distortion_prior_mm": 0.0} if flat or model is not None else {}
-        return cls(features, TrackOptions(polarity=polarity, **prior), camera, model, model_path, _refiner(refine))
+        options = TrackOptions(polarity=polarity, detector=detector, **prior)
+        return cls(features, options, camera, model, model_path, _refiner(refine))
 
     def options_for(self, frame: Frame) -> TrackOptions:
         """The settings ``frame`` is tracked with: :attr:`options`, with no distortion prior for a
