@@ -138,16 +138,18 @@ def transport_ms(frame: np.ndarray, cam, rounds: int = 10) -> tuple[float, float
     return float(np.median(pack)), float(np.median(decode))
 
 
-def baseline_ms(fr) -> np.ndarray:
+def baseline_ms(fr, detector: str = "auto") -> np.ndarray:
     """``track_image`` alone on each frame, in this process (ms; one warm-up call first)."""
     from ftrac_design.features import load_features
+    from ftrac_design.segment import TrackOptions
 
     features = load_features(fr.features_path)
-    track_image(fr.pixels[0], features, fr.camera)
+    opts = TrackOptions(detector=detector)
+    track_image(fr.pixels[0], features, fr.camera, opts)
     base = []
     for img in fr.pixels:
         t = time.perf_counter()
-        track_image(img, features, fr.camera)
+        track_image(img, features, fr.camera, opts)
         base.append(1e3 * (time.perf_counter() - t))
     return np.array(base)
 
@@ -163,9 +165,9 @@ def smooth_run(a: argparse.Namespace) -> None:
     cam = fr.camera
     print(
         f"smooth run: {a.design}, a {a.distinct}-frame {a.size}² swing, sent forward then backward; tracker: "
-        f"{'every frame alone' if a.independent else 'run (from the previous pose)'}"
+        f"{'every frame alone' if a.independent else 'run (from the previous pose)'}; detector {a.detector}"
     )
-    base = baseline_ms(fr)
+    base = baseline_ms(fr, a.detector)
     print(f"baseline track_image in-process: median {np.median(base):.1f} ms, max {base.max():.1f} ms per frame")
     pk, dc = transport_ms(fr.pixels[0], cam)
     print(
@@ -175,7 +177,7 @@ def smooth_run(a: argparse.Namespace) -> None:
     # forward then backward: frame k of the stream is a neighbour of frame k − 1
     order = list(range(len(fr.pixels))) + list(range(len(fr.pixels) - 2, 0, -1))
     stream = fr.pixels[order]
-    extra = ["--independent"] if a.independent else []
+    extra = ["--detector", a.detector] + (["--independent"] if a.independent else [])
     server = Server(["--features", str(fr.features_path), "--camera", str(fr.camera_path), *extra])
     try:
         client = recording_client(server.port)
@@ -204,13 +206,13 @@ def smooth_run(a: argparse.Namespace) -> None:
     print(text.strip().splitlines()[-1])
 
 
-def track_command_ms(fr) -> np.ndarray:
+def track_command_ms(fr, detector: str = "auto") -> np.ndarray:
     """``track`` on one image, in this process: the command's own path (its default settings,
     ``track_pixels``) on each frame alone, as ``serve --independent`` calls it (ms; one warm-up)."""
     from ftrac_design.workflows.serve import frame_by_frame_tracker
     from ftrac_design.workflows.track_run import TrackSetup
 
-    track = frame_by_frame_tracker(TrackSetup.from_options(fr.features_path, fr.camera_path))
+    track = frame_by_frame_tracker(TrackSetup.from_options(fr.features_path, fr.camera_path, detector=detector))
     track(fr.pixels[-1].astype(np.float32), fr.camera, 0.0)
     out = []
     for img in fr.pixels[:-1]:
@@ -254,10 +256,10 @@ def independent_run(a: argparse.Namespace) -> None:
         f"independent frames: {a.design}, {a.count} {a.size}² frames at unrelated workspace poses, "
         f"one every {a.gap:g} s"
     )
-    base = track_command_ms(fr)
+    base = track_command_ms(fr, a.detector)
     print(f"bound: `track` on one image (its own path and settings), in-process: {_stats(base)}")
     for label, extra in (("run tracker (default)", []), ("--independent", ["--independent"])):
-        lat, own, added, status = _independent_latencies(fr, extra, a.gap)
+        lat, own, added, status = _independent_latencies(fr, ["--detector", a.detector, *extra], a.gap)
         kinds = {s: status.count(s) for s in sorted(set(status))}
         print(
             f"serve, {label}: {len(lat)} answered {kinds}; send → TRANSFORM {_stats(lat)}; in the server "
@@ -276,6 +278,12 @@ def main() -> None:
     ap.add_argument("--independent", action="store_true", help="smooth run: the server tracks every frame alone")
     ap.add_argument("--seconds", type=float, default=10.0, help="sending time per rate")
     ap.add_argument("--warmup", type=int, default=3)
+    ap.add_argument(
+        "--detector",
+        choices=["auto", "learned", "classical"],
+        default="auto",
+        help="serve --detector, and the baselines'",
+    )
     ap.add_argument("--count", type=int, default=30, help="independent frames")
     ap.add_argument("--gap", type=float, default=0.5, help="seconds between independent frames")
     a = ap.parse_args()

@@ -323,8 +323,7 @@ def image_score_options(atlas: bool = False) -> Decorator:
 
 def imaging_options(prefix: str = "") -> Decorator:
     """The imaging model's physics (:class:`ftrac_design.xray.ImagingModel`): ``--energy-kev``,
-    ``--dose`` (→ its photons per pixel), ``--focal-spot-mm`` and ``--detector-blur-px``
-    (also ``--blur-px``).
+    ``--dose`` (→ its photons per pixel), ``--focal-spot-mm`` and ``--detector-blur-px``.
 
     Parameters
     ----------
@@ -352,7 +351,6 @@ def imaging_options(prefix: str = "") -> Decorator:
         shown_option("--focal-spot-mm", type=NON_NEGATIVE, default=0.6, help=prefix + "focal spot size (FWHM)."),
         shown_option(
             "--detector-blur-px",
-            "--blur-px",
             "detector_blur_px",
             type=NON_NEGATIVE,
             default=0.7,
