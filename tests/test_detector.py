@@ -221,7 +221,7 @@ def test_a_learned_ball_reaching_into_unreadable_pixels_is_not_fitted(f2005):
     truth = project(Camera(), R[0], t[0], features.point_centers())[0]
     H, W = g.shape
     learned = Detections(truth, np.ones(len(truth)), np.zeros((1, 1)), np.zeros((1, 1)), np.zeros((1, 1, 2)), 1, (H, W))
-    opts = TrackOptions()
+    opts = TrackOptions().finding
     rb = scales(features, Camera(), opts).bead_radius_px
     alone = np.linalg.norm(truth[:, None] - truth[None], axis=-1) + 1e9 * np.eye(len(truth))
     k = int(np.argmax(alone.min(1)))  # the ball farthest from the others

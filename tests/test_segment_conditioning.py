@@ -113,7 +113,7 @@ def test_guided_contours_lie_on_the_true_curves(f2005):
     features = f2005
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
     rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
-    opts = TrackOptions()
+    opts = TrackOptions().finding
     sc = scales(features, Camera(), opts)
     c = condition(rad.raw, "dense-dark", None, sc.disc_px)
     scene = detect(c.density, features, Camera(), opts, c.valid)

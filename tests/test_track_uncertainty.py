@@ -121,9 +121,9 @@ def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
     cam, opts = Camera(), TrackOptions()
     R, t, on = _looking_down_a_line(features)
     assert len(on) >= 3
-    sc = scales(features, cam, opts)
+    sc = scales(features, cam, opts.finding)
     uv = cam.project(features.point_centers() @ R.T + t)
-    n = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), opts)
+    n = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), sc)
     # the balls on L1 coincide; every other ball counts only if it is clear of all the others
     P = len(features.points)
     assert n <= P - len(on)
@@ -133,7 +133,7 @@ def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
     assert n == int((dd.min(1) >= sep).sum())
     # moved off the image entirely: none
     far = resolvable_beads(
-        features, cam, Pose(R, t + np.array([400.0, 0, 0]), True, 1.0, None, {}, 0, None), (1024, 1024), opts
+        features, cam, Pose(R, t + np.array([400.0, 0, 0]), True, 1.0, None, {}, 0, None), (1024, 1024), sc
     )
     assert far == 0
 
@@ -141,16 +141,17 @@ def test_resolvable_beads_leave_out_the_overlapping_ones(f2005):
 def test_view_limited_only_for_too_little_evidence_that_the_view_caps(f2005):
     features = f2005
     cam, opts = Camera(), TrackOptions()
+    sc, accept = scales(features, cam, opts.finding), opts.acceptance
     R, t, on = _looking_down_a_line(features)
     need = min(opts.min_beads, len(features.points))
-    capped = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), opts)
+    capped = resolvable_beads(features, cam, Pose(R, t, True, 1.0, None, {}, 0, None), (1024, 1024), sc)
     err = "too little evidence: 3 beads could be used (need 5 to confirm the labelling)"
-    assert view_limited(_result(R, t, 3, err), features, cam, (1024, 1024), opts) == (capped < need)
+    assert view_limited(_result(R, t, 3, err), features, cam, (1024, 1024), sc, accept) == (capped < need)
     # other reasons, or a region answer that a larger field could change, search again
-    assert not view_limited(_result(R, t, 3, "ambiguous identification: ..."), features, cam, (1024, 1024), opts)
+    assert not view_limited(_result(R, t, 3, "ambiguous identification: ..."), features, cam, (1024, 1024), sc, accept)
     Rw, tw = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(0))
-    assert resolvable_beads(features, cam, Pose(Rw[0], tw[0], True, 1.0, None, {}, 0, None), (1024, 1024), opts) >= need
-    assert not view_limited(_result(Rw[0], tw[0], 3, err), features, cam, (1024, 1024), opts)
+    assert resolvable_beads(features, cam, Pose(Rw[0], tw[0], True, 1.0, None, {}, 0, None), (1024, 1024), sc) >= need
+    assert not view_limited(_result(Rw[0], tw[0], 3, err), features, cam, (1024, 1024), sc, accept)
 
 
 def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):

@@ -17,6 +17,7 @@ from ..pose import Pose, so3
 from . import evidence
 from .detection import Scene
 from .labelling import Labelling
+from .options import AcceptanceOptions
 
 #: the learned detector's median wire probability along a predicted wire at which it counts as
 #: shown by the image, whatever its ridge evidence: on 40 ftrac_2005 images (blurred, display,
@@ -33,7 +34,7 @@ def refuse(pose: Pose, reason: str | None) -> Pose:
     return replace(pose, converged=False, error=reason)
 
 
-def wire_support(scene: Scene, pose: Pose) -> tuple[list[str], dict[str, float]]:
+def wire_support(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> tuple[list[str], dict[str, float]]:
     """Curves the pose predicts on bare background (see :func:`.evidence.wire_support`):
     those whose median ridge evidence is not clearly above zero, or below ``wire_support`` ×
     the median curve's; also returns each curve's evidence in noise units.
@@ -52,22 +53,22 @@ def wire_support(scene: Scene, pose: Pose) -> tuple[list[str], dict[str, float]]
     absent = []
     for fid, (v, n) in sup.items():
         n_eff = max(n * 0.5 / corr, 1.0)
-        present = min(scene.opts.wire_min_snr, max(0.5, 3 * 1.25 / np.sqrt(n_eff)))
+        present = min(opts.wire_min_snr, max(0.5, 3 * 1.25 / np.sqrt(n_eff)))
         # the learned detector sees a wire there: present, however weak its ridge
-        if v < max(present, scene.opts.wire_support * ref) and seen.get(fid, 0.0) < LEARNED_WIRE:
+        if v < max(present, opts.wire_support * ref) and seen.get(fid, 0.0) < LEARNED_WIRE:
             absent.append(fid)
     return absent, {fid: round(v, 1) for fid, (v, _) in sup.items()}
 
 
-def absent_wires(scene: Scene, pose: Pose) -> str | None:
-    """Refused when the image shows no wire where the pose puts one."""
-    absent, _ = wire_support(scene, pose)
+def absent_wires(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> str | None:
+    """Refused when the image shows no wire where the pose puts one (:func:`wire_support`)."""
+    absent, _ = wire_support(scene, pose, opts)
     if absent:
         return f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
     return None
 
 
-def rival(scene: Scene, best: Labelling, other: Labelling) -> tuple[str, dict] | None:
+def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptions) -> tuple[str, dict] | None:
     """Refused when ``other``, a labelling far from ``best``, explains the image about as well
     (misfit within ``ambiguity_chi2``). Returns the reason and both answers (so a user with a
     prior, e.g. the C-arm's own angles, can choose), or None.
@@ -86,7 +87,7 @@ def rival(scene: Scene, best: Labelling, other: Labelling) -> tuple[str, dict] |
         or (str(q.error or "").startswith("identification not confirmed") and other.score >= best.score)
     ):
         return None
-    if other.score - best.score >= scene.opts.ambiguity_chi2:
+    if other.score - best.score >= opts.ambiguity_chi2:
         return None
     dang = math.degrees(float(so3.angle(q.rotation, pose.rotation)))
     dt = float(np.linalg.norm(q.translation_mm - pose.translation_mm))
@@ -109,11 +110,11 @@ def rival(scene: Scene, best: Labelling, other: Labelling) -> tuple[str, dict] |
     )
 
 
-def too_little_evidence(scene: Scene, lab: Labelling) -> str | None:
+def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
     """Refused when what the labelling explains cannot confirm it: most predicted wires
     missing, no wire contour at all on a wire design, balls in view left unexplained, too
     few balls, or too few redundant constraints."""
-    features, opts = scene.features, scene.opts
+    features = scene.features
     obs, cont = lab.obs, lab.contours
     n_curves = len(features.lines) + len(features.ellipses)
     # the learned detector sees every predicted wire where the pose puts it: what the missing

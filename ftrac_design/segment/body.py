@@ -139,12 +139,14 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
     )
 
 
-def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, blur: float, find_ridges: bool = True) -> Scene | None:
+def ridges_without_body(
+    g: np.ndarray, scene: Scene, pose: Pose, blur: float, ridge_min_snr: float | None
+) -> Scene | None:
     """The scene over the body's box again after subtracting the modelled projection of the body
     (``scene.features.body``) at ``pose`` from the density image ``g``: the background-free
     image and its second derivatives with that box replaced, and the ridge points found there
-    (those of the box only; none looked for unless ``find_ridges``); None when there is no body
-    or it cannot be modelled there."""
+    (those of the box only, at least ``ridge_min_snr`` noise units; none looked for when it is
+    None); None when there is no body or it cannot be modelled there."""
     bd = body_density(scene.features, scene.camera, pose.rotation, pose.translation_mm, blur, clip=g.shape)
     if bd is None:
         return None
@@ -172,8 +174,8 @@ def ridges_without_body(g: np.ndarray, scene: Scene, pose: Pose, blur: float, fi
         T2[~scene.valid[box]] = 0.0
     d = derivatives(T2, sc.ridge_sigma_px)
     rp = None
-    if find_ridges and (scene.features.lines or scene.features.ellipses):
-        rp = ridge_points(T2, sc.ridge_sigma_px, scene.noise_map[box], scene.opts.ridge_min_snr, derivs=d)
+    if ridge_min_snr is not None and (scene.features.lines or scene.features.ellipses):
+        rp = ridge_points(T2, sc.ridge_sigma_px, scene.noise_map[box], ridge_min_snr, derivs=d)
         rp.uv = rp.uv + np.array([c0, r0], float)
         rp = rp.take(scene.readable(rp.uv))
     Tb = T.copy()

@@ -2,8 +2,9 @@
 its noise, bead candidates fitted with the blurred-sphere model and wire ridge points.
 
 :class:`Scene` holds one image's detections together with the design, the camera and the
-options, so that the labelling, the acceptance tests and the body subtraction take one
-argument instead of eight.
+expected sizes, so that the labelling, the acceptance tests and the body subtraction take one
+argument instead of eight; the settings each of them reads are passed beside it
+(:mod:`.options`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from ..features.model import Features
 from ..pose import Camera
 from .beads import Beads, blob_candidates, blob_response, fit_beads
 from .image import NoiseField, derivatives, second_derivative_gain, top_hat
-from .options import TrackOptions
+from .options import FindOptions, TrackOptions
 from .ridges import RidgePoints, ridge_points
 
 #: the blur the ridge scale is sized for (``TrackOptions.blur_px``'s default, px)
@@ -27,7 +28,8 @@ DEFAULT_BLUR_PX = TrackOptions.blur_px
 
 @dataclass(frozen=True)
 class Scales:
-    """Expected sizes in pixels at the assumed magnification (``TrackOptions.magnification``)."""
+    """Expected sizes in pixels at the assumed magnification (``TrackOptions.magnification``)
+    and blur."""
 
     #: the largest ball's radius, px
     bead_radius_px: float
@@ -39,12 +41,15 @@ class Scales:
     ridge_sigma_px: float
     #: radius of the top-hat's disc, px: wider than any ball or wire with its blur
     disc_px: int
+    #: the blur σ the filters are sized for, px (``TrackOptions.blur_px``, or the image's own
+    #: fitted blur when it was detected again at it)
+    blur_px: float
     #: the largest distance two balls can be apart in the image, px: their spread in F at
     #: ``TrackOptions.max_magnification``
     max_bead_spread_px: float = float("inf")
 
 
-def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
+def scales(features: Features, camera: Camera, opts: FindOptions) -> Scales:
     """Expected sizes in pixels of ``features`` seen with ``camera`` at the assumed
     magnification: bead radius, wire width, ridge scale and top-hat disc.
 
@@ -52,7 +57,7 @@ def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
     ----------
     features : the design's features (mm).
     camera : intrinsics (SPEC §1).
-    opts : the image path's options (magnification, starting blur).
+    opts : what finding the features reads (``magnification``, ``max_magnification``, ``blur_px``).
 
     Returns
     -------
@@ -69,7 +74,8 @@ def scales(features: Features, camera: Camera, opts: TrackOptions) -> Scales:
     ridge = math.sqrt(max(1.0, 0.5 * wire + 0.5) ** 2 + max(opts.blur_px**2 - DEFAULT_BLUR_PX**2, 0.0))
     P = features.point_centers() if features.points else np.zeros((0, 3))
     spread = float(np.max(np.linalg.norm(P[:, None] - P[None], axis=-1))) if len(P) > 1 else 0.0
-    return Scales(bead, wire, pix, ridge, disc, spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead)
+    spread_px = spread * opts.max_magnification / min(camera.pixel_size_mm) + 2 * bead
+    return Scales(bead, wire, pix, ridge, disc, opts.blur_px, spread_px)
 
 
 @dataclass(frozen=True)
@@ -82,7 +88,6 @@ class Scene:
 
     features: Features
     camera: Camera
-    opts: TrackOptions
     scales: Scales
     #: background-free density image (white top-hat, dense = bright)
     T: np.ndarray
@@ -136,7 +141,7 @@ class Scene:
     def bead_exclusion(self, extra_px: float = 1.0) -> np.ndarray:
         """Per model bead, the radius (px) within which wire evidence is not read: the ball's
         blurred image and ``extra_px``."""
-        return np.full(len(self.features.points), self.scales.bead_radius_px + 2 * self.opts.blur_px + extra_px)
+        return np.full(len(self.features.points), self.scales.bead_radius_px + 2 * self.scales.blur_px + extra_px)
 
     def with_detections(
         self,
@@ -220,7 +225,7 @@ def ball_fits(
     response: np.ndarray,
     radius_px: float,
     noise: np.ndarray,
-    opts: TrackOptions,
+    blur_px: float,
     exclude: np.ndarray | None = None,
 ) -> tuple[Beads, np.ndarray]:
     """The blurred-sphere model fitted at every start (n, 2) px of the background-free image
@@ -238,7 +243,7 @@ def ball_fits(
     starts, response : start centres (n, 2) px and their blob response over its noise (n,).
     radius_px : the expected ball radius, px.
     noise : (H, W) local noise σ of ``T``.
-    opts : the image path's options (``blur_px``).
+    blur_px : the blur σ the fits start from, px.
     exclude : (H, W) bool, pixels no fit uses (a predicted wire), or None.
 
     Returns
@@ -246,7 +251,7 @@ def ball_fits(
     (Beads (n, every fit, in the order of ``starts``), (n,) bool: the fits that look like a ball)
     """
     rb = radius_px
-    b = fit_beads(T, starts, rb, opts.blur_px, bilinear(noise, starts), response, exclude=exclude)
+    b = fit_beads(T, starts, rb, blur_px, bilinear(noise, starts), response, exclude=exclude)
     if len(b) > 2:
         med = float(np.median(b.amplitude))
         bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
@@ -255,7 +260,7 @@ def ball_fits(
                 T,
                 starts[bad],
                 rb,
-                opts.blur_px,
+                blur_px,
                 bilinear(noise, starts[bad]),
                 response[bad],
                 exclude=exclude,
@@ -264,7 +269,7 @@ def ball_fits(
             for k in b.__dataclass_fields__:
                 getattr(b, k)[bad] = getattr(b2, k)
     H, W = T.shape
-    edge = rb + 2 * opts.blur_px + 1
+    edge = rb + 2 * blur_px + 1
     with np.errstate(invalid="ignore"):
         ok = (
             np.isfinite(b.uv).all(1)
@@ -282,27 +287,27 @@ def ball_fits(
 
 
 def fitted_balls(
-    T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray, opts: TrackOptions
+    T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray, blur_px: float
 ) -> Beads:
     """The fits of :func:`ball_fits` (no pixels excluded) that look like a ball, in the order
     of ``starts``."""
-    b, ok = ball_fits(T, starts, response, radius_px, noise, opts)
+    b, ok = ball_fits(T, starts, response, radius_px, noise, blur_px)
     return b.take(ok)
 
 
-def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, opts: TrackOptions) -> Beads:
+def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, min_snr: float) -> Beads:
     rb = sc.bead_radius_px
     P = len(features.points)
     # more candidates than the labelling uses: over anatomy or on a display frame, clutter
     # (a clipped bone edge's staircase, edge-enhancement overshoot) can outrank the balls in
     # response alone; the model fit tells them apart (below)
-    cand, resp = blob_candidates(T, rb, noise, 8 * P + 40, opts.bead_min_snr)
+    cand, resp = blob_candidates(T, rb, noise, 8 * P + 40, min_snr)
     if len(cand):
         # the beads are the strongest blobs; anything far weaker is a wire crossing or clutter
         ref = np.sort(resp)[::-1][:P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
-    b = fitted_balls(T, cand, resp, rb, noise, opts)
+    b = fitted_balls(T, cand, resp, rb, noise, sc.blur_px)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
     # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
     # and, loosely, by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×;
@@ -313,7 +318,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
         # the kept ones fitted again among themselves: the fit's robust scale is pooled over
         # the candidates fitted together, and the clutter left out must not loosen it
         kept = b.take(order)
-        again = fit_beads(T, kept.uv, rb, opts.blur_px, bilinear(noise, kept.uv), kept.response)
+        again = fit_beads(T, kept.uv, rb, sc.blur_px, bilinear(noise, kept.uv), kept.response)
         same = (
             np.isfinite(again.uv).all(1)
             & (np.linalg.norm(again.uv - kept.uv, axis=1) < 1.0)
@@ -335,7 +340,6 @@ def _learned_candidates(
     sc: Scales,
     noise: np.ndarray,
     snr: np.ndarray,
-    opts: TrackOptions,
     valid: np.ndarray | None = None,
 ) -> Beads:
     """The blurred-sphere fits at the learned detector's ball candidates ``starts`` (n, 2) px,
@@ -354,7 +358,7 @@ def _learned_candidates(
     if len(starts) == 0:
         z = np.zeros(0)
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
-    b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, opts)
+    b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, sc.blur_px)
     b = b.take(ok)
     if len(b) and valid is not None and not valid.all():
         clear = cv2.distanceTransform(valid.astype(np.uint8), cv2.DIST_L2, 3)
@@ -369,7 +373,7 @@ def detect(
     g: np.ndarray,
     features: Features,
     camera: Camera,
-    opts: TrackOptions,
+    opts: FindOptions,
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
     learned=None,
@@ -380,7 +384,8 @@ def detect(
     Parameters
     ----------
     g : (H, W) density image.
-    features, camera, opts : the design, the intrinsics of ``g``'s pixels, the options.
+    features, camera : the design and the intrinsics of ``g``'s pixels.
+    opts : what finding the features reads (sizes, blur and the SNR thresholds).
     valid : (H, W) bool, True where ``g`` can be read; nothing is detected elsewhere.
     noise : the local noise of ``g`` (:class:`.image.NoiseField`, of the whole image when
         ``g`` is a crop of it); measured on ``g`` when not given.
@@ -406,14 +411,14 @@ def detect(
     if not features.points:
         beads = None
     elif learned is not None:
-        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, snr, opts, valid)
+        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, snr, valid)
     else:
-        beads = _bead_candidates(T, features, sc, nmap, opts)
+        beads = _bead_candidates(T, features, sc, nmap, opts.bead_min_snr)
     d = derivatives(T, sc.ridge_sigma_px)
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr, learned)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, learned)
 
 
 def fitted_blur(scene: Scene) -> float | None:

@@ -29,6 +29,7 @@ from .noise import (
     measured_noise,
     residuals_at,
 )
+from .options import ContourOptions, LabellingOptions
 
 
 class NoLabelling(Exception):
@@ -111,9 +112,12 @@ def match_beads(
     return out, dropped
 
 
-def solve_from(scene: Scene, obs: Observation, noise: NoiseModel, R0, t0, rescue: bool = True) -> Pose:
-    """Refine from (R0, t0); if that fails and ``rescue``, the full no-guess solve."""
-    sopts = SolverOptions(noise=noise, max_noise_scale=scene.opts.max_noise_scale)
+def solve_from(
+    scene: Scene, obs: Observation, noise: NoiseModel, R0, t0, max_noise_scale: float, rescue: bool = True
+) -> Pose:
+    """Refine from (R0, t0), the solver's noise scale κ at most ``max_noise_scale``; if that
+    fails and ``rescue``, the full no-guess solve."""
+    sopts = SolverOptions(noise=noise, max_noise_scale=max_noise_scale)
     p = refine_pose(scene.features, obs, R0, t0, sopts)
     if not p.converged and rescue:
         # the identification's pose was not close enough: the full robust solve
@@ -123,10 +127,10 @@ def solve_from(scene: Scene, obs: Observation, noise: NoiseModel, R0, t0, rescue
     return p
 
 
-def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
+def _contours(scene: Scene, R, t, blur: float, stage: int, opts: ContourOptions) -> identify.Contours:
     """Contours gathered at pose (R, t) with the tolerances of ``stage`` (0 wide, 1 tight,
     2 tight and thinned)."""
-    features, opts, sc = scene.features, scene.opts, scene.scales
+    features, sc = scene.features, scene.scales
     if scene.ridges is None or not (features.lines or features.ellipses):
         return identify.Contours()
     tol = opts.contour_tol_px if stage == 0 else opts.final_contour_tol_px
@@ -138,7 +142,7 @@ def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
         / sc.pixel_mm
     )
     var = sc.ridge_sigma_px**2 + blur**2 + wr * wr / 4
-    excl = np.full(len(features.points), sc.bead_radius_px + 3 * opts.blur_px + 1.5)
+    excl = np.full(len(features.points), sc.bead_radius_px + 3 * sc.blur_px + 1.5)
     if opts.contours == "guided":
         cont = guided_contours(
             scene,
@@ -168,17 +172,17 @@ def _contours(scene: Scene, R, t, blur: float, stage: int) -> identify.Contours:
     return cont
 
 
-def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) -> Labelling:
+def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, opts: LabellingOptions) -> Labelling:
     """The stages of :func:`evaluate` up to the per-feature tests: a Labelling (NoLabelling
     saying why none)."""
-    opts, sc, beads = scene.opts, scene.scales, scene.beads
+    sc, beads = scene.scales, scene.beads
     R, t = h.R, h.t
     rb = sc.bead_radius_px
-    blur = float(np.median(beads.blur)) if len(beads) else opts.blur_px
-    sep = 2 * rb + 2 * opts.blur_px
+    blur = float(np.median(beads.blur)) if len(beads) else sc.blur_px
+    sep = 2 * rb + 2 * sc.blur_px
     out: Labelling | None = None
     for stage in (first_stage, 2) if first_stage < 2 and opts.fast else range(first_stage, 3):
-        why = implausible(scene, R, t)
+        why = implausible(scene, R, t, opts.depth_range)
         if why is not None:
             # before anything is projected: a pose near the source projects the wires over
             # millions of pixels
@@ -186,17 +190,17 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
         match, dropped_beads = match_beads(
             scene, R, t, beads, opts.match_tol_px if stage else max(opts.match_tol_px, rb), sep
         )
-        cont = _contours(scene, R, t, blur, stage)
+        cont = _contours(scene, R, t, blur, stage, opts.contour)
         obs = observation(scene.camera, {fid: beads.uv[j] for fid, j in match.items()}, cont)
         if not (obs.points or obs.lines or obs.ellipses):
             break
-        noise = measured_noise(obs, beads, match, sc.pixel_mm, opts)
+        noise = measured_noise(obs, beads, match, sc.pixel_mm, sc.blur_px, opts.noise)
         try:
             # the full solve rescues a poor starting pose: the labelling's own, in its first
             # stage; a later stage starts from that stage's solution, and on the accuracy
             # benchmark's images (60 + 60 ftrac_2005, 30 + 30 ftrac_mini and nine_bead) its
             # full solve never converged where the refinement had not (0 of 77; ~40 ms each)
-            pose = solve_from(scene, obs, noise, R, t, rescue=stage == first_stage)
+            pose = solve_from(scene, obs, noise, R, t, opts.max_noise_scale, rescue=stage == first_stage)
         except Exception as exc:  # an unusable observation (e.g. collinear contour): stop here
             raise NoLabelling(f"segmented features unusable: {exc}") from None
         if not np.all(np.isfinite(pose.rotation)):
@@ -208,10 +212,9 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int) ->
     return out
 
 
-def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
+def _drop_inconsistent(scene: Scene, lab: Labelling, opts: LabellingOptions) -> Labelling:
     """Drop the worst feature whose residual is improbable under the noise model and
     re-solve, at most ``max_dropped`` times; the pose fails when more would be needed."""
-    opts = scene.opts
     removed: dict[str, str] = {}
     obs, noise, pose = lab.obs, lab.noise, lab.pose
     for _ in range(opts.max_dropped + 1):
@@ -243,15 +246,15 @@ def _drop_inconsistent(scene: Scene, lab: Labelling) -> Labelling:
         # from the pose the dropped feature had pulled: a local solve (the full no-guess solve
         # here cost ~40 ms per drop, mostly on rival labellings, and changed no pose on 440
         # track_accuracy images: 100 ftrac_2005, 60 ftrac_mini, 60 nine_bead, clean and anatomy)
-        pose = solve_from(scene, obs, noise, pose.rotation, pose.translation_mm, rescue=False)
+        pose = solve_from(scene, obs, noise, pose.rotation, pose.translation_mm, opts.max_noise_scale, rescue=False)
     return replace(lab, pose=pose, obs=obs, removed=removed)
 
 
-def implausible(scene: Scene, R: np.ndarray, t: np.ndarray) -> str | None:
+def implausible(scene: Scene, R: np.ndarray, t: np.ndarray, depth_range: tuple[float, float]) -> str | None:
     """Why pose (R, t) cannot be the fiducial's (it puts the fiducial's origin outside
-    ``TrackOptions.depth_range`` of the source-to-detector distance, or a ball behind or at
+    ``depth_range``, fractions of the source-to-detector distance, or a ball behind or at
     the source), or None."""
-    lo, hi = scene.opts.depth_range
+    lo, hi = depth_range
     f = scene.camera.focal_length_mm
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return "no finite pose"
@@ -264,11 +267,12 @@ def implausible(scene: Scene, R: np.ndarray, t: np.ndarray) -> str | None:
     return None
 
 
-def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> Labelling:
+def evaluate(scene: Scene, h: identify.BeadHypothesis, opts: LabellingOptions, first_stage: int = 0) -> Labelling:
     """Refine one labelling into a pose with every feature it can see: matching and contour
     gathering with wide tolerances (stage 0), tight ones (1), then tight and thinned (2);
     ``first_stage`` = 2 when the hypothesis's pose is already refined. Then the per-feature
-    tests, the calibrated covariance and the misfit.
+    tests, the calibrated covariance and the misfit, with the settings ``opts``
+    (:attr:`~.options.TrackOptions.labelling`).
 
     Returns
     -------
@@ -278,21 +282,21 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, first_stage: int = 0) -> 
     ------
     NoLabelling : no pose came of the hypothesis (its ``reason`` says why).
     """
-    lab = _staged_solve(scene, h, first_stage)
-    why = implausible(scene, lab.pose.rotation, lab.pose.translation_mm)
+    lab = _staged_solve(scene, h, first_stage, opts)
+    why = implausible(scene, lab.pose.rotation, lab.pose.translation_mm, opts.depth_range)
     if why is not None:
         raise NoLabelling(why)
-    lab = _drop_inconsistent(scene, lab)
-    vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts)
-    if lab.pose.covariance is not None and scene.opts.distortion_prior_mm > 0:
-        extra = distortion_covariance(scene.features, lab.obs, lab.pose, lab.noise, scene.opts.distortion_prior_mm)
+    lab = _drop_inconsistent(scene, lab, opts)
+    vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise)
+    if lab.pose.covariance is not None and opts.noise.distortion_prior_mm > 0:
+        extra = distortion_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise.distortion_prior_mm)
         if extra is not None:
             lab.pose.covariance = lab.pose.covariance + extra
     lab = replace(lab, variance_factor=vf)
-    return replace(lab, score=misfit(scene, lab))
+    return replace(lab, score=misfit(scene, lab, opts))
 
 
-def misfit(scene: Scene, lab: Labelling) -> float:
+def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     """A labelling's misfit to the whole image: the χ² of the features it explains plus
     ``unexplained_chi2`` for each feature it predicts in view and clear of others but does
     not explain (a ball with no blob under it, a wire with no ridge, a feature rejected by
@@ -308,7 +312,7 @@ def misfit(scene: Scene, lab: Labelling) -> float:
     a display window, or one a wire pulled off its fit) is charged but not counted as
     unexplained: the charge keeps rival labellings comparable (a near-mirror one puts its
     balls where other balls are, and is shown them too)."""
-    features, opts, sc = scene.features, scene.opts, scene.scales
+    features, sc = scene.features, scene.scales
     pose, obs, cont = lab.pose, lab.obs, lab.contours
     if not np.all(np.isfinite(pose.rotation)):
         return math.inf
@@ -339,11 +343,11 @@ def misfit(scene: Scene, lab: Labelling) -> float:
     return chi + opts.unexplained_chi2 * unexplained
 
 
-def with_agreement(scene: Scene, lab: Labelling) -> Labelling:
+def with_agreement(scene: Scene, lab: Labelling, opts: LabellingOptions) -> Labelling:
     """``lab`` with the label-free image agreement (:func:`~.evidence.image_agreement`) added
     to its misfit: ``agreement_chi2_per_px`` per pixel of unexplained ridge and of unsupported
     predicted wire."""
-    features, opts, sc = scene.features, scene.opts, scene.scales
+    features, sc = scene.features, scene.scales
     p = lab.pose
     if not np.all(np.isfinite(p.rotation)) or not (features.lines or features.ellipses) or scene.ridges is None:
         return lab

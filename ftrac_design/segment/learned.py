@@ -16,13 +16,13 @@ import numpy as np
 from .. import detector as learned
 from ..features.model import Features
 from .detection import Scales
-from .options import TrackOptions
+from .options import FindOptions
 from .region import cluster_boxes, fiducial_extent_px
 
 Boxes = list[tuple[int, int, int, int]]
 
 
-def detections(image: np.ndarray, sc: Scales, opts: TrackOptions) -> learned.Detections | None:
+def detections(image: np.ndarray, sc: Scales, opts: FindOptions) -> learned.Detections | None:
     """The learned detector's detections in ``image`` (H, W) as stored, or None when the
     classical detectors are to be used (``TrackOptions.detector`` "classical", or "auto"
     without ONNX Runtime or the network). "learned" without them raises
@@ -61,15 +61,21 @@ def polarity_order(image: np.ndarray, det: learned.Detections, sc: Scales, balls
 
 
 def regions(
-    det: learned.Detections, features: Features, sc: Scales, opts: TrackOptions, shape: tuple[int, int]
+    det: learned.Detections,
+    features: Features,
+    sc: Scales,
+    shape: tuple[int, int],
+    magnification: float,
+    max_regions: int,
 ) -> Boxes:
     """Boxes ``(row0, row1, col0, col1)`` around clusters of the learned ball candidates (those
     of probability ≥ 0.2), each no wider than the fiducial can be and grown by half its
     largest extent, the most probable cluster first (the sum of its ``P`` best probabilities),
-    at most ``opts.max_regions``; the next among the candidates outside the boxes taken."""
+    at most ``max_regions``; the next among the candidates outside the boxes taken
+    (``magnification`` the assumed one, see :func:`.region.fiducial_extent_px`)."""
     P = len(features.points)
     keep = det.beads_score >= 0.2
     uv, w = det.beads_uv[keep], det.beads_score[keep]
     if P == 0 or len(uv) < 3:
         return []
-    return cluster_boxes(uv, w, P, fiducial_extent_px(features, sc, opts), shape, opts.max_regions)
+    return cluster_boxes(uv, w, P, fiducial_extent_px(features, sc, magnification), shape, max_regions)

@@ -21,10 +21,12 @@ from ..pose.fitting import fit_conic, fit_line, sampson_theta_jacobian
 from ..pose.problem import compile_problem, evaluate
 from . import identify
 from .beads import Beads
-from .options import TrackOptions
+from .options import NoiseOptions, TrackOptions
 
 
-def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: float, opts: TrackOptions) -> NoiseModel:
+def measured_noise(
+    obs: Observation, beads: Beads, match: dict[str, int], pix: float, blur_px: float, opts: NoiseOptions
+) -> NoiseModel:
     """Per-feature-type σ (mm at the detector) measured on this image, with floors.
 
     Beside the random part measured here (each bead fit's own σ; each curve's scatter about
@@ -42,6 +44,8 @@ def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: f
     obs : the labelling's observation (pixels).
     beads : the fitted blobs; ``match`` maps bead id → blob index.
     pix : pixel pitch, mm.
+    blur_px : the blur σ the image was detected at, px.
+    opts : the floors and systematic errors (:attr:`~.options.LabellingOptions.noise`).
 
     Returns
     -------
@@ -55,7 +59,7 @@ def measured_noise(obs: Observation, beads: Beads, match: dict[str, int], pix: f
     # a curve's systematic shift comes mostly from what its ridge sits on and how it bends
     # (the curvature correction is ∝ the smoothing variance): it grows with the blur², and
     # a 2 px blur left an ellipse pose 4 mm off in depth with a χ² of 80 at the default
-    sys_curve = opts.sys_curve_px * max(1.0, (opts.blur_px / TrackOptions.blur_px) ** 2)
+    sys_curve = opts.sys_curve_px * max(1.0, (blur_px / TrackOptions.blur_px) ** 2)
     out = []
     for store, fitter, floor in (
         (obs.lines, fit_line, opts.floor_line_mm),
@@ -147,7 +151,7 @@ def feature_p_values(features: Features, obs: Observation, pose: Pose, noise: No
 
 
 def calibrated_covariance(
-    features: Features, obs: Observation, pose: Pose, noise: NoiseModel, opts: TrackOptions | None = None
+    features: Features, obs: Observation, pose: Pose, noise: NoiseModel, opts: NoiseOptions | None = None
 ) -> float | None:
     """Rescale the pose covariance (in place) to the image path's noise model; returns s².
 
@@ -173,7 +177,7 @@ def calibrated_covariance(
     if m <= 6:
         return None
     s2 = max(float(np.sum(ev.rho[0] ** 2)) / (m - 6), 0.02)
-    opts = opts or TrackOptions()
+    opts = opts or TrackOptions().labelling.noise
     q = {"p": opts.variance_point, "l": opts.variance_line, "e": opts.variance_ellipse}
     J = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=True).J
     if J is None or not np.all(np.isfinite(J)):

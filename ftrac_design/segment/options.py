@@ -1,8 +1,18 @@
-"""Settings of the image path (:class:`TrackOptions`) and what it returns (:class:`TrackResult`)."""
+"""Settings of the image path (:class:`TrackOptions`) and what it returns (:class:`TrackResult`).
+
+:class:`TrackOptions` is the one flat record a user sets; each stage of the path takes only
+the small frozen record of the settings it reads, built from it by a property —
+:attr:`~TrackOptions.finding` (:class:`FindOptions`: detectors, sizes, thresholds),
+:attr:`~TrackOptions.search` (:class:`SearchOptions`: polarities, regions, work budget),
+:attr:`~TrackOptions.labelling` (:class:`LabellingOptions`, with its :class:`ContourOptions`
+and :class:`NoiseOptions`: a labelling's solve, per-feature tests and misfit) and
+:attr:`~TrackOptions.acceptance` (:class:`AcceptanceOptions`) — so every setting is decided
+once, in :class:`TrackOptions`, and a stage's signature says what it reads.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal
 
 from ..pose import Diagnostics, NoiseModel, Observation, Pose, Status, TrackedPose
@@ -139,6 +149,128 @@ class TrackOptions:
     #: pinhole pose from such an image is biased in depth by several mm and no residual
     #: shows it. 0 for a flat-panel detector or an image corrected with its distortion model.
     distortion_prior_mm: float = 1.5
+
+    @property
+    def finding(self) -> FindOptions:
+        """What finding the features reads (:class:`FindOptions`)."""
+        return _taken(FindOptions, self)
+
+    @property
+    def search(self) -> SearchOptions:
+        """What the search over polarities and regions reads (:class:`SearchOptions`)."""
+        return _taken(SearchOptions, self)
+
+    @property
+    def labelling(self) -> LabellingOptions:
+        """What a labelling's solve, per-feature tests and misfit read (:class:`LabellingOptions`)."""
+        return _taken(LabellingOptions, self, contour=_taken(ContourOptions, self), noise=_taken(NoiseOptions, self))
+
+    @property
+    def acceptance(self) -> AcceptanceOptions:
+        """What the acceptance tests read (:class:`AcceptanceOptions`)."""
+        return _taken(AcceptanceOptions, self)
+
+
+# The stages' records: each field is :class:`TrackOptions`' of the same name (its meaning and
+# units are given there), and none has a default, so that a setting is decided only there.
+
+
+@dataclass(frozen=True)
+class FindOptions:
+    """What finding the features reads: the detector, the expected sizes (magnification and
+    blur, px), the balls' and ridges' SNR thresholds and the bead hypotheses' tolerance."""
+
+    detector: Literal["auto", "learned", "classical"]
+    detector_threads: int
+    magnification: float
+    max_magnification: float
+    blur_px: float
+    blur_redetect: float
+    ridge_min_snr: float
+    bead_min_snr: float
+    hypothesis_tol_radii: float
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """What the search reads: the polarities tried, the regions searched (a ball's radius in
+    px, an image's size in pixels) and the work one image may cost (units, seconds)."""
+
+    polarity: Polarity
+    roi: bool
+    max_regions: int
+    min_region_bead_px: float
+    whole_image_px: int
+    max_work: int
+    time_budget_s: float
+
+
+@dataclass(frozen=True)
+class ContourOptions:
+    """What gathering a labelling's contour points reads: how (guided or detected), the
+    tolerances and spacing (px) and the magnification assumed for a pose without depth."""
+
+    magnification: float
+    contours: Literal["guided", "detected"]
+    guided_min_snr: float
+    contour_tol_px: float
+    final_contour_tol_px: float
+    separation_px: float
+    thin_factor: float
+
+
+@dataclass(frozen=True)
+class NoiseOptions:
+    """What the measured noise model and the pose covariance read: floors (mm at the
+    detector), systematic errors (px), variance components and the distortion prior (mm)."""
+
+    floor_point_mm: float
+    sys_point_px: float
+    sys_curve_px: float
+    floor_line_mm: float
+    floor_ellipse_mm: float
+    variance_point: float
+    variance_line: float
+    variance_ellipse: float
+    distortion_prior_mm: float
+
+
+@dataclass(frozen=True)
+class LabellingOptions:
+    """What a labelling's staged solve, its per-feature tests and its misfit read: bead
+    matching tolerance (px), stages, the solver's noise scale, dropping, plausible depth,
+    the misfit's charges (χ²), and its contours' and noise model's records."""
+
+    match_tol_px: float
+    fast: bool
+    max_noise_scale: float
+    feature_p_value: float
+    max_dropped: int
+    depth_range: tuple[float, float]
+    unexplained_chi2: float
+    bead_present_snr: float
+    agreement_min_snr: float
+    agreement_chi2_per_px: float
+    contour: ContourOptions
+    noise: NoiseOptions
+
+
+@dataclass(frozen=True)
+class AcceptanceOptions:
+    """What the acceptance tests read: the rival labelling's misfit margin (χ²), the wires'
+    evidence (noise units, fraction) and the evidence a confident labelling needs (counts)."""
+
+    ambiguity_chi2: float
+    wire_support: float
+    wire_min_snr: float
+    max_unexplained_beads: int
+    min_beads: int
+    min_redundancy: int
+
+
+def _taken(record: type, opts: TrackOptions, **given: Any) -> Any:
+    """``record`` with each field not in ``given`` taken from ``opts``' field of that name."""
+    return record(**{f.name: getattr(opts, f.name) for f in fields(record) if f.name not in given}, **given)
 
 
 @dataclass

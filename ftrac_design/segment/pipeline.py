@@ -28,7 +28,15 @@ from .conditioning import FORMATIONS, condition, formation_of
 from .detection import Scene, detect, fitted_blur, scales
 from .image import NoiseField, detect_polarity
 from .labelling import Labelling, NoLabelling, evaluate, with_agreement
-from .options import TrackOptions, TrackResult, failed_result
+from .options import (
+    AcceptanceOptions,
+    FindOptions,
+    LabellingOptions,
+    SearchOptions,
+    TrackOptions,
+    TrackResult,
+    failed_result,
+)
 from .region import fiducial_regions, shifted, view_limited
 
 
@@ -42,7 +50,7 @@ class Budget:
     counted work takes far longer than any benchmark image's (one of them being under way
     always finishes)."""
 
-    def __init__(self, opts: TrackOptions, start: float | None = None):
+    def __init__(self, opts: SearchOptions, start: float | None = None):
         self.work = opts.max_work
         self.deadline = (time.monotonic() if start is None else start) + opts.time_budget_s
         self.timed_out = False
@@ -61,7 +69,13 @@ class Budget:
         self.work -= units
 
 
-def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budget) -> list[Labelling]:
+def _labellings(
+    scene: Scene,
+    hyps: list[identify.BeadHypothesis],
+    budget: Budget,
+    labelling: LabellingOptions,
+    accept: AcceptanceOptions,
+) -> list[Labelling]:
     """The best distinct labellings refined, each with its agreement with the image (one unit
     of ``budget`` each; none once it is spent, but the first)."""
     out: list[Labelling] = []
@@ -73,7 +87,7 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budge
             continue
         budget.charge()
         try:
-            lab = evaluate(scene, h)
+            lab = evaluate(scene, h, labelling)
         except (NoLabelling, ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError):
             # one labelling that breaks the numerics is one labelling less, not a lost image
             continue
@@ -86,36 +100,40 @@ def _labellings(scene: Scene, hyps: list[identify.BeadHypothesis], budget: Budge
         seen.append((p.rotation, p.translation_mm))
         if p.converged:
             # a labelling that puts wire on bare background is no candidate, and no rival
-            lab = replace(lab, pose=acceptance.refuse(p, acceptance.absent_wires(scene, p)))
-        out.append(with_agreement(scene, lab))
+            lab = replace(lab, pose=acceptance.refuse(p, acceptance.absent_wires(scene, p, accept)))
+        out.append(with_agreement(scene, lab, labelling))
     return out
 
 
-def _with_body_subtracted(g: np.ndarray, scene: Scene, best: Labelling) -> tuple[Labelling, Scene] | None:
+def _with_body_subtracted(
+    g: np.ndarray, scene: Scene, best: Labelling, labelling: LabellingOptions, ridge_min_snr: float
+) -> tuple[Labelling, Scene] | None:
     """The best labelling again, on the image with the body's modelled projection subtracted
     at its pose (:mod:`.body`): the new labelling and the scene it was found on, or None when
     that did not help (the body cannot be modelled there, or the new pose fails where the
     old one had converged)."""
     blur = float(np.median(scene.beads.blur))
     p0 = best.pose
-    inner = ridges_without_body(g, scene, p0, blur)
+    inner = ridges_without_body(g, scene, p0, blur, ridge_min_snr)
     if inner is None:
         return None
     merged = merge_ridges(scene.ridges, inner.ridges)
     h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
     beads2 = refit_beads_off_wires(scene, inner.T, scene.beads, p0)
     try:
-        lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, first_stage=2)
+        lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, labelling, first_stage=2)
     except NoLabelling:
         return None
     # judged on the same ridges as the other labellings
-    lab = with_agreement(scene, lab)
+    lab = with_agreement(scene, lab, labelling)
     if not (lab.pose.converged or not best.pose.converged):
         return None
     return lab, inner.with_detections(inner.T, beads2, merged if merged is not None else scene.ridges)
 
 
-def accept_best(scene: Scene, best: Labelling, others: list[Labelling], diag: Diagnostics) -> Labelling:
+def accept_best(
+    scene: Scene, best: Labelling, others: list[Labelling], diag: Diagnostics, opts: AcceptanceOptions
+) -> Labelling:
     """Run the acceptance tests on the best labelling: the labelling with its pose refused for the
     first reason found, or as it was.
 
@@ -125,6 +143,7 @@ def accept_best(scene: Scene, best: Labelling, others: list[Labelling], diag: Di
     best : the labelling given out, unless refused here.
     others : the rival labellings (a far one that explains the image about as well refuses it).
     diag : the result's diagnostics: gets ``alternatives`` and ``wire_support``.
+    opts : what the acceptance tests read (:attr:`~.options.TrackOptions.acceptance`).
 
     Returns
     -------
@@ -133,20 +152,20 @@ def accept_best(scene: Scene, best: Labelling, others: list[Labelling], diag: Di
     pose = best.pose
     if pose.converged:
         for other in others:
-            r = acceptance.rival(scene, best, other)
+            r = acceptance.rival(scene, best, other, opts)
             if r is not None:
                 diag.alternatives = r[1]
                 pose = acceptance.refuse(pose, r[0])
                 break
     if pose.converged:
-        absent, support = acceptance.wire_support(scene, pose)
+        absent, support = acceptance.wire_support(scene, pose, opts)
         diag.wire_support = support
         if absent:
             pose = acceptance.refuse(
                 pose, f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
             )
     if pose.converged:
-        pose = acceptance.refuse(pose, acceptance.too_little_evidence(scene, best))
+        pose = acceptance.refuse(pose, acceptance.too_little_evidence(scene, best, opts))
     return best if pose is best.pose else replace(best, pose=pose)
 
 
@@ -183,24 +202,25 @@ def _track_density(
     g: np.ndarray,
     features: Features,
     camera: Camera,
-    opts: TrackOptions,
+    find: FindOptions,
+    labelling: LabellingOptions,
+    accept: AcceptanceOptions,
     pol: str,
-    valid: np.ndarray | None = None,
-    noise: NoiseField | None = None,
-    budget: Budget | None = None,
+    valid: np.ndarray | None,
+    noise: NoiseField,
+    budget: Budget,
     det=None,
 ) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
     where ``valid``, with local noise ``noise``; ``det`` the learned detector's detections in
     ``g``'s pixels, or None for the classical path."""
-    budget = budget or Budget(opts)
     budget.charge()
-    scene = detect(g, features, camera, opts, valid, noise, det)
+    scene = detect(g, features, camera, find, valid, noise, det)
     blur = fitted_blur(scene)
-    if blur is not None and blur > max(opts.blur_px * opts.blur_redetect, 1.1):
+    if blur is not None and blur > max(find.blur_px * find.blur_redetect, 1.1):
         # a blurrier image than the filters are sized for: detected again at its own blur
-        opts = replace(opts, blur_px=blur)
-        scene = detect(g, features, camera, opts, valid, noise, det)
+        find = replace(find, blur_px=blur)
+        scene = detect(g, features, camera, find, valid, noise, det)
     beads, ridges = scene.beads, scene.ridges
     diag = Diagnostics(blobs=0 if beads is None else len(beads), ridge_points=0 if ridges is None else len(ridges))
     if not features.points:
@@ -218,25 +238,25 @@ def _track_density(
         features.point_centers(),
         beads.uv,
         camera,
-        opts.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
         max_extent_px=scene.scales.max_bead_spread_px,
     )
     if not hyps:
         return failed_result(
             f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads, ridges, diag
         )
-    evaluated = _labellings(scene, hyps, budget)
+    evaluated = _labellings(scene, hyps, budget, labelling, accept)
     if not evaluated:
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
     best, others = evaluated[0], evaluated[1:]
     if features.body is not None and best.placed:
-        redone = _with_body_subtracted(g, scene, best)
+        redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
         if redone is not None:
             best, scene = redone
             diag.body_subtracted = True
-    best = accept_best(scene, best, others, diag)
-    diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.opts.blur_px, len(hyps), len(evaluated)
+    best = accept_best(scene, best, others, diag, accept)
+    diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.scales.blur_px, len(hyps), len(evaluated)
     # the residuals' own scale relative to the noise model (the covariance uses it)
     diag.labelled(len(best.obs.points), best.dropped, best.removed, scene.pixel_noise, best.variance_factor)
     return TrackResult(
@@ -248,7 +268,7 @@ def _track_density(
         pol,
         best.noise,
         diag,
-        noise_levels=None if noise is None else noise.levels(scene.scales.ridge_sigma_px),
+        noise_levels=noise.levels(scene.scales.ridge_sigma_px),
     )
 
 
@@ -288,7 +308,7 @@ def track_image(
 
 
 def _polarities(
-    opts: TrackOptions,
+    polarity: str,
     hint: str | None,
     small: np.ndarray,
     sc,
@@ -302,8 +322,8 @@ def _polarities(
     dense-bright first, as detectors and log converters write them; a display frame's in the
     polarity in which compact structures stand out more first (:func:`.image.detect_polarity`:
     over a patient it picked a raw image's polarity wrongly in 7 of 20)."""
-    if opts.polarity != "auto":
-        return [opts.polarity]
+    if polarity != "auto":
+        return [polarity]
     pol = str(hint or "").replace("_", "-")
     if pol in ("dense-dark", "dense-bright"):
         return [pol]
@@ -336,12 +356,14 @@ def _track(
     polarity_hint: str | None,
     formation_hint: str | None,
 ) -> TrackResult:
-    budget = Budget(options or TrackOptions())
     opts = options or TrackOptions()
+    # each stage is given its own record of the settings
+    find, search = opts.finding, opts.search
+    budget = Budget(search)
     img = np.asarray(image)
     if img.dtype != np.float32:
         img = img.astype(np.float32)
-    sc = scales(features, camera, opts)
+    sc = scales(features, camera, find)
     # everything first on a half-size image: polarity, and where the fiducial may be
     small = (
         cv2.resize(img, (img.shape[1] // 2, img.shape[0] // 2), interpolation=cv2.INTER_AREA)
@@ -354,17 +376,18 @@ def _track(
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
     tried: list[TrackResult] = []
-    det = learned.detections(img, sc, opts) if features.points else None
-    pols = _polarities(opts, polarity_hint, small, sc, form, img, det, len(features.points))
+    stages = (find, search, opts.labelling, opts.acceptance)
+    det = learned.detections(img, sc, find) if features.points else None
+    pols = _polarities(search.polarity, polarity_hint, small, sc, form, img, det, len(features.points))
     for pol in pols:
         if tried and budget.spent():
             break
         cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
-        res = _track_conditioned(cond, small, features, camera, opts, sc, budget, det)
+        res = _track_conditioned(cond, small, features, camera, sc, budget, det, *stages)
         diag = res.diagnostics
         diag.detector = "classical" if det is None else "learned"
         diag.formation = cond.formation
-        diag.work = opts.max_work - budget.work
+        diag.work = search.max_work - budget.work
         if budget.timed_out:
             diag.time_budget_spent = True
         if res.pose.converged:
@@ -380,12 +403,14 @@ def _track(
     return tried[0]
 
 
-def _classical_regions(img, valid, small: np.ndarray, noise: NoiseField, features, sc, opts) -> list:
+def _classical_regions(
+    img, valid, small: np.ndarray, noise: NoiseField, features, sc, find: FindOptions, search: SearchOptions
+) -> list:
     """The classical guess of where the fiducial may be (:func:`.region.fiducial_regions`), on
     the half-size image when its balls survive halving, else at full size."""
-    if small.shape == img.shape or not opts.roi:
+    if small.shape == img.shape or not search.roi:
         return []
-    if sc.bead_radius_px / 2 >= opts.min_region_bead_px:
+    if sc.bead_radius_px / 2 >= search.min_region_bead_px:
         vs = (
             None
             if valid is None
@@ -394,10 +419,10 @@ def _classical_regions(img, valid, small: np.ndarray, noise: NoiseField, feature
             ).astype(bool)
         )
         gs = cv2.resize(img, (small.shape[1], small.shape[0]), interpolation=cv2.INTER_AREA)
-        return fiducial_regions(gs, features, sc, opts, vs, opts.max_regions)
+        return fiducial_regions(gs, features, sc, find, vs, search.max_regions)
     # balls too small to survive halving (ftrac_mini's 1 mm: 0.85 px): looked for at full size
     return fiducial_regions(
-        img, features, sc, opts, valid, opts.max_regions, factor=1, noise=noise.at(sc.ridge_sigma_px)
+        img, features, sc, find, valid, search.max_regions, factor=1, noise=noise.at(sc.ridge_sigma_px)
     )
 
 
@@ -406,10 +431,13 @@ def _track_conditioned(
     small: np.ndarray,
     features: Features,
     camera: Camera,
-    opts: TrackOptions,
     sc,
     budget: Budget,
-    det=None,
+    det,
+    find: FindOptions,
+    search: SearchOptions,
+    labelling: LabellingOptions,
+    accept: AcceptanceOptions,
 ) -> TrackResult:
     """:func:`track_image` on a conditioned image: in each region where the fiducial may be
     (most likely first) until one gives a pose; the whole image when none is found. With the
@@ -418,7 +446,7 @@ def _track_conditioned(
     img, valid, pol = cond.density, cond.valid, cond.polarity
     noise = NoiseField(img, valid, sc.disc_px)
     if det is not None:
-        regions = learned.regions(det, features, sc, opts, img.shape)
+        regions = learned.regions(det, features, sc, img.shape, find.magnification, search.max_regions)
         if not regions:
             return failed_result(
                 f"no fiducial found: the learned detector saw {len(det.beads_uv)} ball candidates, "
@@ -426,7 +454,7 @@ def _track_conditioned(
                 pol,
             )
     else:
-        regions = _classical_regions(img, valid, small, noise, features, sc, opts)
+        regions = _classical_regions(img, valid, small, noise, features, sc, find, search)
     first: TrackResult | None = None
     for r0, r1, c0, c1 in regions:
         if first is not None and budget.spent():
@@ -438,7 +466,9 @@ def _track_conditioned(
             img[r0:r1, c0:c1],
             features,
             crop_cam,
-            opts,
+            find,
+            labelling,
+            accept,
             pol,
             None if valid is None else valid[r0:r1, c0:c1],
             noise.crop(r0, r1, c0, c1),
@@ -447,12 +477,12 @@ def _track_conditioned(
         )
         res = shifted(res, camera, c0, r0)
         res.diagnostics.roi = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
-        if res.pose.converged or view_limited(res, features, camera, img.shape, opts):
+        if res.pose.converged or view_limited(res, features, camera, img.shape, sc, accept):
             return res
         first = first or res
     if regions:
         # a region was looked at and gave nothing: its answer, unless a whole-image search is
         # cheap enough to be worth it (a small image)
-        if det is not None or img.size > opts.whole_image_px or budget.spent():
+        if det is not None or img.size > search.whole_image_px or budget.spent():
             return first
-    return _track_density(img, features, camera, opts, pol, valid, noise, budget)
+    return _track_density(img, features, camera, find, labelling, accept, pol, valid, noise, budget)

@@ -12,9 +12,9 @@ from ..pose import Camera, Observation, Pose
 from ..pose.observation import CurveObservation
 from . import identify
 from .beads import Beads, blob_candidates
-from .detection import Scales, scales
+from .detection import Scales
 from .image import noise_map, top_hat
-from .options import TrackOptions, TrackResult
+from .options import AcceptanceOptions, FindOptions, TrackResult
 from .ridges import RidgePoints
 
 
@@ -22,7 +22,7 @@ def fiducial_regions(
     gs: np.ndarray,
     features: Features,
     sc: Scales,
-    opts: TrackOptions,
+    opts: FindOptions,
     valid: np.ndarray | None = None,
     max_regions: int = 3,
     factor: int = 2,
@@ -51,22 +51,22 @@ def fiducial_regions(
     cand, resp = blob_candidates(T, rb, nmap, 8 * P + 40, opts.bead_min_snr)
     if len(cand) < 3:
         return []
-    D = fiducial_extent_px(features, sc, opts)
+    D = fiducial_extent_px(features, sc, opts.magnification)
     uv = factor * cand + 0.5 * (factor - 1)  # reduced pixel i covers full-size fi … fi + f − 1
     w = np.minimum(resp, 3.0 * opts.bead_min_snr)
     shape = (factor * gs.shape[0], factor * gs.shape[1])
     return cluster_boxes(uv, w, P, D, shape, max_regions, max_share=0.6)
 
 
-def fiducial_extent_px(features: Features, sc: Scales, opts: TrackOptions) -> float:
+def fiducial_extent_px(features: Features, sc: Scales, magnification: float) -> float:
     """The fiducial's largest extent in pixels at a generous magnification (1.25 ×
-    ``opts.magnification``): the widest a cluster of its balls can be.
+    ``magnification``): the widest a cluster of its balls can be.
 
     Parameters
     ----------
     features : the fiducial (balls, wires' ends, ellipses sampled at 16 points).
     sc : the image's scales (``pixel_mm``, mm per pixel).
-    opts : the tracking options (``magnification``).
+    magnification : the assumed magnification (``TrackOptions.magnification``).
 
     Returns
     -------
@@ -77,7 +77,7 @@ def fiducial_extent_px(features: Features, sc: Scales, opts: TrackOptions) -> fl
     pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
     X = np.concatenate(pts)
     ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
-    return ext * opts.magnification * 1.25 / sc.pixel_mm
+    return ext * magnification * 1.25 / sc.pixel_mm
 
 
 def cluster_boxes(
@@ -160,18 +160,17 @@ def shifted(res: TrackResult, camera: Camera, du: int, dv: int) -> TrackResult:
     return res
 
 
-def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tuple[int, int], opts: TrackOptions) -> int:
+def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tuple[int, int], sc: Scales) -> int:
     """How many balls a perfect segmentation could use at ``pose``: those projected inside
-    the image of ``shape`` (clear of its edge as detection requires) and not within the
-    merging distance of another ball (the labelling leaves those out). A bound set by the
-    view alone, whatever the noise or the region searched."""
+    the image of ``shape`` (clear of its edge as detection requires, ``sc`` the image's
+    expected sizes) and not within the merging distance of another ball (the labelling leaves
+    those out). A bound set by the view alone, whatever the noise or the region searched."""
     if not features.points:
         return 0
-    sc = scales(features, camera, opts)
     uv, _ = identify.project(camera, pose.rotation, pose.translation_mm, features.point_centers())
     H, W = shape
-    edge = sc.bead_radius_px + 2 * opts.blur_px + 1
-    sep = 2 * sc.bead_radius_px + 2 * opts.blur_px
+    edge = sc.bead_radius_px + 2 * sc.blur_px + 1
+    sep = 2 * sc.bead_radius_px + 2 * sc.blur_px
     inside = (
         np.isfinite(uv).all(1)
         & (uv[:, 0] > edge)
@@ -184,10 +183,11 @@ def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tupl
 
 
 def view_limited(
-    res: TrackResult, features: Features, camera: Camera, shape: tuple[int, int], opts: TrackOptions
+    res: TrackResult, features: Features, camera: Camera, shape: tuple[int, int], sc: Scales, opts: AcceptanceOptions
 ) -> bool:
     """Whether a region's unconfirmed answer is limited by the view itself, so that searching
-    the whole image (``shape``, seen with ``camera``) again cannot confirm it: too few balls
+    the whole image (``shape``, seen with ``camera``, its expected sizes ``sc``) again cannot
+    confirm it (``opts.min_beads``, as the acceptance tests count them): too few balls
     could be used, and even a perfect segmentation of the whole image at that pose could
     use no more (:func:`resolvable_beads`: the others overlap or leave the image). The
     whole-image retry cost ~200 ms and ended the same way."""
@@ -201,6 +201,6 @@ def view_limited(
         or len(res.observation.points) >= need
     ):
         return False
-    n = resolvable_beads(features, camera, p, shape, opts)
+    n = resolvable_beads(features, camera, p, shape, sc)
     res.diagnostics.beads_resolvable = n
     return n < need

@@ -56,7 +56,7 @@ from ..segment.conditioning import condition
 from ..segment.detection import Scene, ball_fits, scales
 from ..segment.image import CLUTTER_TILE_PX, NoiseField, NoiseLevels, derivatives, noise_levels, top_hat
 from ..segment.labelling import NoLabelling, evaluate
-from ..segment.options import TrackOptions, TrackResult, failed_result
+from ..segment.options import FindOptions, TrackOptions, TrackResult, failed_result
 from ..segment.pipeline import accept_best, feature_quality
 from ..segment.region import shifted
 from ..segment.ridges import RidgePoints
@@ -102,11 +102,11 @@ def run_context(
     """
     if not result.pose.converged or result.polarity not in ("dense-dark", "dense-bright"):
         return None
-    opts = options or TrackOptions()
+    find = (options or TrackOptions()).finding
     form = result.diagnostics.formation or "linear"
-    blur = float(result.diagnostics.blur_px if result.diagnostics.blur_px is not None else opts.blur_px)
-    sc0 = scales(features, camera, opts)
-    sc = scales(features, camera, replace(opts, blur_px=blur))
+    blur = float(result.diagnostics.blur_px if result.diagnostics.blur_px is not None else find.blur_px)
+    sc0 = scales(features, camera, find)
+    sc = scales(features, camera, replace(find, blur_px=blur))
     levels = result.noise_levels
     if levels is None:
         # a result that does not carry its image's noise level function: measured again
@@ -190,31 +190,32 @@ def _balls(
     nmap: np.ndarray,
     features: Features,
     camera: Camera,
-    opts: TrackOptions,
+    min_snr: float,
     sc,
     R: np.ndarray,
     t: np.ndarray,
     search_px: float,
     ball_blur_px: float,
 ):
-    """The balls near their projections at pose (R, t) (see :func:`scene_near`) and the
-    blob detector's response over its noise (H, W)."""
+    """The balls near their projections at pose (R, t) (see :func:`scene_near`; a start's blob
+    response at least ``min_snr`` noise units) and the blob detector's response over its
+    noise (H, W)."""
     resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap)
     snr = (resp / nr).astype(np.float32)
     uv, _ = identify.project(camera, R, t, features.point_centers())
-    starts, val = _balls_near(T, snr, xx, yy, uv, search_px, opts.bead_min_snr)
+    starts, val = _balls_near(T, snr, xx, yy, uv, search_px, min_snr)
     mask = (
         wire_mask(features, camera, R, t, T.shape, 0.5 * sc.wire_px + 1.5 * ball_blur_px)
         if features.lines or features.ellipses
         else None
     )
-    b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, opts, exclude=mask)
+    b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, sc.blur_px, exclude=mask)
     weak = ~ok | ~(b.sigma_px <= 0.5)
     if mask is not None and weak.any():
         # the full path's rule for a ball refitted off the wires: the masked fit is kept
         # unless the mask left too little of the ball (its centre far less certain than
         # the plain fit's, or more than a pixel from it)
-        plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, opts)
+        plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, sc.blur_px)
         mw = b.take(weak)
         with np.errstate(invalid="ignore"):
             keep_masked = (
@@ -238,7 +239,7 @@ def scene_near(
     g: np.ndarray,
     features: Features,
     camera: Camera,
-    opts: TrackOptions,
+    opts: FindOptions,
     R: np.ndarray,
     t: np.ndarray,
     search_px: float,
@@ -260,7 +261,8 @@ def scene_near(
     Parameters
     ----------
     g : (H, W) density crop (dense = bright); ``valid`` where it can be read; ``noise`` its noise.
-    features, camera, opts : the design, the crop's intrinsics, the options.
+    features, camera : the design and the crop's intrinsics.
+    opts : what finding the features reads (sizes, blur, the balls' SNR threshold).
     R, t : the predicted pose F → X.
     search_px : how far from its projection a ball is looked for (px).
     ball_blur_px : the balls' fitted blur σ (px) the body and the wire mask are blurred with
@@ -279,16 +281,20 @@ def scene_near(
         T[~valid] = 0.0
     empty = np.zeros((0, 2))
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
-    scene = Scene(features, camera, opts, sc, T, nmap, None, ridges, valid, None, None)
+    scene = Scene(features, camera, sc, T, nmap, None, ridges, valid, None, None)
     if features.body is not None:
-        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, find_ridges=False)
+        inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, None)
         if inner is not None:
             T = inner.T
             if diag is not None:
                 diag.body_subtracted = True
-    beads, snr = _balls(T, nmap, features, camera, opts, sc, R, t, search_px, blur) if features.points else (None, None)
+    beads, snr = (
+        _balls(T, nmap, features, camera, opts.bead_min_snr, sc, R, t, search_px, blur)
+        if features.points
+        else (None, None)
+    )
     d = derivatives(T, sc.ridge_sigma_px)
-    return Scene(features, camera, opts, sc, T, nmap, beads, ridges, valid, d, snr)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr)
 
 
 def _moved_px(camera: Camera, features: Features, R0, t0, R1, t1) -> float:
@@ -440,14 +446,18 @@ def _track_near(
     first_stage: int,
 ) -> tuple[TrackResult, bool]:
     """:func:`track_near`'s one pass, and whether its pose failed only by moving too far."""
-    opts = replace(options or TrackOptions(), blur_px=context.blur_px)
+    opts = options or TrackOptions()
+    # the filters are sized for the run's blur; the crop is conditioned as the run's context
+    # was measured, with the top-hat's disc of the settings' own blur
+    find = replace(opts.finding, blur_px=context.blur_px)
+    labelling = opts.labelling
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return failed_result("no finite predicted pose", context.polarity), False
     img = np.asarray(image)
-    sc0 = scales(features, camera, replace(opts, blur_px=(options or TrackOptions()).blur_px))
-    sc = scales(features, camera, opts)
-    capture = max(opts.match_tol_px, sc.bead_radius_px)
+    sc0 = scales(features, camera, opts.finding)
+    sc = scales(features, camera, find)
+    capture = max(labelling.match_tol_px, sc.bead_radius_px)
     search_px = capture * max(1.0, float(search))
     margin = sc.disc_px + 4 * sc.ridge_sigma_px + search_px + sc.bead_radius_px + 4
     box = predicted_box(features, camera, R, t, img.shape, margin)
@@ -456,20 +466,20 @@ def _track_near(
     crop = _crop(img, context, camera, box, sc0.disc_px)
     (c0, r0), (h, w) = crop.corner, crop.density.shape
     diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
-    diag.blur_px = opts.blur_px
+    diag.blur_px = find.blur_px
     scene = scene_near(
-        crop.density, features, crop.camera, opts, R, t, search_px, crop.valid, crop.noise, context.ball_blur_px, diag
+        crop.density, features, crop.camera, find, R, t, search_px, crop.valid, crop.noise, context.ball_blur_px, diag
     )
     diag.blobs = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
         why = f"tracking lost: {diag.blobs} balls found near their predicted places"
         return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False
     try:
-        lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), first_stage=first_stage)
+        lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), labelling, first_stage=first_stage)
     except NoLabelling as exc:
         why = f"tracking lost: {exc.reason}"
         return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False
-    lab = accept_best(scene, lab, [], diag)
+    lab = accept_best(scene, lab, [], diag, opts.acceptance)
     pose, moved_only = _confirmed(lab.pose, crop, features, R, t, capture, diag)
     diag.labelled(len(lab.obs.points), lab.dropped, lab.removed, scene.pixel_noise, lab.variance_factor)
     res = TrackResult(pose, lab.obs, feature_quality(scene, lab), scene.beads, None, context.polarity, lab.noise, diag)

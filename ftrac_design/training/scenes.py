@@ -150,7 +150,7 @@ def make_scene(seed: int, presets: tuple[str, ...] | None = None, side: int | No
     features, body, name = random_design(rng, presets)
     R, t = TRAIN_WORKSPACE.sample(1, features.nominal_beam_direction, rng)
     R, t = R[0], t[0]
-    rb = scales(features, CAMERA, TrackOptions()).bead_radius_px
+    rb = scales(features, CAMERA, TrackOptions().finding).bead_radius_px
     # a fifth of the scenes are whole 1024² frames: the display chain's window is taken over them
     side = side or (1024 if rng.random() < 0.2 else 768 if rb >= 2.5 else 512)
     camera = _window_camera(features, R, t, side, rng)
