@@ -48,7 +48,7 @@ def _truth(features, R, t, cam, shape):
     uv = project(cam, R, t, features.point_centers())[0]
     H, W = shape
     inside = (uv >= 3).all(1) & (uv[:, 0] < W - 3) & (uv[:, 1] < H - 3)
-    rb = scales(features, cam, TrackOptions()).bead_radius_px
+    rb = scales(features, cam, TrackOptions().finding).bead_radius_px
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + 1e9 * np.eye(len(uv))
     clear = inside & (dd.min(1) > 4 * rb)
     curves = [p for _, p in curve_samples(features, cam, R, t).values()]
@@ -76,7 +76,7 @@ def one(task) -> dict:
         img, info = realistic_image(features, R, t, cam, cond, seed * 100_000 + k)
         pol, form = info["polarity"], info["formation"]
     truth, wire_pts, rb = _truth(features, R, t, cam, img.shape)
-    opts = TrackOptions()
+    opts = TrackOptions().finding
     sc = scales(features, cam, opts)
     P = len(features.points)
     out = {"preset": preset, "condition": cond, "k": k}
