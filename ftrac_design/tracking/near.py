@@ -353,13 +353,14 @@ def track_near(
     followed. Never raises for an image (a failure is a refused pose with its reason).
     """
     R0, t0 = np.asarray(R, float), np.asarray(t, float)
+    frame = _Frame(np.asarray(image), features, camera, context, options or TrackOptions())
     try:
-        res, moved_only = _track_near(image, features, camera, R, t, context, options, search, first_stage)
+        res, moved_only = _track_near(frame, R, t, search, first_stage)
         for k in range(max(0, int(follow))):
             if not moved_only:
                 break
             R, t = res.pose.rotation, res.pose.translation_mm
-            res, moved_only = _track_near(image, features, camera, R, t, context, options, 1.0, 0)
+            res, moved_only = _track_near(frame, R, t, 1.0, 0)
             _from_prediction(res.diagnostics, camera, features, R0, t0, res.pose, k + 1)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(
@@ -434,19 +435,22 @@ def _confirmed(
     return pose, False
 
 
+@dataclass(frozen=True)
+class _Frame:
+    """What every pass of :func:`track_near` on one frame shares."""
+
+    image: np.ndarray
+    features: Features
+    camera: Camera
+    context: RunContext
+    options: TrackOptions
+
+
 def _track_near(
-    image: np.ndarray,
-    features: Features,
-    camera: Camera,
-    R: np.ndarray,
-    t: np.ndarray,
-    context: RunContext,
-    options: TrackOptions | None,
-    search: float,
-    first_stage: int,
+    frame: _Frame, R: np.ndarray, t: np.ndarray, search: float, first_stage: int
 ) -> tuple[TrackResult, bool]:
-    """:func:`track_near`'s one pass, and whether its pose failed only by moving too far."""
-    opts = options or TrackOptions()
+    """:func:`track_near`'s one pass from (R, t), and whether its pose failed only by moving too far."""
+    features, camera, context, opts = frame.features, frame.camera, frame.context, frame.options
     # the filters are sized for the run's blur; the crop is conditioned as the run's context
     # was measured, with the top-hat's disc of the settings' own blur
     find = replace(opts.finding, blur_px=context.blur_px)
@@ -454,7 +458,7 @@ def _track_near(
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return failed_result("no finite predicted pose", context.polarity), False
-    img = np.asarray(image)
+    img = frame.image
     sc0 = scales(features, camera, opts.finding)
     sc = scales(features, camera, find)
     capture = max(labelling.match_tol_px, sc.bead_radius_px)
