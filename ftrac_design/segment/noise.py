@@ -150,6 +150,21 @@ def feature_p_values(features: Features, obs: Observation, pose: Pose, noise: No
     return out
 
 
+def redundancy_numbers(features: Features, obs: Observation, pose: Pose, noise: NoiseModel) -> dict[str, float]:
+    """Each feature's smallest redundancy number at ``pose``: over its rows, 1 − the diagonal
+    of the whitened hat matrix J (JᵀJ)⁻¹ Jᵀ — the share of an error in that row that shows in
+    the row's own residual (Baarda's internal reliability). Near 0, the feature alone fixes a
+    direction of the pose: an error in it moves the pose and leaves no residual anywhere.
+    Empty when the Jacobian is not finite or has fewer rows than the pose's 6 unknowns."""
+    prob, _ = residuals_at(features, obs, noise, pose.rotation, pose.translation_mm)
+    J = evaluate(prob, pose.rotation[None], pose.translation_mm[None], jac=True).J
+    if J is None or J.shape[1] < 6 or not np.all(np.isfinite(J)):
+        return {}
+    Q, _ = np.linalg.qr(J[0])
+    r = 1.0 - np.sum(Q * Q, axis=1)
+    return {fid: float(r[sl].min()) for fid, sl in prob.row_groups()}
+
+
 def calibrated_covariance(
     features: Features, obs: Observation, pose: Pose, noise: NoiseModel, opts: NoiseOptions | None = None
 ) -> float | None:

@@ -128,6 +128,10 @@ class TrackOptions:
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
     #: labelling needs
     min_redundancy: int = 6
+    #: every feature's error must show in its own residual: the smallest redundancy number
+    #: (1 − the whitened hat matrix's diagonal, per row) a feature of a confident pose may have
+    #: (:func:`~.acceptance.uncontrolled`); 0 turns the test off
+    min_feature_redundancy: float = 0.05
     #: the solver's maximum noise scale κ for an image pose (the model is measured here)
     max_noise_scale: float = 3.0
     #: variance components qₖ of the pose covariance per feature type, relative to the
@@ -266,6 +270,7 @@ class AcceptanceOptions:
     max_unexplained_beads: int
     min_beads: int
     min_redundancy: int
+    min_feature_redundancy: float
 
 
 def _taken(record: type, opts: TrackOptions, **given: Any) -> Any:
