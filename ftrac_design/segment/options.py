@@ -262,7 +262,8 @@ class LabellingOptions:
 @dataclass(frozen=True)
 class AcceptanceOptions:
     """What the acceptance tests read: the rival labelling's misfit margin (χ²), the wires'
-    evidence (noise units, fraction) and the evidence a confident labelling needs (counts)."""
+    evidence (noise units, fraction) and the evidence a confident labelling needs (counts, and
+    each feature's smallest redundancy number)."""
 
     ambiguity_chi2: float
     wire_support: float

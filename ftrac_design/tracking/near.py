@@ -332,9 +332,9 @@ def track_near(
     options : the image path's settings (default :class:`TrackOptions`); its blur is the context's.
     search : how far from its projection a ball is looked for, in matching tolerances (the
         stage-one bead matching tolerance, max(``match_tol_px``, the ball's radius)): more
-        than 1 for a prediction known to be rough (made over several frames); a pose found
-        from balls searched farther than the tolerance moved farther than it and is given out
-        only through ``follow``.
+        than 1 for a prediction known to be rough (made over several frames). Whatever the
+        search, a pose is given out only when it moved no farther than the tolerance from the
+        prediction, or through ``follow``.
     first_stage : the labelling stage the solve starts at (:func:`.labelling.evaluate`): 0
         (wide tolerances, then tight and thinned) or 2 (tight and thinned only; for a
         prediction known to be within a fraction of a pixel).
