@@ -14,8 +14,9 @@ Per condition it prints: the share tracked (converged, ≤ 1° and ≤ 3 mm from
 *confident wrong* answers (converged, > 1° or > 3 mm off, and the error improbable under the
 pose's own covariance, χ²₆ > 25.7, p < 1e-4: target 0), far-but-honest answers (> 1° or
 > 3 mm off with the covariance saying so), the RMS error per camera axis of the tracked ones,
-the median and largest time per image (wall, the image already in memory), and the largest
-resident memory of any worker process over all its images. Beside the times: the median time
+how many of the tracked the classical detectors found after the network found no pose (the
+default ``detector="auto"``), the median and largest time per image (wall, the image already in
+memory), and the largest resident memory of any worker process over all its images. Beside the times: the median time
 per image of the *clean* condition (our simulator's own images, no patient, the same poses) in
 the same run — the baseline the conditions' times are compared with.
 
@@ -129,6 +130,9 @@ def one(task: tuple) -> dict:
         "rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
         "converged": bool(res.pose.converged),
         "error": res.pose.error,
+        "detector": res.diagnostics.detector,
+        # the classical detectors looked again after the network found no pose
+        "second_look": bool(res.diagnostics.detector_tried),
     }
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
@@ -162,10 +166,12 @@ def summarise(rows: list[dict], baseline_ms: float | None) -> str:
             f"confident wrong {len(wrong)}  far-but-honest {len(honest)}  "
             f"time median {np.median(times):4.0f} ms{ratio} max {times.max():5.0f} ms"
         )
+        second = sum(bool(r.get("second_look")) and r["converged"] and not r["far"] for r in rs)
         lines.append(
             f"{'':32s} RMS "
             + "  ".join(f"{a} {v:.3f}" for a, v in zip(AXES, rms))
             + ("  wrong: " + ", ".join(str(r["k"]) for r in wrong) if wrong else "")
+            + (f"  (of the tracked, {second} by the classical detectors' second look)" if second else "")
         )
         if reasons:
             lines.append(f"{'':32s} not converged: " + "; ".join(f"{v} {k}" for k, v in reasons.most_common(4)))

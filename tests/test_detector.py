@@ -207,6 +207,37 @@ def test_the_learned_path_tracks_and_says_so(f2005):
     assert res.pose.converged and res.diagnostics.detector == "learned"
 
 
+def test_where_the_network_finds_no_pose_auto_looks_again_with_the_classical_detectors(f2005, monkeypatch):
+    """A network that sees no ball: "learned" refuses the image, "auto" tracks it with the
+    classical detectors (the same pose as "classical" gives, bit for bit) and says that both
+    were tried; an image with no fiducial is refused by both, with both reasons."""
+    from ftrac_design.detector.decode import Detections
+    from ftrac_design.segment import learned as learned_room
+
+    features = f2005
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(4))
+    rad = render(features, R[0], t[0], Camera(), rng=np.random.default_rng(4))
+    H, W = rad.raw.shape
+    z = np.zeros((1, 1))
+    blind = Detections(np.zeros((0, 2)), np.zeros(0), z, z, np.zeros((1, 1, 2)), 1, (H, W))
+    monkeypatch.setattr(
+        learned_room, "detections", lambda image, sc, opts: None if opts.detector == "classical" else blind
+    )
+    alone = track_image(rad.raw, features, Camera(), TrackOptions(detector="learned"))
+    assert not alone.pose.converged and "learned detector saw 0 ball candidates" in alone.pose.error
+    assert alone.diagnostics.detector_tried is None
+    res = track_image(rad.raw, features, Camera())
+    classical = track_image(rad.raw, features, Camera(), TrackOptions(detector="classical"))
+    assert res.pose.converged and res.diagnostics.detector == "classical"
+    assert res.diagnostics.detector_tried == ["learned", "classical"]
+    np.testing.assert_array_equal(res.pose.rotation, classical.pose.rotation)
+    np.testing.assert_array_equal(res.pose.translation_mm, classical.pose.translation_mm)
+    flat = np.full((H, W), float(np.median(rad.raw)), np.float32)
+    none = track_image(flat, features, Camera())
+    assert not none.pose.converged and "with the classical detectors: " in none.pose.error
+    assert none.diagnostics.detector_tried == ["learned", "classical"]
+
+
 def test_a_learned_ball_reaching_into_unreadable_pixels_is_not_fitted(f2005):
     """The network's candidate at every true ball of a clean image: each fitted where the
     image can be read; one whose disc reaches a clipped region (pixels not valid: a display

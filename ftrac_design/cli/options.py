@@ -209,7 +209,8 @@ detector_option = _choice(
     "auto",
     "what finds the balls and the fiducial's region: learned (the shipped network, ONNX Runtime: the "
     "detect extra), classical (blob detector and half-size search), auto (learned where ONNX Runtime "
-    "is installed, else classical). Either way the labelling, the pose and its tests are the same.",
+    "is installed, then classical where the learned finds no pose; else classical). Either way the "
+    "labelling, the pose and its tests are the same.",
 )
 #: ``--distortion FILE|none`` → ``distortion_path``: an ftrac-distortion model, or none (a flat panel)
 distortion_option = SharedOption("--distortion", "distortion_path", type=FILE, default=None)

@@ -202,6 +202,8 @@ class Diagnostics:
     work : units of counted work spent (``TrackOptions.max_work``).
     time_budget_spent : the wall-clock safety net stopped the search.
     polarity_tried : the polarities tried, in order, when more than one was.
+    detector_tried : the detectors tried, in order, when the classical ones looked again
+        after the learned one found no pose (``TrackOptions.detector`` "auto").
     path : how a frame of a run was found (its status).
     moved_px : a tracked frame's balls' RMS move from the prediction (px; NaN: no finite pose).
     rotation_step_deg : a tracked frame's rotation from the prediction (° ; NaN: no finite pose).
@@ -232,6 +234,7 @@ class Diagnostics:
     work: int | None = None
     time_budget_spent: bool | None = None
     polarity_tried: list[str] | None = None
+    detector_tried: list[str] | None = None
     path: Status | None = None
     moved_px: float | None = None
     rotation_step_deg: float | None = None
@@ -310,6 +313,7 @@ _KINDS: dict[str, Any] = {
     "work": int,
     "time_budget_spent": bool,
     "polarity_tried": list,
+    "detector_tried": list,
     "path": str,
     "moved_px": (int, float),
     "rotation_step_deg": (int, float),

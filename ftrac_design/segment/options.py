@@ -34,7 +34,8 @@ class TrackOptions:
     polarity: Polarity = "auto"
     #: where the fiducial is, its polarity and its ball candidates: "learned" (the network of
     #: :mod:`ftrac_design.detector`, through ONNX Runtime), "classical" (blob detector and
-    #: half-size search), or "auto" (learned when ONNX Runtime and the network are installed)
+    #: half-size search), or "auto" (learned when ONNX Runtime and the network are installed,
+    #: then the classical detectors where the learned one finds no pose)
     detector: Literal["auto", "learned", "classical"] = "auto"
     #: threads ONNX Runtime may use for the learned detector
     detector_threads: int = 1

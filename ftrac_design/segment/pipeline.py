@@ -359,9 +359,7 @@ def _track(
     formation_hint: str | None,
 ) -> TrackResult:
     opts = options or TrackOptions()
-    # each stage is given its own record of the settings
-    find, search = opts.finding, opts.search
-    budget = Budget(search)
+    find = opts.finding
     img = np.asarray(image)
     if img.dtype != np.float32:
         img = img.astype(np.float32)
@@ -377,9 +375,41 @@ def _track(
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
+    args = (img, small, form, polarity_hint, features, camera, sc, opts)
+    det = learned.detections(img, sc, find) if features.points else None
+    res = _each_polarity(*args, det)
+    if det is None or res.pose.converged or find.detector != "auto":
+        return res
+    # the network and the classical detectors miss different images (on display frames of the
+    # tuning seed each found some the other refused); the classical search gets its own
+    # budget and the same acceptance tests, so a second look adds recall, not a looser gate
+    other = _each_polarity(*args, None)
+    tried = ["learned", "classical"]
+    other.diagnostics.detector_tried = tried
+    if other.pose.converged:
+        return other
+    res.pose = replace(res.pose, error=f"{res.pose.error}; with the classical detectors: {other.pose.error}")
+    res.diagnostics.detector_tried = tried
+    return res
+
+
+def _each_polarity(
+    img: np.ndarray,
+    small: np.ndarray,
+    form: str,
+    polarity_hint: str | None,
+    features: Features,
+    camera: Camera,
+    sc,
+    opts: TrackOptions,
+    det,
+) -> TrackResult:
+    """The image tracked in each polarity to try until one gives a pose, with the learned
+    detector's detections ``det`` (None: the classical detectors), under one counted budget."""
+    find, search = opts.finding, opts.search
+    budget = Budget(search)
     tried: list[TrackResult] = []
     stages = (find, search, opts.labelling, opts.acceptance)
-    det = learned.detections(img, sc, find) if features.points else None
     pols = _polarities(search.polarity, polarity_hint, small, sc, form, img, det, len(features.points))
     for pol in pols:
         if tried and budget.spent():
