@@ -245,7 +245,8 @@ def main() -> None:
         "--detector",
         choices=["auto", "learned", "classical"],
         default="auto",
-        help="TrackOptions.detector (default auto: the learned detector where ONNX Runtime is installed)",
+        help="TrackOptions.detector (default auto: the learned detector where ONNX Runtime is installed, "
+        "then the classical where it finds no pose)",
     )
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
     ap.add_argument(
