@@ -153,8 +153,11 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
         )
     # balls alone must be all but two of the design's, and at least six: a bead-only design
     # has no wire to confirm a labelling, and six glyphs of a frame grabber's burned-in text
-    # fitted nine_bead's helix at a pose 500 mm off
-    need_alone = max(6, len(features.points) - 2)
+    # fitted nine_bead's helix at a pose 500 mm off. A wire design whose labelling explains no
+    # wire contour (confirmed by the learned detector alone) needs all but one: leaving two of
+    # nine balls out let a near-mirror labelling fit the other seven, 142° off (ftrac_mini over
+    # a pelvis, the independent renderer) and 159° off (ftrac_2005, a display frame)
+    need_alone = max(6, len(features.points) - (1 if n_curves else 2))
     if len(obs.points) < need_alone and not (obs.lines or obs.ellipses):
         return (
             f"too little evidence: {len(obs.points)} beads and no wires cannot verify a labelling "
