@@ -167,11 +167,14 @@ def busy_image():
 
 
 def test_the_clock_does_not_decide_the_answer(busy_image):
-    """The same image with the time safety net far away and at its default: the same answer,
-    bit for bit — the counted work decides where the search stops."""
+    """The same image with no time safety net and with one that is not reached: the same
+    answer, bit for bit — the counted work decides where the search stops. (The net is 60 s
+    here, not the default 4 s, which a machine busy with several other jobs can reach: the
+    answer must not depend on the machine's load, and a net that is reached is the one case
+    where it may.)"""
     img, features = busy_image
     a = track_image(img, features, Camera(), replace(CLASSICAL, time_budget_s=float("inf")))
-    b = track_image(img, features, Camera(), CLASSICAL)
+    b = track_image(img, features, Camera(), replace(CLASSICAL, time_budget_s=60.0))
     assert a.pose.converged and a.diagnostics.work > 4
     assert a.diagnostics.work == b.diagnostics.work
     np.testing.assert_array_equal(a.pose.rotation, b.pose.rotation)
