@@ -69,18 +69,6 @@ class Detections:
         """The wire probability at image points ``uv`` (n, 2) px, bilinear between cells (0 outside)."""
         return bilinear(self.wire, self.to_cell(uv))
 
-    def wire_alignment(self, uv: np.ndarray, tangent: np.ndarray) -> np.ndarray:
-        """How well the network's wire direction at image points ``uv`` (n, 2) px agrees with
-        the unit ``tangent`` (n, 2) of a curve there: cos 2Δθ (1 along it, 0 at 45°, −1 across),
-        bilinear between cells; 0 where the map holds no direction."""
-        cell = self.to_cell(uv)
-        c2 = bilinear(self.wire_dir[..., 0], cell)
-        s2 = bilinear(self.wire_dir[..., 1], cell)
-        norm = np.hypot(c2, s2)
-        tu, tv = np.asarray(tangent, float)[:, 0], np.asarray(tangent, float)[:, 1]
-        with np.errstate(all="ignore"):
-            return np.where(norm > 1e-9, ((tu * tu - tv * tv) * c2 + 2 * tu * tv * s2) / norm, 0.0)
-
     def ball_probability(self, uv: np.ndarray) -> np.ndarray:
         """The largest ball probability of the cells around image points ``uv`` (n, 2) px (the
         map peaks on the cell nearest a ball's centre)."""
@@ -112,10 +100,6 @@ class CroppedDetections:
     def wire_probability(self, uv: np.ndarray) -> np.ndarray:
         """The wire probability at crop points ``uv`` (n, 2) px."""
         return self.parent.wire_probability(np.asarray(uv, float) + np.array([self.c0, self.r0], float))
-
-    def wire_alignment(self, uv: np.ndarray, tangent: np.ndarray) -> np.ndarray:
-        """:meth:`Detections.wire_alignment` at crop points ``uv`` (n, 2) px."""
-        return self.parent.wire_alignment(np.asarray(uv, float) + np.array([self.c0, self.r0], float), tangent)
 
     def ball_probability(self, uv: np.ndarray) -> np.ndarray:
         """The ball probability at crop points ``uv`` (n, 2) px."""

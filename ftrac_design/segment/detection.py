@@ -134,16 +134,6 @@ class Scene:
             return np.zeros(len(uv))
         return self.learned.wire_probability(np.asarray(uv, float).reshape(-1, 2))
 
-    def learned_wire_along(self, uv: np.ndarray, tangent: np.ndarray) -> np.ndarray:
-        """The learned detector's wire probability at points ``uv`` (n, 2) px where its wire
-        runs along the unit ``tangent`` (n, 2): the probability × max(0, cos 2Δθ) (0 on the
-        classical path)."""
-        if self.learned is None:
-            return np.zeros(len(uv))
-        uv = np.asarray(uv, float).reshape(-1, 2)
-        agree = np.clip(self.learned.wire_alignment(uv, np.asarray(tangent, float).reshape(-1, 2)), 0.0, 1.0)
-        return self.learned.wire_probability(uv) * agree
-
     def noise_at(self, uv: np.ndarray) -> np.ndarray:
         """The local noise σ at points ``uv`` (n, 2) px."""
         return bilinear(self.noise_map, np.asarray(uv, float).reshape(-1, 2))

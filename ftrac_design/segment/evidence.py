@@ -87,31 +87,12 @@ def learned_wire_support(
     return out
 
 
-def learned_confirms_wires(
-    scene: Scene, R: np.ndarray, t: np.ndarray, min_probability: float = 0.3, min_aligned: float = 0.5
-) -> bool:
-    """Whether the learned detector shows every readable wire pose (R, t) predicts, running the
-    way it predicts them: at least two wires, each with a median probability ≥
-    ``min_probability`` and at least ``min_aligned`` of that along the curve's own direction
-    (the median of probability × max(0, cos 2Δθ), Δθ between the network's wire direction and
-    the curve's tangent). This is the evidence that confirms a ball labelling where the wires'
-    contours could not be measured; the direction keeps it specific: a wrong labelling of a
-    display frame through a round field put both ellipses across the real wires (probability
-    0.39 and 0.51 there, 0.01 and 0.17 along them) and was confirmed on the probability alone,
-    159° off. False on the classical path."""
-    if scene.learned is None:
-        return False
-    free = _free_samples(scene, R, t, scene.bead_exclusion())
-    n = 0
-    for kind, pts, nrm in free.values():
-        if len(pts) * 0.5 < MIN_FREE_PX:
-            continue
-        p = float(np.median(scene.learned_wire(pts)))
-        along = float(np.median(scene.learned_wire_along(pts, np.stack([nrm[:, 1], -nrm[:, 0]], -1))))
-        if p < min_probability or along < min_aligned * p:
-            return False
-        n += 1
-    return n >= 2
+def learned_confirms_wires(scene: Scene, R: np.ndarray, t: np.ndarray, min_probability: float = 0.3) -> bool:
+    """Whether the learned detector shows every readable wire pose (R, t) predicts (median
+    probability ≥ ``min_probability``; at least two wires): the evidence that confirms a ball
+    labelling where the wires' contours could not be measured. False on the classical path."""
+    sup = learned_wire_support(scene, R, t, scene.bead_exclusion())
+    return len(sup) >= 2 and min(sup.values()) >= min_probability
 
 
 def image_agreement(
