@@ -16,9 +16,9 @@ pose's own covariance, χ²₆ > 25.7, p < 1e-4: target 0), far-but-honest answe
 > 3 mm off with the covariance saying so), the RMS error per camera axis of the tracked ones,
 how many of the tracked the classical detectors found after the network found no pose (the
 default ``detector="auto"``), the median and largest time per image (wall, the image already in
-memory), and the largest resident memory of any worker process over all its images. Beside the times: the median time
-per image of the *clean* condition (our simulator's own images, no patient, the same poses) in
-the same run — the baseline the conditions' times are compared with.
+memory), and the largest resident memory of any worker process over all its images. Beside the
+times: the median time per image of the *clean* condition (our simulator's own images, no
+patient, the same poses) in the same run — the baseline the conditions' times are compared with.
 
     .venv/bin/python benchmarks/track_realism.py                         # 200 per condition, 3 presets
     .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --conditions raw display-dark
