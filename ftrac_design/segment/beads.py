@@ -50,16 +50,21 @@ def sphere_profile(rho: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.ndarray:
 _TAB_DX = 0.05
 _TAB_LA = (math.log(0.2), math.log(32.0), 160)
 _tab: np.ndarray | None = None
+#: the table as :func:`bilinear_table` reads it (float, flat, one zero after the last cell),
+#: made once: remaking it on every look-up cost more than the look-up itself
+_tab_flat: np.ndarray | None = None
 
 
 def _table() -> np.ndarray:
-    global _tab
+    global _tab, _tab_flat
     if _tab is None:
         x = np.arange(0.0, 48.0 + _TAB_DX / 2, _TAB_DX)
         a = np.exp(np.linspace(*_TAB_LA))
-        _tab = np.concatenate(
+        tab = np.concatenate(
             [sphere_profile(np.broadcast_to(x, (len(c), len(x))), c, 1.0) for c in np.array_split(a, 16)]
         ).astype(np.float32)
+        _tab_flat = _padded(tab)
+        _tab = tab
     return _tab
 
 
@@ -77,24 +82,35 @@ def sphere_profile_fast(rho: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.nda
     s = np.asarray(s, float)[:, None]
     ix = np.asarray(rho, float) / s / _TAB_DX
     ia = (np.log(np.clip(np.asarray(r, float)[:, None] / s, 0.2, 32.0)) - lo) / ((hi - lo) / (n - 1))
-    return bilinear_table(tab, ix, np.broadcast_to(ia, ix.shape)) * s
+    return _bilinear_flat(_tab_flat, tab.shape, ix, np.broadcast_to(ia, ix.shape)) * s
+
+
+def _padded(tab: np.ndarray) -> np.ndarray:
+    """``tab`` flat, as float, with one zero after its last cell (where a look-up outside lands)."""
+    return np.concatenate([tab.astype(float).reshape(-1), [0.0]])
 
 
 def bilinear_table(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``tab`` (rows, cols) at fractional column ``x`` and row ``y`` (same shapes), bilinear
     with exact weights; 0 where a neighbouring cell lies outside the table (as a zero border)."""
-    rows, cols = tab.shape
-    flat = np.concatenate([tab.astype(float).reshape(-1), [0.0]])
+    return _bilinear_flat(_padded(tab), tab.shape, x, y)
+
+
+def _bilinear_flat(flat: np.ndarray, shape: tuple[int, int], x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """:func:`bilinear_table` of the table whose :func:`_padded` form is ``flat``."""
+    rows, cols = shape
     x0 = np.floor(x)
     y0 = np.floor(y)
     fx, fy = x - x0, y - y0
     x0 = x0.astype(np.int64)
     y0 = y0.astype(np.int64)
+    base = y0 * cols + x0
+    inx = ((x0 >= 0) & (x0 < cols), (x0 >= -1) & (x0 < cols - 1))
+    iny = ((y0 >= 0) & (y0 < rows), (y0 >= -1) & (y0 < rows - 1))
     out = np.zeros(np.shape(x))
     for dy, wy in ((0, 1 - fy), (1, fy)):
         for dx, wx in ((0, 1 - fx), (1, fx)):
-            xi, yi = x0 + dx, y0 + dy
-            idx = np.where((xi >= 0) & (xi < cols) & (yi >= 0) & (yi < rows), yi * cols + xi, rows * cols)
+            idx = np.where(inx[dx] & iny[dy], base + (dy * cols + dx), rows * cols)
             out += flat[idx] * (wx * wy)
     return out
 
