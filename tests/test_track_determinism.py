@@ -88,6 +88,20 @@ def test_table_lookup_is_exact_bilinear_interpolation():
     np.testing.assert_allclose(bilinear_table(tab, x, y), want, atol=1e-12)
 
 
+def test_table_lookup_with_one_row_per_ball_is_the_lookup_per_pixel():
+    """The ball profile looks its table up with one row coordinate per ball, broadcast over the
+    ball's pixels: the same numbers, bit for bit, as the look-up with the row repeated at every
+    pixel, at and beyond the table's edges too."""
+    rng = np.random.default_rng(4)
+    tab = rng.normal(size=(20, 30))
+    x = rng.uniform(-2, 32, (50, 40))
+    y = rng.uniform(-2, 21, (50, 1))
+    y[:4, 0] = [0.0, 19.0, 18.5, -1.0]
+    np.testing.assert_array_equal(
+        bilinear_table(tab, x, y), bilinear_table(tab, x, np.broadcast_to(y, x.shape))
+    )
+
+
 def test_sphere_profile_is_smooth_in_its_parameters():
     """The fitted ball model's derivatives in radius and blur by finite differences of 10⁻⁶
     follow the exact profile's (within 10 % of their largest value): the fit's Jacobian sees

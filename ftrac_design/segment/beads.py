@@ -82,7 +82,8 @@ def sphere_profile_fast(rho: np.ndarray, r: np.ndarray, s: np.ndarray) -> np.nda
     s = np.asarray(s, float)[:, None]
     ix = np.asarray(rho, float) / s / _TAB_DX
     ia = (np.log(np.clip(np.asarray(r, float)[:, None] / s, 0.2, 32.0)) - lo) / ((hi - lo) / (n - 1))
-    return _bilinear_flat(_tab_flat, tab.shape, ix, np.broadcast_to(ia, ix.shape)) * s
+    # the row is one per ball: its cell and weight are worked out once, not once per pixel
+    return bilinear_table(tab, ix, ia) * s
 
 
 def _padded(tab: np.ndarray) -> np.ndarray:
@@ -91,14 +92,11 @@ def _padded(tab: np.ndarray) -> np.ndarray:
 
 
 def bilinear_table(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """``tab`` (rows, cols) at fractional column ``x`` and row ``y`` (same shapes), bilinear
-    with exact weights; 0 where a neighbouring cell lies outside the table (as a zero border)."""
-    return _bilinear_flat(_padded(tab), tab.shape, x, y)
-
-
-def _bilinear_flat(flat: np.ndarray, shape: tuple[int, int], x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """:func:`bilinear_table` of the table whose :func:`_padded` form is ``flat``."""
-    rows, cols = shape
+    """``tab`` (rows, cols) at fractional column ``x`` and row ``y`` (broadcast against each
+    other), bilinear with exact weights; 0 where a neighbouring cell lies outside the table (as
+    a zero border)."""
+    flat = _tab_flat if tab is _tab else _padded(tab)
+    rows, cols = tab.shape
     x0 = np.floor(x)
     y0 = np.floor(y)
     fx, fy = x - x0, y - y0
@@ -107,7 +105,7 @@ def _bilinear_flat(flat: np.ndarray, shape: tuple[int, int], x: np.ndarray, y: n
     base = y0 * cols + x0
     inx = ((x0 >= 0) & (x0 < cols), (x0 >= -1) & (x0 < cols - 1))
     iny = ((y0 >= 0) & (y0 < rows), (y0 >= -1) & (y0 < rows - 1))
-    out = np.zeros(np.shape(x))
+    out = np.zeros(np.broadcast_shapes(np.shape(x), np.shape(y)))
     for dy, wy in ((0, 1 - fy), (1, fy)):
         for dx, wx in ((0, 1 - fx), (1, fx)):
             idx = np.where(inx[dx] & iny[dy], base + (dy * cols + dx), rows * cols)
@@ -240,8 +238,9 @@ def fit_beads(
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
     prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
     w, J = w0.copy(), None
+    XY5 = (np.tile(X, (5, 1)), np.tile(Y, (5, 1)))
     for it in range(iterations):
-        dp, w, J = _step(p, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, max(blur_px, 0.5))
+        dp, w, J = _step(p, y, X, Y, XY5, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, max(blur_px, 0.5))
         # keep the shape parameters physical and the steps modest
         dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
         dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
@@ -286,16 +285,17 @@ def _patches(img: np.ndarray, starts: np.ndarray, half: int):
 _EPS = np.array([1e-3, 1e-3, 1e-3, 1e-3])
 
 
-def _step(p, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float):
+def _step(p, y, X, Y, XY5, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float):
     """One robust Gauss–Newton step of :func:`fit_beads` from parameters ``p`` (n, 8): the step
-    (n, 8), the weights it used and the Jacobian (n, m, 8)."""
+    (n, 8), the weights it used and the Jacobian (n, m, 8). ``XY5`` is X and Y each stacked five
+    times (the model and its four finite differences are looked up together)."""
     n = len(p)
     # S at p and at p + eps along u, v, r, s in one table look-up (the look-up is
     # element-wise: the same numbers as five separate calls, at a fifth of the overhead)
     q = np.tile(p, (5, 1))
     for k in range(4):
         q[(k + 1) * n : (k + 2) * n, k] += _EPS[k]
-    S5 = model_S(q, np.tile(X, (5, 1)), np.tile(Y, (5, 1)))
+    S5 = model_S(q, *XY5)
     S = S5[:n]
     m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
     res = y - m
