@@ -97,9 +97,7 @@ def test_table_lookup_with_one_row_per_ball_is_the_lookup_per_pixel():
     x = rng.uniform(-2, 32, (50, 40))
     y = rng.uniform(-2, 21, (50, 1))
     y[:4, 0] = [0.0, 19.0, 18.5, -1.0]
-    np.testing.assert_array_equal(
-        bilinear_table(tab, x, y), bilinear_table(tab, x, np.broadcast_to(y, x.shape))
-    )
+    np.testing.assert_array_equal(bilinear_table(tab, x, y), bilinear_table(tab, x, np.broadcast_to(y, x.shape)))
 
 
 def test_sphere_profile_is_smooth_in_its_parameters():
