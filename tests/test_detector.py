@@ -232,8 +232,9 @@ def test_where_the_network_finds_no_pose_auto_looks_again_with_the_classical_det
     assert res.diagnostics.detector_tried == ["learned", "classical"]
     np.testing.assert_array_equal(res.pose.rotation, classical.pose.rotation)
     np.testing.assert_array_equal(res.pose.translation_mm, classical.pose.translation_mm)
-    flat = np.full((H, W), float(np.median(rad.raw)), np.float32)
-    none = track_image(flat, features, Camera())
+    level = float(np.median(rad.raw))
+    noise = np.random.default_rng(5).poisson(level, (H, W)).astype(np.float32)
+    none = track_image(noise, features, Camera())
     assert not none.pose.converged and "with the classical detectors: " in none.pose.error
     assert none.diagnostics.detector_tried == ["learned", "classical"]
 

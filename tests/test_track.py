@@ -357,3 +357,32 @@ def test_ftrac_mini_over_anatomy_mirror_labelling_is_not_confident(k):
         background=anatomy(seed=1000 + k, strength=1.0),
     )
     _assert_right_or_not_converged(track_image(rad.raw, features, Camera()), R[k], t[k], 5.0)
+
+
+@pytest.mark.parametrize(
+    "frame",
+    [
+        np.zeros((512, 512), np.uint8),
+        np.full((512, 512), 255, np.uint8),
+        np.full((400, 512), 3000, np.uint16),
+        np.full((512, 512), 0.7, np.float32),
+        np.where(np.eye(512, dtype=bool), np.nan, 0.7).astype(np.float32),
+        np.full((64, 64), np.nan, np.float32),
+    ],
+)
+def test_a_blank_frame_is_refused_before_any_detector_looks(f2005, frame, monkeypatch):
+    """A frame whose readable pixels all have one value (what a frame grabber sends between
+    exposures) is refused as blank, with neither detector run; one pixel that differs is
+    searched as any image is."""
+    from ftrac_design.segment import learned as learned_room
+
+    looked = []
+    real = learned_room.detections
+    monkeypatch.setattr(learned_room, "detections", lambda *a: looked.append(1) or real(*a))
+    res = track_image(frame, f2005, Camera())
+    assert not res.pose.converged and "the image is blank" in res.pose.error
+    assert looked == [] and res.diagnostics.detector is None and res.diagnostics.detector_tried is None
+    one = np.nan_to_num(frame.astype(np.float32), nan=0.0)
+    one[5, 7] += 1.0
+    res = track_image(one, f2005, Camera())
+    assert not res.pose.converged and "blank" not in res.pose.error and looked == [1]

@@ -350,6 +350,13 @@ def _line_integrals(img: np.ndarray) -> bool:
     return bool(float(np.max(np.abs(a))) <= 64.0 and not np.all(a == np.round(a)))
 
 
+def _blank(img: np.ndarray) -> bool:
+    """Whether every finite pixel of ``img`` has the same value (or none is finite)."""
+    finite = np.isfinite(img)
+    vals = img if finite.all() else img[finite]
+    return vals.size == 0 or float(vals.min()) == float(vals.max())
+
+
 def _track(
     image: np.ndarray,
     features: Features,
@@ -363,6 +370,10 @@ def _track(
     img = np.asarray(image)
     if img.dtype != np.float32:
         img = img.astype(np.float32)
+    if _blank(img):
+        # a frame grabber's frames between exposures: nothing to find, and both detectors'
+        # searches over both polarities found that in ~0.3 s each
+        return failed_result("no fiducial found: the image is blank (every readable pixel has the same value)")
     sc = scales(features, camera, find)
     # everything first on a half-size image: polarity, and where the fiducial may be
     small = (
