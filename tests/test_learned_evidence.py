@@ -1,5 +1,6 @@
 """A labelling whose wire contours could not be measured, confirmed by the learned detector's
-wire map alone, must explain all but one of a wire design's balls."""
+wire map alone, must explain all but one of a wire design's balls; so must one whose wire
+contours appeared only once the body's projection was subtracted at its pose."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, simulate_observation
 from ftrac_design.segment import TrackOptions, acceptance, evidence, identify
+from ftrac_design.segment.labelling import Labelling
 
 
 @pytest.mark.parametrize(
@@ -28,11 +30,37 @@ def test_a_labelling_confirmed_by_the_network_alone_needs_all_but_one_ball(prese
     obs = simulate_observation(features, Camera(), R[0], t[0], include=set(ids))
     assert len(obs.points) == balls and not obs.lines and not obs.ellipses
     monkeypatch.setattr(evidence, "learned_confirms_wires", lambda *a, **k: True)
-    lab = SimpleNamespace(
-        obs=obs, contours=identify.Contours(), pose=SimpleNamespace(rotation=R[0], translation_mm=t[0])
-    )
+    lab = _labelling(obs, R[0], t[0])
     why = acceptance.too_little_evidence(SimpleNamespace(features=features), lab, TrackOptions().acceptance)
     if refused:
         assert why is not None and f"{balls} beads and no wires cannot verify" in why and "need ≥ 8" in why
+    else:
+        assert why is None
+
+
+def _labelling(obs, R, t, wires_at_first: bool = True) -> Labelling:
+    pose = SimpleNamespace(rotation=R, translation_mm=t)
+    return Labelling(pose, obs, None, {}, identify.Contours(), {}, wires_at_first=wires_at_first)
+
+
+@pytest.mark.parametrize(("balls", "at_first", "refused"), [(7, True, False), (7, False, True), (8, False, False)])
+def test_wire_contours_seen_only_after_the_body_subtraction_do_not_confirm_a_labelling(
+    balls, at_first, refused, monkeypatch
+):
+    """Seven of ftrac_2005's balls and one ellipse's contour: enough when the labelling explained
+    a wire before the body was subtracted, not when that contour appeared only after it (a
+    near-mirror labelling's ellipse on the other ellipse's image); eight balls are enough
+    either way."""
+    features = compute_features(load_design("ftrac_2005"))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
+    ids = [p.id for p in features.points][:balls]
+    obs = simulate_observation(features, Camera(), R[0], t[0], include=set(ids) | {"E1"})
+    assert len(obs.points) == balls and list(obs.ellipses) == ["E1"] and not obs.lines
+    monkeypatch.setattr(evidence, "learned_confirms_wires", lambda *a, **k: False)
+    lab = _labelling(obs, R[0], t[0], wires_at_first=at_first)
+    assert lab.confirmed_by_wires is at_first
+    why = acceptance.too_little_evidence(SimpleNamespace(features=features), lab, TrackOptions().acceptance)
+    if refused:
+        assert why is not None and "wires seen only after the body's subtraction cannot verify" in why
     else:
         assert why is None

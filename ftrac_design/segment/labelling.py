@@ -60,6 +60,15 @@ class Labelling:
     score: float = math.inf
     #: (unexplained ridge px, unsupported wire px) of :func:`~.evidence.image_agreement`
     agreement: tuple[float, float] | None = None
+    #: whether the labelling explained a wire contour before the body's projection was
+    #: subtracted (contours it found only after that are not counted as confirming it)
+    wires_at_first: bool = True
+
+    @property
+    def confirmed_by_wires(self) -> bool:
+        """Whether wire contours confirm the labelling: it explains one now, and did before
+        the body was subtracted."""
+        return bool(self.obs.lines or self.obs.ellipses) and self.wires_at_first
 
     @property
     def placed(self) -> bool:

@@ -255,7 +255,7 @@ def _track_density(
     if features.body is not None and best.placed:
         redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
         if redone is not None:
-            best, scene = redone
+            best, scene = replace(redone[0], wires_at_first=bool(best.obs.lines or best.obs.ellipses)), redone[1]
             diag.body_subtracted = True
     best = accept_best(scene, best, others, diag, accept)
     diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.scales.blur_px, len(hyps), len(evaluated)
