@@ -114,7 +114,9 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
 def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
     """Refused when what the labelling explains cannot confirm it: most predicted wires
     missing, no wire contour at all on a wire design, balls in view left unexplained, too
-    few balls, or too few redundant constraints."""
+    few balls, too few redundant constraints, or — for balls without wire contours, or with
+    contours seen only after the body's subtraction (:attr:`.labelling.Labelling.confirmed_by_wires`)
+    — fewer balls than all the design's but one (two for a design without wires)."""
     features = scene.features
     obs, cont = lab.obs, lab.contours
     n_curves = len(features.lines) + len(features.ellipses)
