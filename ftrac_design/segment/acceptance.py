@@ -158,9 +158,9 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
     # fitted nine_bead's helix at a pose 500 mm off. A wire design whose labelling explains no
     # wire contour (confirmed by the learned detector alone) needs all but one: leaving two of
     # nine balls out let a near-mirror labelling fit the other seven, 142° off (ftrac_mini over
-    # a pelvis, the independent renderer) and 159° off (ftrac_2005, a display frame)
-    # Contours a labelling found only once the body was subtracted at its own pose do not
-    # count: a near-mirror labelling of ftrac_mini with no wire at first then found one ellipse
+    # a pelvis, the independent renderer) and 159° off (ftrac_2005, a display frame). Contours
+    # a labelling found only once the body was subtracted at its own pose do not count either:
+    # a near-mirror labelling of ftrac_mini with no wire at first then found one ellipse
     # there (its predicted ellipse on the other's image), and passed on 5-7 balls, 137-167° off
     # (held-out seed 2039: a clean image, a round field and blades).
     need_alone = max(6, len(features.points) - (1 if n_curves else 2))

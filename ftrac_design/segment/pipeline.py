@@ -109,9 +109,9 @@ def _with_body_subtracted(
     g: np.ndarray, scene: Scene, best: Labelling, labelling: LabellingOptions, ridge_min_snr: float
 ) -> tuple[Labelling, Scene] | None:
     """The best labelling again, on the image with the body's modelled projection subtracted
-    at its pose (:mod:`.body`): the new labelling and the scene it was found on, or None when
-    that did not help (the body cannot be modelled there, or the new pose fails where the
-    old one had converged)."""
+    at its pose (:mod:`.body`): the new labelling (``wires_at_first`` saying whether ``best``
+    explained a wire contour) and the scene it was found on, or None when that did not help
+    (the body cannot be modelled there, or the new pose fails where the old one had converged)."""
     blur = float(np.median(scene.beads.blur))
     p0 = best.pose
     inner = ridges_without_body(g, scene, p0, blur, ridge_min_snr)
@@ -124,8 +124,9 @@ def _with_body_subtracted(
         lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, labelling, first_stage=2)
     except NoLabelling:
         return None
-    # judged on the same ridges as the other labellings
-    lab = with_agreement(scene, lab, labelling)
+    # judged on the same ridges as the other labellings; wire contours it finds only here do
+    # not confirm it (:attr:`.labelling.Labelling.confirmed_by_wires`)
+    lab = replace(with_agreement(scene, lab, labelling), wires_at_first=best.confirmed_by_wires)
     if not (lab.pose.converged or not best.pose.converged):
         return None
     return lab, inner.with_detections(inner.T, beads2, merged if merged is not None else scene.ridges)
@@ -255,7 +256,7 @@ def _track_density(
     if features.body is not None and best.placed:
         redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
         if redone is not None:
-            best, scene = replace(redone[0], wires_at_first=bool(best.obs.lines or best.obs.ellipses)), redone[1]
+            best, scene = redone
             diag.body_subtracted = True
     best = accept_best(scene, best, others, diag, accept)
     diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.scales.blur_px, len(hyps), len(evaluated)
