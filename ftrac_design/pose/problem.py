@@ -59,11 +59,21 @@ class NoiseModel:
     0.102 mm is its 0.25 mm. Contour points carry the same σ along the curve normal.
     Only the ratios between feature types change the pose estimate; the absolute scale is
     re-estimated from the residuals for the covariance.
+
+    ``points`` gives named beads their own σ (mm), overriding ``point_mm``: an image's balls
+    are not measured equally well (one overlapped by a wire or a needle fits worse than its
+    fellows), and weighting each by its own σ keeps a poor one from pulling the pose.
     """
 
     point_mm: float = 0.25 / 6**0.5
     line_mm: float = 0.25 / 6**0.5
     ellipse_mm: float = 0.25 / 6**0.5
+    #: (bead id, σ mm) pairs for the beads whose σ is not ``point_mm``
+    points: tuple[tuple[str, float], ...] = ()
+
+    def point_sigma_mm(self, fid: str) -> float:
+        """The σ (mm at the detector, per axis) of bead ``fid``."""
+        return dict(self.points).get(fid, self.point_mm)
 
     @classmethod
     def from_segmentation_error(cls, e_mm: float) -> "NoiseModel":
@@ -73,7 +83,12 @@ class NoiseModel:
 
     def scaled(self, bead: float = 1.0, wire: float = 1.0) -> "NoiseModel":
         """Beads' σ times ``bead``, line and ellipse contours' times ``wire``."""
-        return NoiseModel(self.point_mm * bead, self.line_mm * wire, self.ellipse_mm * wire)
+        return NoiseModel(
+            self.point_mm * bead,
+            self.line_mm * wire,
+            self.ellipse_mm * wire,
+            tuple((fid, sig * bead) for fid, sig in self.points),
+        )
 
 
 @dataclass
@@ -448,7 +463,8 @@ def compile_problem(
 
     P, E = len(point_ids), len(ellipse_ids)
     p_obs = np.array([[o.points[i] for i in point_ids] for o in observations]).reshape(B, P, 2)
-    p_w = np.repeat((pix / noise.point_mm)[:, None], P, 1)
+    p_sig = np.array([noise.point_sigma_mm(fid) for fid in point_ids], float).reshape(1, P)
+    p_w = pix[:, None] / p_sig
     l_n, l_m, l_c, l_info, l_from_model, l_sig, l_chi2, l_dof = _line_arrays(
         observations, line_ids, noise.line_mm / pix, intr, task_scaling
     )

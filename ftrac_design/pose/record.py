@@ -256,9 +256,7 @@ class Diagnostics:
         nm = self.noise_model_mm
         d: dict[str, Any] = {
             "polarity": self.polarity,
-            "noise_model_mm": None
-            if nm is None
-            else {"point": nm.point_mm, "line": nm.line_mm, "ellipse": nm.ellipse_mm},
+            "noise_model_mm": None if nm is None else _noise_dict(nm),
         }
         for f in fields(self)[2:]:
             v = getattr(self, f.name)
@@ -275,7 +273,11 @@ class Diagnostics:
         out = cls(polarity=str(d.get("polarity") or ""))
         nm = d.get("noise_model_mm")
         if isinstance(nm, dict) and all(_is_number(nm.get(k)) for k in ("point", "line", "ellipse")):
-            out.noise_model_mm = NoiseModel(float(nm["point"]), float(nm["line"]), float(nm["ellipse"]))
+            pts = nm.get("points")
+            per_ball = (
+                tuple((str(k), float(v)) for k, v in pts.items() if _is_number(v)) if isinstance(pts, dict) else ()
+            )
+            out.noise_model_mm = NoiseModel(float(nm["point"]), float(nm["line"]), float(nm["ellipse"]), per_ball)
         for f in fields(cls)[2:]:
             if f.name not in d:
                 continue
@@ -319,6 +321,15 @@ _KINDS: dict[str, Any] = {
     "rotation_step_deg": (int, float),
     "followed": int,
 }
+
+
+def _noise_dict(nm: NoiseModel) -> dict[str, Any]:
+    """A noise model as the ``noise_model_mm`` object: σ per feature type (``point`` the
+    median ball's) and, where balls have their own, ``points`` (bead id → σ)."""
+    d: dict[str, Any] = {"point": nm.point_mm, "line": nm.line_mm, "ellipse": nm.ellipse_mm}
+    if nm.points:
+        d["points"] = dict(nm.points)
+    return d
 
 
 def _is_number(v: Any) -> bool:

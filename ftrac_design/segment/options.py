@@ -73,6 +73,16 @@ class TrackOptions:
     floor_point_mm: float = 0.02
     #: systematic error per feature (px per axis / along the normal), see :func:`~.noise.measured_noise`
     sys_point_px: float = 0.07
+    #: a ball's centre error per axis is its fit's own σ times ``point_fit_scale`` (the
+    #: fit's pixels' noise is correlated: the σ it reports is too small), plus
+    #: ``point_radius_scale`` × how far its fitted radius is from its fellows' median (px;
+    #: a ball merged with a wire, a needle or a bone edge looks larger and its centre is
+    #: pulled), and ``sys_point_px``; at most ``point_max_ratio`` × the labelling's median
+    #: ball's, so that every ball counted still has to agree with the pose. Fitted to 4,183
+    #: balls of right poses (seed 21, three presets, 12 conditions): see :func:`~.noise.measured_noise`
+    point_fit_scale: float = 1.15
+    point_radius_scale: float = 0.35
+    point_max_ratio: float = 3.0
     sys_curve_px: float = 0.04
     floor_line_mm: float = 0.01
     floor_ellipse_mm: float = 0.01
@@ -231,6 +241,9 @@ class NoiseOptions:
 
     floor_point_mm: float
     sys_point_px: float
+    point_fit_scale: float
+    point_radius_scale: float
+    point_max_ratio: float
     sys_curve_px: float
     floor_line_mm: float
     floor_ellipse_mm: float
