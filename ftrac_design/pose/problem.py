@@ -463,8 +463,7 @@ def compile_problem(
 
     P, E = len(point_ids), len(ellipse_ids)
     p_obs = np.array([[o.points[i] for i in point_ids] for o in observations]).reshape(B, P, 2)
-    p_sig = np.array([noise.point_sigma_mm(fid) for fid in point_ids], float).reshape(1, P)
-    p_w = pix[:, None] / p_sig
+    p_w = pix[:, None] / np.array([noise.point_sigma_mm(fid) for fid in point_ids], float).reshape(1, P)
     l_n, l_m, l_c, l_info, l_from_model, l_sig, l_chi2, l_dof = _line_arrays(
         observations, line_ids, noise.line_mm / pix, intr, task_scaling
     )

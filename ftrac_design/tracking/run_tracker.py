@@ -38,7 +38,8 @@ frame's crop finds it again against the frame's own clip levels.
 
 The tight stage alone (:func:`~ftrac_design.segment.labelling.evaluate` from stage 2) is
 used when the previous tracked frame's prediction was within ``RunOptions.tight_start_px``
-of its answer; otherwise the wide stage first.
+of its answer and this frame follows it directly; otherwise (a prediction over dropped
+frames, too) the wide stage first.
 """
 
 from __future__ import annotations
@@ -283,7 +284,9 @@ class RunTracker:
         """The frame tracked from the prediction (R, t) made over ``span`` of the last steps: followed
         where its pose moved too far, and searched wider where the prediction spans dropped frames."""
         ro, st = self.run_options, self._state
-        fs = 2 if st.last_moved_px <= ro.tight_start_px else 0
+        # the last prediction's accuracy vouches for one step only: over dropped frames the
+        # prediction is extrapolated further, and the tight stage alone left the wires unmeasured
+        fs = 2 if st.last_moved_px <= ro.tight_start_px and span <= 1.5 else 0
         res = track_near(image, self.features, cam, R, t, st.context, opts, first_stage=fs, follow=ro.follow)
         if res.pose.converged or span <= 1.5 or ro.wide_search <= 1.0:
             return res
