@@ -30,7 +30,7 @@ import _common  # noqa: F401  (puts the checkout first on sys.path)
 import numpy as np
 from scipy.optimize import minimize
 from tqdm import tqdm
-from track_realism import PRESETS, WRONG_DEG, WRONG_MM, _preset, make_image
+from track_realism import PRESETS, WRONG_DEG, WRONG_MM, make_image, preset_features
 
 from ftrac_design.images.distortion import undistort_image
 from ftrac_design.pose.simulate import pose_errors
@@ -45,7 +45,7 @@ def balls(task: tuple) -> list[dict]:
     """The balls of one image's pose if it is right: squared error (px²), fit σ, radius's
     departure from the pose's median ball's, and the median fit σ (px); [] otherwise."""
     preset, cond, k, seed, n = task
-    features = _preset(preset)
+    features = preset_features(preset)
     img, R, t, cam, model = make_image(preset, cond, k, seed, n)
     opts = TrackOptions()
     if cond == "distortion-corrected":

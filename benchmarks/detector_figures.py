@@ -68,7 +68,7 @@ def _ball_figures(found: np.ndarray, truth: np.ndarray) -> tuple[int, int, int, 
 
 def one(task) -> dict:
     preset, cond, k, seed, n = task
-    features = tr._preset(preset)
+    features = tr.preset_features(preset)
     img, R, t, cam, _ = tr.make_image(preset, cond, k, seed, n)
     pol, form = "dense-dark", "linear"
     if cond != "clean":

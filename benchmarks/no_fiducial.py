@@ -46,7 +46,7 @@ KINDS = {"anatomy": 200, "grid plate": 100, "another fiducial": 120, "blank": 40
 
 def anatomy(k: int, seed: int) -> np.ndarray:
     rng = np.random.default_rng([seed, 1, k])
-    features = tr._preset("ftrac_2005")
+    features = tr.preset_features("ftrac_2005")
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     cam = Camera(principal_point_px=(1536.0, 512.0))
     cond = CONDITIONS[k % len(CONDITIONS)]
@@ -72,7 +72,7 @@ def fiducial(k: int, seed: int) -> tuple[np.ndarray, str]:
     """A realistic image of one preset, and the preset it is to be tracked as (another)."""
     rng = np.random.default_rng([seed, 3, k])
     shown = tr.PRESETS[k % 3]
-    features = tr._preset(shown)
+    features = tr.preset_features(shown)
     R, t = Workspace().sample(1, features.nominal_beam_direction, rng)
     cond = ("clean",) + CONDITIONS
     c = cond[int(rng.integers(len(cond)))]
@@ -130,7 +130,7 @@ def one(task) -> list[dict]:
     for preset in tr.PRESETS:
         if preset == shown:
             continue
-        features = tr._preset(preset)
+        features = tr.preset_features(preset)
         t0 = time.perf_counter()
         res = track_image(img, features, cam)
         rows.append(

@@ -61,7 +61,8 @@ AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 _CACHE: dict = {}
 
 
-def _preset(name: str):
+def preset_features(name: str):
+    """The features of the shipped preset ``name``, computed once per process."""
     if name not in _CACHE:
         d = load_design(name)
         _CACHE[name] = compute_features(d)
@@ -84,7 +85,7 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
     if cache is not None:
         f = cache / f"{preset}_{condition}_{seed}_{n}_{k}.npy"
         if f.is_file() and not condition.startswith("distortion"):
-            features = _preset(preset)
+            features = preset_features(preset)
             R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
             return np.load(f), R[k], t[k], Camera(), None
         out = make_image(preset, condition, k, seed, n)
@@ -92,7 +93,7 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
             cache.mkdir(parents=True, exist_ok=True)
             np.save(f, out[0])
         return out
-    features = _preset(preset)
+    features = preset_features(preset)
     R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
     R, t = R[k], t[k]
     cam = Camera()
@@ -112,7 +113,7 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
 def one(task: tuple) -> dict:
     """Make and track one image; the outcome, the time and this process's peak memory."""
     preset, condition, k, seed, n, cache, detector = task
-    features = _preset(preset)
+    features = preset_features(preset)
     img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
     t0 = time.perf_counter()
     opts = TrackOptions(detector=detector)

@@ -179,7 +179,7 @@ def test_frames_after_dropped_ones_are_tracked_not_identified_again(run, dropped
     now = answers(RunOptions())
     assert now[after].status == "tracked", [a.tracking_error for a in now]
     # a prediction over the gap is not as close as one step's: the wide stage measures the
-    # wires again (the tight stage alone had left all three lines unmeasured, the pose 0.5° off)
+    # wires (from the tight stage alone all three lines go unmeasured here, the pose 0.5° off)
     assert set(now[after].result.observation.lines) == {"L1", "L2", "L3"}, now[after].result.diagnostics.dropped
     for a, k in zip(now, keep):
         dt, dr = _errors(a, run.rotation[k], run.translation_mm[k])

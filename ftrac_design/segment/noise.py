@@ -30,14 +30,14 @@ def measured_noise(
     """Per-feature-type σ (mm at the detector) measured on this image, with floors.
 
     Beside the random part measured here (each ball's own fit, see :func:`_ball_sigmas`;
-    each curve's scatter about its own fit) every feature carries a systematic error that does not average away over
-    its points — a bead centre pulled by a wire or a bone edge, a wire's contour shifted by
-    the background's slope (``TrackOptions.sys_point_px`` / ``sys_curve_px``, measured
-    against the truth on rendered images with anatomy; the curves' grows with the blur²). The
-    solver's noise model is one σ per contour point of a curve type, so a curve's systematic part enters as
-    ``n σ_sys²`` per point (n its typical number of points): then a curve's fitted parameters
-    carry σ_sys as they should and the per-feature χ² test does not reject correct curves for a
-    0.05 px shift.
+    each curve's scatter about its own fit) every feature carries a systematic error that
+    does not average away over its points — a bead centre pulled by a wire or a bone edge, a
+    wire's contour shifted by the background's slope (``TrackOptions.sys_point_px`` /
+    ``sys_curve_px``, measured against the truth on rendered images with anatomy; the curves'
+    grows with the blur²). The solver's noise model is one σ per contour point of a curve
+    type, so a curve's systematic part enters as ``n σ_sys²`` per point (n its typical number
+    of points): then a curve's fitted parameters carry σ_sys as they should and the
+    per-feature χ² test does not reject correct curves for a 0.05 px shift.
 
     Parameters
     ----------

@@ -285,7 +285,8 @@ class RunTracker:
         where its pose moved too far, and searched wider where the prediction spans dropped frames."""
         ro, st = self.run_options, self._state
         # the last prediction's accuracy vouches for one step only: over dropped frames the
-        # prediction is extrapolated further, and the tight stage alone left the wires unmeasured
+        # prediction is extrapolated further, and from the tight stage alone its wires can go
+        # unmeasured
         fs = 2 if st.last_moved_px <= ro.tight_start_px and span <= 1.5 else 0
         res = track_near(image, self.features, cam, R, t, st.context, opts, first_stage=fs, follow=ro.follow)
         if res.pose.converged or span <= 1.5 or ro.wide_search <= 1.0:
