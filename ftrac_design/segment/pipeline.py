@@ -52,6 +52,9 @@ class Budget:
 
     def __init__(self, opts: SearchOptions, start: float | None = None):
         self.work = opts.max_work
+        #: bead hypotheses refined per search, and per search whose best pose rests on little
+        self.labellings = opts.labellings
+        self.labellings_if_weak = max(opts.labellings, opts.labellings_if_weak)
         self.deadline = (time.monotonic() if start is None else start) + opts.time_budget_s
         self.timed_out = False
 
@@ -69,6 +72,19 @@ class Budget:
         self.work -= units
 
 
+def _rests_on_little(features: Features, labs: list[Labelling]) -> bool:
+    """Whether the best converged labelling among ``labs`` (none: no) leaves two or more of the
+    design's balls unexplained, or explains fewer than half its wires: a pose a near-mirror
+    labelling can give too, so the hypotheses ranked below the first few are worth refining."""
+    done = [lab for lab in labs if lab.pose.converged]
+    if not done:
+        return False
+    best = min(done, key=lambda lab: lab.score)
+    n_curves = len(features.lines) + len(features.ellipses)
+    curves = len(best.obs.lines) + len(best.obs.ellipses)
+    return len(best.obs.points) < len(features.points) - 1 or 2 * curves < n_curves
+
+
 def _labellings(
     scene: Scene,
     hyps: list[identify.BeadHypothesis],
@@ -77,10 +93,14 @@ def _labellings(
     accept: AcceptanceOptions,
 ) -> list[Labelling]:
     """The best distinct labellings refined, each with its agreement with the image (one unit
-    of ``budget`` each; none once it is spent, but the first)."""
+    of ``budget`` each; none once it is spent, but the first): the first ``budget.labellings``
+    hypotheses, and up to ``budget.labellings_if_weak`` while the best pose so far rests on
+    little (:func:`_rests_on_little`)."""
     out: list[Labelling] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
-    for h in hyps[:4]:
+    for i, h in enumerate(hyps[: budget.labellings_if_weak]):
+        if i >= budget.labellings and not _rests_on_little(scene.features, out):
+            break
         if out and budget.spent():
             break
         if h.count < max(4, hyps[0].count - 2):
@@ -242,6 +262,7 @@ def _track_density(
         beads.uv,
         camera,
         find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        keep=budget.labellings_if_weak,
         max_extent_px=scene.scales.max_bead_spread_px,
     )
     if not hyps:
