@@ -1,7 +1,11 @@
-"""Which bead hypotheses are refined into labellings: the first few always, and the rest of
-those found while the best pose so far rests on little (two or more balls unexplained, or
-fewer than half the wires), so that a near-mirror labelling ranked first cannot pass for want
-of the right one ranked below it."""
+"""Which bead hypotheses are refined into labellings, and against what the best one's rivals
+are judged.
+
+The first few hypotheses are always refined, and the rest of those found while the best pose
+so far rests on little (two or more balls unexplained, or fewer than half the wires), so that
+a near-mirror labelling ranked first cannot pass for want of the right one ranked below it.
+A rival is judged against the best labelling as it was before the body's projection was
+subtracted at its pose too: only the best had that subtraction."""
 
 from __future__ import annotations
 
@@ -12,7 +16,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_fuzz_observation import FEATURES
 
-from ftrac_design.pose import NoiseModel, Pose
+from ftrac_design.pose import Diagnostics, NoiseModel, Pose
 from ftrac_design.segment import TrackOptions, identify, pipeline
 from ftrac_design.segment.labelling import Labelling, NoLabelling
 
@@ -127,3 +131,31 @@ def test_a_wireless_design_is_judged_on_its_balls_alone():
     all_nine = [p.id for p in nine.points]
     assert not pipeline._rests_on_little(nine, [_labelling(h, True, all_nine[:-1], [], 1.0)])
     assert pipeline._rests_on_little(nine, [_labelling(h, True, all_nine[:-2], [], 1.0)])
+
+
+def _pass_other_tests(monkeypatch):
+    monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts: ([], {}))
+    monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
+    monkeypatch.setattr(pipeline.acceptance, "uncontrolled", lambda scene, lab, opts: None)
+
+
+def test_a_rival_that_tied_before_the_body_was_subtracted_refuses_the_pose(monkeypatch):
+    """Before the subtraction the best labelling beat a rival 180° away by 4 χ²; after it, the
+    best explained two balls more and led by 108: the tie stands, the pose is refused."""
+    _pass_other_tests(monkeypatch)
+    h = _hypotheses(1)[0]
+    turned = identify.BeadHypothesis(
+        Rotation.from_rotvec([np.pi, 0.0, 0.0]).as_matrix() @ h.R, h.t + [0.0, 0.0, 2.0], {}, 7, 0.5
+    )
+    first = _labelling(h, True, ALL_BALLS[:7], ALL_ELLIPSES[:1], 504.5)
+    redone = _labelling(h, True, ALL_BALLS, ALL_ELLIPSES[:1], 400.0)
+    rival = _labelling(turned, True, ALL_BALLS[:8], ALL_ELLIPSES, 508.4)
+    opts = TrackOptions().acceptance
+    kept = pipeline.accept_best(None, redone, [rival], Diagnostics(), opts)
+    assert kept.pose.converged
+    refused = pipeline.accept_best(None, redone, [rival], Diagnostics(), opts, first)
+    assert not refused.pose.converged
+    assert refused.pose.error.startswith("ambiguous identification")
+    # a rival far behind before the subtraction as well is no rival
+    far_behind = _labelling(turned, True, ALL_BALLS[:8], ALL_ELLIPSES, 504.5 + opts.ambiguity_chi2 + 1.0)
+    assert pipeline.accept_best(None, redone, [far_behind], Diagnostics(), opts, first).pose.converged
