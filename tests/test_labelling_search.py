@@ -124,13 +124,15 @@ def test_the_options_set_both_counts(refine):
     assert calls2[4:] == [0, 1, 2, 3, 4, 5]
 
 
-def test_a_wireless_design_is_judged_on_its_balls_alone():
+def test_a_bead_only_design_never_extends_the_search():
+    """Its poses need all its balls but two anyway, and no wire tells a near-mirror apart."""
     nine = FEATURES["nine_bead"]
     assert not nine.lines and not nine.ellipses
     h = _hypotheses(1)[0]
     all_nine = [p.id for p in nine.points]
-    assert not pipeline._rests_on_little(nine, [_labelling(h, True, all_nine[:-1], [], 1.0)])
-    assert pipeline._rests_on_little(nine, [_labelling(h, True, all_nine[:-2], [], 1.0)])
+    assert not pipeline._rests_on_little(nine, [_labelling(h, True, all_nine[:-2], [], 1.0)])
+    assert pipeline._rests_on_little(F, [_labelling(h, True, ALL_BALLS[:-2], ALL_LINES + ALL_ELLIPSES, 1.0)])
+    assert not pipeline._rests_on_little(F, [_labelling(h, True, ALL_BALLS[:-1], ALL_LINES[:1] + ALL_ELLIPSES, 1.0)])
 
 
 def _pass_other_tests(monkeypatch):

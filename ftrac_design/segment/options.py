@@ -122,11 +122,11 @@ class TrackOptions:
     #: how many of the best bead hypotheses are refined into labellings (one unit of work
     #: each)
     labellings: int = 4
-    #: how many when the best labelling refined so far gives a pose that rests on little
-    #: (two or more of the design's balls unexplained, or fewer than half its wires): a
-    #: near-mirror labelling of ftrac_2005 over strong anatomy (5 balls and both ellipses,
-    #: no line readable) passed 166° off while the right one, ranked sixth, was never
-    #: refined
+    #: how many, for a wire design, when the best labelling refined so far gives a pose
+    #: that rests on little (two or more of the design's balls unexplained, or fewer than
+    #: half its wires): a near-mirror labelling of ftrac_2005 over strong anatomy (5 balls
+    #: and both ellipses, no line readable) passed 166° off while the right one, ranked
+    #: sixth, was never refined
     labellings_if_weak: int = 8
     #: wall-clock seconds after which no further search or labelling starts (the one under
     #: way finishes): a safety net for an image whose counted work runs far longer than any
