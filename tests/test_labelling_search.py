@@ -37,7 +37,9 @@ def _hypotheses(n: int) -> list[identify.BeadHypothesis]:
 
 
 def _labelling(h, converged: bool, balls: list[str], curves: list[str], score: float) -> Labelling:
-    pose = Pose(h.R, h.t, converged, 0.3, np.eye(6), {}, 3, None if converged else "refused")
+    # σ of 0.06° per axis, 0.1 mm across the view and 1 mm in depth: a tracked pose's order
+    cov = np.diag([1e-6, 1e-6, 1e-6, 0.01, 0.01, 1.0])
+    pose = Pose(h.R, h.t, converged, 0.3, cov, {}, 3, None if converged else "refused")
     obs = SimpleNamespace(
         points={b: np.zeros(2) for b in balls},
         lines={c: None for c in curves if c in ALL_LINES},
@@ -161,3 +163,36 @@ def test_a_rival_that_tied_before_the_body_was_subtracted_refuses_the_pose(monke
     # a rival far behind before the subtraction as well is no rival
     far_behind = _labelling(turned, True, ALL_BALLS[:8], ALL_ELLIPSES, 504.5 + opts.ambiguity_chi2 + 1.0)
     assert pipeline.accept_best(None, redone, [far_behind], Diagnostics(), opts, first).pose.converged
+
+
+def test_a_rival_inside_the_best_poses_covariance_is_no_other_answer(monkeypatch):
+    """A labelling 8 mm deeper, 12 χ² behind: the pose's covariance either allows that depth
+    (σ 5 mm: χ²₆ 2.6, the pose is given out and already says so) or does not (σ 1 mm: χ²₆ 64,
+    ambiguous)."""
+    _pass_other_tests(monkeypatch)
+    h = _hypotheses(1)[0]
+    deeper = identify.BeadHypothesis(h.R, h.t + [0.0, 0.0, 8.0], {}, 7, 0.5)
+    opts = TrackOptions().acceptance
+    for sigma_z, given in ((5.0, True), (1.0, False)):
+        best = _labelling(h, True, ALL_BALLS, ALL_LINES + ALL_ELLIPSES, 100.0)
+        best.pose.covariance = np.diag([1e-6, 1e-6, 1e-6, 0.01, 0.01, sigma_z**2])
+        rival = _labelling(deeper, True, ALL_BALLS, ALL_LINES + ALL_ELLIPSES, 112.0)
+        m = pipeline.acceptance.inside_covariance(best.pose, rival.pose)
+        assert m == pytest.approx((8.0 / sigma_z) ** 2)
+        out = pipeline.accept_best(None, best, [rival], Diagnostics(), opts)
+        assert out.pose.converged is given, (sigma_z, out.pose.error)
+
+
+def test_inside_covariance_follows_the_rotation_convention():
+    """The rotation part is the left rotation vector log(R_other R_poseᵀ): a turn of 0.01 rad
+    about the view axis reads as 1 σ when that axis's σ is 0.01 rad, and the same turn on the
+    right of a tilted pose reads as the same turn on the left rotated into camera axes."""
+    h = _hypotheses(1)[0]
+    tilted = Rotation.from_rotvec([0.4, -0.2, 0.3]).as_matrix()
+    base = _labelling(identify.BeadHypothesis(tilted, h.t, {}, 9, 0.5), True, ALL_BALLS, [], 1.0).pose
+    base.covariance = np.diag([1e-2, 1e-2, 1e-4, 1.0, 1.0, 1.0])
+    turned = Rotation.from_rotvec([0.0, 0.0, 0.01]).as_matrix() @ tilted
+    other = _labelling(identify.BeadHypothesis(turned, h.t, {}, 9, 0.5), True, ALL_BALLS, [], 1.0).pose
+    assert pipeline.acceptance.inside_covariance(base, other) == pytest.approx(1.0, rel=1e-6)
+    base.covariance = None
+    assert pipeline.acceptance.inside_covariance(base, other) == np.inf

@@ -93,6 +93,9 @@ class TrackOptions:
     #: the best's, and that is far enough away, makes the answer ambiguous (one unexplained
     #: feature's charge: ftrac_mini's near-mirror labellings came within 24)
     ambiguity_chi2: float = 25.0
+    #: ... unless it lies inside the best pose's own covariance (its difference's χ²₆ at
+    #: most this, p = 0.99): given out, the pose already says it may be there
+    rival_inside_chi2: float = 16.8
     #: a predicted wire whose median ridge evidence (:func:`~.evidence.wire_support`, noise
     #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
     #: wire's, is absent: the labelling is not confirmed
@@ -291,6 +294,7 @@ class AcceptanceOptions:
     each feature's smallest redundancy number)."""
 
     ambiguity_chi2: float
+    rival_inside_chi2: float
     wire_support: float
     wire_min_snr: float
     max_unexplained_beads: int
