@@ -90,30 +90,28 @@ def test_a_pose_on_five_balls_and_no_line_has_the_hypotheses_below_it_refined(re
     assert min(labs, key=lambda lab: lab.score).score == 300.0
 
 
-def test_a_pose_on_every_feature_stops_after_the_first_four(refine):
+WEAK = (True, ALL_BALLS[:6], ALL_ELLIPSES, 900.0)
+
+
+@pytest.mark.parametrize(
+    "given, expected",
+    [
+        pytest.param({0: (True, ALL_BALLS, ALL_LINES + ALL_ELLIPSES, 300.0)}, [0, 1, 2, 3], id="full-pose-first"),
+        pytest.param(
+            {**dict.fromkeys(range(4), WEAK), 4: (True, ALL_BALLS[:8], ALL_LINES, 400.0)},
+            [0, 1, 2, 3, 4],
+            id="extension-ends-at-a-full-pose",
+        ),
+        # refusals alone do not extend the search: the work is kept for the other polarity
+        # and region, where the right pose was on a blurred image of the tuning seed
+        pytest.param(dict.fromkeys(range(8), (False, ALL_BALLS[:5], [], 2000.0)), [0, 1, 2, 3], id="refusals-only"),
+    ],
+)
+def test_where_the_search_stops(refine, given, expected):
     table, _ = refine
-    table[0] = (True, ALL_BALLS, ALL_LINES + ALL_ELLIPSES, 300.0)
+    table.update(given)
     _, calls = _run(refine, _hypotheses(8))
-    assert calls == [0, 1, 2, 3]
-
-
-def test_the_extension_stops_once_a_full_pose_is_found(refine):
-    table, _ = refine
-    for i in range(4):
-        table[i] = (True, ALL_BALLS[:6], ALL_ELLIPSES, 900.0)
-    table[4] = (True, ALL_BALLS[:8], ALL_LINES, 400.0)
-    _, calls = _run(refine, _hypotheses(8))
-    assert calls == [0, 1, 2, 3, 4]
-
-
-def test_no_converged_pose_asks_for_no_more_work(refine):
-    """Refusals alone do not extend the search: the work is kept for the other polarity and
-    region, where the right pose was on a blurred image of the tuning seed."""
-    table, _ = refine
-    for i in range(8):
-        table[i] = (False, ALL_BALLS[:5], [], 2000.0)
-    _, calls = _run(refine, _hypotheses(8))
-    assert calls == [0, 1, 2, 3]
+    assert calls == expected
 
 
 def test_the_options_set_both_counts(refine):
