@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..pose import Pose, so3
+from ..pose.simulate import pose_errors
 from . import evidence
 from .detection import Scene
 from .labelling import Labelling
@@ -117,13 +118,14 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
 
 
 def inside_covariance(pose: Pose, other: Pose) -> float:
-    """χ²₆ of ``other``'s difference from ``pose`` under ``pose``'s covariance (SPEC §4 order:
-    the left rotation vector log(R_other R_poseᵀ), rad, then the translation, mm); infinite
-    where ``pose`` has no usable covariance."""
+    """χ²₆ of ``other``'s difference from ``pose`` under ``pose``'s covariance (SPEC §4 order,
+    as :func:`~ftrac_design.pose.simulate.pose_errors` gives it: the left rotation vector
+    log(R_other R_poseᵀ), rad, then the translation, mm); infinite where ``pose`` has no
+    usable covariance."""
     C = pose.covariance
     if C is None or not np.all(np.isfinite(C)):
         return math.inf
-    e = np.r_[so3.log(other.rotation @ pose.rotation.T), other.translation_mm - pose.translation_mm]
+    e = np.concatenate(pose_errors(other.rotation, other.translation_mm, pose.rotation, pose.translation_mm))
     try:
         m = float(e @ np.linalg.solve(C, e))
     except np.linalg.LinAlgError:
