@@ -209,16 +209,38 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, op
             # stage; a later stage starts from that stage's solution, and on the accuracy
             # benchmark's images (60 + 60 ftrac_2005, 30 + 30 ftrac_mini and nine_bead) its
             # full solve never converged where the refinement had not (0 of 77; ~40 ms each)
-            pose = solve_from(scene, obs, noise, R, t, opts.max_noise_scale, rescue=stage == first_stage)
+            pose = solve_from(scene, obs, noise, R0 := R, t0 := t, opts.max_noise_scale, rescue=stage == first_stage)
         except Exception as exc:  # an unusable observation (e.g. collinear contour): stop here
             raise NoLabelling(f"segmented features unusable: {exc}") from None
         if not np.all(np.isfinite(pose.rotation)):
             break
         R, t = pose.rotation, pose.translation_mm
+        if not pose.converged:
+            # the next stage starts where the balls alone put the fiducial, when they agree
+            # and the contours gathered at this stage's pose do not: a contour point on the
+            # wrong wire had pulled a right hypothesis (ftrac_mini, raw) 36 mm away, where
+            # the next stage matched 4 of its 7 balls
+            rescued = _balls_alone(scene, obs, noise, R0, t0, opts)
+            if rescued is not None:
+                R, t = rescued.rotation, rescued.translation_mm
         out = Labelling(pose, obs, noise, match, cont, {**dropped_beads, **cont.dropped})
     if out is None:
         raise NoLabelling("no usable features for this labelling")
     return out
+
+
+def _balls_alone(scene: Scene, obs: Observation, noise: NoiseModel, R, t, opts: LabellingOptions) -> Pose | None:
+    """The pose from ``obs``'s balls alone, refined from (R, t), where a stage's solve with
+    its contours did not converge: None where there are contours to blame, balls enough
+    (three or more) and that solve converges — else None."""
+    if not (obs.lines or obs.ellipses) or len(obs.points) < 3:
+        return None
+    balls = Observation(obs.camera, dict(obs.points), {}, {}, obs.origin)
+    try:
+        p = solve_from(scene, balls, noise, R, t, opts.max_noise_scale, rescue=False)
+    except Exception:  # degenerate ball geometry: nothing to rescue with
+        return None
+    return p if p.converged and np.all(np.isfinite(p.rotation)) else None
 
 
 def _drop_inconsistent(scene: Scene, lab: Labelling, opts: LabellingOptions) -> Labelling:

@@ -86,7 +86,8 @@ class TrackOptions:
     sys_curve_px: float = 0.04
     floor_line_mm: float = 0.01
     floor_ellipse_mm: float = 0.01
-    #: a feature whose own residual is this improbable under the noise model is dropped
+    #: a feature whose own residual is this improbable under the noise model is dropped; a
+    #: pose resting on balls alone whose whole χ² is this improbable is refused
     feature_p_value: float = 1e-6
     max_dropped: int = 2
     #: a second labelling whose misfit (χ² + charges, see :func:`~.labelling.misfit`) is within this of
@@ -301,6 +302,7 @@ class AcceptanceOptions:
     min_beads: int
     min_redundancy: int
     min_feature_redundancy: float
+    feature_p_value: float
 
 
 def _taken(record: type, opts: TrackOptions, **given: Any) -> Any:
