@@ -4,8 +4,8 @@ the tracker keeps.
 
 A stage whose contours were gathered on the wrong wire does not converge; the next stage must
 then start where the stage's balls put the fiducial, not where the failed solve left it (tens
-of mm away, where the tight stage matches too few balls). And the subtraction's version only
-replaces the first where it explains more, or the same at no worse a misfit."""
+of mm away, where the tight stage matches too few balls). And the subtraction's version
+replaces the first unless it explains exactly the same features at a worse misfit."""
 
 from __future__ import annotations
 
@@ -91,23 +91,23 @@ def test_the_misled_stage_did_fail_without_the_balls_pose(stages, monkeypatch):
     assert not lab.obs.ellipses
 
 
-def _lab(converged: bool, balls: int, curves: int, score: float) -> Labelling:
+def _lab(converged: bool, balls: int, curves: tuple[str, ...], score: float) -> Labelling:
     pose = Pose(np.eye(3), np.array([0.0, 0.0, 600.0]), converged, 1.0, None, {}, 3)
-    obs = SimpleNamespace(
-        points={f"B{i}": None for i in range(balls)}, lines={f"L{i}": None for i in range(curves)}, ellipses={}
-    )
+    obs = SimpleNamespace(points={f"B{i}": None for i in range(balls)}, lines={}, ellipses={c: None for c in curves})
     return Labelling(pose, obs, NoiseModel(), {}, None, {}, score=score)
 
 
 @pytest.mark.parametrize(
     ("before", "after", "kept"),
     [
-        ((True, 7, 1, 291.9), (True, 7, 1, 325.6), False),  # the same features, a worse fit
-        ((True, 7, 1, 291.9), (True, 7, 1, 280.0), True),  # the same features, a better fit
-        ((True, 7, 1, 291.9), (True, 9, 1, 330.0), True),  # two balls more
-        ((True, 7, 0, 291.9), (True, 7, 1, 330.0), True),  # a wire contour more
-        ((False, 7, 1, 291.9), (True, 7, 1, 325.6), True),  # the first had failed
+        ((True, 7, ("E2",), 291.9), (True, 7, ("E2",), 325.6), False),  # the same features, a worse fit
+        ((True, 7, ("E2",), 291.9), (True, 7, ("E2",), 280.0), True),  # the same features, a better fit
+        ((True, 7, ("E2",), 291.9), (True, 9, ("E2",), 330.0), True),  # two balls more
+        ((True, 7, (), 291.9), (True, 7, ("E2",), 330.0), True),  # a wire contour more
+        ((True, 5, ("E1", "E2"), 1018.7), (True, 5, ("E1",), 1047.0), True),  # a spoiled contour rejected
+        ((True, 8, ("E1",), 1706.2), (True, 8, ("E2",), 1725.6), True),  # another contour, as many
+        ((False, 7, ("E2",), 291.9), (True, 7, ("E2",), 325.6), True),  # the first had failed
     ],
 )
-def test_the_subtraction_replaces_the_best_labelling_only_where_it_helped(before, after, kept):
+def test_the_subtraction_replaces_the_best_labelling_unless_it_changed_no_feature_and_fits_worse(before, after, kept):
     assert pipeline._subtraction_helped(_lab(*before), _lab(*after)) is kept

@@ -230,9 +230,10 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, op
 
 
 def _balls_alone(scene: Scene, obs: Observation, noise: NoiseModel, R, t, opts: LabellingOptions) -> Pose | None:
-    """The pose from ``obs``'s balls alone, refined from (R, t), where a stage's solve with
-    its contours did not converge: None where there are contours to blame, balls enough
-    (three or more) and that solve converges — else None."""
+    """The pose ``obs``'s balls alone give, refined from (R, t), for a stage whose solve with
+    its contours did not converge: where three or more balls converge alone, the contours are
+    what misled it. None where there are no contours to blame, fewer than three balls, or the
+    balls do not converge either."""
     if not (obs.lines or obs.ellipses) or len(obs.points) < 3:
         return None
     balls = Observation(obs.camera, dict(obs.points), {}, {}, obs.origin)
