@@ -171,7 +171,7 @@ def _subtraction_helped(before: Labelling, after: Labelling) -> bool:
     those are no better evidence: ftrac_mini on raw counts fitted the same 7 balls and ellipse
     at variance factor 3.1 against 1.1, 7 mm off against 2.7, and a near-mirror rival 164° off
     came within the ambiguity margin; on the tuning seed, keeping them always moved
-    ftrac_mini's balls-only poses 4–6 mm in depth, mostly away from the truth (96 of 260
+    ftrac_mini's balls-only poses 2–6 mm in depth, mostly away from the truth (96 of 260
     right against 106). Under blur they can lie truer while fitting worse (three nine_bead
     images of held-out seed 2046), which this rule gives up."""
     if not before.pose.converged:
