@@ -55,6 +55,56 @@ def test_invalid_regions_cover_a_round_field_and_spare_a_clipped_ball():
     assert invalid_regions(np.rint(120 + 10 * rng.standard_normal((H, W))).astype(np.uint8), 8, 10) is None
 
 
+def _dark_frame_with_clipped_cores(rng, H=160, W=160):
+    """A display frame whose window maps dense anatomy near black (mean 14 grey levels, noise
+    σ 5) with a 3 × 3 grid of balls 16 px apart, each darker by a blurred disc of radius 3.4
+    px that the window clips to 0 at its core; the (row, col) centres."""
+    V, U = np.mgrid[0:H, 0:W]
+    img = 14.0 + 5.0 * rng.standard_normal((H, W))
+    centres = [(64 + 16 * i, 64 + 16 * j) for i in range(3) for j in range(3)]
+    for r, c in centres:
+        d = np.hypot(U - c, V - r)
+        img -= 40.0 / (1.0 + np.exp((d - 3.4) / 0.8))
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8), centres
+
+
+def test_invalid_regions_do_not_join_clipped_ball_cores():
+    """Balls whose cores a window clipped to black, over anatomy it maps near black, are
+    specks narrower than a ball each: they are not joined into one clipped region that would
+    take the balls and their flanks out of the image."""
+    img, centres = _dark_frame_with_clipped_cores(np.random.default_rng(3))
+    img[0, 0], img[-1, -1] = 0, 255  # the frame's full range: 0 is its clip level
+    speck = cv2.blur(img.astype(np.float32), (5, 5)) <= 5.1
+    assert all(speck[r, c] for r, c in centres)  # each core is clipped (its 5 × 5 mean at 0)
+    # the closing alone (holes ≤ 24 px filled, then the disc's opening) joins them
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (17, 17))
+    closed = cv2.morphologyEx(
+        speck.astype(np.uint8), cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25))
+    )
+    assert cv2.morphologyEx(closed, cv2.MORPH_OPEN, k)[80, 80]
+    bad = invalid_regions(img, disc_px=8, margin_px=10)
+    assert bad is None or not any(bad[r, c] for r, c in centres)
+
+
+def test_invalid_regions_close_text_inside_a_saturated_corner():
+    """Burned-in text over a saturated (white) corner is closed into the corner's invalid
+    region; the anatomy beside it stays valid."""
+    rng = np.random.default_rng(4)
+    H = W = 200
+    img = 110 + 8 * rng.standard_normal((H, W))
+    img[:80, 120:] = 255 - rng.integers(0, 3, (80, 80))  # a saturated corner
+    for row in (20, 34, 48):  # three lines of dark text, strokes 2 px wide
+        for col in range(130, 190, 7):
+            img[row : row + 8, col : col + 2] = 30
+            img[row : row + 2, col : col + 5] = 30
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    img[-1, 0] = 0
+    bad = invalid_regions(img, disc_px=8, margin_px=10)
+    assert bad is not None
+    assert bad[:80, 120:].all()  # the corner with its text
+    assert not bad[120:, :100].any()
+
+
 def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
     rng = np.random.default_rng(1)
     img = np.full((64, 64), 100.0) + rng.normal(0, 2, (64, 64))
