@@ -74,6 +74,7 @@ def _beads(obs: Observation, radius: dict[str, float], sigma: dict[str, float]) 
         sigma_px=np.array([sigma.get(k, 0.05) for k in ids]),
         rms=np.ones(n),
         response=np.ones(n),
+        contrast=np.full(n, 20.0),
     )
     return beads, {k: i for i, k in enumerate(ids)}
 

@@ -35,7 +35,9 @@ def _view(seed: int = 3):
 def _scene(features, cam, obs):
     uv = np.array([obs.points[p.id] for p in features.points])
     n = len(uv)
-    beads = Beads(uv, np.full(n, 3.0), np.full(n, 0.8), np.ones(n), np.full(n, 0.05), np.ones(n), np.ones(n))
+    beads = Beads(
+        uv, np.full(n, 3.0), np.full(n, 0.8), np.ones(n), np.full(n, 0.05), np.ones(n), np.ones(n), np.full(n, 20.0)
+    )
     scales = SimpleNamespace(bead_radius_px=3.0, blur_px=0.8, pixel_mm=cam.pixel_size_mm[0])
     return SimpleNamespace(features=features, camera=cam, beads=beads, scales=scales)
 

@@ -118,7 +118,9 @@ class Beads:
     """Fitted beads: ``uv`` (n, 2) px centres, ``radius`` (n,) px, ``blur`` (n,) px,
     ``amplitude`` (n,) density per px of chord, ``sigma_px`` (n,) the centre's standard
     deviation from the fit (px, per axis), ``rms`` (n,) the fit's residual RMS over the
-    noise (≈ 1 for a clean ball), ``response`` (n,) the detector's blob response."""
+    noise (≈ 1 for a clean ball), ``response`` (n,) the detector's blob response, ``contrast``
+    (n,) the fitted ball's peak over the noise σ (its amplitude × the blurred chord at its
+    centre, at most the patch's rise above its background: how far above the noise it stands)."""
 
     uv: np.ndarray
     radius: np.ndarray
@@ -127,6 +129,7 @@ class Beads:
     sigma_px: np.ndarray
     rms: np.ndarray
     response: np.ndarray
+    contrast: np.ndarray
 
     def take(self, keep) -> "Beads":
         """The beads selected by boolean or index array ``keep``."""
@@ -221,7 +224,7 @@ def fit_beads(
     # patch could not be placed inside it)
     if n == 0 or min(H, W) < 2 * half + 1:
         z = np.zeros(0)
-        return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
+        return Beads(np.zeros((0, 2)), z, z, z, z, z, z, z)
     y, X, Y, (cx, cy), (py, px) = _patches(img, starts, half)
     # params: u, v (relative), r, s, A, b0, bx, by
     p = np.zeros((n, 8))
@@ -230,8 +233,9 @@ def fit_beads(
     p[:, 2] = radius_px
     p[:, 3] = max(blur_px, 0.5)
     p[:, 5] = np.percentile(y, 10, axis=1)
+    seen = y.max(1) - p[:, 5]  # the patch's rise above its background
     peak = sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0]
-    p[:, 4] = np.maximum(y.max(1) - p[:, 5], 1e-6) / np.maximum(peak, 1e-9)
+    p[:, 4] = np.maximum(seen, 1e-6) / np.maximum(peak, 1e-9)
     w0 = np.ones_like(y) if exclude is None else (~np.asarray(exclude, bool)[py, px]).astype(float)
     sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
@@ -258,6 +262,9 @@ def fit_beads(
         sd,
         rms,
         np.asarray(response, float) if response is not None else np.full(n, np.nan),
+        # no more than the patch shows: a fit run off to a tiny, huge-amplitude ball (a glyph's
+        # strokes) would otherwise claim a contrast of thousands of σ
+        np.minimum(p[:, 4] * sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0], seen) / sn,
     )
 
 

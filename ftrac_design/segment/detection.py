@@ -357,7 +357,7 @@ def _learned_candidates(
     starts = starts[(starts[:, 0] >= 0) & (starts[:, 1] >= 0) & (starts[:, 0] <= W - 1) & (starts[:, 1] <= H - 1)]
     if len(starts) == 0:
         z = np.zeros(0)
-        return Beads(np.zeros((0, 2)), z, z, z, z, z, z)
+        return Beads(np.zeros((0, 2)), z, z, z, z, z, z, z)
     b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, sc.blur_px)
     b = b.take(ok)
     if len(b) and valid is not None and not valid.all():

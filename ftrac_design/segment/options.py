@@ -149,6 +149,13 @@ class TrackOptions:
     bead_present_snr: float = 4.0
     #: a confident labelling uses at least this many balls
     min_beads: int = 5
+    #: a blob whose blurred-sphere fit leaves a residual RMS above ``ball_shape_rms`` noise σ
+    #: and above ``ball_shape_fraction`` of its own peak contrast is not shaped like a ball
+    #: (:func:`~.acceptance.misshapen_balls`); a confident labelling uses at most
+    #: ``max_misshapen_balls`` such blobs as balls
+    ball_shape_rms: float = 3.0
+    ball_shape_fraction: float = 0.1
+    max_misshapen_balls: int = 2
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
     #: labelling needs
     min_redundancy: int = 6
@@ -300,6 +307,9 @@ class AcceptanceOptions:
     wire_min_snr: float
     max_unexplained_beads: int
     min_beads: int
+    ball_shape_rms: float
+    ball_shape_fraction: float
+    max_misshapen_balls: int
     min_redundancy: int
     min_feature_redundancy: float
     feature_p_value: float

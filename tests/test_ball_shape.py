@@ -1,0 +1,93 @@
+"""Whether a blob is shaped like a ball: the blurred-sphere fit's contrast and residual, and the
+acceptance test that refuses a labelling resting on blobs that are not balls."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+import pytest
+from scipy.ndimage import gaussian_filter
+
+from ftrac_design.segment import TrackOptions
+from ftrac_design.segment.acceptance import misshapen_balls
+from ftrac_design.segment.beads import fit_beads, sphere_profile
+
+OPTS = TrackOptions().acceptance
+
+
+def _misshapen(b, opts=OPTS) -> np.ndarray:
+    """The rule :func:`misshapen_balls` applies to each ball."""
+    return (b.rms > opts.ball_shape_rms) & ((b.contrast <= 0) | (b.rms > opts.ball_shape_fraction * b.contrast))
+
+
+def _pixel_integrated_ball(centre, r: float, s: float, amplitude: float, size: int = 41, sup: int = 10) -> np.ndarray:
+    """A ball drawn independently of the fit's model: the chord 2√(r² − ρ²) on a grid ``sup`` ×
+    finer than the pixels, blurred by σ = ``s`` px and averaged over each pixel's area (an
+    integration the model leaves out)."""
+    h = 1.0 / sup
+    ax = (np.arange(size * sup) + 0.5) * h - 0.5
+    X, Y = np.meshgrid(ax - centre[0], ax - centre[1])
+    chord = 2 * np.sqrt(np.maximum(r * r - X * X - Y * Y, 0.0))
+    fine = gaussian_filter(chord, s / h, mode="constant")
+    return amplitude * fine.reshape(size, sup, size, sup).mean(axis=(1, 3))
+
+
+@pytest.mark.parametrize("sigma", [0.02, 0.002, 0.0002])
+def test_a_ball_drawn_another_way_is_ball_shaped_at_any_snr(sigma):
+    """A pixel-integrated blurred sphere over a tilted background, with noise σ from an SNR of
+    ~30 to ~3000: the fit's contrast is the drawn ball's peak over σ (within 5 %), and the
+    ball is not misshapen; at an SNR of ~30 its residual is the noise (RMS within 0.75–1.3 σ)."""
+    c, r, s, amp = (20.3, 19.6), 3.4, 0.8, 0.1
+    yy, xx = np.mgrid[:41, :41]
+    img = _pixel_integrated_ball(c, r, s, amp) + 0.3 + 0.002 * xx - 0.001 * yy
+    img = img + np.random.default_rng(5).normal(0, sigma, img.shape)
+    b = fit_beads(img, np.array([[20.0, 20.0]]), r, s, sigma)
+    peak = amp * float(sphere_profile(np.zeros((1, 1)), np.array([r]), np.array([s]))[0, 0])
+    assert b.contrast[0] == pytest.approx(peak / sigma, rel=0.05)
+    assert not _misshapen(b)[0]
+    if sigma >= 0.02:
+        assert 0.75 < b.rms[0] < 1.3
+
+
+@pytest.mark.parametrize("glyph", list("2045/IMG"))
+def test_a_burned_in_glyph_is_not_ball_shaped(glyph):
+    """One character of a frame grabber's burned-in text (OpenCV's Hershey font at a 1024² frame's
+    size, anti-aliased, 60 σ above its background): a blurred-sphere fit started at its
+    centroid leaves a residual far above the noise and above a tenth of its contrast."""
+    m = np.zeros((41, 41), np.uint8)
+    cv2.putText(m, glyph, (13, 29), cv2.FONT_HERSHEY_SIMPLEX, 0.7, 255, 2, cv2.LINE_AA)
+    ys, xs = np.nonzero(m)
+    w = m[ys, xs].astype(float)
+    start = np.array([[np.sum(xs * w) / w.sum(), np.sum(ys * w) / w.sum()]])
+    sigma = 0.01
+    img = 0.6 * m / 255.0 + 0.2 + np.random.default_rng(7).normal(0, sigma, m.shape)
+    b = fit_beads(img, start, 3.4, 0.8, sigma)
+    assert _misshapen(b)[0], (b.rms[0], b.contrast[0])
+
+
+def _case(rms, contrast):
+    """A scene whose blobs have the given fit RMS and contrast, and a labelling using them all."""
+    n = len(rms)
+    beads = SimpleNamespace(rms=np.asarray(rms, float), contrast=np.asarray(contrast, float))
+    ids = [f"B{i + 1}" for i in range(n)]
+    lab = SimpleNamespace(match={k: i for i, k in enumerate(ids)}, obs=SimpleNamespace(points=dict.fromkeys(ids)))
+    return SimpleNamespace(beads=beads), lab
+
+
+def test_a_labelling_on_more_than_the_allowed_misshapen_blobs_is_refused():
+    """Nine blobs: a bright ball 5 σ off the model at 2.5 % of its contrast and a faint one at
+    its noise are balls; 3.5 σ at 35 % of the contrast, or any residual above 3 σ on a blob
+    darker than its background, is not. Two such blobs are allowed, three refuse."""
+    good = [1.0, 5.0, 1.2, 0.9, 1.1, 1.0]
+    good_c = [30.0, 200.0, 8.0, 25.0, 40.0, 12.0]
+    two = good + [1.0, 3.5, 4.0], good_c + [20.0, 10.0, -5.0]
+    three = good + [3.5, 3.5, 4.0], good_c + [20.0, 10.0, -5.0]
+    assert misshapen_balls(*_case(*two), OPTS) is None
+    reason = misshapen_balls(*_case(*three), OPTS)
+    assert reason is not None and "3 of the 9 beads" in reason
+    # balls the labelling matched but the solve did not use are not counted
+    scene, lab = _case(*three)
+    del lab.obs.points["B7"]
+    assert misshapen_balls(scene, lab, OPTS) is None
