@@ -177,6 +177,49 @@ def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):
     )
 
 
+def test_the_distortion_term_follows_the_solver_where_a_contour_s_fit_is_fragile(f2005):
+    """An observation segmented from a pincushioned image (tests/data, its origin inside)
+    with one ellipse read along a short, thin arc: its fitted conic — and so its whitening —
+    changes with the displacement, so the undisplaced observation's Jacobian predicts a
+    fifteenth of the depth shift. Each mode's shift in the term is the solver's own, solved
+    from the pose on the displaced observation (depth within 3 %), and the pose's depth error
+    from the image's 1.34 mm pincushion lies inside the covariance the term gives."""
+    import json
+    from pathlib import Path
+
+    from ftrac_design.pose import NoiseModel, SolverOptions, observation_from_dict, refine_pose
+    from ftrac_design.pose.observation import CurveObservation
+    from ftrac_design.segment.noise import distortion_covariance, distortion_modes
+
+    d = json.loads((Path(__file__).parent / "data" / "distortion_arc_observation.json").read_text(encoding="utf-8"))
+    obs = observation_from_dict(d["observation"])
+    nd = d["noise"]
+    noise = NoiseModel(nd["point_mm"], nd["line_mm"], nd["ellipse_mm"], tuple((k, v) for k, v in nd["points"].items()))
+    R, t = np.array(d["pose"]["rotation"]), np.array(d["pose"]["translation_mm"])
+    base = refine_pose(f2005, obs, R, t, SolverOptions(noise=noise))
+    assert base.converged
+    moved_z = []
+    for k in range(4):
+
+        def mv(uv):
+            return uv + distortion_modes(obs.camera, uv, 100.0)[k]
+
+        o = Observation(
+            obs.camera,
+            {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
+            {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
+            {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()},
+        )
+        moved = refine_pose(f2005, o, base.rotation, base.translation_mm, SolverOptions(noise=noise))
+        moved_z.append(float(moved.translation_mm[2] - base.translation_mm[2]))
+    got = distortion_covariance(f2005, obs, base, noise, 1.0)
+    want_var = sum((w * z) ** 2 for w, z in zip((1.0, 1.0, 0.4, 0.4), moved_z))
+    assert abs(moved_z[0]) > 2.0  # the pincushion's mode moves it millimetres in depth
+    assert np.sqrt(got[5, 5]) == pytest.approx(np.sqrt(want_var), rel=0.03)
+    # 1.34 mm of pincushion put the pose 5.0 mm too near: 1.34 σ-units of the term at 1 mm
+    assert 5.0 / 1.34 < 1.5 * np.sqrt(got[5, 5])
+
+
 def test_distortion_modes_are_the_closed_form():
     """1 mm at 100 mm from the principal point, cubic in the radius (pincushion) and a
     rotation growing with its square (S): at 50 mm, 0.125 mm radially / tangentially; the
