@@ -365,15 +365,14 @@ def test_a_crop_is_conditioned_against_the_frames_clip_levels():
     assert not part.valid[:20, :20].any() and part.valid[100:140, 100:160].all()
 
 
-def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tracked):
+def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tracked, displaced_by_mode):
     """Σ σ² Δθ Δθᵀ over the modes, each Δθ what the solver itself does with that mode's
     displacement of the observed features: its pose from the displaced observation less its
     pose from the observation, both solved from the tracked pose (to 2 % of the largest
     component, each mode by itself)."""
     from ftrac_design.pose import SolverOptions, refine_pose
-    from ftrac_design.pose.observation import CurveObservation, Observation
     from ftrac_design.pose.simulate import pose_errors
-    from ftrac_design.segment.noise import distortion_covariance, distortion_modes
+    from ftrac_design.segment.noise import distortion_covariance
 
     a = tracked[-1].result
     feats, obs, pose, noise = FEATURES["ftrac_2005"], a.observation, a.pose, a.noise
@@ -382,18 +381,7 @@ def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tra
     base = refine_pose(feats, obs, R, t, SolverOptions(noise=noise))
     want = np.zeros((6, 6))
     for k, w in enumerate((1.0, 1.0, 0.4, 0.4)):
-
-        def mv(uv):
-            return uv + distortion_modes(obs.camera, uv, 100.0)[k]
-
-        o = Observation(
-            obs.camera,
-            {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
-            {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
-            {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()},
-            obs.origin,
-        )
-        moved = refine_pose(feats, o, R, t, SolverOptions(noise=noise))
+        moved = refine_pose(feats, displaced_by_mode(obs, k), R, t, SolverOptions(noise=noise))
         assert moved.converged and base.converged
         dr, dt = pose_errors(moved.rotation, moved.translation_mm, base.rotation, base.translation_mm)
         want += (w * 1.5) ** 2 * np.outer(np.r_[dr, dt], np.r_[dr, dt])

@@ -177,7 +177,7 @@ def test_unmodelled_distortion_adds_its_covariance(f2005, rendered):
     )
 
 
-def test_the_distortion_term_follows_the_solver_where_a_contour_s_fit_is_fragile(f2005):
+def test_the_distortion_term_follows_the_solver_where_a_contour_s_fit_is_fragile(f2005, displaced_by_mode):
     """An observation segmented from a pincushioned image (tests/data, its origin inside)
     with one ellipse read along a short, thin arc: its fitted conic — and so its whitening —
     changes with the displacement, so the undisplaced observation's Jacobian predicts a
@@ -188,8 +188,7 @@ def test_the_distortion_term_follows_the_solver_where_a_contour_s_fit_is_fragile
     from pathlib import Path
 
     from ftrac_design.pose import NoiseModel, SolverOptions, observation_from_dict, refine_pose
-    from ftrac_design.pose.observation import CurveObservation
-    from ftrac_design.segment.noise import distortion_covariance, distortion_modes
+    from ftrac_design.segment.noise import distortion_covariance
 
     d = json.loads((Path(__file__).parent / "data" / "distortion_arc_observation.json").read_text(encoding="utf-8"))
     obs = observation_from_dict(d["observation"])
@@ -200,17 +199,9 @@ def test_the_distortion_term_follows_the_solver_where_a_contour_s_fit_is_fragile
     assert base.converged
     moved_z = []
     for k in range(4):
-
-        def mv(uv):
-            return uv + distortion_modes(obs.camera, uv, 100.0)[k]
-
-        o = Observation(
-            obs.camera,
-            {i: mv(np.asarray(v, float)[None])[0] for i, v in obs.points.items()},
-            {i: CurveObservation(points=mv(c.points)) for i, c in obs.lines.items()},
-            {i: CurveObservation(points=mv(c.points)) for i, c in obs.ellipses.items()},
+        moved = refine_pose(
+            f2005, displaced_by_mode(obs, k), base.rotation, base.translation_mm, SolverOptions(noise=noise)
         )
-        moved = refine_pose(f2005, o, base.rotation, base.translation_mm, SolverOptions(noise=noise))
         moved_z.append(float(moved.translation_mm[2] - base.translation_mm[2]))
     got = distortion_covariance(f2005, obs, base, noise, 1.0)
     want_var = sum((w * z) ** 2 for w, z in zip((1.0, 1.0, 0.4, 0.4), moved_z))
