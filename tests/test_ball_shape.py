@@ -11,15 +11,10 @@ import pytest
 from scipy.ndimage import gaussian_filter
 
 from ftrac_design.segment import TrackOptions
-from ftrac_design.segment.acceptance import misshapen_balls
-from ftrac_design.segment.beads import fit_beads, sphere_profile
+from ftrac_design.segment.acceptance import misshapen, misshapen_balls
+from ftrac_design.segment.beads import Beads, fit_beads, sphere_profile
 
 OPTS = TrackOptions().acceptance
-
-
-def _misshapen(b, opts=OPTS) -> np.ndarray:
-    """The rule :func:`misshapen_balls` applies to each ball."""
-    return (b.rms > opts.ball_shape_rms) & ((b.contrast <= 0) | (b.rms > opts.ball_shape_fraction * b.contrast))
 
 
 def _pixel_integrated_ball(centre, r: float, s: float, amplitude: float, size: int = 41, sup: int = 10) -> np.ndarray:
@@ -46,7 +41,7 @@ def test_a_ball_drawn_another_way_is_ball_shaped_at_any_snr(sigma):
     b = fit_beads(img, np.array([[20.0, 20.0]]), r, s, sigma)
     peak = amp * float(sphere_profile(np.zeros((1, 1)), np.array([r]), np.array([s]))[0, 0])
     assert b.contrast[0] == pytest.approx(peak / sigma, rel=0.05)
-    assert not _misshapen(b)[0]
+    assert not misshapen(b, OPTS)[0]
     if sigma >= 0.02:
         assert 0.75 < b.rms[0] < 1.3
 
@@ -64,13 +59,14 @@ def test_a_burned_in_glyph_is_not_ball_shaped(glyph):
     sigma = 0.01
     img = 0.6 * m / 255.0 + 0.2 + np.random.default_rng(7).normal(0, sigma, m.shape)
     b = fit_beads(img, start, 3.4, 0.8, sigma)
-    assert _misshapen(b)[0], (b.rms[0], b.contrast[0])
+    assert misshapen(b, OPTS)[0], (b.rms[0], b.contrast[0])
 
 
 def _case(rms, contrast):
     """A scene whose blobs have the given fit RMS and contrast, and a labelling using them all."""
     n = len(rms)
-    beads = SimpleNamespace(rms=np.asarray(rms, float), contrast=np.asarray(contrast, float))
+    z = np.zeros(n)
+    beads = Beads(np.zeros((n, 2)), z, z, z, z, np.asarray(rms, float), z, np.asarray(contrast, float))
     ids = [f"B{i + 1}" for i in range(n)]
     lab = SimpleNamespace(match={k: i for i, k in enumerate(ids)}, obs=SimpleNamespace(points=dict.fromkeys(ids)))
     return SimpleNamespace(beads=beads), lab

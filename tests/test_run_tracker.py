@@ -368,8 +368,8 @@ def test_a_crop_is_conditioned_against_the_frames_clip_levels():
 def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tracked, displaced_by_mode):
     """Σ σ² Δθ Δθᵀ over the modes, each Δθ what the solver itself does with that mode's
     displacement of the observed features: its pose from the displaced observation less its
-    pose from the observation, both solved from the tracked pose (to 2 % of the largest
-    component, each mode by itself)."""
+    pose from the observation, both solved from the tracked pose (standard deviations within
+    2 %, every element within 5 % or 2 % of the largest)."""
     from ftrac_design.pose import SolverOptions, refine_pose
     from ftrac_design.pose.simulate import pose_errors
     from ftrac_design.segment.noise import distortion_covariance

@@ -17,6 +17,7 @@ from scipy.stats import chi2
 from ..pose import Pose, so3
 from ..pose.simulate import pose_errors
 from . import evidence
+from .beads import Beads
 from .detection import Scene
 from .labelling import Labelling
 from .noise import redundancy_numbers
@@ -222,12 +223,18 @@ def balls_misfit(lab: Labelling, opts: AcceptanceOptions) -> str | None:
     )
 
 
+def misshapen(beads: Beads, opts: AcceptanceOptions) -> np.ndarray:
+    """Which fitted ``beads`` are not shaped like a ball (bool, one per bead): their fit's
+    residual RMS above ``opts.ball_shape_rms`` noise σ and above ``opts.ball_shape_fraction`` of
+    their peak contrast (the first bound alone when the fit is not brighter than its background)."""
+    rms, contrast = beads.rms, beads.contrast
+    return (rms > opts.ball_shape_rms) & ((contrast <= 0) | (rms > opts.ball_shape_fraction * contrast))
+
+
 def misshapen_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
     """Refused when more than ``opts.max_misshapen_balls`` of the blobs the labelling uses as
-    balls are not shaped like one: their blurred-sphere fit (:func:`.beads.fit_beads`) leaves a
-    residual RMS above ``opts.ball_shape_rms`` noise σ and above ``opts.ball_shape_fraction`` of
-    the blob's peak contrast (the first bound alone when the fit is not brighter than its
-    background).
+    balls are not shaped like one (:func:`misshapen`: their blurred-sphere fit,
+    :func:`.beads.fit_beads`, leaves too large a residual).
 
     A ball is a sphere's projection: its fit leaves the noise, and at a high SNR a few per cent
     of its contrast where our model and the beam differ. Both bounds are needed: a faint
@@ -244,8 +251,7 @@ def misshapen_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> st
     idx = np.array([j for fid, j in lab.match.items() if fid in lab.obs.points], int)
     if len(idx) <= opts.max_misshapen_balls:
         return None
-    rms, contrast = beads.rms[idx], beads.contrast[idx]
-    bad = (rms > opts.ball_shape_rms) & ((contrast <= 0) | (rms > opts.ball_shape_fraction * contrast))
+    bad = misshapen(beads.take(idx), opts)
     if int(bad.sum()) <= opts.max_misshapen_balls:
         return None
     return (
