@@ -71,6 +71,108 @@ def wire_support(
     return out
 
 
+#: model samples per line (spread over its wire pieces by length) and per ellipse when many
+#: poses are judged at once
+COARSE_SAMPLES = 24
+#: where a curve's median ridge evidence is clipped when hypotheses are ranked (noise units):
+#: a plain wire counts fully at 3 and no more, a curve on bare background about 0, and one
+#: on the opposite of a wire (a dark line where a wire would be bright) −1 at most
+RANK_CLIP = (-1.0, 3.0)
+
+
+def _coarse_model_curves(features) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Every line and ellipse sampled ``COARSE_SAMPLES`` times in F (a line on its wire
+    pieces only): points (m, 3) mm, unit tangents (m, 3), model length per sample (m,) mm,
+    curve index (m,) and curve ids."""
+    n = COARSE_SAMPLES
+    pts, tan, step, owner, ids = [], [], [], [], []
+    pieces: dict[str, list] = {}
+    for fid, a, b in features.wire_pieces:
+        pieces.setdefault(fid, []).append((a, b))
+    for fid, ab in pieces.items():
+        lengths = np.array([np.linalg.norm(b - a) for a, b in ab])
+        total = max(float(lengths.sum()), 1e-9)
+        # n samples at the centres of n equal steps of the pieces laid end to end
+        s = (np.arange(n) + 0.5) / n * total
+        k = np.minimum(np.searchsorted(np.cumsum(lengths), s, side="right"), len(ab) - 1)
+        f = (s - np.r_[0.0, np.cumsum(lengths)][k]) / np.maximum(lengths[k], 1e-9)
+        A, B = np.array([a for a, _ in ab])[k], np.array([b for _, b in ab])[k]
+        pts.append(A + f[:, None] * (B - A))
+        tan.append(B - A)
+        step.append(np.full(n, total / n))
+        owner.append(np.full(n, len(ids)))
+        ids.append(fid)
+    for el in features.ellipses:
+        s = np.linspace(0, 2 * np.pi, n, endpoint=False)
+        d = el.sample(s + 1e-3) - el.sample(s - 1e-3)
+        pts.append(el.sample(s))
+        tan.append(d)
+        step.append(np.linalg.norm(d, axis=1) / 2e-3 * (2 * np.pi / n))
+        owner.append(np.full(n, len(ids)))
+        ids.append(el.id)
+    if not pts:
+        z = np.zeros((0, 3))
+        return z, z, np.zeros(0), np.zeros(0, int), []
+    T = np.concatenate(tan)
+    T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
+    return np.concatenate(pts), T, np.concatenate(step), np.concatenate(owner), ids
+
+
+def _row_medians(x: np.ndarray) -> np.ndarray:
+    """Median of each row of ``x`` (H, n) over its finite entries; NaN for a row with none."""
+    k = np.isfinite(x).sum(1)
+    srt = np.sort(np.where(np.isfinite(x), x, np.inf), axis=1)
+    lo = np.take_along_axis(srt, np.maximum((k - 1) // 2, 0)[:, None], 1)[:, 0]
+    hi = np.take_along_axis(srt, np.maximum(k // 2, 0)[:, None], 1)[:, 0]
+    return np.where(k > 0, 0.5 * (lo + hi), np.nan)
+
+
+def ranking_support(
+    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, chunk: int = 256
+) -> np.ndarray:
+    """How plainly the image shows the wires of each of many poses (R (H, 3, 3), t (H, 3)):
+    per pose, the sum over its lines and ellipses of the median ridge evidence along the
+    curve (noise units, clipped to ``RANK_CLIP``); a curve with less than ``MIN_FREE_PX`` of
+    readable length adds nothing. Returns (H,).
+
+    The measure of :func:`wire_support` on ``COARSE_SAMPLES`` samples a curve instead of one
+    every 0.5 px, for every bead hypothesis of an image at once (hundreds to thousands):
+    ranking them by it puts first the poses whose wires the image shows, which a pose must
+    have to pass (:func:`.acceptance.absent_wires`)."""
+    features, camera = scene.features, scene.camera
+    R, t = np.asarray(R, float).reshape(-1, 3, 3), np.asarray(t, float).reshape(-1, 3)
+    out = np.zeros(len(R))
+    S, T, ds, owner, ids = _coarse_model_curves(features)
+    if not len(S) or not len(R):
+        return out
+    centers = features.point_centers() if len(features.points) else np.zeros((0, 3))
+    rad = np.asarray(bead_radius_px, float)
+    lo, hi = RANK_CLIP
+    h = 0.05  # mm along the tangent: the curve's direction in the image
+    for i0 in range(0, len(R), chunk):
+        Ri, ti = R[i0 : i0 + chunk], t[i0 : i0 + chunk]
+        uv, Z = identify.project(camera, Ri, ti, S)
+        tv = identify.project(camera, Ri, ti, S + h * T)[0] - uv
+        px = np.linalg.norm(tv, axis=-1) / h * ds  # image length per sample
+        ok = scene.readable(uv, margin_px=1.0) & (Z > 0) & np.isfinite(px)
+        if len(centers) and ok.any():
+            bu = identify.project(camera, Ri, ti, centers)[0]
+            near = (np.linalg.norm(uv[:, :, None] - bu[:, None], axis=-1) <= rad).any(-1)
+            ok &= ~near
+        ev = np.full(ok.shape, np.nan)
+        if ok.any():
+            nrm = np.stack([-tv[..., 1], tv[..., 0]], -1)[ok]
+            nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
+            ev[ok] = scene.ridge_evidence(uv[ok], nrm)
+        for c in range(len(ids)):
+            cols = owner == c
+            length = np.where(ok[:, cols], px[:, cols], 0.0).sum(1)
+            med = _row_medians(np.where(ok[:, cols], ev[:, cols], np.nan))
+            med = np.where((length >= MIN_FREE_PX) & np.isfinite(med), np.clip(med, lo, hi), 0.0)
+            out[i0 : i0 + chunk] += med
+    return out
+
+
 def learned_wire_support(
     scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = MIN_FREE_PX
 ) -> dict[str, float]:

@@ -62,13 +62,20 @@ def outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
 @dataclass
 class BeadHypothesis:
     """A pose F → X from a bead labelling: ``match`` maps model bead index → detected blob
-    index; ``count`` beads matched; ``rms_px`` their reprojection RMS."""
+    index; ``count`` beads matched; ``rms_px`` their reprojection RMS; ``rank`` what orders
+    the hypotheses for refining: the count (when not given), and what the image shows of the
+    pose's wires once :func:`.pipeline.ranked_hypotheses` has looked."""
 
     R: np.ndarray
     t: np.ndarray
     match: dict[int, int]
     count: int
     rms_px: float
+    rank: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.rank is None:
+            self.rank = float(self.count)
 
 
 def project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -192,7 +199,7 @@ def bead_hypotheses(
     camera: Camera,
     tol_px: float,
     image_triplets: int = 24,
-    keep: int = 8,
+    keep: int | None = 8,
     max_extent_px: float = np.inf,
 ) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
@@ -206,7 +213,7 @@ def bead_hypotheses(
     image_triplets : how many triplets of blobs are tried at most (see :func:`_image_triplets`);
         the search stops early once a labelling explains every ball, or five triplets after
         the best one (explaining all but one or two) was last improved.
-    keep : how many labellings are returned.
+    keep : how many labellings are returned (None: all).
     max_extent_px : the largest distance two balls of the fiducial can be apart in the image.
 
     Returns

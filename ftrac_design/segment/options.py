@@ -54,6 +54,10 @@ class TrackOptions:
     bead_min_snr: float = 8.0
     #: first bead-matching tolerance (× the bead radius), then the refined one (px)
     hypothesis_tol_radii: float = 1.0
+    #: how many balls a wire the image shows plainly (3 noise units) is worth when the bead
+    #: hypotheses are ranked for refining: the image's ridges along a hypothesis' predicted
+    #: wires (:func:`.evidence.ranking_support`) add this per noise unit to its matched count
+    hypothesis_wire_weight: float = 0.5
     match_tol_px: float = 2.0
     #: contour points within this of a predicted curve belong to it (px); a second curve
     #: within ``separation_px`` makes a point ambiguous
@@ -224,6 +228,7 @@ class FindOptions:
     ridge_min_snr: float
     bead_min_snr: float
     hypothesis_tol_radii: float
+    hypothesis_wire_weight: float
 
 
 @dataclass(frozen=True)
