@@ -102,7 +102,7 @@ def ranked_hypotheses(
 
     Over dense anatomy or on a display frame a few balls are all the blob detector finds,
     and clutter lines up with five or six balls of hundreds of wrong poses: ranked by count
-    alone, a right hypothesis of four balls came 48th to 251st (tuning seed 21, ftrac_2005),
+    alone, a right hypothesis of four balls came 49th to 252nd (tuning seed 21, ftrac_2005),
     never refined. Those wrong poses put wire on bare background, which no pose may do
     (:func:`.acceptance.absent_wires`); the right one's wires show plainly. A bead-only
     design keeps the order by count, and so does a list whose first hypothesis explains every
