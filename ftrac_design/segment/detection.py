@@ -294,9 +294,9 @@ def balls_at(scene: Scene, starts: np.ndarray, min_snr: float, tol_px: float) ->
     and of every other ball; at most one per start.
 
     The search without a prediction keeps the design's balls × 3 + 6 strongest blobs, and
-    over dense anatomy or on a display frame clutter outranks the balls: four of nine were
-    all it kept of ftrac_2005 over a spine on a display frame (tuning seed 21), where the
-    other five stood plainly in the image."""
+    over dense anatomy or on a display frame clutter outranks the balls: of a blurred
+    ftrac_2005 over dense anatomy (tuning seed 21) it kept four, too few to confirm the right
+    labelling, which found its fifth ball where it predicted one."""
     starts = np.asarray(starts, float).reshape(-1, 2)
     z = np.zeros(0)
     none = Beads(np.zeros((0, 2)), z, z, z, z, z, z, z)

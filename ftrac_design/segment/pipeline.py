@@ -102,7 +102,7 @@ def ranked_hypotheses(
 
     Over dense anatomy or on a display frame a few balls are all the blob detector finds,
     and clutter lines up with five or six balls of hundreds of wrong poses: ranked by count
-    alone, a right hypothesis of four balls came 49th to 252nd (tuning seed 21, ftrac_2005),
+    alone, a right hypothesis of four balls came 8th to 252nd (tuning seed 21, ftrac_2005),
     never refined. Those wrong poses put wire on bare background, which no pose may do
     (:func:`.acceptance.absent_wires`); the right one's wires show plainly. A bead-only
     design keeps the order by count, and so does a list whose first hypothesis explains every
@@ -141,7 +141,7 @@ def with_predicted_balls(
         uv = uv[np.linalg.norm(uv[:, None] - beads.uv[None], axis=-1).min(1) > tol]
     if not len(uv):
         return scene
-    # one start per place: the hypotheses that agree on a ball predict it within a pixel
+    # one start per 2-px cell: the hypotheses that agree on a ball predict it within a pixel or two
     uv = uv[np.unique(np.rint(uv / 2.0), axis=0, return_index=True)[1]]
     found = balls_at(scene, uv, find.bead_min_snr, tol)
     found = found.take(~acceptance.misshapen(found, accept))
