@@ -163,6 +163,9 @@ def _contours(scene: Scene, R, t, blur: float, stage: int, opts: ContourOptions)
             opts.guided_min_snr,
             spacing_px=opts.thin_factor * sc.ridge_sigma_px if stage == 2 else 1.0,
             ridge_var_px2=var,
+            pool_px=opts.guided_pool * opts.thin_factor * sc.ridge_sigma_px,
+            corr_px=opts.thin_factor * sc.ridge_sigma_px,
+            pool_min_snr=opts.guided_pool_min_snr,
         )
     else:
         cont = identify.gather_contours(

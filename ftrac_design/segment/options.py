@@ -66,6 +66,13 @@ class TrackOptions:
     contours: Literal["guided", "detected"] = "guided"
     #: a guided contour point needs a curvature across the wire of this many noise σ
     guided_min_snr: float = 3.0
+    #: a wire too faint for that point by point is measured on runs of this many of its
+    #: noise's correlation lengths (``thin_factor`` × the ridge scale) each, one point per
+    #: run at √ this times the SNR (:func:`~.guided.guided_contours`); 0: not at all
+    guided_pool: float = 3.0
+    #: a run is a contour point at this many noise σ of its mean curvature across the wire;
+    #: a line needs three such runs, an ellipse six
+    guided_pool_min_snr: float = 2.0
     contour_tol_px: float = 2.0
     final_contour_tol_px: float = 1.0
     separation_px: float = 3.0
@@ -255,6 +262,8 @@ class ContourOptions:
     magnification: float
     contours: Literal["guided", "detected"]
     guided_min_snr: float
+    guided_pool: float
+    guided_pool_min_snr: float
     contour_tol_px: float
     final_contour_tol_px: float
     separation_px: float

@@ -200,7 +200,7 @@ def _balls(
     """The balls near their projections at pose (R, t) (see :func:`scene_near`; a start's blob
     response at least ``min_snr`` noise units) and the blob detector's response over its
     noise (H, W)."""
-    resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap)
+    resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap, sc.blob_sigma_px)
     snr = (resp / nr).astype(np.float32)
     uv, _ = identify.project(camera, R, t, features.point_centers())
     starts, val = _balls_near(T, snr, xx, yy, uv, search_px, min_snr)
