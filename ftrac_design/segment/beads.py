@@ -177,8 +177,8 @@ def blob_candidates(
     sigma_px: float | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Local maxima (n, 2) (u, v) of the scale-normalised negative Laplacian at the bead
-    scale σ = ``sigma_px`` (None: r/√2), strongest first, at most ``max_count``, each ≥ ``min_snr`` times the
-    noise response; also requires both Hessian eigenvalues negative, the smaller at least
+    scale σ = ``sigma_px`` (None: r/√2), strongest first, at most ``max_count``, each
+    ≥ ``min_snr`` times the noise response; also requires both Hessian eigenvalues negative, the smaller at least
     ``min_isotropy`` of the larger (a blob, not a ridge: a cortical band as wide as a ball
     gave hundreds of maxima along its length). ``noise``: the pixel noise σ, one number or a
     map (H, W). Returns the maxima and their response in units of the noise response there."""

@@ -15,6 +15,10 @@ The same exclusions as for detected ridge points apply: samples under a predicte
 within ``separation_px`` of another predicted curve, or where the image cannot be read; and
 an ellipse's points are moved outward by the curvature bias of a blurred curved ridge
 (σ²κ/2, σ² the smoothing variance).
+
+A wire too faint for that point by point (a 2 px blur, fluoroscopy dose: about 1 σ a point)
+is measured on runs of it instead: each run of a few noise correlation lengths moved to the
+ridge as one, by the same step on its mean gradient and curvature, one point per run.
 """
 
 from __future__ import annotations
