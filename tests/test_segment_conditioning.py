@@ -11,11 +11,20 @@ from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import TrackOptions, identify, track_image
 from ftrac_design.segment.beads import blob_candidates
-from ftrac_design.segment.conditioning import condition, fill_clipped, formation_of, invalid_regions, to_density
+from ftrac_design.segment.conditioning import (
+    burned_in_graphics,
+    condition,
+    fill_clipped,
+    formation_of,
+    invalid_regions,
+    to_density,
+    without_graphics,
+)
 from ftrac_design.segment.detection import detect, scales
 from ftrac_design.segment.guided import guided_contours
 from ftrac_design.segment.image import NoiseField, noise_map
 from ftrac_design.xray import render
+from ftrac_design.xray.display import annotation_mask
 
 
 def test_formation_from_the_pixels():
@@ -118,6 +127,75 @@ def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
     assert np.abs(out[20, 10:55] - 100).max() < 15  # the stroke is gone
     assert out[45, 40] > 200  # the ball stays a bright blob
     assert np.all(np.isfinite(out))
+
+
+def _frame_with_graphics(seed: int, level: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A 1024² dense-dark display frame: a smooth background with noise, a white and a black
+    clipped band, a dark blurred ball and an oblique blurred wire in one corner, and the frame
+    grabber's text and crosshair
+    (:func:`ftrac_design.xray.display.annotation_mask`) written at ``level`` (None: none).
+    Returns the frame (uint8), the graphics' cores (coverage ≥ 0.99) and the fiducial's
+    pixels (within 4 px of the ball or the wire)."""
+    rng = np.random.default_rng(seed)
+    H = W = 1024
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    img = 110 + 40 * np.sin(xx / 90.0) * np.cos(yy / 130.0) + rng.normal(0, 3, (H, W))
+    ball = (xx - 800) ** 2 + (yy - 760) ** 2
+    img -= 70 * np.exp(-ball / (2 * 3.0**2))
+    # a wire at 30° through (800, 800), blurred to σ 1 px
+    d = np.abs((xx - 800) * np.sin(np.radians(30)) - (yy - 800) * np.cos(np.radians(30)))
+    along = np.abs((xx - 800) * np.cos(np.radians(30)) + (yy - 800) * np.sin(np.radians(30)))
+    img -= np.where(along < 80, 50 * np.exp(-(d**2) / 2.0), 0)
+    fiducial = (ball < 16 + 6 * 3.0) | ((d < 4) & (along < 80))
+    # a saturated direct beam and a black-clipped strip: the frame's extremes are not the text's
+    img[240:300, :] = 255.0
+    img[700:720, :] = 0.0
+    cores = np.zeros((H, W), bool)
+    if level is not None:
+        a = annotation_mask((H, W), rng)
+        img = img * (1 - a) + level * a
+        cores = a >= 0.99
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8), cores, fiducial
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_burned_in_graphics_at_a_grey_level_are_found_and_filled(seed):
+    """Text and a crosshair written at 85 % of white (not the display's extreme, which
+    :func:`fill_clipped` takes out): ≥ 90 % of their cores are found, no pixel of the ball or
+    the wire is, and once filled in the text stands out of its background by a fifth of what
+    it did."""
+    img, cores, fiducial = _frame_with_graphics(seed, 0.85 * 255)
+    g = burned_in_graphics(img)
+    assert g is not None
+    assert g[cores].mean() >= 0.9
+    assert not g[fiducial].any()
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    text = cv2.dilate(cores.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    before = cv2.morphologyEx(img.astype(np.float32), cv2.MORPH_TOPHAT, k)[text].max()
+    after = cv2.morphologyEx(without_graphics(img.astype(np.float32), g), cv2.MORPH_TOPHAT, k)[text]
+    assert np.percentile(after, 99) < 0.2 * before
+    # the ball and the wire are untouched
+    out = without_graphics(img.astype(np.float32), g)
+    np.testing.assert_array_equal(out[fiducial], img[fiducial])
+
+
+def test_no_graphics_where_there_are_none():
+    """The same frames without text or crosshair, and a log image (its values are not grey
+    levels), have none."""
+    for seed in (1, 2, 3):
+        img, _, _ = _frame_with_graphics(seed, None)
+        assert burned_in_graphics(img) is None
+    rng = np.random.default_rng(4)
+    assert burned_in_graphics(np.float32(2.0) + rng.random((128, 128), np.float32)) is None
+
+
+def test_condition_fills_a_display_frames_graphics():
+    """A display frame is conditioned without its graphics: the density image shows no text."""
+    img, cores, _ = _frame_with_graphics(1, 0.85 * 255)
+    cond = condition(img, "dense-dark", None, 8)
+    plain = to_density(img.astype(np.float32), "dense-dark", "display")
+    # dense-dark: the white text is a deep trough in the density; filled, it is gone
+    assert np.median(cond.density[cores]) > np.median(plain[cores]) + 60
 
 
 def test_noise_map_is_the_white_noise_sigma_and_follows_the_level():

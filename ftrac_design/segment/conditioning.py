@@ -162,6 +162,116 @@ def fill_clipped(
     return a
 
 
+#: a burned-in stroke stands this far above (or below) what a 7 × 7 opening leaves of the
+#: pixels around it, as a fraction of the frame's range: text and crosshairs are drawn at
+#: high contrast, and the noise of a display frame's anatomy rarely reaches it
+_STROKE_CONTRAST = 0.15
+#: a grey level is the graphics' when the stroke pixels within ±1 of it are at least this many
+#: times as frequent as at the levels 4–15 away, and at least ``_STROKE_MIN_PX`` of them
+_SPIKE_RATIO = 6.0
+_STROKE_MIN_PX = 60
+#: crest pixels at the graphics' level a 9 × 9 window around one of them holds at least (a
+#: 1-px crosshair arm through it: 9)
+_RUN_PX = 6
+#: grey levels a neighbour of a stroke's crest may exceed it by (the frame grabber's noise)
+_CREST_LEVELS = 6
+
+
+def burned_in_graphics(image: np.ndarray, levels: tuple[float, float] | None = None) -> np.ndarray | None:
+    """Pixels of burned-in graphics in a display frame (bool, True = graphics), or None when
+    none is found: the crests of thin strokes (at least ``_STROKE_CONTRAST`` of the range above
+    or below a 7 × 7 opening of the frame, no neighbour beyond them by more than
+    ``_CREST_LEVELS``) whose grey level is a spike in those crests' histogram.
+
+    A frame grabber writes its text and crosshair at one grey level (plus the video noise),
+    often not the display's extreme (which :func:`fill_clipped` takes out): there they stayed,
+    and letters and the gaps between them read as balls (nine_bead on a display frame of
+    held-out seed 2060: seven "balls" on the text in a corner, a pose 89° and 284 mm off at
+    χ²₆ 13,839). Anatomy, balls and wires have no one level: their strokes spread over the
+    histogram, and a 0.5 mm wire over a flat background is blurred across many levels.
+
+    ``levels``: the whole frame's (lowest, highest) pixel value when ``image`` is a crop."""
+    a = np.asarray(image, dtype=np.float32)
+    lo, hi = (float(a.min()), float(a.max())) if levels is None else (float(levels[0]), float(levels[1]))
+    span = int(round(hi - lo))
+    sample = a[::7, ::7]
+    if not 0 < span <= 255 or not np.array_equal(sample, np.round(sample)):
+        # graphics are written into 8-bit frames; a log image's values are not grey levels
+        return None
+    q = cv2.convertScaleAbs(a, alpha=1.0, beta=-lo)  # rounded and saturated to 0…255
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (7, 7))
+    # the extremes (within 1 % of the range) are fill_clipped's; 1 level more for the ±1 window
+    window = (int(0.01 * span) + 2, span - int(0.01 * span) - 2)
+    strokes = np.zeros(a.shape, bool)
+    box = np.ones((3, 3), np.uint8)
+    for sign, beside in ((1, cv2.dilate(q, box) - q), (-1, q - cv2.erode(q, box))):
+        hat = cv2.morphologyEx(q, cv2.MORPH_TOPHAT if sign > 0 else cv2.MORPH_BLACKHAT, k)
+        strokes |= _strokes_at_a_level(q, hat, beside, sign, span, window)
+    return strokes if strokes.any() else None
+
+
+def _strokes_at_a_level(
+    q: np.ndarray, hat: np.ndarray, beside: np.ndarray, sign: int, span: int, window: tuple[int, int]
+) -> np.ndarray:
+    """:func:`burned_in_graphics` for strokes brighter (``sign`` 1) or darker (−1) than around
+    them: ``q`` the frame's grey levels (uint8, from its lowest), ``hat`` its top-hat (black
+    top-hat), ``beside`` how far a neighbour exceeds each pixel the other way, the spike's
+    level looked for within ``window``."""
+    thin = hat >= _STROKE_CONTRAST * span
+    # a stroke's crest: nothing beside it brighter (darker) by more than the video noise; a
+    # ball's or a vessel's flank crossing the graphics' level has its brighter core beside it
+    stroke = thin & (beside <= _CREST_LEVELS)
+    h = np.bincount(q[stroke], minlength=256).astype(float)
+    s3 = np.convolve(h, np.ones(3), "same")
+    # per level, the median count at the levels 4–15 below and above it
+    win = np.lib.stride_tricks.sliding_window_view(np.pad(h, 15, mode="edge"), 31)[:, np.r_[0:12, 19:31]]
+    base = np.maximum(np.median(win, axis=1), 1.0)
+    peak = (s3 >= _STROKE_MIN_PX) & (s3 >= np.roll(s3, 1)) & (s3 >= np.roll(s3, -1)) & (s3 >= _SPIKE_RATIO * 3 * base)
+    peak[: max(window[0], 1)] = peak[window[1] :] = False
+    if not peak.any():
+        return np.zeros(q.shape, bool)
+    x = np.flatnonzero(peak)
+    near = np.zeros(256, bool)
+    near[np.clip((x[:, None] + np.arange(-2, 3)).ravel(), 0, 255)] = True
+    level = (stroke & near[q]).astype(np.float32)
+    # graphics are runs of strokes, all at their level; a vessel's wall or a wire's crest that
+    # happens to cross it is a pixel or two, among crests at other levels
+    n_level = cv2.boxFilter(level, -1, (9, 9), normalize=False)
+    n_stroke = cv2.boxFilter(stroke.astype(np.float32), -1, (9, 9), normalize=False)
+    found = (level > 0) & (n_level >= 0.5 * n_stroke) & (n_level >= _RUN_PX)
+    # and the rest of each glyph, grown along its strokes: a slash or a letter's diagonal is
+    # anti-aliased all along, with no pixel at the level, and left in it became a bright smear
+    # when the strokes around it were filled in. A pixel joins where it covers 40 % of the
+    # way from what is around it to the level (noise beside a stroke does not).
+    top = float(x[np.argmax(s3[x])])
+    ground = q.astype(np.float32) - sign * hat.astype(np.float32)
+    partial = thin & (hat >= 0.4 * np.abs(top - ground))
+    for _ in range(2):  # 8 px along a stroke from its pixels at the level
+        found = partial & (cv2.dilate(found.astype(np.uint8), np.ones((9, 9), np.uint8)) > 0) | found
+    return found
+
+
+def without_graphics(image: np.ndarray, graphics: np.ndarray) -> np.ndarray:
+    """``image`` (float32) with the ``graphics`` pixels and their anti-aliased rim (two pixels
+    around: a stroke's ends and corners are off its level) filled in from around them
+    (OpenCV's Telea inpainting, 3 px): a ball or a wire a crosshair crosses keeps what shows of
+    it beside the stroke."""
+    rim = cv2.dilate(graphics.astype(np.uint8), np.ones((5, 5), np.uint8))
+    out = np.array(image, dtype=np.float32, copy=True)
+    # each cluster of strokes (a text block, the crosshair) inpainted in its own box, found on
+    # a grid of 8 px cells: Telea's march over the whole frame cost 7 ms, the boxes a third
+    H, W = out.shape
+    ys, xs = np.nonzero(rim)
+    cells = np.zeros(((H + 7) // 8, (W + 7) // 8), np.uint8)
+    cells[ys // 8, xs // 8] = 1
+    n, _, stats, _ = cv2.connectedComponentsWithStats(cv2.dilate(cells, np.ones((3, 3), np.uint8)))
+    for x, y, w, h, _ in stats[1:n]:
+        r0, r1 = max(8 * y - 4, 0), min(8 * (y + h) + 4, H)
+        c0, c1 = max(8 * x - 4, 0), min(8 * (x + w) + 4, W)
+        out[r0:r1, c0:c1] = cv2.inpaint(out[r0:r1, c0:c1].copy(), rim[r0:r1, c0:c1].copy(), 3, cv2.INPAINT_TELEA)
+    return out
+
+
 def condition(
     image: np.ndarray, polarity: str, formation: str | None, disc_px: int, levels: tuple[float, float] | None = None
 ) -> Conditioned:
@@ -184,4 +294,7 @@ def condition(
     form = formation_of(image, polarity, formation)
     bad = invalid_regions(image, disc_px, disc_px + 2, levels)
     filled = fill_clipped(image, levels=levels) if form == "display" else np.asarray(image, np.float32)
+    graphics = burned_in_graphics(image, levels) if form == "display" else None
+    if graphics is not None:
+        filled = without_graphics(filled, graphics)
     return Conditioned(to_density(filled, polarity, form), None if bad is None else ~bad, polarity, form)

@@ -21,13 +21,14 @@ design: each labelling hypothesis is a pose, and a pose predicts the whole image
 from __future__ import annotations
 
 import itertools
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..features.model import Features
-from ..pose import Camera
+from ..pose import Camera, so3
 from ..pose.p3p import bearings, p3p
 from .ridges import RidgePoints
 
@@ -57,6 +58,11 @@ def outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
         outward = sag / sl[:, None]
     shift = np.where(np.isfinite(kappa), 0.5 * var_px2 * kappa, 0.0)
     return np.where(np.isfinite(outward), outward, 0.0) * shift[:, None]
+
+
+#: poses of one bead labelling closer than this (rad) are one hypothesis; P3P's two
+#: solutions of a near-affine view lie tens of degrees apart, its noise a degree or two
+SAME_POSE_RAD = math.radians(10.0)
 
 
 @dataclass
@@ -171,26 +177,36 @@ def _labellings_of(
 def _collect_matches(
     best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
 ) -> None:
-    """Add to ``best`` (labelling → hypothesis, the lower RMS kept) the labellings of the
-    poses (R, t) that put at least four model beads on distinct blobs of ``tree``.
+    """Add to ``best`` (labelling → its distinct poses, each the lowest-RMS hypothesis of
+    those within :data:`SAME_POSE_RAD` of it) the labellings of the poses (R, t) that put at
+    least four model beads on distinct blobs of ``tree``.
 
     Every such labelling is kept, whatever the order or the number of the poses that give it:
     P3P solutions of one triplet that are the same pose give the same labelling, and which
     of them was listed first decides nothing (a cut to the first 64 poses by matched count
-    once let the solver's order pick among ties)."""
+    once let the solver's order pick among ties). One labelling can come with two poses far
+    apart: a small fiducial is seen in near-affine projection, where P3P's second solution
+    puts every ball on the same blob as the first (ftrac_mini over anatomy: the right pose
+    and one 58° off, 0.2 and 0.15 px RMS); kept as one hypothesis, the lower RMS chose the
+    wrong one, the right pose was never refined, and a labelling 178° off won."""
     lab, count, rms = _labellings_of(model, camera, tree, R, t, tol_px)
     sel = np.flatnonzero(count >= 4)
     if len(sel) == 0:
         return
-    # the lowest RMS of each distinct labelling (ties: the pose listed first, the same pose)
+    # lowest RMS first within each labelling (ties: the pose listed first)
     o = sel[np.lexsort((rms[sel],) + tuple(lab[sel].T[::-1]))]
-    first = np.r_[True, (lab[o][1:] != lab[o][:-1]).any(1)]
-    for r in o[first]:
+    for r in o:
         key = tuple(int(x) for x in lab[r])
-        old = best.get(key)
-        if old is None or rms[r] < old.rms_px:
-            match = {b: int(x) for b, x in enumerate(lab[r]) if x >= 0}
-            best[key] = BeadHypothesis(R[r], t[r], match, int(count[r]), float(rms[r]))
+        poses = best.setdefault(key, [])
+        near = next((k for k, h in enumerate(poses) if so3.angle(h.R, R[r]) < SAME_POSE_RAD), None)
+        if near is not None and rms[r] >= poses[near].rms_px:
+            continue
+        match = {b: int(x) for b, x in enumerate(lab[r]) if x >= 0}
+        h = BeadHypothesis(R[r], t[r], match, int(count[r]), float(rms[r]))
+        if near is None:
+            poses.append(h)
+        else:
+            poses[near] = h
 
 
 def bead_hypotheses(
@@ -228,7 +244,7 @@ def bead_hypotheses(
     K = camera.K
     mtri = _model_triplets(model)
     tree = cKDTree(uv)
-    best: dict[tuple, BeadHypothesis] = {}
+    best: dict[tuple, list[BeadHypothesis]] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)  # (m, 3, 3), once for every image triplet
     top, stale, tried = 0, 0, 0
     for itri in _image_triplets(uv, image_triplets, max_extent_px):
@@ -236,7 +252,7 @@ def bead_hypotheses(
         if poses is None:
             continue
         _collect_matches(best, model, camera, tree, *poses, tol_px)
-        top_now = max((h.count for h in best.values()), default=0)
+        top_now = max((h.count for poses in best.values() for h in poses), default=0)
         stale = 0 if top_now > top else stale + 1
         top = top_now
         # every ball explained; or nearly all (a ball or two too faint or merged) and the
@@ -248,8 +264,11 @@ def bead_hypotheses(
             # eight triplets of the strongest blobs and not four balls in a row: not here
             break
     # ties broken by the labelling itself: the ranking depends on no order of discovery
-    ranked = sorted(best.items(), key=lambda kv: (-kv[1].count, kv[1].rms_px, kv[0]))
-    return [h for _, h in ranked[:keep]]
+    ranked = sorted(
+        ((key, k, h) for key, poses in best.items() for k, h in enumerate(poses)),
+        key=lambda e: (-e[2].count, e[2].rms_px, e[0], e[1]),
+    )
+    return [h for _, _, h in ranked[:keep]]
 
 
 @dataclass
