@@ -336,9 +336,10 @@ def _step(p, y, X, Y, XY5, w0, w, cost_scale, it: int, prior_w, radius_px: float
         scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
         u = np.clip(np.abs(res) / scale, 0, 1)
         w = (1 - u * u) ** 2 * w0
-    Jw = J * w[..., None]
-    A = np.einsum("nmi,nmj->nij", Jw, J) + 1e-9 * np.eye(8)
-    g = np.einsum("nmi,nm->ni", Jw, res)
+    # batched matrix products (BLAS): einsum's loop over these small sums was 20–30 × slower
+    Jw_t = (J * w[..., None]).transpose(0, 2, 1)
+    A = Jw_t @ J + 1e-9 * np.eye(8)
+    g = (Jw_t @ res[..., None])[..., 0]
     # weak priors on the radius and the blur: for a ball of a few pixels the blurred
     # profile is nearly Gaussian and r, σ and A trade off against each other (the
     # unregularised fit ran off to r → 0.3 r₀ or σ → 4 px on ftrac_mini's 1 mm balls)
@@ -363,7 +364,7 @@ def _spread(p, y, X, Y, w, J, sn) -> tuple[np.ndarray, np.ndarray]:
     rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
     sig2 = sn**2 * np.maximum(rms, 1.0) ** 2
     with np.errstate(all="ignore"):
-        cov = np.linalg.pinv(np.einsum("nmi,nmj->nij", J * w[..., None], J) + 1e-12 * np.eye(8)) * sig2[:, None, None]
+        cov = np.linalg.pinv((J * w[..., None]).transpose(0, 2, 1) @ J + 1e-12 * np.eye(8)) * sig2[:, None, None]
     return np.sqrt(np.abs(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))), rms
 
 

@@ -167,6 +167,13 @@ class TrackOptions:
     ball_shape_rms: float = 3.0
     ball_shape_fraction: float = 0.1
     max_misshapen_balls: int = 2
+    #: a blob among the fiducial's balls (inside their projected hull, more than two radii from
+    #: every ball the pose puts there) with a blob response at least ``stray_ball_fraction`` of
+    #: the median of the balls the labelling uses is a ball the pose does not explain; a
+    #: confident labelling leaves at most ``max_stray_balls`` of them
+    #: (:func:`~.acceptance.stray_balls`)
+    stray_ball_fraction: float = 0.7
+    max_stray_balls: int = 3
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
     #: labelling needs
     min_redundancy: int = 6
@@ -324,6 +331,8 @@ class AcceptanceOptions:
     ball_shape_rms: float
     ball_shape_fraction: float
     max_misshapen_balls: int
+    stray_ball_fraction: float
+    max_stray_balls: int
     min_redundancy: int
     min_feature_redundancy: float
     feature_p_value: float

@@ -1,0 +1,93 @@
+"""The acceptance test that refuses a pose with blobs as strong as its balls among them that
+it does not explain (:func:`ftrac_design.segment.acceptance.stray_balls`): another phantom's
+balls, a lattice of them, where the fiducial's own balls would be the strongest blobs."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from test_fuzz_observation import FEATURES
+
+from ftrac_design.pose import Camera
+from ftrac_design.pose.simulate import Workspace
+from ftrac_design.segment import TrackOptions, acceptance, identify
+
+F = FEATURES["nine_bead"]
+CAMERA = Camera()
+OPTS = TrackOptions().acceptance
+RB = 3.4  # px: a 2 mm ball at the default magnification and pixel
+
+
+def _pose():
+    R, t = Workspace().sample(1, F.nominal_beam_direction, np.random.default_rng(3))
+    return R[0], t[0]
+
+
+def _scene_and_labelling(strays: np.ndarray, stray_response: float):
+    """nine_bead's nine balls where the pose puts them (blob response 20 each) and ``strays``
+    (k, 2) px at ``stray_response``; the labelling uses every ball."""
+    R, t = _pose()
+    uv = identify.project(CAMERA, R, t, F.point_centers())[0]
+    allu = np.vstack([uv, strays.reshape(-1, 2)])
+    response = np.r_[np.full(len(uv), 20.0), np.full(len(strays), stray_response)]
+    scene = SimpleNamespace(
+        beads=SimpleNamespace(uv=allu, response=response),
+        features=F,
+        camera=CAMERA,
+        scales=SimpleNamespace(bead_radius_px=RB),
+    )
+    ids = [p.id for p in F.points]
+    lab = SimpleNamespace(
+        match={fid: k for k, fid in enumerate(ids)},
+        obs=SimpleNamespace(points={fid: uv[k] for k, fid in enumerate(ids)}),
+        pose=SimpleNamespace(rotation=R, translation_mm=t),
+    )
+    return scene, lab, uv
+
+
+def _inside(uv: np.ndarray, k: int) -> np.ndarray:
+    """``k`` points inside the balls' hull, more than two radii from every ball: on the segments
+    from the balls' centroid towards each ball, kept where clear of all of them."""
+    c = uv.mean(0)
+    pts = [c + f * (u - c) for u in uv for f in (0.3, 0.5, 0.7)]
+    pts = [p for p in pts if np.linalg.norm(uv - p, axis=1).min() > 2 * RB + 1]
+    assert len(pts) >= k
+    return np.array(pts[:k])
+
+
+@pytest.mark.parametrize("k,refused", [(0, False), (3, False), (4, True), (8, True)])
+def test_strong_blobs_among_the_balls_refuse_the_pose_above_the_limit(k, refused):
+    _, _, uv = _scene_and_labelling(np.zeros((0, 2)), 0.0)
+    scene, lab, _ = _scene_and_labelling(_inside(uv, k), 15.0)  # 75 % of the balls' response
+    why = acceptance.stray_balls(scene, lab, OPTS)
+    assert (why is not None) == refused
+    if refused:
+        assert f"{k} blobs as strong as the fiducial's balls" in why
+
+
+def test_weaker_far_or_coincident_blobs_do_not_count():
+    _, _, uv = _scene_and_labelling(np.zeros((0, 2)), 0.0)
+    inside = _inside(uv, 6)
+    # weaker than 70 % of the balls' median response: clutter over the patient
+    scene, lab, _ = _scene_and_labelling(inside, 13.0)
+    assert acceptance.stray_balls(scene, lab, OPTS) is None
+    # as strong, but outside the hull grown by a radius and 2 px
+    c = uv.mean(0)
+    span = np.ptp(uv, axis=0).max()
+    outside = c + np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [-1, -1]]) * (span + 4 * RB)
+    scene, lab, _ = _scene_and_labelling(outside, 20.0)
+    assert acceptance.stray_balls(scene, lab, OPTS) is None
+    # as strong, but within two radii of a ball the pose puts there (a ball's second blob)
+    scene, lab, _ = _scene_and_labelling(uv[:6] + np.array([RB, 0.0]), 20.0)
+    assert acceptance.stray_balls(scene, lab, OPTS) is None
+
+
+def test_the_limit_is_a_setting():
+    _, _, uv = _scene_and_labelling(np.zeros((0, 2)), 0.0)
+    scene, lab, _ = _scene_and_labelling(_inside(uv, 4), 15.0)
+    loose = TrackOptions(max_stray_balls=4).acceptance
+    assert acceptance.stray_balls(scene, lab, loose) is None
+    strict = TrackOptions(stray_ball_fraction=0.8).acceptance  # 16 > 15
+    assert acceptance.stray_balls(scene, lab, strict) is None
