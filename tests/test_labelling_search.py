@@ -139,6 +139,7 @@ def _pass_other_tests(monkeypatch):
     monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts: ([], {}))
     monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "misshapen_balls", lambda scene, lab, opts: None)
+    monkeypatch.setattr(pipeline.acceptance, "stray_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "uncontrolled", lambda scene, lab, opts: None)
 
 
