@@ -274,7 +274,7 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     nine_bead, and six of them with three of its rows ftrac_2005, and nine_bead also took
     seven of ftrac_mini's nine (``no_fiducial.py --seed 2062``: 3 poses in 1,440 trackings,
     with 4–25 such blobs each). Right poses over a patient have clutter there too, weaker:
-    on held-out seed 2060 (320 right poses, three presets, every condition) one had four
+    on seed 2060, which set the limit (320 right poses, three presets, every condition), one had four
     blobs at 70 % of its balls' median response (nine_bead in a round field, balls of 13 σ),
     none more."""
     beads = scene.beads

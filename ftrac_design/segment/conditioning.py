@@ -186,7 +186,7 @@ def burned_in_graphics(image: np.ndarray, levels: tuple[float, float] | None = N
     A frame grabber writes its text and crosshair at one grey level (plus the video noise),
     often not the display's extreme (which :func:`fill_clipped` takes out): there they stayed,
     and letters and the gaps between them read as balls (nine_bead on a display frame of
-    held-out seed 2060: seven "balls" on the text in a corner, a pose 89° and 284 mm off at
+    seed 2060: seven "balls" on the text in a corner, a pose 89° and 284 mm off at
     χ²₆ 13,839). Anatomy, balls and wires have no one level: their strokes spread over the
     histogram, and a 0.5 mm wire over a flat background is blurred across many levels.
 
