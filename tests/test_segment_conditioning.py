@@ -95,6 +95,31 @@ def test_invalid_regions_do_not_join_clipped_ball_cores():
     assert bad is None or not any(bad[r, c] for r, c in centres)
 
 
+def test_invalid_regions_leave_a_clipped_ball_beside_a_clipped_region():
+    """A ball whose core the window clips to black, 12 px from the edge of a wide region the
+    window clipped too: the core is not joined to the region (a 25 px closing did join it), so
+    the ball and its readable flanks stay in the image; the region itself stays invalid."""
+    rng = np.random.default_rng(5)
+    H, W = 160, 200
+    V, U = np.mgrid[0:H, 0:W]
+    img = 30.0 + 5.0 * rng.standard_normal((H, W))
+    img[:, :80] = rng.integers(0, 3, (H, 80))  # dense anatomy the window clips to black
+    centres = [(50, 92), (80, 93), (110, 92)]  # 12–13 px beyond the region's edge
+    for r, c in centres:
+        img -= 40.0 / (1.0 + np.exp((np.hypot(U - c, V - r) - 3.4) / 0.8))
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    img[-1, -1] = 255
+    ext = (cv2.blur(img.astype(np.float32), (5, 5)) <= 5.1).astype(np.uint8)
+    assert all(ext[r, c] for r, c in centres)  # each core is clipped
+    closed = cv2.morphologyEx(ext, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25)))
+    assert all(closed[r, c - 6] for r, c in centres)  # a closing bridges the gap to each core
+    bad = invalid_regions(img, disc_px=4, margin_px=6)
+    assert bad is not None
+    assert bad[:, :75].all()
+    for r, c in centres:
+        assert not bad[r - 5 : r + 6, c - 5 : c + 6].any()
+
+
 def test_invalid_regions_close_text_inside_a_saturated_corner():
     """Burned-in text over a saturated (white) corner is closed into the corner's invalid
     region; the anatomy beside it stays valid."""
