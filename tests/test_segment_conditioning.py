@@ -9,10 +9,11 @@ import pytest
 
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.segment import TrackOptions, identify, track_image
+from ftrac_design.segment import TrackOptions, conditioning, identify, track_image
 from ftrac_design.segment.beads import blob_candidates
 from ftrac_design.segment.conditioning import (
     burned_in_graphics,
+    cleaned,
     condition,
     fill_clipped,
     formation_of,
@@ -221,6 +222,34 @@ def test_condition_fills_a_display_frames_graphics():
     plain = to_density(img.astype(np.float32), "dense-dark", "display")
     # dense-dark: the white text is a deep trough in the density; filled, it is gone
     assert np.median(cond.density[cores]) > np.median(plain[cores]) + 60
+
+
+def test_condition_of_a_cleaned_frame_is_the_same_in_either_polarity():
+    """A display frame cleaned once (its clipped regions, its graphics filled in) and then
+    conditioned in either polarity gives the density and the valid pixels that conditioning
+    it from scratch gives."""
+    img, _, _ = _frame_with_graphics(2, 0.85 * 255)
+    clean = cleaned(img, True, 8)
+    for polarity in ("dense-dark", "dense-bright"):
+        once, again = condition(img, polarity, None, 8, clean=clean), condition(img, polarity, None, 8)
+        np.testing.assert_array_equal(once.density, again.density)
+        assert once.valid is not None
+        np.testing.assert_array_equal(once.valid, again.valid)
+
+
+def test_a_frame_tried_every_way_is_cleaned_once(f2005, monkeypatch):
+    """An 8-bit frame with no fiducial is tried in both polarities and, where the network
+    finds nothing, by the classical detectors too: its clipped regions are found once."""
+    calls = []
+    real = conditioning.invalid_regions
+    monkeypatch.setattr(conditioning, "invalid_regions", lambda *a, **k: calls.append(1) or real(*a, **k))
+    rng = np.random.default_rng(7)
+    img = np.clip(np.rint(120 + 10 * rng.standard_normal((256, 256))), 0, 255).astype(np.uint8)
+    img[:40] = 0  # a black-clipped band
+    res = track_image(img, f2005, Camera(principal_point_px=(128.0, 128.0)))
+    assert not res.pose.converged
+    assert res.diagnostics.polarity_tried is not None and len(res.diagnostics.polarity_tried) == 2
+    assert len(calls) == 1
 
 
 def test_noise_map_is_the_white_noise_sigma_and_follows_the_level():

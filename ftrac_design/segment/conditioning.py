@@ -122,8 +122,7 @@ def _closed_where_wide(ext: np.ndarray, wide: np.ndarray, disc_px: int) -> np.nd
     closing also bridged the clipped cores of the balls a few px off the region's edge into
     it, and took the balls with their readable flanks out of the image (a ftrac_2005 display
     frame of seed 2061, its balls' cores at 255 and their flanks at 200–240: refused, no ball
-    left to fit; on display frames of seeds 2067–2068, 432 images, 5 more right poses of
-    ftrac_2005 and nine_bead, 1 fewer)."""
+    left to fit)."""
     if not wide.any():
         return wide
     n, lab = cv2.connectedComponents(ext)
@@ -293,8 +292,37 @@ def without_graphics(image: np.ndarray, graphics: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class Cleaned:
+    """What conditioning does to an image that neither polarity changes: its pixels (float32)
+    with a display frame's clipped strokes and burned-in graphics filled in, and where it can
+    be read at all. An image tried in both polarities, and by both detectors, is cleaned once."""
+
+    pixels: np.ndarray
+    #: True where the image holds information; None: everywhere
+    valid: np.ndarray | None
+
+
+def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float, float] | None = None) -> Cleaned:
+    """``image`` (H, W, pixels as stored) cleaned for either polarity: its invalid regions
+    (:func:`invalid_regions`) and, for a ``display`` frame, its clipped strokes and burned-in
+    graphics filled in (:func:`fill_clipped`, :func:`without_graphics`). ``disc_px`` and
+    ``levels`` as for :func:`condition`."""
+    bad = invalid_regions(image, disc_px, disc_px + 2, levels)
+    filled = fill_clipped(image, levels=levels) if display else np.asarray(image, np.float32)
+    graphics = burned_in_graphics(image, levels) if display else None
+    if graphics is not None:
+        filled = without_graphics(filled, graphics)
+    return Cleaned(filled, None if bad is None else ~bad)
+
+
 def condition(
-    image: np.ndarray, polarity: str, formation: str | None, disc_px: int, levels: tuple[float, float] | None = None
+    image: np.ndarray,
+    polarity: str,
+    formation: str | None,
+    disc_px: int,
+    levels: tuple[float, float] | None = None,
+    clean: Cleaned | None = None,
 ) -> Conditioned:
     """The density image of ``image`` and its valid pixels (see the module).
 
@@ -307,15 +335,14 @@ def condition(
         the margin left out beside a clipped region is this wide.
     levels : the whole frame's (lowest, highest) pixel value when ``image`` is a crop of it
         (its clip levels); None: ``image``'s own.
+    clean : ``image`` already cleaned (:func:`cleaned`, for this formation being a display
+        frame or not, with these ``disc_px`` and ``levels``); None: cleaned here.
 
     Returns
     -------
     Conditioned
     """
     form = formation_of(image, polarity, formation)
-    bad = invalid_regions(image, disc_px, disc_px + 2, levels)
-    filled = fill_clipped(image, levels=levels) if form == "display" else np.asarray(image, np.float32)
-    graphics = burned_in_graphics(image, levels) if form == "display" else None
-    if graphics is not None:
-        filled = without_graphics(filled, graphics)
-    return Conditioned(to_density(filled, polarity, form), None if bad is None else ~bad, polarity, form)
+    if clean is None:
+        clean = cleaned(image, form == "display", disc_px, levels)
+    return Conditioned(to_density(clean.pixels, polarity, form), clean.valid, polarity, form)

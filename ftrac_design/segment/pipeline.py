@@ -25,7 +25,7 @@ from ..pose import Camera, Diagnostics, so3
 from . import acceptance, evidence, identify, learned
 from .beads import Beads
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
-from .conditioning import FORMATIONS, condition, formation_of
+from .conditioning import FORMATIONS, Cleaned, cleaned, condition, formation_of
 from .detection import Scene, balls_at, detect, fitted_blur, scales
 from .image import NoiseField, detect_polarity
 from .labelling import Labelling, NoLabelling, evaluate, with_agreement
@@ -515,7 +515,10 @@ def _track(
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
-    args = (img, small, form, polarity_hint, features, camera, sc, opts)
+    # what neither polarity nor detector changes (the clipped regions, a display frame's
+    # graphics filled in), done once for every try below
+    clean = cleaned(img, form == "display", sc.disc_px)
+    args = (img, clean, small, form, polarity_hint, features, camera, sc, opts)
     det = learned.detections(img, sc, find) if features.points else None
     res = _each_polarity(*args, det)
     if det is None or res.pose.converged or find.detector != "auto":
@@ -535,6 +538,7 @@ def _track(
 
 def _each_polarity(
     img: np.ndarray,
+    clean: Cleaned,
     small: np.ndarray,
     form: str,
     polarity_hint: str | None,
@@ -545,7 +549,8 @@ def _each_polarity(
     det,
 ) -> TrackResult:
     """The image tracked in each polarity to try until one gives a pose, with the learned
-    detector's detections ``det`` (None: the classical detectors), under one counted budget."""
+    detector's detections ``det`` (None: the classical detectors), under one counted budget;
+    ``clean`` is ``img`` cleaned (:func:`.conditioning.cleaned`)."""
     find, search = opts.finding, opts.search
     budget = Budget(search)
     tried: list[TrackResult] = []
@@ -554,7 +559,7 @@ def _each_polarity(
     for pol in pols:
         if tried and budget.spent():
             break
-        cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px)
+        cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px, clean=clean)
         res = _track_conditioned(cond, small, features, camera, sc, budget, det, *stages)
         diag = res.diagnostics
         diag.detector = "classical" if det is None else "learned"
