@@ -6,7 +6,9 @@ at which one feature is dropped."""
 
 from __future__ import annotations
 
+import sys
 from dataclasses import replace
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,7 +19,7 @@ from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera, NoiseModel, SolverOptions, solve_pose
 from ftrac_design.pose.simulate import Workspace, simulate_observation
-from ftrac_design.segment import TrackOptions, acceptance, evidence, identify
+from ftrac_design.segment import TrackOptions, acceptance, evidence, identify, track_image
 from ftrac_design.segment.labelling import Labelling
 from ftrac_design.segment.noise import calibrated_covariance
 
@@ -103,3 +105,73 @@ def test_balls_at_the_noise_they_were_measured_with_pass():
         vf = calibrated_covariance(features, obs, pose, noise)
         assert pose.converged and vf is not None
         assert acceptance.balls_misfit(replace(_labelling(obs, R, t), variance_factor=vf), opts) is None
+
+
+def _stub_scene(features, ridge_spreads: float, learned: bool):
+    """A scene of ``features`` in a 1024² image where every predicted curve's ridge evidence
+    reads ``ridge_spreads`` × the spread of its own median (:func:`.evidence.median_spread`)
+    and the learned detector's wire probability is 0.6 everywhere (or it is absent)."""
+    scene = SimpleNamespace(features=features, camera=Camera(), scales=SimpleNamespace(ridge_sigma_px=1.2))
+    scene.readable = lambda uv, margin_px=0.0: np.isfinite(uv).all(-1) & (np.abs(uv - 512.0) < 500).all(-1)
+    scene.ridge_evidence = lambda uv, nrm: np.full(len(uv), ridge_spreads * evidence.median_spread(scene, len(uv)))
+    scene.learned = object() if learned else None
+    scene.learned_wire = lambda uv: np.full(len(uv), 0.6)
+    scene.bead_exclusion = lambda extra_px=1.0: np.full(len(features.points), 6.0)
+    return scene
+
+
+@pytest.mark.parametrize(
+    ("ridge_spreads", "learned", "absent"),
+    [(-0.4, True, "none"), (-0.6, True, "long"), (-0.4, False, "all"), (40.0, False, "none")],
+)
+def test_a_long_curve_whose_ridge_reads_below_zero_overrules_the_network(ridge_spreads, learned, absent):
+    """The network's word keeps a curve whose ridge is weak, not a long one whose ridge
+    stands half its spread below zero (what a lattice of balls gave, where the network's wire
+    map is high everywhere); a short one keeps it (between balls the ridge reads their
+    flanks). Without the network a weak ridge is absent, a plain one present."""
+    features = compute_features(load_design("ftrac_2005"))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(3))
+    scene = _stub_scene(features, ridge_spreads, learned)
+    sup = evidence.curve_support(scene, R[0], t[0], scene.bead_exclusion())
+    assert set(sup) == {c.id for c in features.lines} | {c.id for c in features.ellipses}
+    long = {fid for fid, c in sup.items() if c.samples * 0.5 >= evidence.OVERRULE_MIN_PX}
+    assert long and long != set(sup)  # both kinds in view
+    overruled = long if learned and ridge_spreads < -evidence.RIDGE_OVERRULES else set()
+    assert all(c.learned == (0.6 if learned and fid not in overruled else 0.0) for fid, c in sup.items())
+    assert evidence.learned_confirms_wires(scene, R[0], t[0]) is (learned and not overruled)
+    pose = SimpleNamespace(rotation=R[0], translation_mm=t[0])
+    missing, _ = acceptance.wire_support(scene, pose, TrackOptions().acceptance)
+    assert set(missing) == {"none": set(), "long": long, "all": set(sup)}[absent]
+
+
+def test_a_wire_the_image_showed_before_the_body_was_subtracted_is_there():
+    """The modelled body's limb subtracted too strongly can take a wire's ridge with it: a
+    curve the unsubtracted image shows is present, whatever the subtracted one reads; one
+    neither shows is absent."""
+    features = compute_features(load_design("ftrac_2005"))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(3))
+    pose = SimpleNamespace(rotation=R[0], translation_mm=t[0])
+    after, before, bare = (_stub_scene(features, k, False) for k in (-0.6, 40.0, 0.0))
+    opts = TrackOptions().acceptance
+    assert set(acceptance.wire_support(after, pose, opts)[0]) == set(
+        evidence.curve_support(after, R[0], t[0], after.bead_exclusion())
+    )
+    assert acceptance.wire_support(after, pose, opts, also=before)[0] == []
+    assert acceptance.wire_support(before, pose, opts, also=after)[0] == []
+    assert len(acceptance.wire_support(after, pose, opts, also=bare)[0]) == len(features.lines) + len(features.ellipses)
+
+
+def test_a_dewarping_plate_is_not_taken_for_ftrac_2005():
+    """A 17 × 17 plate of 2.7 mm balls 5.9 mm apart, distorted, in a round field (the
+    no-fiducial benchmark's grid plate 20 of seed 2069): the network's wire map reads 0.4–0.6
+    all over the lattice, and a labelling of five balls on three rows of it was given out as
+    ftrac_2005 with both ellipses on bare plate; no pose, whichever detector."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from no_fiducial import grid
+
+    img = grid(20, 2069)
+    features = compute_features(load_design("ftrac_2005"))
+    camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
+    for detector in ("auto", "classical"):
+        res = track_image(img, features, camera, TrackOptions(detector=detector))
+        assert not res.pose.converged, detector

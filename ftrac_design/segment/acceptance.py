@@ -39,30 +39,37 @@ def refuse(pose: Pose, reason: str | None) -> Pose:
     return replace(pose, converged=False, error=reason)
 
 
-def wire_support(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> tuple[list[str], dict[str, float]]:
-    """Curves the pose predicts on bare background (see :func:`.evidence.wire_support`):
+def wire_support(
+    scene: Scene, pose: Pose, opts: AcceptanceOptions, also: Scene | None = None
+) -> tuple[list[str], dict[str, float]]:
+    """Curves the pose predicts on bare background (see :func:`.evidence.curve_support`):
     those whose median ridge evidence is not clearly above zero, or below ``wire_support`` ×
-    the median curve's; also returns each curve's evidence in noise units.
+    the median curve's, and that the learned detector does not show either; also returns each
+    curve's evidence in noise units.
 
     *Clearly above zero*: on bare background the evidence is zero-mean with unit spread, and
-    the median of a curve's n samples (0.5 px apart, correlated over the ridge scale's 2σ)
-    spreads by ~1.25 / √n_eff; a wire is present when its median is 3 of those above zero
-    (and at least 0.5), at most ``wire_min_snr``: a straight 0.5 mm wire seen face-on behind a
-    patient reads 1.3–1.5, a long ellipse far more, and both are there."""
-    sup = evidence.wire_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
+    the median of a curve's samples spreads by :func:`.evidence.median_spread`; a wire is
+    present when its median is 3 of those above zero (and at least 0.5), at most
+    ``wire_min_snr``: a straight 0.5 mm wire seen face-on behind a patient reads 1.3–1.5, a
+    long ellipse far more, and both are there. The learned detector's word
+    (:data:`LEARNED_WIRE`) stands for a weak ridge, not for one that reads below zero
+    (:data:`.evidence.RIDGE_OVERRULES`). A curve ``also`` (another processing of the same
+    image and crop) shows better is judged there."""
+    sup = evidence.curve_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
+    if also is not None:
+        for fid, c in evidence.curve_support(also, pose.rotation, pose.translation_mm, also.bead_exclusion()).items():
+            if fid not in sup or c.ridge > sup[fid].ridge:
+                sup[fid] = c
     if not sup:
         return [], {}
-    seen = evidence.learned_wire_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
-    ref = float(np.median([v for v, _ in sup.values()]))
-    corr = 2.0 * scene.scales.ridge_sigma_px
+    ref = float(np.median([c.ridge for c in sup.values()]))
     absent = []
-    for fid, (v, n) in sup.items():
-        n_eff = max(n * 0.5 / corr, 1.0)
-        present = min(opts.wire_min_snr, max(0.5, 3 * 1.25 / np.sqrt(n_eff)))
+    for fid, c in sup.items():
+        present = min(opts.wire_min_snr, max(0.5, 3 * evidence.median_spread(scene, c.samples)))
         # the learned detector sees a wire there: present, however weak its ridge
-        if v < max(present, opts.wire_support * ref) and seen.get(fid, 0.0) < LEARNED_WIRE:
+        if c.ridge < max(present, opts.wire_support * ref) and c.learned < LEARNED_WIRE:
             absent.append(fid)
-    return absent, {fid: round(v, 1) for fid, (v, _) in sup.items()}
+    return absent, {fid: round(c.ridge, 1) for fid, c in sup.items()}
 
 
 def absent_wires(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> str | None:

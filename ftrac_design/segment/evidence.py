@@ -13,6 +13,8 @@ neither way.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -54,21 +56,72 @@ def _free_samples(scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np
     return out
 
 
-def wire_support(
+def median_spread(scene: Scene, samples: int) -> float:
+    """The spread (noise units) of the median ridge evidence of ``samples`` curve samples on
+    bare background: ~1.25 / √n_eff, the samples (0.5 px apart) correlated over the ridge
+    scale's 2σ."""
+    corr = 2.0 * scene.scales.ridge_sigma_px
+    return 1.25 / float(np.sqrt(max(samples * 0.5 / corr, 1.0)))
+
+
+@dataclass(frozen=True)
+class CurveSupport:
+    """What the image shows where a pose puts one line or ellipse.
+
+    Attributes
+    ----------
+    ridge : the median ridge evidence across the curve (noise units).
+    samples : the readable samples it is the median of (0.5 px apart).
+    learned : the learned detector's median wire probability there (0 on the classical
+        path, and where a long curve's ridge contradicts it: see :data:`RIDGE_OVERRULES`).
+    """
+
+    ridge: float
+    samples: int
+    learned: float
+
+
+#: how far (in :func:`median_spread`) the median ridge evidence of a curve with at least
+#: ``OVERRULE_MIN_PX`` of readable length must stand below zero for it to overrule the learned
+#: detector: the network's wire map reads 0.25–0.6 all over a dewarping plate's lattice of
+#: balls, where the ridge of an ellipse a pose put there read 0.6–3.3 spreads below zero.
+#: A short stretch of wire between balls reads their blurred flanks (a blob's second
+#: derivative changes sign outside it), so its median can sit below zero whatever is there:
+#: true ftrac_mini wires of 15–17 px read down to −1.9 spreads. On the tuning images no true
+#: wire of 100 px or more that the network vouched for read below −0.5 spreads; of the
+#: curves it vouched for on wrong poses 27 of 657 did, on 21 dewarping plates 38 of 63
+RIDGE_OVERRULES = 0.5
+OVERRULE_MIN_PX = 100.0
+
+
+def curve_support(
     scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = MIN_FREE_PX
-) -> dict[str, tuple[float, int]]:
+) -> dict[str, CurveSupport]:
     """How much wire the image shows where pose (R, t) puts each line and ellipse.
 
     Each curve's centre-line is sampled every 0.5 px; the samples that can be read (see the
-    module; ``bead_radius_px`` per model bead) give the ridge evidence across the curve.
-    Returns id → (median evidence, in noise units, number of samples); curves with less than
-    ``min_free_px`` of readable length are left out."""
-    out: dict[str, tuple[float, int]] = {}
+    module; ``bead_radius_px`` per model bead) give the ridge evidence across the curve and
+    the learned detector's wire probability along it. Curves with less than ``min_free_px``
+    of readable length are left out. Returns id → :class:`CurveSupport`."""
+    out: dict[str, CurveSupport] = {}
     for fid, (_, pts, nrm) in _free_samples(scene, R, t, bead_radius_px).items():
         if len(pts) * 0.5 < min_free_px:
             continue
-        out[fid] = (float(np.median(scene.ridge_evidence(pts, nrm))), len(pts))
+        ridge = float(np.median(scene.ridge_evidence(pts, nrm)))
+        overruled = len(pts) * 0.5 >= OVERRULE_MIN_PX and ridge < -RIDGE_OVERRULES * median_spread(scene, len(pts))
+        learned = 0.0
+        if scene.learned is not None and not overruled:
+            learned = float(np.median(scene.learned_wire(pts)))
+        out[fid] = CurveSupport(ridge, len(pts), learned)
     return out
+
+
+def wire_support(
+    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = MIN_FREE_PX
+) -> dict[str, tuple[float, int]]:
+    """The ridge part of :func:`curve_support`: id → (median evidence, in noise units,
+    number of samples)."""
+    return {fid: (c.ridge, c.samples) for fid, c in curve_support(scene, R, t, bead_radius_px, min_free_px).items()}
 
 
 #: model samples per line (spread over its wire pieces by length) and per ellipse when many
@@ -173,28 +226,15 @@ def ranking_support(
     return out
 
 
-def learned_wire_support(
-    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = MIN_FREE_PX
-) -> dict[str, float]:
-    """The learned detector's view of each wire pose (R, t) predicts: id → the median wire
-    probability over the curve's readable samples (as :func:`wire_support` samples them);
-    empty on the classical path. A blurred wire whose ridge reads under one noise unit can
-    still be plain to the network, which saw thousands of them at every blur."""
-    if scene.learned is None:
-        return {}
-    out: dict[str, float] = {}
-    for fid, (_, pts, _) in _free_samples(scene, R, t, bead_radius_px).items():
-        if len(pts) * 0.5 >= min_free_px:
-            out[fid] = float(np.median(scene.learned_wire(pts)))
-    return out
-
-
 def learned_confirms_wires(scene: Scene, R: np.ndarray, t: np.ndarray, min_probability: float = 0.3) -> bool:
     """Whether the learned detector shows every readable wire pose (R, t) predicts (median
-    probability ≥ ``min_probability``; at least two wires): the evidence that confirms a ball
-    labelling where the wires' contours could not be measured. False on the classical path."""
-    sup = learned_wire_support(scene, R, t, scene.bead_exclusion())
-    return len(sup) >= 2 and min(sup.values()) >= min_probability
+    probability ≥ ``min_probability`` where the ridge does not overrule it, see
+    :func:`curve_support`; at least two wires): the evidence that confirms a ball labelling
+    where the wires' contours could not be measured. False on the classical path."""
+    if scene.learned is None:
+        return False
+    sup = curve_support(scene, R, t, scene.bead_exclusion())
+    return len(sup) >= 2 and min(c.learned for c in sup.values()) >= min_probability
 
 
 def image_agreement(

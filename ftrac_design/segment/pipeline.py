@@ -246,6 +246,7 @@ def accept_best(
     diag: Diagnostics,
     opts: AcceptanceOptions,
     first: Labelling | None = None,
+    unsubtracted: Scene | None = None,
 ) -> Labelling:
     """Run the acceptance tests on the best labelling: the labelling with its pose refused for the
     first reason found, or as it was.
@@ -263,6 +264,10 @@ def accept_best(
         tied with it would have gained as much at its own pose (ftrac_mini, a corrected
         pincushion of the tuning seed: a labelling 180° off won by 4 χ², then the subtraction
         found it two balls more and it passed).
+    unsubtracted : the scene before the body's subtraction, when ``scene`` is after it: a
+        wire either image shows is there. The modelled body's limb, subtracted a little too
+        strongly, took the ridge of a straight wire lying along it (ftrac_2005 under 2 px of
+        blur: 3.4 noise units before, −0.2 after, at the true pose).
 
     Returns
     -------
@@ -279,7 +284,7 @@ def accept_best(
                 pose = acceptance.refuse(pose, r[0])
                 break
     if pose.converged:
-        absent, support = acceptance.wire_support(scene, pose, opts)
+        absent, support = acceptance.wire_support(scene, pose, opts, unsubtracted)
         diag.wire_support = support
         if absent:
             pose = acceptance.refuse(
@@ -380,13 +385,13 @@ def _track_density(
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
     best, others = evaluated[0], evaluated[1:]
-    first = best
+    first, unsubtracted = best, None
     if features.body is not None and best.placed:
         redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
         if redone is not None and _subtraction_helped(best, redone[0]):
-            best, scene = redone
+            unsubtracted, (best, scene) = scene, redone
             diag.body_subtracted = True
-    best = accept_best(scene, best, others, diag, accept, first)
+    best = accept_best(scene, best, others, diag, accept, first, unsubtracted)
     diag.blur_px, diag.hypotheses, diag.labellings_tested = scene.scales.blur_px, len(hyps), len(evaluated)
     # the residuals' own scale relative to the noise model (the covariance uses it)
     diag.labelled(len(best.obs.points), best.dropped, best.removed, scene.pixel_noise, best.variance_factor)
