@@ -3,13 +3,17 @@ strokes, the local noise map, isotropic blobs, guided contours and the time budg
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+from types import SimpleNamespace
+
 import cv2
 import numpy as np
 import pytest
 
 from ftrac_design.pose import Camera
-from ftrac_design.pose.simulate import Workspace
-from ftrac_design.segment import TrackOptions, conditioning, identify, track_image
+from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.segment import TrackOptions, conditioning, detection, identify, track_image
 from ftrac_design.segment.beads import blob_candidates
 from ftrac_design.segment.conditioning import (
     burned_in_graphics,
@@ -334,3 +338,49 @@ def test_counts_are_tried_dense_dark_first_and_line_integrals_dense_bright(f2005
         res = track_image(img, features, Camera())
         assert res.pose.converged and res.polarity == want
         assert res.diagnostics.polarity_tried is None
+
+
+def test_cleaned_marks_clipped_pixels_and_graphics_hidden():
+    """A display frame's pixels at its extremes (within 1 % of its range: the white and black
+    bands, a ball's clipped core) and its burned-in graphics show nothing of what lies there;
+    the rest of the frame does."""
+    img, cores, _ = _frame_with_graphics(3, 0.85 * 255)
+    clean = cleaned(img, True, 8)
+    assert clean.hidden is not None
+    extreme = (img <= 2) | (img >= 253)
+    assert clean.hidden[extreme].all()
+    assert clean.hidden[cores].mean() >= 0.9
+    assert not clean.hidden[~extreme & ~burned_in_graphics(img)].any()
+    assert condition(img, "dense-dark", None, 8, clean=clean).hidden is clean.hidden
+
+
+def test_hidden_fraction_of_a_disc_against_a_half_plane():
+    """The hidden share of a disc of radius 5 px (81 pixels): 0 in the open, 1 inside the
+    hidden half-plane, 35 / 81 centred on its first unhidden column (the 35 pixels left of
+    the centre's column), and 1 wholly outside the image."""
+    hidden = np.zeros((64, 64), bool)
+    hidden[:, :32] = True
+    scene = SimpleNamespace(hidden=hidden)
+    f = detection.Scene.hidden_fraction(scene, np.array([[50.0, 30.0], [10.0, 30.0], [32.0, 30.0], [-20.0, 5.0]]), 5.0)
+    np.testing.assert_allclose(f, [0.0, 1.0, 35 / 81, 1.0])
+
+
+def test_balls_over_hardware_clipped_to_black_do_not_refuse_the_pose():
+    """A display frame (the realism benchmark's display-dark image 11 of seed 2068, 12 per
+    condition) whose window clips a ring of other hardware to black, with two of ftrac_2005's
+    balls over it: their discs are more than half clipped, so the image could not show them,
+    and the pose from the other seven balls and four wires is given (it was refused as "2
+    beads in view ... not explained")."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import track_realism
+
+    img, R, t, camera, _ = track_realism.make_image("ftrac_2005", "display-dark", 11, 2068, 12)
+    features = track_realism.preset_features("ftrac_2005")
+    uv = identify.project(camera, R, t, features.point_centers())[0]
+    clean = cleaned(img, True, scales(features, camera, TrackOptions().finding).disc_px)
+    hid = detection.Scene.hidden_fraction(SimpleNamespace(hidden=clean.hidden), uv, 5.4)
+    assert [p.id for p, h in zip(features.points, hid) if h > 0.5] == ["B1", "B8"]
+    res = track_image(img, features, camera)
+    assert res.pose.converged, res.pose.error
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    assert np.degrees(np.linalg.norm(dr)) < 1.0 and np.linalg.norm(dt) < 3.0

@@ -38,6 +38,8 @@ class Conditioned:
     valid: np.ndarray | None
     polarity: str
     formation: str
+    #: True where the pixel shows nothing of what lies there (:attr:`Cleaned.hidden`); None: nowhere
+    hidden: np.ndarray | None = None
 
 
 def formation_of(image: np.ndarray, polarity: str, hint: str | None = None) -> str:
@@ -148,6 +150,19 @@ def _closed_where_wide(ext: np.ndarray, wide: np.ndarray, disc_px: int) -> np.nd
     return region
 
 
+def _at_extremes(
+    a: np.ndarray, levels: tuple[float, float] | None
+) -> tuple[np.ndarray, np.ndarray] | tuple[None, None]:
+    """The pixels of ``a`` (any real dtype) at its highest and at its lowest value — within 1 % of the
+    range for 0–255 images (a display frame's noise around its clip level), exactly otherwise
+    — or (None, None) for a constant image. ``levels``: as for :func:`invalid_regions`."""
+    lo, hi = (float(a.min()), float(a.max())) if levels is None else (float(levels[0]), float(levels[1]))
+    if not hi > lo:
+        return None, None
+    tol = 0.01 * (hi - lo) if hi - lo <= 255.0 else 0.0
+    return a >= hi - tol, a <= lo + tol
+
+
 def fill_clipped(
     image: np.ndarray, radius_px: int = 2, passes: int = 2, levels: tuple[float, float] | None = None
 ) -> np.ndarray:
@@ -163,12 +178,11 @@ def fill_clipped(
     them, while a ball or a wire whose core the window clipped keeps its blurred flanks and
     becomes flat-topped. ``levels``: as for :func:`invalid_regions`."""
     a = np.array(image, dtype=np.float32, copy=True)
-    lo, hi = (float(a.min()), float(a.max())) if levels is None else (float(levels[0]), float(levels[1]))
-    if not hi > lo:
+    high, low = _at_extremes(a, levels)
+    if high is None:
         return a
-    tol = 0.01 * (hi - lo) if hi - lo <= 255.0 else 0.0
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius_px + 1, 2 * radius_px + 1))
-    for sign, clip in ((1.0, a >= hi - tol), (-1.0, a <= lo + tol)):
+    for sign, clip in ((1.0, high), (-1.0, low)):
         todo = clip.copy()
         for _ in range(passes):
             if not todo.any():
@@ -301,6 +315,9 @@ class Cleaned:
     pixels: np.ndarray
     #: True where the image holds information; None: everywhere
     valid: np.ndarray | None
+    #: True where a pixel shows nothing of what lies there: clipped (:func:`fill_clipped`'s
+    #: extremes) or burned-in graphics; None: nowhere
+    hidden: np.ndarray | None = None
 
 
 def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float, float] | None = None) -> Cleaned:
@@ -313,7 +330,11 @@ def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float,
     graphics = burned_in_graphics(image, levels) if display else None
     if graphics is not None:
         filled = without_graphics(filled, graphics)
-    return Cleaned(filled, None if bad is None else ~bad)
+    high, low = _at_extremes(np.asarray(image), levels)
+    hidden = None if high is None else high | low
+    if graphics is not None:
+        hidden = graphics if hidden is None else hidden | graphics
+    return Cleaned(filled, None if bad is None else ~bad, hidden if hidden is not None and hidden.any() else None)
 
 
 def condition(
@@ -345,4 +366,4 @@ def condition(
     form = formation_of(image, polarity, formation)
     if clean is None:
         clean = cleaned(image, form == "display", disc_px, levels)
-    return Conditioned(to_density(clean.pixels, polarity, form), clean.valid, polarity, form)
+    return Conditioned(to_density(clean.pixels, polarity, form), clean.valid, polarity, form, clean.hidden)

@@ -108,6 +108,9 @@ class Scene:
     #: the learned detector's detections in this image's pixels (:mod:`ftrac_design.detector`),
     #: or None on the classical path
     learned: object | None = None
+    #: True where a pixel shows nothing of what lies there (clipped, or burned-in graphics:
+    #: :attr:`.conditioning.Cleaned.hidden`); None: nowhere
+    hidden: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -125,6 +128,24 @@ class Scene:
         if self.blob_snr is None:
             return np.zeros(len(uv))
         return bilinear(self.blob_snr, np.asarray(uv, float).reshape(-1, 2))
+
+    def hidden_fraction(self, uv: np.ndarray, radius_px: float) -> np.ndarray:
+        """Per point ``uv`` (n, 2) px, the fraction of the pixels within ``radius_px`` of it that
+        show nothing of what lies there (:attr:`hidden`; outside the image counts as hidden)."""
+        uv = np.asarray(uv, float).reshape(-1, 2)
+        if self.hidden is None or not len(uv):
+            return np.zeros(len(uv))
+        r = int(math.ceil(radius_px))
+        oy, ox = np.mgrid[-r : r + 1, -r : r + 1]
+        disc = ox**2 + oy**2 <= radius_px * radius_px
+        ox, oy = ox[disc], oy[disc]
+        H, W = self.hidden.shape
+        c = np.rint(np.nan_to_num(uv, nan=-1e6)).astype(np.int64)
+        x, y = c[:, :1] + ox[None], c[:, 1:] + oy[None]
+        inside = (x >= 0) & (y >= 0) & (x < W) & (y < H)
+        hid = np.ones(x.shape, bool)
+        hid[inside] = self.hidden[y[inside], x[inside]]
+        return hid.mean(1)
 
     def learned_ball(self, uv: np.ndarray) -> np.ndarray:
         """The learned detector's ball probability at points ``uv`` (n, 2) px (0 on the classical path)."""
@@ -421,6 +442,7 @@ def detect(
     valid: np.ndarray | None = None,
     noise: NoiseField | None = None,
     learned=None,
+    hidden: np.ndarray | None = None,
 ) -> Scene:
     """Background-free image and its local noise, fitted bead candidates and ridge points of the
     density image ``g`` (dense = bright).
@@ -436,6 +458,8 @@ def detect(
     learned : the learned detector's detections in ``g``'s pixels (:mod:`ftrac_design.detector`):
         its ball candidates (most probable first) are fitted instead of the classical blob
         detector's, and the scene keeps them as evidence; None for the classical path.
+    hidden : (H, W) bool, True where a pixel shows nothing of what lies there (kept by the
+        scene: :attr:`Scene.hidden`).
 
     Returns
     -------
@@ -462,7 +486,7 @@ def detect(
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, learned)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, learned, hidden)
 
 
 def fitted_blur(scene: Scene) -> float | None:

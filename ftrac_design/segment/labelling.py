@@ -340,7 +340,8 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     ball more at a worse fit, and "more features" picked it.
 
     Also sets ``lab.contours.unexplained_beads``: balls in view and well clear of the
-    others that the labelling leaves without a blob (or rejects).
+    others that the labelling leaves without a blob (or rejects), where the image could have
+    shown them (no more than half the ball's disc hidden: :meth:`.detection.Scene.hidden_fraction`).
 
     A ball the labelling did not use but the image does show where it is predicted (the
     blob detector reads ``bead_present_snr`` noise units or more there: a faint ball under
@@ -369,10 +370,14 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
         if len(uv)
         else np.zeros(0, bool)
     )
+    # a ball most of whose disc is clipped could not have shown: a display window that clips
+    # dense hardware to black took the balls over it, flanks and all, while the balls beside
+    # it kept their readable flanks around a clipped core
+    hidden = scene.hidden_fraction(uv, m) > 0.5
     for k, p in enumerate(features.points):
         if inside[k] and p.id not in obs.points and (p.id not in lab.dropped or p.id in lab.removed):
             unexplained += 1
-            isolated += bool(dd[k].min() > 4 * sc.bead_radius_px + 2 and not shown[k])
+            isolated += bool(dd[k].min() > 4 * sc.bead_radius_px + 2 and not shown[k] and not hidden[k])
     cont.unexplained_beads = isolated
     unexplained += len(set(cont.missing) | {k for k in lab.removed if k not in {p.id for p in features.points}})
     return chi + opts.unexplained_chi2 * unexplained

@@ -247,6 +247,7 @@ def scene_near(
     noise: NoiseField,
     ball_blur_px: float | None = None,
     diag: Diagnostics | None = None,
+    hidden: np.ndarray | None = None,
 ) -> Scene:
     """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
     only where pose (R, t) puts the fiducial (see the module).
@@ -268,6 +269,7 @@ def scene_near(
     ball_blur_px : the balls' fitted blur σ (px) the body and the wire mask are blurred with
         (default ``opts.blur_px``).
     diag : diagnostics that get ``body_subtracted`` when the body was subtracted.
+    hidden : (H, W) bool, True where a pixel of the crop shows nothing (:attr:`.detection.Scene.hidden`).
 
     Returns
     -------
@@ -281,7 +283,7 @@ def scene_near(
         T[~valid] = 0.0
     empty = np.zeros((0, 2))
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
-    scene = Scene(features, camera, sc, T, nmap, None, ridges, valid, None, None)
+    scene = Scene(features, camera, sc, T, nmap, None, ridges, valid, None, None, hidden=hidden)
     if features.body is not None:
         inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, None)
         if inner is not None:
@@ -294,7 +296,7 @@ def scene_near(
         else (None, None)
     )
     d = derivatives(T, sc.ridge_sigma_px)
-    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, hidden=hidden)
 
 
 def _moved_px(camera: Camera, features: Features, R0, t0, R1, t1) -> float:
@@ -391,6 +393,8 @@ class _Crop:
     camera: Camera
     corner: tuple[int, int]
     formation: str
+    #: where a pixel shows nothing (:attr:`~ftrac_design.segment.conditioning.Conditioned.hidden`)
+    hidden: np.ndarray | None = None
 
 
 def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, int, int, int], disc_px: int) -> _Crop:
@@ -412,7 +416,8 @@ def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, 
     crop_cam = replace(
         camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
     )
-    return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation)
+    hidden = None if cond.hidden is None else np.ascontiguousarray(cond.hidden[inner])
+    return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation, hidden)
 
 
 def _confirmed(
@@ -472,7 +477,18 @@ def _track_near(
     diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
     diag.blur_px = find.blur_px
     scene = scene_near(
-        crop.density, features, crop.camera, find, R, t, search_px, crop.valid, crop.noise, context.ball_blur_px, diag
+        crop.density,
+        features,
+        crop.camera,
+        find,
+        R,
+        t,
+        search_px,
+        crop.valid,
+        crop.noise,
+        context.ball_blur_px,
+        diag,
+        crop.hidden,
     )
     diag.blobs = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
