@@ -341,7 +341,9 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
 
     Also sets ``lab.contours.unexplained_beads``: balls in view and well clear of the
     others that the labelling leaves without a blob (or rejects), where the image could have
-    shown them (no more than half the ball's disc hidden: :meth:`.detection.Scene.hidden_fraction`).
+    shown them (no more than half the ball's disc hidden: :meth:`.detection.Scene.hidden_fraction`);
+    and ``lab.contours.crowded_shown``: balls it does not use whose blob blends with a
+    neighbour's, where the image shows a ball all the same.
 
     A ball the labelling did not use but the image does show where it is predicted (the
     blob detector reads ``bead_present_snr`` noise units or more there: a faint ball under
@@ -374,11 +376,17 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     # dense hardware to black took the balls over it, flanks and all, while the balls beside
     # it kept their readable flanks around a clipped core
     hidden = scene.hidden_fraction(uv, m) > 0.5
+    crowded = 0
     for k, p in enumerate(features.points):
-        if inside[k] and p.id not in obs.points and (p.id not in lab.dropped or p.id in lab.removed):
+        if not inside[k] or p.id in obs.points:
+            continue
+        clear = dd[k].min() > 4 * sc.bead_radius_px + 2
+        # a ball left out for its crowding (dropped, not rejected) is not charged
+        crowded += bool(not clear and shown[k])
+        if p.id not in lab.dropped or p.id in lab.removed:
             unexplained += 1
-            isolated += bool(dd[k].min() > 4 * sc.bead_radius_px + 2 and not shown[k] and not hidden[k])
-    cont.unexplained_beads = isolated
+            isolated += bool(clear and not shown[k] and not hidden[k])
+    cont.unexplained_beads, cont.crowded_shown = isolated, crowded
     unexplained += len(set(cont.missing) | {k for k in lab.removed if k not in {p.id for p in features.points}})
     return chi + opts.unexplained_chi2 * unexplained
 
