@@ -136,7 +136,7 @@ def test_a_bead_only_design_never_extends_the_search():
 
 
 def _pass_other_tests(monkeypatch):
-    monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts: ([], {}))
+    monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts, also=None: ([], {}))
     monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "misshapen_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "stray_balls", lambda scene, lab, opts: None)

@@ -284,7 +284,7 @@ def accept_best(
                 pose = acceptance.refuse(pose, r[0])
                 break
     if pose.converged:
-        absent, support = acceptance.wire_support(scene, pose, opts, unsubtracted)
+        absent, support = acceptance.wire_support(scene, pose, opts, also=unsubtracted)
         diag.wire_support = support
         if absent:
             pose = acceptance.refuse(
