@@ -39,13 +39,13 @@ def scene_2005(f2005):
 def test_the_ranking_measure_reads_the_wires_the_dense_measure_reads(scene_2005):
     """At the true pose every line and ellipse is plainly shown: the coarse measure sums each
     curve's clipped median (3 noise units at most) to within one unit of the dense measure's
-    (:func:`evidence.wire_support`, a sample every 0.5 px), and reads at least 2.5 per curve."""
+    (:func:`evidence.curve_support`, a sample every 0.5 px), and reads at least 2.5 per curve."""
     scene, R, t = scene_2005
     coarse = evidence.ranking_support(scene, R[None], t[None], scene.bead_exclusion())[0]
-    dense = evidence.wire_support(scene, R, t, scene.bead_exclusion())
+    dense = {k: c.ridge for k, c in evidence.curve_support(scene, R, t, scene.bead_exclusion()).items()}
     lo, hi = evidence.RANK_CLIP
     assert len(dense) == 5
-    assert coarse == pytest.approx(sum(np.clip(v, lo, hi) for v, _ in dense.values()), abs=1.0)
+    assert coarse == pytest.approx(sum(np.clip(v, lo, hi) for v in dense.values()), abs=1.0)
     assert coarse >= 2.5 * len(dense)
 
 
@@ -59,9 +59,9 @@ def test_wires_predicted_on_bare_background_read_nothing(scene_2005, shift_mm):
     t2 = t + np.array(shift_mm)
     both = evidence.ranking_support(scene, np.stack([R, R]), np.stack([t2, t]), scene.bead_exclusion())
     alone = evidence.ranking_support(scene, R[None], t2[None], scene.bead_exclusion())[0]
-    dense = evidence.wire_support(scene, R, t2, scene.bead_exclusion())
+    dense = {k: c.ridge for k, c in evidence.curve_support(scene, R, t2, scene.bead_exclusion()).items()}
     assert abs(both[0]) < 1.5
-    assert both[0] == pytest.approx(sum(v for v, _ in dense.values()), abs=1.0)
+    assert both[0] == pytest.approx(sum(dense.values()), abs=1.0)
     assert both[0] == pytest.approx(alone)
     assert both[1] >= 12.5
 

@@ -163,8 +163,15 @@ def _at_extremes(
     return a >= hi - tol, a <= lo + tol
 
 
+#: how far (px) and how many times :func:`fill_clipped` reaches out for unclipped values
+FILL_RADIUS_PX, FILL_PASSES = 2, 2
+
+
 def fill_clipped(
-    image: np.ndarray, radius_px: int = 2, passes: int = 2, levels: tuple[float, float] | None = None
+    image: np.ndarray,
+    radius_px: int = FILL_RADIUS_PX,
+    passes: int = FILL_PASSES,
+    levels: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """``image`` (float32) with its pixels at the extreme values (within 1 % of the range of
     the lowest or highest, for 0–255 images; exactly, otherwise) replaced by the nearest
@@ -179,8 +186,12 @@ def fill_clipped(
     becomes flat-topped. ``levels``: as for :func:`invalid_regions`."""
     a = np.array(image, dtype=np.float32, copy=True)
     high, low = _at_extremes(a, levels)
-    if high is None:
-        return a
+    return a if high is None else _filled(a, high, low, radius_px, passes)
+
+
+def _filled(a: np.ndarray, high: np.ndarray, low: np.ndarray, radius_px: int, passes: int) -> np.ndarray:
+    """:func:`fill_clipped` of the float32 image ``a`` (filled in place and returned), its
+    clipped pixels ``high`` and ``low`` given."""
     k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius_px + 1, 2 * radius_px + 1))
     for sign, clip in ((1.0, high), (-1.0, low)):
         todo = clip.copy()
@@ -326,11 +337,13 @@ def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float,
     graphics filled in (:func:`fill_clipped`, :func:`without_graphics`). ``disc_px`` and
     ``levels`` as for :func:`condition`."""
     bad = invalid_regions(image, disc_px, disc_px + 2, levels)
-    filled = fill_clipped(image, levels=levels) if display else np.asarray(image, np.float32)
+    high, low = _at_extremes(np.asarray(image), levels)
+    filled = np.array(image, dtype=np.float32) if display else np.asarray(image, np.float32)
+    if display and high is not None:
+        filled = _filled(filled, high, low, FILL_RADIUS_PX, FILL_PASSES)
     graphics = burned_in_graphics(image, levels) if display else None
     if graphics is not None:
         filled = without_graphics(filled, graphics)
-    high, low = _at_extremes(np.asarray(image), levels)
     hidden = None if high is None else high | low
     if graphics is not None:
         hidden = graphics if hidden is None else hidden | graphics

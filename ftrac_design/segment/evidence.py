@@ -116,14 +116,6 @@ def curve_support(
     return out
 
 
-def wire_support(
-    scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, min_free_px: float = MIN_FREE_PX
-) -> dict[str, tuple[float, int]]:
-    """The ridge part of :func:`curve_support`: id → (median evidence, in noise units,
-    number of samples)."""
-    return {fid: (c.ridge, c.samples) for fid, c in curve_support(scene, R, t, bead_radius_px, min_free_px).items()}
-
-
 #: model samples per line (spread over its wire pieces by length) and per ellipse when many
 #: poses are judged at once
 COARSE_SAMPLES = 24
@@ -188,7 +180,7 @@ def ranking_support(
     curve (noise units, clipped to ``RANK_CLIP``); a curve with less than ``MIN_FREE_PX`` of
     readable length adds nothing. Returns (H,).
 
-    The measure of :func:`wire_support` on ``COARSE_SAMPLES`` samples a curve instead of one
+    The ridge measure of :func:`curve_support` on ``COARSE_SAMPLES`` samples a curve instead of one
     every 0.5 px, for every bead hypothesis of an image at once (hundreds to thousands):
     ranking them by it puts first the poses whose wires the image shows, which a pose must
     have to pass (:func:`.acceptance.absent_wires`)."""

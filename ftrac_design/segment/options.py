@@ -108,7 +108,7 @@ class TrackOptions:
     #: ... unless it lies inside the best pose's own covariance (its difference's χ²₆ at
     #: most this, p = 0.99): given out, the pose already says it may be there
     rival_inside_chi2: float = 16.8
-    #: a predicted wire whose median ridge evidence (:func:`~.evidence.wire_support`, noise
+    #: a predicted wire whose median ridge evidence (:func:`~.evidence.curve_support`, noise
     #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
     #: wire's, is absent: the labelling is not confirmed
     wire_support: float = 0.2
