@@ -59,14 +59,21 @@ def stored_values(hdr: DicomHeader, arr: np.ndarray) -> np.ndarray:
         return arr
     bits = hdr.bits_stored
     unsigned = arr.view(arr.dtype.str.replace("i", "u")) if arr.dtype.kind == "i" else arr
-    values = unsigned.astype(np.int64) & ((1 << bits) - 1)
+    if bits >= 8 * unsigned.dtype.itemsize:
+        # every bit allocated is stored: the samples are the values, no copy (a run's frame is
+        # read at video rate)
+        values = unsigned
+    else:
+        values = unsigned & unsigned.dtype.type((1 << bits) - 1)
     if hdr.signed:
-        values = np.where(values >= (1 << (bits - 1)), values - (1 << bits), values)
+        wide = values.astype(np.int32 if values.dtype.itemsize < 4 else np.int64)
+        values = np.where(wide >= (1 << (bits - 1)), wide - (1 << bits), wide)
     return values
 
 
 def modality_values(hdr: DicomHeader, frame: int, stored: np.ndarray) -> tuple[np.ndarray, int, str | None]:
-    """Modality values of ``stored`` (grey), the transform's direction (+1 increasing, −1
+    """Modality values of ``stored`` (grey; the stored integers themselves where the transform
+    is the identity, float64 otherwise), the transform's direction (+1 increasing, −1
     decreasing) and a note naming the transform applied (None for identity)."""
     path, ds = hdr.path, hdr.ds
     lut = raw_value(ds, "ModalityLUTSequence", path)
@@ -75,13 +82,13 @@ def modality_values(hdr: DicomHeader, frame: int, stored: np.ndarray) -> tuple[n
     slope, where = lookup(ds, frame, TRANSFORM, "RescaleSlope", path)
     intercept, _ = lookup(ds, frame, TRANSFORM, "RescaleIntercept", path)
     if slope is None and intercept is None:
-        return stored.astype(np.float64), 1, None
+        return stored, 1, None
     m = as_floats(slope, "RescaleSlope", path, 1)[0] if slope is not None else 1.0
     b = as_floats(intercept, "RescaleIntercept", path, 1)[0] if intercept is not None else 0.0
     if m == 0:
         raise InputError(path, tag_name("RescaleSlope"), "a non-zero slope")
     if m == 1 and b == 0:
-        return stored.astype(np.float64), 1, None
+        return stored, 1, None
     return stored * m + b, (1 if m > 0 else -1), f"rescale applied (value = stored × {m:g} + {b:g}, {where})"
 
 
@@ -107,7 +114,7 @@ def _apply_lut(hdr: DicomHeader, stored: np.ndarray) -> tuple[np.ndarray, int, s
 
 
 def grey_values(hdr: DicomHeader, frame: int, arr: np.ndarray) -> tuple[np.ndarray, int, tuple[str, ...]]:
-    """Modality values of a decoded frame as a grey (H, W) float64 image, the value map's
+    """Modality values of a decoded frame as a grey (H, W) image (integers or float64), the value map's
     direction and the notes (colour → Rec. 709 grey; MONOCHROME1 kept as stored)."""
     if hdr.samples == 3:
         grey, notes = to_grey(np.asarray(arr), hdr.path)

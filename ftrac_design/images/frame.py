@@ -111,6 +111,9 @@ def finish_pixels(img: np.ndarray, path: str | Path) -> np.ndarray:
         raise InputError(path, "pixels", f"an image of at least 2 × 2 pixels, got shape {img.shape}")
     if img.dtype == np.bool_:
         img = img.astype(np.uint8)
+    if img.dtype.kind in "iu":
+        # every integer is finite and within float32's range: converted once, unchecked
+        return np.ascontiguousarray(img, dtype=np.float32)
     with np.errstate(all="ignore"):
         big = float(np.max(np.abs(img.astype(np.float64, copy=False)))) if img.size else 0.0
     if not np.isfinite(big):
