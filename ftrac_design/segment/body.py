@@ -172,9 +172,11 @@ def ridges_without_body(
     T2 = top_hat((gb - scale * Bb).astype(np.float32), sc.disc_px)
     if scene.valid is not None:
         T2[~scene.valid[box]] = 0.0
-    d = derivatives(T2, sc.ridge_sigma_px)
+    wanted = ridge_min_snr is not None and bool(scene.features.lines or scene.features.ellipses)
+    # a run's frame keeps no derivatives and looks for no ridges here: none taken for it
+    d = derivatives(T2, sc.ridge_sigma_px) if wanted or scene.derivs is not None else None
     rp = None
-    if ridge_min_snr is not None and (scene.features.lines or scene.features.ellipses):
+    if wanted:
         rp = ridge_points(T2, sc.ridge_sigma_px, scene.noise_map[box], ridge_min_snr, derivs=d)
         rp.uv = rp.uv + np.array([c0, r0], float)
         rp = rp.take(scene.readable(rp.uv))
