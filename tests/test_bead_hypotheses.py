@@ -8,14 +8,18 @@ run over anatomy, frames 85, 88 and 93)."""
 
 from __future__ import annotations
 
+import sys
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera, so3
-from ftrac_design.pose.simulate import Workspace
-from ftrac_design.segment import identify
+from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.segment import TrackOptions, identify, track_image
 
 #: the sequence benchmark's camera: 1000 mm source to detector, 0.44 mm pixels
 CAMERA = Camera(1000.0, (0.44, 0.44), (511.5, 511.5))
@@ -64,3 +68,57 @@ def test_poses_kept_for_one_labelling_are_distinct(views):
             for i in range(len(Rs)):
                 for j in range(i):
                     assert so3.angle(Rs[i], Rs[j]) >= identify.SAME_POSE_RAD
+
+
+def _cluttered_view():
+    """ftrac_2005's nine balls among 24 clutter blobs, strongest first: one ball of each wire
+    ranked 2nd, 4th and 6th, the others 13th to 25th (the learned detector ranks brachytherapy
+    seeds seen end-on above balls); model, truth (R, t) and the blobs."""
+    f = compute_features(load_design("ftrac_2005"))
+    model = f.point_centers()
+    R, t = Workspace(cone_deg=10.0, lateral_mm=10.0).sample(1, f.nominal_beam_direction, np.random.default_rng(8))
+    uv = identify.project(CAMERA, R[0], t[0], model)[0]
+    rng = np.random.default_rng(9)
+    lo, hi = uv.min(0) - 20, uv.max(0) + 20
+    clutter = lo + rng.random((24, 2)) * (hi - lo)
+    ranks = [2, 4, 6, 13, 14, 17, 19, 22, 25]
+    blobs = np.empty((33, 2))
+    # B1, B5 and B8 (one per wire: not collinear) first
+    blobs[ranks] = uv[[0, 4, 7, 1, 2, 3, 5, 6, 8]] + rng.normal(0.0, 0.15, (9, 2))
+    blobs[[k for k in range(33) if k not in ranks]] = clutter
+    return model, R[0], t[0], blobs
+
+
+def _right(hyps, R) -> bool:
+    return any(h.count >= 7 and so3.angle(h.R, R) < np.radians(2.0) for h in hyps)
+
+
+def test_a_wider_search_finds_balls_ranked_below_clutter():
+    """The first search's 24 triplets of the 12 strongest blobs hold no three balls here, so
+    the right labelling never forms; the wider search (the 48 triplets of the 16 strongest
+    that follow, none of the first's tried again) finds it."""
+    model, R, t, blobs = _cluttered_view()
+    first = identify.bead_hypotheses(model, blobs, CAMERA, 3.4, image_triplets=24, keep=None)
+    assert not _right(first, R)
+    wide = identify.bead_hypotheses(
+        model, blobs, CAMERA, 3.4, image_triplets=48, keep=None, blobs=16, after=24, patience=None
+    )
+    assert _right(wide, R)
+    tried = set(identify._image_triplets(blobs, 24))
+    assert not tried & set(identify._image_triplets(blobs, 48, k=16, skip=frozenset(tried)))
+
+
+def test_balls_among_seeds_are_tracked_by_the_wider_search():
+    """The realism benchmark's seeds-and-needles image 4 of seed 2080 (30 per condition): the
+    learned detector ranks a dozen seeds above the balls, all nine of which it fits; every
+    labelling of the first search is refused, and the wider search gives the right pose."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import track_realism
+
+    img, R, t, camera, _ = track_realism.make_image("ftrac_2005", "seeds-needle", 4, 2080, 30)
+    features = track_realism.preset_features("ftrac_2005")
+    assert not track_image(img, features, camera, replace(TrackOptions(), wide_triplets=0)).pose.converged
+    res = track_image(img, features, camera)
+    assert res.pose.converged, res.pose.error
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    assert np.degrees(np.linalg.norm(dr)) < 0.5 and np.linalg.norm(dt) < 1.0

@@ -100,20 +100,21 @@ def project(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tupl
 
 
 def _image_triplets(
-    uv: np.ndarray, limit: int, max_extent_px: float = np.inf, k: int = 12
+    uv: np.ndarray, limit: int, max_extent_px: float = np.inf, k: int = 12, skip: frozenset = frozenset()
 ) -> list[tuple[int, int, int]]:
     """Up to ``limit`` triplets of the ``k`` strongest blobs (``uv`` strongest first) that
     could all be balls of one fiducial: no side longer than ``max_extent_px`` and not
     nearly collinear; the strongest blobs first (the sum of their ranks), then the larger
-    triangle. Over anatomy or on a display frame a few clutter blobs rank among the balls;
-    the largest triangles of the first eight (the earlier rule) all held the one far away."""
+    triangle; none of ``skip`` (triplets tried before). Over anatomy or on a display frame a
+    few clutter blobs rank among the balls; the largest triangles of the first eight (the
+    earlier rule) all held the one far away."""
     k = min(len(uv), k)
     tri = []
     for a, b, c in itertools.combinations(range(k), 3):
         e1, e2, e3 = uv[b] - uv[a], uv[c] - uv[a], uv[c] - uv[b]
         side = max(float(np.hypot(*e1)), float(np.hypot(*e2)), float(np.hypot(*e3)))
         area = abs(e1[0] * e2[1] - e1[1] * e2[0]) / 2
-        if side > max_extent_px or not area > 0.05 * side * side:
+        if side > max_extent_px or not area > 0.05 * side * side or (a, b, c) in skip:
             continue
         tri.append((a + b + c, -area, (a, b, c)))
     tri.sort()
@@ -217,6 +218,9 @@ def bead_hypotheses(
     image_triplets: int = 24,
     keep: int | None = 8,
     max_extent_px: float = np.inf,
+    blobs: int = 12,
+    after: int = 0,
+    patience: int | None = 5,
 ) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
 
@@ -231,6 +235,12 @@ def bead_hypotheses(
         the best one (explaining all but one or two) was last improved.
     keep : how many labellings are returned (None: all).
     max_extent_px : the largest distance two balls of the fiducial can be apart in the image.
+    blobs : the triplets are of this many of the strongest blobs.
+    after : the first ``after`` triplets of the 12 strongest blobs (a search with the
+        defaults tried them) are not tried again.
+    patience : triplets tried without a better labelling before a search that explains all
+        balls but one or two stops; None: it goes on (where the labellings such a search
+        found were refused, their count is no sign that the right one is among them).
 
     Returns
     -------
@@ -247,7 +257,8 @@ def bead_hypotheses(
     best: dict[tuple, list[BeadHypothesis]] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)  # (m, 3, 3), once for every image triplet
     top, stale, tried = 0, 0, 0
-    for itri in _image_triplets(uv, image_triplets, max_extent_px):
+    skip = frozenset(_image_triplets(uv, after, max_extent_px)) if after > 0 else frozenset()
+    for itri in _image_triplets(uv, image_triplets, max_extent_px, k=blobs, skip=skip):
         poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
         if poses is None:
             continue
@@ -257,7 +268,8 @@ def bead_hypotheses(
         top = top_now
         # every ball explained; or nearly all (a ball or two too faint or merged) and the
         # last few triplets found nothing better: the rest would only cost time
-        if top >= min(P, n) or (top >= max(4, min(P, n) - 2) and stale >= 5):
+        nearly = patience is not None and top >= max(4, min(P, n) - 2) and stale >= patience
+        if top >= min(P, n) or nearly:
             break
         tried += 1
         if tried >= 8 and top < 4:

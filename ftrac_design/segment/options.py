@@ -58,6 +58,14 @@ class TrackOptions:
     #: hypotheses are ranked for refining: the image's ridges along a hypothesis' predicted
     #: wires (:func:`.evidence.ranking_support`) add this per noise unit to its matched count
     hypothesis_wire_weight: float = 0.5
+    #: where no labelling of the first search over the learned detector's blob triplets gives
+    #: a pose, its triplets are followed by up to this many more, of the ``wide_blobs`` strongest blobs (0: no
+    #: wider search). Among seeds, needles or dense anatomy the first search's 24 triplets of
+    #: the 12 strongest blobs can all hold clutter, and a chance match of seven balls to
+    #: clutter blobs then ends it (ftrac_2005 under brachytherapy seeds: all nine balls
+    #: fitted, the strongest of them 3rd of 33 blobs, the right labelling never formed)
+    wide_triplets: int = 48
+    wide_blobs: int = 16
     match_tol_px: float = 2.0
     #: contour points within this of a predicted curve belong to it (px); a second curve
     #: within ``separation_px`` makes a point ambiguous
@@ -243,6 +251,8 @@ class FindOptions:
     bead_min_snr: float
     hypothesis_tol_radii: float
     hypothesis_wire_weight: float
+    wide_triplets: int
+    wide_blobs: int
 
 
 @dataclass(frozen=True)

@@ -40,6 +40,9 @@ from .options import (
 )
 from .region import fiducial_regions, shifted, view_limited
 
+#: blob triplets the first search over bead labellings tries (:func:`.identify.bead_hypotheses`)
+FIRST_TRIPLETS = 24
+
 
 class Budget:
     """The work one image may cost: searches (a polarity's region, or its whole image) and
@@ -56,6 +59,9 @@ class Budget:
         #: bead hypotheses refined per search, and per search whose best pose rests on little
         self.labellings = opts.labellings
         self.labellings_if_weak = max(opts.labellings, opts.labellings_if_weak)
+        #: wider searches (:func:`_wider_search`) left: one per image, outside the counted work,
+        #: so that the searches after it run as they would have without it
+        self.wider_searches = 1
         self.deadline = (time.monotonic() if start is None else start) + opts.time_budget_s
         self.timed_out = False
 
@@ -67,6 +73,12 @@ class Budget:
             self.timed_out = True
             return True
         return False
+
+    def late(self) -> bool:
+        """Whether the wall-clock safety net is reached (the counted work aside)."""
+        if time.monotonic() > self.deadline:
+            self.timed_out = True
+        return self.timed_out
 
     def charge(self, units: int = 1) -> None:
         """Count ``units`` of work done."""
@@ -151,27 +163,82 @@ def with_predicted_balls(
     return scene.with_detections(scene.T, merged, scene.ridges)
 
 
+def _wider_search(
+    scene: Scene,
+    tried: list[identify.BeadHypothesis],
+    budget: Budget,
+    find: FindOptions,
+    labelling: LabellingOptions,
+    accept: AcceptanceOptions,
+) -> tuple[Scene, list[Labelling]]:
+    """A wider search where no labelling of the first search gave a pose: the blob triplets
+    after the first search's (``find.wide_triplets`` of the ``find.wide_blobs`` strongest
+    blobs, with no stop on a labelling that explains all balls but one or two: the first
+    search's were refused), their new labellings ranked and refined as the first ones were.
+    One per image (``budget.wider_searches``) and not counted in ``budget``'s work: where an
+    image gave a pose without it (in a later region, or the other polarity) it still does.
+    Returns the scene with the balls the new hypotheses predict and the labellings refined;
+    none where the image had its wider search, the clock's net is reached, or every blob was
+    in the first search's triplets. On the learned detector's blobs only: it orders them by its
+    ball probability alone, and brachytherapy seeds seen end-on outrank balls there; the
+    classical search orders its blobs by their ball fits' shape and size, and a refused image
+    already costs its second pass seconds."""
+    beads = scene.beads
+    if (
+        scene.learned is None
+        or find.wide_triplets <= 0
+        or beads is None
+        or len(beads) <= 3
+        or budget.wider_searches <= 0
+        or budget.late()
+    ):
+        return scene, []
+    budget.wider_searches -= 1
+    more = identify.bead_hypotheses(
+        scene.features.point_centers(),
+        beads.uv,
+        scene.camera,
+        find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        image_triplets=find.wide_triplets,
+        keep=None,
+        max_extent_px=scene.scales.max_bead_spread_px,
+        blobs=find.wide_blobs,
+        after=FIRST_TRIPLETS,
+        patience=None,
+    )
+    seen = {tuple(sorted(h.match.items())) for h in tried}
+    more = [h for h in more if tuple(sorted(h.match.items())) not in seen]
+    more = ranked_hypotheses(scene, more, find.hypothesis_wire_weight)[: budget.labellings_if_weak]
+    if not more:
+        return scene, []
+    scene = with_predicted_balls(scene, more, find, accept)
+    return scene, _labellings(scene, more, budget, labelling, accept, counted=False)
+
+
 def _labellings(
     scene: Scene,
     hyps: list[identify.BeadHypothesis],
     budget: Budget,
     labelling: LabellingOptions,
     accept: AcceptanceOptions,
+    counted: bool = True,
 ) -> list[Labelling]:
     """The best distinct labellings refined, each with its agreement with the image (one unit
     of ``budget`` each; none once it is spent, but the first): the first ``budget.labellings``
     hypotheses, and up to ``budget.labellings_if_weak`` while the best pose so far rests on
-    little (:func:`_rests_on_little`)."""
+    little (:func:`_rests_on_little`). Not ``counted``: none is charged to ``budget``, and
+    only its clock stops them."""
     out: list[Labelling] = []
     seen: list[tuple[np.ndarray, np.ndarray]] = []
     for i, h in enumerate(hyps[: budget.labellings_if_weak]):
         if i >= budget.labellings and not _rests_on_little(scene.features, out):
             break
-        if out and budget.spent():
+        if out and (budget.spent() if counted else budget.late()):
             break
         if h.rank < hyps[0].rank - 2:
             continue
-        budget.charge()
+        if counted:
+            budget.charge()
         try:
             lab = evaluate(scene, h, labelling)
         except (NoLabelling, ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError):
@@ -373,6 +440,7 @@ def _track_density(
         beads.uv,
         camera,
         find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        image_triplets=FIRST_TRIPLETS,
         keep=None,
         max_extent_px=scene.scales.max_bead_spread_px,
     )
@@ -383,6 +451,9 @@ def _track_density(
             f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads, ridges, diag
         )
     evaluated = _labellings(scene, hyps, budget, labelling, accept)
+    if not any(lab.pose.converged for lab in evaluated):
+        scene, more = _wider_search(scene, hyps, budget, find, labelling, accept)
+        evaluated += more
     if not evaluated:
         return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
