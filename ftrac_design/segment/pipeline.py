@@ -163,6 +163,26 @@ def with_predicted_balls(
     return scene.with_detections(scene.T, merged, scene.ridges)
 
 
+def _hypotheses(
+    scene: Scene, find: FindOptions, budget: Budget, tried: list[identify.BeadHypothesis], **search
+) -> list[identify.BeadHypothesis]:
+    """The bead hypotheses of the scene's blobs (:func:`.identify.bead_hypotheses` with the
+    ``search`` settings), less the labellings of ``tried``, ranked for refining
+    (:func:`ranked_hypotheses`) and cut to what ``budget`` may refine."""
+    hyps = identify.bead_hypotheses(
+        scene.features.point_centers(),
+        scene.beads.uv,
+        scene.camera,
+        find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+        keep=None,
+        max_extent_px=scene.scales.max_bead_spread_px,
+        **search,
+    )
+    seen = {tuple(sorted(h.match.items())) for h in tried}
+    hyps = [h for h in hyps if tuple(sorted(h.match.items())) not in seen]
+    return ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight)[: budget.labellings_if_weak]
+
+
 def _wider_search(
     scene: Scene,
     tried: list[identify.BeadHypothesis],
@@ -194,21 +214,16 @@ def _wider_search(
     ):
         return scene, []
     budget.wider_searches -= 1
-    more = identify.bead_hypotheses(
-        scene.features.point_centers(),
-        beads.uv,
-        scene.camera,
-        find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
+    more = _hypotheses(
+        scene,
+        find,
+        budget,
+        tried,
         image_triplets=find.wide_triplets,
-        keep=None,
-        max_extent_px=scene.scales.max_bead_spread_px,
         blobs=find.wide_blobs,
         after=FIRST_TRIPLETS,
         patience=None,
     )
-    seen = {tuple(sorted(h.match.items())) for h in tried}
-    more = [h for h in more if tuple(sorted(h.match.items())) not in seen]
-    more = ranked_hypotheses(scene, more, find.hypothesis_wire_weight)[: budget.labellings_if_weak]
     if not more:
         return scene, []
     scene = with_predicted_balls(scene, more, find, accept)
@@ -435,16 +450,7 @@ def _track_density(
             ridges,
             diag,
         )
-    hyps = identify.bead_hypotheses(
-        features.point_centers(),
-        beads.uv,
-        camera,
-        find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
-        image_triplets=FIRST_TRIPLETS,
-        keep=None,
-        max_extent_px=scene.scales.max_bead_spread_px,
-    )
-    hyps = ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight)[: budget.labellings_if_weak]
+    hyps = _hypotheses(scene, find, budget, [], image_triplets=FIRST_TRIPLETS)
     scene = with_predicted_balls(scene, hyps, find, accept)
     if not hyps:
         return failed_result(
