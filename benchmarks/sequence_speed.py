@@ -8,9 +8,9 @@ A C-arm swing (``ftrac_design.xray.sweep.render_sweep``: ±20° about the camera
 is read from the file and tracked twice: by ``RunTracker`` (the default of ``track`` on a
 run) and by ``RunTracker(independent=True)`` (``track --independent``: the full no-guess
 identification on every frame), each with its own reader, so both times include reading the
-frame; then once more by the run tracker alone, as ``track`` on a run does it (interleaved, each
-of its frames follows a whole frame's identification, which leaves it colder caches: ~3 ms a
-frame). The run is tracked ``--rounds`` times (fresh trackers each time; the answers are the
+frame; then once more by the run tracker alone, as ``track`` on a run does it (in the
+interleaved pass each of its frames follows a whole frame's identification; the two medians
+have differed by −0.6 to +2.9 ms). The run is tracked ``--rounds`` times (fresh trackers each time; the answers are the
 same every round). Printed per design, for the first round: median / p95 time per frame
 (read + track), frames per second
 (frames over the summed time), the CPU time per frame (the process's, all threads: less
@@ -119,9 +119,8 @@ def _round(path: Path, features, cam, n: int, desc: str):
 
 def _alone(path: Path, features, cam, n: int, desc: str) -> np.ndarray:
     """One pass of the run tracker alone, as ``track`` on a run does it: wall ms per frame,
-    reading included. Interleaved with a full identification of every frame (:func:`_round`),
-    each of its frames starts with caches the other path has just filled with a whole
-    1024² frame's work."""
+    reading included (in :func:`_round` each of its frames follows a full identification of
+    the same frame)."""
     tracker, reader = RunTracker(features, cam), read_frames(path)
     ms = np.zeros(n)
     for k in tqdm(range(n), desc=desc, unit="frame", file=sys.stderr):

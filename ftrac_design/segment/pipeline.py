@@ -67,12 +67,7 @@ class Budget:
 
     def spent(self) -> bool:
         """Whether no further search or labelling may start."""
-        if self.work <= 0:
-            return True
-        if time.monotonic() > self.deadline:
-            self.timed_out = True
-            return True
-        return False
+        return self.work <= 0 or self.late()
 
     def late(self) -> bool:
         """Whether the wall-clock safety net is reached (the counted work aside)."""
