@@ -359,6 +359,24 @@ def test_ftrac_mini_over_anatomy_mirror_labelling_is_not_confident(k):
     _assert_right_or_not_converged(track_image(rad.raw, features, Camera()), R[k], t[k], 5.0)
 
 
+def test_ftrac_mini_mirror_labelling_that_leaves_resolved_balls_bare_is_refused():
+    """The realism benchmark's display-dark image 1 of seed 2081 (12 per condition): ftrac_mini
+    is 40 px tall there, its nine balls 7-11 px apart and each found. A near-mirror labelling
+    147° off fitted seven and put the other two on bare background, 7 and 9.5 px from their
+    neighbours, where balls of that size (discs of 1.7 px radius, blur 0.8 px) would show as
+    blobs of their own: two unexplained balls, not one. The answer is right or not converged
+    (the first came out confidently wrong, χ²₆ 371,484)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import track_realism
+
+    img, R, t, camera, _ = track_realism.make_image("ftrac_mini", "display-dark", 1, 2081, 12)
+    res = track_image(img, track_realism.preset_features("ftrac_mini"), camera)
+    _assert_right_or_not_converged(res, R, t, 5.0)
+
+
 @pytest.mark.parametrize(
     "frame",
     [

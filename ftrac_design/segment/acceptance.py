@@ -170,7 +170,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
         # balls in view, clear of the others, that the labelling leaves without a blob (or
         # rejects): a near-mirror labelling of ftrac_mini (image 142) matched 6 of 9
         return (
-            f"identification not confirmed: {nub} beads in view and well clear of the others are not "
+            f"identification not confirmed: {nub} beads in view and clear of the others are not "
             f"explained (at most {opts.max_unexplained_beads})"
         )
     need = min(opts.min_beads, len(features.points))

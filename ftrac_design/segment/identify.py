@@ -294,11 +294,11 @@ class Contours:
     dropped: dict[str, str] = field(default_factory=dict)
     #: curves with hardly any ridge point near their prediction at all: evidence against the pose
     missing: list[str] = field(default_factory=list)
-    #: balls in view and well clear of the others that the labelling leaves without a blob,
-    #: where the image could have shown them (set by :func:`.labelling.score`)
+    #: balls in view, clear of the others (their blurred discs touch none), that the labelling
+    #: leaves without a blob, where the image could have shown them (set by :func:`.labelling.misfit`)
     unexplained_beads: int = 0
-    #: balls the labelling does not use that crowd another (their blobs blend) and that the
-    #: image shows where it puts them (set by :func:`.labelling.score`)
+    #: balls the labelling does not use within two bead widths of another (in its fit's
+    #: window) and that the image shows where it puts them (set by :func:`.labelling.misfit`)
     crowded_shown: int = 0
 
 

@@ -339,11 +339,11 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     not on the feature count or κ alone: a near-mirror labelling of ftrac_mini matched one
     ball more at a worse fit, and "more features" picked it.
 
-    Also sets ``lab.contours.unexplained_beads``: balls in view and well clear of the
-    others that the labelling leaves without a blob (or rejects), where the image could have
+    Also sets ``lab.contours.unexplained_beads``: balls in view whose blurred discs touch no
+    other's that the labelling leaves without a blob (or rejects), where the image could have
     shown them (no more than half the ball's disc hidden: :meth:`.detection.Scene.hidden_fraction`);
-    and ``lab.contours.crowded_shown``: balls it does not use whose blob blends with a
-    neighbour's, where the image shows a ball all the same.
+    and ``lab.contours.crowded_shown``: balls it does not use within two bead widths of a
+    neighbour (in its fit's window), where the image shows a ball all the same.
 
     A ball the labelling did not use but the image does show where it is predicted (the
     blob detector reads ``bead_present_snr`` noise units or more there: a faint ball under
@@ -363,8 +363,14 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     )
     m = sc.bead_radius_px + 2
     unexplained, isolated = 0, 0
-    # a ball whose blob may be blended with a neighbour's (within 2 bead widths) is
-    # not counted as clearly unexplained
+    # a ball whose blob may be blended with a neighbour's (their discs, blurred, touch) is
+    # not counted as clearly unexplained: one further off would show as a blob of its own
+    # (ftrac_mini at 40 px, balls 7-11 px apart, each found: a near-mirror labelling 147° off
+    # put two balls on bare background there, and a rule of two bead widths let it pass).
+    # Within two bead widths of a neighbour its fit may still fail (the neighbour is in its
+    # window), and one the image shows there counts for the labelling (``crowded_shown``)
+    sep = 2 * sc.bead_radius_px + 2 * sc.blur_px
+    window = 4 * sc.bead_radius_px + 2
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
     inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)
     shown = (
@@ -380,12 +386,11 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     for k, p in enumerate(features.points):
         if not inside[k] or p.id in obs.points:
             continue
-        clear = dd[k].min() > 4 * sc.bead_radius_px + 2
         # a ball left out for its crowding (dropped, not rejected) is not charged
-        crowded += bool(not clear and shown[k])
+        crowded += bool(dd[k].min() <= window and shown[k])
         if p.id not in lab.dropped or p.id in lab.removed:
             unexplained += 1
-            isolated += bool(clear and not shown[k] and not hidden[k])
+            isolated += bool(dd[k].min() > sep and not shown[k] and not hidden[k])
     cont.unexplained_beads, cont.crowded_shown = isolated, crowded
     unexplained += len(set(cont.missing) | {k for k in lab.removed if k not in {p.id for p in features.points}})
     return chi + opts.unexplained_chi2 * unexplained

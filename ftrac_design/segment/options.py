@@ -160,8 +160,8 @@ class TrackOptions:
     agreement_chi2_per_px: float = 1.0
     #: two refinement stages (wide, then tight and thinned) instead of three
     fast: bool = True
-    #: a converged pose may leave at most this many balls in view, well clear of the others
-    #: (> 4 radii + 2 px), without their blob or rejected
+    #: a converged pose may leave at most this many balls in view, clear of the others (their
+    #: blurred discs touch none: > 2 radii + 2 blur σ), without their blob or rejected
     max_unexplained_beads: int = 1
     #: a ball the labelling did not use is still shown by the image where the blob
     #: detector reads at least this many noise units at its predicted centre
