@@ -39,6 +39,7 @@ from .options import (
     failed_result,
 )
 from .region import fiducial_regions, shifted, view_limited
+from .threads import one_blas_thread
 
 #: blob triplets the first search over bead labellings tries (:func:`.identify.bead_hypotheses`)
 FIRST_TRIPLETS = 24
@@ -512,7 +513,8 @@ def track_image(
     numerics fail on what the image shows, the pose has ``converged = False`` and the reason.
     """
     try:
-        return _track(image, features, camera, options, polarity_hint, formation_hint)
+        with one_blas_thread():
+            return _track(image, features, camera, options, polarity_hint, formation_hint)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(f"tracking failed on this image: {type(exc).__name__}: {' '.join(str(exc).split())}")
 

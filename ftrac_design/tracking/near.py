@@ -60,6 +60,7 @@ from ..segment.options import FindOptions, TrackOptions, TrackResult, failed_res
 from ..segment.pipeline import accept_best, feature_quality
 from ..segment.region import shifted
 from ..segment.ridges import RidgePoints
+from ..segment.threads import one_blas_thread
 
 
 @dataclass(frozen=True)
@@ -357,13 +358,14 @@ def track_near(
     R0, t0 = np.asarray(R, float), np.asarray(t, float)
     frame = _Frame(np.asarray(image), features, camera, context, options or TrackOptions())
     try:
-        res, moved_only = _track_near(frame, R, t, search, first_stage)
-        for k in range(max(0, int(follow))):
-            if not moved_only:
-                break
-            R, t = res.pose.rotation, res.pose.translation_mm
-            res, moved_only = _track_near(frame, R, t, 1.0, 0)
-            _from_prediction(res.diagnostics, camera, features, R0, t0, res.pose, k + 1)
+        with one_blas_thread():
+            res, moved_only = _track_near(frame, R, t, search, first_stage)
+            for k in range(max(0, int(follow))):
+                if not moved_only:
+                    break
+                R, t = res.pose.rotation, res.pose.translation_mm
+                res, moved_only = _track_near(frame, R, t, 1.0, 0)
+                _from_prediction(res.diagnostics, camera, features, R0, t0, res.pose, k + 1)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError, MemoryError, cv2.error) as exc:
         return failed_result(
             f"tracking failed on this frame: {type(exc).__name__}: {' '.join(str(exc).split())}", context.polarity
