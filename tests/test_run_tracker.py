@@ -388,3 +388,37 @@ def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tra
     # compared as standard deviations and correlations: the same covariance to 2 %
     np.testing.assert_allclose(np.sqrt(np.diag(got)), np.sqrt(np.diag(want)), rtol=0.02, atol=1e-6)
     np.testing.assert_allclose(got, want, rtol=0.05, atol=0.02 * np.abs(want).max())
+
+
+def test_frames_are_tracked_with_one_blas_thread(run, monkeypatch):
+    """Both paths of a frame, the full identification and the tracked frame, run with every
+    BLAS library at one thread (:mod:`ftrac_design.segment.threads`), and the process's own
+    setting is back after each."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    import ftrac_design.segment.pipeline as pipeline
+    import ftrac_design.tracking.near as near
+
+    def blas_threads():
+        return sorted({lib["num_threads"] for lib in threadpool_info() if lib["user_api"] == "blas"})
+
+    seen: dict[str, list[int]] = {}
+
+    def spy(module, name):
+        inner = getattr(module, name)
+
+        def wrapped(*a, **k):
+            seen.setdefault(name, blas_threads())
+            return inner(*a, **k)
+
+        monkeypatch.setattr(module, name, wrapped)
+
+    spy(pipeline, "_track")
+    spy(near, "_track_near")
+    # two threads to begin with, whatever the machine's default, so that one is a change
+    with threadpool_limits(2, "blas"):
+        before = blas_threads()
+        answers = _track_all(run.raw[:3])
+        assert blas_threads() == before == [2]
+    assert [a.status for a in answers] == ["re-identified", "tracked", "tracked"]
+    assert seen == {"_track": [1], "_track_near": [1]}
