@@ -140,6 +140,7 @@ def _pass_other_tests(monkeypatch):
     monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "misshapen_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "stray_balls", lambda scene, lab, opts: None)
+    monkeypatch.setattr(pipeline.acceptance, "displaced_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "uncontrolled", lambda scene, lab, opts: None)
 
 

@@ -182,6 +182,13 @@ class TrackOptions:
     #: (:func:`~.acceptance.stray_balls`)
     stray_ball_fraction: float = 0.7
     max_stray_balls: int = 3
+    #: a ball the pose does not use, clear of the others, whose blob (a response at least
+    #: ``stray_ball_fraction`` of the used balls' median) the image shows more than
+    #: ``displaced_ball_px`` and less than two radii + 1 px from where the pose puts it, and
+    #: no other ball there, is displaced; a confident labelling leaves at most
+    #: ``max_displaced_balls`` such balls (:func:`~.acceptance.displaced_balls`)
+    displaced_ball_px: float = 2.0
+    max_displaced_balls: int = 1
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident
     #: labelling needs
     min_redundancy: int = 6
@@ -343,6 +350,8 @@ class AcceptanceOptions:
     max_misshapen_balls: int
     stray_ball_fraction: float
     max_stray_balls: int
+    displaced_ball_px: float
+    max_displaced_balls: int
     min_redundancy: int
     min_feature_redundancy: float
     feature_p_value: float

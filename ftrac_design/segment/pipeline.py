@@ -375,6 +375,8 @@ def accept_best(
     if pose.converged:
         pose = acceptance.refuse(pose, acceptance.stray_balls(scene, best, opts))
     if pose.converged:
+        pose = acceptance.refuse(pose, acceptance.displaced_balls(scene, best, opts))
+    if pose.converged:
         pose = acceptance.refuse(pose, acceptance.uncontrolled(scene, best, opts))
     return best if pose is best.pose else replace(best, pose=pose)
 
