@@ -8,7 +8,9 @@ learns a frame was refused). One client at a time; when it leaves, the server wa
 - **Threads.** The server's thread (a ``socketserver.TCPServer``, one connection at a time)
   reads the socket (:func:`ftrac_design.igt.link.read_message`: the wire framing) and puts each
   IMAGE in the inbox; the calling (main) thread tracks frames from the inbox and queues the
-  answers, which the server thread sends between reads. pyigtl packs and unpacks the messages.
+  answers, which the server thread sends between reads: it waits on the socket and on a
+  socket pair that the tracking thread writes a byte to with each answer, so an answer leaves
+  the moment it is queued. pyigtl packs and unpacks the messages.
   Both threads count into the :class:`ServeSummary`, which holds its own lock. The server is
   created in the calling thread because it installs SIGINT/SIGTERM handlers there: Ctrl-C (or
   SIGTERM) raises KeyboardInterrupt in that thread, :func:`serve` leaves its loop, closes the
