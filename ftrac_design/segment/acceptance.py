@@ -318,10 +318,11 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
 def displaced_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
     """Refused when more than ``opts.max_displaced_balls`` balls the pose does not use show in
     the image a few pixels from where it puts them: in view and clear of the others (their
-    blurred discs touch none), the strongest blob response within two ball radii + 1 px of
-    the ball's projection lies more than ``opts.displaced_ball_px`` from it, is at least
-    ``opts.stray_ball_fraction`` of the median response at the balls the pose uses, and is
-    not another ball's (more than two radii from every other projection).
+    blurred discs touch none), the strongest blob response near the ball's projection lies
+    more than ``opts.displaced_ball_px`` and less than two ball radii from it (it is looked
+    for within two radii + 1 px: a response still rising at the edge is not a blob there), is
+    at least ``opts.stray_ball_fraction`` of the median response at the balls the pose uses,
+    and is not another ball's (more than two radii from every other projection).
 
     A right pose puts every ball it can see within a pixel of its blob. A run's frame tracked
     from a pose one step off matched no ball at first, its wires pulled the pose 4° away, and
