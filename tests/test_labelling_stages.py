@@ -21,6 +21,7 @@ from ftrac_design.pose import Camera, NoiseModel, Pose
 from ftrac_design.pose.simulate import Workspace, simulate_observation
 from ftrac_design.segment import TrackOptions, identify, labelling, pipeline
 from ftrac_design.segment.beads import Beads
+from ftrac_design.segment.detection import Scales
 from ftrac_design.segment.labelling import Labelling
 
 
@@ -38,7 +39,10 @@ def _scene(features, cam, obs):
     beads = Beads(
         uv, np.full(n, 3.0), np.full(n, 0.8), np.ones(n), np.full(n, 0.05), np.ones(n), np.ones(n), np.full(n, 20.0)
     )
-    scales = SimpleNamespace(bead_radius_px=3.0, blur_px=0.8, pixel_mm=cam.pixel_size_mm[0])
+    # the sizes the stages read (the ridge and top-hat sizes are not read here)
+    scales = Scales(
+        bead_radius_px=3.0, wire_px=1.0, pixel_mm=cam.pixel_size_mm[0], ridge_sigma_px=1.0, disc_px=8, blur_px=0.8
+    )
     return SimpleNamespace(features=features, camera=cam, beads=beads, scales=scales)
 
 

@@ -343,7 +343,7 @@ def displaced_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> st
     if not ref > 0:
         return None
     rb = scene.scales.bead_radius_px
-    sep = 2 * rb + 2 * scene.scales.blur_px
+    sep = scene.scales.touching_px
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9
     look = ~used & (dd.min(1) > sep) & scene.readable(uv, margin_px=2 * rb + 1)
     found = [_strongest_near(snr, uv[k], 2 * rb + 1) for k in np.flatnonzero(look)]

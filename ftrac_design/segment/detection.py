@@ -51,6 +51,12 @@ class Scales:
     #: wider by the blur beyond it; None: r/√2
     blob_sigma_px: float | None = None
 
+    @property
+    def touching_px(self) -> float:
+        """The distance (px) at which two balls' blurred discs touch: two radii and two blur σ.
+        Balls closer than this may blend into one blob; farther apart, each shows as its own."""
+        return 2 * self.bead_radius_px + 2 * self.blur_px
+
 
 def scales(features: Features, camera: Camera, opts: FindOptions) -> Scales:
     """Expected sizes in pixels of ``features`` seen with ``camera`` at the assumed

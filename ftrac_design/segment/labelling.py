@@ -191,7 +191,7 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, op
     R, t = h.R, h.t
     rb = sc.bead_radius_px
     blur = float(np.median(beads.blur)) if len(beads) else sc.blur_px
-    sep = 2 * rb + 2 * sc.blur_px
+    sep = sc.touching_px
     out: Labelling | None = None
     for stage in (first_stage, 2) if first_stage < 2 and opts.fast else range(first_stage, 3):
         why = implausible(scene, R, t, opts.depth_range)
@@ -369,7 +369,7 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     # put two balls on bare background there, and a rule of two bead widths let it pass).
     # Within two bead widths of a neighbour its fit may still fail (the neighbour is in its
     # window), and one the image shows there counts for the labelling (``crowded_shown``)
-    sep = 2 * sc.bead_radius_px + 2 * sc.blur_px
+    sep = sc.touching_px
     window = 4 * sc.bead_radius_px + 2
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
     inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)

@@ -170,7 +170,7 @@ def resolvable_beads(features: Features, camera: Camera, pose: Pose, shape: tupl
     uv, _ = identify.project(camera, pose.rotation, pose.translation_mm, features.point_centers())
     H, W = shape
     edge = sc.bead_radius_px + 2 * sc.blur_px + 1
-    sep = 2 * sc.bead_radius_px + 2 * sc.blur_px
+    sep = sc.touching_px
     inside = (
         np.isfinite(uv).all(1)
         & (uv[:, 0] > edge)

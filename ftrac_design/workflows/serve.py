@@ -358,11 +358,6 @@ class IgtlServer(socketserver.TCPServer):
         self._frames: dict[int, int] = collections.defaultdict(int)
         self._versions: dict[int, link.PeerVersion] = collections.defaultdict(link.PeerVersion)
         self._lock = threading.Lock()
-        # a byte on this pair wakes the socket thread to send an answer the moment it is queued
-        # (a poll of the socket every 10 ms made each answer wait 5 ms on average)
-        self._wake_r, self._wake_w = socket.socketpair()
-        self._wake_r.setblocking(False)
-        self._wake_w.setblocking(False)
         try:
             super().__init__((options.host, options.port), _Handler)
         except OSError as exc:
@@ -373,6 +368,12 @@ class IgtlServer(socketserver.TCPServer):
                 parameter="port",
             ) from None
         self.port = self.server_address[1]
+        # a byte on this pair wakes the socket thread to send an answer the moment it is queued
+        # (a poll of the socket every 10 ms made each answer wait 5 ms on average); made once the
+        # port is bound, so that a port already in use leaves nothing open
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._wake_w.setblocking(False)
         self._previous_signal_handlers = {
             s: signal.signal(s, self._signal_handler) for s in (signal.SIGTERM, signal.SIGINT)
         }
