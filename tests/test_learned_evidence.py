@@ -179,6 +179,32 @@ def test_a_dewarping_plate_is_not_taken_for_ftrac_2005():
 
 
 @pytest.mark.parametrize(
+    ("probability", "refused"), [([0.29, 0.01, 0.2], True), ([0.29, 0.5, 0.2], False), ([], False)]
+)
+def test_a_classical_pose_needs_the_network_to_read_one_of_its_balls(probability, refused):
+    why = acceptance.unseen_balls(np.array(probability))
+    assert (why is not None) == refused
+    if refused:
+        assert "none of the 3 balls" in why and "at most 0.29" in why
+
+
+def test_another_fiducials_frame_is_not_taken_for_nine_bead_by_the_classical_second_look():
+    """A raw frame of ftrac_mini over bright anatomy (the no-fiducial benchmark's "another
+    fiducial" 46 of seed 2088): tracked as nine_bead, the network found no labelling and the
+    classical second look fitted the helix to seven blobs where dark edges cross, 939 mm from
+    the source; the network reads 0.01–0.29 at those seven. No pose."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from no_fiducial import fiducial
+
+    img, shown = fiducial(46, 2088)
+    assert shown == "ftrac_mini"
+    camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
+    res = track_image(img, compute_features(load_design("nine_bead")), camera)
+    assert not res.pose.converged
+    assert res.diagnostics.detector_tried == ["learned", "classical"]
+
+
+@pytest.mark.parametrize(
     ("crowded", "at_first", "refused"), [(2, True, False), (1, True, True), (6, False, True), (0, True, True)]
 )
 def test_balls_that_crowd_in_pairs_count_where_wires_confirm_the_labelling(crowded, at_first, refused):

@@ -22,6 +22,8 @@ from .image import NoiseField, derivatives, second_derivative_gain, top_hat
 from .options import FindOptions, TrackOptions
 from .ridges import RidgePoints, ridge_points
 
+#: the learned detector's ball probability from which it reads a ball there
+LEARNED_BALL = 0.5
 #: the blur the ridge scale is sized for (``TrackOptions.blur_px``'s default, px)
 DEFAULT_BLUR_PX = TrackOptions.blur_px
 

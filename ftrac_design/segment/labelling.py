@@ -19,7 +19,7 @@ from ..pose import NoiseModel, Observation, Pose, SolverOptions, refine_pose, so
 from ..pose.observation import CurveObservation
 from . import evidence, identify
 from .beads import Beads
-from .detection import Scene
+from .detection import LEARNED_BALL, Scene
 from .guided import guided_contours
 from .noise import (
     calibrated_covariance,
@@ -374,7 +374,7 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
     inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)
     shown = (
-        (scene.ball_evidence(uv) >= opts.bead_present_snr) | (scene.learned_ball(uv) >= 0.5)
+        (scene.ball_evidence(uv) >= opts.bead_present_snr) | (scene.learned_ball(uv) >= LEARNED_BALL)
         if len(uv)
         else np.zeros(0, bool)
     )

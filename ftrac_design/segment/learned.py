@@ -15,7 +15,7 @@ import numpy as np
 
 from .. import detector as learned
 from ..features.model import Features
-from .detection import Scales
+from .detection import LEARNED_BALL, Scales
 from .options import FindOptions
 from .region import cluster_boxes, fiducial_extent_px
 
@@ -38,7 +38,7 @@ def polarity_order(image: np.ndarray, det: learned.Detections, sc: Scales, balls
     whether the image is darker in a disc of the ball's radius than in the ring 2–3 radii
     around it (dense-dark) or brighter (dense-bright), each candidate's vote weighted by its
     probability. None with fewer than three candidates of probability ½ (no opinion)."""
-    keep = det.beads_score >= 0.5
+    keep = det.beads_score >= LEARNED_BALL
     uv, w = det.beads_uv[keep][:balls], det.beads_score[keep][:balls]
     if len(uv) < 3:
         return None

@@ -185,8 +185,9 @@ class TrackOptions:
     #: a ball the pose does not use, clear of the others, whose blob (a response at least
     #: ``stray_ball_fraction`` of the used balls' median) the image shows more than
     #: ``displaced_ball_px`` and less than two radii + 1 px from where the pose puts it, and
-    #: no other ball there, is displaced; a confident labelling leaves at most
-    #: ``max_displaced_balls`` such balls (:func:`~.acceptance.displaced_balls`)
+    #: no other ball there, is displaced, and so is a ball-like blob the pose leaves more than
+    #: ``displaced_ball_px`` from every ball but near enough that their discs touch; a confident
+    #: labelling leaves at most ``max_displaced_balls`` such balls (:func:`~.acceptance.displaced_balls`)
     displaced_ball_px: float = 2.0
     max_displaced_balls: int = 1
     #: redundant constraints (2 per bead and line, 5 per ellipse, minus 6) a confident

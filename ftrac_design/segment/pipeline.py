@@ -612,6 +612,9 @@ def _track(
     other = _each_polarity(*args, None)
     tried = ["learned", "classical"]
     other.diagnostics.detector_tried = tried
+    if other.pose.converged and other.observation is not None and other.observation.points:
+        uv = np.array(list(other.observation.points.values()), float)
+        other.pose = acceptance.refuse(other.pose, acceptance.unseen_balls(det.ball_probability(uv)))
     if other.pose.converged:
         return other
     res.pose = replace(res.pose, error=f"{res.pose.error}; with the classical detectors: {other.pose.error}")
