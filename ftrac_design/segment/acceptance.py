@@ -288,7 +288,14 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     with 4–25 such blobs each). Right poses over a patient have clutter there too, weaker:
     on seed 2060, which set the limit (320 right poses, three presets, every condition), one had four
     blobs at 70 % of its balls' median response (nine_bead in a round field, balls of 13 σ),
-    none more."""
+    none more.
+
+    For a bead-only design the blobs the network reads as balls count too, fitted or not
+    (:func:`network_peaks`): nine_bead took seven balls of a grid plate's lattice whose other
+    balls the network had not ranked among the candidates fitted (``no_fiducial.py --seed
+    2090``, grid 42: 2 fitted blobs there, 17 read). A wire design's wires tell it from a
+    lattice, and over anatomy a right ftrac_mini pose (balls of 9 σ) had five such blobs in
+    its small hull (seed 21); right nine_bead poses there had at most one."""
     beads = scene.beads
     used = [j for fid, j in lab.match.items() if fid in lab.obs.points]
     if beads is None or len(used) < 3 or not scene.features.points:
@@ -301,6 +308,15 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     strong = beads.response >= opts.stray_ball_fraction * float(np.median(beads.response[used]))
     strong[used] = False
     cand = beads.uv[strong]
+    f = scene.features
+    if not (f.lines or f.ellipses) and scene.learned is not None and scene.blob_snr is not None:
+        # the balls fitted are the network's strongest candidates, not every blob: a lattice's
+        # other balls may never have been fitted
+        ids = [q.id for q in f.points]
+        peaks = network_peaks(scene, uv, np.array([i in lab.obs.points for i in ids]), opts.stray_ball_fraction)
+        if len(peaks) and len(cand):
+            peaks = peaks[np.linalg.norm(peaks[:, None] - cand[None], axis=-1).min(1) > rb]
+        cand = np.vstack([cand, peaks])
     if len(cand) <= opts.max_stray_balls:
         return None
     hull = cv2.convexHull(uv.astype(np.float32))
@@ -313,6 +329,30 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
         f"identification not confirmed: {n} blobs as strong as the fiducial's balls lie among them and the pose "
         f"explains none of them (at most {opts.max_stray_balls}): another phantom, or a lattice of balls"
     )
+
+
+def network_peaks(scene: Scene, uv: np.ndarray, used: np.ndarray, fraction: float) -> np.ndarray:
+    """The blobs around the balls a pose puts at ``uv`` (n, 2) px that the learned detector
+    reads as balls (:data:`.detection.LEARNED_BALL`): local maxima (within a ball radius) of
+    the blob detector's response over its noise, in the box around ``uv`` grown by two radii,
+    at least ``fraction`` of its median at the balls ``used`` (bool, n). (m, 2) px; none where
+    either detector's map is missing."""
+    snr = scene.blob_snr
+    none = np.zeros((0, 2))
+    if snr is None or scene.learned is None or not used.any():
+        return none
+    ref = float(np.median(scene.ball_evidence(uv[used])))
+    r = int(math.ceil(scene.scales.bead_radius_px))
+    H, W = snr.shape
+    x0, y0 = np.maximum(np.floor(uv.min(0)).astype(int) - 2 * r - 1, 0)
+    x1, y1 = np.minimum(np.ceil(uv.max(0)).astype(int) + 2 * r + 2, (W, H))
+    if not ref > 0 or x1 <= x0 or y1 <= y0:
+        return none
+    box = np.asarray(snr[y0:y1, x0:x1], np.float32)
+    top = cv2.dilate(box, np.ones((2 * r + 1, 2 * r + 1), np.uint8))
+    vv, uu = np.nonzero((box >= top) & (box >= fraction * ref))
+    at = np.stack([uu + x0, vv + y0], -1).astype(float)
+    return at[scene.learned_ball(at) >= LEARNED_BALL]
 
 
 def displaced_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
