@@ -37,6 +37,8 @@ def _scene_and_labelling(strays: np.ndarray, stray_response: float):
         features=F,
         camera=CAMERA,
         scales=SimpleNamespace(bead_radius_px=RB),
+        learned=None,
+        blob_snr=None,
     )
     ids = [p.id for p in F.points]
     lab = SimpleNamespace(

@@ -474,7 +474,9 @@ def _strongest_near(snr: np.ndarray, uv: np.ndarray, radius_px: float) -> tuple[
 def unseen_balls(ball_probability: np.ndarray) -> str | None:
     """Refused when the learned detector reads none of the balls a pose from the classical
     detectors uses as a ball: ``ball_probability`` (one per used ball, from the network run on
-    the same image first) all below :data:`.detection.LEARNED_BALL`.
+    the same image first) all below :data:`.detection.LEARNED_BALL`. Asked of a bead-only
+    design's poses (the caller's choice): a wire design's are confirmed by its wires, and the
+    classical detectors stand in for a network that sees no ball at all.
 
     The classical second look adds the images the network misses, where it sees some of the
     balls all the same: of the 35 right poses it gave on held-out seed 2087 (three presets,

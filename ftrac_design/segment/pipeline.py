@@ -612,7 +612,11 @@ def _track(
     other = _each_polarity(*args, None)
     tried = ["learned", "classical"]
     other.diagnostics.detector_tried = tried
-    if other.pose.converged and other.observation is not None and other.observation.points:
+    bead_only = not (features.lines or features.ellipses)
+    if bead_only and other.pose.converged and other.observation is not None and other.observation.points:
+        # balls alone confirm a bead-only design's pose, and blobs where dark edges cross are
+        # shaped like balls; a wire design's pose is confirmed by its wires, and where the
+        # network sees no ball at all the classical detectors stand in for it
         uv = np.array(list(other.observation.points.values()), float)
         other.pose = acceptance.refuse(other.pose, acceptance.unseen_balls(det.ball_probability(uv)))
     if other.pose.converged:
