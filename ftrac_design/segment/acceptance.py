@@ -261,7 +261,7 @@ def misshapen_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> st
     beads = scene.beads
     if beads is None:
         return None
-    idx = np.array([j for fid, j in lab.match.items() if fid in lab.obs.points], int)
+    idx = np.array(_used_beads(lab), int)
     if len(idx) <= opts.max_misshapen_balls:
         return None
     bad = misshapen(beads.take(idx), opts)
@@ -297,7 +297,7 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     lattice, and over anatomy a right ftrac_mini pose (balls of 9 σ) had five such blobs in
     its small hull (seed 21); right nine_bead poses there had at most one."""
     beads = scene.beads
-    used = [j for fid, j in lab.match.items() if fid in lab.obs.points]
+    used = _used_beads(lab)
     if beads is None or len(used) < 3 or not scene.features.points:
         return None
     p = lab.pose
@@ -305,15 +305,13 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     if not np.all(np.isfinite(uv)):
         return None
     rb = scene.scales.bead_radius_px
-    strong = beads.response >= opts.stray_ball_fraction * float(np.median(beads.response[used]))
-    strong[used] = False
-    cand = beads.uv[strong]
+    cand = beads.uv[_strong_unused(beads, used, opts.stray_ball_fraction)]
     f = scene.features
-    if not (f.lines or f.ellipses) and scene.learned is not None and scene.blob_snr is not None:
+    if not (f.lines or f.ellipses):
         # the balls fitted are the network's strongest candidates, not every blob: a lattice's
         # other balls may never have been fitted
-        ids = [q.id for q in f.points]
-        peaks = network_peaks(scene, uv, np.array([i in lab.obs.points for i in ids]), opts.stray_ball_fraction)
+        used_balls = np.array([q.id in lab.obs.points for q in f.points])
+        peaks = network_peaks(scene, uv, used_balls, opts.stray_ball_fraction)
         if len(peaks) and len(cand):
             peaks = peaks[np.linalg.norm(peaks[:, None] - cand[None], axis=-1).min(1) > rb]
         cand = np.vstack([cand, peaks])
@@ -329,6 +327,19 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
         f"identification not confirmed: {n} blobs as strong as the fiducial's balls lie among them and the pose "
         f"explains none of them (at most {opts.max_stray_balls}): another phantom, or a lattice of balls"
     )
+
+
+def _used_beads(lab: Labelling) -> list[int]:
+    """The indices of the fitted beads (:attr:`.detection.Scene.beads`) the labelling uses as balls."""
+    return [j for fid, j in lab.match.items() if fid in lab.obs.points]
+
+
+def _strong_unused(beads: Beads, used: list[int], fraction: float) -> np.ndarray:
+    """Which fitted ``beads`` the labelling does not use (``used``: their indices) have a blob
+    response at least ``fraction`` of the median of those it does (bool, one per bead)."""
+    strong = beads.response >= fraction * float(np.median(beads.response[used]))
+    strong[used] = False
+    return strong
 
 
 def network_peaks(scene: Scene, uv: np.ndarray, used: np.ndarray, fraction: float) -> np.ndarray:
@@ -433,12 +444,11 @@ def blobs_beside(
     alone reads a seed's end as a ball (a right nine_bead pose with seeds across it, found by
     the classical second look, had two such blobs 1.9 and 2.3 radii off its balls)."""
     beads = scene.beads
-    used = [j for fid, j in lab.match.items() if fid in lab.obs.points]
+    used = _used_beads(lab)
     if beads is None or scene.learned is None or len(used) < 3:
         return []
     sep = scene.scales.touching_px
-    strong = beads.response >= opts.stray_ball_fraction * float(np.median(beads.response[used]))
-    strong[used] = False
+    strong = _strong_unused(beads, used, opts.stray_ball_fraction)
     strong &= ~misshapen(beads, opts) & (scene.learned_ball(beads.uv) >= LEARNED_BALL)
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1)
     pairs = [(i, k) for i in range(len(uv)) for k in range(i + 1, len(uv)) if dd[i, k] <= sep]
