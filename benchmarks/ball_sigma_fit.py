@@ -4,13 +4,14 @@ Images of the realism conditions (``track_realism.make_image``: clean, raw, log,
 shutters, dose, anatomy, blur, seeds and needles, corrected pincushion) are tracked with the
 defaults; on each pose that is right (≤ 1° and ≤ 3 mm), every ball the pose used gives its
 centre's error against its exact projection (px) beside what its own fit said: the fit's σ
-sᵢ, its radius rᵢ and the median radius r̃ of the pose's balls. The per-axis σ model
+sᵢ, its radius rᵢ, its apparent size mᵢ = √(rᵢ²/5 + blurᵢ²) (the blurred ball's second
+moment per axis, px) and the medians r̃, m̃ over the pose's balls. The per-axis σ model
 
-    σᵢ² = (a sᵢ)² + (b |rᵢ − r̃|)² + σ_sys²
+    σᵢ² = (a sᵢ)² + (b |rᵢ − r̃|)² + (c |mᵢ − m̃|)² + σ_sys²
 
 is then fitted by maximum likelihood (2-D Gaussian errors; σ_sys held at
 ``TrackOptions.sys_point_px``) and printed beside the defaults (``point_fit_scale``,
-``point_radius_scale``), with how well each model explains the errors: the per-axis RMS of
+``point_radius_scale``, ``point_size_scale``), with how well each model explains the errors: the per-axis RMS of
 the normalised errors (1 when calibrated) and the share beyond χ²₂ = 13.8 (p = 10⁻³; 0.1 %
 when Gaussian), for the defaults, the fitted values, and one σ for every ball (the median
 ball's: what the noise model gave before each ball had its own). The floor and the cap of
@@ -67,6 +68,8 @@ def balls(task: tuple) -> list[dict]:
     if not which:
         return []
     r_med = float(np.median([b.radius[j] for j in which.values()]))
+    size = np.sqrt(b.radius**2 / 5.0 + b.blur**2)
+    m_med = float(np.median([size[j] for j in which.values()]))
     out = []
     for fid, j in which.items():
         e = np.asarray(res.observation.points[fid], float) - np.asarray(truth[fid], float)
@@ -76,26 +79,29 @@ def balls(task: tuple) -> list[dict]:
                 "e2": float(e @ e),
                 "s": float(b.sigma_px[j]),
                 "dr": abs(float(b.radius[j]) - r_med),
+                "dm": abs(float(size[j]) - m_med),
                 "median_s": float(np.median([b.sigma_px[i] for i in which.values()])),
             }
         )
     return out
 
 
-def model_var(a: float, b: float, c: float, s: np.ndarray, dr: np.ndarray) -> np.ndarray:
-    """Per-axis variance (px²) of the σ model with scales a, b and systematic c (px)."""
-    return (a * s) ** 2 + (b * dr) ** 2 + c**2
+def model_var(scales: tuple[float, float, float], sys_px: float, get: dict[str, np.ndarray]) -> np.ndarray:
+    """Per-axis variance (px²) of the σ model with scales (a, b, c) on the fit's σ, the radius's
+    and the size's departures (``get["s"]``, ``["dr"]``, ``["dm"]``) and systematic ``sys_px``."""
+    a, b, c = scales
+    return (a * get["s"]) ** 2 + (b * get["dr"]) ** 2 + (c * get["dm"]) ** 2 + sys_px**2
 
 
-def fit(e2: np.ndarray, s: np.ndarray, dr: np.ndarray, c: float) -> tuple[float, float]:
-    """Maximum-likelihood (a, b) for 2-D Gaussian errors of squared length ``e2``."""
+def fit(e2: np.ndarray, get: dict[str, np.ndarray], sys_px: float) -> tuple[float, float, float]:
+    """Maximum-likelihood (a, b, c) for 2-D Gaussian errors of squared length ``e2``."""
 
     def nll(p):
-        v = model_var(abs(p[0]), abs(p[1]), c, s, dr)
+        v = model_var(tuple(abs(p)), sys_px, get)
         return float(np.sum(np.log(v) + e2 / (2 * v)))
 
-    r = minimize(nll, [1.0, 0.3], method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-6})
-    return abs(float(r.x[0])), abs(float(r.x[1]))
+    r = minimize(nll, [1.0, 0.3, 0.3], method="Nelder-Mead", options={"xatol": 1e-4, "fatol": 1e-6})
+    return tuple(abs(float(x)) for x in r.x)
 
 
 def report(name: str, e2: np.ndarray, v: np.ndarray) -> None:
@@ -119,22 +125,23 @@ def main() -> None:
             rows += out
     if not rows:
         raise SystemExit("ball_sigma_fit: no right pose to measure")
-    get = {k: np.array([r[k] for r in rows]) for k in ("e2", "s", "dr", "median_s")}
+    get = {k: np.array([r[k] for r in rows]) for k in ("e2", "s", "dr", "dm", "median_s")}
     opts = TrackOptions()
-    c = opts.sys_point_px
-    a, b = fit(get["e2"], get["s"], get["dr"], c)
+    sys_px = opts.sys_point_px
+    fitted = fit(get["e2"], get, sys_px)
+    defaults = (opts.point_fit_scale, opts.point_radius_scale, opts.point_size_scale)
     print(f"ball_sigma_fit: seed {args.seed}, {args.n} per condition, {len(rows)} balls of right poses")
-    print(f"  fitted (σ_sys = {c} px held):  a = {a:.3f}  b = {b:.3f}")
-    print(f"  defaults:                     a = {opts.point_fit_scale:.3f}  b = {opts.point_radius_scale:.3f}")
-    report("one σ for every ball (median fit σ, σ_sys)", get["e2"], get["median_s"] ** 2 + c**2)
-    own = model_var(opts.point_fit_scale, opts.point_radius_scale, c, get["s"], get["dr"])
-    report("each ball its own, defaults", get["e2"], own)
-    report("each ball its own, fitted here", get["e2"], model_var(a, b, c, get["s"], get["dr"]))
+    print("  fitted (σ_sys = {} px held):  a = {:.3f}  b = {:.3f}  c = {:.3f}".format(sys_px, *fitted))
+    print("  defaults:                     a = {:.3f}  b = {:.3f}  c = {:.3f}".format(*defaults))
+    report("one σ for every ball (median fit σ, σ_sys)", get["e2"], get["median_s"] ** 2 + sys_px**2)
+    report("each ball its own, without the size (c = 0)", get["e2"], model_var((*defaults[:2], 0.0), sys_px, get))
+    report("each ball its own, defaults", get["e2"], model_var(defaults, sys_px, get))
+    report("each ball its own, fitted here", get["e2"], model_var(fitted, sys_px, get))
     for preset in args.presets:
         m = np.array([r["preset"] == preset for r in rows])
         if m.any():
-            v = model_var(opts.point_fit_scale, opts.point_radius_scale, c, get["s"][m], get["dr"][m])
-            report(f"{preset} ({m.sum()} balls), defaults", get["e2"][m], v)
+            sub = {k: v[m] for k, v in get.items()}
+            report(f"{preset} ({m.sum()} balls), defaults", get["e2"][m], model_var(defaults, sys_px, sub))
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Each ball its own σ: the noise model gives a named bead its own standard deviation, the
 solver weights it by that, and the image path derives it from the ball's own fit (its
-reported σ and how far its fitted radius is from its fellows'), so that a ball overlapped by
-a needle or an edge does not pull the pose."""
+reported σ, how far its fitted radius and its apparent size are from its fellows'), so that a
+ball overlapped by a needle or an edge, or shown blurrier than the rest, does not pull the pose."""
 
 from __future__ import annotations
 
@@ -63,13 +63,15 @@ def test_a_bead_of_unbounded_sigma_is_the_pose_without_it(view):
     assert np.degrees(np.linalg.norm(dr)) < 1e-5 and np.linalg.norm(dt) < 1e-5
 
 
-def _beads(obs: Observation, radius: dict[str, float], sigma: dict[str, float]) -> tuple[Beads, dict[str, int]]:
+def _beads(
+    obs: Observation, radius: dict[str, float], sigma: dict[str, float], blur: dict[str, float] | None = None
+) -> tuple[Beads, dict[str, int]]:
     ids = sorted(obs.points)
     n = len(ids)
     beads = Beads(
         uv=np.array([obs.points[k] for k in ids], float),
         radius=np.array([radius.get(k, 3.4) for k in ids]),
-        blur=np.full(n, 0.8),
+        blur=np.array([(blur or {}).get(k, 0.8) for k in ids]),
         amplitude=np.ones(n),
         sigma_px=np.array([sigma.get(k, 0.05) for k in ids]),
         rms=np.ones(n),
@@ -79,18 +81,26 @@ def _beads(obs: Observation, radius: dict[str, float], sigma: dict[str, float]) 
     return beads, {k: i for i, k in enumerate(ids)}
 
 
-def test_each_ball_s_sigma_is_its_fit_s_and_its_radius_s_departure(view):
-    """σᵢ² = (a sᵢ)² + (b Δrᵢ)² + σ_sys² (px), times the pixel pitch; the median is the
-    type's σ, and no ball is given more than ``point_max_ratio`` times it."""
+def test_each_ball_s_sigma_is_its_fit_s_and_its_radius_s_and_size_s_departure(view):
+    """σᵢ² = (a sᵢ)² + (b Δrᵢ)² + (c Δmᵢ)² + σ_sys² (px), m = √(r² / 5 + blur²), times the
+    pixel pitch; the median is the type's σ, and no ball is given more than
+    ``point_max_ratio`` times it."""
     *_, obs = view
-    beads, match = _beads(obs, radius={"B2": 3.9}, sigma={"B7": 0.12, "B9": 5.0})
+    beads, match = _beads(obs, radius={"B2": 3.9}, sigma={"B7": 0.12, "B9": 5.0}, blur={"B4": 1.0})
     nm = measured_noise(obs, beads, match, PIX, 0.8, OPTS)
-    a, b, c = OPTS.point_fit_scale, OPTS.point_radius_scale, OPTS.sys_point_px
-    plain = np.sqrt((a * 0.05) ** 2 + c**2) * PIX
-    assert nm.point_sigma_mm("B1") == pytest.approx(plain)
+    a, b, c, sys = OPTS.point_fit_scale, OPTS.point_radius_scale, OPTS.point_size_scale, OPTS.sys_point_px
+    plain = np.sqrt((a * 0.05) ** 2 + sys**2) * PIX
+    assert c > 0 and nm.point_sigma_mm("B1") == pytest.approx(plain)
     assert nm.point_mm == pytest.approx(plain)
-    assert nm.point_sigma_mm("B2") == pytest.approx(np.sqrt((a * 0.05) ** 2 + (b * 0.5) ** 2 + c**2) * PIX)
-    assert nm.point_sigma_mm("B7") == pytest.approx(np.sqrt((a * 0.12) ** 2 + c**2) * PIX)
+    m0 = np.sqrt(3.4**2 / 5 + 0.8**2)
+    dm2 = np.sqrt(3.9**2 / 5 + 0.8**2) - m0
+    assert nm.point_sigma_mm("B2") == pytest.approx(
+        np.sqrt((a * 0.05) ** 2 + (b * 0.5) ** 2 + (c * dm2) ** 2 + sys**2) * PIX
+    )
+    # a ball of the right radius shown more blurred than its fellows: its size alone departs
+    dm4 = np.sqrt(3.4**2 / 5 + 1.0**2) - m0
+    assert nm.point_sigma_mm("B4") == pytest.approx(np.sqrt((a * 0.05) ** 2 + (c * dm4) ** 2 + sys**2) * PIX)
+    assert nm.point_sigma_mm("B7") == pytest.approx(np.sqrt((a * 0.12) ** 2 + sys**2) * PIX)
     assert nm.point_sigma_mm("B9") == pytest.approx(OPTS.point_max_ratio * plain)
 
 

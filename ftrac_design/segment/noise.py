@@ -79,24 +79,31 @@ def _ball_sigmas(
 ) -> tuple[float, tuple[tuple[str, float], ...]]:
     """Each matched ball's σ (mm at the detector, per axis) and their median.
 
-    σᵢ² = (a sᵢ)² + (b |rᵢ − r̃|)² + σ_sys², with sᵢ the ball fit's own σ, rᵢ its fitted
-    radius and r̃ the median over the labelling's balls (px), a = ``point_fit_scale``,
-    b = ``point_radius_scale``, σ_sys = ``sys_point_px``; floored at ``floor_point_mm`` and
-    capped at ``point_max_ratio`` × the median σᵢ. On 4,183 balls of right poses (seed 21,
-    ftrac_2005, ftrac_mini and nine_bead, clean and 11 hard conditions) a and b are the
-    maximum-likelihood values with σ_sys held at its earlier value: the balls' errors
-    against the truth then have a per-axis RMS of 0.96 σᵢ, and 1.5 % lie beyond χ²₂ = 13.8
-    (p = 10⁻³), against 1.32 σ and 6.3 % for the median ball's σ given to every ball.
-    Weighting each ball by its own σ is what keeps a ball overlapped by a needle, a wire or
-    an edge (its fit worse, its radius larger) from pulling the pose in depth."""
+    σᵢ² = (a sᵢ)² + (b |rᵢ − r̃|)² + (c |mᵢ − m̃|)² + σ_sys², with sᵢ the ball fit's own σ,
+    rᵢ its fitted radius, mᵢ = √(rᵢ² / 5 + blurᵢ²) its apparent size (the blurred ball's
+    second moment per axis) and r̃, m̃ the medians over the labelling's balls (px),
+    a = ``point_fit_scale``, b = ``point_radius_scale``, c = ``point_size_scale``, σ_sys =
+    ``sys_point_px``; floored at ``floor_point_mm`` and capped at ``point_max_ratio`` × the
+    median σᵢ. a, b and c are the maximum-likelihood values on 4,594 balls of right poses
+    (``benchmarks/ball_sigma_fit.py``, seed 21, ftrac_2005, ftrac_mini and nine_bead, clean
+    and 11 hard conditions; σ_sys held): on held-out seed 2091 the balls' errors against the
+    truth have a per-axis RMS of 0.99 σᵢ and 1.1 % lie beyond χ²₂ = 13.8 (p = 10⁻³), against
+    1.15 σ and 3.1 % without the size term and 1.70 σ and 8.3 % for the median ball's σ given
+    to every ball. Weighting each ball by its own σ is what keeps a ball overlapped by a
+    needle, a wire or an edge (its fit worse, its radius larger), or shown blurrier than its
+    fellows on a display window's clipped shoulder, from pulling the pose in depth."""
     if not match:
         return opts.floor_point_mm, ()
     ids = list(match)
     idx = np.array([match[k] for k in ids])
     r = np.asarray(beads.radius, float)[idx]
     s = np.asarray(beads.sigma_px, float)[idx]
+    m = np.sqrt(r**2 / 5.0 + np.asarray(beads.blur, float)[idx] ** 2)
     sig = np.sqrt(
-        (opts.point_fit_scale * s) ** 2 + (opts.point_radius_scale * (r - np.median(r))) ** 2 + opts.sys_point_px**2
+        (opts.point_fit_scale * s) ** 2
+        + (opts.point_radius_scale * (r - np.median(r))) ** 2
+        + (opts.point_size_scale * (m - np.median(m))) ** 2
+        + opts.sys_point_px**2
     )
     sig = np.maximum(sig * pix, opts.floor_point_mm)
     med = float(np.median(sig))

@@ -96,11 +96,16 @@ class TrackOptions:
     #: fit's pixels' noise is correlated: the σ it reports is too small), plus
     #: ``point_radius_scale`` × how far its fitted radius is from its fellows' median (px;
     #: a ball merged with a wire, a needle or a bone edge looks larger and its centre is
-    #: pulled), and ``sys_point_px``; at most ``point_max_ratio`` × the labelling's median
-    #: ball's, so that every ball counted still has to agree with the pose. Fitted to 4,183
-    #: balls of right poses (seed 21, three presets, 12 conditions): see :func:`~.noise.measured_noise`
-    point_fit_scale: float = 1.15
-    point_radius_scale: float = 0.35
+    #: pulled), plus ``point_size_scale`` × how far its apparent size √(r² / 5 + blur²) (px:
+    #: the blurred ball's second moment per axis) is from its fellows' median (a ball on a
+    #: display window's clipped shoulder, or under a bone edge, looks blurrier than the rest
+    #: and its centre is off while its radius alone looks right), and ``sys_point_px``; at most
+    #: ``point_max_ratio`` × the labelling's median ball's, so that every ball counted still
+    #: has to agree with the pose. Fitted to the balls of right poses (seed 21, three presets,
+    #: 12 conditions): see :func:`~.noise.measured_noise`
+    point_fit_scale: float = 1.0
+    point_radius_scale: float = 0.23
+    point_size_scale: float = 0.81
     point_max_ratio: float = 3.0
     sys_curve_px: float = 0.04
     floor_line_mm: float = 0.01
@@ -304,6 +309,7 @@ class NoiseOptions:
     sys_point_px: float
     point_fit_scale: float
     point_radius_scale: float
+    point_size_scale: float
     point_max_ratio: float
     sys_curve_px: float
     floor_line_mm: float
