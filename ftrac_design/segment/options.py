@@ -108,6 +108,15 @@ class TrackOptions:
     point_size_scale: float = 0.81
     point_max_ratio: float = 3.0
     sys_curve_px: float = 0.04
+    #: a curve type's contour scatter, measured about its own fits, is pooled with a prior of
+    #: ``curve_prior_dof`` degrees of freedom at ``curve_prior_scale`` × the labelling's median
+    #: ball fit σ: a conic through six points has one degree of freedom, and its scatter
+    #: (0.05 px where the points lay 0.46 px RMS off the true ellipse) made a confident wrong
+    #: pose. The scale is the median of the curves' scatter over their balls' σ (1.21–1.23 on
+    #: ftrac_2005's lines and ellipses and ftrac_mini's ellipses, tuning seed 21); the prior's
+    #: weight puts the short curves' errors on the long ones' scale (see :func:`~.noise.measured_noise`)
+    curve_prior_dof: float = 4.0
+    curve_prior_scale: float = 1.25
     floor_line_mm: float = 0.01
     floor_ellipse_mm: float = 0.01
     #: a feature whose own residual is this improbable under the noise model is dropped; a
@@ -312,6 +321,8 @@ class NoiseOptions:
     point_size_scale: float
     point_max_ratio: float
     sys_curve_px: float
+    curve_prior_dof: float
+    curve_prior_scale: float
     floor_line_mm: float
     floor_ellipse_mm: float
     variance_point: float
