@@ -86,11 +86,12 @@ def _curve_prior(beads: Beads, match: dict[str, int], opts: NoiseOptions) -> tup
     see the same image — its noise, its contrast, its blur — as the wires beside them, so
     they say what a curve's scatter should be where its own fit cannot: a conic through six
     contour points keeps one degree of freedom, and one χ²₁ draw is below a tenth of its σ
-    one time in twelve. On tuning seed 21 (ftrac_2005 and ftrac_mini, 11 conditions, 480
-    curves of converged poses), the curves' RMS distance from the true curve over their
-    model σ had a median of 1.74 and a 90th percentile of 15 for curves of fewer than 2
-    degrees of freedom, against 1.15 and 1.5 for those of 10 or more; with this prior (4
-    dof, 1.25 ×), 1.02 and 2.1 against 1.13 and 1.5."""
+    one time in twelve. On tuning seed 21 (ftrac_2005 and ftrac_mini, 11 conditions, 481
+    curves of converged poses, ``benchmarks/curve_sigma_fit.py``), the curves' RMS distance
+    from the true curve over their model σ had a median of 1.99 and a 90th percentile of 15
+    for curves of fewer than 2 degrees of freedom, against 1.15 and 1.55 for those of 10 or
+    more; with this prior (4 dof, 1.25 ×), 0.96 and 2.1 against 1.12 and 1.5 (held-out seed
+    2095: 1.05 and 5.7 → 1.16 and 1.9)."""
     if not match or opts.curve_prior_dof <= 0:
         return 0.0, 0.0
     s = float(np.median(np.asarray(beads.sigma_px, float)[[match[k] for k in match]]))

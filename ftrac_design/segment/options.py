@@ -112,7 +112,7 @@ class TrackOptions:
     #: ``curve_prior_dof`` degrees of freedom at ``curve_prior_scale`` × the labelling's median
     #: ball fit σ: a conic through six points has one degree of freedom, and its scatter
     #: (0.05 px where the points lay 0.46 px RMS off the true ellipse) made a confident wrong
-    #: pose. The scale is the median of the curves' scatter over their balls' σ (1.21–1.23 on
+    #: pose. The scale is the median of the curves' scatter over their balls' σ (1.21–1.24 on
     #: ftrac_2005's lines and ellipses and ftrac_mini's ellipses, tuning seed 21); the prior's
     #: weight puts the short curves' errors on the long ones' scale (see :func:`~.noise.measured_noise`)
     curve_prior_dof: float = 4.0
