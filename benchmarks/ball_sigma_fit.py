@@ -68,7 +68,7 @@ def balls(task: tuple) -> list[dict]:
     if not which:
         return []
     r_med = float(np.median([b.radius[j] for j in which.values()]))
-    size = np.sqrt(b.radius**2 / 5.0 + b.blur**2)
+    size = np.sqrt(b.second_moment_px2)
     m_med = float(np.median([size[j] for j in which.values()]))
     out = []
     for fid, j in which.items():

@@ -138,6 +138,13 @@ class Beads:
     def __len__(self) -> int:
         return len(self.uv)
 
+    @property
+    def second_moment_px2(self) -> np.ndarray:
+        """Each ball's image's second moment per axis (px²): r²/5 from its projected chord,
+        plus its blur σ². The image pins this sum better than its two parts, which trade off
+        against each other in the fit."""
+        return np.asarray(self.radius, float) ** 2 / 5.0 + np.asarray(self.blur, float) ** 2
+
 
 def blob_response(
     img: np.ndarray, radius_px: float, noise: float | np.ndarray, sigma_px: float | None = None

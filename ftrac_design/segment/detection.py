@@ -511,5 +511,5 @@ def fitted_blur(scene: Scene) -> float | None:
     if b is None or len(b) < 3:
         return None
     n = max(3, len(scene.features.points))
-    moment = float(np.median(b.radius[:n] ** 2 / 5.0 + b.blur[:n] ** 2))
+    moment = float(np.median(b.second_moment_px2[:n]))
     return math.sqrt(max(moment - scene.scales.bead_radius_px**2 / 5.0, 0.0))

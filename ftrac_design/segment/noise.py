@@ -94,7 +94,7 @@ def _curve_prior(beads: Beads, match: dict[str, int], opts: NoiseOptions) -> tup
     2095: 1.05 and 5.7 → 1.16 and 1.9)."""
     if not match or opts.curve_prior_dof <= 0:
         return 0.0, 0.0
-    s = float(np.median(np.asarray(beads.sigma_px, float)[[match[k] for k in match]]))
+    s = float(np.median(np.asarray(beads.sigma_px, float)[list(match.values())]))
     if not (math.isfinite(s) and s > 0):
         return 0.0, 0.0
     return opts.curve_prior_scale * s, opts.curve_prior_dof
@@ -124,7 +124,7 @@ def _ball_sigmas(
     idx = np.array([match[k] for k in ids])
     r = np.asarray(beads.radius, float)[idx]
     s = np.asarray(beads.sigma_px, float)[idx]
-    m = np.sqrt(r**2 / 5.0 + np.asarray(beads.blur, float)[idx] ** 2)
+    m = np.sqrt(beads.second_moment_px2[idx])
     sig = np.sqrt(
         (opts.point_fit_scale * s) ** 2
         + (opts.point_radius_scale * (r - np.median(r))) ** 2
