@@ -15,7 +15,10 @@ what confirms that:
    read from the run's noise level function (:func:`.image.noise_levels`), with the
    clutter term measured on the crop;
 3. each ball is looked for as the strongest blob within ``search_px`` of its projection
-   and fitted there with the blurred-sphere model (:func:`.detection.fitted_balls`); the
+   (a search beyond the matching tolerance first moves the prediction by the image shift
+   that lays the most balls on blobs, :func:`shift_votes`, and looks within
+   :data:`VOTE_TOLERANCE` of that) and fitted there with the blurred-sphere model
+   (:func:`.detection.fitted_balls`); the
    wires' contour points are measured along the projected curves' normals
    (:mod:`.guided`), exactly as the full path measures them for a labelling;
 4. the labelling's stages and per-feature tests (:func:`.labelling.evaluate`) run from the
@@ -300,6 +303,72 @@ def scene_near(
     return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, hidden=hidden)
 
 
+#: how far (in matching tolerances) a ball may lie from its projection after the image shift a
+#: wide search voted for: the rest of a frame-to-frame move (a swing's turn and tilt change
+#: the fiducial's image by a few pixels besides moving it)
+VOTE_TOLERANCE = 2.5
+
+
+def blob_peaks(snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, min_snr: float, limit: int) -> np.ndarray:
+    """The ``limit`` strongest local maxima (3 × 3) of the blob response over its noise ``snr``
+    where the image is blob-like (both second derivatives ``xx``, ``yy`` negative) and the
+    response is at least ``min_snr``: pixel centres (m, 2) as (u, v), strongest first."""
+    peak = (snr >= cv2.dilate(snr, np.ones((3, 3), np.uint8))) & (snr >= min_snr) & (xx < 0) & (yy < 0)
+    v, u = np.nonzero(peak)
+    order = np.argsort(-snr[v, u], kind="stable")[:limit]
+    return np.stack([u[order], v[order]], -1).astype(float)
+
+
+def shift_votes(proj: np.ndarray, peaks: np.ndarray, radius_px: float, tol_px: float) -> tuple[np.ndarray, int]:
+    """The image shift (2,) px within ``radius_px`` that puts the most projected balls ``proj``
+    (n, 2) within ``tol_px`` of a blob ``peaks`` (m, 2), and how many it puts there.
+
+    Every (ball, blob) pair proposes the shift that lays the ball on the blob; the proposal
+    that lays the most balls on blobs wins (fewer: the smaller sum of squared distances), and
+    the shift is then the median of its supporting balls' offsets. A pattern of balls of
+    unequal spacing (4, 3 and 2 on three lines) lies on itself under one shift only, so clutter
+    blobs and missing balls leave the vote with the true shift. (0, 0) and 0 with no proposal."""
+    if not len(proj) or not len(peaks):
+        return np.zeros(2), 0
+    cand = (peaks[None] - proj[:, None]).reshape(-1, 2)
+    cand = cand[np.hypot(cand[:, 0], cand[:, 1]) <= radius_px]
+    if not len(cand):
+        return np.zeros(2), 0
+    moved = proj[None] + cand[:, None]  # (c, n, 2)
+    d2 = ((moved[:, :, None] - peaks[None, None]) ** 2).sum(-1).min(-1)  # (c, n)
+    hit = d2 <= tol_px * tol_px
+    count = hit.sum(1)
+    cost = np.where(hit, d2, 0.0).sum(1)
+    best = int(np.lexsort((cost, -count))[0])
+    n = int(count[best])
+    nearest = ((moved[best][:, None] - peaks[None]) ** 2).sum(-1).argmin(1)
+    off = peaks[nearest] - proj
+    return np.median(off[hit[best]], axis=0), n
+
+
+def _voted_pose(
+    crop: "_Crop", features: Features, sc, min_snr: float, R: np.ndarray, t: np.ndarray, radius_px: float, tol_px: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """The pose (R, t) moved across the view by the image shift the crop's blobs vote for
+    (:func:`shift_votes`), applied at the balls' median depth (mm, camera frame X); (R, t)
+    unchanged where fewer than three balls agree with any shift. Between two frames a C-arm
+    mostly moves the fiducial's image across the view: one shift puts every ball back near
+    its blob, and the labelling's stages take it from there."""
+    if not features.points:
+        return R, t
+    T = top_hat(crop.density, sc.disc_px)
+    if crop.valid is not None:
+        T[~crop.valid] = 0.0
+    resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, crop.noise.at(sc.ridge_sigma_px), sc.blob_sigma_px)
+    peaks = blob_peaks((resp / nr).astype(np.float32), xx, yy, min_snr, 6 * len(features.points))
+    proj, Z = identify.project(crop.camera, R, t, features.point_centers())
+    (du, dv), n = shift_votes(proj, peaks, radius_px, tol_px)
+    if n < 3:
+        return R, t
+    z = float(np.median(Z))
+    return R, t + np.array([du * z / crop.camera.fx, dv * z / crop.camera.fy, 0.0])
+
+
 def _moved_px(camera: Camera, features: Features, R0, t0, R1, t1) -> float:
     """RMS distance (px) between the balls projected at two poses."""
     if not features.points:
@@ -478,13 +547,19 @@ def _track_near(
     (c0, r0), (h, w) = crop.corner, crop.density.shape
     diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
     diag.blur_px = find.blur_px
+    # a search beyond the matching tolerance first finds the image shift that puts the most
+    # balls on blobs, then matches from the shifted pose; the move is judged from (R, t)
+    Rs, ts = R, t
+    if search > 1.0:
+        Rs, ts = _voted_pose(crop, features, sc, find.bead_min_snr, R, t, search_px, capture * VOTE_TOLERANCE)
+        search_px = min(search_px, capture * VOTE_TOLERANCE)
     scene = scene_near(
         crop.density,
         features,
         crop.camera,
         find,
-        R,
-        t,
+        Rs,
+        ts,
         search_px,
         crop.valid,
         crop.noise,
@@ -497,7 +572,7 @@ def _track_near(
         why = f"tracking lost: {diag.blobs} balls found near their predicted places"
         return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False
     try:
-        lab = evaluate(scene, identify.BeadHypothesis(R, t, {}, 0, 0.0), labelling, first_stage=first_stage)
+        lab = evaluate(scene, identify.BeadHypothesis(Rs, ts, {}, 0, 0.0), labelling, first_stage=first_stage)
     except NoLabelling as exc:
         why = f"tracking lost: {exc.reason}"
         return shifted(failed_result(why, context.polarity, scene.beads, None, diag), camera, c0, r0), False

@@ -13,9 +13,10 @@ in order. For each frame:
    wire support, evidence) and the balls did not move farther from the prediction than
    they were matched within. A pose that passed every test but moved farther is tracked
    again from where it moved to and kept when that pass confirms it (``RunOptions.follow``);
-   a frame predicted over dropped frames that is not confirmed is tracked once more with
-   its balls looked for farther out, then confirmed the same way
-   (``RunOptions.wide_search``). Status ``tracked``.
+   a frame that is not confirmed is tracked once more with its balls looked for farther
+   out — from the prediction over dropped frames, else from the last pose (the C-arm
+   started, stopped or turned) — then confirmed the same way (``RunOptions.wide_search``).
+   Status ``tracked``.
 3. **Re-identify** otherwise — the first frame, after a lost frame, or whenever the
    tracked pose was refused (a jump, a shuffled or foreign frame, a residual test that
    failed): :func:`ftrac_design.segment.track_image` with no prior, as for a single image.
@@ -72,16 +73,17 @@ class RunOptions:
     follow : how many times a tracked pose refused only for moving farther from the
         prediction than its balls were matched within is taken as the prediction and the
         frame tracked again (:func:`~ftrac_design.tracking.near.track_near`); 0: refused.
-    wide_search : when a frame predicted over more than one step (frames dropped or
-        skipped) is not confirmed, it is tracked once more with its balls looked for within
-        this many matching tolerances, then followed; 1: no such pass.
+    wide_search : when a frame's prediction is not confirmed, it is tracked once more with
+        its balls looked for within this many matching tolerances, then followed: from the
+        prediction where it spans more than one step (frames dropped or skipped), else from
+        the last accepted pose (the C-arm started, stopped or turned); 1: no such pass.
     """
 
     prediction: Literal["velocity", "pose"] = "velocity"
     tight_start_px: float = 0.5
     max_extrapolation: float = 6.0
     follow: int = 1
-    wide_search: float = 2.5
+    wide_search: float = 25.0
 
 
 @dataclass
@@ -289,8 +291,13 @@ class RunTracker:
         # unmeasured
         fs = 2 if st.last_moved_px <= ro.tight_start_px and span <= 1.5 else 0
         res = track_near(image, self.features, cam, R, t, st.context, opts, first_stage=fs, follow=ro.follow)
-        if res.pose.converged or span <= 1.5 or ro.wide_search <= 1.0:
+        if res.pose.converged or ro.wide_search <= 1.0 or not st.history:
             return res
+        if span <= 1.5:
+            # a C-arm that starts, stops or turns between two frames is anywhere from the last
+            # pose to a step beyond the prediction: a wider search from the last pose covers it
+            # (a swing's turn, or the second frame of a run, cost a full identification each)
+            R, t = st.history[-1].R, st.history[-1].t
         wide = track_near(image, self.features, cam, R, t, st.context, opts, search=ro.wide_search, follow=ro.follow)
         return wide if wide.pose.converged else res
 
