@@ -491,6 +491,15 @@ def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, 
     return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation, hidden)
 
 
+def _crop_at(frame: "_Frame", sc0, sc, R: np.ndarray, t: np.ndarray, search_px: float) -> "_Crop | None":
+    """The frame cropped around the model projected at (R, t) with the margin the filters and
+    a ball search of ``search_px`` need (:func:`_crop`; ``sc0`` the settings' scales, whose
+    top-hat disc conditions it, ``sc`` the run's), or None where that lies outside the image."""
+    margin = sc.disc_px + 4 * sc.ridge_sigma_px + search_px + sc.bead_radius_px + 4
+    box = predicted_box(frame.features, frame.camera, R, t, frame.image.shape, margin)
+    return None if box is None else _crop(frame.image, frame.context, frame.camera, box, sc0.disc_px)
+
+
 def _confirmed(
     pose: Pose, crop: _Crop, features: Features, R, t, capture: float, diag: Diagnostics
 ) -> tuple[Pose, bool]:
@@ -534,25 +543,26 @@ def _track_near(
     R, t = np.asarray(R, float), np.asarray(t, float)
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(t))):
         return failed_result("no finite predicted pose", context.polarity), False
-    img = frame.image
     sc0 = scales(features, camera, opts.finding)
     sc = scales(features, camera, find)
     capture = max(labelling.match_tol_px, sc.bead_radius_px)
     search_px = capture * max(1.0, float(search))
-    margin = sc.disc_px + 4 * sc.ridge_sigma_px + search_px + sc.bead_radius_px + 4
-    box = predicted_box(features, camera, R, t, img.shape, margin)
-    if box is None:
+    # a search beyond the matching tolerance first finds, on a crop grown by the search, the
+    # image shift that puts the most balls on blobs; the frame is then cropped and matched
+    # around the shifted pose, and the move is judged from (R, t)
+    Rs, ts = R, t
+    if search > 1.0:
+        wide = _crop_at(frame, sc0, sc, R, t, search_px)
+        if wide is None:
+            return failed_result("the predicted fiducial lies outside the image", context.polarity), False
+        Rs, ts = _voted_pose(wide, features, sc, find.bead_min_snr, R, t, search_px, capture * VOTE_TOLERANCE)
+        search_px = min(search_px, capture * VOTE_TOLERANCE)
+    crop = _crop_at(frame, sc0, sc, Rs, ts, search_px)
+    if crop is None:
         return failed_result("the predicted fiducial lies outside the image", context.polarity), False
-    crop = _crop(img, context, camera, box, sc0.disc_px)
     (c0, r0), (h, w) = crop.corner, crop.density.shape
     diag = Diagnostics(path="tracked", roi=[int(c0), int(r0), int(w), int(h)], formation=crop.formation)
     diag.blur_px = find.blur_px
-    # a search beyond the matching tolerance first finds the image shift that puts the most
-    # balls on blobs, then matches from the shifted pose; the move is judged from (R, t)
-    Rs, ts = R, t
-    if search > 1.0:
-        Rs, ts = _voted_pose(crop, features, sc, find.bead_min_snr, R, t, search_px, capture * VOTE_TOLERANCE)
-        search_px = min(search_px, capture * VOTE_TOLERANCE)
     scene = scene_near(
         crop.density,
         features,
