@@ -49,6 +49,29 @@ def test_input_is_the_same_for_any_gain_and_offset_and_flips_with_polarity():
     np.testing.assert_allclose(a, -c, atol=2e-4)
 
 
+def test_the_two_scales_are_each_the_contrast_at_their_sigma_and_an_error_on_either_is_raised(monkeypatch):
+    """The input's two channels, computed side by side, are :func:`_contrast` at σ 12 and σ 4
+    bit for bit; a failure on the finer channel's own thread reaches the caller."""
+    from ftrac_design.detector import normalise
+
+    rng = np.random.default_rng(3)
+    x = rng.normal(0, 30, (80, 96)).astype(np.float32)
+    v = np.ones(x.shape, bool)
+    coarse, fine = normalise._both_scales(x, v)
+    assert np.array_equal(coarse, normalise._contrast(x, 12.0, v))
+    assert np.array_equal(fine, normalise._contrast(x, 4.0, v))
+    plain = normalise._contrast
+
+    def failing(x, sigma, valid):
+        if sigma == 4.0:
+            raise MemoryError("the finer channel")
+        return plain(x, sigma, valid)
+
+    monkeypatch.setattr(normalise, "_contrast", failing)
+    with pytest.raises(MemoryError, match="finer"):
+        normalise._both_scales(x, v)
+
+
 @pytest.mark.parametrize("scale", [1, 2, 3])
 def test_targets_decode_back_to_the_true_ball_centres(scale):
     """A ball's target map, decoded as the network's output would be, gives back its centre
@@ -160,6 +183,16 @@ def test_the_shipped_network_must_match_its_card(tmp_path):
 def f2005():
     d = load_design("ftrac_2005")
     return compute_features(d)
+
+
+@shipped
+def test_the_network_gives_the_same_maps_with_any_number_of_threads(f2005):
+    """ONNX Runtime's threads split the work, not the sums: one and two threads give the same
+    maps bit for bit, so the tracker's answers do not depend on the thread count."""
+    R, t = Workspace().sample(1, f2005.nominal_beam_direction, np.random.default_rng(4))
+    x = network_input(render(f2005, R[0], t[0], Camera(), rng=np.random.default_rng(4)).raw, 2)
+    one, two = detector.load_detector(threads=1).maps(x), detector.load_detector(threads=2).maps(x)
+    assert np.array_equal(one, two)
 
 
 @shipped

@@ -13,6 +13,7 @@ fiducial is first looked for on a half-size image and tracked in its region
 from __future__ import annotations
 
 import math
+import threading
 import time
 from dataclasses import replace
 from typing import Any
@@ -536,6 +537,22 @@ def _polarities(
     dense-bright first, as detectors and log converters write them; a display frame's in the
     polarity in which compact structures stand out more first (:func:`.image.detect_polarity`:
     over a patient it picked a raw image's polarity wrongly in 7 of 20)."""
+    known = _known_polarities(polarity, hint, form)
+    if known is not None:
+        return known
+    if det is not None:
+        # the learned detector's balls, darker or brighter than around them
+        order = learned.polarity_order(img, det, sc, balls)
+        if order is not None:
+            return order
+    first = detect_polarity(small, max(sc.disc_px // 2, 2))
+    return [first, "dense-bright" if first == "dense-dark" else "dense-dark"]
+
+
+def _known_polarities(polarity: str, hint: str | None, form: str) -> list[str] | None:
+    """The polarities to try where neither the learned detector's balls nor the pixels' own
+    polarity test decide them: the one asked for or the file's, else linear counts
+    dense-dark first and a log image dense-bright first; None for a display frame."""
     if polarity != "auto":
         return [polarity]
     pol = str(hint or "").replace("_", "-")
@@ -545,13 +562,7 @@ def _polarities(
         return ["dense-dark", "dense-bright"]
     if form == "log":
         return ["dense-bright", "dense-dark"]
-    if det is not None:
-        # the learned detector's balls, darker or brighter than around them
-        order = learned.polarity_order(img, det, sc, balls)
-        if order is not None:
-            return order
-    first = detect_polarity(small, max(sc.disc_px // 2, 2))
-    return [first, "dense-bright" if first == "dense-dark" else "dense-dark"]
+    return None
 
 
 def _line_integrals(img: np.ndarray) -> bool:
@@ -601,8 +612,9 @@ def _track(
     # what neither polarity nor detector changes (the clipped regions, a display frame's
     # graphics filled in), done once for every try below
     clean = cleaned(img, form == "display", sc.disc_px)
-    args = (img, clean, small, form, polarity_hint, features, camera, sc, opts)
-    det = learned.detections(img, sc, find) if features.points else None
+    prepared: Prepared = {}
+    args = (img, clean, small, form, polarity_hint, features, camera, sc, opts, prepared)
+    det = _detections_while_preparing(args) if features.points else None
     res = _each_polarity(*args, det)
     if det is None or res.pose.converged or find.detector != "auto":
         return res
@@ -626,6 +638,51 @@ def _track(
     return res
 
 
+#: the conditioned image and its noise field by polarity, made once per image and shared by
+#: the learned and the classical detectors' passes
+Prepared = dict[str, tuple[Any, NoiseField]]
+
+
+def _prepared(img: np.ndarray, clean: Cleaned, form: str, pol: str, sc, prepared: Prepared):
+    """``img`` conditioned in polarity ``pol`` (linear counts read dense-bright are line
+    integrals) and its noise field, from ``prepared`` or made and kept there."""
+    if pol not in prepared:
+        cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px, clean=clean)
+        prepared[pol] = (cond, NoiseField(cond.density, cond.valid, sc.disc_px))
+    return prepared[pol]
+
+
+def _detections_while_preparing(args: tuple):
+    """The learned detector's detections of the image (:func:`.learned.detections`; None for
+    the classical path), run on a thread of their own while this one conditions the image in
+    the first polarity to try and measures its noise at the ridge scale, where that
+    polarity does not wait for the detections (counts, log images, a file's or the caller's
+    polarity): the network and OpenCV's filters let go of the interpreter, and on a second
+    core the noise map (~20 ms for 1024²) costs no wall time. The same work is done either
+    way, so the answers do not change."""
+    img, clean, _, form, hint, _, _, sc, opts, prepared = args
+    known = _known_polarities(opts.search.polarity, hint, form)
+    if known is None or opts.finding.detector == "classical":
+        return learned.detections(img, sc, opts.finding)
+    out: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            out["det"] = learned.detections(img, sc, opts.finding)
+        except BaseException as exc:  # raised again on the caller's thread
+            out["error"] = exc
+
+    th = threading.Thread(target=run, name="ftrac-detector", daemon=True)
+    th.start()
+    try:
+        _prepared(img, clean, form, known[0], sc, prepared)[1].at(sc.ridge_sigma_px)
+    finally:
+        th.join()
+    if "error" in out:
+        raise out["error"]
+    return out["det"]
+
+
 def _each_polarity(
     img: np.ndarray,
     clean: Cleaned,
@@ -636,11 +693,13 @@ def _each_polarity(
     camera: Camera,
     sc,
     opts: TrackOptions,
+    prepared: Prepared,
     det,
 ) -> TrackResult:
     """The image tracked in each polarity to try until one gives a pose, with the learned
     detector's detections ``det`` (None: the classical detectors), under one counted budget;
-    ``clean`` is ``img`` cleaned (:func:`.conditioning.cleaned`)."""
+    ``clean`` is ``img`` cleaned (:func:`.conditioning.cleaned`); each polarity's conditioned
+    image and noise taken from ``prepared`` or kept there."""
     find, search = opts.finding, opts.search
     budget = Budget(search)
     tried: list[TrackResult] = []
@@ -649,8 +708,8 @@ def _each_polarity(
     for pol in pols:
         if tried and budget.spent():
             break
-        cond = condition(img, pol, form if form != "linear" or pol == "dense-dark" else "log", sc.disc_px, clean=clean)
-        res = _track_conditioned(cond, small, features, camera, sc, budget, det, *stages)
+        cond, noise = _prepared(img, clean, form, pol, sc, prepared)
+        res = _track_conditioned(cond, noise, small, features, camera, sc, budget, det, *stages)
         diag = res.diagnostics
         diag.detector = "classical" if det is None else "learned"
         diag.formation = cond.formation
@@ -695,6 +754,7 @@ def _classical_regions(
 
 def _track_conditioned(
     cond,
+    noise: NoiseField,
     small: np.ndarray,
     features: Features,
     camera: Camera,
@@ -706,12 +766,12 @@ def _track_conditioned(
     labelling: LabellingOptions,
     accept: AcceptanceOptions,
 ) -> TrackResult:
-    """:func:`track_image` on a conditioned image: in each region where the fiducial may be
-    (most likely first) until one gives a pose; the whole image when none is found. With the
+    """:func:`track_image` on a conditioned image ``cond`` with its noise field ``noise``: in
+    each region where the fiducial may be (most likely first) until one gives a pose; the
+    whole image when none is found. With the
     learned detector's detections ``det``, its regions and ball candidates, and no whole-image
     search: where it sees no cluster of balls there is no fiducial to find."""
     img, valid, pol = cond.density, cond.valid, cond.polarity
-    noise = NoiseField(img, valid, sc.disc_px)
     if det is not None:
         regions = learned.regions(det, features, sc, img.shape, find.magnification, search.max_regions)
         if not regions:
