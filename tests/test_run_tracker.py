@@ -393,7 +393,7 @@ def test_the_distortion_covariance_is_how_far_the_solver_moves_per_mode(run, tra
 
 def test_frames_are_tracked_with_one_blas_thread(run, monkeypatch):
     """Both paths of a frame, the full identification and the tracked frame, run with every
-    BLAS library at one thread (:mod:`ftrac_design.segment.threads`), and the process's own
+    BLAS library at one thread (:mod:`ftrac_design.threads`), and the process's own
     setting is back after each."""
     from threadpoolctl import threadpool_info, threadpool_limits
 

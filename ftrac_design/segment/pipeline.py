@@ -13,7 +13,6 @@ fiducial is first looked for on a half-size image and tracked in its region
 from __future__ import annotations
 
 import math
-import threading
 import time
 from dataclasses import replace
 from typing import Any
@@ -23,6 +22,7 @@ import numpy as np
 
 from ..features.model import Features
 from ..pose import Camera, Diagnostics, so3
+from ..threads import beside, one_blas_thread
 from . import acceptance, evidence, identify, learned
 from .beads import Beads
 from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
@@ -40,7 +40,6 @@ from .options import (
     failed_result,
 )
 from .region import fiducial_regions, shifted, view_limited
-from .threads import one_blas_thread
 
 #: blob triplets the first search over bead labellings tries (:func:`.identify.bead_hypotheses`)
 FIRST_TRIPLETS = 24
@@ -664,23 +663,12 @@ def _detections_while_preparing(args: tuple):
     known = _known_polarities(opts.search.polarity, hint, form)
     if known is None or opts.finding.detector == "classical":
         return learned.detections(img, sc, opts.finding)
-    out: dict[str, Any] = {}
-
-    def run() -> None:
-        try:
-            out["det"] = learned.detections(img, sc, opts.finding)
-        except BaseException as exc:  # raised again on the caller's thread
-            out["error"] = exc
-
-    th = threading.Thread(target=run, name="ftrac-detector", daemon=True)
-    th.start()
+    det = beside(learned.detections, img, sc, opts.finding)
     try:
         _prepared(img, clean, form, known[0], sc, prepared)[1].at(sc.ridge_sigma_px)
     finally:
-        th.join()
-    if "error" in out:
-        raise out["error"]
-    return out["det"]
+        found = det.result()
+    return found
 
 
 def _each_polarity(

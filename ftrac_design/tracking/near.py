@@ -63,7 +63,7 @@ from ..segment.options import FindOptions, TrackOptions, TrackResult, failed_res
 from ..segment.pipeline import accept_best, feature_quality
 from ..segment.region import shifted
 from ..segment.ridges import RidgePoints
-from ..segment.threads import one_blas_thread
+from ..threads import one_blas_thread
 
 
 @dataclass(frozen=True)
