@@ -418,12 +418,44 @@ def combine(*models: DistortionModel) -> DistortionModel:
 # -- images -----------------------------------------------------------------------------
 
 
+#: the pixel maps are a polynomial (or its inverse), smooth over a few pixels: evaluated every
+#: MAP_STEP px and interpolated bilinearly between, within 0.005 px of evaluating every pixel
+#: for a strong intensifier (2.5 mm pincushion at 100 mm plus a 3 px S-distortion, to the
+#: image's corners), at a sixteenth of the cost (~240 → ~15 ms for 1024²)
+MAP_STEP = 4
+
+
 @functools.lru_cache(maxsize=4)
 def _maps(model: DistortionModel, direction: Direction) -> tuple[np.ndarray, np.ndarray]:
     """cv2.remap maps (float32, H × W) giving, for each output pixel, where to read the input.
 
     undistort: the output is on the ideal grid, read at distort(p); distort: the output is on
-    the distorted grid, read at undistort(q); where Newton refuses, the pixel reads itself."""
+    the distorted grid, read at undistort(q); where Newton refuses, the pixel reads itself.
+    Interpolated between samples every :data:`MAP_STEP` px where every sample is finite;
+    evaluated at every pixel otherwise (:func:`exact_maps`)."""
+    H, W = model.image_shape
+    s = MAP_STEP
+    # samples one step beyond every edge, placed where cv2.resize's pixel-centre convention
+    # reads them: output column x of w samples resized to s·w columns reads sample
+    # (x + ½)/s − ½, which at sample j = (u + s + ½)/s − ½ is pixel u
+    h, w = -(-H // s) + 2, -(-W // s) + 2
+    us = (np.arange(w) + 0.5) * s - 0.5 - s
+    vs = (np.arange(h) + 0.5) * s - 0.5 - s
+    p = np.stack(np.meshgrid(us, vs), -1)
+    src = model.distort(p) if direction == "undistort" else model.undistort(p)
+    if not np.all(np.isfinite(src)):
+        return exact_maps(model, direction)
+    maps = []
+    for k in range(2):
+        full = cv2.resize(np.ascontiguousarray(src[..., k]), (w * s, h * s), interpolation=cv2.INTER_LINEAR)
+        m = np.ascontiguousarray(full[s : s + H, s : s + W], dtype=np.float32)
+        m.setflags(write=False)
+        maps.append(m)
+    return maps[0], maps[1]
+
+
+def exact_maps(model: DistortionModel, direction: Direction) -> tuple[np.ndarray, np.ndarray]:
+    """The maps of :func:`_maps` evaluated at every pixel (float32, H × W)."""
     H, W = model.image_shape
     mx = np.empty((H, W), np.float32)
     my = np.empty((H, W), np.float32)
