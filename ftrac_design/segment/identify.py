@@ -177,10 +177,12 @@ def _labellings_of(
 
 def _collect_matches(
     best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
-) -> None:
+) -> int:
     """Add to ``best`` (labelling → its distinct poses, each the lowest-RMS hypothesis of
     those within :data:`SAME_POSE_RAD` of it) the labellings of the poses (R, t) that put at
-    least four model beads on distinct blobs of ``tree``.
+    least four model beads on distinct blobs of ``tree``; returns the most beads any of them
+    matched (0 for none: a labelling's count is its own, so the best count in ``best`` is the
+    running largest of these).
 
     Every such labelling is kept, whatever the order or the number of the poses that give it:
     P3P solutions of one triplet that are the same pose give the same labelling, and which
@@ -193,21 +195,23 @@ def _collect_matches(
     lab, count, rms = _labellings_of(model, camera, tree, R, t, tol_px)
     sel = np.flatnonzero(count >= 4)
     if len(sel) == 0:
-        return
+        return 0
     # lowest RMS first within each labelling (ties: the pose listed first)
     o = sel[np.lexsort((rms[sel],) + tuple(lab[sel].T[::-1]))]
+    labs = lab.tolist()
     for r in o:
-        key = tuple(int(x) for x in lab[r])
+        key = tuple(labs[r])
         poses = best.setdefault(key, [])
         near = next((k for k, h in enumerate(poses) if so3.angle(h.R, R[r]) < SAME_POSE_RAD), None)
         if near is not None and rms[r] >= poses[near].rms_px:
             continue
-        match = {b: int(x) for b, x in enumerate(lab[r]) if x >= 0}
+        match = {b: x for b, x in enumerate(labs[r]) if x >= 0}
         h = BeadHypothesis(R[r], t[r], match, int(count[r]), float(rms[r]))
         if near is None:
             poses.append(h)
         else:
             poses[near] = h
+    return int(count[sel].max())
 
 
 def bead_hypotheses(
@@ -262,8 +266,7 @@ def bead_hypotheses(
         poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
         if poses is None:
             continue
-        _collect_matches(best, model, camera, tree, *poses, tol_px)
-        top_now = max((h.count for poses in best.values() for h in poses), default=0)
+        top_now = max(top, _collect_matches(best, model, camera, tree, *poses, tol_px))
         stale = 0 if top_now > top else stale + 1
         top = top_now
         # every ball explained; or nearly all (a ball or two too faint or merged) and the
