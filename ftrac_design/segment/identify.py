@@ -198,14 +198,13 @@ def _collect_matches(
         return 0
     # lowest RMS first within each labelling (ties: the pose listed first)
     o = sel[np.lexsort((rms[sel],) + tuple(lab[sel].T[::-1]))]
-    labs = lab.tolist()
-    for r in o:
-        key = tuple(labs[r])
+    for r, row in zip(o, lab[o].tolist()):
+        key = tuple(row)
         poses = best.setdefault(key, [])
         near = next((k for k, h in enumerate(poses) if so3.angle(h.R, R[r]) < SAME_POSE_RAD), None)
         if near is not None and rms[r] >= poses[near].rms_px:
             continue
-        match = {b: x for b, x in enumerate(labs[r]) if x >= 0}
+        match = {b: x for b, x in enumerate(row) if x >= 0}
         h = BeadHypothesis(R[r], t[r], match, int(count[r]), float(rms[r]))
         if near is None:
             poses.append(h)
