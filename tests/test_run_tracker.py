@@ -465,6 +465,26 @@ def test_a_swing_that_starts_and_turns_is_tracked_through(run):
     assert before[1] == "re-identified" and "re-identified" in before[6:], before
 
 
+def test_a_frame_of_anatomy_alone_after_tracked_frames_gives_no_pose(run):
+    """Four tracked frames, then a frame of a patient with the fiducial out of view (raw counts,
+    the run's formation and polarity: what the wider search would read as the run's): lost,
+    with no pose; the frame after it is identified from scratch."""
+    from ftrac_design.xray.scenario import realistic_image
+
+    features = FEATURES["ftrac_2005"]
+    R1, t1 = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(8))
+    # a frame twice as wide with the fiducial in its right half (the chain's noise and
+    # shutters over the whole of it), of which the left half
+    wide = Camera(1000.0, (0.44, 0.44), (1.5 * SHAPE[1], SHAPE[0] / 2))
+    frame, _ = realistic_image(features, R1[0], t1[0], wide, "raw", 8, shape=(SHAPE[0], 2 * SHAPE[1]))
+    anatomy = np.ascontiguousarray(frame[:, : SHAPE[1]])
+    tr = RunTracker(features, CAM)
+    answers = [tr.track_frame(f, time_s=k / 30.0) for k, f in enumerate([*run.raw[:4], anatomy, run.raw[5]])]
+    assert [a.status for a in answers[1:4]] == ["tracked"] * 3, [a.tracking_error for a in answers]
+    assert answers[4].status == "lost" and not answers[4].result.pose.converged, answers[4].result.pose.error
+    assert answers[5].status == "re-identified"
+
+
 def test_the_shift_vote_finds_a_pattern_among_clutter_and_missing_balls():
     """Closed form: nine balls on three lines (4, 3, 2 of unequal spacing), shifted by
     (37.3, −21.6) px, three of them missing and twelve clutter blobs added: the vote gives
