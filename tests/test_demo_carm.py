@@ -79,6 +79,7 @@ def test_each_frame_of_the_run_is_printed_as_tracked(ran):
     for k, (line, pose, true) in enumerate(zip(frame_lines, poses, truth)):
         assert pose["frame"] == true["frame"] == k
         assert line.strip().startswith(f"frame {k} (time {pose['time_s']:.3f} s):")
+        assert line.endswith(f" [{pose['status']}]"), line
         assert pose["time_s"] == pytest.approx(true["time_s"], abs=1e-6)
         assert true["time_s"] == pytest.approx(k * SETTINGS.frame_time_ms / 1e3)
         if pose["converged"]:
@@ -89,7 +90,8 @@ def test_each_frame_of_the_run_is_printed_as_tracked(ran):
         else:
             assert "NOT converged: " + " ".join(pose["error"].split()) in line
     tracked = sum(p["converged"] for p in poses)
-    assert f"{tracked} of {n} frames tracked" in text
+    near = sum(p["status"] == "tracked" for p in poses)
+    assert f"{tracked} of {n} frames tracked ({near} from the frame before, {tracked - near} identified" in text
     # what intake read from the Enhanced XA file is what the poses record
     assert "FieldOfViewRotation 90° and horizontal flip undone" in poses[0]["intake_notes"]
     assert poses[0]["camera"] == CAMERA.to_dict()

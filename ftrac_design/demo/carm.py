@@ -264,12 +264,15 @@ def run_lines(out_dir: Path, features_path: Path, s: CarmDemoSettings) -> list[s
         r = pose_report(d, np.asarray(truth[k]["rotation"]), np.asarray(truth[k]["translation_mm"]))
         ts = d.get("time_s")
         lines.append(f"  frame {k} (time {ts:.3f} s): " if ts is not None else f"  frame {k}: ")
-        lines[-1] += format_errors(r)
+        # how the run tracker found it: from the frame before, or identified from scratch
+        lines[-1] += format_errors(r) + f" [{d.get('status', 'lost')}]"
     if poses:
         lines.insert(2, "  " + intake_line(poses[0]))
     tracked = sum(bool(d.get("converged")) for d in poses)
+    near = sum(d.get("status") == "tracked" for d in poses)
     lines.append(
-        f"  {tracked} of {len(poses)} frames tracked -> {relative(poses_path)} "
+        f"  {tracked} of {len(poses)} frames tracked ({near} from the frame before, "
+        f"{tracked - near} identified from scratch) -> {relative(poses_path)} "
         f"(+ observations, overlays {relative(out_dir)}/poses_run_<frame>_overlay.png)"
     )
     lines.append(
