@@ -608,12 +608,9 @@ def _track(
     form = formation_hint if formation_hint in FORMATIONS else formation_of(image, "dense-dark", None)
     if form == "linear" and formation_hint not in FORMATIONS and _line_integrals(img):
         form = "log"
-    # what neither polarity nor detector changes (the clipped regions, a display frame's
-    # graphics filled in), done once for every try below
-    clean = cleaned(img, form == "display", sc.disc_px)
     prepared: Prepared = {}
+    clean, det = _prepared_and_detected(img, form, polarity_hint, features, sc, opts, prepared)
     args = (img, clean, small, form, polarity_hint, features, camera, sc, opts, prepared)
-    det = _detections_while_preparing(args) if features.points else None
     res = _each_polarity(*args, det)
     if det is None or res.pose.converged or find.detector != "auto":
         return res
@@ -651,24 +648,28 @@ def _prepared(img: np.ndarray, clean: Cleaned, form: str, pol: str, sc, prepared
     return prepared[pol]
 
 
-def _detections_while_preparing(args: tuple):
-    """The learned detector's detections of the image (:func:`.learned.detections`; None for
-    the classical path), run on a thread of their own while this one conditions the image in
-    the first polarity to try and measures its noise at the ridge scale, where that
-    polarity does not wait for the detections (counts, log images, a file's or the caller's
-    polarity): the network and OpenCV's filters let go of the interpreter, and on a second
-    core the noise map (~20 ms for 1024²) costs no wall time. The same work is done either
-    way, so the answers do not change."""
-    img, clean, _, form, hint, _, _, sc, opts, prepared = args
-    known = _known_polarities(opts.search.polarity, hint, form)
-    if known is None or opts.finding.detector == "classical":
-        return learned.detections(img, sc, opts.finding)
-    det = beside(learned.detections, img, sc, opts.finding)
+def _prepared_and_detected(
+    img: np.ndarray, form: str, hint: str | None, features: Features, sc, opts: TrackOptions, prepared: Prepared
+) -> tuple[Cleaned, Any]:
+    """The image cleaned (:func:`.conditioning.cleaned`: what neither polarity nor detector
+    changes — the clipped regions, a display frame's graphics filled in — done once for every
+    try) and the learned detector's detections (:func:`.learned.detections`; None for the
+    classical path or a design without balls). The network runs on a thread of its own while
+    this one cleans the image and, where the first polarity to try does not wait for the
+    detections (counts, log images, a file's or the caller's polarity), conditions it in that
+    polarity and measures its noise at the ridge scale into ``prepared``: the network and
+    OpenCV's filters let go of the interpreter, so on a second core the cleaning (3–30 ms for
+    1024², the most for a display frame's graphics) and the noise map (~20 ms) cost no wall
+    time. The same work is done either way, so the answers do not change."""
+    det = beside(learned.detections, img, sc, opts.finding) if features.points else None
     try:
-        _prepared(img, clean, form, known[0], sc, prepared)[1].at(sc.ridge_sigma_px)
+        clean = cleaned(img, form == "display", sc.disc_px)
+        known = _known_polarities(opts.search.polarity, hint, form)
+        if det is not None and known is not None and opts.finding.detector != "classical":
+            _prepared(img, clean, form, known[0], sc, prepared)[1].at(sc.ridge_sigma_px)
     finally:
-        found = det.result()
-    return found
+        found = None if det is None else det.result()
+    return clean, found
 
 
 def _each_polarity(
