@@ -73,10 +73,12 @@ class RunOptions:
     follow : how many times a tracked pose refused only for moving farther from the
         prediction than its balls were matched within is taken as the prediction and the
         frame tracked again (:func:`~ftrac_design.tracking.near.track_near`); 0: refused.
-    wide_search : when a frame's prediction is not confirmed, it is tracked once more with
-        its balls looked for within this many matching tolerances, then followed: from the
-        prediction where it spans more than one step (frames dropped or skipped), else from
-        the last accepted pose (the C-arm started, stopped or turned); 1: no such pass.
+    wide_search : when a frame's prediction is not confirmed, it is tracked once more,
+        moved first by the image shift within this many matching tolerances that lays the
+        most balls on blobs (:func:`~ftrac_design.tracking.near.shift_votes`), then followed:
+        from the prediction where it spans more than one step (frames dropped or skipped),
+        else from the last accepted pose (the C-arm started, stopped or turned); 1: no such
+        pass.
     """
 
     prediction: Literal["velocity", "pose"] = "velocity"
