@@ -196,6 +196,22 @@ def test_the_network_gives_the_same_maps_with_any_number_of_threads(f2005):
 
 
 @shipped
+def test_one_thread_or_two_the_tracker_gives_the_same_pose(f2005):
+    """``detector_threads`` 1 (everything on the caller's thread, as the image-true score's
+    workers run) and 2 (the network beside the cleaning and the noise map) give the same
+    pose, bit for bit, on a raw and on a display frame."""
+    from ftrac_design.xray.scenario import realistic_image
+
+    R, t = Workspace().sample(1, f2005.nominal_beam_direction, np.random.default_rng(6))
+    for condition in ("raw", "display-dark"):
+        img, _ = realistic_image(f2005, R[0], t[0], Camera(), condition, 6)
+        one = track_image(img, f2005, Camera(), TrackOptions(detector_threads=1)).pose
+        two = track_image(img, f2005, Camera(), TrackOptions(detector_threads=2)).pose
+        assert one.converged and two.converged, (one.error, two.error)
+        assert np.array_equal(one.rotation, two.rotation) and np.array_equal(one.translation_mm, two.translation_mm)
+
+
+@shipped
 def test_the_shipped_network_finds_every_ball_of_a_rendered_image(f2005):
     """ftrac_2005 at three poses, clean: each ball projected in the image has a candidate
     within 1.5 px among the network's twelve most probable, and the thresholded map covers

@@ -66,7 +66,9 @@ def _both_scales(x: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return coarse, fine_map
 
 
-def network_input(image: np.ndarray, scale: int, valid: np.ndarray | None = None) -> np.ndarray:
+def network_input(
+    image: np.ndarray, scale: int, valid: np.ndarray | None = None, side_by_side: bool = True
+) -> np.ndarray:
     """The network's input (2, h, w) float32 for ``image`` (H, W), any dtype and formation.
 
     Two channels of local contrast — the image less its smoothed self over the local RMS of
@@ -85,6 +87,10 @@ def network_input(image: np.ndarray, scale: int, valid: np.ndarray | None = None
         Where the image can be read (a round field, outside the blades); elsewhere the image is
         set to the median of the readable pixels before the contrast is taken, and the input
         is 0.
+
+    side_by_side : bool
+        The two scales on two threads (:func:`_both_scales`); False: one after the other, for
+        a process that shares the cores with as many others (the same values either way).
 
     Returns
     -------
@@ -108,5 +114,8 @@ def network_input(image: np.ndarray, scale: int, valid: np.ndarray | None = None
     h, w = x.shape
     H8, W8 = -(-h // 8) * 8, -(-w // 8) * 8
     out = np.zeros((2, H8, W8), np.float32)
-    out[0, :h, :w], out[1, :h, :w] = _both_scales(x, v)
+    if side_by_side:
+        out[0, :h, :w], out[1, :h, :w] = _both_scales(x, v)
+    else:
+        out[0, :h, :w], out[1, :h, :w] = _contrast(x, 12.0, v), _contrast(x, 4.0, v)
     return out

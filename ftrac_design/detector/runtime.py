@@ -54,10 +54,13 @@ class Detector:
     session : onnxruntime.InferenceSession
     card : dict
         The model card (``detector.json``).
+    threads : how many threads it may use: ONNX Runtime's, and with more than one the input's
+        two scales side by side (:func:`.normalise.network_input`).
     """
 
     session: Any
     card: dict
+    threads: int = 1
 
     def maps(self, x: np.ndarray) -> np.ndarray:
         """The network's raw output (6, h/2, w/2) for an input (2, h, w) (:func:`.network_input`)."""
@@ -70,7 +73,8 @@ class Detector:
         in radius (px, at the tracker's assumed magnification); ``valid`` (H, W) bool where the
         image can be read."""
         s = working_scale(bead_radius_px)
-        return decode(self.maps(network_input(image, s, valid)), s, np.shape(image), max_beads)
+        x = network_input(image, s, valid, side_by_side=self.threads > 1)
+        return decode(self.maps(x), s, np.shape(image), max_beads)
 
 
 _LOADED: dict[str, Detector] = {}
@@ -112,5 +116,5 @@ def load_detector(path: str | Path | None = None, threads: int = 2) -> Detector:
         # 24 ms, one 18 ms, 2 sleeping 14 ms; quiet, 2 threads 9.8 ms either way)
         so.add_session_config_entry("session.intra_op.allow_spinning", "0")
         session = ort.InferenceSession(str(onnx), so, providers=["CPUExecutionProvider"])
-        _LOADED[key] = Detector(session, card)
+        _LOADED[key] = Detector(session, card, threads)
         return _LOADED[key]

@@ -137,7 +137,8 @@ def track_record(image: np.ndarray, features: Features, R: np.ndarray, t: np.nda
     from ..segment.options import TrackOptions
     from ..segment.pipeline import track_image
 
-    pose = track_image(image, features, camera, TrackOptions(time_budget_s=math.inf)).pose
+    # a score tracks in as many processes as cores: one thread each (the same answers)
+    pose = track_image(image, features, camera, TrackOptions(time_budget_s=math.inf, detector_threads=1)).pose
     rec: dict[str, Any] = {"outcome": "refused", "translation_mm": None, "rotation_deg": None, "sigma": None}
     if pose.converged:
         dr, dt = pose_errors(pose.rotation, pose.translation_mm, R, t)

@@ -37,8 +37,11 @@ class TrackOptions:
     #: half-size search), or "auto" (learned when ONNX Runtime and the network are installed,
     #: then the classical detectors where the learned one finds no pose)
     detector: Literal["auto", "learned", "classical"] = "auto"
-    #: threads ONNX Runtime may use for the learned detector (its outputs are the same, bit
-    #: for bit, with any number; two halve its time on the 2-core machine)
+    #: threads ONNX Runtime may use for the learned detector, and with more than one the
+    #: network runs beside the image's cleaning and noise map (its outputs are the same, bit
+    #: for bit, with any number; two cut an image's time by a tenth to a quarter on the 2-core
+    #: machine); 1 for a process among as many workers as cores (the image-true score's), where
+    #: more threads only contend
     detector_threads: int = 2
     #: source-to-fiducial over source-to-detector distance assumed to size the filters
     #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)

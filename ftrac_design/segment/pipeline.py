@@ -661,6 +661,10 @@ def _prepared_and_detected(
     OpenCV's filters let go of the interpreter, so on a second core the cleaning (3–30 ms for
     1024², the most for a display frame's graphics) and the noise map (~20 ms) cost no wall
     time. The same work is done either way, so the answers do not change."""
+    if opts.finding.detector_threads <= 1:
+        # one thread: a process among as many workers as cores (the same answers)
+        det = learned.detections(img, sc, opts.finding) if features.points else None
+        return cleaned(img, form == "display", sc.disc_px), det
     det = beside(learned.detections, img, sc, opts.finding) if features.points else None
     try:
         clean = cleaned(img, form == "display", sc.disc_px)
