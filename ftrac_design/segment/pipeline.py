@@ -658,8 +658,8 @@ def _prepared_and_detected(
     this one cleans the image and, where the first polarity to try does not wait for the
     detections (counts, log images, a file's or the caller's polarity), conditions it in that
     polarity and measures its noise at the ridge scale into ``prepared``: the network and
-    OpenCV's filters let go of the interpreter, so on a second core the cleaning (3–30 ms for
-    1024², the most for a display frame's graphics) and the noise map (~20 ms) cost no wall
+    OpenCV's filters let go of the interpreter, so on a second core the cleaning (1–10 ms for
+    1024² counts, 57–89 ms for a display frame's graphics) and the noise map (~20 ms) cost no wall
     time. The same work is done either way, so the answers do not change."""
     if opts.finding.detector_threads <= 1:
         # one thread: a process among as many workers as cores (the same answers)

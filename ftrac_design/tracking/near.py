@@ -53,7 +53,7 @@ from ..features.model import Features
 from ..pose import Camera, Diagnostics, Pose, so3
 from ..segment import identify
 from ..segment.acceptance import refuse
-from ..segment.beads import blob_response
+from ..segment.beads import blob_candidates, blob_response
 from ..segment.body import ridges_without_body, wire_mask
 from ..segment.conditioning import condition
 from ..segment.detection import Scene, ball_fits, scales
@@ -309,16 +309,6 @@ def scene_near(
 VOTE_TOLERANCE = 2.5
 
 
-def blob_peaks(snr: np.ndarray, xx: np.ndarray, yy: np.ndarray, min_snr: float, limit: int) -> np.ndarray:
-    """The ``limit`` strongest local maxima (3 × 3) of the blob response over its noise ``snr``
-    where the image is blob-like (both second derivatives ``xx``, ``yy`` negative) and the
-    response is at least ``min_snr``: pixel centres (m, 2) as (u, v), strongest first."""
-    peak = (snr >= cv2.dilate(snr, np.ones((3, 3), np.uint8))) & (snr >= min_snr) & (xx < 0) & (yy < 0)
-    v, u = np.nonzero(peak)
-    order = np.argsort(-snr[v, u], kind="stable")[:limit]
-    return np.stack([u[order], v[order]], -1).astype(float)
-
-
 def shift_votes(proj: np.ndarray, peaks: np.ndarray, radius_px: float, tol_px: float) -> tuple[np.ndarray, int]:
     """The image shift (2,) px within ``radius_px`` that puts the most projected balls ``proj``
     (n, 2) within ``tol_px`` of a blob ``peaks`` (m, 2), and how many it puts there.
@@ -359,8 +349,9 @@ def _voted_pose(
     T = top_hat(crop.density, sc.disc_px)
     if crop.valid is not None:
         T[~crop.valid] = 0.0
-    resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, crop.noise.at(sc.ridge_sigma_px), sc.blob_sigma_px)
-    peaks = blob_peaks((resp / nr).astype(np.float32), xx, yy, min_snr, 6 * len(features.points))
+    nmap = crop.noise.at(sc.ridge_sigma_px)
+    limit = 6 * len(features.points)
+    peaks, _ = blob_candidates(T, sc.bead_radius_px, nmap, limit, min_snr=min_snr, sigma_px=sc.blob_sigma_px)
     proj, Z = identify.project(crop.camera, R, t, features.point_centers())
     (du, dv), n = shift_votes(proj, peaks, radius_px, tol_px)
     if n < 3:

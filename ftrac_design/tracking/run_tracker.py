@@ -298,7 +298,7 @@ class RunTracker:
         if span <= 1.5:
             # a C-arm that starts, stops or turns between two frames is anywhere from the last
             # pose to a step beyond the prediction: a wider search from the last pose covers it
-            # (a swing's turn, or the second frame of a run, cost a full identification each)
+            # (else a swing's turn, or a run's second frame, costs a full identification)
             R, t = st.history[-1].R, st.history[-1].t
         wide = track_near(image, self.features, cam, R, t, st.context, opts, search=ro.wide_search, follow=ro.follow)
         return wide if wide.pose.converged else res
