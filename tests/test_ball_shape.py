@@ -46,6 +46,34 @@ def test_a_ball_drawn_another_way_is_ball_shaped_at_any_snr(sigma):
         assert 0.75 < b.rms[0] < 1.3
 
 
+@pytest.mark.parametrize("level", [0.55, 0.7])
+def test_a_ball_clipped_flat_is_fitted_to_its_flanks_when_its_clipped_pixels_are_censored(level):
+    """A ball drawn independently of the model (as above) over a tilted background, its core
+    clipped flat at ``level`` × its peak (a display window's black), with noise of 1/70 of its
+    peak: fitted with the clipped pixels censored (at least as dense as shown), its amplitude
+    is within 10 % of the drawn one and its radius within 5 %, its residual is the noise, and
+    its centre is no further off than the unclipped ball's fit; fitted as if the plateau were
+    the ball, it comes out at under 80 % of its amplitude (a wider, flatter ball; its robust
+    residual does not show it)."""
+    c, r, s, amp, sigma = (20.3, 19.6), 3.4, 0.8, 0.1, 0.005
+    yy, xx = np.mgrid[:41, :41]
+    drawn = _pixel_integrated_ball(c, r, s, amp)
+    img = drawn + 0.3 + 0.004 * (xx - 20) + np.random.default_rng(11).normal(0, sigma, drawn.shape)
+    free = fit_beads(img, np.array([[20.0, 20.0]]), r, s, sigma)
+    clip = 0.3 + level * float(drawn.max())
+    cen = img >= clip
+    assert cen.sum() >= 9
+    img = np.minimum(img, clip)
+    got = fit_beads(img, np.array([[20.0, 20.0]]), r, s, sigma, censored=cen)
+    plain = fit_beads(img, np.array([[20.0, 20.0]]), r, s, sigma)
+    assert got.amplitude[0] == pytest.approx(amp, rel=0.1)
+    assert got.radius[0] == pytest.approx(r, rel=0.05)
+    assert got.rms[0] < 1.15
+    off = np.hypot(*(got.uv[0] - c))
+    assert off <= max(np.hypot(*(free.uv[0] - c)), 0.02) + 0.02
+    assert plain.amplitude[0] < 0.8 * amp
+
+
 @pytest.mark.parametrize("glyph", list("2045MG"))
 def test_a_burned_in_glyph_is_not_ball_shaped(glyph):
     """One character of a frame grabber's burned-in text (OpenCV's Hershey font at a 1024² frame's

@@ -354,6 +354,22 @@ def test_cleaned_marks_clipped_pixels_and_graphics_hidden():
     assert condition(img, "dense-dark", None, 8, clean=clean).hidden is clean.hidden
 
 
+def test_the_dense_sides_clipped_pixels_are_censored():
+    """Of a display frame's extremes, the dense side's are censored (what lies there is at least
+    as dense as the pixel shows): the black ones for a dense-dark frame, the white ones for a
+    dense-bright one (the same frame inverted); the other extreme is hidden, not censored."""
+    img, _, _ = _frame_with_graphics(3, None)
+    black, white = img <= 2, img >= 253
+    assert black.any() and white.any()
+    dark = condition(img, "dense-dark", None, 8)
+    np.testing.assert_array_equal(dark.censored, black)
+    bright = condition(255 - img, "dense-bright", None, 8)
+    np.testing.assert_array_equal(bright.censored, black)
+    # a 16-bit frame's extremes exactly: the lowest value only
+    counts = img.astype(np.float32) * 64 + 500
+    np.testing.assert_array_equal(condition(counts, "dense-dark", None, 8).censored, img == img.min())
+
+
 def test_hidden_fraction_of_a_disc_against_a_half_plane():
     """The hidden share of a disc of radius 5 px (81 pixels): 0 in the open, 1 inside the
     hidden half-plane, 35 / 81 centred on its first unhidden column (the 35 pixels left of

@@ -283,6 +283,7 @@ def fit_beads(
     iterations: int = 6,
     exclude: np.ndarray | None = None,
     prior_scale: float = 1.0,
+    censored: np.ndarray | None = None,
 ) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
@@ -290,7 +291,12 @@ def fit_beads(
     one per start). ``exclude``
     (H, W) bool marks pixels to leave out of every fit (where a pose predicts wires: a
     ball at the crossing of two wires is pulled ~0.4 px by them even with robust weights).
-    ``prior_scale`` multiplies the weights of the radius and blur priors."""
+    ``prior_scale`` multiplies the weights of the radius and blur priors. ``censored`` (H, W)
+    bool marks pixels whose true value is at least what ``img`` shows (clipped on the dense
+    side: a display window's black under a ball's core, no photons left): a model above such
+    a pixel fits it, one below it is a misfit as usual (a censored likelihood), so a ball whose
+    core was clipped flat is fitted to its flanks rather than flattened into a wider, weaker
+    ball."""
     H, W = img.shape
     half = int(np.ceil(radius_px + 3 * max(blur_px, 0.5) + 1.5))
     n = len(starts)
@@ -311,6 +317,12 @@ def fit_beads(
     peak = sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0]
     p[:, 4] = np.maximum(seen, 1e-6) / np.maximum(peak, 1e-9)
     w0 = np.ones_like(y) if exclude is None else (~np.asarray(exclude, bool)[py, px]).astype(float)
+    cen = None
+    if censored is not None:
+        cen = np.asarray(censored, bool)[py, px]
+        cen = cen if cen.any() else None
+    if cen is not None:
+        _start_above_the_clip(p, y, X, Y, w0, cen)
     sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
@@ -324,7 +336,7 @@ def fit_beads(
     s0 = max(blur_px, 0.5)
     prof = _profile(p, X, Y)
     for it in range(iterations):
-        dp, w, J, cost = _step(p, prof, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, s0, lam)
+        dp, w, J, cost = _step(p, prof, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, s0, lam, cen)
         # keep the shape parameters physical and the steps modest
         dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
         dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
@@ -333,11 +345,11 @@ def fit_beads(
         trial[:, 2] = np.clip(trial[:, 2], 0.3 * radius_px, 3.0 * radius_px)
         trial[:, 3] = np.clip(trial[:, 3], 0.2, 4.0)
         tprof = _profile(trial, X, Y)
-        better = _cost(trial, tprof[0], y, X, Y, w, prior_w, radius_px, s0) <= cost
+        better = _cost(trial, tprof[0], y, X, Y, w, prior_w, radius_px, s0, cen=cen) <= cost
         p[better] = trial[better]
         prof = tprof if better.all() else tuple(np.where(better[:, None], a, b) for a, b in zip(tprof, prof))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-7), np.minimum(lam * 10.0, 1e7))
-    sd, rms = _spread(p, y, X, Y, w, J, sn)
+    sd, rms = _spread(p, y, X, Y, w, J, sn, cen)
     uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
     return Beads(
         uv,
@@ -351,6 +363,28 @@ def fit_beads(
         # strokes) would otherwise claim a contrast of thousands of σ
         np.minimum(p[:, 4] * sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0], seen) / sn,
     )
+
+
+def _start_above_the_clip(p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.ndarray, w0: np.ndarray, cen) -> None:
+    """Start values (in ``p``, in place) for the patches with censored pixels ``cen`` (n, m):
+    the amplitude and plane that the pixels left uncensored give the ball of the start's
+    centre, radius and blur, by linear least squares. The rise a clipped core shows is less
+    than the ball's: from it, a ball clipped at half its height was still a wider, flatter
+    ball after eight iterations (a local minimum the flanks alone do not leave)."""
+    rows = np.flatnonzero(cen.any(1))
+    S = sphere_profile_fast(np.hypot(X[rows] - p[rows, 0:1], Y[rows] - p[rows, 1:2]), p[rows, 2], p[rows, 3])
+    A = np.stack([S, np.ones_like(S), X[rows], Y[rows]], -1)
+    w = w0[rows] * ~cen[rows]
+    Aw = A * w[..., None]
+    with np.errstate(all="ignore"):
+        M = Aw.transpose(0, 2, 1) @ A + 1e-9 * np.eye(4)
+        b = (Aw.transpose(0, 2, 1) @ y[rows][..., None])[..., 0]
+        try:
+            x = np.linalg.solve(M, b[..., None])[..., 0]
+        except np.linalg.LinAlgError:
+            return
+    ok = np.isfinite(x).all(1) & (x[:, 0] > p[rows, 4])
+    p[rows[ok], 4:8] = x[ok]
 
 
 def _patches(img: np.ndarray, starts: np.ndarray, half: int):
@@ -378,22 +412,31 @@ def _profile(p, X, Y) -> tuple[np.ndarray, ...]:
     return sphere_profile_grad(X - p[:, 0:1], Y - p[:, 1:2], p[:, 2], p[:, 3])
 
 
-def _cost(p, S, y, X, Y, w, prior_w, radius_px: float, blur_px: float, res=None) -> np.ndarray:
+def _cost(p, S, y, X, Y, w, prior_w, radius_px: float, blur_px: float, res=None, cen=None) -> np.ndarray:
     """Each fit's weighted squared residual at parameters ``p`` (n, 8), its profile ``S``
-    (n, m) or its residuals ``res`` (n, m) when known, with the priors' terms."""
+    (n, m) or its residuals ``res`` (n, m) when known (censored pixels ``cen`` already
+    counted), with the priors' terms."""
     if res is None:
         res = y - (p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y)
+        free = _uncensored(res, cen)
+        if free is not None:
+            res = res * free
     return (w * res * res).sum(1) + prior_w[0] * (p[:, 2] - radius_px) ** 2 + prior_w[1] * (p[:, 3] - blur_px) ** 2
 
 
-def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float, lam):
+def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float, lam, cen=None):
     """One robust Levenberg–Marquardt step of :func:`fit_beads` from parameters ``p`` (n, 8)
     with the profile there ``prof`` (:func:`_profile`), damped by ``lam`` (n,): the step
     (n, 8), the weights it used, the Jacobian (n, m, 8) and the cost at ``p`` under those
-    weights (:func:`_cost`)."""
+    weights (:func:`_cost`). ``cen`` (n, m) bool: the censored pixels (None: none)."""
     S, Su, Sv, Sr, Ss = prof
     m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
     res = y - m
+    free = _uncensored(res, cen)
+    if free is not None:
+        res = res * free
+        if it < 2:
+            w = w0 * free
     J = np.empty(y.shape + (8,))
     for k, d in enumerate((Su, Sv, Sr, Ss)):
         J[..., k] = p[:, 4:5] * d
@@ -408,7 +451,7 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
         # scale, and its centre moved by 0.6 px
         scale = np.maximum(cost_scale, 4.685 * 1.4826 * float(np.median(np.abs(res))))
         u = np.clip(np.abs(res) / scale, 0, 1)
-        w = (1 - u * u) ** 2 * w0
+        w = (1 - u * u) ** 2 * w0 * (1.0 if free is None else free)
     # batched matrix products (BLAS): einsum's loop over these small sums was 20–30 × slower
     Jw_t = (J * w[..., None]).transpose(0, 2, 1)
     A = Jw_t @ J + 1e-9 * np.eye(8)
@@ -430,12 +473,22 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
     return dp, w, J, cost
 
 
-def _spread(p, y, X, Y, w, J, sn) -> tuple[np.ndarray, np.ndarray]:
-    """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units."""
+def _uncensored(res: np.ndarray, cen: np.ndarray | None) -> np.ndarray | None:
+    """1 where a residual counts, 0 at a censored pixel the model lies above (None: no
+    censored pixels)."""
+    return None if cen is None else (~(cen & (res < 0))).astype(float)
+
+
+def _spread(p, y, X, Y, w, J, sn, cen=None) -> tuple[np.ndarray, np.ndarray]:
+    """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units
+    (a censored pixel the model lies above counts for neither)."""
     rho = np.hypot(X - p[:, 0:1], Y - p[:, 1:2])
     S = sphere_profile_fast(rho, p[:, 2], p[:, 3])
     m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
     res = y - m
+    free = _uncensored(res, cen)
+    if free is not None:
+        w = w * free
     wsum = np.maximum(w.sum(1), 1.0)
     rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
     sig2 = sn**2 * np.maximum(rms, 1.0) ** 2

@@ -121,6 +121,7 @@ def refit_beads_off_wires(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose)
         scene.noise_at(beads.uv),
         beads.response,
         exclude=mask,
+        censored=scene.censored,
     )
     # keep the first fit where the mask left too little of a ball to fit (its centre then
     # comes out far less certain: a 1 mm ball's patch is mostly wire mask, σ 1.5–3 px)

@@ -29,6 +29,11 @@ Formation = Literal["linear", "log", "display"]
 FORMATIONS: tuple[str, ...] = ("linear", "log", "display")
 
 
+#: the fewest pixels at the dense side's extreme that make it a clip: a raw frame's darkest
+#: pixel, alone or one of a few (a ball's centre, often), is a measurement, not a censored one
+MIN_CLIPPED_PX = 16
+
+
 @dataclass(frozen=True)
 class Conditioned:
     """A density image (float32, dense = bright) and where it is valid."""
@@ -40,6 +45,10 @@ class Conditioned:
     formation: str
     #: True where the pixel shows nothing of what lies there (:attr:`Cleaned.hidden`); None: nowhere
     hidden: np.ndarray | None = None
+    #: True where the pixel is clipped on the dense side (the frame's lowest value for a
+    #: dense-dark image, its highest for a dense-bright one): what lies there is at least as
+    #: dense as the pixel shows; None: nowhere
+    censored: np.ndarray | None = None
 
 
 def formation_of(image: np.ndarray, polarity: str, hint: str | None = None) -> str:
@@ -329,6 +338,9 @@ class Cleaned:
     #: True where a pixel shows nothing of what lies there: clipped (:func:`fill_clipped`'s
     #: extremes) or burned-in graphics; None: nowhere
     hidden: np.ndarray | None = None
+    #: the pixels at the frame's highest and at its lowest value (:func:`_at_extremes`), or None
+    #: for a constant image
+    extremes: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float, float] | None = None) -> Cleaned:
@@ -347,7 +359,12 @@ def cleaned(image: np.ndarray, display: bool, disc_px: int, levels: tuple[float,
     hidden = None if high is None else high | low
     if graphics is not None:
         hidden = graphics if hidden is None else hidden | graphics
-    return Cleaned(filled, None if bad is None else ~bad, hidden if hidden is not None and hidden.any() else None)
+    return Cleaned(
+        filled,
+        None if bad is None else ~bad,
+        hidden if hidden is not None and hidden.any() else None,
+        None if high is None else (high, low),
+    )
 
 
 def condition(
@@ -379,4 +396,14 @@ def condition(
     form = formation_of(image, polarity, formation)
     if clean is None:
         clean = cleaned(image, form == "display", disc_px, levels)
-    return Conditioned(to_density(clean.pixels, polarity, form), clean.valid, polarity, form, clean.hidden)
+    censored = None
+    if clean.extremes is not None:
+        censored = clean.extremes[1] if polarity == "dense-dark" else clean.extremes[0]
+    return Conditioned(
+        to_density(clean.pixels, polarity, form),
+        clean.valid,
+        polarity,
+        form,
+        clean.hidden,
+        censored if censored is not None and int(censored.sum()) >= MIN_CLIPPED_PX else None,
+    )

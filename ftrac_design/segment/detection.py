@@ -119,6 +119,9 @@ class Scene:
     #: True where a pixel shows nothing of what lies there (clipped, or burned-in graphics:
     #: :attr:`.conditioning.Cleaned.hidden`); None: nowhere
     hidden: np.ndarray | None = None
+    #: True where a pixel's density is at least what it shows: clipped on the dense side
+    #: (:attr:`.conditioning.Conditioned.censored`), read so by the ball fits; None: nowhere
+    censored: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -260,6 +263,7 @@ def ball_fits(
     noise: np.ndarray,
     blur_px: float,
     exclude: np.ndarray | None = None,
+    censored: np.ndarray | None = None,
 ) -> tuple[Beads, np.ndarray]:
     """The blurred-sphere model fitted at every start (n, 2) px of the background-free image
     ``T`` (:func:`.beads.fit_beads`, pixels where ``exclude`` is True left out), and which
@@ -278,13 +282,15 @@ def ball_fits(
     noise : (H, W) local noise σ of ``T``.
     blur_px : the blur σ the fits start from, px.
     exclude : (H, W) bool, pixels no fit uses (a predicted wire), or None.
+    censored : (H, W) bool, pixels whose density is at least what ``T`` shows (clipped on the
+        dense side: :attr:`Scene.censored`), or None.
 
     Returns
     -------
     (Beads (n, every fit, in the order of ``starts``), (n,) bool: the fits that look like a ball)
     """
     rb = radius_px
-    b = fit_beads(T, starts, rb, blur_px, bilinear(noise, starts), response, exclude=exclude)
+    b = fit_beads(T, starts, rb, blur_px, bilinear(noise, starts), response, exclude=exclude, censored=censored)
     if len(b) > 2:
         med = float(np.median(b.amplitude))
         bad = ~((b.amplitude > 0.2 * med) & (b.amplitude < 5 * med) & np.isfinite(b.sigma_px))
@@ -298,6 +304,7 @@ def ball_fits(
                 response[bad],
                 exclude=exclude,
                 prior_scale=25.0,
+                censored=censored,
             )
             for k in b.__dataclass_fields__:
                 getattr(b, k)[bad] = getattr(b2, k)
@@ -341,7 +348,15 @@ def balls_at(scene: Scene, starts: np.ndarray, min_snr: float, tol_px: float) ->
     if len(starts) == 0:
         return none
     sc = scene.scales
-    b, ok = ball_fits(scene.T, starts, scene.ball_evidence(starts), sc.bead_radius_px, scene.noise_map, sc.blur_px)
+    b, ok = ball_fits(
+        scene.T,
+        starts,
+        scene.ball_evidence(starts),
+        sc.bead_radius_px,
+        scene.noise_map,
+        sc.blur_px,
+        censored=scene.censored,
+    )
     b.response[:] = scene.ball_evidence(b.uv)
     with np.errstate(invalid="ignore"):
         ok &= (np.linalg.norm(b.uv - starts, axis=1) <= tol_px) & (b.response >= min_snr)
@@ -360,15 +375,23 @@ def balls_at(scene: Scene, starts: np.ndarray, min_snr: float, tol_px: float) ->
 
 
 def fitted_balls(
-    T: np.ndarray, starts: np.ndarray, response: np.ndarray, radius_px: float, noise: np.ndarray, blur_px: float
+    T: np.ndarray,
+    starts: np.ndarray,
+    response: np.ndarray,
+    radius_px: float,
+    noise: np.ndarray,
+    blur_px: float,
+    censored: np.ndarray | None = None,
 ) -> Beads:
     """The fits of :func:`ball_fits` (no pixels excluded) that look like a ball, in the order
     of ``starts``."""
-    b, ok = ball_fits(T, starts, response, radius_px, noise, blur_px)
+    b, ok = ball_fits(T, starts, response, radius_px, noise, blur_px, censored=censored)
     return b.take(ok)
 
 
-def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, min_snr: float) -> Beads:
+def _bead_candidates(
+    T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, min_snr: float, censored: np.ndarray | None
+) -> Beads:
     rb = sc.bead_radius_px
     P = len(features.points)
     # more candidates than the labelling uses: over anatomy or on a display frame, clutter
@@ -380,7 +403,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
         ref = np.sort(resp)[::-1][:P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
-    b = fitted_balls(T, cand, resp, rb, noise, sc.blur_px)
+    b = fitted_balls(T, cand, resp, rb, noise, sc.blur_px, censored)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
     # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
     # and, loosely, by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×;
@@ -391,7 +414,7 @@ def _bead_candidates(T: np.ndarray, features: Features, sc: Scales, noise: np.nd
         # the kept ones fitted again among themselves: the fit's robust scale is pooled over
         # the candidates fitted together, and the clutter left out must not loosen it
         kept = b.take(order)
-        again = fit_beads(T, kept.uv, rb, sc.blur_px, bilinear(noise, kept.uv), kept.response)
+        again = fit_beads(T, kept.uv, rb, sc.blur_px, bilinear(noise, kept.uv), kept.response, censored=censored)
         same = (
             np.isfinite(again.uv).all(1)
             & (np.linalg.norm(again.uv - kept.uv, axis=1) < 1.0)
@@ -414,6 +437,7 @@ def _learned_candidates(
     noise: np.ndarray,
     snr: np.ndarray,
     valid: np.ndarray | None = None,
+    censored: np.ndarray | None = None,
 ) -> Beads:
     """The blurred-sphere fits at the learned detector's ball candidates ``starts`` (n, 2) px,
     most probable first: those that look like a ball, in the detector's order, at most
@@ -431,7 +455,7 @@ def _learned_candidates(
     if len(starts) == 0:
         z = np.zeros(0)
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z, z)
-    b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, sc.blur_px)
+    b, ok = ball_fits(T, starts, bilinear(snr, starts), sc.bead_radius_px, noise, sc.blur_px, censored=censored)
     b = b.take(ok)
     if len(b) and valid is not None and not valid.all():
         clear = cv2.distanceTransform(valid.astype(np.uint8), cv2.DIST_L2, 3)
@@ -451,6 +475,7 @@ def detect(
     noise: NoiseField | None = None,
     learned=None,
     hidden: np.ndarray | None = None,
+    censored: np.ndarray | None = None,
 ) -> Scene:
     """Background-free image and its local noise, fitted bead candidates and ridge points of the
     density image ``g`` (dense = bright).
@@ -468,6 +493,8 @@ def detect(
         detector's, and the scene keeps them as evidence; None for the classical path.
     hidden : (H, W) bool, True where a pixel shows nothing of what lies there (kept by the
         scene: :attr:`Scene.hidden`).
+    censored : (H, W) bool, True where a pixel's density is at least what it shows
+        (:attr:`Scene.censored`).
 
     Returns
     -------
@@ -487,14 +514,14 @@ def detect(
     if not features.points:
         beads = None
     elif learned is not None:
-        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, snr, valid)
+        beads = _learned_candidates(T, learned.beads_uv, features, sc, nmap, snr, valid, censored)
     else:
-        beads = _bead_candidates(T, features, sc, nmap, opts.bead_min_snr)
+        beads = _bead_candidates(T, features, sc, nmap, opts.bead_min_snr, censored)
     d = derivatives(T, sc.ridge_sigma_px)
     ridges = None
     if features.lines or features.ellipses:
         ridges = ridge_points(T, sc.ridge_sigma_px, nmap, opts.ridge_min_snr, derivs=d)
-    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, learned, hidden)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, learned, hidden, censored)
 
 
 def fitted_blur(scene: Scene) -> float | None:

@@ -423,18 +423,20 @@ def _track_density(
     budget: Budget,
     det=None,
     hidden: np.ndarray | None = None,
+    censored: np.ndarray | None = None,
 ) -> TrackResult:
     """:func:`track_image` on a density image (dense = bright) seen with ``camera``, readable
     where ``valid``, with local noise ``noise``; ``det`` the learned detector's detections in
     ``g``'s pixels, or None for the classical path; ``hidden`` where its pixels show nothing
-    (:attr:`.conditioning.Conditioned.hidden`)."""
+    and ``censored`` where they are clipped on the dense side
+    (:class:`.conditioning.Conditioned`)."""
     budget.charge()
-    scene = detect(g, features, camera, find, valid, noise, det, hidden)
+    scene = detect(g, features, camera, find, valid, noise, det, hidden, censored)
     blur = fitted_blur(scene)
     if blur is not None and blur > max(find.blur_px * find.blur_redetect, 1.1):
         # a blurrier image than the filters are sized for: detected again at its own blur
         find = replace(find, blur_px=blur)
-        scene = detect(g, features, camera, find, valid, noise, det, hidden)
+        scene = detect(g, features, camera, find, valid, noise, det, hidden, censored)
     beads, ridges = scene.beads, scene.ridges
     diag = Diagnostics(blobs=0 if beads is None else len(beads), ridge_points=0 if ridges is None else len(ridges))
     if not features.points:
@@ -795,6 +797,7 @@ def _track_conditioned(
             budget,
             None if det is None else det.crop(r0, c0),
             None if cond.hidden is None else cond.hidden[r0:r1, c0:c1],
+            None if cond.censored is None else cond.censored[r0:r1, c0:c1],
         )
         res = shifted(res, camera, c0, r0)
         res.diagnostics.roi = [int(c0), int(r0), int(c1 - c0), int(r1 - r0)]
@@ -806,4 +809,6 @@ def _track_conditioned(
         # cheap enough to be worth it (a small image)
         if det is not None or img.size > search.whole_image_px or budget.spent():
             return first
-    return _track_density(img, features, camera, find, labelling, accept, pol, valid, noise, budget, None, cond.hidden)
+    return _track_density(
+        img, features, camera, find, labelling, accept, pol, valid, noise, budget, None, cond.hidden, cond.censored
+    )

@@ -200,10 +200,11 @@ def _balls(
     t: np.ndarray,
     search_px: float,
     ball_blur_px: float,
+    censored: np.ndarray | None = None,
 ):
     """The balls near their projections at pose (R, t) (see :func:`scene_near`; a start's blob
-    response at least ``min_snr`` noise units) and the blob detector's response over its
-    noise (H, W)."""
+    response at least ``min_snr`` noise units; ``censored`` as for :func:`.detection.ball_fits`)
+    and the blob detector's response over its noise (H, W)."""
     resp, xx, yy, nr = blob_response(T, sc.bead_radius_px, nmap, sc.blob_sigma_px)
     snr = (resp / nr).astype(np.float32)
     uv, _ = identify.project(camera, R, t, features.point_centers())
@@ -213,13 +214,13 @@ def _balls(
         if features.lines or features.ellipses
         else None
     )
-    b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, sc.blur_px, exclude=mask)
+    b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, sc.blur_px, exclude=mask, censored=censored)
     weak = ~ok | ~(b.sigma_px <= 0.5)
     if mask is not None and weak.any():
         # the full path's rule for a ball refitted off the wires: the masked fit is kept
         # unless the mask left too little of the ball (its centre far less certain than
         # the plain fit's, or more than a pixel from it)
-        plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, sc.blur_px)
+        plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, sc.blur_px, censored=censored)
         mw = b.take(weak)
         with np.errstate(invalid="ignore"):
             keep_masked = (
@@ -252,6 +253,7 @@ def scene_near(
     ball_blur_px: float | None = None,
     diag: Diagnostics | None = None,
     hidden: np.ndarray | None = None,
+    censored: np.ndarray | None = None,
 ) -> Scene:
     """A :class:`.detection.Scene` of the density crop ``g`` (seen with ``camera``) measured
     only where pose (R, t) puts the fiducial (see the module).
@@ -274,6 +276,8 @@ def scene_near(
         (default ``opts.blur_px``).
     diag : diagnostics that get ``body_subtracted`` when the body was subtracted.
     hidden : (H, W) bool, True where a pixel of the crop shows nothing (:attr:`.detection.Scene.hidden`).
+    censored : (H, W) bool, True where a pixel of the crop is clipped on the dense side
+        (:attr:`.detection.Scene.censored`).
 
     Returns
     -------
@@ -287,7 +291,7 @@ def scene_near(
         T[~valid] = 0.0
     empty = np.zeros((0, 2))
     ridges = RidgePoints(empty, empty, np.zeros(0), np.zeros(0))
-    scene = Scene(features, camera, sc, T, nmap, None, ridges, valid, None, None, hidden=hidden)
+    scene = Scene(features, camera, sc, T, nmap, None, ridges, valid, None, None, hidden=hidden, censored=censored)
     if features.body is not None:
         inner = ridges_without_body(g, scene, Pose(R, t, False, math.nan, None, {}, 0), blur, None)
         if inner is not None:
@@ -295,12 +299,12 @@ def scene_near(
             if diag is not None:
                 diag.body_subtracted = True
     beads, snr = (
-        _balls(T, nmap, features, camera, opts.bead_min_snr, sc, R, t, search_px, blur)
+        _balls(T, nmap, features, camera, opts.bead_min_snr, sc, R, t, search_px, blur, censored)
         if features.points
         else (None, None)
     )
     d = derivatives(T, sc.ridge_sigma_px)
-    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, hidden=hidden)
+    return Scene(features, camera, sc, T, nmap, beads, ridges, valid, d, snr, hidden=hidden, censored=censored)
 
 
 #: how far (in matching tolerances) a ball may lie from its projection after the image shift a
@@ -457,6 +461,8 @@ class _Crop:
     formation: str
     #: where a pixel shows nothing (:attr:`~ftrac_design.segment.conditioning.Conditioned.hidden`)
     hidden: np.ndarray | None = None
+    #: where a pixel is clipped on the dense side (:attr:`~ftrac_design.segment.conditioning.Conditioned.censored`)
+    censored: np.ndarray | None = None
 
 
 def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, int, int, int], disc_px: int) -> _Crop:
@@ -479,7 +485,8 @@ def _crop(img: np.ndarray, context: RunContext, camera: Camera, box: tuple[int, 
         camera, principal_point_px=(camera.principal_point_px[0] - c0, camera.principal_point_px[1] - r0)
     )
     hidden = None if cond.hidden is None else np.ascontiguousarray(cond.hidden[inner])
-    return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation, hidden)
+    censored = None if cond.censored is None else np.ascontiguousarray(cond.censored[inner])
+    return _Crop(density, valid, noise, crop_cam, (c0, r0), cond.formation, hidden, censored)
 
 
 def _crop_at(frame: "_Frame", sc0, sc, R: np.ndarray, t: np.ndarray, search_px: float) -> "_Crop | None":
@@ -567,6 +574,7 @@ def _track_near(
         context.ball_blur_px,
         diag,
         crop.hidden,
+        crop.censored,
     )
     diag.blobs = 0 if scene.beads is None else len(scene.beads)
     if scene.beads is None or len(scene.beads) < 3:
