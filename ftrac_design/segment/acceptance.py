@@ -127,6 +127,33 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
     )
 
 
+def among_rivals(pose: Pose, alternatives: list[dict] | None) -> str | None:
+    """Refused when ``pose`` is one of the rival answers an earlier look at the same image
+    could not tell apart (``alternatives``: :attr:`~ftrac_design.pose.Diagnostics.alternatives`
+    of a refused ambiguous identification), within :data:`.identify.SAME_POSE_RAD` of one of
+    them in rotation: a second look on other detections that scores the tie apart has not
+    shown the image to be unambiguous. The learned detector's pass on a ftrac_mini view with
+    its lines unreadable (held-out seed 2099, strong anatomy 6) found the right labelling and
+    one 132° off 19 χ² apart and refused them as a tie; the classical second look refined both
+    on its own blobs, 33 χ² apart (45 once the body was subtracted at the wrong one), and gave
+    the one 132° off."""
+    if not pose.converged or not alternatives:
+        return None
+    for alt in alternatives:
+        other = np.asarray(alt["rotation"], float)
+        if float(so3.angle(other, pose.rotation)) < identify.SAME_POSE_RAD:
+            rest = [a for a in alternatives if a is not alt]
+            away = max(
+                (math.degrees(float(so3.angle(np.asarray(a["rotation"], float), pose.rotation))) for a in rest),
+                default=0.0,
+            )
+            return (
+                f"ambiguous identification: an earlier look at the image found this pose and another labelling "
+                f"{away:.1f}° away explaining it as well"
+            )
+    return None
+
+
 def inside_covariance(pose: Pose, other: Pose) -> float:
     """χ²₆ of ``other``'s difference from ``pose`` under ``pose``'s covariance (SPEC §4 order,
     as :func:`~ftrac_design.pose.simulate.pose_errors` gives it: the left rotation vector

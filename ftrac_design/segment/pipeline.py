@@ -629,6 +629,12 @@ def _track(
         # network sees no ball at all the classical detectors stand in for it
         uv = np.array(list(other.observation.points.values()), float)
         other.pose = acceptance.refuse(other.pose, acceptance.unseen_balls(det.ball_probability(uv)))
+    if other.pose.converged and res.diagnostics.alternatives:
+        # an ambiguity the network's pass found stands: the classical search may score the
+        # tie apart on its own blobs, but the image has shown both answers
+        other.pose = acceptance.refuse(other.pose, acceptance.among_rivals(other.pose, res.diagnostics.alternatives))
+        if not other.pose.converged:
+            other.diagnostics.alternatives = res.diagnostics.alternatives
     if other.pose.converged:
         return other
     res.pose = replace(res.pose, error=f"{res.pose.error}; with the classical detectors: {other.pose.error}")
