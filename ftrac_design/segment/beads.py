@@ -9,10 +9,12 @@ with a Gaussian blur of σ the radial profile is
 (the 2-D convolution of a radial function with a Gaussian, Hankel form). With ρ' = r sin φ
 the integrand is smooth on [0, π/2]; 16 Gauss–Legendre nodes give it to < 1e-3 relative for σ ≥ r/10.
 Each candidate blob is fitted with ``b₀ + bₓ x + b_y y + A · S(|p − c|; r, σ)`` — centre c,
-radius, blur, amplitude and a planar background — by Gauss–Newton, iteratively reweighted
-with Tukey's biweight so that a wire butting against the ball, or one passing under it,
-is treated as an outlier instead of pulling the centre (a thresholded centroid, or an
-unweighted fit, moves toward the wire). All candidates are fitted together (vectorised).
+radius, blur, amplitude and a planar background — by Levenberg–Marquardt on the tabulated
+profile's own slopes, iteratively reweighted with Tukey's biweight so that a wire butting
+against the ball, or one passing under it, is treated as an outlier instead of pulling the
+centre (a thresholded centroid, or an unweighted fit, moves toward the wire). All candidates
+are fitted together (vectorised). Pixels clipped on the dense side are censored: the ball
+there is at least as dense as they show.
 """
 
 from __future__ import annotations
@@ -327,13 +329,32 @@ def fit_beads(
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
     prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
-    w, J = w0.copy(), None
+    w, J = _iterate(p, y, X, Y, w0, sn, prior_w, radius_px, max(blur_px, 0.5), iterations, cen)
+    sd, rms = _spread(p, y, X, Y, w, J, sn, cen)
+    uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
+    return Beads(
+        uv,
+        p[:, 2],
+        p[:, 3],
+        p[:, 4],
+        sd,
+        rms,
+        np.asarray(response, float) if response is not None else np.full(n, np.nan),
+        # no more than the patch shows: a fit run off to a tiny, huge-amplitude ball (a glyph's
+        # strokes) would otherwise claim a contrast of thousands of σ
+        np.minimum(p[:, 4] * sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0], seen) / sn,
+    )
+
+
+def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iterations: int, cen):
+    """The fits' iterations from start values ``p`` (n, 8, updated in place): the last
+    weights (n, m) and Jacobian (n, m, 8)."""
     # Levenberg–Marquardt, one damping per fit: under a 2 px blur the radius, blur and
     # amplitude trade along a shallow valley, and undamped Gauss–Newton steps crossed it back
     # and forth (a ball's centre still moved by 0.04 px at the 90th percentile, and the
     # image's blur read from the balls by ±0.2 px, between 8 and 30 iterations)
-    lam = np.full(n, 1e-3)
-    s0 = max(blur_px, 0.5)
+    w, J = w0.copy(), None
+    lam = np.full(len(p), 1e-3)
     prof = _profile(p, X, Y)
     for it in range(iterations):
         dp, w, J, cost = _step(p, prof, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, s0, lam, cen)
@@ -349,20 +370,7 @@ def fit_beads(
         p[better] = trial[better]
         prof = tprof if better.all() else tuple(np.where(better[:, None], a, b) for a, b in zip(tprof, prof))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-7), np.minimum(lam * 10.0, 1e7))
-    sd, rms = _spread(p, y, X, Y, w, J, sn, cen)
-    uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
-    return Beads(
-        uv,
-        p[:, 2],
-        p[:, 3],
-        p[:, 4],
-        sd,
-        rms,
-        np.asarray(response, float) if response is not None else np.full(n, np.nan),
-        # no more than the patch shows: a fit run off to a tiny, huge-amplitude ball (a glyph's
-        # strokes) would otherwise claim a contrast of thousands of σ
-        np.minimum(p[:, 4] * sphere_profile(np.zeros((n, 1)), p[:, 2], p[:, 3])[:, 0], seen) / sn,
-    )
+    return w, J
 
 
 def _start_above_the_clip(p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.ndarray, w0: np.ndarray, cen) -> None:
