@@ -120,9 +120,9 @@ def sphere_profile_grad(
     return v * s, -gx * cu, -gx * cv, ga * s / r, v - x * gx - ga
 
 
-def bilinear_table_grad(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`bilinear_table` and its slopes along x and y (per unit of column and row) in the
-    cell each point lies in; the same zero border."""
+def _cell_corners(tab: np.ndarray, x: np.ndarray, y: np.ndarray):
+    """The four corners (row, column offsets (0,0), (0,1), (1,0), (1,1)) of the cell of ``tab``
+    each fractional (column ``x``, row ``y``) lies in, 0 outside the table, and the fractions."""
     flat = _tab_flat if tab is _tab else _padded(tab)
     rows, cols = tab.shape
     x0 = np.floor(x)
@@ -133,8 +133,16 @@ def bilinear_table_grad(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[
     base = y0 * cols + x0
     inx = ((x0 >= 0) & (x0 < cols), (x0 >= -1) & (x0 < cols - 1))
     iny = ((y0 >= 0) & (y0 < rows), (y0 >= -1) & (y0 < rows - 1))
-    c = [flat[np.where(inx[dx] & iny[dy], base + (dy * cols + dx), rows * cols)] for dy in (0, 1) for dx in (0, 1)]
-    c00, c01, c10, c11 = c  # (row, column) offsets (0,0), (0,1), (1,0), (1,1)
+    corners = [
+        flat[np.where(inx[dx] & iny[dy], base + (dy * cols + dx), rows * cols)] for dy in (0, 1) for dx in (0, 1)
+    ]
+    return corners, fx, fy
+
+
+def bilinear_table_grad(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`bilinear_table` and its slopes along x and y (per unit of column and row) in the
+    cell each point lies in; the same zero border."""
+    (c00, c01, c10, c11), fx, fy = _cell_corners(tab, x, y)
     low = c00 + fx * (c01 - c00)
     high = c10 + fx * (c11 - c10)
     gx = (1 - fy) * (c01 - c00) + fy * (c11 - c10)
@@ -150,22 +158,11 @@ def bilinear_table(tab: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """``tab`` (rows, cols) at fractional column ``x`` and row ``y`` (broadcast against each
     other), bilinear with exact weights; 0 where a neighbouring cell lies outside the table (as
     a zero border)."""
-    flat = _tab_flat if tab is _tab else _padded(tab)
-    rows, cols = tab.shape
-    x0 = np.floor(x)
-    y0 = np.floor(y)
-    fx, fy = x - x0, y - y0
-    x0 = x0.astype(np.int64)
-    y0 = y0.astype(np.int64)
-    base = y0 * cols + x0
-    inx = ((x0 >= 0) & (x0 < cols), (x0 >= -1) & (x0 < cols - 1))
-    iny = ((y0 >= 0) & (y0 < rows), (y0 >= -1) & (y0 < rows - 1))
-    out = np.zeros(np.broadcast_shapes(np.shape(x), np.shape(y)))
-    for dy, wy in ((0, 1 - fy), (1, fy)):
-        for dx, wx in ((0, 1 - fx), (1, fx)):
-            idx = np.where(inx[dx] & iny[dy], base + (dy * cols + dx), rows * cols)
-            out += flat[idx] * (wx * wy)
-    return out
+    (c00, c01, c10, c11), fx, fy = _cell_corners(tab, x, y)
+    out = c00 * ((1 - fx) * (1 - fy))
+    out = out + c01 * (fx * (1 - fy))
+    out = out + c10 * ((1 - fx) * fy)
+    return out + c11 * (fx * fy)
 
 
 @dataclass
