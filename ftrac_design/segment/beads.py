@@ -326,8 +326,8 @@ def fit_beads(
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
     prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
-    w, J = _iterate(p, y, X, Y, w0, sn, prior_w, radius_px, max(blur_px, 0.5), iterations, cen)
-    sd, rms = _spread(p, y, X, Y, w, J, sn, cen)
+    w, J, S = _iterate(p, y, X, Y, w0, sn, prior_w, radius_px, max(blur_px, 0.5), iterations, cen)
+    sd, rms = _spread(p, S, y, X, Y, w, J, sn, cen)
     uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
     return Beads(
         uv,
@@ -345,7 +345,7 @@ def fit_beads(
 
 def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iterations: int, cen):
     """The fits' iterations from start values ``p`` (n, 8, updated in place): the last
-    weights (n, m) and Jacobian (n, m, 8)."""
+    weights (n, m) and Jacobian (n, m, 8), and the profile at the final ``p`` (n, m)."""
     # Levenberg–Marquardt, one damping per fit: under a 2 px blur the radius, blur and
     # amplitude trade along a shallow valley, and undamped Gauss–Newton steps crossed it back
     # and forth (a ball's centre still moved by 0.04 px at the 90th percentile, and the
@@ -367,7 +367,7 @@ def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iteration
         p[better] = trial[better]
         prof = tprof if better.all() else tuple(np.where(better[:, None], a, b) for a, b in zip(tprof, prof))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-7), np.minimum(lam * 10.0, 1e7))
-    return w, J
+    return w, J, prof[0]
 
 
 def _start_above_the_clip(p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.ndarray, w0: np.ndarray, cen) -> None:
@@ -484,11 +484,10 @@ def _uncensored(res: np.ndarray, cen: np.ndarray | None) -> np.ndarray | None:
     return None if cen is None else (~(cen & (res < 0))).astype(float)
 
 
-def _spread(p, y, X, Y, w, J, sn, cen=None) -> tuple[np.ndarray, np.ndarray]:
+def _spread(p, S, y, X, Y, w, J, sn, cen=None) -> tuple[np.ndarray, np.ndarray]:
     """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units
-    (a censored pixel the model lies above counts for neither)."""
-    rho = np.hypot(X - p[:, 0:1], Y - p[:, 1:2])
-    S = sphere_profile_fast(rho, p[:, 2], p[:, 3])
+    at parameters ``p``, whose profile is ``S`` (a censored pixel the model lies above counts
+    for neither)."""
     m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
     res = y - m
     free = _uncensored(res, cen)

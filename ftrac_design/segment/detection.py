@@ -374,21 +374,6 @@ def balls_at(scene: Scene, starts: np.ndarray, min_snr: float, tol_px: float) ->
     return b.take(np.array(keep, int)) if keep else none
 
 
-def fitted_balls(
-    T: np.ndarray,
-    starts: np.ndarray,
-    response: np.ndarray,
-    radius_px: float,
-    noise: np.ndarray,
-    blur_px: float,
-    censored: np.ndarray | None = None,
-) -> Beads:
-    """The fits of :func:`ball_fits` (no pixels excluded) that look like a ball, in the order
-    of ``starts``."""
-    b, ok = ball_fits(T, starts, response, radius_px, noise, blur_px, censored=censored)
-    return b.take(ok)
-
-
 def _bead_candidates(
     T: np.ndarray, features: Features, sc: Scales, noise: np.ndarray, min_snr: float, censored: np.ndarray | None
 ) -> Beads:
@@ -403,7 +388,8 @@ def _bead_candidates(
         ref = np.sort(resp)[::-1][:P]
         keep = resp >= 0.25 * float(np.median(ref))
         cand, resp = cand[keep], resp[keep]
-    b = fitted_balls(T, cand, resp, rb, noise, sc.blur_px, censored)
+    b, ok = ball_fits(T, cand, resp, rb, noise, sc.blur_px, censored=censored)
+    b = b.take(ok)
     # strongest first, each response discounted by its misfit to the ball model (a ball fits
     # to its noise, rms ≈ 1–2 even with a wire under it; the clutter above fitted at rms 4–5),
     # and, loosely, by how far its fitted radius is from a ball's (burned-in text: 0.3–0.9 ×;

@@ -18,7 +18,7 @@ what confirms that:
    (a search beyond the matching tolerance first moves the prediction by the image shift
    that lays the most balls on blobs, :func:`shift_votes`, and looks within
    :data:`VOTE_TOLERANCE` of that) and fitted there with the blurred-sphere model
-   (:func:`.detection.fitted_balls`); the
+   (:func:`.detection.ball_fits`); the
    wires' contour points are measured along the projected curves' normals
    (:mod:`.guided`), exactly as the full path measures them for a labelling;
 4. the labelling's stages and per-feature tests (:func:`.labelling.evaluate`) run from the
