@@ -27,6 +27,20 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
+def code_fingerprint() -> str:
+    """12 hex digits of the sha256 of the package's code and shipped data (every file under
+    ``ftrac_design/`` but compiled bytecode): results cached under it are remade when any of
+    it changes, rather than reused from a tracker that no longer exists."""
+    import hashlib
+
+    h = hashlib.sha256()
+    pkg = ROOT / "ftrac_design"
+    for f in sorted(p for p in pkg.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        h.update(str(f.relative_to(pkg)).encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def load(name: str):
     """Features of the preset ``name`` (``models/<name>.toml``)."""
     from ftrac_design.design import load_design

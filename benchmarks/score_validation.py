@@ -13,7 +13,8 @@ the stock-parts design, size and wire/ball-size variants, deliberately poor layo
 Printed: the panel table (predicted vs measured p95 translation and rotation per condition with the
 measurement's bootstrap interval, refused and wrong shares), Spearman's ρ of each predictor against
 the measurement per figure, the designs outside ±20 %, the shares outside ±3 points, run time.
-Trials are cached in ``outputs/score_validation/`` (a rerun reuses them). ``--plot`` writes
+Trials are cached in ``outputs/score_validation/`` under the code's fingerprint (a rerun of the
+same code reuses them; any change to the package remakes them). ``--plot`` writes
 ``docs/img/score_validation.png``.
 
     python benchmarks/score_validation.py [--measure 300] [--score 100] [--workers 2] [--plot]
@@ -33,7 +34,7 @@ import numpy as np
 from scipy.stats import spearmanr
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import ROOT, machine  # noqa: E402
+from _common import ROOT, code_fingerprint, machine  # noqa: E402
 
 CACHE = ROOT / "outputs" / "score_validation"
 SCORE_SEED, MEASURE_SEED = 1, 2
@@ -103,7 +104,8 @@ def _trial(name: str, data: dict, images: int, seed: int, executor) -> list[dict
     from ftrac_design.features import compute_features
     from ftrac_design.imagescore import TrialSettings, run_trial
 
-    path = CACHE / f"{name}_{seed}_{images}.json"
+    # keyed on the code: a trial of a tracker since changed is not this tracker's measurement
+    path = CACHE / f"{name}_{seed}_{images}_{code_fingerprint()}.json"
     if path.is_file():
         recs = json.loads(path.read_text())
         # a record without its covariance distance cannot be classed as the score classes it: remade
