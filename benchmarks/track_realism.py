@@ -26,6 +26,7 @@ patient, the same poses) in the same run — the baseline the conditions' times 
     .venv/bin/python benchmarks/track_realism.py --n 20 --presets ftrac_2005 --workers 1 --cache outputs/realism_cache \
         --detector classical     # the classical detectors' times on the same images as a learned run's
     .venv/bin/python benchmarks/track_realism.py --plot outputs/track_realism_200.json   # the figure of a run
+    .venv/bin/python benchmarks/track_realism.py --n 20 --view-prior-deg 25 45   # a view known to 45°, 25° off
 """
 
 from __future__ import annotations
@@ -47,9 +48,9 @@ from tqdm import tqdm
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.images.distortion import combine, distort_image, radial, s_distortion, undistort_image
-from ftrac_design.pose import Camera
+from ftrac_design.pose import Camera, so3
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment import TrackOptions, track_image
+from ftrac_design.segment import TrackOptions, ViewPrior, track_image
 from ftrac_design.xray import render
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
@@ -111,9 +112,17 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
     return img, R, t, cam, None
 
 
+def view_prior(R: np.ndarray, off_deg: float, within_deg: float, seed: int, k: int) -> ViewPrior:
+    """A view as a user would know it beforehand: the true rotation ``R`` turned by ``off_deg``
+    about an axis drawn at random (seeded by the image), admitting ``within_deg``."""
+    axis = np.random.default_rng([seed, k, 17]).normal(size=3)
+    turn = so3.exp(axis / np.linalg.norm(axis) * math.radians(off_deg))
+    return ViewPrior(turn @ R, math.radians(within_deg))
+
+
 def one(task: tuple) -> dict:
     """Make and track one image; the outcome, the time and this process's peak memory."""
-    preset, condition, k, seed, n, cache, detector = task
+    preset, condition, k, seed, n, cache, detector, view = task
     features = preset_features(preset)
     img, R, t, cam, model = make_image(preset, condition, k, seed, n, cache)
     if condition == "distortion-corrected":
@@ -121,12 +130,13 @@ def one(task: tuple) -> dict:
         # them for the first frame of a run); every image here has a model of its own, so they
         # are made before the clock starts, which then counts the per-image resampling
         undistort_image(img, model)
+    prior = None if view is None else view_prior(R, *view, seed, k)
     t0 = time.perf_counter()
-    opts = TrackOptions(detector=detector)
+    opts = TrackOptions(detector=detector, view=prior)
     if condition == "distortion-corrected":
         # corrected with its model, as `track --distortion` does: no distortion term left
         img = undistort_image(img, model)
-        opts = TrackOptions(distortion_prior_mm=0.0, detector=detector)
+        opts = TrackOptions(distortion_prior_mm=0.0, detector=detector, view=prior)
     res = track_image(img, features, cam, opts)
     wall = time.perf_counter() - t0
     out = {
@@ -255,6 +265,15 @@ def main() -> None:
         help="TrackOptions.detector (default auto: the learned detector where ONNX Runtime is installed, "
         "then the classical where it finds no pose)",
     )
+    ap.add_argument(
+        "--view-prior-deg",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("OFF", "WITHIN"),
+        help="track each image with a view known beforehand (`track --expect-view`): its true rotation "
+        "turned OFF degrees about a random axis, admitting WITHIN degrees (default: no prior)",
+    )
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
     ap.add_argument(
         "--cache",
@@ -277,7 +296,7 @@ def main() -> None:
     if "clean" not in conds:
         conds.insert(0, "clean")
     tasks = [
-        (p, c, k, args.seed, args.n, args.cache, args.detector)
+        (p, c, k, args.seed, args.n, args.cache, args.detector, args.view_prior_deg)
         for p in args.presets
         for c in conds
         for k in range(args.n)
@@ -285,6 +304,11 @@ def main() -> None:
     print(
         f"track_realism: {len(tasks)} images on {_common.machine()}, {args.workers} worker processes, "
         f"detector {args.detector}"
+        + (
+            ""
+            if args.view_prior_deg is None
+            else ", view known to {:g}° (off by {:g}°)".format(*args.view_prior_deg[::-1])
+        )
     )
     rows = []
     with ProcessPoolExecutor(args.workers) as pool:

@@ -218,6 +218,26 @@ distortion_option = SharedOption("--distortion", "distortion_path", type=FILE, d
 refine_option = _choice("--refine", ("none", "intensity"), "none")
 #: ``--independent`` (a flag): every frame tracked alone, no prior
 independent_option = SharedOption("--independent", is_flag=True)
+#: ``--expect-view POSE.json`` → ``view_path``: the view as known beforehand (a SPEC §4 pose)
+view_option = SharedOption(
+    "--expect-view",
+    "view_path",
+    type=FILE,
+    default=None,
+    help="SPEC §4 pose.json of the view as known beforehand (an earlier image of the same set-up, or "
+    "one written from the C-arm's angles and the fiducial's mount): only answers whose rotation is "
+    "within --view-within-deg of its rotation are looked for and given out; its translation is not "
+    "used. It decides between a near-mirror pair of answers the image alone cannot tell apart (a "
+    "small fiducial far from the source); a wrong one gives a wrong answer.",
+)
+#: ``--view-within-deg DEG`` → ``view_within_deg`` (default 45)
+view_within_option = SharedOption(
+    "--view-within-deg",
+    type=click.FloatRange(0.0, 180.0, min_open=True),
+    default=45.0,
+    show_default=True,
+    help="how far (degrees) the view's rotation may be from --expect-view's",
+)
 #: ``--poses N`` (at least 100) → ``poses`` (None: the design's or the command's default)
 poses_option = SharedOption(
     "--poses",

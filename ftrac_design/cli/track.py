@@ -27,6 +27,8 @@ from .options import (
     output_option,
     polarity_option,
     refine_option,
+    view_option,
+    view_within_option,
 )
 
 
@@ -86,6 +88,8 @@ def _output_paths(output: Path | None, several: bool) -> tuple[Path, str, Path]:
     "Track every frame of a run alone with the full identification, no prior (default: each frame "
     "from the previous frames' poses, identified from scratch only where that is not confirmed)."
 )
+@view_option()
+@view_within_option()
 def command(
     features_path: Path,
     images: tuple[Path, ...],
@@ -97,6 +101,8 @@ def command(
     refine: str,
     independent: bool,
     detector: str,
+    view_path: Path | None,
+    view_within_deg: float,
 ) -> int:
     """Segment, identify and solve the fiducial's pose in each frame of each IMAGE, no initial guess.
 
@@ -109,7 +115,9 @@ def command(
     is not confirmed (--independent: every frame from scratch). The
     camera comes from --camera, else from each file (DICOM geometry tags, our own note in
     PNG/TIFF); the polarity and formation from the file where it says (DICOM Pixel Intensity
-    Relationship and Sign), --polarity overriding.
+    Relationship and Sign), --polarity overriding. --expect-view POSE.json limits the answers to
+    views within --view-within-deg of that pose's rotation (a run's frames identified from scratch
+    too): it settles the near-mirror ties of a small fiducial that the image alone cannot.
 
     Every input is read and checked before anything is tracked: bad input anywhere exits 2
     with one line naming the file and what was expected, and writes nothing. A frame whose
@@ -122,7 +130,9 @@ def command(
     from ..tracking import RunTracker
     from ..workflows.track_run import TrackOutputs, TrackSetup, overlay_name, track_frame, validate_inputs
 
-    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine, detector)
+    setup = TrackSetup.from_options(
+        features_path, camera_path, distortion_path, polarity, refine, detector, view_path, view_within_deg
+    )
     inputs = validate_inputs(list(images), setup.camera, setup.distortion, setup.distortion_path)
     total = sum(i.frames for i in inputs)
     several = total > 1

@@ -15,7 +15,7 @@
 numpy/scipy/OpenCV only (OpenCV for fast morphology, filtering and P3P); never CadQuery.
 """
 
-from .options import TrackOptions, TrackResult
+from .options import TrackOptions, TrackResult, ViewPrior
 from .pipeline import track_image
 
-__all__ = ["TrackOptions", "TrackResult", "track_image"]
+__all__ = ["TrackOptions", "TrackResult", "ViewPrior", "track_image"]

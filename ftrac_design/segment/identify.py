@@ -23,6 +23,7 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -31,6 +32,9 @@ from ..features.model import Features
 from ..pose import Camera, so3
 from ..pose.p3p import bearings, p3p
 from .ridges import RidgePoints
+
+if TYPE_CHECKING:
+    from .options import ViewPrior
 
 
 def outward_shift(pts: np.ndarray, var_px2: float) -> np.ndarray:
@@ -224,6 +228,7 @@ def bead_hypotheses(
     blobs: int = 12,
     after: int = 0,
     patience: int | None = 5,
+    view: ViewPrior | None = None,
 ) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
 
@@ -244,6 +249,9 @@ def bead_hypotheses(
     patience : triplets tried without a better labelling before a search that explains all
         balls but one or two stops; None: it goes on (where the labellings such a search
         found were refused, their count is no sign that the right one is among them).
+    view : the view as known beforehand (:class:`.options.ViewPrior`): only P3P poses it
+        admits within :data:`SAME_POSE_RAD` more are labelled (three balls' pose is a few
+        degrees off the refined one), so that the search's stops count only those; None: all.
 
     Returns
     -------
@@ -263,6 +271,9 @@ def bead_hypotheses(
     skip = frozenset(_image_triplets(uv, after, max_extent_px)) if after > 0 else frozenset()
     for itri in _image_triplets(uv, image_triplets, max_extent_px, k=blobs, skip=skip):
         poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
+        if poses is not None and view is not None:
+            ok = view.admits(poses[0], SAME_POSE_RAD)
+            poses = (poses[0][ok], poses[1][ok]) if ok.any() else None
         if poses is None:
             continue
         top_now = max(top, _collect_matches(best, model, camera, tree, *poses, tol_px))

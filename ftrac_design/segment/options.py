@@ -12,10 +12,13 @@ once, in :class:`TrackOptions`, and a stage's signature says what it reads.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, fields, replace
 from typing import Any, Literal
 
-from ..pose import Diagnostics, NoiseModel, Observation, Pose, Status, TrackedPose
+import numpy as np
+
+from ..pose import Diagnostics, NoiseModel, Observation, Pose, Status, TrackedPose, so3
 from ..pose.record import failed_pose
 from .beads import Beads
 from .image import NoiseLevels
@@ -24,6 +27,44 @@ from .ridges import RidgePoints
 #: how dense matter looks in an image: "auto" (the header, else the fiducial's own evidence),
 #: "dense-dark" (raw detector counts) or "dense-bright" (log / display image)
 Polarity = Literal["auto", "dense-dark", "dense-bright"]
+
+
+@dataclass(frozen=True, eq=False)
+class ViewPrior:
+    """What is known of the view before the image is read: the fiducial's rotation F → X
+    (SPEC §1) lies within ``within_rad`` of ``rotation`` — from an earlier image of the same
+    set-up, or the C-arm's angles and how the fiducial is mounted.
+
+    A small fiducial seen from ~600 mm is nearly in affine projection, where a labelling
+    rotated 135–180° (a near-mirror) puts every ball and wire within a fraction of a pixel of
+    where the right one does: the image alone cannot tell them apart, and the tracker refuses
+    the tie. A prior that admits one of them decides it; one that admits the wrong one gives
+    the wrong pose, confidently — the prior is the caller's word, not the image's.
+
+    Attributes
+    ----------
+    rotation : (3, 3) the expected rotation F → X.
+    within_rad : how far (rad, the angle of the rotation between them) the view's rotation
+        may be from it; in (0, π].
+    """
+
+    rotation: np.ndarray
+    within_rad: float
+
+    def __post_init__(self) -> None:
+        R = np.asarray(self.rotation, float)
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or np.abs(R @ R.T - np.eye(3)).max() > 1e-6:
+            raise ValueError("a view prior's rotation must be a 3 × 3 rotation matrix (orthonormal)")
+        if np.linalg.det(R) < 0:
+            raise ValueError("a view prior's rotation must be proper (det +1)")
+        if not 0.0 < self.within_rad <= math.pi:
+            raise ValueError(f"a view prior's angle must be in (0, π] rad, got {self.within_rad!r}")
+        object.__setattr__(self, "rotation", R)
+
+    def admits(self, R: np.ndarray, margin_rad: float = 0.0) -> np.ndarray:
+        """Whether each rotation ``R`` ((3, 3) or (k, 3, 3)) lies within ``within_rad`` +
+        ``margin_rad`` of :attr:`rotation` (bool, or (k,) bool)."""
+        return so3.angle(np.asarray(R, float), self.rotation) <= self.within_rad + margin_rad
 
 
 @dataclass(frozen=True)
@@ -236,6 +277,9 @@ class TrackOptions:
     #: pinhole pose from such an image is biased in depth by several mm and no residual
     #: shows it. 0 for a flat-panel detector or an image corrected with its distortion model.
     distortion_prior_mm: float = 1.5
+    #: the view as known before the image is read (:class:`ViewPrior`): only labellings whose
+    #: rotation it admits are searched for and given out; None: any view
+    view: ViewPrior | None = None
 
     @property
     def finding(self) -> FindOptions:
@@ -279,6 +323,7 @@ class FindOptions:
     hypothesis_wire_weight: float
     wide_triplets: int
     wide_blobs: int
+    view: ViewPrior | None
 
 
 @dataclass(frozen=True)

@@ -37,6 +37,7 @@ from .options import (
     SearchOptions,
     TrackOptions,
     TrackResult,
+    ViewPrior,
     failed_result,
 )
 from .region import fiducial_regions, shifted, view_limited
@@ -172,6 +173,7 @@ def _hypotheses(
         find.hypothesis_tol_radii * max(scene.scales.bead_radius_px, 2.0),
         keep=None,
         max_extent_px=scene.scales.max_bead_spread_px,
+        view=find.view,
         **search,
     )
     seen = {tuple(sorted(h.match.items())) for h in tried}
@@ -267,6 +269,14 @@ def _labellings(
             lab = replace(lab, pose=acceptance.refuse(p, acceptance.absent_wires(scene, p, accept)))
         out.append(with_agreement(scene, lab, labelling))
     return out
+
+
+def _in_view(labs: list[Labelling], view: ViewPrior | None) -> list[Labelling]:
+    """The labellings whose refined rotation ``view`` admits (all without one): a labelling
+    outside it is neither an answer nor a rival to one."""
+    if view is None:
+        return labs
+    return [lab for lab in labs if np.all(np.isfinite(lab.pose.rotation)) and bool(view.admits(lab.pose.rotation))]
 
 
 def _with_body_subtracted(
@@ -452,16 +462,17 @@ def _track_density(
         )
     hyps = _hypotheses(scene, find, budget, [], image_triplets=FIRST_TRIPLETS)
     scene = with_predicted_balls(scene, hyps, find, accept)
+    within = "" if find.view is None else f" within {math.degrees(find.view.within_rad):.0f}° of the expected view"
     if not hyps:
         return failed_result(
-            f"no fiducial found: {len(beads)} blobs, none matching the bead layout", pol, beads, ridges, diag
+            f"no fiducial found: {len(beads)} blobs, none matching the bead layout{within}", pol, beads, ridges, diag
         )
-    evaluated = _labellings(scene, hyps, budget, labelling, accept)
+    evaluated = _in_view(_labellings(scene, hyps, budget, labelling, accept), find.view)
     if not any(lab.pose.converged for lab in evaluated):
         scene, more = _wider_search(scene, hyps, budget, find, labelling, accept)
-        evaluated += more
+        evaluated += _in_view(more, find.view)
     if not evaluated:
-        return failed_result("no bead labelling led to a pose", pol, beads, ridges, diag)
+        return failed_result(f"no bead labelling{within} led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
     best, others = evaluated[0], evaluated[1:]
     first, unsubtracted = best, None

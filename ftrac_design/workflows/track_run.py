@@ -50,10 +50,10 @@ from ..errors import InputError
 from ..features import Features, load_features
 from ..fileio import temporary_file
 from ..images import DistortionModel, Frame, read_distortion, read_frames, undistort_image
-from ..pose import Camera, Provenance, TrackedPose
+from ..pose import Camera, Provenance, TrackedPose, read_tracked_poses
 from ..pose.io import pose_text
 from ..pose.observation import read_camera
-from ..segment import TrackOptions, TrackResult, track_image
+from ..segment import TrackOptions, TrackResult, ViewPrior, track_image
 from ..segment.options import Polarity
 from ..tracking import FrameAnswer, RunTracker
 
@@ -91,6 +91,21 @@ class ImageInput:
 FLAT_MODALITIES = ("DX", "CR", "MG")
 
 
+def read_view_prior(path: str | Path, within_deg: float) -> ViewPrior:
+    """The view as known beforehand (:class:`~ftrac_design.segment.ViewPrior`) from a SPEC §4
+    pose file holding one pose with a proper rotation (its translation is not used), within
+    ``within_deg`` degrees (0–180]. InputError (exit 2) naming the file and key otherwise."""
+    records = read_tracked_poses(path)
+    if len(records) != 1:
+        raise InputError(path, None, f"one pose (the view expected), got {len(records)}")
+    if not 0.0 < within_deg <= 180.0:
+        raise InputError(None, "--view-within-deg", f"an angle in (0, 180] degrees, got {within_deg!r}")
+    try:
+        return ViewPrior(records[0].pose.rotation, math.radians(within_deg))
+    except ValueError:
+        raise InputError(path, "rotation", "a proper rotation matrix (orthonormal, det +1)") from None
+
+
 @dataclass(frozen=True)
 class TrackSetup:
     """What every frame is tracked with, each setting resolved once (:meth:`from_options`).
@@ -122,6 +137,8 @@ class TrackSetup:
         polarity: Polarity = "auto",
         refine: Literal["none", "intensity"] = "none",
         detector: Literal["auto", "learned", "classical"] = "auto",
+        view_path: str | Path | None = None,
+        view_within_deg: float = 45.0,
     ) -> TrackSetup:
         """The setup of ``track`` and ``serve`` from their options, each file read once.
 
@@ -135,6 +152,8 @@ class TrackSetup:
         polarity : ``--polarity``: how dense matter looks ("auto": the file's, else found).
         refine : ``--refine``: "intensity" refines each converged pose on the pixels.
         detector : ``--detector``: what finds the features (:attr:`TrackOptions.detector`).
+        view_path, view_within_deg : ``--expect-view`` and ``--view-within-deg``: the view as
+            known beforehand (:func:`read_view_prior`), or None.
 
         Returns
         -------
@@ -148,7 +167,8 @@ class TrackSetup:
         model_path = None if flat or distortion_path is None else str(distortion_path)
         model = read_distortion(model_path) if model_path is not None else None
         prior = {"distortion_prior_mm": 0.0} if flat or model is not None else {}
-        options = TrackOptions(polarity=polarity, detector=detector, **prior)
+        view = read_view_prior(view_path, view_within_deg) if view_path is not None else None
+        options = TrackOptions(polarity=polarity, detector=detector, view=view, **prior)
         return cls(features, options, camera, model, model_path, _refiner(refine))
 
     def options_for(self, frame: Frame) -> TrackOptions:
