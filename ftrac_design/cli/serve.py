@@ -25,6 +25,8 @@ from .options import (
     port_option,
     refine_option,
     shown_option,
+    view_option,
+    view_within_option,
 )
 
 
@@ -69,6 +71,8 @@ from .options import (
     "Track every frame alone with the full identification (no prior), as `track --independent`; "
     "by default each frame starts from the previous frame's pose."
 )
+@view_option()
+@view_within_option()
 def command(
     features_path: Path,
     camera_path: Path | None,
@@ -83,6 +87,8 @@ def command(
     refine: str,
     independent: bool = False,
     detector: str = "auto",
+    view_path: Path | None = None,
+    view_within_deg: float = 45.0,
 ) -> int:
     """Track the fiducial in every IMAGE an OpenIGTLink client sends; answer each with a TRANSFORM.
 
@@ -106,7 +112,9 @@ def command(
 
     # the link's settings first: without the live extra nothing else is worth reading
     options = serve_mod.ServeOptions(host=host, port=port, name=name, space=space, queue=queue, valid_only=valid_only)
-    setup = TrackSetup.from_options(features_path, camera_path, distortion_path, polarity, refine, detector)
+    setup = TrackSetup.from_options(
+        features_path, camera_path, distortion_path, polarity, refine, detector, view_path, view_within_deg
+    )
     options = replace(options, camera=setup.camera)
     factory = serve_mod.frame_by_frame_tracker if independent else serve_mod.run_tracker
     summary = serve_mod.serve(setup, options, factory=factory, log=sys.stdout)
