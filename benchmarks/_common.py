@@ -41,6 +41,22 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:12]
 
 
+def view_prior(R, off_deg: float, within_deg: float, seed: int, k: int):
+    """A view as a user would know it beforehand (:class:`ftrac_design.segment.ViewPrior`): the
+    true rotation ``R`` turned by ``off_deg`` about an axis drawn at random (seeded by the seed
+    and image index ``k``), admitting ``within_deg``."""
+    import math
+
+    import numpy as np
+
+    from ftrac_design.pose import so3
+    from ftrac_design.segment import ViewPrior
+
+    axis = np.random.default_rng([seed, k, 17]).normal(size=3)
+    turn = so3.exp(axis / np.linalg.norm(axis) * math.radians(off_deg))
+    return ViewPrior(turn @ np.asarray(R, float), math.radians(within_deg))
+
+
 def load(name: str):
     """Features of the preset ``name`` (``models/<name>.toml``)."""
     from ftrac_design.design import load_design

@@ -37,6 +37,7 @@ from pathlib import Path
 import _common  # noqa: F401  (puts the checkout first on sys.path)
 import cv2
 import numpy as np
+from _common import view_prior
 from independent import render_independent
 from tqdm import tqdm
 
@@ -52,16 +53,18 @@ AXES = ("rx", "ry", "rz", "tx", "ty", "tz")
 WRONG_DEG, WRONG_MM, CHI2_6 = 1.0, 3.0, 25.7
 
 
-def track(image: np.ndarray, features, camera: Camera, polarity_hint: str | None = None):
-    """The package's tracker with its default options: (converged, R, t, covariance, error message).
+def track(image: np.ndarray, features, camera: Camera, polarity_hint: str | None = None, view=None):
+    """The package's tracker with its default options (``view``: a view known beforehand, else
+    none): (converged, R, t, covariance, error message).
 
     ``polarity_hint`` ("dense_dark" for raw counts) is what a DICOM header's photometric
     interpretation would tell it; None lets the tracker detect the polarity. The one place
     this benchmark calls the tracker, so an API change is mended here.
     """
+    from ftrac_design.segment import TrackOptions
     from ftrac_design.segment.pipeline import track_image
 
-    res = track_image(image, features, camera, polarity_hint=polarity_hint)
+    res = track_image(image, features, camera, TrackOptions(view=view), polarity_hint=polarity_hint)
     p = res.pose
     cov = None if p.covariance is None else np.asarray(p.covariance, float)
     return bool(p.converged), np.asarray(p.rotation, float), np.asarray(p.translation_mm, float), cov, p.error
@@ -124,14 +127,16 @@ def image_set(preset: str, n: int, seed: int, patient: bool, dose: float, render
     return feats, out, times
 
 
-def evaluate(feats, items, camera: Camera, polarity_hint: str | None = None) -> dict:
-    """Track every image and tally right, confident-wrong and not-converged answers."""
+def evaluate(feats, items, camera: Camera, polarity_hint: str | None = None, view_deg=None, seed: int = 0) -> dict:
+    """Track every image and tally right, confident-wrong and not-converged answers; with
+    ``view_deg`` (off, within), each with its true view known beforehand (:func:`_common.view_prior`)."""
     errs, wrong, far, reasons, times = [], [], [], Counter(), []
     for k, (png, js) in enumerate(tqdm(items, desc="track", leave=False)):
         img = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
         truth = json.loads(js.read_text(encoding="utf-8"))
+        view = None if view_deg is None else view_prior(np.array(truth["rotation"]), *view_deg, seed, k)
         t0 = time.perf_counter()
-        ok, R, t, cov, err = track(img, feats, camera, polarity_hint)
+        ok, R, t, cov, err = track(img, feats, camera, polarity_hint, view)
         times.append(time.perf_counter() - t0)
         if not ok:
             reasons[(err or "?").split(":")[0][:60]] += 1
@@ -229,6 +234,15 @@ def main() -> None:
     ap.add_argument("--dose-clean", type=float, default=3000.0, help="quanta per pixel in the open field (no patient)")
     ap.add_argument("--render", action="store_true", help="render again even where images exist")
     ap.add_argument("--figure", action="store_true", help="write docs/img/independent_render.png and stop")
+    ap.add_argument(
+        "--view-prior-deg",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("OFF", "WITHIN"),
+        help="also track each image with its view known beforehand (`track --expect-view`): the true "
+        "rotation turned OFF degrees about a random axis, admitting WITHIN degrees",
+    )
     a = ap.parse_args()
     if a.figure:
         figure(ROOT / "docs" / "img" / "independent_render.png")
@@ -247,6 +261,10 @@ def main() -> None:
             label = f"{preset} {'over the voxel pelvis' if patient else 'no patient'}"
             show(label, evaluate(feats, items, cam), rt)
             show(f"{label}, told the polarity (raw counts: dense-dark)", evaluate(feats, items, cam, "dense_dark"), [])
+            if a.view_prior_deg is not None:
+                off, within = a.view_prior_deg
+                r = evaluate(feats, items, cam, None, a.view_prior_deg, a.seed)
+                show(f"{label}, its view known to {within:g}° ({off:g}° off)", r, [])
 
 
 if __name__ == "__main__":

@@ -48,9 +48,9 @@ from tqdm import tqdm
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.images.distortion import combine, distort_image, radial, s_distortion, undistort_image
-from ftrac_design.pose import Camera, so3
+from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment import TrackOptions, ViewPrior, track_image
+from ftrac_design.segment import TrackOptions, track_image
 from ftrac_design.xray import render
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
@@ -112,14 +112,6 @@ def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Pa
     return img, R, t, cam, None
 
 
-def view_prior(R: np.ndarray, off_deg: float, within_deg: float, seed: int, k: int) -> ViewPrior:
-    """A view as a user would know it beforehand: the true rotation ``R`` turned by ``off_deg``
-    about an axis drawn at random (seeded by the image), admitting ``within_deg``."""
-    axis = np.random.default_rng([seed, k, 17]).normal(size=3)
-    turn = so3.exp(axis / np.linalg.norm(axis) * math.radians(off_deg))
-    return ViewPrior(turn @ R, math.radians(within_deg))
-
-
 def one(task: tuple) -> dict:
     """Make and track one image; the outcome, the time and this process's peak memory."""
     preset, condition, k, seed, n, cache, detector, view = task
@@ -130,7 +122,7 @@ def one(task: tuple) -> dict:
         # them for the first frame of a run); every image here has a model of its own, so they
         # are made before the clock starts, which then counts the per-image resampling
         undistort_image(img, model)
-    prior = None if view is None else view_prior(R, *view, seed, k)
+    prior = None if view is None else _common.view_prior(R, *view, seed, k)
     t0 = time.perf_counter()
     opts = TrackOptions(detector=detector, view=prior)
     if condition == "distortion-corrected":
