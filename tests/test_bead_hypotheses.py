@@ -56,6 +56,25 @@ def test_the_true_labelling_keeps_a_pose_near_the_truth(views):
     assert twins >= 3
 
 
+def test_a_view_prior_keeps_only_the_poses_it_admits(views):
+    """With a view known to 30° around a rotation 20° off the truth, every hypothesis lies
+    within 30° + :data:`~.identify.SAME_POSE_RAD` of it and the true labelling is still found
+    near the truth; with one 120° away, none is near the truth."""
+    from ftrac_design.segment import ViewPrior
+
+    margin = np.radians(30.0) + identify.SAME_POSE_RAD
+    for k, (model, R, _t, blobs, truth) in enumerate(views[:40]):
+        axis = np.random.default_rng(k).normal(size=3)
+        axis /= np.linalg.norm(axis)
+        near = ViewPrior(so3.exp(axis * np.radians(20.0)) @ R, np.radians(30.0))
+        hyps = identify.bead_hypotheses(model, blobs, CAMERA, 2.0, keep=None, view=near)
+        assert all(so3.angle(h.R, near.rotation) <= margin + 1e-9 for h in hyps)
+        assert min(float(so3.angle(h.R, R)) for h in hyps if h.match == truth) < np.radians(10.0)
+        far = ViewPrior(so3.exp(axis * np.radians(120.0)) @ R, np.radians(30.0))
+        hyps = identify.bead_hypotheses(model, blobs, CAMERA, 2.0, keep=None, view=far)
+        assert all(so3.angle(h.R, R) > np.radians(50.0) for h in hyps)
+
+
 def test_poses_kept_for_one_labelling_are_distinct(views):
     """Two hypotheses of one labelling are never closer than ``SAME_POSE_RAD``: the noise of
     one P3P pose from triplet to triplet does not multiply the hypotheses."""
