@@ -19,7 +19,7 @@ import pytest
 from test_fuzz_observation import FEATURE_FILES
 
 from ftrac_design.cli.main import main
-from ftrac_design.pose import so3
+from ftrac_design.pose import read_tracked_poses, so3
 from ftrac_design.pose.simulate import pose_errors
 from ftrac_design.segment import TrackOptions, ViewPrior, track_image
 
@@ -111,9 +111,10 @@ def _pose_file(path: Path, R: np.ndarray) -> Path:
 
 
 def test_track_expect_view_reaches_the_tracker(tie, tmp_path, capsys):
-    """``track --expect-view POSE.json --view-within-deg 45`` gives the tie's right pose (exit 0);
-    a pose file whose rotation is not a rotation, or that holds two poses, is bad input: exit 2,
-    one line naming the file and the key, nothing written."""
+    """``track --expect-view POSE.json --view-within-deg 45`` gives the tie's right pose (exit 0),
+    its pose file recording the prior (``expected_view``); a pose file whose rotation is not a
+    rotation, or that holds two poses, is bad input: exit 2, one line naming the file and the
+    key, nothing written."""
     img, R, t, camera, _ = tie
     np.save(tmp_path / "tie.npy", img)
     (tmp_path / "cam.json").write_text(json.dumps(camera.to_dict()))
@@ -130,6 +131,9 @@ def test_track_expect_view_reaches_the_tracker(tie, tmp_path, capsys):
     assert main([*base, "-o", str(out), "--expect-view", str(view), "--view-within-deg", "45"]) == 0
     pose = json.loads(out.read_text())
     assert np.degrees(so3.angle(np.array(pose["rotation"]), R)) < 0.5
+    # the pose says it rests on the caller's prior, and reads back with it
+    assert pose["expected_view"] == {"file": str(view), "within_deg": 45.0}
+    assert read_tracked_poses(out)[0].provenance.expected_view == pose["expected_view"]
 
     bad = _pose_file(tmp_path / "bad.json", 2.0 * np.eye(3))
     capsys.readouterr()

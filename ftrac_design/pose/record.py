@@ -13,7 +13,7 @@ The keys, in the order written: SPEC §4's (``format`` … ``covariance_order``)
 pose), the solver's diagnostics (``per_feature_residuals_px`` … ``condition_number``),
 ``observation`` (what was solved), ``segmentation`` (the image path's diagnostics), ``frame``,
 ``time_s``, ``status``, ``timing``, ``tracking_error``, ``image``, ``camera``,
-``camera_source``, ``intake_notes``, ``distortion``. A number that is not finite is written
+``camera_source``, ``intake_notes``, ``distortion``, ``expected_view``. A number that is not finite is written
 ``null`` and read back as NaN.
 
 Reading is strict where a reader acts on a key — ``format``, ``converged``, a converged pose's
@@ -126,6 +126,8 @@ class Provenance:
         (0018,1110)", …}``).
     intake_notes : what intake did that a user should know.
     distortion : the distortion model file the frame was undistorted with.
+    expected_view : the view known beforehand that limited the answers (``track --expect-view``):
+        ``{"file": its pose file, "within_deg": the angle admitted}``.
     """
 
     image: str | None = None
@@ -135,6 +137,7 @@ class Provenance:
     camera_source: dict[str, str] | None = None
     intake_notes: tuple[str, ...] | None = None
     distortion: str | None = None
+    expected_view: dict[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -496,6 +499,8 @@ def _provenance_dict(pv: Provenance) -> dict[str, Any]:
         d["intake_notes"] = list(pv.intake_notes)
     if pv.distortion is not None:
         d["distortion"] = pv.distortion
+    if pv.expected_view is not None:
+        d["expected_view"] = dict(pv.expected_view)
     return d
 
 
@@ -634,6 +639,7 @@ def _provenance(d: dict, origin: str) -> Provenance:
         camera_source=dict(d["camera_source"]) if isinstance(d.get("camera_source"), dict) else None,
         intake_notes=tuple(str(n) for n in notes) if isinstance(notes, list) else None,
         distortion=d["distortion"] if isinstance(d.get("distortion"), str) else None,
+        expected_view=dict(d["expected_view"]) if isinstance(d.get("expected_view"), dict) else None,
     )
 
 

@@ -17,14 +17,16 @@ answer is kept only as its JSON text and a summary line.
 
 Each pose object carries SPEC §4's optional ``image`` (the source file), ``frame`` (0-based
 index within the run; only for a directory or a multi-frame file), ``time_s`` (where the
-file gives one) and ``camera`` (the SPEC §3 camera used), and three **extensions** (readers
+file gives one) and ``camera`` (the SPEC §3 camera used), and four **extensions** (readers
 ignore keys they do not know):
 
 - ``camera_source``: ``{"focal_length", "pixel_size", "principal_point"}`` → where each
   intrinsic came from (a DICOM tag such as ``"DistanceSourceToDetector (0018,1110)"``,
   ``"--camera"``, ``"ftrac note"`` or ``"image centre"``);
 - ``intake_notes``: what intake did that a user should know (:attr:`Frame.notes`);
-- ``distortion``: the ``--distortion`` model file the frame was undistorted with.
+- ``distortion``: the ``--distortion`` model file the frame was undistorted with;
+- ``expected_view``: ``{"file", "within_deg"}``, the ``--expect-view`` pose file and angle that
+  limited the answers (a wrong one gives a wrong answer: the pose says it rests on it).
 
 A frame of a run (a directory or a multi-frame file) is tracked by the run's
 :class:`~ftrac_design.tracking.RunTracker` and its pose object also carries ``status``
@@ -118,6 +120,8 @@ class TrackSetup:
     camera : ``--camera`` intrinsics overriding the files', or None.
     distortion : the ``--distortion`` model, or None.
     distortion_path : its file (recorded in each pose as ``distortion``).
+    expected_view : ``--expect-view``'s file and ``--view-within-deg`` (recorded in each pose as
+        ``expected_view``), or None.
     refine : ``--refine intensity``'s ``refine_track_result``, or None.
     """
 
@@ -127,6 +131,7 @@ class TrackSetup:
     distortion: DistortionModel | None = None
     distortion_path: str | None = None
     refine: Callable[..., TrackResult] | None = None
+    expected_view: dict[str, Any] | None = None
 
     @classmethod
     def from_options(
@@ -169,7 +174,8 @@ class TrackSetup:
         prior = {"distortion_prior_mm": 0.0} if flat or model is not None else {}
         view = read_view_prior(view_path, view_within_deg) if view_path is not None else None
         options = TrackOptions(polarity=polarity, detector=detector, view=view, **prior)
-        return cls(features, options, camera, model, model_path, _refiner(refine))
+        expected = None if view is None else {"file": str(view_path), "within_deg": float(view_within_deg)}
+        return cls(features, options, camera, model, model_path, _refiner(refine), expected)
 
     def options_for(self, frame: Frame) -> TrackOptions:
         """The settings ``frame`` is tracked with: :attr:`options`, with no distortion prior for a
@@ -289,7 +295,8 @@ def frame_label(inp: ImageInput, frame: Frame) -> str:
 def provenance(frame: Frame, inp: ImageInput, setup: TrackSetup) -> Provenance:
     """What every pose of ``frame`` says of where it came from (see the module): ``image``,
     ``frame`` (runs), ``time_s`` (where known), ``camera``, ``camera_source``,
-    ``intake_notes`` and ``distortion`` (with ``--distortion``)."""
+    ``intake_notes``, ``distortion`` (with ``--distortion``) and ``expected_view`` (with
+    ``--expect-view``)."""
     return Provenance(
         image=frame.source,
         frame=int(frame.index) if inp.run else None,
@@ -298,6 +305,7 @@ def provenance(frame: Frame, inp: ImageInput, setup: TrackSetup) -> Provenance:
         camera_source=dict(frame.camera_source),
         intake_notes=tuple(frame.notes),
         distortion=setup.distortion_path,
+        expected_view=setup.expected_view,
     )
 
 
