@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
@@ -34,9 +35,9 @@ import track_realism as tr
 
 from ftrac_design.calibration.gridplate import grid_plate, plate_pose, render_grid
 from ftrac_design.images.distortion import combine, radial, s_distortion
-from ftrac_design.pose import Camera
+from ftrac_design.pose import Camera, so3
 from ftrac_design.pose.simulate import Workspace
-from ftrac_design.segment import track_image
+from ftrac_design.segment import TrackOptions, ViewPrior, track_image
 from ftrac_design.xray import ImagingModel
 from ftrac_design.xray.scenario import CONDITIONS, realistic_image
 
@@ -112,7 +113,7 @@ def noise(k: int, seed: int) -> np.ndarray:
 
 
 def one(task) -> list[dict]:
-    kind, k, seed = task
+    kind, k, seed, within_deg = task
     shown = None
     if kind == "anatomy":
         img = anatomy(k, seed)
@@ -127,12 +128,17 @@ def one(task) -> list[dict]:
     H, W = img.shape
     cam = Camera(principal_point_px=(W / 2, H / 2))
     rows = []
-    for preset in tr.PRESETS:
+    for i, preset in enumerate(tr.PRESETS):
         if preset == shown:
             continue
         features = tr.preset_features(preset)
+        opts = TrackOptions()
+        if within_deg is not None:
+            # a view a user might expect, at random: a prior only takes answers away
+            rng = np.random.default_rng([seed, k, i, list(KINDS).index(kind)])
+            opts = TrackOptions(view=ViewPrior(so3.uniform_rotations(1, rng)[0], math.radians(within_deg)))
         t0 = time.perf_counter()
-        res = track_image(img, features, cam)
+        res = track_image(img, features, cam, opts)
         rows.append(
             {
                 "kind": kind,
@@ -152,10 +158,20 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=909)
     ap.add_argument("--scale", type=float, default=1.0, help="multiply every kind's image count")
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--view-prior-deg",
+        type=float,
+        default=None,
+        metavar="WITHIN",
+        help="track with a view known beforehand (`track --expect-view`): a rotation drawn at random per "
+        "tracking, admitting WITHIN degrees (default: no prior)",
+    )
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "no_fiducial.json")
     a = ap.parse_args()
     print(f"no_fiducial: {_common.machine()}")
-    tasks = [(kind, k, a.seed) for kind, n in KINDS.items() for k in range(max(1, int(round(n * a.scale))))]
+    tasks = [
+        (kind, k, a.seed, a.view_prior_deg) for kind, n in KINDS.items() for k in range(max(1, int(round(n * a.scale))))
+    ]
     from tqdm import tqdm
 
     rows: list[dict] = []

@@ -109,15 +109,12 @@ def command(
     IMAGE is a file (PNG/TIFF/JPEG, a workstation's or grabber's BMP/GIF/WebP, NumPy .npy, DICOM:
     XA, RF, DX, CR, Enhanced XA/XRF, a video: MP4/AVI/MKV/MOV/WebM) or a directory of them (a run,
     natural order of names); multi-frame DICOM, multi-page TIFF, animated GIF/WebP, (n, H, W) .npy
-    and video are runs: one pose per frame, in order,
-    with "frame", "time_s", "status" (tracked / re-identified / lost) and "timing". A run's
-    frames are tracked from the previous frames' poses and identified from scratch where that
-    is not confirmed (--independent: every frame from scratch). The
-    camera comes from --camera, else from each file (DICOM geometry tags, our own note in
-    PNG/TIFF); the polarity and formation from the file where it says (DICOM Pixel Intensity
-    Relationship and Sign), --polarity overriding. --expect-view POSE.json limits the answers to
-    views within --view-within-deg of that pose's rotation (a run's frames identified from scratch
-    too): it settles the near-mirror ties of a small fiducial that the image alone cannot.
+    and video are runs: one pose per frame, in order, with "frame", "time_s", "status" (tracked /
+    re-identified / lost) and "timing". A run's frames are tracked from the previous frames' poses
+    and identified from scratch where that is not confirmed (--independent: every frame from
+    scratch). The camera comes from --camera, else from each file (DICOM geometry tags, our own
+    note in PNG/TIFF); the polarity and formation from the file where it says (DICOM Pixel
+    Intensity Relationship and Sign), --polarity overriding.
 
     Every input is read and checked before anything is tracked: bad input anywhere exits 2
     with one line naming the file and what was expected, and writes nothing. A frame whose
