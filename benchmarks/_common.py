@@ -41,6 +41,21 @@ def code_fingerprint() -> str:
     return h.hexdigest()[:12]
 
 
+def add_view_prior_argument(ap, also: bool = False) -> None:
+    """``--view-prior-deg OFF WITHIN`` on the argument parser ``ap``: each image tracked with its
+    view known beforehand (:func:`view_prior`); ``also``: besides the default options' run."""
+    ap.add_argument(
+        "--view-prior-deg",
+        type=float,
+        nargs=2,
+        default=None,
+        metavar=("OFF", "WITHIN"),
+        help=("also track" if also else "track")
+        + " each image with its view known beforehand (`track --expect-view`): the true rotation "
+        "turned OFF degrees about a random axis, admitting WITHIN degrees",
+    )
+
+
 def view_prior(R, off_deg: float, within_deg: float, seed: int, k: int):
     """A view as a user would know it beforehand (:class:`ftrac_design.segment.ViewPrior`): the
     true rotation ``R`` turned by ``off_deg`` about an axis drawn at random (seeded by the seed

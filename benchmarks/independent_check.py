@@ -234,15 +234,7 @@ def main() -> None:
     ap.add_argument("--dose-clean", type=float, default=3000.0, help="quanta per pixel in the open field (no patient)")
     ap.add_argument("--render", action="store_true", help="render again even where images exist")
     ap.add_argument("--figure", action="store_true", help="write docs/img/independent_render.png and stop")
-    ap.add_argument(
-        "--view-prior-deg",
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=("OFF", "WITHIN"),
-        help="also track each image with its view known beforehand (`track --expect-view`): the true "
-        "rotation turned OFF degrees about a random axis, admitting WITHIN degrees",
-    )
+    _common.add_view_prior_argument(ap, also=True)
     a = ap.parse_args()
     if a.figure:
         figure(ROOT / "docs" / "img" / "independent_render.png")

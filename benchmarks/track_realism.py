@@ -257,15 +257,7 @@ def main() -> None:
         help="TrackOptions.detector (default auto: the learned detector where ONNX Runtime is installed, "
         "then the classical where it finds no pose)",
     )
-    ap.add_argument(
-        "--view-prior-deg",
-        type=float,
-        nargs=2,
-        default=None,
-        metavar=("OFF", "WITHIN"),
-        help="track each image with a view known beforehand (`track --expect-view`): its true rotation "
-        "turned OFF degrees about a random axis, admitting WITHIN degrees (default: no prior)",
-    )
+    _common.add_view_prior_argument(ap)
     ap.add_argument("--json", type=Path, default=ROOT / "outputs" / "track_realism.json")
     ap.add_argument(
         "--cache",
