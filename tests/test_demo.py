@@ -82,5 +82,5 @@ def test_the_report_step_needs_the_build(tmp_path):
     from ftrac_design.demo.run import demo_steps
 
     names = [s.name for s in demo_steps(tmp_path)]
-    assert names[0] == "the build" and names[-1] == "the report" and len(names) == len(set(names)) == 11
+    assert names[0] == "the build" and names[-1] == "the report" and len(names) == len(set(names)) == 12
     assert {s.name: s.needs for s in demo_steps(tmp_path)}["the report"] == ("the build",)

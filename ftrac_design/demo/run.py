@@ -114,7 +114,8 @@ def demo_steps(out_dir: Path) -> list[Step]:
     score, a synthetic image solved, the presets' image clearances, a radiograph of the built
     fiducial tracked from the image with no initial guess (overlay written), the pose refined
     on its pixels, a C-arm's Enhanced XA run and an intensifier's distorted frame tracked with
-    ``ftrac-design track`` (``carm/``), 3-D reconstruction from two tracked views, a tiny design
+    ``ftrac-design track`` (``carm/``), a small fiducial's near-mirror tie settled by the view
+    known beforehand (``view/``), 3-D reconstruction from two tracked views, a tiny design
     search, and the one-page report.
 
     Parameters
@@ -127,7 +128,20 @@ def demo_steps(out_dir: Path) -> list[Step]:
     list of Step
         In the order they run.
     """
-    from . import build, carm, intensity, optimize, radiograph, reconstruct, report, score, segmentability, solve, track
+    from . import (
+        build,
+        carm,
+        intensity,
+        optimize,
+        radiograph,
+        reconstruct,
+        report,
+        score,
+        segmentability,
+        solve,
+        track,
+        view,
+    )
     from .shell import relative
 
     features, image_dir = out_dir / "features.json", out_dir / "radiograph"
@@ -140,6 +154,7 @@ def demo_steps(out_dir: Path) -> list[Step]:
         Step("the radiograph tracked", lambda: track.demo_step(features, image_dir), ("the radiograph",)),
         Step("the intensity refinement", lambda: intensity.demo_step(out_dir / "intensity")),
         Step("the C-arm run", lambda: carm.demo_step(out_dir / "carm", features)),
+        Step("the view known beforehand", lambda: view.demo_step(out_dir / "view")),
         Step("the reconstruction", lambda: reconstruct.demo_step(out_dir / "reconstruct")),
         Step("the design search", lambda: optimize.demo_step(out_dir / "optimize_demo")),
         Step("the report", lambda: report.demo_step(out_dir), ("the build",)),
