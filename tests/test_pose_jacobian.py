@@ -87,3 +87,18 @@ def test_per_row_frozen_whitening_and_reference(features_2005):
     # the reference residuals are the raw ones whitened with the old G, row by row
     assert np.allclose(mixed.rho_ref, frozen.rho, rtol=1e-12, atol=1e-12)
     assert not np.allclose(fresh.rho, frozen.rho)
+
+
+def test_is_rotation_accepts_proper_rotations_only():
+    """:func:`so3.is_rotation`: any exp of a rotation vector is one; a reflection, a scaled or
+    sheared matrix, a non-finite one and a wrong shape are not; the tolerance is on the
+    orthonormality and the determinant."""
+    rng = np.random.default_rng(3)
+    for v in rng.normal(size=(20, 3)) * 2.0:
+        R = so3.exp(v)
+        assert so3.is_rotation(R)
+        assert not so3.is_rotation(R @ np.diag([1.0, 1.0, -1.0]))
+        assert not so3.is_rotation(1.001 * R)
+        assert so3.is_rotation(1.001 * R, tol=0.01)
+    assert not so3.is_rotation(np.array([[1.0, 0.1, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]))
+    assert not so3.is_rotation(np.full((3, 3), np.nan)) and not so3.is_rotation(np.eye(2))

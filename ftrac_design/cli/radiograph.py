@@ -37,16 +37,12 @@ def read_poses(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Rotations (n, 3, 3) and translations (n, 3) from a SPEC §4 pose.json or JSON Lines file
     (:func:`ftrac_design.pose.read_tracked_poses`), each a proper rotation with the fiducial in
     front of the source."""
-    from ..pose import read_tracked_poses
+    from ..pose import read_tracked_poses, so3
 
     Rs, ts = [], []
     for rec in read_tracked_poses(path):
         R, t = rec.pose.rotation, rec.pose.translation_mm
-        if (
-            not (np.all(np.isfinite(R)) and np.all(np.isfinite(t)))
-            or np.abs(R @ R.T - np.eye(3)).max() > 1e-6
-            or np.linalg.det(R) < 0
-        ):
+        if not (so3.is_rotation(R) and np.all(np.isfinite(t))):
             raise InputError(rec.source, "rotation", "a proper rotation matrix (orthonormal, det +1)")
         if t[2] <= 0:
             raise InputError(rec.source, "translation_mm", "the fiducial in front of the source (z > 0)")

@@ -35,6 +35,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..fileio import json_lines, parse_json, read_text_input
+from . import so3
 from .camera import Camera
 from .observation import camera_from_dict
 from .problem import NoiseModel
@@ -588,7 +589,7 @@ def _solution(d: dict, converged: bool, origin: str) -> tuple[np.ndarray, np.nda
         if k not in d:
             raise InputError(origin, k, "a value (the key is required)")
     R = number_matrix(d["rotation"], 3, 3, origin, "rotation")
-    if not (np.abs(R.T @ R - np.eye(3)).max() < ROTATION_TOL and abs(np.linalg.det(R) - 1) < ROTATION_TOL):
+    if not so3.is_rotation(R, ROTATION_TOL):
         raise InputError(origin, "rotation", "a rotation matrix (orthonormal, determinant +1)")
     tv = d["translation_mm"]
     if not isinstance(tv, list) or len(tv) != 3:

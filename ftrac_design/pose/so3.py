@@ -101,6 +101,18 @@ def angle(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+def is_rotation(M, tol: float = 1e-6) -> bool:
+    """Whether ``M`` is a proper 3 × 3 rotation matrix: finite, orthonormal and of determinant
+    +1, each to within ``tol``."""
+    R = np.asarray(M, float)
+    return bool(
+        R.shape == (3, 3)
+        and np.all(np.isfinite(R))
+        and np.abs(R.T @ R - np.eye(3)).max() < tol
+        and abs(np.linalg.det(R) - 1.0) < tol
+    )
+
+
 def project_to_so3(M: np.ndarray) -> np.ndarray:
     """Nearest rotation (Frobenius) to M (..., 3, 3)."""
     U, _, Vt = np.linalg.svd(M)

@@ -52,14 +52,11 @@ class ViewPrior:
     within_rad: float
 
     def __post_init__(self) -> None:
-        R = np.asarray(self.rotation, float)
-        if R.shape != (3, 3) or not np.all(np.isfinite(R)) or np.abs(R @ R.T - np.eye(3)).max() > 1e-6:
-            raise ValueError("a view prior's rotation must be a 3 × 3 rotation matrix (orthonormal)")
-        if np.linalg.det(R) < 0:
-            raise ValueError("a view prior's rotation must be proper (det +1)")
+        if not so3.is_rotation(self.rotation):
+            raise ValueError("a view prior's rotation must be a proper 3 × 3 rotation matrix (orthonormal, det +1)")
         if not 0.0 < self.within_rad <= math.pi:
             raise ValueError(f"a view prior's angle must be in (0, π] rad, got {self.within_rad!r}")
-        object.__setattr__(self, "rotation", R)
+        object.__setattr__(self, "rotation", np.asarray(self.rotation, float))
 
     def admits(self, R: np.ndarray, margin_rad: float = 0.0) -> np.ndarray:
         """Whether each rotation ``R`` ((3, 3) or (k, 3, 3)) lies within ``within_rad`` +
