@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 import platform
 import subprocess
@@ -27,6 +28,7 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
+@functools.cache
 def code_fingerprint() -> str:
     """12 hex digits of the sha256 of the package's code and shipped data (every file under
     ``ftrac_design/`` but compiled bytecode): results cached under it are remade when any of

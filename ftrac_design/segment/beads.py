@@ -422,10 +422,7 @@ def _cost(p, S, y, X, Y, w, prior_w, radius_px: float, blur_px: float, res=None,
     (n, m) or its residuals ``res`` (n, m) when known (censored pixels ``cen`` already
     counted), with the priors' terms."""
     if res is None:
-        res = y - (p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y)
-        free = _uncensored(res, cen)
-        if free is not None:
-            res = res * free
+        res = _residuals(p, S, y, X, Y, cen)[0]
     return (w * res * res).sum(1) + prior_w[0] * (p[:, 2] - radius_px) ** 2 + prior_w[1] * (p[:, 3] - blur_px) ** 2
 
 
@@ -435,13 +432,9 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
     (n, 8), the weights it used, the Jacobian (n, m, 8) and the cost at ``p`` under those
     weights (:func:`_cost`). ``cen`` (n, m) bool: the censored pixels (None: none)."""
     S, Su, Sv, Sr, Ss = prof
-    m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
-    res = y - m
-    free = _uncensored(res, cen)
-    if free is not None:
-        res = res * free
-        if it < 2:
-            w = w0 * free
+    res, free = _residuals(p, S, y, X, Y, cen)
+    if free is not None and it < 2:
+        w = w0 * free
     J = np.empty(y.shape + (8,))
     for k, d in enumerate((Su, Sv, Sr, Ss)):
         J[..., k] = p[:, 4:5] * d
@@ -478,6 +471,15 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
     return dp, w, J, cost
 
 
+def _residuals(p, S, y, X, Y, cen) -> tuple[np.ndarray, np.ndarray | None]:
+    """The data ``y`` less the model (n, m) at parameters ``p`` with profile ``S`` — amplitude ×
+    profile plus the planar background — 0 at a censored pixel the model lies above; and where
+    the residuals count (:func:`_uncensored`; None: no censored pixels)."""
+    res = y - (p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y)
+    free = _uncensored(res, cen)
+    return (res if free is None else res * free), free
+
+
 def _uncensored(res: np.ndarray, cen: np.ndarray | None) -> np.ndarray | None:
     """1 where a residual counts, 0 at a censored pixel the model lies above (None: no
     censored pixels)."""
@@ -488,9 +490,7 @@ def _spread(p, S, y, X, Y, w, J, sn, cen=None) -> tuple[np.ndarray, np.ndarray]:
     """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units
     at parameters ``p``, whose profile is ``S`` (a censored pixel the model lies above counts
     for neither)."""
-    m = p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y
-    res = y - m
-    free = _uncensored(res, cen)
+    res, free = _residuals(p, S, y, X, Y, cen)
     if free is not None:
         w = w * free
     wsum = np.maximum(w.sum(1), 1.0)
