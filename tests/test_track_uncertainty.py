@@ -40,15 +40,19 @@ def test_variance_components_scale_the_covariance_and_leave_the_estimate(f2005, 
         imgs[0],
         features,
         Camera(),
-        TrackOptions(variance_point=1, variance_line=1, variance_ellipse=1, distortion_prior_mm=0.0),
+        TrackOptions(
+            variance_point=1, variance_line=1, variance_ellipse=1, distortion_prior_mm=0.0, contour_offset_px=0.0
+        ),
     )
     two = track_image(
         imgs[0],
         features,
         Camera(),
-        TrackOptions(variance_point=2, variance_line=2, variance_ellipse=2, distortion_prior_mm=0.0),
+        TrackOptions(
+            variance_point=2, variance_line=2, variance_ellipse=2, distortion_prior_mm=0.0, contour_offset_px=0.0
+        ),
     )
-    mixed = track_image(imgs[0], features, Camera(), PINHOLE)
+    mixed = track_image(imgs[0], features, Camera(), TrackOptions(distortion_prior_mm=0.0, contour_offset_px=0.0))
     assert one.pose.converged and two.pose.converged and mixed.pose.converged
     for r in (two, mixed):
         assert np.array_equal(r.pose.rotation, one.pose.rotation)
