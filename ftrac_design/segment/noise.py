@@ -314,7 +314,7 @@ def _displaced_by_modes(obs: Observation, radius_mm: float) -> list[Observation]
     ]
 
 
-def _ellipses_moved_out(features: Features, obs: Observation, pose: Pose, step_px: float) -> Observation:
+def ellipses_moved_out(features: Features, obs: Observation, pose: Pose, step_px: float) -> Observation:
     """``obs`` with every ellipse contour point moved ``step_px`` outward along the normal of the
     ellipse the pose projects (its nearest dense sample's, away from the curve's centre)."""
     from ..pose.observation import CurveObservation
@@ -349,7 +349,7 @@ def contour_offset_covariance(
     if sigma_px <= 0 or not obs.ellipses:
         return None
     R, t = pose.rotation, pose.translation_mm
-    moved = _ellipses_moved_out(features, obs, pose, 1.0)
+    moved = ellipses_moved_out(features, obs, pose, 1.0)
     ev = evaluate(
         compile_problem(features, [obs, moved], noise, same_structure=True),
         np.repeat(R[None], 2, 0),

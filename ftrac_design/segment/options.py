@@ -276,11 +276,13 @@ class TrackOptions:
     distortion_prior_mm: float = 1.5
     #: σ (px) of an offset shared by the ellipse contours along their normals, added to the
     #: pose covariance (:func:`~.noise.contour_offset_covariance`) for a design with a body:
-    #: the body's subtracted projection leaves a little of its limb's slope under the wires,
-    #: and on 12 clean ftrac_2005 frames (tuning seed 21) their points lay 0.008 and 0.011 px
+    #: the body's subtracted projection leaves a little of its limb's slope under the wires.
+    #: On 20 clean ftrac_2005 frames of tuning seed 21 their points lay 0.008 and 0.011 px
     #: inside the true ellipses on average (0.0015 and 0.0006 px with no body drawn or
-    #: subtracted) — ~0.1 mm of depth, which no residual shows. 0 turns the term off
-    contour_offset_px: float = 0.01
+    #: subtracted) and the poses 0.10 mm too far — twice what a 0.01 px offset moves the
+    #: least-squares pose, whose balls and lines hold it back; at 0.02 px the depth's error
+    #: over its σ spread 1.18 there (2.16 without the term). 0 turns the term off
+    contour_offset_px: float = 0.02
     #: the view as known before the image is read (:class:`ViewPrior`): only labellings whose
     #: rotation it admits are searched for and given out; None: any view
     view: ViewPrior | None = None
