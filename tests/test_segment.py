@@ -161,3 +161,110 @@ def test_fast_selections_equal_numpy():
     import cv2
 
     assert np.allclose(so3.exp(r), np.array([cv2.Rodrigues(x)[0] for x in r]), atol=1e-14)
+
+
+def test_bead_fit_models_a_blurred_wire_beside_the_ball():
+    """A ball under 2 px of blur with a blurred wire passing 4.5 px from its centre (a broad
+    band the plane cannot take up): the plain fit is pulled toward the wire; given the wire's
+    shape (unit amplitude, its amplitude fitted) the centre comes out within 0.02 px."""
+    H = W = 61
+    yy, xx = np.mgrid[0:H, 0:W].astype(float)
+    c = np.array([30.37, 29.81])
+    s = 2.0
+    img = 0.27 * sphere_profile(np.hypot(xx - c[0], yy - c[1]), np.array(3.4), np.array(s))
+    # a straight wire along 15° through a point 4.5 px from the centre, its profile Gaussian
+    n = np.array([np.sin(np.radians(15)), -np.cos(np.radians(15))])
+    d = (xx - c[0]) * n[0] + (yy - c[1]) * n[1] - 4.5
+    band = np.exp(-0.5 * (d / s) ** 2)
+    img = img + 0.6 * band
+    rng = np.random.default_rng(1)
+    img = (img + rng.normal(0, 0.005, img.shape)).astype(np.float32)
+    start = np.array([[30.0, 30.0]])
+    plain = fit_beads(img, start, 3.4, s, 0.005, prior_scale=1000.0)
+    modelled = fit_beads(img, start, 3.4, s, 0.005, prior_scale=1000.0, background=band)
+    assert np.linalg.norm(plain.uv[0] - c) > 0.5  # 1.7 px
+    assert np.linalg.norm(modelled.uv[0] - c) < 0.02  # 0.004 px
+    assert modelled.sigma_px[0] < 0.01
+
+
+def test_wire_profile_is_the_blurred_line_about_each_wire(f2005):
+    """:func:`.body.wire_profile` beside a straight wire piece, away from the other wires:
+    exp(−d²/2σ²) of the distance d to the projected piece, half that at a piece's end; 0
+    beyond the patches asked for; and the balls' projected radius is f · r / Z (px)."""
+    from ftrac_design.pose import Pose
+    from ftrac_design.segment import identify
+    from ftrac_design.segment.body import pose_bead_radius_px, wire_profile
+
+    features, cam = f2005, Camera()
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(5))
+    R, t = R[0], t[0]
+    curves = identify.curve_samples(features, cam, R, t)
+    others = {fid: pts for fid, (_, pts) in curves.items()}
+    fid, (_, pts) = next((f, c) for f, c in curves.items() if c[0] == "line" and len(c[1]) > 40)
+    from ftrac_design.segment.identify import project
+
+    ends = project(cam, R, t, np.array([p for _, a, b in features.wire_pieces for p in (a, b)]))[0]
+    rest = np.concatenate([p for f, p in others.items() if f != fid] + [ends])
+    far = np.array([np.min(np.linalg.norm(rest - p, axis=1)) for p in pts])
+    i = int(np.argmax(far[5:-5])) + 5
+    assert far[i] > 12
+    d_hat = (pts[i + 1] - pts[i - 1]) / np.linalg.norm(pts[i + 1] - pts[i - 1])
+    normal = np.array([-d_hat[1], d_hat[0]])
+    sigma = 1.3
+    prof = wire_profile(features, cam, R, t, (1024, 1024), sigma, pts[i : i + 1], 4)
+    row, col = np.nonzero(prof)
+    q = np.stack([col, row], 1).astype(float)
+    dist = np.abs((q - pts[i]) @ normal)
+    near = np.abs((q - pts[i]) @ d_hat) < 3  # the piece runs on past the patch's corners
+    assert np.allclose(prof[row, col][near], np.exp(-0.5 * (dist[near] / sigma) ** 2), atol=0.02)
+    assert np.all(np.abs(q - np.round(pts[i])) <= 4)
+    # a piece's end (where it butts against a ball) reads half the line's peak on its centre-line
+    ellipses = np.concatenate([p for f, (kind, p) in curves.items() if kind == "ellipse"])
+    e = next(e for e in ends if np.min(np.linalg.norm(ellipses - e, axis=1)) > 8 * sigma)
+    at_end = wire_profile(features, cam, R, t, (1024, 1024), sigma, e[None], 6)
+    u, v = np.round(e).astype(int)
+    cells = np.array([[u, v], [u + 1, v], [u, v + 1], [u + 1, v + 1]])
+    values = at_end[cells[:, 1], cells[:, 0]]
+    # bilinear from the four pixels about it: the profile is smooth on the scale of a pixel
+    fu, fv = e - np.floor(e)
+    uu, vv = np.floor(e).astype(int)
+    corner = at_end[vv : vv + 2, uu : uu + 2]
+    mid = (corner[0, 0] * (1 - fu) + corner[0, 1] * fu) * (1 - fv) + (corner[1, 0] * (1 - fu) + corner[1, 1] * fu) * fv
+    assert values.max() < 0.75
+    assert mid == pytest.approx(0.5, abs=0.06)
+    Z = features.point_centers() @ R[2] + t[2]
+    r = np.array([p.diameter for p in features.points]) / 2
+    assert pose_bead_radius_px(features, cam, Pose(R, t, True, 1.0, None, {}, 0)) == pytest.approx(
+        float(np.mean(cam.fx * r / Z))
+    )
+
+
+def test_contour_offset_covariance_is_the_pose_shift_of_moved_ellipses(rendered):
+    """:func:`.noise.contour_offset_covariance` is σ² Δθ Δθᵀ with Δθ the pose's shift per px of
+    an outward offset of the ellipse contours: its translation part equals a full re-solve of
+    the observation with the contours moved 0.05 px (finite difference) within 5 %, the moved
+    points lie 0.05 px outside the projected ellipses' own, and the term scales with σ²."""
+    from ftrac_design.pose import SolverOptions, refine_pose
+    from ftrac_design.segment.noise import contour_offset_covariance, ellipses_moved_out
+
+    features, rad = rendered
+    res = track_image(rad.raw, features, Camera())
+    assert res.pose.converged and res.observation.ellipses
+    obs, pose = res.observation, res.pose
+    C = contour_offset_covariance(features, obs, pose, res.noise, 1.0)
+    lam, vec = np.linalg.eigh(C)
+    assert lam[:-1].max() < 1e-9 * lam[-1]
+    d_cov = vec[:, -1] * np.sqrt(lam[-1])
+    np.testing.assert_allclose(contour_offset_covariance(features, obs, pose, res.noise, 0.02), 4e-4 * C, rtol=1e-9)
+    moved = ellipses_moved_out(features, obs, pose, 0.05)
+    for fid, c in obs.ellipses.items():
+        step = np.linalg.norm(moved.ellipses[fid].points - c.points, axis=1)
+        np.testing.assert_allclose(step, 0.05, rtol=1e-9)
+    opts = SolverOptions(noise=res.noise)
+    p0 = refine_pose(features, obs, pose.rotation, pose.translation_mm, opts)
+    p1 = refine_pose(features, moved, pose.rotation, pose.translation_mm, opts)
+    d_fd = (p1.translation_mm - p0.translation_mm) / 0.05
+    d_fd_sign = np.sign(d_fd @ d_cov[3:])
+    np.testing.assert_allclose(d_fd_sign * d_cov[3:], d_fd, rtol=0.05, atol=0.05 * np.abs(d_fd).max())
+    # moved outward, the ellipses grow: the fiducial comes nearer the source
+    assert d_fd[2] < 0

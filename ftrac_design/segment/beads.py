@@ -283,6 +283,7 @@ def fit_beads(
     exclude: np.ndarray | None = None,
     prior_scale: float = 1.0,
     censored: np.ndarray | None = None,
+    background: np.ndarray | None = None,
 ) -> Beads:
     """Fit the blurred-sphere model at every start (n, 2) px in ``img`` (background
     removed, dense = bright). ``radius_px`` and ``blur_px`` are the expected ball radius and
@@ -295,7 +296,10 @@ def fit_beads(
     side: a display window's black under a ball's core, no photons left): a model above such
     a pixel fits it, one below it is a misfit as usual (a censored likelihood), so a ball whose
     core was clipped flat is fitted to its flanks rather than flattened into a wider, weaker
-    ball."""
+    ball. ``background`` (H, W) float: the shape of a known structure under the balls at unit
+    amplitude (the wires a pose predicts, blurred: :func:`.body.wire_profile`), its amplitude
+    fitted per ball with the plane — a blurred wire beside a ball is a broad band that the
+    plane cannot take up and the robust weights do not reject, and it pulls the centre."""
     H, W = img.shape
     half = int(np.ceil(radius_px + 3 * max(blur_px, 0.5) + 1.5))
     n = len(starts)
@@ -305,8 +309,9 @@ def fit_beads(
         z = np.zeros(0)
         return Beads(np.zeros((0, 2)), z, z, z, z, z, z, z)
     y, X, Y, (cx, cy), (py, px) = _patches(img, starts, half)
-    # params: u, v (relative), r, s, A, b0, bx, by
-    p = np.zeros((n, 8))
+    tpl = None if background is None else np.asarray(background, float)[py, px]
+    # params: u, v (relative), r, s, A, b0, bx, by (, the background's amplitude)
+    p = np.zeros((n, 8 if tpl is None else 9))
     p[:, 0] = starts[:, 0] - cx
     p[:, 1] = starts[:, 1] - cy
     p[:, 2] = radius_px
@@ -321,13 +326,13 @@ def fit_beads(
         cen = np.asarray(censored, bool)[py, px]
         cen = cen if cen.any() else None
     if cen is not None:
-        _start_above_the_clip(p, y, X, Y, w0, cen)
+        _start_above_the_clip(p, y, X, Y, w0, cen, tpl)
     sn = np.maximum(np.broadcast_to(np.asarray(noise, float), (n,)), 1e-12)
     # prior weights in the fit's units (residuals in density, unit weights): noise² / σ_prior²
     # with σ_prior = 25 % of the expected radius and 0.5 px of blur
     prior_w = (prior_scale * sn**2 / max(0.25 * radius_px, 1e-6) ** 2, prior_scale * sn**2 / 0.5**2)
-    w, J, S = _iterate(p, y, X, Y, w0, sn, prior_w, radius_px, max(blur_px, 0.5), iterations, cen)
-    sd, rms = _spread(p, S, y, X, Y, w, J, sn, cen)
+    w, J, S = _iterate(p, y, X, Y, w0, sn, prior_w, radius_px, max(blur_px, 0.5), iterations, cen, tpl)
+    sd, rms = _spread(p, S, y, X, Y, w, J, sn, cen, tpl)
     uv = np.stack([p[:, 0] + cx, p[:, 1] + cy], -1)
     return Beads(
         uv,
@@ -343,9 +348,10 @@ def fit_beads(
     )
 
 
-def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iterations: int, cen):
-    """The fits' iterations from start values ``p`` (n, 8, updated in place): the last
-    weights (n, m) and Jacobian (n, m, 8), and the profile at the final ``p`` (n, m)."""
+def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iterations: int, cen, tpl=None):
+    """The fits' iterations from start values ``p`` (n, k, updated in place; k = 8, or 9 with
+    a background shape ``tpl`` (n, m)): the last weights (n, m) and Jacobian (n, m, k), and the
+    profile at the final ``p`` (n, m)."""
     # Levenberg–Marquardt, one damping per fit: under a 2 px blur the radius, blur and
     # amplitude trade along a shallow valley, and undamped Gauss–Newton steps crossed it back
     # and forth (a ball's centre still moved by 0.04 px at the 90th percentile, and the
@@ -354,7 +360,7 @@ def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iteration
     lam = np.full(len(p), 1e-3)
     prof = _profile(p, X, Y)
     for it in range(iterations):
-        dp, w, J, cost = _step(p, prof, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, s0, lam, cen)
+        dp, w, J, cost = _step(p, prof, y, X, Y, w0, w, 4.685 * sn[:, None], it, prior_w, radius_px, s0, lam, cen, tpl)
         # keep the shape parameters physical and the steps modest
         dp[:, :2] = np.clip(dp[:, :2], -1.0, 1.0)
         dp[:, 2] = np.clip(dp[:, 2], -0.25 * radius_px, 0.25 * radius_px)
@@ -363,14 +369,16 @@ def _iterate(p, y, X, Y, w0, sn, prior_w, radius_px: float, s0: float, iteration
         trial[:, 2] = np.clip(trial[:, 2], 0.3 * radius_px, 3.0 * radius_px)
         trial[:, 3] = np.clip(trial[:, 3], 0.2, 4.0)
         tprof = _profile(trial, X, Y)
-        better = _cost(trial, tprof[0], y, X, Y, w, prior_w, radius_px, s0, cen=cen) <= cost
+        better = _cost(trial, tprof[0], y, X, Y, w, prior_w, radius_px, s0, cen=cen, tpl=tpl) <= cost
         p[better] = trial[better]
         prof = tprof if better.all() else tuple(np.where(better[:, None], a, b) for a, b in zip(tprof, prof))
         lam = np.where(better, np.maximum(lam * 0.3, 1e-7), np.minimum(lam * 10.0, 1e7))
     return w, J, prof[0]
 
 
-def _start_above_the_clip(p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.ndarray, w0: np.ndarray, cen) -> None:
+def _start_above_the_clip(
+    p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.ndarray, w0: np.ndarray, cen, tpl=None
+) -> None:
     """Start values (in ``p``, in place) for the patches with censored pixels ``cen`` (n, m):
     the amplitude and plane that the pixels left uncensored give the ball of the start's
     centre, radius and blur, by linear least squares. The rise a clipped core shows is less
@@ -378,18 +386,18 @@ def _start_above_the_clip(p: np.ndarray, y: np.ndarray, X: np.ndarray, Y: np.nda
     ball after eight iterations (a local minimum the flanks alone do not leave)."""
     rows = np.flatnonzero(cen.any(1))
     S = sphere_profile_fast(np.hypot(X[rows] - p[rows, 0:1], Y[rows] - p[rows, 1:2]), p[rows, 2], p[rows, 3])
-    A = np.stack([S, np.ones_like(S), X[rows], Y[rows]], -1)
+    A = np.stack([S, np.ones_like(S), X[rows], Y[rows]] + ([] if tpl is None else [tpl[rows]]), -1)
     w = w0[rows] * ~cen[rows]
     Aw = A * w[..., None]
     with np.errstate(all="ignore"):
-        M = Aw.transpose(0, 2, 1) @ A + 1e-9 * np.eye(4)
+        M = Aw.transpose(0, 2, 1) @ A + 1e-9 * np.eye(A.shape[-1])
         b = (Aw.transpose(0, 2, 1) @ y[rows][..., None])[..., 0]
         try:
             x = np.linalg.solve(M, b[..., None])[..., 0]
         except np.linalg.LinAlgError:
             return
     ok = np.isfinite(x).all(1) & (x[:, 0] > p[rows, 4])
-    p[rows[ok], 4:8] = x[ok]
+    p[rows[ok], 4:] = x[ok]
 
 
 def _patches(img: np.ndarray, starts: np.ndarray, half: int):
@@ -417,31 +425,37 @@ def _profile(p, X, Y) -> tuple[np.ndarray, ...]:
     return sphere_profile_grad(X - p[:, 0:1], Y - p[:, 1:2], p[:, 2], p[:, 3])
 
 
-def _cost(p, S, y, X, Y, w, prior_w, radius_px: float, blur_px: float, res=None, cen=None) -> np.ndarray:
-    """Each fit's weighted squared residual at parameters ``p`` (n, 8), its profile ``S``
+def _cost(p, S, y, X, Y, w, prior_w, radius_px: float, blur_px: float, res=None, cen=None, tpl=None) -> np.ndarray:
+    """Each fit's weighted squared residual at parameters ``p`` (n, k), its profile ``S``
     (n, m) or its residuals ``res`` (n, m) when known (censored pixels ``cen`` already
-    counted), with the priors' terms."""
+    counted; ``tpl`` the background's shape, see :func:`_residuals`), with the priors' terms."""
     if res is None:
-        res = _residuals(p, S, y, X, Y, cen)[0]
+        res = _residuals(p, S, y, X, Y, cen, tpl)[0]
     return (w * res * res).sum(1) + prior_w[0] * (p[:, 2] - radius_px) ** 2 + prior_w[1] * (p[:, 3] - blur_px) ** 2
 
 
-def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float, lam, cen=None):
-    """One robust Levenberg–Marquardt step of :func:`fit_beads` from parameters ``p`` (n, 8)
+def _step(
+    p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: float, blur_px: float, lam, cen=None, tpl=None
+):
+    """One robust Levenberg–Marquardt step of :func:`fit_beads` from parameters ``p`` (n, k)
     with the profile there ``prof`` (:func:`_profile`), damped by ``lam`` (n,): the step
-    (n, 8), the weights it used, the Jacobian (n, m, 8) and the cost at ``p`` under those
-    weights (:func:`_cost`). ``cen`` (n, m) bool: the censored pixels (None: none)."""
+    (n, k), the weights it used, the Jacobian (n, m, k) and the cost at ``p`` under those
+    weights (:func:`_cost`). ``cen`` (n, m) bool: the censored pixels (None: none); ``tpl``
+    (n, m): the background's shape, whose amplitude is the ninth parameter (None: k = 8)."""
     S, Su, Sv, Sr, Ss = prof
-    res, free = _residuals(p, S, y, X, Y, cen)
+    res, free = _residuals(p, S, y, X, Y, cen, tpl)
     if free is not None and it < 2:
         w = w0 * free
-    J = np.empty(y.shape + (8,))
+    nk = p.shape[1]
+    J = np.empty(y.shape + (nk,))
     for k, d in enumerate((Su, Sv, Sr, Ss)):
         J[..., k] = p[:, 4:5] * d
     J[..., 4] = S
     J[..., 5] = 1.0
     J[..., 6] = X
     J[..., 7] = Y
+    if tpl is not None:
+        J[..., 8] = tpl
     if it >= 2:
         # Tukey biweight on the residuals: a wire touching the ball is an outlier
         # one scale pooled over the candidates fitted together: a ball's own handful of
@@ -452,7 +466,7 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
         w = (1 - u * u) ** 2 * w0 * (1.0 if free is None else free)
     # batched matrix products (BLAS): einsum's loop over these small sums was 20–30 × slower
     Jw_t = (J * w[..., None]).transpose(0, 2, 1)
-    A = Jw_t @ J + 1e-9 * np.eye(8)
+    A = Jw_t @ J + 1e-9 * np.eye(nk)
     g = (Jw_t @ res[..., None])[..., 0]
     # weak priors on the radius and the blur: for a ball of a few pixels the blurred
     # profile is nearly Gaussian and r, σ and A trade off against each other (the
@@ -463,7 +477,7 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
     g[:, 3] += prior_w[1] * (blur_px - p[:, 3])
     cost = _cost(p, S, y, X, Y, w, prior_w, radius_px, blur_px, res)
     d = np.diagonal(A, axis1=1, axis2=2)
-    A = A + lam[:, None, None] * (d[:, :, None] * np.eye(8))
+    A = A + lam[:, None, None] * (d[:, :, None] * np.eye(nk))
     try:
         dp = np.linalg.solve(A, g[..., None])[..., 0]
     except np.linalg.LinAlgError:
@@ -471,11 +485,14 @@ def _step(p, prof, y, X, Y, w0, w, cost_scale, it: int, prior_w, radius_px: floa
     return dp, w, J, cost
 
 
-def _residuals(p, S, y, X, Y, cen) -> tuple[np.ndarray, np.ndarray | None]:
+def _residuals(p, S, y, X, Y, cen, tpl=None) -> tuple[np.ndarray, np.ndarray | None]:
     """The data ``y`` less the model (n, m) at parameters ``p`` with profile ``S`` — amplitude ×
-    profile plus the planar background — 0 at a censored pixel the model lies above; and where
-    the residuals count (:func:`_uncensored`; None: no censored pixels)."""
+    profile plus the planar background (plus ``p[:, 8]`` × the known background's shape ``tpl``
+    (n, m), when given) — 0 at a censored pixel the model lies above; and where the residuals
+    count (:func:`_uncensored`; None: no censored pixels)."""
     res = y - (p[:, 4:5] * S + p[:, 5:6] + p[:, 6:7] * X + p[:, 7:8] * Y)
+    if tpl is not None:
+        res -= p[:, 8:9] * tpl
     free = _uncensored(res, cen)
     return (res if free is None else res * free), free
 
@@ -486,16 +503,17 @@ def _uncensored(res: np.ndarray, cen: np.ndarray | None) -> np.ndarray | None:
     return None if cen is None else (~(cen & (res < 0))).astype(float)
 
 
-def _spread(p, S, y, X, Y, w, J, sn, cen=None) -> tuple[np.ndarray, np.ndarray]:
+def _spread(p, S, y, X, Y, w, J, sn, cen=None, tpl=None) -> tuple[np.ndarray, np.ndarray]:
     """Each fit's centre standard deviation (px) and its weighted RMS residual in noise units
     at parameters ``p``, whose profile is ``S`` (a censored pixel the model lies above counts
     for neither)."""
-    res, free = _residuals(p, S, y, X, Y, cen)
+    res, free = _residuals(p, S, y, X, Y, cen, tpl)
     if free is not None:
         w = w * free
+    k = p.shape[1]
     wsum = np.maximum(w.sum(1), 1.0)
-    rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - 8, 1)) / sn
+    rms = np.sqrt((w * res * res).sum(1) / np.maximum(wsum - k, 1)) / sn
     sig2 = sn**2 * np.maximum(rms, 1.0) ** 2
     with np.errstate(all="ignore"):
-        cov = np.linalg.pinv((J * w[..., None]).transpose(0, 2, 1) @ J + 1e-12 * np.eye(8)) * sig2[:, None, None]
+        cov = np.linalg.pinv((J * w[..., None]).transpose(0, 2, 1) @ J + 1e-12 * np.eye(k)) * sig2[:, None, None]
     return np.sqrt(np.abs(0.5 * (cov[:, 0, 0] + cov[:, 1, 1]))), rms

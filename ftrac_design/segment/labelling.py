@@ -24,6 +24,7 @@ from .guided import guided_contours
 from .noise import (
     calibrated_covariance,
     clean_contours,
+    contour_offset_covariance,
     distortion_covariance,
     feature_p_values,
     measured_noise,
@@ -323,6 +324,10 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, opts: LabellingOptions, f
         raise NoLabelling(why)
     lab = _drop_inconsistent(scene, lab, opts)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise)
+    if lab.pose.covariance is not None and scene.features.body is not None and opts.noise.contour_offset_px > 0:
+        extra = contour_offset_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise.contour_offset_px)
+        if extra is not None:
+            lab.pose.covariance = lab.pose.covariance + extra
     if lab.pose.covariance is not None and opts.noise.distortion_prior_mm > 0:
         extra = distortion_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise.distortion_prior_mm)
         if extra is not None:

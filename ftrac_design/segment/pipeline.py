@@ -25,7 +25,7 @@ from ..pose import Camera, Diagnostics, so3
 from ..threads import beside, one_blas_thread
 from . import acceptance, evidence, identify, learned
 from .beads import Beads
-from .body import merge_ridges, refit_beads_off_wires, ridges_without_body
+from .body import merge_ridges, refit_beads_at_pose, ridges_without_body
 from .conditioning import FORMATIONS, Cleaned, cleaned, condition, formation_of
 from .detection import Scene, balls_at, detect, fitted_blur, scales
 from .image import NoiseField, detect_polarity
@@ -293,7 +293,7 @@ def _with_body_subtracted(
         return None
     merged = merge_ridges(scene.ridges, inner.ridges)
     h2 = identify.BeadHypothesis(p0.rotation, p0.translation_mm, {}, 0, 0.0)
-    beads2 = refit_beads_off_wires(scene, inner.T, scene.beads, p0)
+    beads2 = refit_beads_at_pose(scene, inner.T, scene.beads, p0)
     try:
         lab = evaluate(inner.with_detections(inner.T, beads2, merged), h2, labelling, first_stage=2)
     except NoLabelling:

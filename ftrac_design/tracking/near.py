@@ -217,9 +217,8 @@ def _balls(
     b, ok = ball_fits(T, starts, val, sc.bead_radius_px, nmap, sc.blur_px, exclude=mask, censored=censored)
     weak = ~ok | ~(b.sigma_px <= 0.5)
     if mask is not None and weak.any():
-        # the full path's rule for a ball refitted off the wires: the masked fit is kept
-        # unless the mask left too little of the ball (its centre far less certain than
-        # the plain fit's, or more than a pixel from it)
+        # the masked fit is kept unless the mask left too little of the ball (its centre far
+        # less certain than the plain fit's, or more than a pixel from it)
         plain, ok2 = ball_fits(T, starts[weak], val[weak], sc.bead_radius_px, nmap, sc.blur_px, censored=censored)
         mw = b.take(weak)
         with np.errstate(invalid="ignore"):
@@ -260,8 +259,10 @@ def scene_near(
 
     The body's modelled projection at (R, t) is subtracted first (``features.body``; :mod:`.body`),
     then each ball is fitted once, starting at the strongest blob within ``search_px`` of
-    its projection, with the predicted wires' pixels left out (as the full path refits its
-    balls; a ball the mask leaves too little of is fitted without it). No whole-crop ridge
+    its projection, with the predicted wires' pixels left out (a ball the mask leaves too
+    little of is fitted without it): the pose is predicted, not solved, and a wire modelled
+    where it is predicted would pull the ball as far as the prediction is off (the full path
+    models them at a solved pose: :func:`.body.refit_beads_at_pose`). No whole-crop ridge
     search is made (``ridges`` is empty): the contours are measured along the predicted
     curves (:mod:`.guided`).
 
