@@ -341,30 +341,41 @@ def contour_offset_covariance(
 ) -> np.ndarray | None:
     """The pose covariance (6 × 6, SPEC §4 order) that an offset of ``sigma_px`` (σ, px) shared by
     the ellipse contours along their normals adds: σ² Δθ Δθᵀ, Δθ how far moving them all 1 px
-    outward moves the least-squares pose (one Gauss–Newton step of the moved observation less
-    that of ``obs``, as :func:`distortion_covariance` reads a distortion). An ellipse's size
+    outward moves the least-squares pose (:func:`pose_shifts`, as :func:`distortion_covariance`
+    reads a distortion). An ellipse's size
     is the pose's depth: a contour 0.01 px inside moves ftrac_2005 ~0.1 mm away, and with its
     balls fitted to 0.02 px on a clean frame the covariance said ±0.05 mm. None without
     ellipse contours or where the pose's Jacobian is unusable."""
     if sigma_px <= 0 or not obs.ellipses:
         return None
+    shifts = pose_shifts(features, obs, [ellipses_moved_out(features, obs, pose, 1.0)], noise, pose)
+    return None if shifts is None else sigma_px**2 * np.outer(shifts[0], shifts[0])
+
+
+def pose_shifts(
+    features: Features, obs: Observation, moved: list[Observation], noise: NoiseModel, pose: Pose
+) -> np.ndarray | None:
+    """How far each observation of ``moved`` (``obs`` with its features displaced) moves the
+    least-squares pose (k, 6), SPEC §4 order: one Gauss–Newton step from ``pose`` of each, its
+    whitened Jacobian J and residuals ρ evaluated on it, −(JᵀJ)⁻¹ Jᵀ ρ, less the same step of
+    ``obs`` (≈ 0 at a converged pose); all compiled and evaluated as one batch (one batched
+    contour fit). None where a Jacobian is unusable."""
+    n = 1 + len(moved)
     R, t = pose.rotation, pose.translation_mm
-    moved = ellipses_moved_out(features, obs, pose, 1.0)
     ev = evaluate(
-        compile_problem(features, [obs, moved], noise, same_structure=True),
-        np.repeat(R[None], 2, 0),
-        np.repeat(t[None], 2, 0),
+        compile_problem(features, [obs, *moved], noise, same_structure=True),
+        np.repeat(R[None], n, 0),
+        np.repeat(t[None], n, 0),
         jac=True,
     )
     J, rho = ev.J, ev.rho
-    if J is None or J.shape[0] != 2 or not (np.all(np.isfinite(J)) and np.all(np.isfinite(rho))):
+    if J is None or J.shape[0] != n or not (np.all(np.isfinite(J)) and np.all(np.isfinite(rho))):
         return None
     try:
         steps = -np.linalg.solve(np.einsum("bri,brj->bij", J, J), np.einsum("bri,br->bi", J, rho)[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return None
-    dth = steps[1] - steps[0]
-    return sigma_px**2 * np.outer(dth, dth)
+    return steps[1:] - steps[0]
 
 
 def distortion_covariance(
@@ -378,35 +389,20 @@ def distortion_covariance(
     magnifies the fiducial's image: 3–5 mm at 667 mm for 2 mm at 100 mm), which no residual
     shows; this term makes the covariance say so. None where the pose's Jacobian is unusable.
 
-    Δθ is one Gauss–Newton step from ``pose`` of the displaced observation, its whitened
-    Jacobian J and residuals ρ evaluated on it, −(JᵀJ)⁻¹ Jᵀ ρ, less the same step of ``obs``
-    itself (≈ 0 at a converged pose). The Jacobian must be the displaced observation's: a
+    Δθ is :func:`pose_shifts` of the displaced observation. The Jacobian must be the displaced
+    observation's: a
     contour seen as a short arc has a fitted conic, and so a whitening, that the displacement
     changes. With the undisplaced observation's Jacobian, one ellipse's arc (ftrac_2005,
     held-out seed 2050, image 169) gave 0.23 mm in depth per mm of pincushion where the solver
     moved 3.4 mm (and the image's pincushion of 1.3 mm, 5.0 mm: a confident wrong pose)."""
     if sigma_mm <= 0 or not (obs.points or obs.lines or obs.ellipses):
         return None
-    R, t = pose.rotation, pose.translation_mm
-    # the undisplaced observation and the four displaced ones compiled and evaluated as one
-    # batch (one batched contour fit)
-    ev = evaluate(
-        compile_problem(features, [obs, *_displaced_by_modes(obs, radius_mm)], noise, same_structure=True),
-        np.repeat(R[None], 5, 0),
-        np.repeat(t[None], 5, 0),
-        jac=True,
-    )
-    J, rho = ev.J, ev.rho
-    if J is None or J.shape[0] != 5 or not (np.all(np.isfinite(J)) and np.all(np.isfinite(rho))):
-        return None
-    try:
-        steps = -np.linalg.solve(np.einsum("bri,brj->bij", J, J), np.einsum("bri,br->bi", J, rho)[..., None])[..., 0]
-    except np.linalg.LinAlgError:
+    shifts = pose_shifts(features, obs, _displaced_by_modes(obs, radius_mm), noise, pose)
+    if shifts is None:
         return None
     out = np.zeros((6, 6))
     # the centre's modes at 0.4 σ: a pincushion of 2 mm at 100 mm whose centre is 1 cm off the
     # principal point differs from the centred one by 0.6 mm there (3 k r² δ)
-    for k, weight in enumerate((1.0, 1.0, 0.4, 0.4)):
-        dth = steps[k + 1] - steps[0]
+    for dth, weight in zip(shifts, (1.0, 1.0, 0.4, 0.4)):
         out += (weight * sigma_mm) ** 2 * np.outer(dth, dth)
     return out
