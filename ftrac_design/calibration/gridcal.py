@@ -43,7 +43,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..images.distortion import DistortionModel, design_matrix, identity_coefficients, monomial_exponents, n_terms
-from ..segment.beads import blob_candidates, fit_beads
+from ..segment.beads import blob_candidates, fit_beads, fit_patch_half_px
 from ..segment.image import derivatives, detect_polarity, noise_sigma, to_density, top_hat
 
 Polarity = Literal["auto", "dense-dark", "dense-bright"]
@@ -171,7 +171,7 @@ def find_grid_beads(
     r = float(bead_radius_px)
     disc = max(int(math.ceil(r + 3 * _BLUR_PX + 2)), 3)
     th = top_hat(g, disc) if disc < wide else th_wide
-    half = int(np.ceil(r + 3 * _BLUR_PX + 1.5))
+    half = fit_patch_half_px(r, _BLUR_PX)
     inside = np.ones((H, W), bool)
     if field is not None:
         dist = cv2.distanceTransform(field.astype(np.uint8), cv2.DIST_L2, 5)

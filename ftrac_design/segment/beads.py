@@ -14,7 +14,9 @@ profile's own slopes, iteratively reweighted with Tukey's biweight so that a wir
 against the ball, or one passing under it, is treated as an outlier instead of pulling the
 centre (a thresholded centroid, or an unweighted fit, moves toward the wire). All candidates
 are fitted together (vectorised). Pixels clipped on the dense side are censored: the ball
-there is at least as dense as they show.
+there is at least as dense as they show. Where a pose says what lies under the balls — a
+wire blurred into a band as wide as the ball, which the weights cannot reject — that shape
+is fitted with them, its amplitude one more parameter (``background``).
 """
 
 from __future__ import annotations
@@ -272,6 +274,12 @@ def blob_candidates(
     return np.stack([i[order], j[order]], -1).astype(float), val[order]
 
 
+def fit_patch_half_px(radius_px: float, blur_px: float) -> int:
+    """Half the side (px) of the disc of pixels :func:`fit_beads` fits a ball of radius
+    ``radius_px`` blurred by ``blur_px`` (σ, at least 0.5) on: the ball and three σ of its blur."""
+    return int(np.ceil(radius_px + 3 * max(blur_px, 0.5) + 1.5))
+
+
 def fit_beads(
     img: np.ndarray,
     starts: np.ndarray,
@@ -301,7 +309,7 @@ def fit_beads(
     fitted per ball with the plane — a blurred wire beside a ball is a broad band that the
     plane cannot take up and the robust weights do not reject, and it pulls the centre."""
     H, W = img.shape
-    half = int(np.ceil(radius_px + 3 * max(blur_px, 0.5) + 1.5))
+    half = fit_patch_half_px(radius_px, blur_px)
     n = len(starts)
     # an image narrower than one ball's patch holds no ball that can be fitted (and the
     # patch could not be placed inside it)

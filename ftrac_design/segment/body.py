@@ -20,7 +20,7 @@ import numpy as np
 from ..features.model import Features
 from ..pose import Camera, Pose
 from . import identify
-from .beads import Beads, fit_beads
+from .beads import Beads, fit_beads, fit_patch_half_px
 from .detection import Scene
 from .image import derivatives, top_hat
 from .ridges import RidgePoints, ridge_points
@@ -207,7 +207,7 @@ def refit_beads_at_pose(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose) -
     radius = pose_bead_radius_px(scene.features, scene.camera, pose)
     if not (math.isfinite(radius) and radius > 0):
         radius = sc.bead_radius_px
-    half = int(np.ceil(radius + 3 * max(blur, 0.5) + 1.5))
+    half = fit_patch_half_px(radius, blur)
     profile = wire_profile(
         scene.features,
         scene.camera,
