@@ -113,6 +113,59 @@ def test_the_data_set_is_the_same_with_any_number_of_workers():
     assert not np.array_equal(a.x, c.x)
 
 
+class _Draws:
+    """An ``rng`` stand-in whose ``random()`` gives the values it was made with, in turn."""
+
+    def __init__(self, *values):
+        self.values = list(values)
+
+    def random(self):
+        return self.values.pop(0)
+
+
+@pytest.mark.parametrize("flip_u, flip_v, swap", [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 1, 1)])
+def test_an_augmented_batch_has_the_targets_of_the_flipped_geometry(flip_u, flip_v, swap):
+    """Flipping or transposing a crop in training moves its targets as the geometry says: the
+    augmented maps equal the maps made from the flipped balls and wire (the offsets and the
+    wire's (cos 2θ, sin 2θ) change sign where they must), and the input changes polarity."""
+    from ftrac_design.training.run import _augment
+
+    H = W = 64
+    rng = np.random.default_rng(4)
+    uv = rng.uniform(8, 56, (4, 2))
+    t = np.linspace(0, 1, 300)[:, None]
+    line = np.array([9.0, 14.0]) + t * np.array([40.0, 23.0])
+    valid = np.ones((H, W), bool)
+
+    def maps(uv, line):
+        y, wt = target_maps(uv, [line], valid, 1, (H // STRIDE, W // STRIDE))
+        return torch.from_numpy(y[None].astype(np.float32)), torch.from_numpy(wt[None, [1, 4]].astype(np.float32))
+
+    def moved(p):
+        p = p.copy()
+        if flip_u:
+            p[:, 0] = W - 1 - p[:, 0]
+        if flip_v:
+            p[:, 1] = H - 1 - p[:, 1]
+        return p[:, ::-1].copy() if swap else p
+
+    y, wt = maps(uv, line)
+    x = torch.from_numpy(rng.normal(size=(1, 2, H, W)).astype(np.float32))
+    draws = _Draws(*(0.0 if on else 0.9 for on in (flip_u, flip_v, swap, True)))
+    xa, ya, oma, dma = _augment(x, y.clone(), wt[:, 0], wt[:, 1], draws)
+    y_true, wt_true = maps(moved(uv), moved(line))
+    on = wt_true[:, 1] > 0
+    np.testing.assert_allclose(ya[:, [0, 3]].numpy(), y_true[:, [0, 3]].numpy(), atol=1e-5)
+    balls = wt_true[:, :1] > 0  # where offsets are learned
+    np.testing.assert_allclose((ya[:, 1:3] * balls).numpy(), (y_true[:, 1:3] * balls).numpy(), atol=1e-5)
+    np.testing.assert_allclose((ya[:, 4:6] * on[:, None]).numpy(), (y_true[:, 4:6] * on[:, None]).numpy(), atol=1e-5)
+    assert torch.equal(oma, wt_true[:, 0]) and torch.equal(dma, wt_true[:, 1])
+    after = x.flip(-1) if flip_u else x
+    after = after.flip(-2) if flip_v else after
+    after = after.transpose(-1, -2) if swap else after
+    assert torch.equal(xa, -after)
+
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory):
     """A network trained for 40 steps on a handful of scenes, exported and carded."""

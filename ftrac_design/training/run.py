@@ -69,27 +69,26 @@ class TrainConfig:
 
 
 def _augment(x, y, om, dm, rng: np.random.Generator):
-    """A random flip, transpose and polarity per batch (the maps follow: offsets and the wire's
-    (cos 2θ, sin 2θ) change sign as the geometry says)."""
+    """A random flip, transpose and polarity per batch of tensors (the maps follow: offsets and the
+    wire's (cos 2θ, sin 2θ) change sign as the geometry says). The draws come from ``rng`` so that a
+    run is the same wherever the tensors live."""
     if rng.random() < 0.5:  # u → −u
-        x, y, om, dm = x[..., ::-1], y[..., ::-1], om[..., ::-1], dm[..., ::-1]
-        y = y.copy()
+        x, y, om, dm = x.flip(-1), y.flip(-1), om.flip(-1), dm.flip(-1)
         y[:, 1] = -y[:, 1]
         y[:, 5] = -y[:, 5]
         # a flipped cell grid is centred on the other half-pixel: (2c + ½) ↦ (2(w−1−c) + ½) mirrors
         # working px k to 2w − 1 − k, so the offset keeps its size
     if rng.random() < 0.5:  # v → −v
-        x, y, om, dm = x[..., ::-1, :], y[..., ::-1, :], om[..., ::-1, :], dm[..., ::-1, :]
-        y = y.copy()
+        x, y, om, dm = x.flip(-2), y.flip(-2), om.flip(-2), dm.flip(-2)
         y[:, 2] = -y[:, 2]
         y[:, 5] = -y[:, 5]
     if rng.random() < 0.5:  # u ↔ v
-        x, y, om, dm = x.swapaxes(-1, -2), y.swapaxes(-1, -2), om.swapaxes(-1, -2), dm.swapaxes(-1, -2)
-        y = y[:, [0, 2, 1, 3, 4, 5]].copy()
+        x, y, om, dm = (a.transpose(-1, -2) for a in (x, y, om, dm))
+        y = y[:, [0, 2, 1, 3, 4, 5]]
         y[:, 4] = -y[:, 4]
     if rng.random() < 0.5:  # dense-dark ↔ dense-bright
         x = -x
-    return (np.ascontiguousarray(a) for a in (x, y, om, dm))
+    return x, y, om, dm
 
 
 def _losses(torch, out, y, om, dm):
@@ -112,11 +111,14 @@ def train_steps(net, data: DataSet, config: TrainConfig, progress=None) -> list[
     )
     dev = torch.device(config.device)
     net.to(dev).train()
+    # the whole set moves to the device once (half precision, a few GB at most): a batch is then
+    # gathered, converted and flipped there, where the host's copying would bound a GPU's step
+    held = [torch.from_numpy(a).to(dev) for a in (data.x, data.y, data.offset_mask, data.direction_mask)]
     history = []
     for _ in range(config.steps):
         idx = np.sort(rng.choice(len(data), size=min(config.batch, len(data)), replace=False))
-        x, y, om, dm = _augment(data.x[idx], data.y[idx], data.offset_mask[idx], data.direction_mask[idx], rng)
-        t = [torch.from_numpy(a.astype(np.float32)).to(dev) for a in (x, y, om, dm)]
+        pick = torch.from_numpy(idx).to(dev)
+        t = [a.contiguous() for a in _augment(*(a.index_select(0, pick).float() for a in held), rng)]
         parts = _losses(torch, net(t[0]), *t[1:])
         loss = parts[0] + parts[1] + parts[2] + 0.5 * parts[3]
         opt.zero_grad(set_to_none=True)
