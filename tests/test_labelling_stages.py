@@ -17,12 +17,11 @@ from scipy.spatial.transform import Rotation
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
-from ftrac_design.pose import Camera, NoiseModel, Pose
+from ftrac_design.pose import Camera, NoiseModel
 from ftrac_design.pose.simulate import Workspace, simulate_observation
-from ftrac_design.segment import TrackOptions, identify, labelling, pipeline
+from ftrac_design.segment import TrackOptions, identify, labelling
 from ftrac_design.segment.beads import Beads
 from ftrac_design.segment.detection import Scales
-from ftrac_design.segment.labelling import Labelling
 
 
 def _view(seed: int = 3):
@@ -95,25 +94,3 @@ def test_the_misled_stage_did_fail_without_the_balls_pose(stages, monkeypatch):
     lab = labelling._staged_solve(_scene(features, cam, obs), h, 0, TrackOptions().labelling)
     assert np.linalg.norm(asked[-1][2] - t) > 2.0
     assert not lab.obs.ellipses
-
-
-def _lab(converged: bool, balls: int, curves: tuple[str, ...], score: float) -> Labelling:
-    pose = Pose(np.eye(3), np.array([0.0, 0.0, 600.0]), converged, 1.0, None, {}, 3)
-    obs = SimpleNamespace(points={f"B{i}": None for i in range(balls)}, lines={}, ellipses={c: None for c in curves})
-    return Labelling(pose, obs, NoiseModel(), {}, None, {}, score=score)
-
-
-@pytest.mark.parametrize(
-    ("before", "after", "kept"),
-    [
-        ((True, 7, ("E2",), 291.9), (True, 7, ("E2",), 325.6), False),  # the same features, a worse fit
-        ((True, 7, ("E2",), 291.9), (True, 7, ("E2",), 280.0), True),  # the same features, a better fit
-        ((True, 7, ("E2",), 291.9), (True, 9, ("E2",), 330.0), True),  # two balls more
-        ((True, 7, (), 291.9), (True, 7, ("E2",), 330.0), True),  # a wire contour more
-        ((True, 5, ("E1", "E2"), 1018.7), (True, 5, ("E1",), 1047.0), True),  # a spoiled contour rejected
-        ((True, 8, ("E1",), 1706.2), (True, 8, ("E2",), 1725.6), True),  # another contour, as many
-        ((False, 7, ("E2",), 291.9), (True, 7, ("E2",), 325.6), True),  # the first had failed
-    ],
-)
-def test_the_subtraction_replaces_the_best_labelling_unless_it_changed_no_feature_and_fits_worse(before, after, kept):
-    assert pipeline._subtraction_helped(_lab(*before), _lab(*after)) is kept

@@ -268,3 +268,25 @@ def test_contour_offset_covariance_is_the_pose_shift_of_moved_ellipses(rendered)
     np.testing.assert_allclose(d_fd_sign * d_cov[3:], d_fd, rtol=0.05, atol=0.05 * np.abs(d_fd).max())
     # moved outward, the ellipses grow: the fiducial comes nearer the source
     assert d_fd[2] < 0
+
+
+def test_the_labelling_found_with_the_body_subtracted_is_kept_even_where_it_fits_worse(rendered, monkeypatch):
+    """At the best labelling's pose the body's projection is subtracted and the balls fitted
+    again with the predicted wires modelled under them; that labelling replaces the first
+    whenever it converged — also where it explains the same features at a worse misfit, since
+    its balls are the truer evidence."""
+    from ftrac_design.segment import pipeline
+
+    features, rad = rendered
+    real = pipeline._with_body_subtracted
+    asked = []
+
+    def fitting_worse(g, scene, best, *args):
+        lab, sc = real(g, scene, best, *args)
+        asked.append((len(best.obs.points), len(lab.obs.points)))
+        return replace(lab, score=best.score + 100.0), sc
+
+    monkeypatch.setattr(pipeline, "_with_body_subtracted", fitting_worse)
+    res = track_image(rad.raw, features, Camera())
+    assert asked and asked[0][0] == asked[0][1] == 9
+    assert res.pose.converged and res.diagnostics.body_subtracted
