@@ -197,3 +197,30 @@ def test_inside_covariance_follows_the_rotation_convention():
     assert pipeline.acceptance.inside_covariance(base, other) == pytest.approx(1.0, rel=1e-6)
     base.covariance = None
     assert pipeline.acceptance.inside_covariance(base, other) == np.inf
+
+
+def test_an_image_is_given_the_refusal_of_the_region_that_got_furthest():
+    """Of the regions searched without a pose, the image's refusal is the one that got
+    furthest: an ambiguity (two answers) over a labelling refined to a pose, over more balls
+    used, over blobs alone — not the first region's, which may have had nothing to read."""
+    from ftrac_design.segment.options import failed_result
+
+    blank = failed_result("no fiducial found: 0 bead-like blobs", diagnostics=Diagnostics(blobs=0))
+    blobs = failed_result("no fiducial found: 12 blobs, none matching", diagnostics=Diagnostics(blobs=12))
+    posed = failed_result(
+        "identification not confirmed", diagnostics=Diagnostics(blobs=9, labellings_tested=3, beads_matched=5)
+    )
+    more = failed_result("too little evidence", diagnostics=Diagnostics(blobs=7, labellings_tested=1, beads_matched=7))
+    tie = failed_result(
+        "ambiguous identification",
+        diagnostics=Diagnostics(blobs=5, labellings_tested=2, beads_matched=5, alternatives=[{}, {}]),
+    )
+    ranked = sorted([tie, blank, more, posed, blobs], key=pipeline._progress)
+    assert [r.pose.error.split(":")[0] for r in ranked] == [
+        "no fiducial found",
+        "no fiducial found",
+        "identification not confirmed",
+        "too little evidence",
+        "ambiguous identification",
+    ]
+    assert ranked[0] is blank

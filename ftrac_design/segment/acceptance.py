@@ -509,11 +509,11 @@ def _strongest_near(snr: np.ndarray, uv: np.ndarray, radius_px: float) -> tuple[
 
 
 def unseen_balls(ball_probability: np.ndarray) -> str | None:
-    """Refused when the learned detector reads none of the balls a pose from the classical
-    detectors uses as a ball: ``ball_probability`` (one per used ball, from the network run on
-    the same image first) all below :data:`.detection.LEARNED_BALL`. Asked of a bead-only
-    design's poses (the caller's choice): a wire design's are confirmed by its wires, and the
-    classical detectors stand in for a network that sees no ball at all.
+    """Refused when the learned detector reads none of the balls a pose uses as a ball:
+    ``ball_probability`` (one per used ball, from the network run on the same image) all below
+    :data:`.detection.LEARNED_BALL`. Asked of a bead-only design's poses from either
+    detector's pass (the caller's choice): a wire design's are confirmed by its wires, and
+    the classical detectors stand in for a network that sees no ball at all.
 
     The classical second look adds the images the network misses, where it sees some of the
     balls all the same: of the 35 right poses it gave on held-out seed 2087 (three presets,
@@ -525,8 +525,8 @@ def unseen_balls(ball_probability: np.ndarray) -> str | None:
     if not len(p) or bool(np.any(p >= LEARNED_BALL)):
         return None
     return (
-        f"identification not confirmed: the learned detector reads none of the {len(p)} balls the classical "
-        f"detectors' pose uses as a ball (at most {float(p.max()):.2f}, a ball reads ≥ {LEARNED_BALL:g})"
+        f"identification not confirmed: the learned detector reads none of the {len(p)} balls the pose uses "
+        f"as a ball (at most {float(p.max()):.2f}, a ball reads ≥ {LEARNED_BALL:g})"
     )
 
 
