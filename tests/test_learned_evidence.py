@@ -303,3 +303,21 @@ def test_a_side_view_whose_balls_overlap_in_pairs_is_tracked():
     assert sorted(res.observation.points) == ["B3", "B8", "B9"]
     dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R[0], t[0])
     assert np.degrees(np.linalg.norm(dr)) < 0.1 and np.linalg.norm(dt) < 0.5
+
+
+@pytest.mark.parametrize(("depth_sigma_mm", "refused"), [(74.0, True), (30.0, False), (1.0, False)])
+def test_a_pose_that_places_the_fiducial_no_better_than_its_size_is_refused(depth_sigma_mm, refused):
+    """nine_bead's balls span 37.8 mm: a pose whose depth σ is 74 mm (Poisson noise tracked as
+    nine_bead, no-fiducial seed 2110) says nothing of where the fiducial is; 30 mm and 1 mm
+    pass this test (others judge them)."""
+    features = compute_features(load_design("nine_bead"))
+    c, s = np.cos(0.3), np.sin(0.3)
+    Q = np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])  # the worst direction off the axes
+    C = np.zeros((6, 6))
+    C[:3, :3] = 1e-6 * np.eye(3)
+    C[3:, 3:] = Q @ np.diag([1.0, 1.0, depth_sigma_mm**2]) @ Q.T
+    lab = SimpleNamespace(pose=SimpleNamespace(covariance=C))
+    why = acceptance.undetermined(SimpleNamespace(features=features), lab)
+    assert (why is not None) == refused
+    if refused:
+        assert "±74 mm" in why and "38 mm" in why

@@ -550,3 +550,24 @@ def uncontrolled(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str |
         f"too little evidence: {fid} is checked by no other feature (redundancy {red[fid]:.3f} < "
         f"{opts.min_feature_redundancy:g}): an error in it would move the pose and show in no residual"
     )
+
+
+def undetermined(scene: Scene, lab: Labelling) -> str | None:
+    """Refused when the pose's own covariance places the fiducial no better than its size:
+    the translation's standard deviation along its worst direction (mm) above the span of
+    the design's balls. Such a pose says where the fiducial is not, not where it is, and no
+    feature of it can have been checked against the rest: frames with no fiducial at all gave
+    a bead-only design poses of that kind — Poisson noise tracked as nine_bead (seven blobs of
+    SNR 1.5–5, depth σ 74 mm against a 38 mm span; ``no_fiducial.py --seed 2110``, noise 17)."""
+    C = lab.pose.covariance
+    pts = scene.features.point_centers() if scene.features.points else np.zeros((0, 3))
+    if C is None or len(pts) < 2 or not np.all(np.isfinite(C[3:, 3:])):
+        return None
+    span = float(np.linalg.norm(pts[:, None] - pts[None], axis=-1).max())
+    sigma = math.sqrt(max(float(np.linalg.eigvalsh(C[3:, 3:]).max()), 0.0))
+    if sigma <= span:
+        return None
+    return (
+        f"too little evidence: the pose places the fiducial only to ±{sigma:.0f} mm (1 σ), more than "
+        f"the {span:.0f} mm its balls span"
+    )

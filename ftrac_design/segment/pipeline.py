@@ -377,6 +377,8 @@ def accept_best(
         pose = acceptance.refuse(pose, acceptance.displaced_balls(scene, best, opts))
     if pose.converged:
         pose = acceptance.refuse(pose, acceptance.uncontrolled(scene, best, opts))
+    if pose.converged:
+        pose = acceptance.refuse(pose, acceptance.undetermined(scene, best))
     return best if pose is best.pose else replace(best, pose=pose)
 
 
