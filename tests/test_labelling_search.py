@@ -142,6 +142,7 @@ def _pass_other_tests(monkeypatch):
     monkeypatch.setattr(pipeline.acceptance, "stray_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "displaced_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "uncontrolled", lambda scene, lab, opts: None)
+    monkeypatch.setattr(pipeline.acceptance, "undetermined", lambda scene, lab: None)
 
 
 def test_a_rival_that_tied_before_the_body_was_subtracted_refuses_the_pose(monkeypatch):

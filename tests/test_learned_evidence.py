@@ -252,20 +252,31 @@ def test_another_fiducials_frame_is_not_taken_for_nine_bead_by_the_classical_sec
     assert res.diagnostics.detector_tried == ["learned", "classical"]
 
 
-def test_anatomy_alone_is_not_taken_for_nine_bead_by_the_networks_own_pass():
+@pytest.mark.parametrize("undetermined_asked", [True, False])
+def test_anatomy_alone_is_not_taken_for_nine_bead_by_the_networks_own_pass(undetermined_asked, monkeypatch):
     """A frame of anatomy with no fiducial at all (the no-fiducial benchmark's anatomy 60 of
     seed 2109): tracked as nine_bead, the network's own pass fitted the helix to seven of its
     candidates, each of which it read 0.01–0.21 — a pose 888 mm from the source with a depth
-    σ of 108 mm. Balls the network does not read as balls confirm no bead-only pose, from
-    either pass: refused as such, and the classical second look finds none either."""
+    σ of 108 mm. Two rules refuse it, each alone: the pose places the fiducial no better than
+    its size, and balls the network does not read as balls confirm no bead-only pose, from
+    either pass; the classical second look finds none either."""
+    from ftrac_design.segment import pipeline
+
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from no_fiducial import anatomy
 
+    if not undetermined_asked:
+        monkeypatch.setattr(pipeline.acceptance, "undetermined", lambda scene, lab: None)
     img = anatomy(60, 2109)
     camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
     res = track_image(img, compute_features(load_design("nine_bead")), camera)
     assert not res.pose.converged
-    assert res.pose.error.startswith("identification not confirmed: the learned detector reads none of the 7 balls")
+    if undetermined_asked:
+        head = "too little evidence: the pose places the fiducial only to ±"
+        assert res.pose.error.startswith(head)
+        assert float(res.pose.error[len(head) :].split(" mm")[0]) > 100  # the depth σ of 108 mm
+    else:
+        assert res.pose.error.startswith("identification not confirmed: the learned detector reads none of the 7 balls")
     assert res.diagnostics.detector_tried == ["learned", "classical"]
 
 
