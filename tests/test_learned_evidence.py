@@ -318,7 +318,7 @@ def test_a_side_view_whose_balls_overlap_in_pairs_is_tracked():
 
 @pytest.mark.parametrize(("depth_sigma_mm", "refused"), [(74.0, True), (30.0, False), (1.0, False)])
 def test_a_pose_that_places_the_fiducial_no_better_than_its_size_is_refused(depth_sigma_mm, refused):
-    """nine_bead's balls span 37.8 mm: a pose whose depth σ is 74 mm (Poisson noise tracked as
+    """nine_bead's largest extent is 37.8 mm (its balls): a pose whose depth σ is 74 mm (Poisson noise tracked as
     nine_bead, no-fiducial seed 2110) says nothing of where the fiducial is; 30 mm and 1 mm
     pass this test (others judge them)."""
     features = compute_features(load_design("nine_bead"))

@@ -23,6 +23,7 @@ from .detection import LEARNED_BALL, Scene
 from .labelling import Labelling
 from .noise import redundancy_numbers
 from .options import AcceptanceOptions
+from .region import fiducial_extent_mm
 
 #: the learned detector's median wire probability along a predicted wire at which it counts as
 #: shown by the image, whatever its ridge evidence: on 40 ftrac_2005 images (blurred, display,
@@ -554,20 +555,20 @@ def uncontrolled(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str |
 
 def undetermined(scene: Scene, lab: Labelling) -> str | None:
     """Refused when the pose's own covariance places the fiducial no better than its size:
-    the translation's standard deviation along its worst direction (mm) above the span of
-    the design's balls. Such a pose says where the fiducial is not, not where it is, and no
-    feature of it can have been checked against the rest: frames with no fiducial at all gave
-    a bead-only design poses of that kind — Poisson noise tracked as nine_bead (seven blobs of
-    SNR 1.5–5, depth σ 74 mm against a 38 mm span; ``no_fiducial.py --seed 2110``, noise 17)."""
+    the translation's standard deviation along its worst direction (mm) above the fiducial's
+    largest extent (:func:`.region.fiducial_extent_mm`). Such a pose says where the fiducial
+    is not, not where it is, and no feature of it can have been checked against the rest:
+    frames with no fiducial at all gave a bead-only design poses of that kind — Poisson noise
+    tracked as nine_bead (seven blobs of SNR 1.5–5, depth σ 74 mm against a 38 mm extent;
+    ``no_fiducial.py --seed 2110``, noise 17)."""
     C = lab.pose.covariance
-    pts = scene.features.point_centers() if scene.features.points else np.zeros((0, 3))
-    if C is None or len(pts) < 2 or not np.all(np.isfinite(C[3:, 3:])):
+    span = fiducial_extent_mm(scene.features)
+    if C is None or span <= 0 or not np.all(np.isfinite(C[3:, 3:])):
         return None
-    span = float(np.linalg.norm(pts[:, None] - pts[None], axis=-1).max())
     sigma = math.sqrt(max(float(np.linalg.eigvalsh(C[3:, 3:]).max()), 0.0))
     if sigma <= span:
         return None
     return (
         f"too little evidence: the pose places the fiducial only to ±{sigma:.0f} mm (1 σ), more than "
-        f"the {span:.0f} mm its balls span"
+        f"the fiducial's {span:.0f} mm extent"
     )

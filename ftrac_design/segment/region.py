@@ -58,6 +58,16 @@ def fiducial_regions(
     return cluster_boxes(uv, w, P, D, shape, max_regions, max_share=0.6)
 
 
+def fiducial_extent_mm(features: Features) -> float:
+    """The fiducial's largest extent (mm, frame F): the greatest distance between two of its
+    balls' centres, its wires' ends and its ellipses (sampled at 16 points); 0 for none."""
+    pts = [features.point_centers().reshape(-1, 3)]
+    pts += [np.array([ln.start, ln.end]) for ln in features.lines]
+    pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
+    X = np.concatenate(pts)
+    return float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1))) if len(X) > 1 else 0.0
+
+
 def fiducial_extent_px(features: Features, sc: Scales, magnification: float) -> float:
     """The fiducial's largest extent in pixels at a generous magnification (1.25 ×
     ``magnification``): the widest a cluster of its balls can be.
@@ -72,12 +82,7 @@ def fiducial_extent_px(features: Features, sc: Scales, magnification: float) -> 
     -------
     float : the extent, pixels.
     """
-    pts = [features.point_centers()]
-    pts += [np.array([ln.start, ln.end]) for ln in features.lines]
-    pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
-    X = np.concatenate(pts)
-    ext = float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1)))
-    return ext * magnification * 1.25 / sc.pixel_mm
+    return fiducial_extent_mm(features) * magnification * 1.25 / sc.pixel_mm
 
 
 def cluster_boxes(
