@@ -172,6 +172,9 @@ class TrackOptions:
     #: ... unless it lies inside the best pose's own covariance (its difference's χ²₆ at
     #: most this, p = 0.99): given out, the pose already says it may be there
     rival_inside_chi2: float = 16.8
+    #: ... unless the image's pixels prefer the best by this many units
+    #: (:func:`~.acceptance.settled_by_pixels`); 0 turns the pixels' word off
+    pixel_tie_z: float = 3.0
     #: a predicted wire whose median ridge evidence (:func:`~.evidence.curve_support`, noise
     #: units) is below ``wire_min_snr``, or below ``wire_support`` × the median predicted
     #: wire's, is absent: the labelling is not confirmed
@@ -415,6 +418,7 @@ class AcceptanceOptions:
 
     ambiguity_chi2: float
     rival_inside_chi2: float
+    pixel_tie_z: float
     wire_support: float
     wire_min_snr: float
     max_unexplained_beads: int

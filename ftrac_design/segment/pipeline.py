@@ -357,6 +357,8 @@ def accept_best(
             r = acceptance.rival(scene, best, other, opts)
             if r is None and first is not None and first is not best:
                 r = acceptance.rival(scene, first, other, opts)
+            if r is not None and acceptance.settled_by_pixels(scene, best, other, others, opts):
+                continue
             if r is not None:
                 diag.alternatives = r[1]
                 pose = acceptance.refuse(pose, r[0])
@@ -466,7 +468,7 @@ def _track_density(
     if not evaluated:
         return failed_result(f"no bead labelling{within} led to a pose", pol, beads, ridges, diag)
     evaluated.sort(key=lambda lab: (not lab.pose.converged, lab.score))
-    best, others = evaluated[0], evaluated[1:]
+    best, others = acceptance.pixel_preferred(scene, evaluated[0], evaluated[1:], accept)
     first, unsubtracted = best, None
     if features.body is not None and best.placed:
         redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
