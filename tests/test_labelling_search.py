@@ -9,6 +9,7 @@ subtracted at its pose too: only the best had that subtraction."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,8 +17,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 from test_fuzz_observation import FEATURES
 
-from ftrac_design.pose import Diagnostics, NoiseModel, Pose
-from ftrac_design.segment import TrackOptions, identify, pipeline
+from ftrac_design.pose import Diagnostics, NoiseModel, Pose, so3
+from ftrac_design.segment import TrackOptions, identify, pipeline, pixelfit
 from ftrac_design.segment.labelling import Labelling, NoLabelling
 
 F = FEATURES["ftrac_2005"]
@@ -135,7 +136,20 @@ def test_a_bead_only_design_never_extends_the_search():
     assert not pipeline._rests_on_little(F, [_labelling(h, True, ALL_BALLS[:-1], ALL_LINES[:1] + ALL_ELLIPSES, 1.0)])
 
 
-def _pass_other_tests(monkeypatch):
+def _pass_other_tests(monkeypatch, pixel_z: dict[float, float] | None = None):
+    """Every acceptance test but the rivals' passes; the image's pixels prefer the pose
+    compared first by ``pixel_z[angle]`` units over one turned ``angle`` degrees from it
+    about the view axis (no word on the others, nor on any without ``pixel_z``)."""
+
+    def compare(scene, first, seconds):
+        out = []
+        for q in seconds:
+            a = round(float(np.degrees(so3.angle(q.rotation, first.rotation))))
+            z = (pixel_z or {}).get(a)
+            out.append(None if z is None else pixelfit.PixelComparison(z, 1.0, z, 1.0, 1.0, 100))
+        return out
+
+    monkeypatch.setattr(pipeline.acceptance.pixelfit, "compare", compare)
     monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts, also=None: ([], {}))
     monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "misshapen_balls", lambda scene, lab, opts: None)
@@ -225,3 +239,47 @@ def test_an_image_is_given_the_refusal_of_the_region_that_got_furthest():
         "ambiguous identification",
     ]
     assert ranked[0] is blank
+
+
+def test_the_pixels_settle_a_tie_only_by_their_margin_and_against_every_turned_labelling(monkeypatch):
+    """A rival 40° off about the view axis, 5 χ² behind: a tie, refused — unless the pixels
+    prefer the best by ``pixel_tie_z`` (3) units, and no labelling turned from it (a third, 60°
+    off, not tied: 100 χ² behind) explains them better by as many."""
+    h = _hypotheses(4)
+    opts = TrackOptions().acceptance
+    best = _labelling(h[0], True, ALL_BALLS, ALL_ELLIPSES, 100.0)
+    tied = _labelling(h[2], True, ALL_BALLS, ALL_ELLIPSES, 105.0)
+    behind = _labelling(h[3], True, ALL_BALLS, ALL_ELLIPSES, 200.0)
+    for pixel_z, given in (
+        (None, False),
+        ({40: 2.9}, False),
+        ({40: 3.1}, True),
+        ({40: 3.1, 60: -2.9}, True),
+        ({40: 3.1, 60: -3.1}, False),
+    ):
+        _pass_other_tests(monkeypatch, pixel_z)
+        out = pipeline.accept_best(None, best, [tied, behind], Diagnostics(), opts)
+        assert out.pose.converged is given, (pixel_z, out.pose.error)
+        if not given:
+            assert out.pose.error.startswith("ambiguous identification")
+    _pass_other_tests(monkeypatch, {40: 10.0})
+    off = pipeline.accept_best(None, best, [tied, behind], Diagnostics(), replace(opts, pixel_tie_z=0.0))
+    assert not off.pose.converged
+
+
+def test_the_rival_the_pixels_prefer_is_judged_first(monkeypatch):
+    """The least misfit (a near-mirror that read two blobs more) and a rival 40° from it, tied:
+    where the pixels prefer the rival by 3 units it is judged first, the other among its rivals;
+    a rival that has not converged, or one the pixels prefer by less, is not."""
+    h = _hypotheses(3)
+    opts = TrackOptions().acceptance
+    least = _labelling(h[0], True, ALL_BALLS, ALL_ELLIPSES, 100.0)
+    tied = _labelling(h[2], True, ALL_BALLS, ALL_ELLIPSES, 110.0)
+    _pass_other_tests(monkeypatch, {40: -3.1})
+    first, rest = pipeline.acceptance.pixel_preferred(None, least, [tied], opts)
+    assert first is tied and rest == [least]
+    _pass_other_tests(monkeypatch, {40: -2.9})
+    assert pipeline.acceptance.pixel_preferred(None, least, [tied], opts)[0] is least
+    _pass_other_tests(monkeypatch, {40: -3.1})
+    unconverged = _labelling(h[2], False, ALL_BALLS, ALL_ELLIPSES, 110.0)
+    assert pipeline.acceptance.pixel_preferred(None, least, [unconverged], opts)[0] is least

@@ -3,8 +3,10 @@ only labellings whose rotation it admits are looked for and given out.
 
 A small fiducial far from the source is seen in near-affine projection, where a labelling
 rotated 135–180° puts every ball and wire within a fraction of a pixel of the right one's: the
-tracker refuses that tie, and a prior decides it. The realism benchmark's ftrac_mini raw image 3
-of tuning seed 21 (20 per condition) is such a tie: the right labelling and one 135° off.
+tracker refuses that tie unless the image's pixels settle it, and a prior decides it. The
+realism benchmark's ftrac_mini log image 12 of tuning seed 21 (20 per condition) is such a
+tie: the right labelling and one 180° off, the pixels preferring the right one by 2.9 units
+(3 settle a tie).
 """
 
 from __future__ import annotations
@@ -52,13 +54,14 @@ def test_a_view_prior_admits_the_rotations_within_its_angle():
 def tie():
     import track_realism
 
-    img, R, t, camera, _ = track_realism.make_image("ftrac_mini", "raw", 3, 21, 20)
+    img, R, t, camera, _ = track_realism.make_image("ftrac_mini", "log", 12, 21, 20)
     return img, R, t, camera, track_realism.preset_features("ftrac_mini")
 
 
 def test_a_prior_decides_a_near_mirror_tie(tie):
     """Without a prior the image is refused as a tie of the right labelling and one over 100°
-    off; with one 25° off the truth and 45° wide it gives the right pose; every answer a prior
+    off; with one 25° off the truth and 45° wide it gives the right pose (its depth, 3 mm off,
+    inside its own covariance); every answer a prior
     lets through lies within it, a wrong prior's too (the caller's word, not the image's); a
     prior far from both answers leaves none."""
     img, R, t, camera, features = tie
@@ -72,7 +75,8 @@ def test_a_prior_decides_a_near_mirror_tie(tie):
     )
     assert right.pose.converged, right.pose.error
     dr, dt = pose_errors(right.pose.rotation, right.pose.translation_mm, R, t)
-    assert np.degrees(np.linalg.norm(dr)) < 0.5 and np.linalg.norm(dt) < 2.0
+    e = np.concatenate([dr, dt])
+    assert np.degrees(np.linalg.norm(dr)) < 0.5 and e @ np.linalg.solve(right.pose.covariance, e) < 16.8
 
     rival = next(
         np.asarray(a["rotation"]) for a in res.diagnostics.alternatives if so3.angle(np.asarray(a["rotation"]), R) > 1
@@ -88,11 +92,13 @@ def test_a_prior_decides_a_near_mirror_tie(tie):
 
 
 def test_a_prior_that_admits_every_view_changes_nothing(tie):
-    """A prior 180° wide admits every rotation: the same answer, bit for bit, as none."""
+    """A prior 180° wide admits every rotation: the same answer, bit for bit, as none (the
+    reasons of the image's other looks may name the view they were searched within)."""
     img, R, t, camera, features = tie
     a = track_image(img, features, camera).pose
     b = track_image(img, features, camera, TrackOptions(view=ViewPrior(_turned(R, 2.0, 1), math.pi))).pose
-    assert a.converged == b.converged and a.error == b.error
+    assert a.converged == b.converged and a.error.split(" (")[0] == b.error.split(" (")[0]
+    assert np.array_equal(a.rotation, b.rotation) and np.array_equal(a.translation_mm, b.translation_mm)
 
 
 def _pose_file(path: Path, R: np.ndarray) -> Path:

@@ -2,8 +2,10 @@
 
 The 1 × 1 × 2 cm ``ftrac_mini`` 600 mm from the source is seen in near-affine projection,
 where a labelling turned 135–180° puts every ball and wire within a fraction of a pixel of the
-right one's. :func:`demo_step` writes, under its ``out_dir``, a raw frame of it over a patient
-where that happens (``image.npy``: the realism benchmark's ``raw`` image 3 of tuning seed 21),
+right one's. Most such ties the image's own pixels settle (:mod:`ftrac_design.segment.pixelfit`);
+:func:`demo_step` writes, under its ``out_dir``, a log-converted frame of it over a patient
+where they do not (``image.npy``: the realism benchmark's ``log`` image 12 of tuning seed 21,
+where the pixels prefer the right labelling by 2.9 units, short of the 3 that settle a tie),
 its ``camera.json``, ``features.json`` and ``truth.json``, and a pose file of the view as a user
 might know it beforehand (``expected_view.json``: the true rotation turned 25°), then runs
 ``ftrac-design track`` on the frame twice, as a user types it: alone (``alone/pose.json``:
@@ -28,7 +30,7 @@ from .carm import format_errors, pose_report, truth_object
 from .shell import command_line, relative, run_cli
 
 #: where the tie is: the realism benchmark's image (``track_realism.make_image``)
-PRESET, CONDITION, SEED, IMAGES, INDEX = "ftrac_mini", "raw", 21, 20, 3
+PRESET, CONDITION, SEED, IMAGES, INDEX = "ftrac_mini", "log", 21, 20, 12
 #: how far the expected view is turned from the truth, and how far it admits (degrees)
 OFF_DEG, WITHIN_DEG = 25.0, 45.0
 
@@ -76,7 +78,8 @@ def demo_step(out_dir: str | Path) -> str:
     features, R, t = write_inputs(out_dir)
     base = ["track", "--features", features, out_dir / "image.npy", "--camera", out_dir / "camera.json"]
     lines = [
-        f"view known beforehand: {PRESET} (1 × 1 × 2 cm) over a patient, raw counts — {relative(out_dir / 'image.npy')}"
+        f"view known beforehand: {PRESET} (1 × 1 × 2 cm) over a patient, log-converted — "
+        f"{relative(out_dir / 'image.npy')}"
     ]
     runs = (
         ("alone", []),
