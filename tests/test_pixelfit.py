@@ -82,6 +82,9 @@ def test_noise_free_comparison_is_the_closed_form():
     assert 0 < ab.d_rss <= ab.separation * (1 + 1e-9)
     assert ab.z == pytest.approx(ab.d_rss / (2 * math.sqrt(ab.separation)))
     assert aa.d_rss == pytest.approx(0.0, abs=1e-9) and aa.z == 0.0
+    # two refinements of one pose, 0.2 mm apart, draw the same image: no word, however clean
+    (twin,) = compare(scene, A, [_pose(R0, T0 + [0.0, 0.0, 0.2])])
+    assert twin.separation > 0 and twin.z == 0.0
     # nothing readable: no word
     assert compare(_scene(scene.T, hidden=np.ones(scene.shape, bool)), A, [B]) == [None]
 
