@@ -258,10 +258,15 @@ def test_the_pixels_settle_a_tie_only_by_their_margin_and_against_every_turned_l
         ({40: 3.1, 60: -3.1}, False),
     ):
         _pass_other_tests(monkeypatch, pixel_z)
-        out = pipeline.accept_best(None, best, [tied, behind], Diagnostics(), opts)
+        diag = Diagnostics()
+        out = pipeline.accept_best(None, best, [tied, behind], diag, opts)
         assert out.pose.converged is given, (pixel_z, out.pose.error)
         if not given:
-            assert out.pose.error.startswith("ambiguous identification")
+            assert out.pose.error.startswith("ambiguous identification") and diag.settled_by_pixels is None
+        else:
+            # the pose says which rival the pixels refuted, and by how much; it reads back
+            assert diag.settled_by_pixels == [{"rotation_deg": 40.0, "translation_mm": 0.0, "z": 3.1}]
+            assert Diagnostics.from_dict(diag.to_dict()).settled_by_pixels == diag.settled_by_pixels
     _pass_other_tests(monkeypatch, {40: 10.0})
     off = pipeline.accept_best(None, best, [tied, behind], Diagnostics(), replace(opts, pixel_tie_z=0.0))
     assert not off.pose.converged

@@ -123,6 +123,8 @@ def test_the_pixels_settle_a_near_mirror_tie_the_features_leave(settled):
     res = track_image(img, features, camera)
     assert res.pose.converged, res.pose.error
     assert math.degrees(so3.angle(res.pose.rotation, R)) < 0.5
+    refuted = res.diagnostics.settled_by_pixels
+    assert refuted and all(r["z"] >= 3 and r["rotation_deg"] > 100 for r in refuted), refuted
     e = np.concatenate(pose_errors(R, t, res.pose.rotation, res.pose.translation_mm))
     assert e @ np.linalg.solve(res.pose.covariance, e) < 16.8
     off = track_image(img, features, camera, TrackOptions(pixel_tie_z=0.0))

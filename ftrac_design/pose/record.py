@@ -192,6 +192,9 @@ class Diagnostics:
     body_subtracted : the body's modelled projection was subtracted.
     alternatives : a rival labelling's and the best's poses (``rotation``, ``translation_mm``,
         ``noise_scale``) when the answer was ambiguous.
+    settled_by_pixels : the tied rivals the image's pixels refuted, each as how far it was
+        (``rotation_deg``, ``translation_mm``) and by how much the pixels preferred the pose
+        given out (``z``, noise units).
     wire_support : each predicted wire's ridge evidence (noise units).
     blur_px : the blur σ the filters were sized for (px).
     hypotheses, labellings_tested : bead-labelling hypotheses, and labellings refined.
@@ -222,6 +225,7 @@ class Diagnostics:
     ridge_points: int | None = None
     body_subtracted: bool | None = None
     alternatives: list[dict[str, Any]] | None = None
+    settled_by_pixels: list[dict[str, float]] | None = None
     wire_support: dict[str, float] | None = None
     blur_px: float | None = None
     hypotheses: int | None = None
@@ -303,6 +307,7 @@ _KINDS: dict[str, Any] = {
     "ridge_points": int,
     "body_subtracted": bool,
     "alternatives": list,
+    "settled_by_pixels": list,
     "wire_support": dict,
     "blur_px": (int, float),
     "hypotheses": int,

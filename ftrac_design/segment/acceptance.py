@@ -130,9 +130,11 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
 
 def settled_by_pixels(
     scene: Scene, best: Labelling, tied: Labelling, others: list[Labelling], opts: AcceptanceOptions
-) -> bool:
-    """Whether the image's pixels settle a tie in ``best``'s favour (:func:`.pixelfit.compare`):
-    its steel explains the pixels better than ``tied``'s by ``pixel_tie_z``, and no other
+) -> dict[str, float] | None:
+    """How the image's pixels settle a tie in ``best``'s favour (:func:`.pixelfit.compare`) —
+    ``tied``'s distance from it (``rotation_deg``, ``translation_mm``) and the margin ``z`` —
+    or None where they do not: its steel must explain the pixels better than ``tied``'s by
+    ``pixel_tie_z``, and no other
     labelling turned from it by more than :data:`.identify.SAME_POSE_RAD` (``others``, tied or
     not) explains them better by as much — the right labelling among them, had it fitted the
     detections worse, would show there.
@@ -142,7 +144,7 @@ def settled_by_pixels(
     the tuning seeds' ties (21 and 2108, 59 pairs of a right pose and a wrong one) the pixels
     preferred the right one every time (median 6.2 units, 8 pairs below 3)."""
     if opts.pixel_tie_z <= 0 or not np.all(np.isfinite(tied.pose.rotation)):
-        return False
+        return None
     turned = [
         x
         for x in others
@@ -153,8 +155,14 @@ def settled_by_pixels(
     ]
     found = pixelfit.compare(scene, best.pose, [tied.pose] + [x.pose for x in turned])
     if found[0] is None or found[0].scale_first <= 0 or found[0].z < opts.pixel_tie_z:
-        return False
-    return all(c is None or c.z > -opts.pixel_tie_z for c in found[1:])
+        return None
+    if not all(c is None or c.z > -opts.pixel_tie_z for c in found[1:]):
+        return None
+    return {
+        "rotation_deg": round(math.degrees(float(so3.angle(tied.pose.rotation, best.pose.rotation))), 2),
+        "translation_mm": round(float(np.linalg.norm(tied.pose.translation_mm - best.pose.translation_mm)), 2),
+        "z": round(found[0].z, 2),
+    }
 
 
 def pixel_preferred(

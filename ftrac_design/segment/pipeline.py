@@ -334,7 +334,7 @@ def accept_best(
     scene : what the image shows (:class:`.detection.Scene`).
     best : the labelling given out, unless refused here.
     others : the rival labellings (a far one that explains the image about as well refuses it).
-    diag : the result's diagnostics: gets ``alternatives`` and ``wire_support``.
+    diag : the result's diagnostics: gets ``alternatives``, ``settled_by_pixels`` and ``wire_support``.
     opts : what the acceptance tests read (:attr:`~.options.TrackOptions.acceptance`).
     first : ``best`` as it was before the body's projection was subtracted at its pose, when
         it was: the rivals are judged against it too, on the same image as they were refined
@@ -353,16 +353,20 @@ def accept_best(
     """
     pose = best.pose
     if pose.converged:
+        settled = []
         for other in others:
             r = acceptance.rival(scene, best, other, opts)
             if r is None and first is not None and first is not best:
                 r = acceptance.rival(scene, first, other, opts)
-            if r is not None and acceptance.settled_by_pixels(scene, best, other, others, opts):
+            won = None if r is None else acceptance.settled_by_pixels(scene, best, other, others, opts)
+            if won is not None:
+                settled.append(won)
                 continue
             if r is not None:
                 diag.alternatives = r[1]
                 pose = acceptance.refuse(pose, r[0])
                 break
+        diag.settled_by_pixels = settled if settled and pose.converged else None
     if pose.converged:
         absent, support = acceptance.wire_support(scene, pose, opts, also=unsubtracted)
         diag.wire_support = support
