@@ -134,10 +134,9 @@ def settled_by_pixels(
     """How the image's pixels settle a tie in ``best``'s favour (:func:`.pixelfit.compare`) —
     ``tied``'s distance from it (``rotation_deg``, ``translation_mm``) and the margin ``z`` —
     or None where they do not: its steel must explain the pixels better than ``tied``'s by
-    ``pixel_tie_z``, and no other
-    labelling turned from it by more than :data:`.identify.SAME_POSE_RAD` (``others``, tied or
-    not) explains them better by as much — the right labelling among them, had it fitted the
-    detections worse, would show there.
+    ``pixel_tie_z``, and no other labelling turned from it by more than
+    :data:`.identify.SAME_POSE_RAD` (``others``, tied or not) explain them better by as much —
+    the right labelling among them, had it fitted the detections worse, would show there.
 
     The detections two near-mirror labellings explain equally are a few blobs and ridges; the
     pixels hold every ball's disc and every wire's length at the place each pose puts them. On

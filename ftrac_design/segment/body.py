@@ -23,6 +23,7 @@ from . import identify
 from .beads import Beads, fit_beads, fit_patch_half_px
 from .detection import Scene
 from .image import derivatives, top_hat
+from .pixelfit import density_box
 from .ridges import RidgePoints, ridge_points
 
 #: largest body box rendered, per side, as a multiple of the image's larger side: a
@@ -55,19 +56,9 @@ def body_density(
     (density (h, w) float64, (row0, col0)), or None when the features have no body, or the pose
     puts it behind the source, outside ``clip`` or wider than :data:`MAX_BOX_SIDE` × its larger side.
     """
-    from ..xray import ImagingModel
-    from ..xray.render import detected_deficit, line_integral_field
-
     if features.body is None or not body_box_ok(camera, R, t, features.body, clip):
         return None
-    # 3 × 3 sub-samples at the silhouettes: within 1e-3 of the simulator's 5 × 5 there, at a
-    # third of the cost
-    field = line_integral_field(features.subset(set()), R, t, camera, ImagingModel(supersample=3), margin_px=margin_px)
-    # the bead fit's blur includes the pixel's own width (variance 1/12), which the
-    # detector's pixel integration adds
-    s = math.sqrt(max(blur_px**2 - 1.0 / 12.0, 0.0))
-    D = detected_deficit(field, s, s, dtype=np.float64)
-    return -np.log(np.maximum(1.0 - D, 1e-12)), field.origin
+    return density_box(features.subset(set()), camera, R, t, blur_px, margin_px)
 
 
 def body_box_ok(camera: Camera, R: np.ndarray, t: np.ndarray, body, clip: tuple[int, int] | None) -> bool:
