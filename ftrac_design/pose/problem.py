@@ -423,6 +423,27 @@ def paper_k(theta: np.ndarray) -> np.ndarray:
     return a * b * (A * C - B * B / 4) / (2 * np.sqrt(a * a + b * b) * np.linalg.det(M))
 
 
+#: the last few compilations (:func:`compile_problem`): (key, features, noise, problem)
+_COMPILED: list = []
+
+
+def _content(o: Observation) -> tuple:
+    """What of ``o`` a compiled problem depends on, as a hashable key (its arrays' bytes)."""
+
+    def arr(v) -> tuple:
+        a = np.asarray(v)
+        return (a.dtype.str, a.shape, a.tobytes())
+
+    def curves(d: dict) -> tuple:
+        return tuple(
+            (k, None if c.points is None else arr(c.points), None if c.coefficients is None else arr(c.coefficients))
+            for k, c in sorted(d.items())
+        )
+
+    points = tuple((k, arr(v)) for k, v in sorted(o.points.items()))
+    return (o.camera, o.origin, points, curves(o.lines), curves(o.ellipses))
+
+
 def compile_problem(
     features: Features,
     observations: list[Observation],
@@ -438,7 +459,41 @@ def compile_problem(
     :class:`InputError` (file, key, expected) on anything the solver cannot use.
     ``task_scaling="diagonal"`` ignores the fitted curves' covariances and weights every
     distance by 1/σ, the paper's fallback G (kept for comparison).
+
+    The last few compilations are remembered by the observations' contents (the same
+    ``features`` and ``noise`` objects): a labelling's solve, its per-feature tests and its
+    score compile the same observation, and each compilation fits every contour again
+    (~1 ms of a run's frame). The problem returned is shared and is not to be changed.
     """
+    try:
+        key = (
+            tuple(_content(o) for o in observations),
+            ellipse_model_points,
+            distance,
+            same_structure,
+            task_scaling,
+        )
+        hash(key)
+    except TypeError:  # an observation with unhashable parts: compiled every time
+        key = None
+    for k, f, n, prob in list(_COMPILED):
+        if key is not None and f is features and n is noise and k == key:
+            return prob
+    prob = _compiled(features, observations, noise, ellipse_model_points, distance, same_structure, task_scaling)
+    if key is not None:
+        _COMPILED[:] = [*_COMPILED[-3:], (key, features, noise, prob)]
+    return prob
+
+
+def _compiled(
+    features: Features,
+    observations: list[Observation],
+    noise: NoiseModel | None,
+    ellipse_model_points: int,
+    distance: str,
+    same_structure: bool,
+    task_scaling: str,
+) -> Problem:
     if distance not in ("sampson", "paper"):
         raise ValueError(f"distance must be 'sampson' or 'paper', not {distance!r}")
     if task_scaling not in ("gauss-markov", "diagonal"):

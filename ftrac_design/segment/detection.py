@@ -246,12 +246,13 @@ def bilinear_many(imgs: list[np.ndarray], uv: np.ndarray) -> list[np.ndarray]:
     u0, v0 = np.floor(u).astype(int), np.floor(v).astype(int)
     fu, fv = u - u0, v - v0
     i = v0 * W + u0
+    i1, iw, iw1 = i + 1, i + W, i + W + 1
     gu, gv = 1 - fu, 1 - fv
     out = []
     for img in imgs:
         f = img.reshape(-1)
         # the products in bilinear's order: the same rounding, the same numbers
-        out.append(f[i] * gu * gv + f[i + 1] * fu * gv + f[i + W] * gu * fv + f[i + W + 1] * fu * fv)
+        out.append(f[i] * gu * gv + f[i1] * fu * gv + f[iw] * gu * fv + f[iw1] * fu * fv)
     return out
 
 

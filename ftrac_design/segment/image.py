@@ -17,6 +17,7 @@ faster than scipy's for the same operator).
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -121,7 +122,13 @@ def _median(v: np.ndarray) -> np.floating:
 
 
 def gaussian_kernels(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Sampled Gaussian and its first and second derivatives (float32), radius 4σ."""
+    """Sampled Gaussian and its first and second derivatives (float32, read-only), radius 4σ."""
+    return _kernels(float(sigma))
+
+
+@functools.lru_cache(maxsize=64)
+def _kernels(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    # made once per scale: an image's filters ask for a few scales dozens of times
     r = max(int(math.ceil(4 * sigma)), 2)
     x = np.arange(-r, r + 1, dtype=np.float64)
     g0 = np.exp(-0.5 * (x / sigma) ** 2)
@@ -132,7 +139,10 @@ def gaussian_kernels(sigma: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     g1 /= -(g1 * x).sum()
     g2 -= g2.mean()
     g2 /= (g2 * x * x).sum() / 2
-    return g0.astype(np.float32), g1.astype(np.float32), g2.astype(np.float32)
+    out = g0.astype(np.float32), g1.astype(np.float32), g2.astype(np.float32)
+    for k in out:
+        k.flags.writeable = False
+    return out
 
 
 def derivatives(img: np.ndarray, sigma: float, first: bool = True) -> dict[str, np.ndarray]:
@@ -359,6 +369,11 @@ def second_derivative_gain(sigma: float) -> float:
     """Standard deviation of a Gaussian second derivative at scale ``sigma`` px (in any
     direction: the Gaussian's derivatives are steerable and the norm rotation-invariant)
     applied to unit white noise."""
+    return _second_derivative_gain(float(sigma))
+
+
+@functools.lru_cache(maxsize=64)
+def _second_derivative_gain(sigma: float) -> float:
     g0, _, g2 = gaussian_kernels(sigma)
     return float(np.sqrt((g2.astype(np.float64) ** 2).sum() * (g0.astype(np.float64) ** 2).sum()))
 

@@ -24,11 +24,10 @@ from .guided import guided_contours
 from .noise import (
     calibrated_covariance,
     clean_contours,
-    contour_offset_covariance,
-    distortion_covariance,
     feature_p_values,
     measured_noise,
     residuals_at,
+    unmodelled_covariance,
 )
 from .options import ContourOptions, LabellingOptions
 
@@ -324,14 +323,13 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, opts: LabellingOptions, f
         raise NoLabelling(why)
     lab = _drop_inconsistent(scene, lab, opts)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise)
-    if lab.pose.covariance is not None and scene.features.body is not None and opts.noise.contour_offset_px > 0:
-        extra = contour_offset_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise.contour_offset_px)
-        if extra is not None:
-            lab.pose.covariance = lab.pose.covariance + extra
-    if lab.pose.covariance is not None and opts.noise.distortion_prior_mm > 0:
-        extra = distortion_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise.distortion_prior_mm)
-        if extra is not None:
-            lab.pose.covariance = lab.pose.covariance + extra
+    if lab.pose.covariance is not None:
+        offset_px = opts.noise.contour_offset_px if scene.features.body is not None else 0.0
+        for extra in unmodelled_covariance(
+            scene.features, lab.obs, lab.pose, lab.noise, offset_px, opts.noise.distortion_prior_mm
+        ):
+            if extra is not None:
+                lab.pose.covariance = lab.pose.covariance + extra
     lab = replace(lab, variance_factor=vf)
     return replace(lab, score=misfit(scene, lab, opts))
 
