@@ -423,7 +423,7 @@ def paper_k(theta: np.ndarray) -> np.ndarray:
     return a * b * (A * C - B * B / 4) / (2 * np.sqrt(a * a + b * b) * np.linalg.det(M))
 
 
-#: the last few compilations (:func:`compile_problem`): (key, features, noise, problem)
+#: the last few compilations of one observation (:func:`compile_problem`): (key, features, noise, problem)
 _COMPILED: list = []
 
 
@@ -460,22 +460,19 @@ def compile_problem(
     ``task_scaling="diagonal"`` ignores the fitted curves' covariances and weights every
     distance by 1/σ, the paper's fallback G (kept for comparison).
 
-    The last few compilations are remembered by the observations' contents (the same
+    The last few compilations of one observation are remembered by its contents (the same
     ``features`` and ``noise`` objects): a labelling's solve, its per-feature tests and its
     score compile the same observation, and each compilation fits every contour again
-    (~1 ms of a run's frame). The problem returned is shared and is not to be changed.
+    (~1 ms of a run's frame). The problem returned is shared and is not to be changed. A
+    batch (the optimiser's, the covariance's displaced copies) is compiled every time.
     """
-    try:
-        key = (
-            tuple(_content(o) for o in observations),
-            ellipse_model_points,
-            distance,
-            same_structure,
-            task_scaling,
-        )
-        hash(key)
-    except TypeError:  # an observation with unhashable parts: compiled every time
-        key = None
+    key = None
+    if len(observations) == 1:
+        try:
+            key = (_content(observations[0]), ellipse_model_points, distance, same_structure, task_scaling)
+            hash(key)
+        except TypeError:  # an observation with unhashable parts: compiled every time
+            key = None
     for k, f, n, prob in list(_COMPILED):
         if key is not None and f is features and n is noise and k == key:
             return prob
