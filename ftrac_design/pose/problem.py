@@ -473,9 +473,10 @@ def compile_problem(
             hash(key)
         except TypeError:  # an observation with unhashable parts: compiled every time
             key = None
-    for k, f, n, prob in list(_COMPILED):
-        if key is not None and f is features and n is noise and k == key:
-            return prob
+    if key is not None:
+        for k, f, n, prob in list(_COMPILED):
+            if f is features and n is noise and k == key:
+                return prob
     prob = _compiled(features, observations, noise, ellipse_model_points, distance, same_structure, task_scaling)
     if key is not None:
         _COMPILED[:] = [*_COMPILED[-3:], (key, features, noise, prob)]

@@ -387,8 +387,18 @@ def pose_shifts(
     return steps[1:] - steps[0]
 
 
+#: where the distortion modes of :func:`distortion_covariance` are 1 mm: 100 mm from the
+#: principal point
+DISTORTION_RADIUS_MM = 100.0
+
+
 def distortion_covariance(
-    features: Features, obs: Observation, pose: Pose, noise: NoiseModel, sigma_mm: float, radius_mm: float = 100.0
+    features: Features,
+    obs: Observation,
+    pose: Pose,
+    noise: NoiseModel,
+    sigma_mm: float,
+    radius_mm: float = DISTORTION_RADIUS_MM,
 ) -> np.ndarray | None:
     """The pose covariance (6 × 6, SPEC §4 order) that an unmodelled image distortion of
     ``sigma_mm`` (σ of the pincushion and S modes of :func:`distortion_modes`, 0.4 σ of the
@@ -424,7 +434,7 @@ def unmodelled_covariance(
     features: Features, obs: Observation, pose: Pose, noise: NoiseModel, offset_px: float, distortion_mm: float
 ) -> tuple[np.ndarray | None, np.ndarray | None]:
     """:func:`contour_offset_covariance` (``offset_px``; 0: none) and :func:`distortion_covariance`
-    (``distortion_mm`` at 100 mm; 0: none) of one pose, their shifts from one batch of
+    (``distortion_mm`` at :data:`DISTORTION_RADIUS_MM`; 0: none) of one pose, their shifts from one batch of
     :func:`pose_shifts` (the observation compiled and its conics fitted once for both: a
     run's frame spends ~1 ms on each compilation); each the same numbers as its own function
     gives, which it falls back on where a displaced observation's Jacobian is unusable."""
@@ -433,7 +443,7 @@ def unmodelled_covariance(
         moved.append(ellipses_moved_out(features, obs, pose, 1.0))
     first = len(moved)
     if distortion_mm > 0 and (obs.points or obs.lines or obs.ellipses):
-        moved += _displaced_by_modes(obs, 100.0)
+        moved += _displaced_by_modes(obs, DISTORTION_RADIUS_MM)
     shifts = pose_shifts(features, obs, moved, noise, pose) if moved else None
     if shifts is None:
         return (
