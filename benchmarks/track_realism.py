@@ -147,6 +147,9 @@ def one(task: tuple) -> dict:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
         e = np.r_[dr, dt]
         out["err"] = np.r_[np.degrees(dr), dt].tolist()
+        # what the pose rests on: balls, lines and ellipses observed
+        obs = res.observation
+        out["features"] = [len(obs.points), len(obs.lines), len(obs.ellipses)] if obs is not None else None
         out["far"] = bool(math.degrees(float(np.linalg.norm(dr))) > WRONG_DEG or float(np.linalg.norm(dt)) > WRONG_MM)
         out["chi2"] = (
             float(e @ np.linalg.solve(res.pose.covariance, e)) if res.pose.covariance is not None else float("inf")

@@ -23,7 +23,7 @@ from .detection import LEARNED_BALL, Scene
 from .labelling import Labelling
 from .noise import redundancy_numbers
 from .options import AcceptanceOptions
-from .region import fiducial_extent_mm
+from .region import balls_needed, fiducial_extent_mm
 
 #: the learned detector's median wire probability along a predicted wire at which it counts as
 #: shown by the image, whatever its ridge evidence: on 40 ftrac_2005 images (blurred, display,
@@ -261,7 +261,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
             f"identification not confirmed: {nub} beads in view and clear of the others are not "
             f"explained (at most {opts.max_unexplained_beads})"
         )
-    need = min(opts.min_beads, len(features.points))
+    need = balls_needed(features, scene.camera, lab.pose, lab.confirmed_by_wires, opts)
     # seen from the side, ftrac_2005's balls overlap in pairs and only the three apart can be
     # fitted; a labelling that explained wire contours from the first puts the pairs' balls
     # on blobs the image shows, and they count (the independent renderer: 0.01–0.04° and
@@ -270,7 +270,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
     if len(obs.points) + crowd < need:
         # the balls carry the labelling; with fewer, a near-mirror of a small fiducial fits
         # its wires as well (ftrac_mini, benchmark images 242 and 165: 3 and 4 balls and both
-        # ellipses, 173° and 168° off)
+        # ellipses, 173° and 168° off) unless perspective sets the view apart from its mirror
         return f"too little evidence: {len(obs.points)} beads could be used (need {need} to confirm the labelling)"
     m = 2 * len(obs.points) + 2 * len(obs.lines) + 5 * len(obs.ellipses)
     if m - 6 < opts.min_redundancy:

@@ -227,6 +227,16 @@ class TrackOptions:
     bead_present_snr: float = 4.0
     #: a confident labelling uses at least this many balls
     min_beads: int = 5
+    #: one ball fewer will do where wire contours confirm the labelling and the view's
+    #: perspective tells it from its mirror (:func:`~.region.balls_needed`): the fiducial
+    #: reflected through the plane square to the line of sight through its centre, aligned on
+    #: the view by the best affine map, puts a ball, wire end or ellipse point at least this
+    #: far (px) from where the view puts it — beyond the 2 px within which balls are matched.
+    #: The near-mirror labellings that ``min_beads`` guards against (ftrac_mini, 3–4 balls and
+    #: both ellipses, 168–173° off) fit the wires because that reflection moves nothing by
+    #: more than 0.28–0.42 px over SPEC §1's workspace; ftrac_2005's views are 2.3–3.1 px
+    #: from theirs (1,000 workspace poses each); 0 never lowers ``min_beads``
+    mirror_signal_px: float = 2.0
     #: a blob whose blurred-sphere fit leaves a residual RMS above ``ball_shape_rms`` noise σ
     #: and above ``ball_shape_fraction`` of its own peak contrast is not shaped like a ball
     #: (:func:`~.acceptance.misshapen_balls`); a confident labelling uses at most
@@ -423,6 +433,7 @@ class AcceptanceOptions:
     wire_min_snr: float
     max_unexplained_beads: int
     min_beads: int
+    mirror_signal_px: float
     ball_shape_rms: float
     ball_shape_fraction: float
     max_misshapen_balls: int

@@ -58,14 +58,65 @@ def fiducial_regions(
     return cluster_boxes(uv, w, P, D, shape, max_regions, max_share=0.6)
 
 
-def fiducial_extent_mm(features: Features) -> float:
-    """The fiducial's largest extent (mm, frame F): the greatest distance between two of its
-    balls' centres, its wires' ends and its ellipses (sampled at 16 points); 0 for none."""
+def outline_points(features: Features) -> np.ndarray:
+    """The points that span the fiducial (n, 3) mm, frame F: its balls' centres, its wires'
+    ends and its ellipses sampled at 16 points."""
     pts = [features.point_centers().reshape(-1, 3)]
     pts += [np.array([ln.start, ln.end]) for ln in features.lines]
     pts += [e.sample(np.linspace(0, 2 * np.pi, 16, endpoint=False)) for e in features.ellipses]
-    X = np.concatenate(pts)
+    return np.concatenate(pts)
+
+
+def fiducial_extent_mm(features: Features) -> float:
+    """The fiducial's largest extent (mm, frame F): the greatest distance between two of its
+    :func:`outline_points`; 0 for none."""
+    X = outline_points(features)
     return float(np.max(np.linalg.norm(X[:, None] - X[None], axis=-1))) if len(X) > 1 else 0.0
+
+
+def mirror_signal_px(features: Features, camera: Camera, R: np.ndarray, t: np.ndarray) -> float:
+    """How far (px) the view at pose (R, t) is from its own mirror image: the fiducial's
+    :func:`outline_points` reflected through the plane through their centroid square to the
+    line of sight (the ray from the source to the centroid), projected, aligned on the view's
+    projection by the least-squares affine map, and the largest distance left.
+
+    Projected along the line of sight (the affine approximation of the cone of rays around
+    it) a view and that reflection are the same image, which is why a
+    near-mirror labelling (the design's features permuted onto the reflected view) can explain
+    a small fiducial's detections as well as the right one; only perspective, growing with the
+    fiducial's depth over its distance, sets them apart. 0 for fewer than four points or a
+    point not in front of the source."""
+    X = outline_points(features) @ np.asarray(R, float).T + np.asarray(t, float)
+    if len(X) < 4 or not np.all(X[:, 2] > 0):
+        return 0.0
+    c = X.mean(0)
+    d = c / np.linalg.norm(c)
+    M = X - 2 * ((X - c) @ d)[:, None] * d
+    if not np.all(M[:, 2] > 0):
+        return 0.0
+    u, _ = identify.project(camera, np.eye(3), np.zeros(3), X)
+    m, _ = identify.project(camera, np.eye(3), np.zeros(3), M)
+    A = np.c_[m, np.ones(len(m))]
+    coef, *_ = np.linalg.lstsq(A, u, rcond=None)
+    return float(np.linalg.norm(A @ coef - u, axis=1).max())
+
+
+def balls_needed(features: Features, camera: Camera, pose: Pose, wires_confirm: bool, opts: AcceptanceOptions) -> int:
+    """How many balls a confident labelling at ``pose`` must use: ``opts.min_beads`` (at most
+    the design's), one fewer (never below four) where wire contours confirm the labelling
+    (``wires_confirm``) and the view is at least ``opts.mirror_signal_px`` from its mirror
+    image (:func:`mirror_signal_px`), so that no near-mirror labelling can explain its wires."""
+    need = min(opts.min_beads, len(features.points))
+    if (
+        need > 4
+        and wires_confirm
+        and opts.mirror_signal_px > 0
+        and np.all(np.isfinite(pose.rotation))
+        and np.all(np.isfinite(pose.translation_mm))
+        and mirror_signal_px(features, camera, pose.rotation, pose.translation_mm) >= opts.mirror_signal_px
+    ):
+        return need - 1
+    return need
 
 
 def fiducial_extent_px(features: Features, sc: Scales, magnification: float) -> float:
@@ -195,16 +246,14 @@ def view_limited(
     confirm it (``opts.min_beads``, as the acceptance tests count them): too few balls
     could be used, and even a perfect segmentation of the whole image at that pose could
     use no more (:func:`resolvable_beads`: the others overlap or leave the image). The
-    whole-image retry cost ~200 ms and ended the same way."""
-    need = min(opts.min_beads, len(features.points))
+    whole-image retry cost ~200 ms and ended the same way. Any wire contour observed counts as
+    confirming (:func:`balls_needed`), which can only ask the whole image for fewer balls."""
     p = res.pose
-    if (
-        p.converged
-        or res.observation is None
-        or not np.all(np.isfinite(p.rotation))
-        or not str(p.error or "").startswith("too little evidence")
-        or len(res.observation.points) >= need
-    ):
+    obs = res.observation
+    if p.converged or obs is None or not np.all(np.isfinite(p.rotation)):
+        return False
+    need = balls_needed(features, camera, p, bool(obs.lines or obs.ellipses), opts)
+    if not str(p.error or "").startswith("too little evidence") or len(obs.points) >= need:
         return False
     n = resolvable_beads(features, camera, p, shape, sc)
     res.diagnostics.beads_resolvable = n
