@@ -281,13 +281,15 @@ def test_anatomy_alone_is_not_taken_for_nine_bead_by_the_networks_own_pass(undet
 
 
 @pytest.mark.parametrize(
-    ("crowded", "at_first", "refused"), [(2, True, False), (1, True, True), (6, False, True), (0, True, True)]
+    ("crowded", "at_first", "mirror_px", "refused"),
+    [(2, True, 0.0, False), (1, True, 0.0, True), (1, True, 2.0, False), (6, False, 2.0, True), (0, True, 2.0, True)],
 )
-def test_balls_that_crowd_in_pairs_count_where_wires_confirm_the_labelling(crowded, at_first, refused):
+def test_balls_that_crowd_in_pairs_count_where_wires_confirm_the_labelling(crowded, at_first, mirror_px, refused):
     """Three of ftrac_2005's balls used and every wire's contour: the balls the labelling left
     out because their blobs blend in pairs, but which the image shows where it puts them,
     make up the five a labelling needs — when its wire contours were there from the first
-    (not only once the body was subtracted)."""
+    (not only once the body was subtracted) — or the four it needs where the view is set
+    apart from its mirror image (``mirror_signal_px``; 0: never)."""
     features = compute_features(load_design("ftrac_2005"))
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
     ids = {p.id for p in features.points[:3]} | {c.id for c in features.lines} | {c.id for c in features.ellipses}
@@ -295,7 +297,7 @@ def test_balls_that_crowd_in_pairs_count_where_wires_confirm_the_labelling(crowd
     lab = _labelling(obs, R[0], t[0], wires_at_first=at_first)
     lab = replace(lab, contours=identify.Contours(crowded_shown=crowded))
     scene = SimpleNamespace(features=features, learned=None)  # the classical path: no network to confirm
-    why = acceptance.too_little_evidence(scene, lab, TrackOptions().acceptance)
+    why = acceptance.too_little_evidence(scene, lab, TrackOptions(mirror_signal_px=mirror_px).acceptance)
     if refused:
         assert why is not None and "3 beads could be used" in why
     else:

@@ -261,7 +261,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
             f"identification not confirmed: {nub} beads in view and clear of the others are not "
             f"explained (at most {opts.max_unexplained_beads})"
         )
-    need = balls_needed(features, scene.camera, lab.pose, lab.confirmed_by_wires, opts)
+    need = balls_needed(features, obs.camera, lab.pose, lab.confirmed_by_wires, opts)
     # seen from the side, ftrac_2005's balls overlap in pairs and only the three apart can be
     # fitted; a labelling that explained wire contours from the first puts the pairs' balls
     # on blobs the image shows, and they count (the independent renderer: 0.01–0.04° and
