@@ -233,8 +233,8 @@ class TrackOptions:
     #: the view by the best affine map, puts a ball, wire end or ellipse point at least this
     #: far (px) from where the view puts it — beyond the 2 px within which balls are matched.
     #: The near-mirror labellings that ``min_beads`` guards against (ftrac_mini, 3–4 balls and
-    #: both ellipses, 168–173° off) fit the wires because that reflection moves nothing by
-    #: more than 0.28–0.42 px over SPEC §1's workspace; ftrac_2005's views are 2.3–3.1 px
+    #: both ellipses, 168–173° off) fit the wires because that reflection moves nothing of
+    #: the 1 × 1 × 2 cm presets by more than 0.26–0.42 px over SPEC §1's workspace; ftrac_2005's views are 2.3–3.1 px
     #: from theirs (1,000 workspace poses each); 0 never lowers ``min_beads``
     mirror_signal_px: float = 2.0
     #: a blob whose blurred-sphere fit leaves a residual RMS above ``ball_shape_rms`` noise σ
