@@ -271,20 +271,24 @@ def _judged(
 def _challenged(
     scene: Scene,
     hyps: list[identify.BeadHypothesis],
-    balls: int,
+    answer: Labelling,
     budget: Budget,
     find: FindOptions,
     labelling: LabellingOptions,
     accept: AcceptanceOptions,
 ) -> tuple[Scene, list[Labelling], list[Labelling]]:
-    """The labellings that meet an answer of the first search's ``hyps`` that rests on little
-    (:func:`_rests_on_little`): the wider search's (:func:`_wider_search`) as ``(scene, able,
-    challengers)`` — ``able``, those that converged and stand on the acceptance tests' evidence
-    (:func:`.acceptance.too_little_evidence`), join the first search's labellings (on the
-    returned scene, with the balls the wider hypotheses predict); ``challengers``, the rest, can
-    tie with the answer and refuse it but never be it. Only hypotheses that match at least
-    the answer's ``balls`` less two are refined: one that explains far fewer balls than the
-    answer is no rival for it, and refining them all cost a third of ftrac_mini's time.
+    """The labellings that meet ``answer``, an answer of the first search's ``hyps`` that
+    rests on little (:func:`_rests_on_little`): the wider search's (:func:`_wider_search`) of
+    other views, as ``(scene, able, challengers)`` — ``able``, those that converged and stand
+    on the acceptance tests' evidence (:func:`.acceptance.too_little_evidence`), join the first
+    search's labellings (on the returned scene, with the balls the wider hypotheses predict);
+    ``challengers``, the rest, can tie with the answer and refuse it but never be it. Only
+    hypotheses that match at least the answer's balls less two are refined (one that explains
+    far fewer balls is no rival for it, and refining them all cost a third of ftrac_mini's
+    time), and only labellings turned more than :data:`.identify.SAME_POSE_RAD` from the
+    answer are kept: one of the answer's own view, a ball traded, is no view the first search
+    failed to form, and two such tied with right answers on clean images of the independent
+    renderer (0.3–0.4° and 3.0–3.6 mm away).
 
     The first search stops at a labelling that explains all balls but one or two, and one
     that puts a line's balls on their neighbours' blobs can: ftrac_mini at fluoroscopy dose
@@ -295,8 +299,13 @@ def _challenged(
     Its labellings may not simply join the rest: a labelling of three or four balls can fit
     the misfit better than the right one's nine and then be refused for its little evidence,
     losing the image (tuning seed 21, ftrac_2005 under blur and ftrac_mini in log form)."""
+    balls, R = len(answer.obs.points), answer.pose.rotation
     wide, more = _wider_search(scene, hyps, budget, find, labelling, accept, fewest_balls=balls - 2)
-    more = _in_view(more, find.view)
+    more = [
+        lab
+        for lab in _in_view(more, find.view)
+        if np.all(np.isfinite(lab.pose.rotation)) and so3.angle(lab.pose.rotation, R) > identify.SAME_POSE_RAD
+    ]
     able = [lab for lab in more if lab.pose.converged and acceptance.too_little_evidence(wide, lab, accept) is None]
     return wide, able, [lab for lab in more if not any(lab is x for x in able)]
 
@@ -547,7 +556,7 @@ def _track_density(
     best, judged = _judged(g, scene, evaluated, [], diag, find, labelling, accept)
     if best.pose.converged and _rests_on_little(features, [best]):
         # an answer that rests on little meets the labellings the first search never formed
-        wide, able, challengers = _challenged(scene, hyps, len(best.obs.points), budget, find, labelling, accept)
+        wide, able, challengers = _challenged(scene, hyps, best, budget, find, labelling, accept)
         if able or challengers:
             evaluated += able
             best, judged = _judged(g, wide if able else scene, evaluated, challengers, diag, find, labelling, accept)
