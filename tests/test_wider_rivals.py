@@ -3,19 +3,21 @@ balls unexplained — the wider search looks for the labellings the first never 
 at the first labelling that explains all balls but one or two). One that stands on the
 acceptance tests' evidence joins the first search's labellings; the rest can only tie with the
 answer. Two held-out images where the right labelling was never formed: a wrong pose was given
-out with confidence on each."""
+out with confidence on each; and how the wider search's labellings are sorted."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from scipy.spatial.transform import Rotation
+from test_labelling_search import ALL_BALLS, _labelling
 
 from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera
 from ftrac_design.pose.simulate import Workspace, pose_errors
-from ftrac_design.segment import track_image
+from ftrac_design.segment import TrackOptions, identify, pipeline, track_image
 from ftrac_design.xray.scenario import realistic_image
 
 
@@ -51,3 +53,39 @@ def test_a_labelling_of_balls_alone_meets_the_rival_it_hid():
     res = track_image(img, features, Camera())
     assert not res.pose.converged
     assert res.pose.error.startswith("ambiguous identification")
+
+
+def test_the_wider_search_labellings_are_sorted_into_those_that_may_join_and_those_that_may_only_tie(monkeypatch):
+    """An answer on 8 balls: the wider search is asked for hypotheses of at least 6; of what it
+    refines, a labelling of the answer's own view (5° turned) is dropped, one of another view
+    that converged on evidence the acceptance tests take may join, and one the tests would
+    refuse or one that did not converge may only tie."""
+    asked = {}
+
+    def lab(deg: float, converged: bool, balls: int):
+        h = identify.BeadHypothesis(
+            Rotation.from_rotvec([0.0, 0.0, np.radians(deg)]).as_matrix(), np.array([0.0, 0.0, 600.0]), {}, balls, 0.5
+        )
+        return _labelling(h, converged, ALL_BALLS[:balls], [], 100.0)
+
+    same, other, weak, failed = lab(5.0, True, 9), lab(30.0, True, 7), lab(40.0, True, 4), lab(50.0, False, 7)
+
+    def wider(scene, hyps, budget, find, labelling, accept, fewest_balls=0):
+        asked["fewest"] = fewest_balls
+        return "wide scene", [same, other, weak, failed]
+
+    monkeypatch.setattr(pipeline, "_wider_search", wider)
+    monkeypatch.setattr(
+        pipeline.acceptance,
+        "too_little_evidence",
+        lambda scene, x, opts: None if len(x.obs.points) >= 6 else "too little evidence",
+    )
+    o = TrackOptions()
+    answer = lab(0.0, True, 8)
+    budget = pipeline.Budget(o.search)
+    scene, able, challengers = pipeline._challenged(
+        "first scene", [], answer, budget, o.finding, o.labelling, o.acceptance
+    )
+    assert asked["fewest"] == 6 and scene == "wide scene"
+    assert able == [other]
+    assert challengers == [weak, failed]

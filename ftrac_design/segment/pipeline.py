@@ -86,7 +86,8 @@ def _rests_on_little(features: Features, labs: list[Labelling]) -> bool:
     """Whether the best converged labelling among ``labs`` (none: no) of a wire design leaves
     two or more of its balls unexplained, or explains fewer than half its wires: a pose a
     near-mirror labelling can give too, so the hypotheses ranked below the first few are worth
-    refining.
+    refining, and an answer of that kind meets the wider search's labellings
+    (:func:`_challenged`).
 
     A bead-only design never: its poses need all its balls but two anyway, and no wire tells
     a near-mirror labelling apart there; refining more of nine_bead's hypotheses only found
