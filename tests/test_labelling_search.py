@@ -136,6 +136,21 @@ def test_a_bead_only_design_never_extends_the_search():
     assert not pipeline._rests_on_little(F, [_labelling(h, True, ALL_BALLS[:-1], ALL_LINES[:1] + ALL_ELLIPSES, 1.0)])
 
 
+def test_only_an_answer_its_wires_do_not_confirm_is_challenged():
+    """The wider search challenges balls alone or fewer than half the wires as contours
+    (the two wrong answers it exists for: 8 balls and none, 6 balls and 2 of 5), not an
+    answer that shows most wires but leaves two balls unexplained; a bead-only design never."""
+    h = _hypotheses(1)[0]
+    unshown = pipeline._wires_unshown
+    assert unshown(F, _labelling(h, True, ALL_BALLS[:-1], [], 1.0))
+    assert unshown(F, _labelling(h, True, ALL_BALLS[:6], ALL_LINES[:2], 1.0))
+    assert unshown(F, _labelling(h, True, ALL_BALLS, ALL_ELLIPSES, 1.0))
+    assert not unshown(F, _labelling(h, True, ALL_BALLS[:7], ALL_LINES[:1] + ALL_ELLIPSES, 1.0))
+    assert not unshown(F, _labelling(h, True, ALL_BALLS[:5], ALL_LINES, 1.0))
+    nine = FEATURES["nine_bead"]
+    assert not unshown(nine, _labelling(h, True, [p.id for p in nine.points][:7], [], 1.0))
+
+
 def _pass_other_tests(monkeypatch, pixel_z: dict[float, float] | None = None):
     """Every acceptance test but the rivals' passes; the image's pixels prefer the pose
     compared first by ``pixel_z[angle]`` units over one turned ``angle`` degrees from it

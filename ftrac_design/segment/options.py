@@ -101,7 +101,7 @@ class TrackOptions:
     #: wires (:func:`.evidence.ranking_support`) add this per noise unit to its matched count
     hypothesis_wire_weight: float = 0.5
     #: where no labelling of the first search over the learned detector's blob triplets gives
-    #: a pose, or its answer rests on little (the wider search then challenges it), its
+    #: a pose, or its answer shows fewer than half its wires (the wider search then challenges it), its
     #: triplets are followed by up to this many more, of the ``wide_blobs`` strongest blobs
     #: (0: no wider search). Among seeds, needles or dense anatomy the first search's 24 triplets of
     #: the 12 strongest blobs can all hold clutter, and a chance match of seven balls to
