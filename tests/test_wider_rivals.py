@@ -1,5 +1,5 @@
-"""Where the first search's best pose rests on little — its balls alone, or two or more of its
-balls unexplained — the wider search looks for the labellings the first never formed (it stops
+"""Where the first search's answer shows fewer than half its wires as contours (its balls
+alone included) — the wider search looks for the labellings the first never formed (it stops
 at the first labelling that explains all balls but one or two). One that stands on the
 acceptance tests' evidence joins the first search's labellings; the rest can only tie with the
 answer. Two held-out images where the right labelling was never formed: a wrong pose was given

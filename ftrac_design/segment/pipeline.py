@@ -97,8 +97,7 @@ def _rests_on_little(features: Features, labs: list[Labelling]) -> bool:
     if not done or not n_curves:
         return False
     best = min(done, key=lambda lab: lab.score)
-    curves = len(best.obs.lines) + len(best.obs.ellipses)
-    return len(best.obs.points) < len(features.points) - 1 or 2 * curves < n_curves
+    return len(best.obs.points) < len(features.points) - 1 or _wires_unshown(features, best)
 
 
 def _wires_unshown(features: Features, best: Labelling) -> bool:
