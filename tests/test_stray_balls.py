@@ -93,3 +93,70 @@ def test_the_limit_is_a_setting():
     assert acceptance.stray_balls(scene, lab, loose) is None
     strict = TrackOptions(stray_ball_fraction=0.8).acceptance  # 16 > 15
     assert acceptance.stray_balls(scene, lab, strict) is None
+
+
+F2005 = FEATURES["ftrac_2005"]
+
+
+def _crossings(R, t) -> np.ndarray:
+    """Where two of ftrac_2005's predicted centre-lines cross at pose (R, t) (px): the closest
+    pairs of samples of two different curves within 0.5 px, one per crossing."""
+    curves = [p[np.isfinite(p).all(1)] for _, p in identify.curve_samples(F2005, CAMERA, R, t).values()]
+    found: list[np.ndarray] = []
+    for i, a in enumerate(curves):
+        for b in curves[i + 1 :]:
+            d = np.linalg.norm(a[:, None] - b[None], axis=-1)
+            for j in np.flatnonzero(d.min(1) <= 0.5):
+                x = 0.5 * (a[j] + b[d[j].argmin()])
+                if all(np.linalg.norm(x - y) > 3.0 for y in found):
+                    found.append(x)
+    return np.array(found)
+
+
+def _wire_scene(strays: np.ndarray):
+    """ftrac_2005's balls where a pose puts them (blob response 20 each), ``strays`` (k, 2) px
+    as strong (15); the labelling uses every ball. Scales of a 0.5 mm wire and a 2 mm ball."""
+    R, t = Workspace().sample(1, F2005.nominal_beam_direction, np.random.default_rng(5))
+    R, t = R[0], t[0]
+    uv = identify.project(CAMERA, R, t, F2005.point_centers())[0]
+    scene = SimpleNamespace(
+        beads=SimpleNamespace(
+            uv=np.vstack([uv, strays.reshape(-1, 2)]),
+            response=np.r_[np.full(len(uv), 20.0), np.full(len(strays), 15.0)],
+        ),
+        features=F2005,
+        camera=CAMERA,
+        scales=SimpleNamespace(bead_radius_px=RB, wire_px=1.7, blur_px=0.8),
+        learned=None,
+        blob_snr=None,
+    )
+    ids = [p.id for p in F2005.points]
+    lab = SimpleNamespace(
+        match={fid: k for k, fid in enumerate(ids)},
+        obs=SimpleNamespace(points={fid: uv[k] for k, fid in enumerate(ids)}),
+        pose=SimpleNamespace(rotation=R, translation_mm=t),
+    )
+    return scene, lab, R, t, uv
+
+
+def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
+    """Two wires crossing overlap in a spot as dense as a ball: the pose predicts it there. The
+    same blobs moved 5 px off each crossing, to where at most one wire passes within 3.5 px,
+    are strays as before."""
+    _, _, R, t, uv = _wire_scene(np.zeros((0, 2)))
+    cross = _crossings(R, t)
+    cross = cross[np.linalg.norm(cross[:, None] - uv[None], axis=-1).min(1) > 2 * RB + 4]
+    assert len(cross) >= 4
+    scene, lab, *_ = _wire_scene(cross)
+    assert acceptance.at_wire_crossings(scene, lab.pose, cross).all()
+    assert acceptance.stray_balls(scene, lab, OPTS) is None
+    curves = [q[np.isfinite(q).all(1)] for _, q in identify.curve_samples(F2005, CAMERA, R, t).values()]
+
+    def wires_near(x: np.ndarray) -> int:
+        return sum(np.linalg.norm(c - x, axis=1).min() <= 3.5 for c in curves)
+
+    steps = 5.0 * np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
+    off = np.array([next(x + d for d in steps if wires_near(x + d) <= 1) for x in cross])
+    scene, lab, *_ = _wire_scene(off)
+    assert not acceptance.at_wire_crossings(scene, lab.pose, off).any()
+    assert f"{len(off)} blobs as strong as the fiducial's balls" in acceptance.stray_balls(scene, lab, OPTS)
