@@ -1,6 +1,7 @@
 """The acceptance test that refuses a pose with blobs as strong as its balls among them that
 it does not explain (:func:`ftrac_design.segment.acceptance.stray_balls`): another phantom's
-balls, a lattice of them, where the fiducial's own balls would be the strongest blobs."""
+balls, a lattice of them, where the fiducial's own balls would be the strongest blobs; a blob
+where two of the pose's own wires cross is not one of them."""
 
 from __future__ import annotations
 
@@ -15,32 +16,34 @@ from ftrac_design.pose.simulate import Workspace
 from ftrac_design.segment import TrackOptions, acceptance, identify
 
 F = FEATURES["nine_bead"]
+F2005 = FEATURES["ftrac_2005"]
 CAMERA = Camera()
 OPTS = TrackOptions().acceptance
 RB = 3.4  # px: a 2 mm ball at the default magnification and pixel
 
 
-def _pose():
-    R, t = Workspace().sample(1, F.nominal_beam_direction, np.random.default_rng(3))
+def _pose(features, seed: int):
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(seed))
     return R[0], t[0]
 
 
-def _scene_and_labelling(strays: np.ndarray, stray_response: float):
-    """nine_bead's nine balls where the pose puts them (blob response 20 each) and ``strays``
-    (k, 2) px at ``stray_response``; the labelling uses every ball."""
-    R, t = _pose()
-    uv = identify.project(CAMERA, R, t, F.point_centers())[0]
+def _scene_and_labelling(strays: np.ndarray, stray_response: float, features=F, seed: int = 3):
+    """The design's balls (nine_bead's by default) where a pose puts them (blob response 20
+    each) and ``strays`` (k, 2) px at ``stray_response``; the labelling uses every ball. Scales
+    of a 2 mm ball and a 0.5 mm wire."""
+    R, t = _pose(features, seed)
+    uv = identify.project(CAMERA, R, t, features.point_centers())[0]
     allu = np.vstack([uv, strays.reshape(-1, 2)])
     response = np.r_[np.full(len(uv), 20.0), np.full(len(strays), stray_response)]
     scene = SimpleNamespace(
         beads=SimpleNamespace(uv=allu, response=response),
-        features=F,
+        features=features,
         camera=CAMERA,
-        scales=SimpleNamespace(bead_radius_px=RB),
+        scales=SimpleNamespace(bead_radius_px=RB, wire_px=1.7, blur_px=0.8),
         learned=None,
         blob_snr=None,
     )
-    ids = [p.id for p in F.points]
+    ids = [p.id for p in features.points]
     lab = SimpleNamespace(
         match={fid: k for k, fid in enumerate(ids)},
         obs=SimpleNamespace(points={fid: uv[k] for k, fid in enumerate(ids)}),
@@ -95,9 +98,6 @@ def test_the_limit_is_a_setting():
     assert acceptance.stray_balls(scene, lab, strict) is None
 
 
-F2005 = FEATURES["ftrac_2005"]
-
-
 def _crossings(R, t) -> np.ndarray:
     """Where two of ftrac_2005's predicted centre-lines cross at pose (R, t) (px): the closest
     pairs of samples of two different curves within 0.5 px, one per crossing."""
@@ -113,41 +113,16 @@ def _crossings(R, t) -> np.ndarray:
     return np.array(found)
 
 
-def _wire_scene(strays: np.ndarray):
-    """ftrac_2005's balls where a pose puts them (blob response 20 each), ``strays`` (k, 2) px
-    as strong (15); the labelling uses every ball. Scales of a 0.5 mm wire and a 2 mm ball."""
-    R, t = Workspace().sample(1, F2005.nominal_beam_direction, np.random.default_rng(5))
-    R, t = R[0], t[0]
-    uv = identify.project(CAMERA, R, t, F2005.point_centers())[0]
-    scene = SimpleNamespace(
-        beads=SimpleNamespace(
-            uv=np.vstack([uv, strays.reshape(-1, 2)]),
-            response=np.r_[np.full(len(uv), 20.0), np.full(len(strays), 15.0)],
-        ),
-        features=F2005,
-        camera=CAMERA,
-        scales=SimpleNamespace(bead_radius_px=RB, wire_px=1.7, blur_px=0.8),
-        learned=None,
-        blob_snr=None,
-    )
-    ids = [p.id for p in F2005.points]
-    lab = SimpleNamespace(
-        match={fid: k for k, fid in enumerate(ids)},
-        obs=SimpleNamespace(points={fid: uv[k] for k, fid in enumerate(ids)}),
-        pose=SimpleNamespace(rotation=R, translation_mm=t),
-    )
-    return scene, lab, R, t, uv
-
-
 def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
     """Two wires crossing overlap in a spot as dense as a ball: the pose predicts it there. The
     same blobs moved 5 px off each crossing, to where at most one wire passes within 3.5 px,
     are strays as before."""
-    _, _, R, t, uv = _wire_scene(np.zeros((0, 2)))
+    _, lab, uv = _scene_and_labelling(np.zeros((0, 2)), 15.0, F2005, seed=5)
+    R, t = lab.pose.rotation, lab.pose.translation_mm
     cross = _crossings(R, t)
     cross = cross[np.linalg.norm(cross[:, None] - uv[None], axis=-1).min(1) > 2 * RB + 4]
     assert len(cross) >= 4
-    scene, lab, *_ = _wire_scene(cross)
+    scene, lab, _ = _scene_and_labelling(cross, 15.0, F2005, seed=5)
     assert acceptance.at_wire_crossings(scene, lab.pose, cross).all()
     assert acceptance.stray_balls(scene, lab, OPTS) is None
     curves = [q[np.isfinite(q).all(1)] for _, q in identify.curve_samples(F2005, CAMERA, R, t).values()]
@@ -157,6 +132,6 @@ def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
 
     steps = 5.0 * np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
     off = np.array([next(x + d for d in steps if wires_near(x + d) <= 1) for x in cross])
-    scene, lab, *_ = _wire_scene(off)
+    scene, lab, _ = _scene_and_labelling(off, 15.0, F2005, seed=5)
     assert not acceptance.at_wire_crossings(scene, lab.pose, off).any()
     assert f"{len(off)} blobs as strong as the fiducial's balls" in acceptance.stray_balls(scene, lab, OPTS)
