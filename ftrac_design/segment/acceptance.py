@@ -430,8 +430,8 @@ def at_wire_crossings(scene: Scene, pose: Pose, uv: np.ndarray) -> np.ndarray:
     benchmark's seeds 21 and 2120 two right ftrac_2005 poses (0.3 and 0.8 mm off) were refused
     for four "stray" blobs each; every one of the eight lay within 1.3 px of a predicted wire,
     five of them within 1 px of two (an ellipse crossing a line). Counting those as the
-    pose's own gave one more right pose on fresh seed 2121 and none on 720 trackings of images
-    without the fiducial (grid plates among them)."""
+    pose's own gave one more right pose on fresh seed 2121 and still no pose in 720 trackings
+    of images without the fiducial (grid plates among them)."""
     sc = scene.scales
     tol = 0.5 * sc.wire_px + sc.blur_px + 1.0
     curves = identify.curve_samples(scene.features, scene.camera, pose.rotation, pose.translation_mm)
