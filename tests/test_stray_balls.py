@@ -98,10 +98,14 @@ def test_the_limit_is_a_setting():
     assert acceptance.stray_balls(scene, lab, strict) is None
 
 
-def _crossings(R, t) -> np.ndarray:
-    """Where two of ftrac_2005's predicted centre-lines cross at pose (R, t) (px): the closest
-    pairs of samples of two different curves within 0.5 px, one per crossing."""
-    curves = [p[np.isfinite(p).all(1)] for _, p in identify.curve_samples(F2005, CAMERA, R, t).values()]
+def _curves(R, t) -> list[np.ndarray]:
+    """ftrac_2005's predicted centre-lines at pose (R, t): each curve's finite samples (px)."""
+    return [p[np.isfinite(p).all(1)] for _, p in identify.curve_samples(F2005, CAMERA, R, t).values()]
+
+
+def _crossings(curves: list[np.ndarray]) -> np.ndarray:
+    """Where two of the ``curves`` cross (px): the closest pairs of samples of two different
+    curves within 0.5 px, one per crossing."""
     found: list[np.ndarray] = []
     for i, a in enumerate(curves):
         for b in curves[i + 1 :]:
@@ -118,14 +122,13 @@ def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
     same blobs moved 5 px off each crossing, to where at most one wire passes within 3.5 px,
     are strays as before."""
     _, lab, uv = _scene_and_labelling(np.zeros((0, 2)), 15.0, F2005, seed=5)
-    R, t = lab.pose.rotation, lab.pose.translation_mm
-    cross = _crossings(R, t)
+    curves = _curves(lab.pose.rotation, lab.pose.translation_mm)
+    cross = _crossings(curves)
     cross = cross[np.linalg.norm(cross[:, None] - uv[None], axis=-1).min(1) > 2 * RB + 4]
     assert len(cross) >= 4
     scene, lab, _ = _scene_and_labelling(cross, 15.0, F2005, seed=5)
     assert acceptance.at_wire_crossings(scene, lab.pose, cross).all()
     assert acceptance.stray_balls(scene, lab, OPTS) is None
-    curves = [q[np.isfinite(q).all(1)] for _, q in identify.curve_samples(F2005, CAMERA, R, t).values()]
 
     def wires_near(x: np.ndarray) -> int:
         return sum(np.linalg.norm(c - x, axis=1).min() <= 3.5 for c in curves)
