@@ -1,9 +1,12 @@
 """Each ball its own σ: the noise model gives a named bead its own standard deviation, the
 solver weights it by that, and the image path derives it from the ball's own fit (its
-reported σ, how far its fitted radius and its apparent size are from its fellows'), so that a
-ball overlapped by a needle or an edge, or shown blurrier than the rest, does not pull the pose."""
+reported σ, how far its fitted radius is from its fellows' and its apparent size from the
+sharper ones'), so that a ball overlapped by a needle or an edge, or shown blurrier than the
+rest, does not pull the pose."""
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -102,6 +105,45 @@ def test_each_ball_s_sigma_is_its_fit_s_and_its_radius_s_and_size_s_departure(vi
     assert nm.point_sigma_mm("B4") == pytest.approx(np.sqrt((a * 0.05) ** 2 + (c * dm4) ** 2 + sys**2) * PIX)
     assert nm.point_sigma_mm("B7") == pytest.approx(np.sqrt((a * 0.12) ** 2 + sys**2) * PIX)
     assert nm.point_sigma_mm("B9") == pytest.approx(OPTS.point_max_ratio * plain)
+
+
+def test_the_size_s_reference_is_the_sharper_balls_not_the_median(view):
+    """Five of nine balls shown blurrier (on a structure): the median size is one of theirs,
+    so the reference is the sizes' lower third — the four sharp balls keep the plain σ and
+    the blurred five carry their departure from it."""
+    *_, obs = view
+    blurred = {f"B{i}": 1.6 for i in range(5, 10)}
+    beads, match = _beads(obs, radius={}, sigma={}, blur=blurred)
+    nm = measured_noise(obs, beads, match, PIX, 0.8, OPTS)
+    a, c, sys = OPTS.point_fit_scale, OPTS.point_size_scale, OPTS.sys_point_px
+    plain = np.sqrt((a * 0.05) ** 2 + sys**2) * PIX
+    dm = np.sqrt(3.4**2 / 5 + 1.6**2) - np.sqrt(3.4**2 / 5 + 0.8**2)
+    assert all(nm.point_sigma_mm(f"B{i}") == pytest.approx(plain) for i in range(1, 5))
+    assert nm.point_sigma_mm("B7") == pytest.approx(np.sqrt((a * 0.05) ** 2 + (c * dm) ** 2 + sys**2) * PIX)
+    by_median = measured_noise(obs, beads, match, PIX, 0.8, replace(OPTS, point_size_quantile=0.5))
+    assert by_median.point_sigma_mm("B7") == pytest.approx(plain)
+    assert by_median.point_sigma_mm("B1") > 2 * plain
+
+
+def test_balls_pulled_along_a_structure_they_share_no_longer_carry_the_pose(view):
+    """Three balls pulled 1.5 px the same way and two more unmoved, all five shown blurrier
+    than the other four (a tube's walls under them): sized against the sharper balls, the
+    pose moves a fraction of what the median size as the reference lets it (2.9 against
+    10 mm here)."""
+    features, cam, R, t, obs = view
+    moved = obs
+    for fid in ("B5", "B6", "B7"):
+        moved = _shifted(moved, fid, (-1.5, 0.3))
+    pix = float(np.mean(cam.pixel_size_mm))
+    beads, match = _beads(moved, radius={}, sigma={}, blur={f"B{i}": 1.6 for i in range(5, 10)})
+    err = {}
+    for q in (OPTS.point_size_quantile, 0.5):
+        noise = measured_noise(moved, beads, match, pix, 0.8, replace(OPTS, point_size_quantile=q))
+        p = refine_pose(features, moved, R, t, SolverOptions(noise=noise))
+        assert np.all(np.isfinite(p.translation_mm))
+        dr, dt = pose_errors(p.rotation, p.translation_mm, R, t)
+        err[q] = np.linalg.norm(dt)
+    assert err[OPTS.point_size_quantile] < 0.5 * err[0.5]
 
 
 def test_a_ball_that_looks_larger_than_its_fellows_no_longer_pulls_the_pose(view):

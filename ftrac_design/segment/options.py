@@ -140,15 +140,20 @@ class TrackOptions:
     #: ``point_radius_scale`` × how far its fitted radius is from its fellows' median (px;
     #: a ball merged with a wire, a needle or a bone edge looks larger and its centre is
     #: pulled), plus ``point_size_scale`` × how far its apparent size √(r² / 5 + blur²) (px:
-    #: the blurred ball's second moment per axis) is from its fellows' median (a ball on a
-    #: display window's clipped shoulder, or under a bone edge, looks blurrier than the rest
-    #: and its centre is off while its radius alone looks right), and ``sys_point_px``; at most
-    #: ``point_max_ratio`` × the labelling's median ball's, so that every ball counted still
-    #: has to agree with the pose. Fitted to the balls of right poses (seed 21, three presets,
-    #: 12 conditions): see :func:`~.noise.measured_noise`
+    #: the blurred ball's second moment per axis) is from the ``point_size_quantile`` of its
+    #: fellows' (a ball on a display window's clipped shoulder, under a bone edge or on a
+    #: tube's wall looks blurrier than the rest and its centre is off while its radius alone
+    #: looks right; what disturbs a ball makes it look larger, so the reference is the
+    #: sharper balls', not the median, which is itself a disturbed ball when half of them
+    #: lie on a structure), and ``sys_point_px``; at most ``point_max_ratio`` × the
+    #: labelling's median ball's, so that every ball counted still has to agree with the
+    #: pose. The scales were fitted to the balls of right poses (seed 21, three presets, 12
+    #: conditions) with the median as the size's reference; the lower third calibrates the
+    #: same scales better on every preset (see :func:`~.noise.measured_noise`)
     point_fit_scale: float = 1.0
     point_radius_scale: float = 0.23
     point_size_scale: float = 0.81
+    point_size_quantile: float = 1 / 3
     point_max_ratio: float = 3.0
     sys_curve_px: float = 0.04
     #: a curve type's contour scatter, measured about its own fits, is pooled with a prior of
@@ -389,6 +394,7 @@ class NoiseOptions:
     point_fit_scale: float
     point_radius_scale: float
     point_size_scale: float
+    point_size_quantile: float
     point_max_ratio: float
     sys_curve_px: float
     curve_prior_dof: float
