@@ -114,9 +114,10 @@ def _ball_sigmas(
     capped at ``point_max_ratio`` × the median σᵢ. The size's reference is the sharper balls'
     (the lower third): a clipped shoulder, a bone edge, a wire or a tube's wall under a ball
     makes it look larger, never sharper, and when five of ``ftrac_mini``'s nine balls lay on
-    a tube's two walls (fresh seed 2121, round field 16) the median size was a disturbed
-    ball's — the three balls pulled 1–1.9 px along the wall got the smallest σ and the pose
-    was 3.8° and 4.5 mm off at χ²₆ 48 (with the lower third: 3.3° and 2.2 mm, χ²₆ 16).
+    a tube's two walls (seed 2121, round field 16) the median size was a disturbed ball's —
+    two balls pulled 1.1 and 1.7 px along the wall got half the σ of the four undisturbed
+    ones and the pose was 3.8° and 4.5 mm off at χ²₆ 48 (with the lower third: 3.3° and
+    2.3 mm, χ²₆ 16).
 
     a, b and c are the maximum-likelihood values on 4,594 balls of right poses
     (``benchmarks/ball_sigma_fit.py``, seed 21, ftrac_2005, ftrac_mini and nine_bead, clean
