@@ -253,8 +253,7 @@ class TrackOptions:
     #: a blob among the fiducial's balls (inside their projected hull, more than two radii from
     #: every ball the pose puts there, not where two of its wires cross) with a blob response at
     #: least ``stray_ball_fraction`` of the median of the balls the labelling uses is a ball the
-    #: pose does not explain; a
-    #: confident labelling leaves at most ``max_stray_balls`` of them
+    #: pose does not explain; a confident labelling leaves at most ``max_stray_balls`` of them
     #: (:func:`~.acceptance.stray_balls`)
     stray_ball_fraction: float = 0.7
     max_stray_balls: int = 3
