@@ -8,6 +8,7 @@ run over anatomy, frames 85, 88 and 93)."""
 
 from __future__ import annotations
 
+import itertools
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -178,3 +179,43 @@ def test_a_second_look_does_not_break_the_first_looks_tie():
     assert not res.pose.converged
     assert "an earlier look at the image found this pose" in res.pose.error
     assert min(np.degrees(so3.angle(np.asarray(a["rotation"]), R)) for a in res.diagnostics.alternatives) < 1.0
+
+
+def test_an_answer_s_own_blobs_form_the_labelling_the_strongest_blobs_never_did():
+    """The balls ranked below 24 clutter blobs: neither the first search nor the wider one
+    holds three balls in a triplet. An answer that put six balls on their blobs and three on
+    clutter (``labelled``) forms the right labelling from its own triplets; the same search
+    without them does not."""
+    model, R, t, blobs = _cluttered_view()
+    near = np.linalg.norm(blobs[:, None] - identify.project(CAMERA, R, t, model)[0][None], axis=-1)
+    ball_of = near.argmin(1)
+    is_ball = near.min(1) < 1.0
+    blobs, ball_of = np.concatenate([blobs[~is_ball], blobs[is_ball]]), np.r_[ball_of[~is_ball], ball_of[is_ball]]
+    answer = {b: int(ball_of[b]) for b in range(24, 33)}
+    for clutter, b in zip((0, 1, 2), sorted(answer)[:3]):
+        answer[clutter] = answer.pop(b)  # three of its balls on clutter
+    search = dict(image_triplets=48, keep=None, blobs=16, after=24, patience=None)
+    assert not _right(identify.bead_hypotheses(model, blobs, CAMERA, 3.4, **search), R)
+    found = identify.bead_hypotheses(model, blobs, CAMERA, 3.4, labelled=answer, labelled_triplets=84, **search)
+    assert _right(found, R)
+    none = identify.bead_hypotheses(model, blobs, CAMERA, 3.4, labelled=answer, labelled_triplets=0, **search)
+    assert not _right(none, R)
+
+
+def test_an_answer_s_triplets_are_its_largest_triangles_first_and_keep_two_labels():
+    """:func:`.identify._triplets_among`: only the given blobs, no collinear three, the
+    largest triangle first, at most the limit; :func:`.identify._one_relabelled`: two of the
+    three labels kept, any allowed bead in the third place."""
+    uv = np.array([[0.0, 0.0], [10.0, 0.0], [20.0, 0.0], [0.0, 10.0], [5.0, 40.0], [100.0, 100.0]])
+    tri = identify._triplets_among(uv, (0, 1, 2, 3, 4), 3, np.inf)
+    assert len(tri) == 3 and all(set(abc) <= {0, 1, 2, 3, 4} for abc in tri)
+    assert (0, 1, 2) not in tri
+    a, b, c = (uv[list(col)] for col in zip(*tri))
+    area = list(np.abs((b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0]) / 2)
+    assert area == sorted(area, reverse=True) and area[0] == 400.0
+    allowed = np.array([r for r in itertools.permutations(range(5), 3) if r != (4, 1, 2)])
+    rows = {tuple(r) for r in identify._one_relabelled((0, 1, 2), allowed).tolist()}
+    assert (0, 1, 2) in rows and (3, 1, 2) in rows and (0, 4, 2) in rows and (0, 1, 3) in rows
+    assert (4, 1, 2) not in rows  # not allowed
+    assert all(sum(a == b for a, b in zip(r, (0, 1, 2))) >= 2 for r in rows)
+    assert len(rows) == 3 * 2 + 1 - 1  # each place: the two other beads, the original once, less one

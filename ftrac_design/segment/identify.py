@@ -144,6 +144,81 @@ def _p3p_poses(objs: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple[np.nda
     return (R, t) if len(R) else None
 
 
+def _triplet_poses(
+    objs: np.ndarray, uv: np.ndarray, itri: tuple[int, int, int], K: np.ndarray, view: ViewPrior | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The P3P poses of the model triplets ``objs`` at the blobs ``itri`` of ``uv`` that
+    ``view`` admits within :data:`SAME_POSE_RAD` (all without one), or None."""
+    return _admitted(_p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K), view)
+
+
+def _admitted(
+    poses: tuple[np.ndarray, np.ndarray] | None, view: ViewPrior | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The poses (R, t) that ``view`` admits within :data:`SAME_POSE_RAD` (all without one),
+    or None for none."""
+    if poses is None or view is None:
+        return poses
+    ok = view.admits(poses[0], SAME_POSE_RAD)
+    return (poses[0][ok], poses[1][ok]) if ok.any() else None
+
+
+def _triplets_among(
+    uv: np.ndarray, among: tuple[int, ...], limit: int, max_extent_px: float
+) -> list[tuple[int, int, int]]:
+    """Up to ``limit`` triplets of the blobs ``among`` (indices into ``uv``) that pass
+    :func:`_image_triplets`' shape tests, the largest triangles first (the best-conditioned
+    P3P), as indices into ``uv``."""
+    idx = np.array(sorted({b for b in among if 0 <= b < len(uv)}), int)
+    if len(idx) < 3:
+        return []
+    sub = _image_triplets(uv[idx], math.comb(len(idx), 3), max_extent_px, k=len(idx))
+    e1 = np.array([uv[idx[b]] - uv[idx[a]] for a, b, _ in sub]).reshape(-1, 2)
+    e2 = np.array([uv[idx[c]] - uv[idx[a]] for a, _, c in sub]).reshape(-1, 2)
+    area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    order = sorted(range(len(sub)), key=lambda i: (-area[i], sub[i]))[:limit]
+    return [tuple(int(idx[i]) for i in sub[j]) for j in order]
+
+
+def _one_relabelled(labels: tuple[int, int, int], allowed: np.ndarray) -> np.ndarray:
+    """The rows of ``allowed`` (model triplets, (m, 3): :func:`_model_triplets`) that keep at
+    least two of ``labels`` in place: the labelling itself and every one with any other bead
+    in one place."""
+    allowed = np.asarray(allowed, int).reshape(-1, 3)
+    return allowed[(allowed == np.asarray(labels, int)).sum(1) >= 2]
+
+
+def _relabelled_poses(
+    model: np.ndarray,
+    uv: np.ndarray,
+    K: np.ndarray,
+    labelled: dict[int, int],
+    limit: int,
+    max_extent_px: float,
+    mtri: np.ndarray,
+    view: ViewPrior | None = None,
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The P3P poses (R (k, 3, 3), t (k, 3)) of up to ``limit`` triplets of ``labelled``'s
+    blobs (blob index into ``uv`` → model bead index; :func:`_triplets_among`), each matched
+    with the model triplets of ``mtri`` that keep two of its labels (:func:`_one_relabelled`),
+    all solved at once, that ``view`` admits (:func:`_admitted`); None for none.
+
+    ``labelled`` is an answer its wires did not confirm: most of its balls may be right and
+    the rest on clutter that outranks the other balls, so that no triplet of the strongest
+    blobs holds three right ones; and a right ball's blob may be two balls' in this view (the
+    answer gave it one of them), whence the third label left free."""
+    objs, rays = [], []
+    for itri in _triplets_among(uv, tuple(labelled), limit, max_extent_px):
+        rows = _one_relabelled(tuple(labelled[i] for i in itri), mtri)
+        if len(rows):
+            objs.append(model[rows])
+            rays.append(np.broadcast_to(bearings(uv[list(itri)], K), (len(rows), 3, 3)))
+    if not objs:
+        return None
+    R, t, _ = p3p(np.concatenate(objs), np.concatenate(rays))
+    return _admitted((R, t), view) if len(R) else None
+
+
 def _labellings_of(
     model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -229,6 +304,8 @@ def bead_hypotheses(
     after: int = 0,
     patience: int | None = 5,
     view: ViewPrior | None = None,
+    labelled: dict[int, int] | None = None,
+    labelled_triplets: int = 0,
 ) -> list[BeadHypothesis]:
     """Distinct bead labellings ranked by matched count, then RMS (best first).
 
@@ -252,6 +329,9 @@ def bead_hypotheses(
     view : the view as known beforehand (:class:`.options.ViewPrior`): only P3P poses it
         admits within :data:`SAME_POSE_RAD` more are labelled (three balls' pose is a few
         degrees off the refined one), so that the search's stops count only those; None: all.
+    labelled : an answer's labelling (blob index → model bead index) its wires did not confirm:
+        up to ``labelled_triplets`` triplets of its blobs are tried first, outside the stops,
+        with every model triplet that keeps two of their labels (:func:`_relabelled_poses`).
 
     Returns
     -------
@@ -267,13 +347,14 @@ def bead_hypotheses(
     tree = cKDTree(uv)
     best: dict[tuple, list[BeadHypothesis]] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)  # (m, 3, 3), once for every image triplet
+    if labelled:
+        poses = _relabelled_poses(model, uv, K, labelled, labelled_triplets, max_extent_px, mtri, view)
+        if poses is not None:
+            _collect_matches(best, model, camera, tree, *poses, tol_px)
     top, stale, tried = 0, 0, 0
     skip = frozenset(_image_triplets(uv, after, max_extent_px)) if after > 0 else frozenset()
     for itri in _image_triplets(uv, image_triplets, max_extent_px, k=blobs, skip=skip):
-        poses = _p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K)
-        if poses is not None and view is not None:
-            ok = view.admits(poses[0], SAME_POSE_RAD)
-            poses = (poses[0][ok], poses[1][ok]) if ok.any() else None
+        poses = _triplet_poses(objs, uv, itri, K, view)
         if poses is None:
             continue
         top_now = max(top, _collect_matches(best, model, camera, tree, *poses, tol_px))
@@ -288,7 +369,13 @@ def bead_hypotheses(
         if tried >= 8 and top < 4:
             # eight triplets of the strongest blobs and not four balls in a row: not here
             break
-    # ties broken by the labelling itself: the ranking depends on no order of discovery
+    return _ranked(best, keep)
+
+
+def _ranked(best: dict[tuple, list[BeadHypothesis]], keep: int | None) -> list[BeadHypothesis]:
+    """The first ``keep`` (None: all) hypotheses of ``best`` (labelling → its poses) by matched
+    count, then RMS; ties broken by the labelling itself, so that the ranking depends on no
+    order of discovery."""
     ranked = sorted(
         ((key, k, h) for key, poses in best.items() for k, h in enumerate(poses)),
         key=lambda e: (-e[2].count, e[2].rms_px, e[0], e[1]),

@@ -109,6 +109,12 @@ class TrackOptions:
     #: fitted, the strongest of them 3rd of 33 blobs, the right labelling never formed)
     wide_triplets: int = 48
     wide_blobs: int = 16
+    #: where the answer shows fewer than half its wires, the wider search also tries up to this
+    #: many triplets of the answer's own blobs, the largest triangles first (0: none). Seeds
+    #: the learned detector ranks above the balls can stand in for a line's balls: ftrac_mini
+    #: among seeds (fresh seed 2123) put its line of three on seeds 8.7 px from their own
+    #: blobs, 17° off, and no triplet of the strongest blobs held three of the right six
+    own_triplets: int = 84
     match_tol_px: float = 2.0
     #: contour points within this of a predicted curve belong to it (px); a second curve
     #: within ``separation_px`` makes a point ambiguous
@@ -348,6 +354,7 @@ class FindOptions:
     hypothesis_wire_weight: float
     wide_triplets: int
     wide_blobs: int
+    own_triplets: int
     view: ViewPrior | None
 
 

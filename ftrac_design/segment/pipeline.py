@@ -113,7 +113,7 @@ def _wires_unshown(features: Features, best: Labelling) -> bool:
 
 
 def ranked_hypotheses(
-    scene: Scene, hyps: list[identify.BeadHypothesis], wire_weight: float
+    scene: Scene, hyps: list[identify.BeadHypothesis], wire_weight: float, always: bool = False
 ) -> list[identify.BeadHypothesis]:
     """``hyps`` ranked for refining, best first: by ``rank``, the matched ball count plus
     ``wire_weight`` × the ridge evidence along the hypothesis' predicted wires
@@ -126,9 +126,11 @@ def ranked_hypotheses(
     never refined. Those wrong poses put wire on bare background, which no pose may do
     (:func:`.acceptance.absent_wires`); the right one's wires show plainly. A bead-only
     design keeps the order by count, and so does a list whose first hypothesis explains every
-    ball."""
+    ball — unless ``always``: where an answer that explained every ball showed no wire, a
+    hypothesis of fewer balls whose wires the image shows must come before it."""
     f = scene.features
-    if not hyps or not (f.lines or f.ellipses) or wire_weight <= 0 or hyps[0].count >= len(f.points):
+    full = hyps and hyps[0].count >= len(f.points) and not always
+    if not hyps or not (f.lines or f.ellipses) or wire_weight <= 0 or full:
         # a hypothesis that explains every ball needs no help from the wires to come first
         return hyps
     sup = evidence.ranking_support(
@@ -177,6 +179,7 @@ def _hypotheses(
     budget: Budget,
     tried: list[identify.BeadHypothesis],
     fewest_balls: int = 0,
+    by_wires: bool = False,
     **search,
 ) -> list[identify.BeadHypothesis]:
     """The bead hypotheses of the scene's blobs (:func:`.identify.bead_hypotheses` with the
@@ -195,7 +198,7 @@ def _hypotheses(
     )
     seen = {tuple(sorted(h.match.items())) for h in tried}
     hyps = [h for h in hyps if tuple(sorted(h.match.items())) not in seen and h.count >= fewest_balls]
-    return ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight)[: budget.labellings_if_weak]
+    return ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight, by_wires)[: budget.labellings_if_weak]
 
 
 def _wider_search(
@@ -206,13 +209,17 @@ def _wider_search(
     labelling: LabellingOptions,
     accept: AcceptanceOptions,
     fewest_balls: int = 0,
+    labelled: dict[int, int] | None = None,
 ) -> tuple[Scene, list[Labelling]]:
     """A wider search where no labelling of the first search gave a pose, or where the best
     pose shows fewer than half its wires (:func:`_wires_unshown`, see :func:`_challenged`): the blob triplets
     after the first search's (``find.wide_triplets`` of the ``find.wide_blobs`` strongest
     blobs, with no stop on a labelling that explains all balls but one or two: the first
-    search's were refused), their new labellings ranked and refined as the first ones were —
-    only those of hypotheses that match at least ``fewest_balls`` balls. One per image
+    search's were refused), and ``find.own_triplets`` triplets of an answer's ``labelled`` blobs
+    (blob → model bead index; see :func:`.identify.bead_hypotheses`), their new labellings
+    ranked and refined as the first ones were — only those of hypotheses that match at least
+    ``fewest_balls`` balls; with ``labelled``, ranked by their wires even where one explains
+    every ball (the answer may explain every ball, and its wires did not show). One per image
     (``budget.wider_searches``) and not counted in ``budget``'s work: where an image gave a
     pose without it (in a later region, or the other polarity) it still does. Returns the
     scene with the balls the new hypotheses predict and the labellings refined; none where the
@@ -242,6 +249,9 @@ def _wider_search(
         blobs=find.wide_blobs,
         after=FIRST_TRIPLETS,
         patience=None,
+        labelled=labelled,
+        labelled_triplets=find.own_triplets,
+        by_wires=bool(labelled),
     )
     if not more:
         return scene, []
@@ -309,9 +319,20 @@ def _challenged(
     The wider search formed the right ones (misfit 73 against 233, and 813 against 1,197).
     Its labellings may not simply join the rest: a labelling of three or four balls can fit
     the misfit better than the right one's nine and then be refused for its little evidence,
-    losing the image (tuning seed 21, ftrac_2005 under blur and ftrac_mini in log form)."""
+    losing the image (tuning seed 21, ftrac_2005 under blur and ftrac_mini in log form).
+
+    The answer's own blobs are searched too (``find.own_triplets`` of their triplets), and the
+    new hypotheses ranked by their wires even where one explains every ball: among seeds the
+    learned detector ranks above the balls, ftrac_mini (fresh seed 2123) was given 17° and
+    9 mm off, its line of three on seeds 8.7 px from their own blobs and all nine balls
+    explained; six of its blobs were right balls, but no triplet of the strongest blobs held
+    three of them. Three of its own give the right labelling — seven balls, as this view lays
+    two of the line's on other balls — which fits the image better (misfit 1,001 against
+    1,035) and cannot stand alone: a tie, no pose."""
     balls, R = len(answer.obs.points), answer.pose.rotation
-    wide, more = _wider_search(scene, hyps, budget, find, labelling, accept, fewest_balls=balls - 2)
+    index = {p.id: i for i, p in enumerate(scene.features.points)}
+    own = {blob: index[bid] for bid, blob in answer.match.items() if bid in index}
+    wide, more = _wider_search(scene, hyps, budget, find, labelling, accept, fewest_balls=balls - 2, labelled=own)
     more = [
         lab
         for lab in _in_view(more, find.view)
