@@ -129,7 +129,7 @@ def ranked_hypotheses(
     ball — unless ``always``: where an answer that explained every ball showed no wire, a
     hypothesis of fewer balls whose wires the image shows must come before it."""
     f = scene.features
-    full = hyps and hyps[0].count >= len(f.points) and not always
+    full = bool(hyps) and hyps[0].count >= len(f.points) and not always
     if not hyps or not (f.lines or f.ellipses) or wire_weight <= 0 or full:
         # a hypothesis that explains every ball needs no help from the wires to come first
         return hyps
