@@ -218,4 +218,4 @@ def test_an_answer_s_triplets_are_its_largest_triangles_first_and_keep_two_label
     assert (0, 1, 2) in rows and (3, 1, 2) in rows and (0, 4, 2) in rows and (0, 1, 3) in rows
     assert (4, 1, 2) not in rows  # not allowed
     assert all(sum(a == b for a, b in zip(r, (0, 1, 2))) >= 2 for r in rows)
-    assert len(rows) == 3 * 2 + 1 - 1  # each place: the two other beads, the original once, less one
+    assert len(rows) == 6  # the labels, and two other beads in each of three places, less (4, 1, 2)

@@ -65,23 +65,25 @@ def test_a_line_of_balls_on_seeds_meets_the_labelling_of_the_answer_s_own_blobs(
     and no triplet of the strongest blobs held three of the six right ones. The answer's own
     blobs, three at a time, form the right labelling; it explains the image better (misfit
     1,001 against 1,035) and cannot stand alone (five balls, the rest merged in pairs): a tie,
-    no pose. Without them the wrong pose is given."""
+    no pose. Without them the wrong pose is given. (The clock's safety net is set far off: what
+    the search does, not the machine's load, decides the outcome.)"""
     img, features, R, t = _image("ftrac_mini", "seeds-needle", 3, 2123, 20)
-    res = track_image(img, features, Camera())
+    opts = replace(TrackOptions(), time_budget_s=120.0)
+    res = track_image(img, features, Camera(), opts)
     assert not res.pose.converged
     assert res.pose.error.startswith("ambiguous identification")
-    alone = track_image(img, features, Camera(), replace(TrackOptions(), own_triplets=0))
+    alone = track_image(img, features, Camera(), replace(opts, own_triplets=0))
     assert alone.pose.converged
     dr, dt = pose_errors(alone.pose.rotation, alone.pose.translation_mm, R, t)
     assert math.degrees(float(np.linalg.norm(dr))) > 10.0
 
 
 def test_the_wider_search_labellings_are_sorted_into_those_that_may_join_and_those_that_may_only_tie(monkeypatch):
-    """An answer on 8 balls: the wider search is asked for hypotheses of at least 6, and given
-    the answer's own blobs; of what it
-    refines, a labelling of the answer's own view (5° turned) is dropped, one of another view
-    that converged on evidence the acceptance tests take may join, and one the tests would
-    refuse or one that did not converge may only tie."""
+    """An answer on 8 balls: the wider search is asked for hypotheses of at least 6 and given
+    the answer's own blobs and balls; of what it refines, a labelling of the answer's own view
+    (5° turned) is dropped, one of another view that converged on evidence the acceptance
+    tests take may join, and one the tests would refuse or one that did not converge may only
+    tie."""
     asked = {}
 
     def lab(deg: float, converged: bool, balls: int):
