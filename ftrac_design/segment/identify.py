@@ -144,14 +144,6 @@ def _p3p_poses(objs: np.ndarray, img: np.ndarray, K: np.ndarray) -> tuple[np.nda
     return (R, t) if len(R) else None
 
 
-def _triplet_poses(
-    objs: np.ndarray, uv: np.ndarray, itri: tuple[int, int, int], K: np.ndarray, view: ViewPrior | None
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """The P3P poses of the model triplets ``objs`` at the blobs ``itri`` of ``uv`` that
-    ``view`` admits within :data:`SAME_POSE_RAD` (all without one), or None."""
-    return _admitted(_p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K), view)
-
-
 def _admitted(
     poses: tuple[np.ndarray, np.ndarray] | None, view: ViewPrior | None
 ) -> tuple[np.ndarray, np.ndarray] | None:
@@ -354,7 +346,7 @@ def bead_hypotheses(
     top, stale, tried = 0, 0, 0
     skip = frozenset(_image_triplets(uv, after, max_extent_px)) if after > 0 else frozenset()
     for itri in _image_triplets(uv, image_triplets, max_extent_px, k=blobs, skip=skip):
-        poses = _triplet_poses(objs, uv, itri, K, view)
+        poses = _admitted(_p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K), view)
         if poses is None:
             continue
         top_now = max(top, _collect_matches(best, model, camera, tree, *poses, tol_px))
