@@ -6,6 +6,7 @@ at which one feature is dropped."""
 
 from __future__ import annotations
 
+import math
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -23,6 +24,7 @@ from ftrac_design.segment import TrackOptions, acceptance, evidence, identify, t
 from ftrac_design.segment.detection import Scene, scales
 from ftrac_design.segment.labelling import Labelling
 from ftrac_design.segment.noise import calibrated_covariance
+from ftrac_design.segment.region import mirror_signal_px
 from ftrac_design.xray import render
 
 
@@ -302,6 +304,55 @@ def test_balls_that_crowd_in_pairs_count_where_wires_confirm_the_labelling(crowd
         assert why is not None and "3 beads could be used" in why
     else:
         assert why is None
+
+
+@pytest.mark.parametrize(("variance_factor", "refused"), [(5.82, True), (2.08, False), (None, False)])
+def test_crowded_balls_confirm_a_view_not_set_apart_from_its_mirror_only_with_a_good_fit(variance_factor, refused):
+    """ftrac_mini seen where perspective cannot set a view apart from its mirror image (its
+    signal below 2 px everywhere in the workspace): four balls and one ellipse's contour, and
+    five unused balls beside them that the image shows. A near-mirror labelling's unused
+    balls fall on the right one's blobs too, so they make up the five balls it needs only
+    where the features it fitted fit as features do: χ²₇ = 7 × 5.82 (p = 9·10⁻⁷, the
+    near-mirror of held-out seed 2124, 178° off) is refused, 7 × 2.08 (p = 0.04, a right
+    pose there) is not."""
+    features = compute_features(load_design("ftrac_mini"))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
+    assert mirror_signal_px(features, Camera(), R[0], t[0]) < 2.0
+    ids = {p.id for p in features.points[:4]} | {"E1"}
+    obs = simulate_observation(features, Camera(), R[0], t[0], include=ids)
+    lab = _labelling(obs, R[0], t[0])
+    lab = replace(lab, contours=identify.Contours(crowded_shown=5), variance_factor=variance_factor)
+    scene = SimpleNamespace(features=features, learned=None)
+    opts = TrackOptions().acceptance
+    why = acceptance.too_little_evidence(scene, lab, opts)
+    if refused:
+        assert why is not None and "4 beads beside balls that crowd its others" in why and "χ²7 = 40.7" in why
+    else:
+        assert why is None
+    # without the crowded balls the four are too few, however well they fit
+    alone = acceptance.too_little_evidence(scene, replace(lab, contours=identify.Contours()), opts)
+    assert alone is not None and "4 beads could be used (need 5" in alone
+
+
+def test_a_display_frame_s_near_mirror_of_ftrac_mini_is_refused():
+    """The image where that happened (held-out seed 2124, 20 per condition, display-bright
+    image 1): the answer used four balls and one ellipse's contour, 178° and 27 mm off,
+    χ²₇ = 40.7 of its features. Refused, it leaves the right labelling (0.6° off, its depth
+    7.8 mm off within its own covariance: χ²₆ of its error below 25.7); with the fit not asked
+    of crowded balls (``crowd_p_value=0``), the near-mirror is given."""
+    from test_wider_rivals import _image
+
+    img, features, R, t = _image("ftrac_mini", "display-bright", 1, 2124, 20)
+    res = track_image(img, features, Camera())
+    assert res.pose.converged, res.pose.error
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    e = np.concatenate([dr, dt])
+    assert math.degrees(float(np.linalg.norm(dr))) < 1.0
+    assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
+    wrong = track_image(img, features, Camera(), TrackOptions(crowd_p_value=0.0))
+    assert wrong.pose.converged
+    dr, dt = pose_errors(wrong.pose.rotation, wrong.pose.translation_mm, R, t)
+    assert math.degrees(float(np.linalg.norm(dr))) > 170.0 and float(np.linalg.norm(dt)) > 20.0
 
 
 def test_a_side_view_whose_balls_overlap_in_pairs_is_tracked():

@@ -23,7 +23,7 @@ from .detection import LEARNED_BALL, Scene
 from .labelling import Labelling
 from .noise import redundancy_numbers
 from .options import AcceptanceOptions
-from .region import balls_needed, fiducial_extent_mm
+from .region import balls_needed, fiducial_extent_mm, mirror_distinct
 
 #: the learned detector's median wire probability along a predicted wire at which it counts as
 #: shown by the image, whatever its ridge evidence: on 40 ftrac_2005 images (blurred, display,
@@ -267,6 +267,14 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
     # on blobs the image shows, and they count (the independent renderer: 0.01–0.04° and
     # 0.05–0.14 mm from the truth, refused on three balls)
     crowd = cont.crowded_shown if lab.confirmed_by_wires else 0
+    if len(obs.points) < need <= len(obs.points) + crowd and not mirror_distinct(features, obs.camera, lab.pose, opts):
+        # where perspective does not set the view apart from its mirror, a near-mirror
+        # labelling's unused balls fall on the right one's blobs as well, and only how well
+        # it fits the rest tells them apart: ftrac_mini's passed 178° and 27 mm off on four
+        # balls, one ellipse and five crowded balls shown (held-out seed 2124, a display frame)
+        why = _misfit(lab, opts.crowd_p_value, "beside balls that crowd its others")
+        if why is not None:
+            return why
     if len(obs.points) + crowd < need:
         # the balls carry the labelling; with fewer, a near-mirror of a small fiducial fits
         # its wires as well (ftrac_mini, benchmark images 242 and 165: 3 and 4 balls and both
@@ -311,16 +319,26 @@ def balls_misfit(lab: Labelling, opts: AcceptanceOptions) -> str | None:
     balls-alone poses of ftrac_2005 and ftrac_mini the least probable was p = 3·10⁻⁵. A
     bead-only design is not judged so (the caller's choice): its balls are all it has, and
     right nine_bead poses on clean raw frames reached p = 4·10⁻⁶ there."""
+    if lab.obs.lines or lab.obs.ellipses:
+        return None
+    return _misfit(lab, opts.feature_p_value, "and no wire contour")
+
+
+def _misfit(lab: Labelling, p_value: float, given: str) -> str | None:
+    """The refusal of a labelling whose features fit its pose worse than ``p_value`` allows:
+    their χ² (the variance factor × its degrees of freedom, 2 per ball and line and 5 per
+    ellipse less the pose's 6) improbable beyond it; None where it is not, or unknown.
+    ``given`` says what the labelling rests on."""
     obs, vf = lab.obs, lab.variance_factor
-    dof = 2 * len(obs.points) - 6
-    if obs.lines or obs.ellipses or vf is None or dof <= 0:
+    dof = 2 * len(obs.points) + 2 * len(obs.lines) + 5 * len(obs.ellipses) - 6
+    if vf is None or dof <= 0:
         return None
     p = float(chi2.sf(vf * dof, dof))
-    if p >= opts.feature_p_value:
+    if p >= p_value:
         return None
     return (
-        f"identification not confirmed: {len(obs.points)} beads and no wire contour, and the beads fit the pose "
-        f"worse than beads do (χ²{dof} = {vf * dof:.1f}, p = {p:.1e} < {opts.feature_p_value:g})"
+        f"identification not confirmed: {len(obs.points)} beads {given}, and the features fit the pose "
+        f"worse than features do (χ²{dof} = {vf * dof:.1f}, p = {p:.1e} < {p_value:g})"
     )
 
 

@@ -101,20 +101,26 @@ def mirror_signal_px(features: Features, camera: Camera, R: np.ndarray, t: np.nd
     return float(np.linalg.norm(A @ coef - u, axis=1).max())
 
 
+def mirror_distinct(features: Features, camera: Camera, pose: Pose, opts: AcceptanceOptions) -> bool:
+    """Whether perspective sets the view at ``pose`` apart from its mirror image: at least
+    ``opts.mirror_signal_px`` between them (:func:`mirror_signal_px`; never where that is 0 or
+    the pose is not finite). Where it does not, a near-mirror labelling puts the fiducial's
+    balls and wires within a fraction of a pixel of where the right one puts them."""
+    return (
+        opts.mirror_signal_px > 0
+        and bool(np.all(np.isfinite(pose.rotation)))
+        and bool(np.all(np.isfinite(pose.translation_mm)))
+        and mirror_signal_px(features, camera, pose.rotation, pose.translation_mm) >= opts.mirror_signal_px
+    )
+
+
 def balls_needed(features: Features, camera: Camera, pose: Pose, wires_confirm: bool, opts: AcceptanceOptions) -> int:
     """How many balls a confident labelling at ``pose`` must use: ``opts.min_beads`` (at most
     the design's), one fewer (never below four) where wire contours confirm the labelling
-    (``wires_confirm``) and the view is at least ``opts.mirror_signal_px`` from its mirror
-    image (:func:`mirror_signal_px`), so that no near-mirror labelling can explain its wires."""
+    (``wires_confirm``) and the view is set apart from its mirror image
+    (:func:`mirror_distinct`), so that no near-mirror labelling can explain its wires."""
     need = min(opts.min_beads, len(features.points))
-    if (
-        need > 4
-        and wires_confirm
-        and opts.mirror_signal_px > 0
-        and np.all(np.isfinite(pose.rotation))
-        and np.all(np.isfinite(pose.translation_mm))
-        and mirror_signal_px(features, camera, pose.rotation, pose.translation_mm) >= opts.mirror_signal_px
-    ):
+    if need > 4 and wires_confirm and mirror_distinct(features, camera, pose, opts):
         return need - 1
     return need
 
