@@ -219,3 +219,30 @@ def test_an_answer_s_triplets_are_its_largest_triangles_first_and_keep_two_label
     assert (4, 1, 2) not in rows  # not allowed
     assert all(sum(a == b for a, b in zip(r, (0, 1, 2))) >= 2 for r in rows)
     assert len(rows) == 6  # the labels, and two other beads in each of three places, less (4, 1, 2)
+
+
+@pytest.mark.parametrize("raster", [True, False])
+def test_the_blob_lookup_answers_as_the_k_d_tree_does(raster, monkeypatch):
+    """The look-up that skips points no blob is near gives, point by point, the k-d tree's
+    nearest blob within the tolerance and its distance (∞ and n where there is none) — for
+    points just inside and just outside the tolerance, far away, at the 10⁹ px that stands for
+    a degenerate pose and on blobs that coincide; with its raster left out, the tree's own."""
+    from scipy.spatial import cKDTree
+
+    if not raster:
+        monkeypatch.setattr(identify._BlobLookup, "MAX_RASTER_PX", 0)
+    rng = np.random.default_rng(3)
+    blobs = np.vstack([rng.uniform(100.0, 400.0, (30, 2)), [[250.3, 250.7], [250.3, 250.7]]])
+    tol = 4.0
+    ang = rng.uniform(0.0, 2 * np.pi, 4000)
+    ring = (
+        blobs[rng.integers(len(blobs), size=4000)]
+        + (tol + rng.uniform(-1e-6, 1e-6, 4000))[:, None] * np.c_[np.cos(ang), np.sin(ang)]
+    )
+    q = np.vstack([ring, rng.uniform(-50.0, 550.0, (20000, 2)), [[1e9, 1e9], [-1e9, 3.0]]])
+    lookup = identify._BlobLookup(blobs, tol)
+    assert (lookup.mask is not None) == raster
+    d, j = lookup.query(q)
+    d0, j0 = cKDTree(blobs).query(q, distance_upper_bound=tol)
+    assert np.array_equal(d, d0) and np.array_equal(j, j0)
+    assert np.isfinite(d).sum() > 2000

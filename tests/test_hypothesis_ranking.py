@@ -144,3 +144,17 @@ def test_a_first_hypothesis_with_every_ball_keeps_the_order_by_count(scene_2005)
     assert pipeline.ranked_hypotheses(scene, hyps, OPTS.finding.hypothesis_wire_weight) == hyps
     fewer, _ = _without(scene, np.array([0, 1]))
     assert pipeline.with_predicted_balls(fewer, hyps, OPTS.finding, OPTS.acceptance) is fewer
+
+
+def test_many_poses_ranked_at_once_read_as_each_alone(scene_2005):
+    """The coarse measure of 40 poses — the truth, and turned or moved so that some wires fall
+    on bare background, off the image or under another pose's balls — is each pose's own,
+    whatever the chunk they are taken in (one at a time, or all in one)."""
+    scene, R, t = scene_2005
+    rng = np.random.default_rng(4)
+    Rs = np.stack([R] + [Rotation.from_rotvec(rng.normal(0, 0.6, 3)).as_matrix() @ R for _ in range(39)])
+    ts = np.stack([t] + [t + rng.normal(0, 15.0, 3) for _ in range(39)])
+    together = evidence.ranking_support(scene, Rs, ts, scene.bead_exclusion())
+    one_by_one = evidence.ranking_support(scene, Rs, ts, scene.bead_exclusion(), chunk=1)
+    assert np.array_equal(together, one_by_one)
+    assert together[0] >= 12.5 and together[1:].min() < 5.0

@@ -29,20 +29,32 @@ from ftrac_design.xray import render
 
 
 @pytest.mark.parametrize(
-    ("preset", "balls", "refused"), [("ftrac_2005", 8, False), ("ftrac_2005", 7, True), ("nine_bead", 7, False)]
+    ("preset", "balls", "ridge", "refused"),
+    [
+        ("ftrac_2005", 8, 0.0, False),
+        ("ftrac_2005", 7, 0.0, True),
+        ("ftrac_2005", 7, 3.0, False),
+        ("nine_bead", 7, 0.0, False),
+    ],
 )
-def test_a_labelling_confirmed_by_the_network_alone_needs_all_but_one_ball(preset, balls, refused, monkeypatch):
+def test_a_labelling_confirmed_by_the_network_alone_needs_all_but_one_ball(preset, balls, ridge, refused, monkeypatch):
     """No wire contour measured, every wire confirmed by the network: 8 of ftrac_2005's 9
-    balls are enough, 7 are not (a near-mirror labelling can fit 7 of 9). A design with no
-    wires keeps its own rule: all but two balls (7 of nine_bead's 9)."""
+    balls are enough, 7 are not (a near-mirror labelling can fit 7 of 9) — unless the image's
+    own ridges show every wire where the pose puts them (here 3 noise units along each, in a
+    view set apart from its mirror image). A design with no wires keeps its own rule: all
+    but two balls (7 of nine_bead's 9)."""
     features = compute_features(load_design(preset))
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
     ids = [p.id for p in features.points][:balls]
     obs = simulate_observation(features, Camera(), R[0], t[0], include=set(ids))
     assert len(obs.points) == balls and not obs.lines and not obs.ellipses
     monkeypatch.setattr(evidence, "learned_confirms_wires", lambda *a, **k: True)
+    curves = [c.id for c in features.lines] + [e.id for e in features.ellipses]
+    shown = {fid: evidence.CurveSupport(ridge, 400, 0.9) for fid in curves}
+    monkeypatch.setattr(evidence, "curve_support", lambda *a, **k: shown)
+    scene = SimpleNamespace(features=features, scales=SimpleNamespace(ridge_sigma_px=1.35), bead_exclusion=lambda: None)
     lab = _labelling(obs, R[0], t[0])
-    why = acceptance.too_little_evidence(SimpleNamespace(features=features), lab, TrackOptions().acceptance)
+    why = acceptance.too_little_evidence(scene, lab, TrackOptions().acceptance)
     if refused:
         assert why is not None and f"{balls} beads and no wires cannot verify" in why and "need ≥ 8" in why
     else:
@@ -60,17 +72,20 @@ def test_wire_contours_seen_only_after_the_body_subtraction_do_not_confirm_a_lab
 ):
     """Seven of ftrac_2005's balls and one ellipse's contour: enough when the labelling explained
     a wire before the body was subtracted, not when that contour appeared only after it (a
-    near-mirror labelling's ellipse on the other ellipse's image); eight balls are enough
-    either way."""
+    near-mirror labelling's ellipse on the other ellipse's image) and the image's ridges do not
+    show its wires where the pose puts them; eight balls are enough either way."""
     features = compute_features(load_design("ftrac_2005"))
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
     ids = [p.id for p in features.points][:balls]
     obs = simulate_observation(features, Camera(), R[0], t[0], include=set(ids) | {"E1"})
     assert len(obs.points) == balls and list(obs.ellipses) == ["E1"] and not obs.lines
     monkeypatch.setattr(evidence, "learned_confirms_wires", lambda *a, **k: False)
+    bare = {fid: evidence.CurveSupport(0.0, 400, 0.0) for fid in ("L1", "L2", "L3", "E1", "E2")}
+    monkeypatch.setattr(evidence, "curve_support", lambda *a, **k: bare)
     lab = _labelling(obs, R[0], t[0], wires_at_first=at_first)
     assert lab.confirmed_by_wires is at_first
-    why = acceptance.too_little_evidence(SimpleNamespace(features=features), lab, TrackOptions().acceptance)
+    scene = SimpleNamespace(features=features, scales=SimpleNamespace(ridge_sigma_px=1.35), bead_exclusion=lambda: None)
+    why = acceptance.too_little_evidence(scene, lab, TrackOptions().acceptance)
     if refused:
         assert why is not None and "wires seen only after the body's subtraction cannot verify" in why
     else:
@@ -385,3 +400,36 @@ def test_a_pose_that_places_the_fiducial_no_better_than_its_size_is_refused(dept
     assert (why is not None) == refused
     if refused:
         assert "±74 mm" in why and "38 mm" in why
+
+
+def test_a_blurred_frame_s_balls_are_confirmed_by_the_ridges_of_its_wires():
+    """ftrac_2005 under 2 px of blur (seed 2125, 20 per condition, blur image 7): six balls
+    fitted and no wire contour, too faint point by point, while the ridges along the pose's
+    ellipses stand well above zero. The right labelling is given (within 1° and 3 mm, χ²₆ of
+    its error below 25.7); where the ridges' word is never taken (``ridge_confirm_p_value=1``)
+    it is refused for its six balls."""
+    from test_wider_rivals import _image
+
+    img, features, R, t = _image("ftrac_2005", "blur-2px", 7, 2125, 20)
+    res = track_image(img, features, Camera())
+    assert res.pose.converged, res.pose.error
+    assert len(res.observation.points) == 6 and not (res.observation.lines or res.observation.ellipses)
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    e = np.concatenate([dr, dt])
+    assert math.degrees(float(np.linalg.norm(dr))) < 1.0 and float(np.linalg.norm(dt)) < 3.0
+    assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
+    never = track_image(img, features, Camera(), TrackOptions(ridge_confirm_p_value=1.0))
+    assert not never.pose.converged and "6 beads and no wires cannot verify" in never.pose.error
+
+
+@pytest.mark.parametrize(("preset", "balls"), [("ftrac_mini", 8), ("ftrac_2005", 5)])
+def test_ridges_confirm_no_view_tied_to_its_mirror_and_no_fewer_than_six_balls(preset, balls):
+    """The ridges' word is not asked where perspective cannot set the view apart from its
+    mirror image (ftrac_mini: a near-mirror labelling puts its wires where the right one's
+    lie) nor for fewer than six balls, however plain the wires: no image is read."""
+    features = compute_features(load_design(preset))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
+    ids = {p.id for p in features.points[:balls]}
+    lab = _labelling(simulate_observation(features, Camera(), R[0], t[0], include=ids), R[0], t[0], False)
+    scene = SimpleNamespace(features=features)  # any look at the image would fail
+    assert not acceptance.ridges_confirm(scene, lab, TrackOptions().acceptance)

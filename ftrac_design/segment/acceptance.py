@@ -66,11 +66,40 @@ def wire_support(
     ref = float(np.median([c.ridge for c in sup.values()]))
     absent = []
     for fid, c in sup.items():
-        present = min(opts.wire_min_snr, max(0.5, 3 * evidence.median_spread(scene, c.samples)))
         # the learned detector sees a wire there: present, however weak its ridge
-        if c.ridge < max(present, opts.wire_support * ref) and c.learned < LEARNED_WIRE:
+        if c.ridge < max(_clearly_above_zero(scene, c, opts), opts.wire_support * ref) and c.learned < LEARNED_WIRE:
             absent.append(fid)
     return absent, {fid: round(c.ridge, 1) for fid, c in sup.items()}
+
+
+def _clearly_above_zero(scene: Scene, c: evidence.CurveSupport, opts: AcceptanceOptions) -> float:
+    """The median ridge evidence (noise units) at which curve ``c`` is present (see
+    :func:`wire_support`): 3 spreads of a median of its samples on bare background, at least
+    0.5 and at most ``wire_min_snr``."""
+    return min(opts.wire_min_snr, max(0.5, 3 * evidence.median_spread(scene, c.samples)))
+
+
+def ridges_confirm(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> bool:
+    """Whether the image's own ridges confirm a labelling of six balls or more that explains
+    no wire contour from the first: in a view perspective sets apart from its mirror image
+    (:func:`.region.mirror_distinct`), three predicted curves readable or more, one of them an
+    ellipse, each readable ellipse and all the readable curves but one present where the pose
+    puts them on the ridge evidence alone (:func:`wire_support`'s test, without the learned
+    detector's word), and the features it fitted fitting the pose
+    as features do (χ² at least ``ridge_confirm_p_value`` probable, :func:`_misfit`).
+
+    Under 2 px of blur a wire's ridge is too faint for contour points (about 1 σ a point)
+    while its median along a whole ellipse stands 5–11 spreads above zero: the right
+    labellings of ftrac_2005 on six or seven balls were refused for want of contours (tuning
+    seed 2125, blur 2, 7 and 14; a straight wire seen face-on read below its line in each)."""
+    features, obs = scene.features, lab.obs
+    if len(obs.points) < 6 or not features.ellipses or not mirror_distinct(features, obs.camera, lab.pose, opts):
+        return False
+    sup = evidence.curve_support(scene, lab.pose.rotation, lab.pose.translation_mm, scene.bead_exclusion())
+    absent = [fid for fid, c in sup.items() if c.ridge < _clearly_above_zero(scene, c, opts)]
+    ellipses = {e.id for e in features.ellipses}
+    shown = len(sup) >= 3 and bool(ellipses & set(sup)) and not ellipses & set(absent) and len(absent) <= 1
+    return shown and _misfit(lab, opts.ridge_confirm_p_value, "beside wires its ridges show") is None
 
 
 def absent_wires(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> str | None:
@@ -297,7 +326,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
     # there (its predicted ellipse on the other's image), and passed on 5-7 balls, 137-167° off
     # (held-out seed 2039: a clean image, a round field and blades).
     need_alone = max(6, len(features.points) - (1 if n_curves else 2))
-    if len(obs.points) < need_alone and not lab.confirmed_by_wires:
+    if len(obs.points) < need_alone and not lab.confirmed_by_wires and not ridges_confirm(scene, lab, opts):
         wires = "wires seen only after the body's subtraction" if (obs.lines or obs.ellipses) else "no wires"
         return (
             f"too little evidence: {len(obs.points)} beads and {wires} cannot verify a labelling "

@@ -172,6 +172,17 @@ def _row_medians(x: np.ndarray) -> np.ndarray:
     return np.where(k > 0, 0.5 * (lo + hi), np.nan)
 
 
+def _near_any(uv: np.ndarray, bu: np.ndarray, rad: np.ndarray) -> np.ndarray:
+    """Whether each sample uv (H, m, 2) px lies within ``rad`` (k,) px of one of its pose's
+    balls bu (H, k, 2): ball by ball, so no (H, m, k, 2) array is made."""
+    near = np.zeros(uv.shape[:2], bool)
+    for j in range(bu.shape[1]):
+        du = uv[..., 0] - bu[:, j, None, 0]
+        dv = uv[..., 1] - bu[:, j, None, 1]
+        near |= np.sqrt(du * du + dv * dv) <= rad[j]
+    return near
+
+
 def ranking_support(
     scene: Scene, R: np.ndarray, t: np.ndarray, bead_radius_px: np.ndarray, chunk: int = 256
 ) -> np.ndarray:
@@ -194,27 +205,28 @@ def ranking_support(
     rad = np.asarray(bead_radius_px, float)
     lo, hi = RANK_CLIP
     h = 0.05  # mm along the tangent: the curve's direction in the image
+    m, nc = len(S), len(ids)
+    ahead = np.concatenate([S, S + h * T])
     for i0 in range(0, len(R), chunk):
         Ri, ti = R[i0 : i0 + chunk], t[i0 : i0 + chunk]
-        uv, Z = identify.project(camera, Ri, ti, S)
-        tv = identify.project(camera, Ri, ti, S + h * T)[0] - uv
-        px = np.linalg.norm(tv, axis=-1) / h * ds  # image length per sample
+        both, Zb = identify.project(camera, Ri, ti, ahead)
+        uv, Z = both[:, :m], Zb[:, :m]
+        tv = both[:, m:] - uv
+        px = np.sqrt(tv[..., 0] * tv[..., 0] + tv[..., 1] * tv[..., 1]) / h * ds  # image length per sample
         ok = scene.readable(uv, margin_px=1.0) & (Z > 0) & np.isfinite(px)
         if len(centers) and ok.any():
             bu = identify.project(camera, Ri, ti, centers)[0]
-            near = (np.linalg.norm(uv[:, :, None] - bu[:, None], axis=-1) <= rad).any(-1)
-            ok &= ~near
+            ok &= ~_near_any(uv, bu, np.broadcast_to(rad, (len(centers),)))
         ev = np.full(ok.shape, np.nan)
         if ok.any():
             nrm = np.stack([-tv[..., 1], tv[..., 0]], -1)[ok]
             nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-12)
             ev[ok] = scene.ridge_evidence(uv[ok], nrm)
-        for c in range(len(ids)):
-            cols = owner == c
-            length = np.where(ok[:, cols], px[:, cols], 0.0).sum(1)
-            med = _row_medians(np.where(ok[:, cols], ev[:, cols], np.nan))
-            med = np.where((length >= MIN_FREE_PX) & np.isfinite(med), np.clip(med, lo, hi), 0.0)
-            out[i0 : i0 + chunk] += med
+        # each curve's samples are a block of COARSE_SAMPLES columns: one median per block
+        length = np.where(ok, px, 0.0).reshape(len(Ri), nc, -1).sum(-1)
+        med = _row_medians(np.where(ok, ev, np.nan).reshape(len(Ri) * nc, -1)).reshape(len(Ri), nc)
+        med = np.where((length >= MIN_FREE_PX) & np.isfinite(med), np.clip(med, lo, hi), 0.0)
+        out[i0 : i0 + chunk] = med.sum(1)
     return out
 
 

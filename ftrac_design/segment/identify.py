@@ -211,11 +211,55 @@ def _relabelled_poses(
     return _admitted((R, t), view) if len(R) else None
 
 
+class _BlobLookup:
+    """Blobs ``uv`` (n, 2) px for many nearest-blob look-ups within ``tol_px``: a k-d tree, and
+    a raster of the pixels within ``tol_px`` + 1 px of a blob, so that only the points that can
+    have a blob that near are looked up in the tree (most balls a bead search projects fall
+    nowhere near one: their pose came from a wrong model triplet). A point within ``tol_px``
+    of a blob rounds to a pixel within ``tol_px`` + √2/2 of it, so none is missed; the others'
+    answer is the tree's for a point with no blob within reach (∞, n)."""
+
+    #: the raster is left out (every point looked up) above this many pixels
+    MAX_RASTER_PX = 1 << 22
+
+    def __init__(self, uv: np.ndarray, tol_px: float):
+        self.tree, self.n, self.tol = cKDTree(uv), len(uv), float(tol_px)
+        reach = self.tol + 1.0
+        r = int(math.ceil(reach))
+        self.lo = np.floor(uv.min(0)).astype(int) - r - 1
+        hi = np.ceil(uv.max(0)).astype(int) + r + 1
+        w, h = (hi - self.lo + 1).tolist()
+        self.mask = None
+        if w * h > self.MAX_RASTER_PX:
+            return
+        self.mask = np.zeros((h, w), bool)
+        dy, dx = np.mgrid[-r - 1 : r + 2, -r - 1 : r + 2]
+        for u, v in uv:
+            cu, cv = int(round(u)) - self.lo[0], int(round(v)) - self.lo[1]
+            # the disc about the blob itself (not its rounded pixel), a pixel more than needed
+            disc = (dx + cu + self.lo[0] - u) ** 2 + (dy + cv + self.lo[1] - v) ** 2 <= (reach + 0.5) ** 2
+            self.mask[cv - r - 1 : cv + r + 2, cu - r - 1 : cu + r + 2] |= disc
+
+    def query(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (px) to the nearest blob within ``tol_px`` and its index, per point (m, 2);
+        ∞ and n where none is (as :meth:`scipy.spatial.cKDTree.query` gives them)."""
+        if self.mask is None:
+            return self.tree.query(q, distance_upper_bound=self.tol)
+        h, w = self.mask.shape
+        x, y = q[:, 0] - self.lo[0], q[:, 1] - self.lo[1]
+        cand = np.flatnonzero((x > -0.5) & (y > -0.5) & (x < w - 0.5) & (y < h - 0.5))
+        cand = cand[self.mask[np.rint(y[cand]).astype(int), np.rint(x[cand]).astype(int)]]
+        d, j = np.full(len(q), np.inf), np.full(len(q), self.n)
+        if len(cand):
+            d[cand], j[cand] = self.tree.query(q[cand], distance_upper_bound=self.tol)
+        return d, j
+
+
 def _labellings_of(
-    model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
+    model: np.ndarray, camera: Camera, lookup: _BlobLookup, R: np.ndarray, t: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The bead labelling of each pose (R (k, 3, 3), t (k, 3)): per model bead the blob of
-    ``tree`` within ``tol_px`` of its projection (−1 for none), one blob per bead — a blob two
+    ``lookup`` within its tolerance of its projection (−1 for none), one blob per bead — a blob two
     beads land on goes to the nearer, the lower bead index on a tie. Returns the labellings
     (k, P), their matched counts (k,) and RMS distances (k,) px (counts are worked out only
     where at least four beads land on a blob; the rest read 0)."""
@@ -223,7 +267,7 @@ def _labellings_of(
     proj, Z = project(camera, R, t, model)
     front = (Z > 0).all(1) & np.isfinite(proj).all((1, 2))
     proj = np.where(np.isfinite(proj), proj, 1e9)  # a degenerate pose matches nothing
-    d, j = tree.query(proj.reshape(-1, 2), distance_upper_bound=tol_px)
+    d, j = lookup.query(proj.reshape(-1, 2))
     d, j = d.reshape(len(R), P), j.reshape(len(R), P)
     hit = np.isfinite(d) & front[:, None]
     lab = np.full((len(R), P), -1)
@@ -247,11 +291,11 @@ def _labellings_of(
 
 
 def _collect_matches(
-    best: dict, model: np.ndarray, camera: Camera, tree: cKDTree, R: np.ndarray, t: np.ndarray, tol_px: float
+    best: dict, model: np.ndarray, camera: Camera, lookup: _BlobLookup, R: np.ndarray, t: np.ndarray
 ) -> int:
     """Add to ``best`` (labelling → its distinct poses, each the lowest-RMS hypothesis of
     those within :data:`SAME_POSE_RAD` of it) the labellings of the poses (R, t) that put at
-    least four model beads on distinct blobs of ``tree``; returns the most beads any of them
+    least four model beads on distinct blobs of ``lookup``; returns the most beads any of them
     matched (0 for none: a labelling's count is its own, so the best count in ``best`` is the
     running largest of these).
 
@@ -263,7 +307,7 @@ def _collect_matches(
     puts every ball on the same blob as the first (ftrac_mini over anatomy: the right pose
     and one 58° off, 0.2 and 0.15 px RMS); kept as one hypothesis, the lower RMS chose the
     wrong one, the right pose was never refined, and a labelling 178° off won."""
-    lab, count, rms = _labellings_of(model, camera, tree, R, t, tol_px)
+    lab, count, rms = _labellings_of(model, camera, lookup, R, t)
     sel = np.flatnonzero(count >= 4)
     if len(sel) == 0:
         return 0
@@ -336,20 +380,20 @@ def bead_hypotheses(
         return []
     K = camera.K
     mtri = _model_triplets(model)
-    tree = cKDTree(uv)
+    lookup = _BlobLookup(uv, tol_px)
     best: dict[tuple, list[BeadHypothesis]] = {}
     objs = np.ascontiguousarray(model[mtri], dtype=np.float64)  # (m, 3, 3), once for every image triplet
     if labelled:
         poses = _relabelled_poses(model, uv, K, labelled, labelled_triplets, max_extent_px, mtri, view)
         if poses is not None:
-            _collect_matches(best, model, camera, tree, *poses, tol_px)
+            _collect_matches(best, model, camera, lookup, *poses)
     top, stale, tried = 0, 0, 0
     skip = frozenset(_image_triplets(uv, after, max_extent_px)) if after > 0 else frozenset()
     for itri in _image_triplets(uv, image_triplets, max_extent_px, k=blobs, skip=skip):
         poses = _admitted(_p3p_poses(objs, np.ascontiguousarray(uv[list(itri)], dtype=np.float64), K), view)
         if poses is None:
             continue
-        top_now = max(top, _collect_matches(best, model, camera, tree, *poses, tol_px))
+        top_now = max(top, _collect_matches(best, model, camera, lookup, *poses))
         stale = 0 if top_now > top else stale + 1
         top = top_now
         # every ball explained; or nearly all (a ball or two too faint or merged) and the

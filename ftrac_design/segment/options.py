@@ -259,6 +259,12 @@ class TrackOptions:
     #: near-mirror labelling of ftrac_mini passed so at p = 9·10⁻⁷ and another met it as a
     #: rival at 5·10⁻⁶ (held-out seed 2124); the right ones it held up were at p ≥ 3·10⁻³ there
     crowd_p_value: float = 1e-5
+    #: a wire design's labelling of six balls or more whose wires gave no contour from the first
+    #: stands on fewer balls than all but one where, in a view set apart from its mirror
+    #: image, the image's ridges show its ellipses and all its curves but one and the features
+    #: it did fit fit as features do: their χ² at least this probable
+    #: (:func:`~.acceptance.ridges_confirm`); 0 takes that confirmation whatever the fit, 1 never
+    ridge_confirm_p_value: float = 1e-5
     #: a blob whose blurred-sphere fit leaves a residual RMS above ``ball_shape_rms`` noise σ
     #: and above ``ball_shape_fraction`` of its own peak contrast is not shaped like a ball
     #: (:func:`~.acceptance.misshapen_balls`); a confident labelling uses at most
@@ -459,6 +465,7 @@ class AcceptanceOptions:
     min_beads: int
     mirror_signal_px: float
     crowd_p_value: float
+    ridge_confirm_p_value: float
     ball_shape_rms: float
     ball_shape_fraction: float
     max_misshapen_balls: int
