@@ -18,7 +18,14 @@ from ftrac_design.images import read_image, write_image
 from ftrac_design.pose.camera import Camera
 from ftrac_design.pose.simulate import Workspace
 from ftrac_design.xray import ImagingModel, Occluder, anatomy, line_integral_box, read_truth, render, write_truth
-from ftrac_design.xray.geometry import body_chord_uv, cylinder_z_chord, ellipse_pieces, tube_chord, tube_chord_uv
+from ftrac_design.xray.geometry import (
+    body_chord_uv,
+    cylinder_z_chord,
+    ellipse_pieces,
+    straight_pieces,
+    tube_chord,
+    tube_chord_uv,
+)
 from ftrac_design.xray.materials import linear_attenuation
 from ftrac_design.xray.rays import Rays
 
@@ -561,3 +568,21 @@ def test_radiograph_cli_needs_a_body(tmp_path, features_2005, capsys):
         )
         == 0
     )
+
+
+def test_a_ray_along_an_axis_gets_the_reference_chord_not_nan():
+    """A ray exactly along the body's axis, or along a wire piece, meets no side wall in the
+    reference chords (:func:`cylinder_z_chord`, :func:`tube_chord`); the fast per-pixel forms
+    give the same, not ∞ / ∞ (NaN pixels once stopped a pixel comparison of two poses)."""
+    c = np.array([12.5, 0.0, -600.0])
+    g0, gu, gv = np.array([0.0, 0.0, 1.0]), np.array([1e-3, 0.0, 0.0]), np.array([0.0, 1e-3, 0.0])
+    U, V = np.array([[0.0, 1.0]]), np.array([[0.0, 0.0]])
+    fast_b = body_chord_uv(c, g0, gu, gv, 15.0, 10.0, 25.0, U, V)
+    d = g0 + U.ravel()[:, None] * gu + V.ravel()[:, None] * gv
+    ref_b = cylinder_z_chord(c, d, 15.0, 25.0) - cylinder_z_chord(c, d, 10.0, 25.0)
+    assert np.all(np.isfinite(fast_b)) and np.abs(fast_b.ravel() - ref_b).max() < 1e-8
+    pieces = straight_pieces(np.array([12.4, 0.0, -5.0]), np.array([12.4, 0.0, 5.0]), 0.25, 1.0, 0, 20.0)
+    fast_t = tube_chord_uv(c, g0, gu, gv, pieces, np.zeros(1, int), U, V)
+    k = [0, 0]
+    ref_t = tube_chord(c, d, pieces.a[k], pieces.e[k], pieces.L[k], pieces.r[k], pieces.n0[k], pieces.n1[k])
+    assert np.all(np.isfinite(fast_t)) and np.abs(fast_t.ravel() - ref_t).max() < 1e-8

@@ -89,7 +89,7 @@ def ridges_confirm(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> boo
     as features do (χ² at least ``ridge_confirm_p_value`` probable, :func:`_misfit`).
 
     Under 2 px of blur a wire's ridge is too faint for contour points (about 1 σ a point)
-    while its median along a whole ellipse stands 5–11 spreads above zero: the right
+    while its median along a whole ellipse stands 4–11 spreads above zero: the right
     labellings of ftrac_2005 on six or seven balls were refused for want of contours (tuning
     seed 2125, blur 2, 7 and 14; a straight wire seen face-on read below its line in each)."""
     features, obs = scene.features, lab.obs
@@ -112,8 +112,10 @@ def absent_wires(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> str | Non
 
 def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptions) -> tuple[str, dict] | None:
     """Refused when ``other``, a labelling far from ``best``, explains the image about as well
-    (misfit within ``ambiguity_chi2``). Returns the reason and both answers (so a user with a
-    prior, e.g. the C-arm's own angles, can choose), or None.
+    (misfit within ``ambiguity_chi2``; within ``mirror_ambiguity_chi2`` for its near-mirror in
+    a view perspective does not set apart from its mirror image, :func:`_near_mirror`).
+    Returns the reason and both answers (so a user with a prior, e.g. the C-arm's own angles,
+    can choose), or None.
 
     A rival need not have converged: the right labelling of a poorly segmented image can fail
     its own χ² tests (ftrac_mini, benchmark image 27: the right one dropped a ball and an
@@ -129,11 +131,14 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
         or (str(q.error or "").startswith("identification not confirmed") and other.score >= best.score)
     ):
         return None
-    if other.score - best.score >= opts.ambiguity_chi2:
+    margin = other.score - best.score
+    if margin >= max(opts.ambiguity_chi2, opts.mirror_ambiguity_chi2):
         return None
     dang = math.degrees(float(so3.angle(q.rotation, pose.rotation)))
     dt = float(np.linalg.norm(q.translation_mm - pose.translation_mm))
     if dang <= 1.0 and dt <= 3.0:
+        return None
+    if margin >= opts.ambiguity_chi2 and not _near_mirror(scene.features, best, dang, dt, opts):
         return None
     if inside_covariance(pose, q) <= opts.rival_inside_chi2:
         # an answer the pose's own covariance covers is no other answer: under blur a
@@ -154,6 +159,18 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
         f"well (misfit {other.score:.1f} vs {best.score:.1f}, noise scale {q.noise_scale:.2f} vs "
         f"{pose.noise_scale:.2f})",
         alternatives,
+    )
+
+
+def _near_mirror(features, best: Labelling, dang: float, dt: float, opts: AcceptanceOptions) -> bool:
+    """Whether a labelling turned ``dang`` degrees and moved ``dt`` mm from ``best`` is its
+    near-mirror in a view perspective does not set apart from its mirror image: turned 90° or
+    more, no farther than the fiducial's own extent, and the view not set apart
+    (:func:`.region.mirror_distinct`)."""
+    return (
+        dang >= 90.0
+        and dt <= fiducial_extent_mm(features)
+        and not mirror_distinct(features, best.obs.camera, best.pose, opts)
     )
 
 

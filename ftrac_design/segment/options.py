@@ -181,6 +181,15 @@ class TrackOptions:
     #: the best's, and that is far enough away, makes the answer ambiguous (one unexplained
     #: feature's charge: ftrac_mini's near-mirror labellings came within 24)
     ambiguity_chi2: float = 25.0
+    #: ... within this of it for a labelling turned 90° or more from the best and no farther
+    #: than the fiducial's extent, in a view that perspective does not set apart from its
+    #: mirror image (:func:`~.region.mirror_distinct`):
+    #: there a near-mirror labelling puts every feature within a fraction of a pixel of the
+    #: right one's, and what separates their misfits is which blobs each used and how those
+    #: fitted, not what the image shows (a ftrac_mini near-mirror 176° off fitted 3 balls and
+    #: both ellipses 26.6 better than the right labelling's 4 balls and both ellipses, held-out
+    #: seed 2126; the image's pixels preferred the right one by 16.6 units)
+    mirror_ambiguity_chi2: float = 50.0
     #: ... unless it lies inside the best pose's own covariance (its difference's χ²₆ at
     #: most this, p = 0.99): given out, the pose already says it may be there
     rival_inside_chi2: float = 16.8
@@ -457,6 +466,7 @@ class AcceptanceOptions:
     each feature's smallest redundancy number)."""
 
     ambiguity_chi2: float
+    mirror_ambiguity_chi2: float
     rival_inside_chi2: float
     pixel_tie_z: float
     wire_support: float

@@ -256,7 +256,10 @@ def tube_chord_uv(
     A = dd - de * de
     A = np.where(A > 0, A, np.inf)
     mn = f(Dm)
-    h = np.sqrt(np.maximum(np.asarray(r2, dtype)[:, None] * A - mn * mn, 0)) / A
+    with np.errstate(invalid="ignore"):
+        h = np.sqrt(np.maximum(np.asarray(r2, dtype)[:, None] * A - mn * mn, 0)) / A
+    # a ray along the axis meets no side wall (as :func:`tube_chord` has it), not ∞ / ∞ = NaN
+    h = np.where(np.isfinite(A), h, 0)
     s0 = (np.asarray(we_k, dtype)[:, None] * de - f(Dw)) / A
     lo, hi = s0 - h, s0 + h
     # start plane: g_0 + s n0·d ≥ 0; end plane: g_1 + s n1·d ≤ 0
@@ -304,7 +307,9 @@ def body_chord_uv(
     for radius, sign in ((outer_radius, 1.0), (bore_radius, -1.0)):
         if radius <= 0:
             continue
-        h = np.sqrt(np.maximum(radius * radius * A - mn2, 0.0)) / A
+        with np.errstate(invalid="ignore"):
+            # a ray along the axis meets no side wall (as :func:`cylinder_z_chord` has it), not NaN
+            h = np.where(np.isfinite(A), np.sqrt(np.maximum(radius * radius * A - mn2, 0.0)) / A, 0.0)
         ch = np.maximum(np.minimum(s0 + h, zhi) - np.maximum(s0 - h, zlo), 0.0)
         out = ch if out is None else out - ch
     return out * np.sqrt(A0 + dz * dz)
