@@ -138,7 +138,7 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
     dt = float(np.linalg.norm(q.translation_mm - pose.translation_mm))
     if dang <= 1.0 and dt <= 3.0:
         return None
-    if margin >= opts.ambiguity_chi2 and not _near_mirror(scene.features, best, dang, dt, opts):
+    if margin >= opts.ambiguity_chi2 and not _near_mirror(scene, best, dang, dt, opts):
         return None
     if inside_covariance(pose, q) <= opts.rival_inside_chi2:
         # an answer the pose's own covariance covers is no other answer: under blur a
@@ -162,11 +162,12 @@ def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptio
     )
 
 
-def _near_mirror(features, best: Labelling, dang: float, dt: float, opts: AcceptanceOptions) -> bool:
+def _near_mirror(scene: Scene, best: Labelling, dang: float, dt: float, opts: AcceptanceOptions) -> bool:
     """Whether a labelling turned ``dang`` degrees and moved ``dt`` mm from ``best`` is its
     near-mirror in a view perspective does not set apart from its mirror image: turned 90° or
     more, no farther than the fiducial's own extent, and the view not set apart
     (:func:`.region.mirror_distinct`)."""
+    features = scene.features
     return (
         dang >= 90.0
         and dt <= fiducial_extent_mm(features)
