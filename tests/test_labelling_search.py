@@ -191,8 +191,10 @@ def test_a_rival_that_tied_before_the_body_was_subtracted_refuses_the_pose(monke
     refused = pipeline.accept_best(None, redone, [rival], Diagnostics(), opts, first)
     assert not refused.pose.converged
     assert refused.pose.error.startswith("ambiguous identification")
-    # a rival far behind before the subtraction as well is no rival
-    far_behind = _labelling(turned, True, ALL_BALLS[:8], ALL_ELLIPSES, 504.5 + opts.ambiguity_chi2 + 1.0)
+    # a rival far behind before the subtraction as well (beyond a near-mirror's wider margin
+    # too: this one is turned 180°) is no rival
+    behind = max(opts.ambiguity_chi2, opts.mirror_ambiguity_chi2) + 1.0
+    far_behind = _labelling(turned, True, ALL_BALLS[:8], ALL_ELLIPSES, 504.5 + behind)
     assert pipeline.accept_best(None, redone, [far_behind], Diagnostics(), opts, first).pose.converged
 
 
