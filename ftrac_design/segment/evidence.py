@@ -125,12 +125,13 @@ COARSE_SAMPLES = 24
 RANK_CLIP = (-1.0, 3.0)
 
 
-def _coarse_model_curves(features) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, list[str]]:
+def _coarse_model_curves(features) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
     """Every line and ellipse sampled ``COARSE_SAMPLES`` times in F (a line on its wire
-    pieces only): points (m, 3) mm, unit tangents (m, 3), model length per sample (m,) mm,
-    curve index (m,) and curve ids."""
+    pieces only): points (m, 3) mm, unit tangents (m, 3), model length per sample (m,) mm
+    and the curve ids — each curve's samples one block of ``COARSE_SAMPLES``, in the ids'
+    order."""
     n = COARSE_SAMPLES
-    pts, tan, step, owner, ids = [], [], [], [], []
+    pts, tan, step, ids = [], [], [], []
     pieces: dict[str, list] = {}
     for fid, a, b in features.wire_pieces:
         pieces.setdefault(fid, []).append((a, b))
@@ -145,7 +146,6 @@ def _coarse_model_curves(features) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         pts.append(A + f[:, None] * (B - A))
         tan.append(B - A)
         step.append(np.full(n, total / n))
-        owner.append(np.full(n, len(ids)))
         ids.append(fid)
     for el in features.ellipses:
         s = np.linspace(0, 2 * np.pi, n, endpoint=False)
@@ -153,14 +153,13 @@ def _coarse_model_curves(features) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
         pts.append(el.sample(s))
         tan.append(d)
         step.append(np.linalg.norm(d, axis=1) / 2e-3 * (2 * np.pi / n))
-        owner.append(np.full(n, len(ids)))
         ids.append(el.id)
     if not pts:
         z = np.zeros((0, 3))
-        return z, z, np.zeros(0), np.zeros(0, int), []
+        return z, z, np.zeros(0), []
     T = np.concatenate(tan)
     T /= np.maximum(np.linalg.norm(T, axis=1, keepdims=True), 1e-12)
-    return np.concatenate(pts), T, np.concatenate(step), np.concatenate(owner), ids
+    return np.concatenate(pts), T, np.concatenate(step), ids
 
 
 def _row_medians(x: np.ndarray) -> np.ndarray:
@@ -198,7 +197,7 @@ def ranking_support(
     features, camera = scene.features, scene.camera
     R, t = np.asarray(R, float).reshape(-1, 3, 3), np.asarray(t, float).reshape(-1, 3)
     out = np.zeros(len(R))
-    S, T, ds, owner, ids = _coarse_model_curves(features)
+    S, T, ds, ids = _coarse_model_curves(features)
     if not len(S) or not len(R):
         return out
     centers = features.point_centers() if len(features.points) else np.zeros((0, 3))

@@ -75,8 +75,8 @@ def steel_density(scene: Scene, R: np.ndarray, t: np.ndarray, features: Features
     box, (v0, u0) = density_box(steel, scene.camera, R, t, scene.scales.blur_px, margin_px=6)
     h, w = box.shape
     if h == 0 or w == 0 or max(h, w) > MAX_BOX_SIDE * max(H, W) or not np.all(np.isfinite(box)):
-        # a pose the renderer cannot draw everywhere (a ftrac_mini near-mirror of held-out seed
-        # 2125 drew NaN pixels) is not compared: least squares on them fails
+        # a pose whose steel is not finite everywhere is not compared: least squares on it
+        # fails (a ray along a wire's axis once drew NaN for a ftrac_mini near-mirror)
         return None
     a0, b0, a1, b1 = max(v0, 0), max(u0, 0), min(v0 + h, H), min(u0 + w, W)
     if a1 <= a0 or b1 <= b0:
