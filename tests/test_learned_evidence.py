@@ -197,6 +197,25 @@ def test_a_dewarping_plate_is_not_taken_for_ftrac_2005():
         assert not res.pose.converged, detector
 
 
+def test_ellipses_only_the_network_shows_need_features_that_fit(monkeypatch):
+    """A dewarping plate (the no-fiducial benchmark's grid plate 64 of seed 2126) taken for
+    ftrac_2005 on six balls and two lines fitting at p = 6·10⁻¹³, both ellipses with no
+    contour and no ridge, present on the network's wire map alone: no pose, for those
+    ellipses. Without the test (no ellipse counted as the network's alone) the same image
+    gives that pose, so the image exercises it."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from no_fiducial import grid
+
+    img = grid(64, 2126)
+    features = compute_features(load_design("ftrac_2005"))
+    camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
+    res = track_image(img, features, camera, TrackOptions(detector="learned"))
+    assert not res.pose.converged
+    assert "E1, E2 only the learned detector shows" in res.pose.error
+    monkeypatch.setattr(acceptance, "vouched_ellipses", lambda *a: [])
+    assert track_image(img, features, camera, TrackOptions(detector="learned")).pose.converged
+
+
 def test_a_lattice_the_network_did_not_rank_is_not_taken_for_nine_bead():
     """A grid plate in a round field (the no-fiducial benchmark's grid plate 42 of seed 2090):
     nine_bead fitted seven balls of the lattice; only two of the lattice's other balls among

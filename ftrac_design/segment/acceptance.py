@@ -350,7 +350,7 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
             f"too little evidence: {len(obs.points)} beads and {wires} cannot verify a labelling "
             f"(need ≥ {need_alone} beads, or wires)"
         )
-    return balls_misfit(lab, opts) if n_curves else None
+    return (balls_misfit(lab, opts) or vouched_misfit(scene, lab, opts)) if n_curves else None
 
 
 def balls_misfit(lab: Labelling, opts: AcceptanceOptions) -> str | None:
@@ -369,6 +369,38 @@ def balls_misfit(lab: Labelling, opts: AcceptanceOptions) -> str | None:
     if lab.obs.lines or lab.obs.ellipses:
         return None
     return _misfit(lab, opts.feature_p_value, "and no wire contour")
+
+
+def vouched_ellipses(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> list[str]:
+    """The ellipses labelling ``lab`` predicts that only the learned detector shows: no
+    contour explained there and their median ridge evidence not clearly above zero
+    (:func:`wire_support`'s test without the network's word)."""
+    ellipses = {e.id for e in scene.features.ellipses} & set(lab.contours.missing)
+    if not ellipses:
+        return []
+    sup = evidence.curve_support(scene, lab.pose.rotation, lab.pose.translation_mm, scene.bead_exclusion())
+    return sorted(f for f in ellipses if f in sup and sup[f].ridge < _clearly_above_zero(scene, sup[f], opts))
+
+
+def vouched_misfit(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:
+    """Refused when an ellipse of the pose rests on the learned detector's word alone
+    (:func:`vouched_ellipses`) and the features it fitted fit worse than features do (their
+    χ² beyond ``opts.feature_p_value``, as for balls alone in :func:`balls_misfit`).
+
+    An ellipse is a design's longest wire: under blur or a dark window its ridge still
+    stands clear of zero along it (:func:`ridges_confirm`), so one with no contour and no
+    ridge is there on the network's word only, and the network's wire map reads 0.25–0.6
+    over a dewarping plate's lattice. Such a plate passed as ftrac_2005 on six balls and
+    two lines fitting at p = 6·10⁻¹³, both ellipses with no ridge (0.7 and −0.3 spreads;
+    ``no_fiducial.py --seed 2126``, grid plate 64). On four realism seeds (21, 2124–2126;
+    ftrac_2005 and ftrac_mini, 20 images per condition) no right pose had such an ellipse,
+    the two far but honest ftrac_mini poses that had one fitted at p ≥ 0.26, and the least
+    probable right pose with a line on the network's word alone at p = 3.5·10⁻⁷ (which is
+    why a line does not count)."""
+    vouched = vouched_ellipses(scene, lab, opts)
+    if not vouched:
+        return None
+    return _misfit(lab, opts.feature_p_value, f"and {', '.join(vouched)} only the learned detector shows")
 
 
 def _misfit(lab: Labelling, p_value: float, given: str) -> str | None:
