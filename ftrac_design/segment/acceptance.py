@@ -394,8 +394,8 @@ def vouched_misfit(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str
     two lines fitting at p = 6·10⁻¹³, both ellipses with no ridge (0.7 and −0.3 spreads;
     ``no_fiducial.py --seed 2126``, grid plate 64). On four realism seeds (21, 2124–2126;
     ftrac_2005 and ftrac_mini, 20 images per condition) five poses given had such an
-    ellipse, two right and three far but honest, the least probable at p = 0.05; a right
-    pose with a line on the network's word alone fitted at p = 3.5·10⁻⁷, which is why a
+    ellipse, two right and three far but honest, the least probable at p = 0.05; right
+    poses with a line on the network's word alone fitted down to p = 10⁻⁹, which is why a
     line does not count."""
     vouched = vouched_ellipses(scene, lab, opts)
     if not vouched:
