@@ -111,6 +111,44 @@ def test_balls_alone_are_refused_where_their_chi2_is_less_probable_than_a_droppe
     assert (why is not None and "χ²10" in why) if refused else why is None
 
 
+@pytest.mark.parametrize(
+    ("factor", "ridge", "missing", "refused"),
+    [
+        (0.98, 0.0, ("E1", "E2"), False),
+        (1.02, 0.0, ("E1", "E2"), True),
+        (1.02, 0.0, ("E2",), True),
+        (1.02, 3.0, ("E1", "E2"), False),
+        (1.02, 0.0, ("L1",), False),
+        (1.02, 0.0, (), False),
+    ],
+)
+def test_an_ellipse_on_the_network_s_word_alone_needs_features_that_fit(factor, ridge, missing, refused, monkeypatch):
+    """Six balls and two lines' contours (χ² with 10 degrees of freedom), every curve on the
+    network's wire map (0.9): where an ellipse has no contour and no ridge (0 noise units;
+    present from 3 spreads of a 400-sample median, 0.44), a variance factor just beyond the
+    χ²₁₀ quantile at ``feature_p_value`` is refused and one just inside passes; an ellipse
+    whose ridge shows (3 units), a line on the network's word alone, or no curve missing
+    leaves the fit unjudged."""
+    features = compute_features(load_design("ftrac_2005"))
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
+    ids = {p.id for p in features.points[:6]} | {"L2", "L3"}
+    obs = simulate_observation(features, Camera(), R[0], t[0], include=ids)
+    assert len(obs.points) == 6 and sorted(obs.lines) == ["L2", "L3"] and not obs.ellipses
+    sup = {fid: evidence.CurveSupport(ridge if fid.startswith("E") else 0.0, 400, 0.9) for fid in ("L1", "E1", "E2")}
+    monkeypatch.setattr(evidence, "curve_support", lambda *a, **k: sup)
+    monkeypatch.setattr(evidence, "learned_confirms_wires", lambda *a, **k: True)
+    scene = SimpleNamespace(features=features, scales=SimpleNamespace(ridge_sigma_px=1.35), bead_exclusion=lambda: None)
+    opts = TrackOptions().acceptance
+    vf = factor * chi2.isf(opts.feature_p_value, 10) / 10
+    lab = replace(_labelling(obs, R[0], t[0]), variance_factor=vf, contours=identify.Contours(missing=list(missing)))
+    why = acceptance.vouched_misfit(scene, lab, opts)
+    if refused:
+        assert why is not None and "χ²10" in why and f"{', '.join(sorted(missing))} only the learned detector" in why
+    else:
+        assert why is None
+    assert acceptance.too_little_evidence(scene, lab, opts) == why
+
+
 def test_balls_at_the_noise_they_were_measured_with_pass():
     """Balls displaced by the noise model's own σ, the pose solved and its variance factor
     calibrated as the tracker does: the test does not refuse them (20 views)."""
