@@ -149,48 +149,6 @@ def test_an_ellipse_on_the_network_s_word_alone_needs_features_that_fit(factor, 
     assert acceptance.too_little_evidence(scene, lab, opts) == why
 
 
-@pytest.mark.parametrize(
-    ("preset", "balls", "refused"),
-    [
-        ("ftrac_2005", ("B1", "B2", "B3", "B4"), True),
-        ("ftrac_2005", ("B5", "B6", "B7"), True),
-        ("ftrac_2005", ("B1", "B2", "B3", "B5"), False),
-        ("ftrac_mini", ("B1", "B2", "B3", "B4"), True),
-        ("nine_bead", ("B1", "B2", "B3", "B4"), False),
-    ],
-)
-def test_balls_of_one_wire_alone_are_no_labelling(preset, balls, refused):
-    """Balls that all lie on one wire leave the turn about it to the curves: refused, with
-    the wire named; a ball of another wire among them, or a design whose balls lie on no
-    wire, is not judged so."""
-    features = compute_features(load_design(preset))
-    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
-    obs = simulate_observation(features, Camera(), R[0], t[0], include=set(balls) | {"E1"})
-    assert sorted(obs.points) == sorted(balls)
-    why = acceptance.balls_of_one_wire(features, obs)
-    if refused:
-        wire = {p.id: p.line for p in features.points}[balls[0]]
-        assert why is not None and f"{len(balls)} beads used all lie on wire {wire}" in why
-    else:
-        assert why is None
-
-
-def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right():
-    """A faint display-dark side view of ftrac_2005 (fresh seed 2128, 200 per condition,
-    image 118) was given 4.1° and 6.6 mm off on its four balls of one wire and one ellipse;
-    that labelling refused, the classical detectors' second look finds the right one (within
-    1° and 3 mm)."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from track_realism import make_image
-
-    features = compute_features(load_design("ftrac_2005"))
-    img, R, t, camera, _ = make_image("ftrac_2005", "display-dark", 118, 2128, 200)
-    res = track_image(img, features, camera, TrackOptions())
-    assert res.pose.converged
-    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
-    assert math.degrees(float(np.linalg.norm(dr))) < 1.0 and float(np.linalg.norm(dt)) < 3.0
-
-
 def test_balls_at_the_noise_they_were_measured_with_pass():
     """Balls displaced by the noise model's own σ, the pose solved and its variance factor
     calibrated as the tracker does: the test does not refuse them (20 views)."""
