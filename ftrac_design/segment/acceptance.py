@@ -96,19 +96,32 @@ def ridges_confirm(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> boo
     features, obs = scene.features, lab.obs
     if len(obs.points) < 6 or not features.ellipses or not mirror_distinct(features, obs.camera, lab.pose, opts):
         return False
-    sup = evidence.curve_support(scene, lab.pose.rotation, lab.pose.translation_mm, scene.bead_exclusion())
-    absent = [fid for fid, c in sup.items() if c.ridge < _clearly_above_zero(scene, c, opts)]
+    readable, absent = faint_ridges(scene, lab.pose, opts)
     ellipses = {e.id for e in features.ellipses}
-    shown = len(sup) >= 3 and bool(ellipses & set(sup)) and not ellipses & set(absent) and len(absent) <= 1
+    shown = len(readable) >= 3 and bool(ellipses & readable) and not ellipses & absent and len(absent) <= 1
     return shown and _misfit(lab, opts.ridge_confirm_p_value, "beside wires its ridges show") is None
+
+
+def faint_ridges(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> tuple[set[str], set[str]]:
+    """The curves the pose puts where the image can be read, and those among them whose
+    median ridge evidence is not clearly above zero (:func:`_clearly_above_zero`):
+    :func:`wire_support`'s test on the image's ridges alone, without the learned detector's
+    word or the other curves' level."""
+    sup = evidence.curve_support(scene, pose.rotation, pose.translation_mm, scene.bead_exclusion())
+    return set(sup), {fid for fid, c in sup.items() if c.ridge < _clearly_above_zero(scene, c, opts)}
+
+
+def no_wire_there(absent: list[str]) -> str | None:
+    """The reason a pose is refused for the curves ``absent`` it puts on bare background
+    (:func:`wire_support`), or None when there are none."""
+    if absent:
+        return f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
+    return None
 
 
 def absent_wires(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> str | None:
     """Refused when the image shows no wire where the pose puts one (:func:`wire_support`)."""
-    absent, _ = wire_support(scene, pose, opts)
-    if absent:
-        return f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
-    return None
+    return no_wire_there(wire_support(scene, pose, opts)[0])
 
 
 def rival(scene: Scene, best: Labelling, other: Labelling, opts: AcceptanceOptions) -> tuple[str, dict] | None:
@@ -402,8 +415,7 @@ def vouched_ellipses(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> l
     ellipses = {e.id for e in scene.features.ellipses} & set(lab.contours.missing)
     if not ellipses:
         return []
-    sup = evidence.curve_support(scene, lab.pose.rotation, lab.pose.translation_mm, scene.bead_exclusion())
-    return sorted(f for f in ellipses if f in sup and sup[f].ridge < _clearly_above_zero(scene, sup[f], opts))
+    return sorted(ellipses & faint_ridges(scene, lab.pose, opts)[1])
 
 
 def vouched_misfit(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | None:

@@ -484,10 +484,7 @@ def accept_best(
     if pose.converged:
         absent, support = acceptance.wire_support(scene, pose, opts, also=unsubtracted)
         diag.wire_support = support
-        if absent:
-            pose = acceptance.refuse(
-                pose, f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
-            )
+        pose = acceptance.refuse(pose, acceptance.no_wire_there(absent))
     if pose.converged:
         pose = acceptance.refuse(pose, acceptance.too_little_evidence(scene, best, opts))
     if pose.converged:
