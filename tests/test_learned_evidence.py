@@ -150,23 +150,24 @@ def test_an_ellipse_on_the_network_s_word_alone_needs_features_that_fit(factor, 
 
 
 @pytest.mark.parametrize(
-    ("preset", "balls", "refused"),
+    ("preset", "balls", "curves", "refused"),
     [
-        ("ftrac_2005", ("B1", "B2", "B3", "B4"), True),
-        ("ftrac_2005", ("B5", "B6", "B7"), True),
-        ("ftrac_2005", ("B1", "B2", "B3", "B5"), False),
-        ("ftrac_mini", ("B1", "B2", "B3", "B4"), True),
-        ("nine_bead", ("B1", "B2", "B3", "B4"), False),
+        ("ftrac_2005", ("B1", "B2", "B3", "B4"), ("E1",), True),
+        ("ftrac_2005", ("B5", "B6", "B7"), (), True),
+        ("ftrac_2005", ("B1", "B2", "B3", "B5"), ("E1",), False),
+        ("ftrac_2005", ("B1", "B2", "B3", "B4"), ("L2", "E1"), False),
+        ("ftrac_mini", ("B1", "B2", "B3", "B4"), ("E2",), True),
+        ("nine_bead", ("B1", "B2", "B3", "B4"), (), False),
     ],
 )
-def test_balls_of_one_wire_alone_are_no_labelling(preset, balls, refused):
-    """Balls that all lie on one wire leave the turn about it to the curves: refused, with
-    the wire named; a ball of another wire among them, or a design whose balls lie on no
-    wire, is not judged so."""
+def test_balls_of_one_wire_and_one_curve_are_no_labelling(preset, balls, curves, refused):
+    """Balls that all lie on one wire leave the turn about it to the curves: with one curve
+    or none, refused, the wire named; a ball of another wire among them, a second curve to
+    check the first, or a design whose balls lie on no wire, is not judged so."""
     features = compute_features(load_design(preset))
     R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(2))
-    obs = simulate_observation(features, Camera(), R[0], t[0], include=set(balls) | {"E1"})
-    assert sorted(obs.points) == sorted(balls)
+    obs = simulate_observation(features, Camera(), R[0], t[0], include=set(balls) | set(curves))
+    assert sorted(obs.points) == sorted(balls) and len(obs.lines) + len(obs.ellipses) == len(curves)
     why = acceptance.balls_of_one_wire(features, obs)
     if refused:
         wire = {p.id: p.line for p in features.points}[balls[0]]
@@ -175,20 +176,25 @@ def test_balls_of_one_wire_alone_are_no_labelling(preset, balls, refused):
         assert why is None
 
 
-def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right():
-    """A faint display-dark side view of ftrac_2005 (fresh seed 2128, 200 per condition,
-    image 118) was given 4.1° and 6.6 mm off on its four balls of one wire and one ellipse;
-    that labelling refused, the classical detectors' second look finds the right one (within
-    1° and 3 mm)."""
+@pytest.mark.parametrize(
+    ("seed", "n", "k", "deg", "mm"),
+    [(2128, 200, 118, 1.0, 3.0), (2127, 20, 12, 0.5, 1.0)],
+)
+def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right(seed, n, k, deg, mm):
+    """Two faint display-dark views of ftrac_2005 whose labelling rests on the four balls of
+    wire L1. With one ellipse alone to fix the turn about it (seed 2128, image 118) the pose
+    was given 4.1° and 6.6 mm off: that labelling refused, the classical detectors' second
+    look finds the right one. With two lines and both ellipses (seed 2127, image 12) the
+    labelling is right and given."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from track_realism import make_image
 
     features = compute_features(load_design("ftrac_2005"))
-    img, R, t, camera, _ = make_image("ftrac_2005", "display-dark", 118, 2128, 200)
+    img, R, t, camera, _ = make_image("ftrac_2005", "display-dark", k, seed, n)
     res = track_image(img, features, camera, TrackOptions())
-    assert res.pose.converged
+    assert res.pose.converged, res.pose.error
     dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
-    assert math.degrees(float(np.linalg.norm(dr))) < 1.0 and float(np.linalg.norm(dt)) < 3.0
+    assert math.degrees(float(np.linalg.norm(dr))) < deg and float(np.linalg.norm(dt)) < mm
 
 
 def test_balls_at_the_noise_they_were_measured_with_pass():
@@ -242,6 +248,65 @@ def test_a_long_curve_whose_ridge_reads_below_zero_overrules_the_network(ridge_s
     pose = SimpleNamespace(rotation=R[0], translation_mm=t[0])
     missing, _ = acceptance.wire_support(scene, pose, TrackOptions().acceptance)
     assert set(missing) == {"none": set(), "long": long, "all": set(sup)}[absent]
+
+
+@pytest.mark.parametrize(
+    ("weak", "network", "gone", "absent"),
+    [
+        ({"L2": 0.0}, set(), set(), []),
+        ({"L2": -2.0}, set(), set(), []),
+        ({"L2": 0.0, "L3": 0.0}, set(), set(), ["L2", "L3"]),
+        ({"E1": 0.0}, set(), set(), ["E1"]),
+        ({"L2": 0.0, "E2": 1.0}, {"E2"}, set(), ["L2"]),
+        ({"L2": 0.0}, set(), {"E2"}, ["L2"]),
+        ({}, set(), set(), []),
+    ],
+)
+def test_one_faint_straight_wire_is_excused_where_the_others_show_plainly(monkeypatch, weak, network, gone, absent):
+    """A straight wire whose ridge reads at or below zero, alone, does not refuse a pose whose
+    other curves — both ellipses among them — stand clearly above zero on the ridges; two
+    such wires, an ellipse, an ellipse the network alone vouches for, or one out of view do.
+    Ridges in spreads of their own median (:func:`.evidence.median_spread`), 40 where plain."""
+    features = compute_features(load_design("ftrac_2005"))
+    scene = _stub_scene(features, 0.0, True)
+    ids = [c.id for c in features.lines] + [c.id for c in features.ellipses]
+    n = 400
+    spread = evidence.median_spread(scene, n)
+
+    def support(scene_, R, t, exclusion):
+        return {
+            fid: evidence.CurveSupport(
+                ridge=weak.get(fid, 40.0) * spread, samples=n, learned=0.6 if fid in network else 0.0
+            )
+            for fid in ids
+            if fid not in gone
+        }
+
+    monkeypatch.setattr(acceptance.evidence, "curve_support", support)
+    pose = SimpleNamespace(rotation=np.eye(3), translation_mm=np.zeros(3))
+    opts = TrackOptions().acceptance
+    assert acceptance.unshown_curves(scene, pose, opts)[0] == absent
+    plain = acceptance.wire_support(scene, pose, opts)[0]
+    assert plain == sorted(set(weak) - network, key=ids.index)
+    assert acceptance.absent_wires(scene, pose, opts) == acceptance.no_wire_there(absent)
+
+
+def test_a_blurred_view_whose_one_straight_wire_reads_faint_is_tracked():
+    """ftrac_2005 under 2 px of blur (tuning seed 2126, 20 per condition, image 13): all nine
+    balls and both ellipses, but wire L1's ridge reads 0.8 noise units at the true pose, below
+    the 3 spreads a present wire stands above zero; the pose was refused for it. The other
+    four curves plain, it is given, within 1° and 2 mm of the truth and inside its covariance."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    from track_realism import make_image
+
+    features = compute_features(load_design("ftrac_2005"))
+    img, R, t, camera, _ = make_image("ftrac_2005", "blur-2px", 13, 2126, 20)
+    res = track_image(img, features, camera, TrackOptions())
+    assert res.pose.converged, res.pose.error
+    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+    e = np.concatenate([dr, dt])
+    assert math.degrees(float(np.linalg.norm(dr))) < 1.0 and float(np.linalg.norm(dt)) < 2.0
+    assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
 
 
 def test_a_wire_the_image_showed_before_the_body_was_subtracted_is_there():

@@ -482,7 +482,7 @@ def accept_best(
                 break
         diag.settled_by_pixels = settled if settled and pose.converged else None
     if pose.converged:
-        absent, support = acceptance.wire_support(scene, pose, opts, also=unsubtracted)
+        absent, support = acceptance.unshown_curves(scene, pose, opts, also=unsubtracted)
         diag.wire_support = support
         pose = acceptance.refuse(pose, acceptance.no_wire_there(absent))
     if pose.converged:
