@@ -133,9 +133,11 @@ def unshown_curves(
     or within their covariance, the one wrong (117° off) with both ellipses' ridges at or
     below zero. A wrong labelling puts the ellipses, the longest wires, on bare background."""
     absent, support = wire_support(scene, pose, opts, also)
+    if len(absent) != 1:
+        return absent, support
     lines = {c.id for c in scene.features.lines}
     ellipses = {c.id for c in scene.features.ellipses}
-    if len(absent) != 1 or absent[0] not in lines or not ellipses:
+    if absent[0] not in lines or not ellipses:
         return absent, support
     readable, faint = faint_ridges(scene, pose, opts)
     if ellipses <= readable and faint <= set(absent):
