@@ -343,10 +343,11 @@ def too_little_evidence(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -
     nub = cont.unexplained_beads
     if nub > opts.max_unexplained_beads:
         # balls in view, clear of the others, that the labelling leaves without a blob (or
-        # rejects): a near-mirror labelling of ftrac_mini (image 142) matched 6 of 9
+        # rejects), and groups of touching balls none of which the image shows: a near-mirror
+        # labelling of ftrac_mini (image 142) matched 6 of 9
         return (
-            f"identification not confirmed: {nub} beads in view and clear of the others are not "
-            f"explained (at most {opts.max_unexplained_beads})"
+            f"identification not confirmed: {nub} beads in view and clear of the others, or groups of touching "
+            f"beads with no blob at any, are not explained (at most {opts.max_unexplained_beads})"
         )
     if (why := balls_of_one_wire(features, obs)) is not None:
         return why

@@ -431,7 +431,8 @@ class Contours:
     #: curves with hardly any ridge point near their prediction at all: evidence against the pose
     missing: list[str] = field(default_factory=list)
     #: balls in view, clear of the others (their blurred discs touch none), that the labelling
-    #: leaves without a blob, where the image could have shown them (set by :func:`.labelling.misfit`)
+    #: leaves without a blob, where the image could have shown them, and groups of touching
+    #: balls none of which it shows (set by :func:`.labelling.misfit`)
     unexplained_beads: int = 0
     #: balls the labelling does not use within two bead widths of another (in its fit's
     #: window) and that the image shows where it puts them (set by :func:`.labelling.misfit`)

@@ -244,7 +244,8 @@ class TrackOptions:
     #: two refinement stages (wide, then tight and thinned) instead of three
     fast: bool = True
     #: a converged pose may leave at most this many balls in view, clear of the others (their
-    #: blurred discs touch none: > 2 radii + 2 blur σ), without their blob or rejected
+    #: blurred discs touch none: > 2 radii + 2 blur σ), without their blob or rejected — a
+    #: group of touching balls the image shows at none of them counting as one such ball
     max_unexplained_beads: int = 1
     #: a ball the labelling did not use is still shown by the image where the blob
     #: detector reads at least this many noise units at its predicted centre
