@@ -374,11 +374,9 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
     window = 4 * sc.bead_radius_px + 2
     dd = np.linalg.norm(uv[:, None] - uv[None], axis=-1) + np.eye(len(uv)) * 1e9 if len(uv) else np.zeros((0, 0))
     inside = scene.readable(uv, margin_px=m) if len(uv) else np.zeros(0, bool)
-    shown = (
-        (scene.ball_evidence(uv) >= opts.bead_present_snr) | (scene.learned_ball(uv) >= LEARNED_BALL)
-        if len(uv)
-        else np.zeros(0, bool)
-    )
+    ev = scene.ball_evidence(uv) if len(uv) else np.zeros(0)
+    network = scene.learned_ball(uv) >= LEARNED_BALL if len(uv) else np.zeros(0, bool)
+    shown = (ev >= opts.bead_present_snr) | network
     # a ball most of whose disc is clipped could not have shown: a display window that clips
     # dense hardware to black took the balls over it, flanks and all, while the balls beside
     # it kept their readable flanks around a clipped core
@@ -394,7 +392,7 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
             isolated += bool(dd[k].min() > sep and not shown[k] and not hidden[k])
     if len(uv):
         used = np.array([p.id in obs.points for p in features.points])
-        isolated += bare_groups(dd <= sep, inside & ~used & ~shown & ~hidden)
+        isolated += bare_groups(dd <= sep, inside & ~used & (ev < opts.bare_group_snr) & ~network & ~hidden)
     cont.unexplained_beads, cont.crowded_shown = isolated, crowded
     unexplained += len(set(cont.missing) | {k for k in lab.removed if k not in {p.id for p in features.points}})
     return chi + opts.unexplained_chi2 * unexplained
@@ -403,7 +401,8 @@ def misfit(scene: Scene, lab: Labelling, opts: LabellingOptions) -> float:
 def bare_groups(touch: np.ndarray, bare: np.ndarray) -> int:
     """How many groups of two or more balls whose blurred discs touch (``touch``: (n, n) bool,
     ball by ball, false on the diagonal; a group is a connected set) are bare in every member
-    (``bare``: (n,) bool — in view, not used, and the image shows no ball there, nor hides one).
+    (``bare``: (n,) bool — in view, not used, and the image shows no ball there, not even a
+    faint one, nor hides one: ``LabellingOptions.bare_group_snr``).
 
     A ball beside another may have no blob of its own (their discs blend into one), so it is
     not counted as unexplained alone; but where the image shows nothing at any ball of the

@@ -250,6 +250,11 @@ class TrackOptions:
     #: a ball the labelling did not use is still shown by the image where the blob
     #: detector reads at least this many noise units at its predicted centre
     bead_present_snr: float = 4.0
+    #: a group of touching balls is shown at none of them only where the blob detector reads
+    #: less than this at each (noise units), and the network no ball: blended, a faint pair's
+    #: response splits between them (a right ftrac_mini pose on a display frame: 3.4 and 4.0),
+    #: while balls put on bare background read what the noise gives (−1.3 and −5.3)
+    bare_group_snr: float = 2.0
     #: a confident labelling uses at least this many balls
     min_beads: int = 5
     #: one ball fewer will do where wire contours confirm the labelling and the view's
@@ -454,6 +459,7 @@ class LabellingOptions:
     depth_range: tuple[float, float]
     unexplained_chi2: float
     bead_present_snr: float
+    bare_group_snr: float
     agreement_min_snr: float
     agreement_chi2_per_px: float
     contour: ContourOptions
