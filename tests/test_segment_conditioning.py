@@ -144,6 +144,50 @@ def test_invalid_regions_close_text_inside_a_saturated_corner():
     assert not bad[120:, :100].any()
 
 
+def _invalid_by_definition(img: np.ndarray, disc_px: int, margin_px: int) -> np.ndarray:
+    """:func:`invalid_regions` of a display frame as its docstring defines it, the holes'
+    closing taken over the whole frame: the reference the tracker's faster form must equal."""
+    a = np.asarray(img, np.float32)
+    lo, hi = float(a.min()), float(a.max())
+    tol = 0.02 * (hi - lo)
+    m = cv2.blur(a, (5, 5))
+    ext = ((m <= lo + tol) | (m >= hi - tol)).astype(np.uint8)
+    k = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * disc_px + 1, 2 * disc_px + 1))
+    wide = cv2.morphologyEx(ext, cv2.MORPH_OPEN, k)
+    n, lab = cv2.connectedComponents(ext)
+    region = np.isin(lab, np.unique(lab[wide > 0])).astype(np.uint8)
+    closed = cv2.morphologyEx(region, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25)))
+    _, rest = cv2.connectedComponents(1 - region, connectivity=4)
+    border = np.unique(np.r_[rest[0], rest[-1], rest[:, 0], rest[:, -1]])
+    region[(closed > 0) & (region == 0) & ~np.isin(rest, border)] = 1
+    ext = cv2.morphologyEx(region, cv2.MORPH_OPEN, k)
+    mk = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * margin_px + 1, 2 * margin_px + 1))
+    return cv2.dilate(ext, mk).astype(bool)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_invalid_regions_fill_holes_as_a_whole_frame_closing_would(seed):
+    """Holes of every size in clipped regions (text, gaps, bays open to the frame's edge, a
+    clipped corner and a round field's black), wherever they fall, near the frame's edge too:
+    the holes are closed on their own box, and the result is the whole frame's closing's."""
+    rng = np.random.default_rng(seed)
+    H, W = 160 + int(rng.integers(0, 80)), 160 + int(rng.integers(0, 80))
+    img = 110 + 8 * rng.standard_normal((H, W))
+    yy, xx = np.mgrid[0:H, 0:W]
+    img[np.hypot(yy - H / 2, xx - W / 2) > 0.45 * min(H, W) + rng.uniform(0, 40)] = 0  # round field
+    r0, c0 = int(rng.integers(0, H // 2)), int(rng.integers(0, W // 2))
+    h, w = int(rng.integers(40, 100)), int(rng.integers(40, 100))
+    img[r0 : r0 + h, c0 : c0 + w] = 255  # a saturated patch
+    for _ in range(int(rng.integers(4, 14))):  # holes in it and strokes across its edges, of every size
+        r, c = r0 + int(rng.integers(-10, h)), c0 + int(rng.integers(-10, w))
+        img[max(r, 0) : r + int(rng.integers(1, 30)), max(c, 0) : c + int(rng.integers(1, 30))] = rng.uniform(30, 200)
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    bad = invalid_regions(img, disc_px=6, margin_px=0)
+    ref = _invalid_by_definition(img, 6, 0)
+    assert bad is not None
+    np.testing.assert_array_equal(bad, ref)
+
+
 def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
     rng = np.random.default_rng(1)
     img = np.full((64, 64), 100.0) + rng.normal(0, 2, (64, 64))

@@ -145,17 +145,25 @@ def _closed_where_wide(ext: np.ndarray, wide: np.ndarray, disc_px: int) -> np.nd
     keep[lab[::s, ::s][wide[::s, ::s] > 0]] = True
     keep[0] = False
     region = keep[lab].astype(np.uint8)
-    closed = cv2.morphologyEx(region, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25)))
-    added = (closed > 0) & (region == 0)
-    if not added.any():
-        return region
     # a hole is a part of the rest that does not reach the frame's edge (4-connected: a
     # diagonal gap in the region's outline lets nothing through)
     m, rest = cv2.connectedComponents(1 - region, connectivity=4)
     outside = np.zeros(m, bool)
     outside[np.unique(np.r_[rest[0], rest[-1], rest[:, 0], rest[:, -1]])] = True
     outside[0] = True
-    region[added & ~outside[rest]] = 1
+    hole = ~outside[rest]
+    if not hole.any():
+        return region
+    # the closing at a pixel reads the region within 2 × 12 px of it: closed on the holes'
+    # box grown by 25 px, the holes get what a closing of the whole frame gives them, for a
+    # fraction of its cost (a 1024² frame's closing took ~30 ms; most frames have no hole)
+    rows, cols = np.nonzero(hole)
+    H, W = region.shape
+    r0, r1 = max(int(rows.min()) - 25, 0), min(int(rows.max()) + 26, H)
+    c0, c1 = max(int(cols.min()) - 25, 0), min(int(cols.max()) + 26, W)
+    box = region[r0:r1, c0:c1]
+    closed = cv2.morphologyEx(box, cv2.MORPH_CLOSE, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (25, 25)))
+    box[(closed > 0) & (box == 0) & hole[r0:r1, c0:c1]] = 1
     return region
 
 
