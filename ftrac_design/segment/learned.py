@@ -30,7 +30,7 @@ def detections(image: np.ndarray, sc: Scales, opts: FindOptions) -> learned.Dete
     if opts.detector == "classical" or (opts.detector == "auto" and not learned.available()):
         return None
     net = learned.load_detector(threads=opts.detector_threads)
-    return net.detect(image, sc.bead_radius_px)
+    return net.detect(image, sc.bead_radius_px, max_beads=opts.detector_candidates)
 
 
 def polarity_order(image: np.ndarray, det: learned.Detections, sc: Scales, balls: int) -> list[str] | None:

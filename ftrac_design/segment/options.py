@@ -81,6 +81,10 @@ class TrackOptions:
     #: machine); 1 for a process among as many workers as cores (the image-true score's), where
     #: more threads only contend
     detector_threads: int = 2
+    #: the learned detector's ball candidates kept from the whole image, most probable first:
+    #: a frame of anatomy holds hundreds of ball-like peaks, and the fiducial's balls are
+    #: looked for among those in its region
+    detector_candidates: int = 256
     #: source-to-fiducial over source-to-detector distance assumed to size the filters
     #: (SPEC §1 workspace: the fiducial at 2/3 of f, magnification 1.5)
     magnification: float = 1.5
@@ -375,6 +379,7 @@ class FindOptions:
 
     detector: Literal["auto", "learned", "classical"]
     detector_threads: int
+    detector_candidates: int
     magnification: float
     max_magnification: float
     blur_px: float
