@@ -70,3 +70,59 @@ def displaced_by_mode():
         )
 
     return displaced
+
+
+@pytest.fixture
+def another_fiducial():
+    """``track(k, seed, preset)``: the no-fiducial benchmark's "another fiducial" image ``k`` of
+    ``seed`` (``benchmarks/no_fiducial.py``) tracked as ``preset`` with default options, its
+    principal point at the image's centre, as a user with a PNG of it would; returns the
+    preset the image shows and the :class:`~ftrac_design.segment.TrackResult`."""
+    import sys
+
+    from ftrac_design.pose import Camera
+    from ftrac_design.segment import track_image
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from no_fiducial import fiducial
+
+    def track(k: int, seed: int, preset: str):
+        img, shown = fiducial(k, seed)
+        camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
+        return shown, track_image(img, compute_features(load_design(preset)), camera)
+
+    return track
+
+
+@pytest.fixture
+def realism_tracked():
+    """``track(preset, condition, k, seed, n, opts=None)``: the realism benchmark's image ``k``
+    of ``condition`` (``benchmarks/track_realism.py``, ``n`` per condition, ``seed``) tracked as
+    ``preset`` (default options unless ``opts``); returns the
+    :class:`~ftrac_design.segment.TrackResult`, the pose's rotation and translation errors
+    against the truth (degrees, mm) and the χ²₆ of its error under its own covariance (inf
+    when refused)."""
+    import math
+    import sys
+
+    from ftrac_design.pose.simulate import pose_errors
+    from ftrac_design.segment import TrackOptions, track_image
+
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from track_realism import make_image
+
+    def track(preset: str, condition: str, k: int, seed: int, n: int, opts: TrackOptions | None = None):
+        img, R, t, camera, _ = make_image(preset, condition, k, seed, n)
+        res = track_image(img, compute_features(load_design(preset)), camera, opts or TrackOptions())
+        if not res.pose.converged:
+            return res, math.inf, math.inf, math.inf
+        dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
+        e = np.concatenate([dr, dt])
+        return (
+            res,
+            math.degrees(float(np.linalg.norm(dr))),
+            float(np.linalg.norm(dt)),
+            float(e @ np.linalg.solve(res.pose.covariance, e)),
+        )
+
+    return track

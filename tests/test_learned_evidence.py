@@ -180,21 +180,15 @@ def test_balls_of_one_wire_and_one_curve_are_no_labelling(preset, balls, curves,
     ("seed", "n", "k", "deg", "mm"),
     [(2128, 200, 118, 1.0, 3.0), (2127, 20, 12, 0.5, 1.0)],
 )
-def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right(seed, n, k, deg, mm):
+def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right(seed, n, k, deg, mm, realism_tracked):
     """Two faint display-dark views of ftrac_2005 whose labelling rests on the four balls of
     wire L1. With one ellipse alone to fix the turn about it (seed 2128, image 118) the pose
     was given 4.1° and 6.6 mm off: that labelling refused, the classical detectors' second
     look finds the right one. With two lines and both ellipses (seed 2127, image 12) the
     labelling is right and given."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from track_realism import make_image
-
-    features = compute_features(load_design("ftrac_2005"))
-    img, R, t, camera, _ = make_image("ftrac_2005", "display-dark", k, seed, n)
-    res = track_image(img, features, camera, TrackOptions())
+    res, d_deg, d_mm, _ = realism_tracked("ftrac_2005", "display-dark", k, seed, n)
     assert res.pose.converged, res.pose.error
-    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
-    assert math.degrees(float(np.linalg.norm(dr))) < deg and float(np.linalg.norm(dt)) < mm
+    assert d_deg < deg and d_mm < mm
 
 
 def test_balls_at_the_noise_they_were_measured_with_pass():
@@ -291,22 +285,15 @@ def test_one_faint_straight_wire_is_excused_where_the_others_show_plainly(monkey
     assert acceptance.absent_wires(scene, pose, opts) == acceptance.no_wire_there(absent)
 
 
-def test_a_blurred_view_whose_one_straight_wire_reads_faint_is_tracked():
+def test_a_blurred_view_whose_one_straight_wire_reads_faint_is_tracked(realism_tracked):
     """ftrac_2005 under 2 px of blur (tuning seed 2126, 20 per condition, image 13): all nine
     balls and both ellipses, but wire L1's ridge reads 0.8 noise units at the true pose, below
     the 3 spreads a present wire stands above zero; the pose was refused for it. The other
     four curves plain, it is given, within 1° and 2 mm of the truth and inside its covariance."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from track_realism import make_image
-
-    features = compute_features(load_design("ftrac_2005"))
-    img, R, t, camera, _ = make_image("ftrac_2005", "blur-2px", 13, 2126, 20)
-    res = track_image(img, features, camera, TrackOptions())
+    res, d_deg, d_mm, chi2_6 = realism_tracked("ftrac_2005", "blur-2px", 13, 2126, 20)
     assert res.pose.converged, res.pose.error
-    dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
-    e = np.concatenate([dr, dt])
-    assert math.degrees(float(np.linalg.norm(dr))) < 1.0 and float(np.linalg.norm(dt)) < 2.0
-    assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
+    assert d_deg < 1.0 and d_mm < 2.0
+    assert chi2_6 < chi2.isf(1e-4, 6)
 
 
 def test_a_wire_the_image_showed_before_the_body_was_subtracted_is_there():
@@ -418,18 +405,13 @@ def test_a_classical_pose_needs_the_network_to_read_one_of_its_balls(probability
         assert "none of the 3 balls" in why and "at most 0.29" in why
 
 
-def test_another_fiducials_frame_is_not_taken_for_nine_bead_by_the_classical_second_look():
+def test_another_fiducials_frame_is_not_taken_for_nine_bead_by_the_classical_second_look(another_fiducial):
     """A raw frame of ftrac_mini over bright anatomy (the no-fiducial benchmark's "another
     fiducial" 46 of seed 2088): tracked as nine_bead, the network found no labelling and the
     classical second look fitted the helix to seven blobs where dark edges cross, 939 mm from
     the source; the network reads 0.01–0.29 at those seven. No pose."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-    from no_fiducial import fiducial
-
-    img, shown = fiducial(46, 2088)
+    shown, res = another_fiducial(46, 2088, "nine_bead")
     assert shown == "ftrac_mini"
-    camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
-    res = track_image(img, compute_features(load_design("nine_bead")), camera)
     assert not res.pose.converged
     assert res.diagnostics.detector_tried == ["learned", "classical"]
 
