@@ -191,6 +191,11 @@ def test_a_faint_side_view_on_four_balls_of_one_wire_is_tracked_right(seed, n, k
     assert d_deg < deg and d_mm < mm
 
 
+#: the learned detector's 64 most probable candidates of a frame, with which the near-mirror
+#: cases below were found (the 256 kept by default now find the right labelling first there)
+FOUND_WITH = TrackOptions(detector_candidates=64)
+
+
 def test_balls_at_the_noise_they_were_measured_with_pass():
     """Balls displaced by the noise model's own σ, the pose solved and its variance factor
     calibrated as the tracker does: the test does not refuse them (20 views)."""
@@ -505,13 +510,13 @@ def test_a_display_frame_s_near_mirror_of_ftrac_mini_is_refused():
     from test_wider_rivals import _image
 
     img, features, R, t = _image("ftrac_mini", "display-bright", 1, 2124, 20)
-    res = track_image(img, features, Camera())
+    res = track_image(img, features, Camera(), FOUND_WITH)
     assert res.pose.converged, res.pose.error
     dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
     e = np.concatenate([dr, dt])
     assert math.degrees(float(np.linalg.norm(dr))) < 1.0
     assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
-    wrong = track_image(img, features, Camera(), TrackOptions(crowd_p_value=0.0))
+    wrong = track_image(img, features, Camera(), replace(FOUND_WITH, crowd_p_value=0.0))
     assert wrong.pose.converged
     dr, dt = pose_errors(wrong.pose.rotation, wrong.pose.translation_mm, R, t)
     assert math.degrees(float(np.linalg.norm(dr))) > 170.0 and float(np.linalg.norm(dt)) > 20.0
@@ -630,13 +635,13 @@ def test_a_round_field_s_near_mirror_of_ftrac_mini_is_no_answer():
     from test_wider_rivals import _image
 
     img, features, R, t = _image("ftrac_mini", "round-shutter", 12, 2126, 20)
-    res = track_image(img, features, Camera())
+    res = track_image(img, features, Camera(), FOUND_WITH)
     if res.pose.converged:
         dr, dt = pose_errors(res.pose.rotation, res.pose.translation_mm, R, t)
         e = np.concatenate([dr, dt])
         assert float(e @ np.linalg.solve(res.pose.covariance, e)) < chi2.isf(1e-4, 6)
         assert math.degrees(float(np.linalg.norm(dr))) < 1.0
-    wrong = track_image(img, features, Camera(), TrackOptions(mirror_ambiguity_chi2=25.0))
+    wrong = track_image(img, features, Camera(), replace(FOUND_WITH, mirror_ambiguity_chi2=25.0))
     assert wrong.pose.converged
     dr, _ = pose_errors(wrong.pose.rotation, wrong.pose.translation_mm, R, t)
     assert math.degrees(float(np.linalg.norm(dr))) > 170.0

@@ -52,7 +52,7 @@ def test_a_labelling_of_balls_alone_meets_the_rival_it_hid():
     right one, on 6 balls, was never formed. Found by the wider search, it fits the image far
     better and cannot stand alone (6 balls and no wire contour): the two are a tie, no pose."""
     img, features, R, t = _image("ftrac_mini", "fluoro-dose", 11, 2116, 20)
-    res = track_image(img, features, Camera())
+    res = track_image(img, features, Camera(), TrackOptions(detector_candidates=64))
     assert not res.pose.converged
     assert res.pose.error.startswith("ambiguous identification")
 
@@ -69,7 +69,7 @@ def test_a_line_of_balls_on_seeds_meets_the_labelling_of_the_answer_s_own_blobs(
     is given. (The clock's safety net is set far off: what
     the search does, not the machine's load, decides the outcome.)"""
     img, features, R, t = _image("ftrac_mini", "seeds-needle", 3, 2123, 20)
-    opts = replace(TrackOptions(), time_budget_s=120.0)
+    opts = replace(TrackOptions(), time_budget_s=120.0, detector_candidates=64)
     res = track_image(img, features, Camera(), opts)
     assert not res.pose.converged
     assert res.pose.error.startswith("ambiguous identification")
