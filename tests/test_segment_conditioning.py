@@ -188,6 +188,27 @@ def test_invalid_regions_fill_holes_as_a_whole_frame_closing_would(seed):
     np.testing.assert_array_equal(bad, ref)
 
 
+@pytest.mark.parametrize("seed", range(8))
+def test_invalid_regions_without_holes_are_the_opening_of_the_clipped_pixels(seed):
+    """Two saturated or black patches and clipped specks narrower than the disc, no hole
+    between them: the region's opening is the clipped pixels' own, as the definition says."""
+    rng = np.random.default_rng(100 + seed)
+    H, W = 160 + int(rng.integers(0, 80)), 160 + int(rng.integers(0, 80))
+    img = 110 + 8 * rng.standard_normal((H, W))
+    for _ in range(2):
+        r0, c0 = int(rng.integers(-20, H - 20)), int(rng.integers(-20, W - 20))
+        h, w = int(rng.integers(20, 90)), int(rng.integers(20, 90))
+        img[max(r0, 0) : r0 + h, max(c0, 0) : c0 + w] = rng.choice([0, 255])
+    for _ in range(int(rng.integers(3, 10))):  # specks wide enough to clip, too narrow to hold the disc
+        r, c, s = int(rng.integers(0, H)), int(rng.integers(0, W)), int(rng.integers(5, 12))
+        img[r : r + s, c : c + s] = rng.choice([0, 255])
+    img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    margin = int(rng.integers(0, 4))
+    bad = invalid_regions(img, disc_px=6, margin_px=margin)
+    assert bad is not None
+    np.testing.assert_array_equal(bad, _invalid_by_definition(img, 6, margin))
+
+
 def test_fill_clipped_erases_thin_strokes_and_keeps_a_clipped_balls_flanks():
     rng = np.random.default_rng(1)
     img = np.full((64, 64), 100.0) + rng.normal(0, 2, (64, 64))
