@@ -7,8 +7,12 @@ a seed never used in training) and their exact truth:
   candidate within 1.5 px among the candidates the tracker keeps: 3 × balls + 6), precision (the
   share of those candidates within 1.5 px of a true ball), and the RMS distance of the matched ones
   (px) — for the learned candidates and for the classical blob detector's, each after the
-  blurred-sphere fit the tracker runs on them (the classical one on the image conditioned in its
-  true polarity, over the whole image: its best case);
+  blurred-sphere fit the tracker runs on them: the network's ``TrackOptions.detector_candidates``
+  most probable peaks fitted in turn, the first 3 × balls + 6 that look like a ball kept, as
+  :func:`ftrac_design.segment.learned.detections` and :func:`~ftrac_design.segment.detection.detect`
+  give them to the tracker; the classical ones on the image conditioned in its true polarity, over
+  the whole image (their best case). The JSON's ``learned_raw_balls`` are the network's 3 × balls
+  + 6 most probable peaks before any fit;
 - **wires**: recall (the share of centre-line samples, clear of the balls, where the learned wire
   probability is ≥ ½ / where a classical ridge point lies within 1.5 px) and precision (the share
   of wire cells ≥ ½ / ridge points within 1.5 px of a centre-line);
@@ -24,14 +28,13 @@ import argparse
 import json
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import replace
 from pathlib import Path
 
 import _common
 import numpy as np
 import track_realism as tr
 
-from ftrac_design import detector
+from ftrac_design.segment import learned
 from ftrac_design.segment.conditioning import condition
 from ftrac_design.segment.detection import detect, scales
 from ftrac_design.segment.identify import curve_samples, project
@@ -95,16 +98,12 @@ def one(task) -> dict:
         dr = cKDTree(ridges).query(wire_pts)[0]
         dw = cKDTree(wire_pts).query(ridges)[0]
         out["classical_wires"] = [len(wire_pts), int((dr <= TOL_PX).sum()), len(ridges), int((dw <= TOL_PX).sum())]
-    # the learned detector, on the image as stored
-    net = detector.load_detector()
+    # the learned detector, on the image as stored, with the candidates the tracker keeps
     t0 = time.perf_counter()
-    det = net.detect(img, rb)
+    det = learned.detections(img, sc, opts)
     out["learned_ms"] = (time.perf_counter() - t0) * 1e3
-    keep = np.flatnonzero(det.beads_score >= 0.2)[: 3 * P + 6]
-    cand = det.beads_uv[keep]
-    out["learned_raw_balls"] = _ball_figures(cand, truth)
-    strong = replace(det, beads_uv=cand, beads_score=det.beads_score[keep])
-    fitted = detect(cond_img.density, features, cam, opts, cond_img.valid, None, strong).beads
+    out["learned_raw_balls"] = _ball_figures(det.beads_uv[: 3 * P + 6], truth)
+    fitted = detect(cond_img.density, features, cam, opts, cond_img.valid, None, det).beads
     out["learned_balls"] = _ball_figures(fitted.uv, truth)
     if len(wire_pts):
         p = det.wire_probability(wire_pts)
