@@ -117,10 +117,65 @@ def _crossings(curves: list[np.ndarray]) -> np.ndarray:
     return np.array(found)
 
 
-def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
+def _ridges(monkeypatch, faint: set[str]) -> None:
+    """The image's ridges alone (:func:`.acceptance.faint_ridges`) read every ftrac_2005 curve
+    in view, those in ``faint`` not clearly above zero."""
+    ids = {c.id for c in F2005.lines} | {c.id for c in F2005.ellipses}
+    monkeypatch.setattr(acceptance, "faint_ridges", lambda scene, pose, opts: (ids, set(faint)))
+
+
+def _strays_off_the_crossings(seed: int = 5):
+    """ftrac_2005's scene with strong blobs 5 px off each crossing of its predicted wires, where
+    at most one wire passes within 3.5 px; also the crossings and the curves."""
+    _, lab, uv = _scene_and_labelling(np.zeros((0, 2)), 15.0, F2005, seed=seed)
+    curves = _curves(lab.pose.rotation, lab.pose.translation_mm)
+    cross = _crossings(curves)
+    cross = cross[np.linalg.norm(cross[:, None] - uv[None], axis=-1).min(1) > 2 * RB + 4]
+
+    def wires_near(x: np.ndarray) -> int:
+        return sum(np.linalg.norm(c - x, axis=1).min() <= 3.5 for c in curves)
+
+    steps = 5.0 * np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
+    off = np.array([next(x + d for d in steps if wires_near(x + d) <= 1) for x in cross])
+    return off, cross
+
+
+@pytest.mark.parametrize(
+    ("faint", "all_balls", "refused"),
+    [
+        (set(), True, False),
+        ({"L2"}, True, False),
+        ({"L1", "L2"}, True, True),
+        ({"E1"}, True, True),
+        ({"E1", "E2"}, True, True),
+        (set(), False, True),
+    ],
+)
+def test_a_pose_on_all_its_balls_whose_wires_show_plainly_is_not_refused_for_strays(
+    monkeypatch, faint, all_balls, refused
+):
+    """Strong blobs among the balls that the pose does not explain refuse a pose unless it
+    uses all its balls and the image's ridges alone show its wires plainly — every ellipse
+    and every straight wire but one: then its fiducial is all there (over strong anatomy,
+    among seeds) and the blobs are another object's. Two faint wires, a faint ellipse, or a
+    ball left unused (a near-mirror puts its wires on the true ones and leaves true balls
+    among its own) refuse it."""
+    _ridges(monkeypatch, faint)
+    off, _ = _strays_off_the_crossings()
+    assert len(off) > OPTS.max_stray_balls
+    scene, lab, _ = _scene_and_labelling(off, 15.0, F2005, seed=5)
+    if not all_balls:
+        left = F2005.points[0].id
+        lab.match.pop(left)
+        lab.obs.points.pop(left)
+    assert (acceptance.stray_balls(scene, lab, OPTS) is not None) == refused
+
+
+def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it(monkeypatch):
     """Two wires crossing overlap in a spot as dense as a ball: the pose predicts it there. The
     same blobs moved 5 px off each crossing, to where at most one wire passes within 3.5 px,
-    are strays as before."""
+    are strays as before (the wires read faint, so that they count)."""
+    _ridges(monkeypatch, {"E1", "E2"})
     _, lab, uv = _scene_and_labelling(np.zeros((0, 2)), 15.0, F2005, seed=5)
     curves = _curves(lab.pose.rotation, lab.pose.translation_mm)
     cross = _crossings(curves)
@@ -129,12 +184,7 @@ def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it():
     scene, lab, _ = _scene_and_labelling(cross, 15.0, F2005, seed=5)
     assert acceptance.at_wire_crossings(scene, lab.pose, cross).all()
     assert acceptance.stray_balls(scene, lab, OPTS) is None
-
-    def wires_near(x: np.ndarray) -> int:
-        return sum(np.linalg.norm(c - x, axis=1).min() <= 3.5 for c in curves)
-
-    steps = 5.0 * np.array([[np.cos(a), np.sin(a)] for a in np.linspace(0, 2 * np.pi, 16, endpoint=False)])
-    off = np.array([next(x + d for d in steps if wires_near(x + d) <= 1) for x in cross])
+    off, _ = _strays_off_the_crossings()
     scene, lab, _ = _scene_and_labelling(off, 15.0, F2005, seed=5)
     assert not acceptance.at_wire_crossings(scene, lab.pose, off).any()
     assert f"{len(off)} blobs as strong as the fiducial's balls" in acceptance.stray_balls(scene, lab, OPTS)
