@@ -250,6 +250,34 @@ def test_a_long_curve_whose_ridge_reads_below_zero_overrules_the_network(ridge_s
     assert set(missing) == {"none": set(), "long": long, "all": set(sup)}[absent]
 
 
+def _ids_2005() -> list[str]:
+    """ftrac_2005's curves: its lines, then its ellipses."""
+    features = compute_features(load_design("ftrac_2005"))
+    return [c.id for c in features.lines] + [c.id for c in features.ellipses]
+
+
+def _curves_reading(monkeypatch, weak: dict, learned: dict, gone: set):
+    """A ftrac_2005 scene whose curve support (:func:`.evidence.curve_support`, 400 samples
+    each) reads ``weak``'s ridges (spreads of their median) where given, a plain 40 spreads
+    elsewhere, the network's ``learned`` probability (0 where not given), and no curve in
+    ``gone``. Returns the scene and the curves' ids."""
+    features = compute_features(load_design("ftrac_2005"))
+    scene = _stub_scene(features, 0.0, True)
+    ids = _ids_2005()
+    n = 400
+    spread = evidence.median_spread(scene, n)
+
+    def support(scene_, R, t, exclusion):
+        return {
+            fid: evidence.CurveSupport(ridge=weak.get(fid, 40.0) * spread, samples=n, learned=learned.get(fid, 0.0))
+            for fid in ids
+            if fid not in gone
+        }
+
+    monkeypatch.setattr(acceptance.evidence, "curve_support", support)
+    return scene, ids
+
+
 @pytest.mark.parametrize(
     ("weak", "network", "gone", "absent"),
     [
@@ -267,22 +295,7 @@ def test_one_faint_straight_wire_is_excused_where_the_others_show_plainly(monkey
     other curves — both ellipses among them — stand clearly above zero on the ridges; two
     such wires, an ellipse, an ellipse the network alone vouches for, or one out of view do.
     Ridges in spreads of their own median (:func:`.evidence.median_spread`), 40 where plain."""
-    features = compute_features(load_design("ftrac_2005"))
-    scene = _stub_scene(features, 0.0, True)
-    ids = [c.id for c in features.lines] + [c.id for c in features.ellipses]
-    n = 400
-    spread = evidence.median_spread(scene, n)
-
-    def support(scene_, R, t, exclusion):
-        return {
-            fid: evidence.CurveSupport(
-                ridge=weak.get(fid, 40.0) * spread, samples=n, learned=0.6 if fid in network else 0.0
-            )
-            for fid in ids
-            if fid not in gone
-        }
-
-    monkeypatch.setattr(acceptance.evidence, "curve_support", support)
+    scene, ids = _curves_reading(monkeypatch, weak, {fid: 0.6 for fid in network}, gone)
     pose = SimpleNamespace(rotation=np.eye(3), translation_mm=np.zeros(3))
     opts = TrackOptions().acceptance
     assert acceptance.unshown_curves(scene, pose, opts)[0] == absent
@@ -309,20 +322,7 @@ def test_the_networks_word_does_not_stand_for_every_ellipse_at_once(monkeypatch,
     show under blur and in a dark window, all on bare background (fresh seed 2131, round
     field 12, a pose 18.7° off on six balls and one line, its ellipses at 0.2 and 0.18 where
     0.5 was needed)."""
-    features = compute_features(load_design("ftrac_2005"))
-    scene = _stub_scene(features, 0.0, True)
-    ids = [c.id for c in features.lines] + [c.id for c in features.ellipses]
-    n = 400
-    spread = evidence.median_spread(scene, n)
-
-    def support(scene_, R, t, exclusion):
-        return {
-            fid: evidence.CurveSupport(ridge=weak.get(fid, 40.0) * spread, samples=n, learned=0.6)
-            for fid in ids
-            if fid not in gone
-        }
-
-    monkeypatch.setattr(acceptance.evidence, "curve_support", support)
+    scene, ids = _curves_reading(monkeypatch, weak, dict.fromkeys(_ids_2005(), 0.6), gone)
     pose = SimpleNamespace(rotation=np.eye(3), translation_mm=np.zeros(3))
     assert acceptance.wire_support(scene, pose, TrackOptions().acceptance)[0] == absent
 
