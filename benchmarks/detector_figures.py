@@ -78,7 +78,7 @@ def one(task) -> dict:
         # the same image again, for the polarity and formation its chain drew
         img, info = realistic_image(features, R, t, cam, cond, seed * 100_000 + k)
         pol, form = info["polarity"], info["formation"]
-    truth, wire_pts, rb = _truth(features, R, t, cam, img.shape)
+    truth, wire_pts, _ = _truth(features, R, t, cam, img.shape)
     opts = TrackOptions().finding
     sc = scales(features, cam, opts)
     P = len(features.points)

@@ -139,7 +139,10 @@ def _closed_where_wide(ext: np.ndarray, wide: np.ndarray, disc_px: int) -> tuple
     closing also bridged the clipped cores of the balls a few px off the region's edge into
     it, and took the balls with their readable flanks out of the image (a ftrac_2005 display
     frame of seed 2061, its balls' cores at 255 and their flanks at 200–240: refused, no ball
-    left to fit)."""
+    left to fit).
+
+    Returns the regions (uint8 0/1) and whether a hole was filled: where none was, they are
+    the parts of ``ext`` holding ``wide``, whose opening is ``wide`` itself."""
     if not wide.any():
         return wide, False
     n, lab = cv2.connectedComponents(ext)
