@@ -3,6 +3,7 @@ acceptance test that refuses a labelling resting on blobs that are not balls."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from types import SimpleNamespace
 
 import cv2
@@ -10,9 +11,13 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter
 
+from ftrac_design.design import load_design
+from ftrac_design.features import compute_features
+from ftrac_design.pose import Camera, so3
 from ftrac_design.segment import TrackOptions
-from ftrac_design.segment.acceptance import misshapen, misshapen_balls
+from ftrac_design.segment.acceptance import misshapen, misshapen_balls, small_balls
 from ftrac_design.segment.beads import Beads, fit_beads, sphere_profile
+from ftrac_design.segment.body import pose_ball_radii_px
 
 OPTS = TrackOptions().acceptance
 
@@ -118,3 +123,49 @@ def test_a_labelling_on_more_than_the_allowed_misshapen_blobs_is_refused():
     scene, lab = _case(*three)
     del lab.obs.points["B7"]
     assert misshapen_balls(scene, lab, OPTS) is None
+
+
+def _drawn_balls(radii: np.ndarray, blur: float, seed: int) -> Beads:
+    """Each ball of radius ``radii[i]`` (px) drawn independently of the fit's model (as above),
+    blurred by ``blur`` px, with noise 1/40 of its peak, and fitted from the assumed radius of a
+    2 mm ball at the workspace's depth."""
+    rng = np.random.default_rng(seed)
+    fits = []
+    for r in radii:
+        c = (20.0 + rng.uniform(-0.5, 0.5), 20.0 + rng.uniform(-0.5, 0.5))
+        img = _pixel_integrated_ball(c, float(r), blur, 0.1)
+        sigma = float(img.max()) / 40
+        fits.append(fit_beads(img + 0.3 + rng.normal(0, sigma, img.shape), np.array([c]), 3.4, 0.8, sigma))
+    return Beads(*(np.concatenate([getattr(b, k) for b in fits]) for k in Beads.__dataclass_fields__))
+
+
+def test_balls_smaller_than_the_pose_lets_them_look_are_refused():
+    """nine_bead's balls drawn at the radii a pose 660 mm from the source gives them (focal
+    length × radius / depth, ~3.4 px) under 0.6 px of blur: their fitted second moments are
+    r²/5 + σ² within 15 %, and a labelling at that pose keeps them; the same balls under a pose
+    at half the depth, which would show them twice as wide, are refused as too small, and so
+    are they under the true pose when the design says its balls are 1.5 times as large. Fewer
+    than three balls decide nothing."""
+    features = compute_features(load_design("nine_bead"))
+    cam = Camera()
+    R = so3.exp(np.array([0.3, -0.2, 0.1]))
+    near = SimpleNamespace(rotation=R, translation_mm=np.array([4.0, -3.0, 330.0]))
+    true = SimpleNamespace(rotation=R, translation_mm=np.array([4.0, -3.0, 660.0]))
+    radii = pose_ball_radii_px(features, cam, true)
+    assert 3.0 < float(np.median(radii)) < 4.0
+    beads = _drawn_balls(radii, 0.6, seed=3)
+    assert beads.second_moment_px2 == pytest.approx(radii**2 / 5 + 0.36, rel=0.15)
+    ids = [p.id for p in features.points]
+
+    def lab(pose, used=ids):
+        return SimpleNamespace(
+            pose=pose, match={k: ids.index(k) for k in used}, obs=SimpleNamespace(points=dict.fromkeys(used))
+        )
+
+    scene = SimpleNamespace(beads=beads, features=features, camera=cam)
+    assert small_balls(scene, lab(true), OPTS) is None
+    reason = small_balls(scene, lab(near), OPTS)
+    assert reason is not None and "9 beads used are smaller" in reason
+    larger = replace(features, points=tuple(replace(p, diameter=1.5 * p.diameter) for p in features.points))
+    assert small_balls(SimpleNamespace(beads=beads, features=larger, camera=cam), lab(true), OPTS) is not None
+    assert small_balls(scene, lab(near, ids[:2]), OPTS) is None

@@ -168,6 +168,7 @@ def _pass_other_tests(monkeypatch, pixel_z: dict[float, float] | None = None):
     monkeypatch.setattr(pipeline.acceptance, "wire_support", lambda scene, pose, opts, also=None: ([], {}))
     monkeypatch.setattr(pipeline.acceptance, "too_little_evidence", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "misshapen_balls", lambda scene, lab, opts: None)
+    monkeypatch.setattr(pipeline.acceptance, "small_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "stray_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "displaced_balls", lambda scene, lab, opts: None)
     monkeypatch.setattr(pipeline.acceptance, "uncontrolled", lambda scene, lab, opts: None)

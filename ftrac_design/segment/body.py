@@ -161,14 +161,22 @@ def wire_profile(
 REFIT_MOVE_PX = 2.0
 
 
+def pose_ball_radii_px(features: Features, camera: Camera, pose: Pose) -> np.ndarray:
+    """Each ball's radius (px) as pose ``pose`` projects it: the focal length (px) × its
+    radius (mm) over its depth in the camera frame (mm); (P,), in ``features.points``' order."""
+    if not features.points:
+        return np.zeros(0)
+    Z = features.point_centers() @ pose.rotation[2] + pose.translation_mm[2]
+    dia = np.array([p.diameter for p in features.points], float)
+    return camera.fx * dia / 2 / Z
+
+
 def pose_bead_radius_px(features: Features, camera: Camera, pose: Pose) -> float:
     """The balls' mean radius (px) as pose ``pose`` projects them (their diameters at their
     depths); NaN for a design without balls."""
     if not features.points:
         return math.nan
-    Z = features.point_centers() @ pose.rotation[2] + pose.translation_mm[2]
-    dia = np.array([p.diameter for p in features.points], float)
-    return float(np.mean(camera.fx * dia / 2 / Z))
+    return float(np.mean(pose_ball_radii_px(features, camera, pose)))
 
 
 def refit_beads_at_pose(scene: Scene, T: np.ndarray, beads: Beads, pose: Pose) -> Beads:

@@ -291,6 +291,10 @@ class TrackOptions:
     ball_shape_rms: float = 3.0
     ball_shape_fraction: float = 0.1
     max_misshapen_balls: int = 2
+    #: a confident labelling's balls look at least this fraction as large as balls of the
+    #: design's diameters can at its pose's depths (median second moments against the median
+    #: of their projected chords' alone, r²/5: :func:`~.acceptance.small_balls`)
+    ball_size_fraction: float = 0.85
     #: a blob among the fiducial's balls (inside their projected hull, more than two radii from
     #: every ball the pose puts there, not where two of its wires cross) with a blob response at
     #: least ``stray_ball_fraction`` of the median of the balls the labelling uses is a ball the
@@ -491,6 +495,7 @@ class AcceptanceOptions:
     ball_shape_rms: float
     ball_shape_fraction: float
     max_misshapen_balls: int
+    ball_size_fraction: float
     stray_ball_fraction: float
     max_stray_balls: int
     displaced_ball_px: float

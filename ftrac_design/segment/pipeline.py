@@ -490,6 +490,8 @@ def accept_best(
     if pose.converged:
         pose = acceptance.refuse(pose, acceptance.misshapen_balls(scene, best, opts))
     if pose.converged:
+        pose = acceptance.refuse(pose, acceptance.small_balls(scene, best, opts))
+    if pose.converged:
         pose = acceptance.refuse(pose, acceptance.stray_balls(scene, best, opts))
     if pose.converged:
         pose = acceptance.refuse(pose, acceptance.displaced_balls(scene, best, opts))
