@@ -164,6 +164,54 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     assert refine_track_result(img.raw, features_2005, Camera(), failed) is failed
 
 
+def test_refine_track_result_keeps_the_feature_pose_when_the_fit_leaves_its_covariance(
+    features_2005, pose_2005, monkeypatch
+):
+    """A refinement is taken only where it converged and stayed inside the feature path's
+    pose's covariance (χ²₆ ≤ MOVE_CHI2): the same fit moved by 2 σ of that covariance in depth
+    (χ²₆ = 4) replaces the pose, moved by 6 σ (36) or left unconverged it does not — the
+    feature pose comes back as it was, the diagnostic saying why; a record without ``taken``
+    (written before it was kept) reads as taken."""
+    from dataclasses import dataclass, field
+    from types import SimpleNamespace
+
+    import ftrac_design.intensity.refine as refine_mod
+    from ftrac_design.pose import Diagnostics
+    from ftrac_design.pose.record import IntensityFit
+    from ftrac_design.pose.solver import Pose
+
+    @dataclass
+    class Result:
+        pose: Pose
+        polarity: str
+        diagnostics: Diagnostics = field(default_factory=Diagnostics)
+
+    R, t = pose_2005
+    cov = np.diag([1e-6, 1e-6, 1e-6, 0.01, 0.01, 0.25])  # depth σ 0.5 mm
+    start = Result(Pose(R, t, True, 0.1, cov, {}, 3), "dense-dark")
+
+    def fit_moving(dz_mm: float, converged: bool = True):
+        def fake(*args, **kwargs):
+            return SimpleNamespace(
+                rotation=R, translation_mm=t + np.array([0.0, 0.0, dz_mm]), covariance=cov, converged=converged,
+                cost_start=10.0, cost_end=5.0, iterations=4, gain=1.0, roi=(0, 0, 10, 10), n_nuisance=7, message="",
+            )  # fmt: skip
+
+        return fake
+
+    img = np.zeros((16, 16))
+    monkeypatch.setattr(refine_mod, "refine_intensity", fit_moving(1.0))
+    near = refine_mod.refine_track_result(img, features_2005, Camera(), start)
+    assert near.diagnostics.intensity.taken and near.pose.translation_mm[2] == pytest.approx(t[2] + 1.0)
+    for fake, why in ((fit_moving(3.0), "χ²₆ = 36"), (fit_moving(1.0, converged=False), "did not converge")):
+        monkeypatch.setattr(refine_mod, "refine_intensity", fake)
+        out = refine_mod.refine_track_result(img, features_2005, Camera(), start)
+        assert out.pose is start.pose and not out.diagnostics.intensity.taken
+        assert why in out.diagnostics.intensity.message
+    old = {k: v for k, v in near.diagnostics.intensity.to_dict().items() if k != "taken"}
+    assert Diagnostics.from_dict({"intensity": old}).intensity == IntensityFit(**old, taken=True)
+
+
 def test_bound_matches_the_spread_of_a_simple_estimator():
     """One bead, tx alone unknown: the linearised weighted least-squares estimate from the
     true pose, Σ w J (Y − L) / Σ w J², scatters as the bound 1/√F_tx,tx predicts (200 noise

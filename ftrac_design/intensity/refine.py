@@ -39,6 +39,7 @@ from threadpoolctl import threadpool_limits
 from ..features.model import Features
 from ..pose.camera import Camera
 from ..pose.record import IntensityFit
+from ..segment.acceptance import inside_covariance
 from ..xray.model import ImagingModel
 from .background import Nuisance, background_basis
 from .bound import _dot
@@ -48,6 +49,16 @@ from .model import STEP_PX, RoiModel, perturb, roi_around
 DEFAULT_SPLINE_PX = 12.0
 #: how dense matter shows in the image the refinement reads: bright (a log image) or dark (raw counts)
 RefinePolarity = Literal["dense_bright", "dense_dark"]
+#: the largest move of a pose (χ²₆ of the refined pose under the feature path's pose's own
+#: covariance, :func:`~ftrac_design.segment.acceptance.inside_covariance`) with which
+#: :func:`refine_track_result` takes the refinement: p = 10⁻⁴, the bound past which the
+#: realism benchmark calls a pose confidently wrong. On the 136 ``ftrac_mini`` poses the
+#: feature path gave on realism seed 2134 (11 conditions, 106 of them right), the refinement
+#: taken every time left 86 right and 43 confidently wrong, 25 of them 22–175° away (display
+#: frames, round fields, blades, fluoroscopy, blur: every one beyond this bound); with it, 103
+#: right and 17 confidently wrong, the pixel-level covariance too tight for a model the
+#: image departs from. On ``ftrac_2005``'s 204 poses of that seed no refinement went beyond it
+MOVE_CHI2 = 25.7
 #: χ² per degree of freedom of the smooth-background fit above which ``background="auto"``
 #: takes the image as cluttered (see :func:`refine_intensity`)
 CLUTTER_CHI2 = 3.0
@@ -652,7 +663,13 @@ def refine_track_result(
     copy whose pose is the refined one (``scales="auto"`` with a 1 px coarse scale), with the
     covariance from the pixel information (scaled by the fitted χ²/dof when that exceeds 1: a
     real image's dose and blur are not known exactly). A result that did not converge is
-    returned unchanged. ``options`` go to :func:`refine_intensity` (e.g. ``scales``, ``roi``)."""
+    returned unchanged. ``options`` go to :func:`refine_intensity` (e.g. ``scales``, ``roi``).
+
+    The refined pose is taken only where the fit converged and stayed inside the feature
+    path's pose's own covariance (:data:`MOVE_CHI2`); otherwise the feature path's pose is
+    given out as it was, the diagnostic saying why (``taken`` false). The model is the log
+    image's: a display frame's window and gamma, clipping and dense anatomy break it, and
+    on display frames the fit can walk far from a right pose (see :data:`MOVE_CHI2`)."""
     pose = result.pose
     if not pose.converged:
         return result
@@ -679,7 +696,13 @@ def refine_track_result(
         translation_mm=res.translation_mm,
         covariance=cov if cov is not None else pose.covariance,
     )
+    move = inside_covariance(pose, new_pose)
+    taken = bool(res.converged) and move <= MOVE_CHI2
+    message = res.message
+    if not taken:
+        why = "it did not converge" if not res.converged else f"it moved the pose χ²₆ = {move:.3g} > {MOVE_CHI2:g}"
+        message = f"{message}; the feature path's pose kept: {why} (beyond that pose's own covariance)".lstrip("; ")
     fit = IntensityFit(
-        bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), res.message
+        bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), message, taken
     )
-    return replace(result, pose=new_pose, diagnostics=replace(result.diagnostics, intensity=fit))
+    return replace(result, pose=new_pose if taken else pose, diagnostics=replace(result.diagnostics, intensity=fit))

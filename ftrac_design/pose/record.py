@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import MISSING, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Literal, get_args
 
@@ -162,7 +162,9 @@ class Timing:
 class IntensityFit:
     """The intensity refinement's account of a pose it refined (``track --refine intensity``):
     whether it converged, its objective at the start and the end, χ² per degree of freedom,
-    iterations, the fitted gain, the region fitted (row0, col0, rows, cols) and its message."""
+    iterations, the fitted gain, the region fitted (row0, col0, rows, cols), its message, and
+    whether its pose was taken (replaced the feature path's) or left (the pose given out is
+    the feature path's, the refinement having failed or moved beyond that pose's covariance)."""
 
     refined: bool
     cost_start: float
@@ -172,6 +174,8 @@ class IntensityFit:
     gain: float
     roi: list[int]
     message: str
+    #: absent from records written before it was kept: those took every refinement
+    taken: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """The ``segmentation.intensity`` object."""
@@ -354,7 +358,7 @@ def _intensity_fit(v: Any) -> IntensityFit | None:
     if not isinstance(v, dict):
         return None
     try:
-        return IntensityFit(**{f.name: v[f.name] for f in fields(IntensityFit)})
+        return IntensityFit(**{f.name: v[f.name] for f in fields(IntensityFit) if f.name in v or f.default is MISSING})
     except KeyError:
         return None
 
