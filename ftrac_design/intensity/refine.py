@@ -701,7 +701,8 @@ def refine_track_result(
     message = res.message
     if not taken:
         why = "it did not converge" if not res.converged else f"it moved the pose χ²₆ = {move:.3g} > {MOVE_CHI2:g}"
-        message = f"{message}; the feature path's pose kept: {why} (beyond that pose's own covariance)".lstrip("; ")
+        kept = f"the feature path's pose kept: {why} (beyond that pose's own covariance)"
+        message = "; ".join(filter(None, (message, kept)))
     fit = IntensityFit(
         bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), message, taken
     )

@@ -572,7 +572,7 @@ def small_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     off at half the true depth (held-out seed 2133): their moments' median 0.68 of its balls'
     chords alone. Of 1,088 other poses given on seeds 2131 and 2133 (three presets, every
     condition but distortion) the lowest was 1.02, a log frame with its balls' blur fitted at
-    0.55 px; ``ftrac_mini``'s 1.7 px balls stand at 1.2 and more, their blur dominating."""
+    0.55 px; ``ftrac_mini``'s 1.7 px balls stand at 1.16 and more, their blur dominating."""
     beads = scene.beads
     used = [(fid, j) for fid, j in lab.match.items() if fid in lab.obs.points]
     if beads is None or len(used) < 3:
