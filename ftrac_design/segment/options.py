@@ -269,7 +269,9 @@ class TrackOptions:
     #: The near-mirror labellings that ``min_beads`` guards against (ftrac_mini, 3–4 balls and
     #: both ellipses, 168–173° off) fit the wires because that reflection moves nothing of
     #: the 1 × 1 × 2 cm presets by more than 0.26–0.42 px over SPEC §1's workspace; ftrac_2005's views are 2.3–3.1 px
-    #: from theirs (1,000 workspace poses each); 0 never lowers ``min_beads``
+    #: from theirs (1,000 workspace poses each); 0 never lowers ``min_beads``. The same
+    #: distance decides where bead hypotheses are ranked with their wires read at the pose
+    #: fitted to all their balls (:func:`~.pipeline.ranked_hypotheses`; 0: nowhere)
     mirror_signal_px: float = 2.0
     #: where the balls a labelling leaves out because their blobs blend with its others' (and
     #: which the image shows where it puts them) make up the balls it needs, in a view not set

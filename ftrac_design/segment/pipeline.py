@@ -23,7 +23,7 @@ import numpy as np
 from ..features.model import Features
 from ..pose import Camera, Diagnostics, so3
 from ..threads import beside, one_blas_thread
-from . import acceptance, evidence, identify, learned
+from . import acceptance, evidence, identify, learned, region
 from .beads import Beads
 from .body import merge_ridges, refit_beads_at_pose, ridges_without_body
 from .conditioning import FORMATIONS, Cleaned, cleaned, condition, formation_of
@@ -44,6 +44,11 @@ from .region import fiducial_regions, shifted, view_limited
 
 #: blob triplets the first search over bead labellings tries (:func:`.identify.bead_hypotheses`)
 FIRST_TRIPLETS = 24
+
+#: the hypotheses first by their wires at their P3P poses that are ranked again with their
+#: poses fitted to all their balls (:func:`ranked_hypotheses`, ``mirror_px``); at most 8 are
+#: refined, and the right labelling of a display frame came 7th before this ranking
+POLISHED = 32
 
 
 class Budget:
@@ -113,7 +118,11 @@ def _wires_unshown(features: Features, best: Labelling) -> bool:
 
 
 def ranked_hypotheses(
-    scene: Scene, hyps: list[identify.BeadHypothesis], wire_weight: float, always: bool = False
+    scene: Scene,
+    hyps: list[identify.BeadHypothesis],
+    wire_weight: float,
+    always: bool = False,
+    mirror_px: float = 0.0,
 ) -> list[identify.BeadHypothesis]:
     """``hyps`` ranked for refining, best first: by ``rank``, the matched ball count plus
     ``wire_weight`` × the ridge evidence along the hypothesis' predicted wires
@@ -127,16 +136,39 @@ def ranked_hypotheses(
     (:func:`.acceptance.absent_wires`); the right one's wires show plainly. A bead-only
     design keeps the order by count, and so does a list whose first hypothesis explains every
     ball — unless ``always``: where an answer that explained every ball showed no wire, a
-    hypothesis of fewer balls whose wires the image shows must come before it."""
+    hypothesis of fewer balls whose wires the image shows must come before it.
+
+    With ``mirror_px`` > 0 the first :data:`POLISHED` are ranked again, each with its wires read
+    where all its balls put them (:func:`.identify.polished_poses`) rather than where the P3P
+    pose of three of them does — where perspective sets that pose's view at least
+    ``mirror_px`` apart from its mirror image (:func:`.region.mirror_signal_px`). Elsewhere the
+    balls fit a near-mirror pose as well as the right one, and reading the wires at the fitted
+    poses only reshuffled which near-mirror rivals were refined (ftrac_mini, seeds 2135–2136:
+    three right poses refused as ambiguous or resting on too little, none gained)."""
     f = scene.features
     full = bool(hyps) and hyps[0].count >= len(f.points) and not always
     if not hyps or not (f.lines or f.ellipses) or wire_weight <= 0 or full:
         # a hypothesis that explains every ball needs no help from the wires to come first
         return hyps
-    sup = evidence.ranking_support(
-        scene, np.stack([h.R for h in hyps]), np.stack([h.t for h in hyps]), scene.bead_exclusion()
+    R, t = np.stack([h.R for h in hyps]), np.stack([h.t for h in hyps])
+    ranked = _by_wires(hyps, evidence.ranking_support(scene, R, t, scene.bead_exclusion()), wire_weight)
+    if not mirror_px > 0:
+        return ranked
+    first = ranked[:POLISHED]
+    R, t = identify.polished_poses(scene.camera, f.point_centers(), scene.beads.uv, first)
+    for i, h in enumerate(first):
+        if not region.mirror_signal_px(f, scene.camera, R[i], t[i]) >= mirror_px:
+            R[i], t[i] = h.R, h.t
+    return (
+        _by_wires(first, evidence.ranking_support(scene, R, t, scene.bead_exclusion()), wire_weight) + ranked[POLISHED:]
     )
-    scored = [replace(h, rank=h.count + wire_weight * float(w)) for h, w in zip(hyps, sup)]
+
+
+def _by_wires(
+    hyps: list[identify.BeadHypothesis], support: np.ndarray, wire_weight: float
+) -> list[identify.BeadHypothesis]:
+    """``hyps`` ranked by their count plus ``wire_weight`` × ``support``, ties in their order."""
+    scored = [replace(h, rank=h.count + wire_weight * float(w)) for h, w in zip(hyps, support)]
     order = sorted(range(len(scored)), key=lambda i: (-scored[i].rank, i))
     return [scored[i] for i in order]
 
@@ -180,12 +212,13 @@ def _hypotheses(
     tried: list[identify.BeadHypothesis],
     fewest_balls: int = 0,
     by_wires: bool = False,
+    mirror_px: float = 0.0,
     **search,
 ) -> list[identify.BeadHypothesis]:
     """The bead hypotheses of the scene's blobs (:func:`.identify.bead_hypotheses` with the
     ``search`` settings) that match at least ``fewest_balls`` balls, less the labellings of
-    ``tried``, ranked for refining (:func:`ranked_hypotheses`) and cut to what ``budget`` may
-    refine."""
+    ``tried``, ranked for refining (:func:`ranked_hypotheses`, ``by_wires`` its ``always``,
+    ``mirror_px`` its own) and cut to what ``budget`` may refine."""
     hyps = identify.bead_hypotheses(
         scene.features.point_centers(),
         scene.beads.uv,
@@ -198,7 +231,7 @@ def _hypotheses(
     )
     seen = {tuple(sorted(h.match.items())) for h in tried}
     hyps = [h for h in hyps if tuple(sorted(h.match.items())) not in seen and h.count >= fewest_balls]
-    return ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight, by_wires)[: budget.labellings_if_weak]
+    return ranked_hypotheses(scene, hyps, find.hypothesis_wire_weight, by_wires, mirror_px)[: budget.labellings_if_weak]
 
 
 def _wider_search(
@@ -252,6 +285,7 @@ def _wider_search(
         labelled=labelled,
         labelled_triplets=find.own_triplets,
         by_wires=bool(labelled),
+        mirror_px=accept.mirror_signal_px,
     )
     if not more:
         return scene, []
@@ -571,7 +605,7 @@ def _track_density(
             ridges,
             diag,
         )
-    hyps = _hypotheses(scene, find, budget, [], image_triplets=FIRST_TRIPLETS)
+    hyps = _hypotheses(scene, find, budget, [], mirror_px=accept.mirror_signal_px, image_triplets=FIRST_TRIPLETS)
     scene = with_predicted_balls(scene, hyps, find, accept)
     within = "" if find.view is None else f" within {math.degrees(find.view.within_rad):.0f}° of the expected view"
     if not hyps:
