@@ -21,7 +21,7 @@ from ftrac_design.design import load_design
 from ftrac_design.features import compute_features
 from ftrac_design.pose import Camera, NoiseModel, SolverOptions, solve_pose
 from ftrac_design.pose.simulate import Workspace, pose_errors, simulate_observation
-from ftrac_design.segment import TrackOptions, acceptance, evidence, identify, track_image
+from ftrac_design.segment import TrackOptions, acceptance, evidence, identify, pipeline, track_image
 from ftrac_design.segment.detection import Scene, scales
 from ftrac_design.segment.labelling import Labelling
 from ftrac_design.segment.noise import calibrated_covariance
@@ -383,10 +383,13 @@ def test_ellipses_only_the_network_shows_need_features_that_fit(monkeypatch):
     contour and no ridge, present on the network's wire map alone: no pose — for its
     ellipses on bare plate, and, where the network's word stood for them, for those ellipses
     with features that do not fit. Without either test the same image gives that pose, so the
-    image exercises both."""
+    image exercises both. The hypotheses are ranked by their wires at their P3P poses alone,
+    as when the image was found: ranked again at fitted poses, the search refines other
+    labellings first and refuses them as inconsistent before this one is refined."""
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from no_fiducial import grid
 
+    monkeypatch.setattr(pipeline, "POLISHED", 0)
     img = grid(64, 2126)
     features = compute_features(load_design("ftrac_2005"))
     camera = Camera(principal_point_px=(img.shape[1] / 2, img.shape[0] / 2))
@@ -476,7 +479,6 @@ def test_anatomy_alone_is_not_taken_for_nine_bead_by_the_networks_own_pass(undet
     σ of 108 mm. Two rules refuse it, each alone: the pose places the fiducial no better than
     its size, and balls the network does not read as balls confirm no bead-only pose, from
     either pass; the classical second look finds none either."""
-    from ftrac_design.segment import pipeline
 
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
     from no_fiducial import anatomy

@@ -152,9 +152,9 @@ def ranked_hypotheses(
         return hyps
     R, t = np.stack([h.R for h in hyps]), np.stack([h.t for h in hyps])
     ranked = _by_wires(hyps, evidence.ranking_support(scene, R, t, scene.bead_exclusion()), wire_weight)
-    if not mirror_px > 0:
-        return ranked
     first = ranked[:POLISHED]
+    if not (mirror_px > 0 and first):
+        return ranked
     R, t = identify.polished_poses(scene.camera, f.point_centers(), scene.beads.uv, first)
     for i, h in enumerate(first):
         if not region.mirror_signal_px(f, scene.camera, R[i], t[i]) >= mirror_px:
