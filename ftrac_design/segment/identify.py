@@ -409,8 +409,9 @@ def bead_hypotheses(
     return _ranked(best, keep)
 
 
-#: Gauss–Newton steps of :func:`polished_poses`: from a P3P pose the matched balls'
-#: reprojection minimum is reached to well under a pixel in two or three
+#: Gauss–Newton steps of :func:`polished_poses`: from poses ~2° and 15 mm off, three reach
+#: the matched balls' reprojection minimum to within 1e-5° and 1e-4 mm of SciPy's
+#: ``least_squares`` (tests/test_hypothesis_ranking.py)
 POLISH_STEPS = 3
 
 
@@ -445,15 +446,15 @@ def polished_poses(
             lab[i, a] = b
     w = (lab >= 0).astype(float)[..., None]
     obs = np.asarray(uv, float)[np.maximum(lab, 0)] * w
-    fx, fy = camera.fx, camera.fy
     model = np.asarray(model, float)
-
+    fx, fy = camera.fx, camera.fy
     c = np.asarray(camera.principal_point_px, float)
 
     def residual(R, t):
+        # the pinhole of :func:`project`, written out to keep the points X for the Jacobian
         X = model @ np.swapaxes(R, 1, 2) + t[:, None, :]
-        uv = np.stack([fx * X[..., 0], fy * X[..., 1]], -1) / X[..., 2:] + c
-        return (uv - obs) * w, X
+        px = np.stack([fx * X[..., 0], fy * X[..., 1]], -1) / X[..., 2:] + c
+        return (px - obs) * w, X
 
     r, X = residual(R, t)
     cost0 = (r * r).sum((1, 2))
