@@ -6,15 +6,19 @@ searched again on the whole image."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from ftrac_design.pose import Camera, Pose
 from ftrac_design.pose.observation import Observation
-from ftrac_design.pose.problem import compile_problem, evaluate
+from ftrac_design.pose.problem import NoiseModel, compile_problem, evaluate
 from ftrac_design.pose.simulate import Workspace, pose_errors
+from ftrac_design.pose.solver import SolverOptions, refine_pose
 from ftrac_design.segment import TrackOptions, TrackResult, track_image
 from ftrac_design.segment.detection import scales
+from ftrac_design.segment.noise import calibrated_covariance
 from ftrac_design.segment.region import resolvable_beads, view_limited
 from ftrac_design.xray import render
 
@@ -58,12 +62,15 @@ def test_variance_components_scale_the_covariance_and_leave_the_estimate(f2005, 
         assert np.array_equal(r.pose.rotation, one.pose.rotation)
         assert np.array_equal(r.pose.translation_mm, one.pose.translation_mm)
     np.testing.assert_allclose(two.pose.covariance, 2 * one.pose.covariance, rtol=1e-9, atol=0)
-    # equal unit components: s² (JᵀJ)⁻¹ of the whitened pose residuals, s² = χ²/(m − 6)
+    # equal unit components: ν/(ν − 2) s² (JᵀJ)⁻¹ of the whitened pose residuals, the
+    # covariance of a Student-t error whose scale s² = χ²/ν is estimated from ν = m − 6
     prob = compile_problem(features, [one.observation], one.noise)
     ev = evaluate(prob, one.pose.rotation[None], one.pose.translation_mm[None], jac=True)
     J, rho = ev.J[0], ev.rho[0]
-    s2 = max(float(rho @ rho) / (len(rho) - 6), 0.02)
-    np.testing.assert_allclose(one.pose.covariance, s2 * np.linalg.inv(J.T @ J), rtol=1e-6, atol=0)
+    nu = len(rho) - 6
+    s2 = max(float(rho @ rho) / nu, 0.02)
+    assert one.diagnostics.variance_factor == pytest.approx(s2, rel=1e-9)
+    np.testing.assert_allclose(one.pose.covariance, nu / (nu - 2) * s2 * np.linalg.inv(J.T @ J), rtol=1e-6, atol=0)
     # components between 1 and 2: the covariance lies between 1 and 2 times the plain one
     # (Loewner order: the sandwich is linear and monotone in each component)
     c, c1 = mixed.pose.covariance, one.pose.covariance
@@ -231,3 +238,35 @@ def test_distortion_modes_are_the_closed_form():
     np.testing.assert_allclose(s, [[0.0, 0.25], [-2.0, 0.0], [0.0, 0.0], [0.0, 2.0]], atol=1e-12)
     np.testing.assert_allclose(cu[1:], [[2 / 3, 0.0], [0.0, 0.0], [2.0, 0.0]], atol=1e-12)
     np.testing.assert_allclose(cv[1:], [[0.0, 2.0], [0.0, 0.0], [0.0, 2 / 3]], atol=1e-12)
+
+
+def test_student_t_factor_makes_the_mean_chi2_of_the_error_six(f2005):
+    """Nine balls (ν = 18 − 6 = 12 residual dof), Gaussian noise at exactly the model's σ,
+    1,000 seeded draws refined from the truth: the error's χ² under the reported covariance,
+    s² (JᵀJ)⁻¹ · ν/(ν − 2) with unit components, averages 6 (the pose's dimension), as the
+    covariance of a Student-t error must (E[6 F(6, ν)] = 6 ν/(ν − 2)); with s² (JᵀJ)⁻¹ alone it
+    would average 7.2, 8 standard errors away (6.01 ± 0.14 measured)."""
+    features, cam = f2005, Camera()
+    noise = NoiseModel(point_mm=0.2, line_mm=0.2, ellipse_mm=0.2)
+    unit = replace(TrackOptions().labelling.noise, variance_point=1.0)
+    R, t = Workspace().sample(1, features.nominal_beam_direction, np.random.default_rng(5))
+    R, t = R[0], t[0]
+    uv = cam.project(features.point_centers() @ R.T + t)
+    sigma_px = noise.point_mm / np.asarray(cam.pixel_size_mm)
+    rng = np.random.default_rng(6)
+    opts = SolverOptions(noise=noise)
+    c2, nus = [], set()
+    for _ in range(1000):
+        pts = uv + rng.normal(size=uv.shape) * sigma_px
+        obs = Observation(cam, {p.id: pts[k] for k, p in enumerate(features.points)}, {}, {}, origin="<test>")
+        pose = refine_pose(features, obs, R, t, opts)
+        assert pose.converged
+        s2 = calibrated_covariance(features, obs, pose, noise, unit)
+        assert s2 is not None
+        dr, dt = pose_errors(pose.rotation, pose.translation_mm, R, t)
+        e = np.r_[dr, dt]
+        c2.append(float(e @ np.linalg.solve(pose.covariance, e)))
+    c2 = np.asarray(c2)
+    se = c2.std() / np.sqrt(len(c2))
+    assert abs(c2.mean() - 6.0) < 3 * se, (c2.mean(), se)
+    assert abs(c2.mean() * 12 / 10 - 6.0) > 5 * se

@@ -324,7 +324,8 @@ class TrackOptions:
     #: variance components qₖ of the pose covariance per feature type, relative to the
     #: residuals' variance factor (see :func:`~.noise.calibrated_covariance`); chosen against the
     #: truth on rendered images (600 ftrac_2005, 180 ftrac_mini, 200 nine_bead; clean and
-    #: over anatomy): the error over its σ has an RMS of 0.55–1.2 on every axis
+    #: over anatomy): the error over its σ had an RMS of 0.55–1.2 on every axis, before the
+    #: Student-t factor ν/(ν − 2) widened each σ by 3–18 % (ν = 40 … 7 residual dof; 9 % at 12)
     variance_point: float = 2.0
     variance_line: float = 2.0
     variance_ellipse: float = 1.0
