@@ -255,7 +255,7 @@ def test_student_t_factor_makes_the_mean_chi2_of_the_error_six(f2005):
     sigma_px = noise.point_mm / np.asarray(cam.pixel_size_mm)
     rng = np.random.default_rng(6)
     opts = SolverOptions(noise=noise)
-    c2, nus = [], set()
+    c2 = []
     for _ in range(1000):
         pts = uv + rng.normal(size=uv.shape) * sigma_px
         obs = Observation(cam, {p.id: pts[k] for k, p in enumerate(features.points)}, {}, {}, origin="<test>")

@@ -265,11 +265,11 @@ def calibrated_covariance(
     ball, a curve's fitted parameters; ν is 7–40 on images). Given s², the scale's posterior
     (Jeffreys' prior) has mean ν s²/(ν − 2) and the pose error is Student-t with ν degrees of
     freedom, not normal: its covariance ν/(ν − 2) s² C is the one given (1.25 × at ν = 10,
-    1.08 × at ν = 28); with ν ≤ 2 (no finite covariance) the solver's own is kept. Without it, eight ftrac_2005 balls under a
-    2 px blur (realism seed 2137) drew s² = 0.29 from ν = 10 and a pose 1.0° off in a tilt
-    read χ²₆ = 26.5 — improbable at p < 10⁻⁴ under a known scale, p = 0.019 under the scale's
-    own uncertainty; with the factor, 21.4. Returns s² itself (the diagnostics' variance
-    factor), not the factor's product."""
+    1.08 × at ν = 28); with ν ≤ 2 (no finite covariance) the solver's own is kept. Without
+    the factor, eight ftrac_2005 balls under a 2 px blur (realism seed 2137) drew s² = 0.29
+    from ν = 10 and a pose 1.0° off in a tilt read χ²₆ = 26.5 — improbable at p < 10⁻⁴ under
+    a known scale, p = 0.019 under the scale's own uncertainty; with it, 21.4. Returns s²
+    itself (the diagnostics' variance factor), not the factor's product."""
     if pose.covariance is None or not math.isfinite(pose.noise_scale) or pose.noise_scale <= 0:
         return None
     prob, ev = residuals_at(features, obs, noise, pose.rotation, pose.translation_mm)
