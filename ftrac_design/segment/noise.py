@@ -273,7 +273,8 @@ def calibrated_covariance(
     if pose.covariance is None or not math.isfinite(pose.noise_scale) or pose.noise_scale <= 0:
         return None
     prob, ev = residuals_at(features, obs, noise, pose.rotation, pose.translation_mm)
-    nu = ev.rho.shape[1] - 6
+    m = ev.rho.shape[1]
+    nu = m - 6
     if nu <= 2:
         return None
     s2 = max(float(np.sum(ev.rho[0] ** 2)) / nu, 0.02)
@@ -285,7 +286,7 @@ def calibrated_covariance(
         pose.covariance = pose.covariance / pose.noise_scale**2 * scale
         return s2
     J = J[0]
-    w = np.empty(nu + 6)
+    w = np.empty(m)
     for fid, sl in prob.row_groups():
         w[sl] = q["p"] if fid in obs.points else (q["l"] if fid in obs.lines else q["e"])
     try:
