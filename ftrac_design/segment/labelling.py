@@ -185,15 +185,19 @@ def _contours(scene: Scene, R, t, blur: float, stage: int, opts: ContourOptions)
     return cont
 
 
-def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, opts: LabellingOptions) -> Labelling:
+def _staged_solve(
+    scene: Scene, h: identify.BeadHypothesis, first_stage: int, opts: LabellingOptions
+) -> tuple[Labelling, tuple[np.ndarray, np.ndarray] | None]:
     """The stages of :func:`evaluate` up to the per-feature tests: a Labelling (NoLabelling
-    saying why none)."""
+    saying why none), and the pose its last solve started from where that solve did not
+    converge (None where it did)."""
     sc, beads = scene.scales, scene.beads
     R, t = h.R, h.t
     rb = sc.bead_radius_px
     blur = float(np.median(beads.blur)) if len(beads) else sc.blur_px
     sep = sc.touching_px
     out: Labelling | None = None
+    start = None
     for stage in (first_stage, 2) if first_stage < 2 and opts.fast else range(first_stage, 3):
         why = implausible(scene, R, t, opts.depth_range)
         if why is not None:
@@ -215,6 +219,7 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, op
         if not np.all(np.isfinite(pose.rotation)):
             break
         R, t = pose.rotation, pose.translation_mm
+        start = None if pose.converged else (R0, t0)
         if not pose.converged:
             # the next stage starts where the balls alone put the fiducial, when they agree
             # and the contours gathered at this stage's pose do not: a contour point on the
@@ -226,7 +231,7 @@ def _staged_solve(scene: Scene, h: identify.BeadHypothesis, first_stage: int, op
         out = Labelling(pose, obs, noise, match, cont, {**dropped_beads, **cont.dropped})
     if out is None:
         raise NoLabelling("no usable features for this labelling")
-    return out
+    return out, start
 
 
 def _balls_alone(scene: Scene, obs: Observation, noise: NoiseModel, R, t, opts: LabellingOptions) -> Pose | None:
@@ -244,13 +249,21 @@ def _balls_alone(scene: Scene, obs: Observation, noise: NoiseModel, R, t, opts: 
     return p if p.converged and np.all(np.isfinite(p.rotation)) else None
 
 
-def _drop_inconsistent(scene: Scene, lab: Labelling, opts: LabellingOptions) -> Labelling:
+def _drop_inconsistent(
+    scene: Scene, lab: Labelling, opts: LabellingOptions, start: tuple[np.ndarray, np.ndarray] | None = None
+) -> Labelling:
     """Drop the worst feature whose residual is improbable under the noise model and
-    re-solve, at most ``max_dropped`` times; the pose fails when more would be needed."""
+    re-solve, at most ``max_dropped`` times; the pose fails when more would be needed.
+
+    ``start``: the pose the labelling's last solve started from, where that solve did not
+    converge. The features are judged there and the first re-solve starts there: at the pose
+    a failed solve wandered to, every feature looks improbable, the culprit no more than the
+    rest."""
     removed: dict[str, str] = {}
     obs, noise, pose = lab.obs, lab.noise, lab.pose
+    at = pose if start is None or pose.converged else replace(pose, rotation=start[0], translation_mm=start[1])
     for _ in range(opts.max_dropped + 1):
-        pv = feature_p_values(scene.features, obs, pose, noise)
+        pv = feature_p_values(scene.features, obs, at, noise)
         worst = min(pv, key=pv.get) if pv else None
         if worst is None or pv[worst] >= opts.feature_p_value:
             break
@@ -278,7 +291,7 @@ def _drop_inconsistent(scene: Scene, lab: Labelling, opts: LabellingOptions) -> 
         # from the pose the dropped feature had pulled: a local solve (the full no-guess solve
         # here cost ~40 ms per drop, mostly on rival labellings, and changed no pose on 440
         # track_accuracy images: 100 ftrac_2005, 60 ftrac_mini, 60 nine_bead, clean and anatomy)
-        pose = solve_from(scene, obs, noise, pose.rotation, pose.translation_mm, opts.max_noise_scale)
+        pose = at = solve_from(scene, obs, noise, at.rotation, at.translation_mm, opts.max_noise_scale)
     return replace(lab, pose=pose, obs=obs, removed=removed)
 
 
@@ -314,11 +327,11 @@ def evaluate(scene: Scene, h: identify.BeadHypothesis, opts: LabellingOptions, f
     ------
     NoLabelling : no pose came of the hypothesis (its ``reason`` says why).
     """
-    lab = _staged_solve(scene, h, first_stage, opts)
+    lab, start = _staged_solve(scene, h, first_stage, opts)
     why = implausible(scene, lab.pose.rotation, lab.pose.translation_mm, opts.depth_range)
     if why is not None:
         raise NoLabelling(why)
-    lab = _drop_inconsistent(scene, lab, opts)
+    lab = _drop_inconsistent(scene, lab, opts, start)
     vf = calibrated_covariance(scene.features, lab.obs, lab.pose, lab.noise, opts.noise)
     if lab.pose.covariance is not None:
         offset_px = opts.noise.contour_offset_px if scene.features.body is not None else 0.0
