@@ -387,3 +387,25 @@ def test_refine_options_by_object_or_keyword_give_the_same_result(features_2005,
         assert np.array_equal(a.rotation, x.rotation) and np.array_equal(a.translation_mm, x.translation_mm)
     with pytest.raises(TypeError):
         refine_intensity(features_2005, img.raw, Camera(), R0, t0, im, sigma_step=0.1)
+
+
+def test_a_step_that_carries_the_fiducial_onto_the_source_is_damped_not_fatal():
+    """Where the pixels hardly tell depth, the undamped Levenberg–Marquardt step can be metres
+    long: a trial pose with the fiducial at or behind the source lowers nothing, and the damping
+    is raised until a step does (here the sixth try: 1 m → 196 mm towards the minimum at 500 mm)."""
+    from types import SimpleNamespace
+
+    import ftrac_design.intensity.refine as refine_mod
+    from ftrac_design.xray.rays import BehindSourceError
+
+    def cost(R, t):
+        if t[2] <= 1.0:
+            raise BehindSourceError("the pose puts part of the fiducial behind the source")
+        return (t[2] - 500.0) ** 2, None, None, None, None
+
+    state = SimpleNamespace(R=np.eye(3), t=np.array([0.0, 0.0, 600.0]), cst=100.0**2, prob=SimpleNamespace(cost=cost))
+    H = np.eye(6)
+    grad = np.array([0.0, 0.0, 0.0, 0.0, 0.0, -1000.0])
+    taken, lam, dx = refine_mod._Refinement._damped_step(state, H, np.diag(H).copy(), grad, 1e-3)
+    assert taken and 1.0 < state.t[2] < 600.0 and state.cst < 100.0**2
+    assert lam == pytest.approx(1e-3 * 4**6 / 3) and dx[5] == pytest.approx(-1000.0 / (1 + 1e-3 * 4**6))

@@ -131,6 +131,10 @@ class RoiModel:
         centers, radii, pieces = feature_pieces(self.features, mu_steel)
         groups = []
 
+        # only the ROI's pixels are enumerated: a trial pose near the source projects the
+        # wires across metres of detector
+        box = (v0, v0 + h, u0, u0 + w)
+
         def keep(rows, cols):
             return (rows >= v0) & (rows < v0 + h) & (cols >= u0) & (cols < u0 + w)
 
@@ -142,7 +146,7 @@ class RoiModel:
                 pieces.r * cam.focal_length_mm / np.maximum(np.minimum(Z[:M], Z[M:]) - pieces.r, 1.0) / pix * 1.05
                 + 0.75
             )
-            k, rows, cols = capsule_pixels(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad)
+            k, rows, cols = capsule_pixels(uv[:M, 0], uv[:M, 1], uv[M:, 0], uv[M:, 1], rad, box)
             m = keep(rows, cols)
             k, rows, cols = k[m], rows[m], cols[m]
             if len(k):
@@ -153,7 +157,7 @@ class RoiModel:
         if len(radii):
             uv, Z = project_points(cam, R, t, centers)
             rad = radii * cam.focal_length_mm / np.maximum(Z - radii, 1.0) / pix * 1.05 + 0.75
-            k, rows, cols = capsule_pixels(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad)
+            k, rows, cols = capsule_pixels(uv[:, 0], uv[:, 1], uv[:, 0], uv[:, 1], rad, box)
             m = keep(rows, cols)
             k, rows, cols = k[m], rows[m], cols[m]
             if len(k):

@@ -41,6 +41,7 @@ from ..pose.camera import Camera
 from ..pose.record import IntensityFit
 from ..segment.acceptance import inside_covariance
 from ..xray.model import ImagingModel
+from ..xray.rays import BehindSourceError
 from .background import Nuisance, background_basis
 from .bound import _dot
 from .model import STEP_PX, RoiModel, perturb, roi_around
@@ -558,7 +559,8 @@ class _Refinement:
 
     def _damped_step(self, H, D, grad, lam: float):
         """A step that lowers the objective, the damping raised until one does (8 tries); taken
-        when found. Returns (taken, the damping, the step)."""
+        when found. A trial pose with the fiducial at or behind the source counts as one that
+        does not lower it. Returns (taken, the damping, the step)."""
         dx = None
         for _ in range(8):
             try:
@@ -567,7 +569,13 @@ class _Refinement:
                 lam *= 10
                 continue
             Rn, tn = perturb(self.R, self.t, dx)
-            cn, rn, gn, bn, lpn = self.prob.cost(Rn, tn)
+            try:
+                cn, rn, gn, bn, lpn = self.prob.cost(Rn, tn)
+            except BehindSourceError:
+                # a step that carries the fiducial onto the source lowers nothing: a shorter one
+                # may (where the pixels hardly tell depth, an undamped step can be metres long)
+                lam *= 4
+                continue
             if cn < self.cst:
                 self.R, self.t, self.cst, self.r, self.g, self.b, self.lp = Rn, tn, cn, rn, gn, bn, lpn
                 return True, max(lam / 3, 1e-7), dx
@@ -594,7 +602,7 @@ class _Refinement:
             if cn < self.cst:
                 self.R, self.t, self.cst, self.r, self.g, self.b, self.lp = Rn, tn, cn, rn, gn, bn, lpn
             self.history.append((0.0, self.cst, 0.0))
-        except np.linalg.LinAlgError:
+        except (np.linalg.LinAlgError, BehindSourceError):
             pass
 
     def result(self, R0, t0, roi) -> IntensityResult:

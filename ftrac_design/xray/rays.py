@@ -66,13 +66,27 @@ class Rays:
         return self.g0 + u[:, None] * self.gu + v[:, None] * self.gv
 
 
-def capsule_pixels(u0, v0, u1, v1, rad):
+def capsule_pixels(u0, v0, u1, v1, rad, clip: tuple[int, int, int, int] | None = None):
     """(primitive index, row, col) of every pixel whose centre lies within ``rad`` px of the
-    segment (u0, v0)–(u1, v1) of each primitive."""
+    segment (u0, v0)–(u1, v1) of each primitive; with ``clip`` (row0, row1, col0, col1), only
+    those with row0 ≤ row < row1 and col0 ≤ col < col1, in the same order. The work and memory
+    are then bounded by the box, however large the primitives project (a pose near the
+    source)."""
     lo_u = np.floor(np.minimum(u0, u1) - rad).astype(int)
     lo_v = np.floor(np.minimum(v0, v1) - rad).astype(int)
     hi_u = np.ceil(np.maximum(u0, u1) + rad).astype(int)
     hi_v = np.ceil(np.maximum(v0, v1) + rad).astype(int)
+    if clip is not None:
+        r0, r1, c0, c1 = clip
+        lo_v, hi_v = np.maximum(lo_v, r0), np.minimum(hi_v, r1 - 1)
+        lo_u, hi_u = np.maximum(lo_u, c0), np.minimum(hi_u, c1 - 1)
+        live = (lo_v <= hi_v) & (lo_u <= hi_u)
+        if not live.any():
+            empty = np.zeros(0, int)
+            return empty, empty, empty
+        # a primitive wholly outside the box gets an empty one (hi < lo: the mask is false there)
+        lo_v, lo_u = np.where(live, lo_v, 0), np.where(live, lo_u, 0)
+        hi_v, hi_u = np.where(live, hi_v, -1), np.where(live, hi_u, -1)
     Ku, Kv = int((hi_u - lo_u).max()) + 1, int((hi_v - lo_v).max()) + 1
     iu = lo_u[:, None, None] + np.arange(Ku)[None, None, :]
     iv = lo_v[:, None, None] + np.arange(Kv)[None, :, None]
@@ -119,13 +133,20 @@ def subsample_offsets(s: int) -> tuple[np.ndarray, np.ndarray]:
     return (k + 0.5) / n - 0.5, (k * lattice_generator(n) % n + 0.5) / n - 0.5
 
 
+class BehindSourceError(ValueError):
+    """A pose puts part of the fiducial within 1 mm of the source plane or behind it: no
+    projection exists. A fit that tries such a pose has taken too long a step, not met bad
+    input, and can take a shorter one."""
+
+
 def project_points(camera: Camera, R: np.ndarray, t: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pixel positions (n, 2) and depths Z (n,) in mm of points ``P`` (n, 3) in F at pose (R, t) (F → X).
 
-    Raises ValueError when a point is within 1 mm of the source plane or behind it (callers
-    check the pose's depth first; this is the last guard before a division by Z)."""
+    Raises :class:`BehindSourceError` (a ValueError) when a point is within 1 mm of the source
+    plane or behind it (callers check the pose's depth first; this is the last guard before a
+    division by Z)."""
     X = P @ np.asarray(R, float).T + t
     if np.any(X[:, 2] <= 1.0):
-        raise ValueError("the pose puts part of the fiducial behind the source")
+        raise BehindSourceError("the pose puts part of the fiducial behind the source")
     uv = camera.project(X)
     return uv, X[:, 2]
