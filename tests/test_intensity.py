@@ -409,3 +409,41 @@ def test_a_step_that_carries_the_fiducial_onto_the_source_is_damped_not_fatal():
     taken, lam, dx = refine_mod._Refinement._damped_step(state, H, np.diag(H).copy(), grad, 1e-3)
     assert taken and 1.0 < state.t[2] < 600.0 and state.cst < 100.0**2
     assert lam == pytest.approx(1e-3 * 4**6 / 3) and dx[5] == pytest.approx(-1000.0 / (1 + 1e-3 * 4**6))
+
+
+def test_a_fit_is_stopped_at_the_first_step_that_leaves_where_its_answer_could_be_used(features_2005, pose_2005):
+    """``within``: the fit stops, not converged, at the first step outside it; a region that
+    holds every step changes nothing. ``refine_track_result`` passes the feature pose's own
+    covariance, so a fit that leaves it is stopped there and the feature pose given out."""
+    from dataclasses import dataclass, field
+
+    from ftrac_design.intensity import refine_track_result
+    from ftrac_design.pose import Diagnostics
+    from ftrac_design.pose.solver import Pose
+
+    R, t = pose_2005
+    im = ImagingModel()
+    img = render(features_2005, R, t, imaging=im, rng=np.random.default_rng(2))
+    R0, t0 = perturb(R, t, np.array([2e-4, -1e-4, 1e-4, 0.02, -0.01, 0.3]))
+    args = (features_2005, img.raw, Camera(), R0, t0, im)
+    free = refine_intensity(*args, polarity="dense_dark", scales=(0.0,))
+    held = refine_intensity(*args, polarity="dense_dark", scales=(0.0,), within=lambda R_, t_: True)
+    assert free.converged and held.converged and held.message == free.message
+    assert np.array_equal(held.translation_mm, free.translation_mm) and np.array_equal(held.rotation, free.rotation)
+    calls = []
+    stopped = refine_intensity(
+        *args, polarity="dense_dark", scales=(0.0,), within=lambda R_, t_: calls.append(t_.copy()) or False
+    )
+    assert not stopped.converged and len(calls) == 1 and "left the region" in stopped.message
+    assert stopped.iterations == 1 < free.iterations
+
+    @dataclass
+    class Result:
+        pose: Pose
+        polarity: str
+        diagnostics: Diagnostics = field(default_factory=Diagnostics)
+
+    tight = Result(Pose(R0, t0, True, 0.1, np.eye(6) * 1e-12, {}, 3), "dense-dark")
+    out = refine_track_result(img.raw, features_2005, Camera(), tight)
+    assert out.pose is tight.pose and not out.diagnostics.intensity.taken
+    assert "left that pose's own covariance" in out.diagnostics.intensity.message

@@ -29,6 +29,7 @@ model's noise, i.e. the pixel-level Cramér–Rao bound of :mod:`.bound` with nu
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
@@ -331,6 +332,7 @@ def refine_intensity(
     imaging: ImagingModel = ImagingModel(),
     roi: tuple[int, int, int, int] | None = None,
     options: RefineOptions | None = None,
+    within: Callable[[np.ndarray, np.ndarray], bool] | None = None,
     **overrides: Any,
 ) -> IntensityResult:
     """Refine the pose (R0, t0) of ``features`` on ``image`` (H, W) — see the module.
@@ -353,6 +355,9 @@ def refine_intensity(
         The region fitted (default: the fiducial at the start plus 12 px).
     options : RefineOptions or None
         How it fits (:class:`RefineOptions`, which explains each option; default its defaults).
+    within : callable or None
+        ``within(R, t)`` (F → X, mm): whether a pose lies where the caller could use the answer.
+        The fit stops, not converged, at the first step that takes it outside; None: anywhere.
     **overrides
         Fields of ``options`` set by keyword (``scales=(0.0,)``, ``background="spline"``, …); an
         unknown keyword raises TypeError.
@@ -371,10 +376,10 @@ def refine_intensity(
     # columns), where a threaded BLAS spends more time spinning its threads than multiplying
     # (a banded Cholesky of 391 columns: 217 ms with threads on the loaded 2-core machine)
     with threadpool_limits(1, "blas"):
-        return _refine(features, image, camera, R0, t0, imaging, roi, o)
+        return _refine(features, image, camera, R0, t0, imaging, roi, o, within)
 
 
-def _refine(features, image, camera, R0, t0, imaging, roi, o: RefineOptions):
+def _refine(features, image, camera, R0, t0, imaging, roi, o: RefineOptions, within=None):
     R0, t0 = np.asarray(R0, float), np.asarray(t0, float)
     Yfull = _log_of(image, o.polarity)
     if roi is None:
@@ -382,9 +387,12 @@ def _refine(features, image, camera, R0, t0, imaging, roi, o: RefineOptions):
     v0, u0, h, w = roi
     Y = Yfull[v0 : v0 + h, u0 : u0 + w]
     fit = _Refinement(RoiModel(features, camera, imaging, roi), Y, imaging, o, R0, t0)
+    fit.within = within
     for scale in fit.scales():
         fit.at_scale(scale)
-    if o.polish and fit.prob is not None and fit.prob.scale == 0 and not o.central_steps:
+        if fit.left:
+            break
+    if o.polish and fit.prob is not None and fit.prob.scale == 0 and not o.central_steps and not fit.left:
         fit.polish()
     return fit.result(R0, t0, roi)
 
@@ -433,6 +441,10 @@ class _Refinement:
         self.history: list = []
         self.iterations, self.message, self.J, self.prob, self.Jraw = 0, "", None, None, None
         self.last: dict = {}  # the last forward differences: pose, value, J
+        # where the caller can use the answer (:func:`refine_intensity`'s ``within``), and
+        # whether a step left it
+        self.within: Callable[[np.ndarray, np.ndarray], bool] | None = None
+        self.left = False
 
     def problem(self, scale: float, huber: bool) -> _Problem:
         o = self.o
@@ -506,6 +518,8 @@ class _Refinement:
             if _round > 0 and self.Jraw is not None and self._settled(dof):
                 break
             moved = self._levenberg_marquardt(scale, dof)
+            if self.left:
+                return
             if not moved and _round > 0:
                 break  # reweighting moved nothing: converged
 
@@ -552,6 +566,11 @@ class _Refinement:
             this_round.append((scale, self.cst, lam))
             if not accepted:
                 self.message = f"no decrease at scale {scale:g} px"
+                break
+            if self.within is not None and not self.within(self.R, self.t):
+                # the answer could not be used from here on, and the renders that follow a fit
+                # walking away cost up to a minute a frame (2 px of blur, tuning seed 2135)
+                self.left, self.message = True, f"a step at scale {scale:g} px left the region the answer may lie in"
                 break
             if np.max(np.abs(dx) / self.steps) < o.tolerance or history_drop(this_round) < o.ftol * self.cst:
                 break
@@ -615,7 +634,7 @@ class _Refinement:
             _, r, g, _, _ = full.cost(R0, t0)
             full.set_weights(g, r)
         cost_start = full.cost(R0, t0)[0]
-        R, t, converged, message = self.R, self.t, True, self.message
+        R, t, converged, message = self.R, self.t, not self.left, self.message
         c_end, r, g, b, lp = full.cost(R, t)
         if c_end > cost_start:
             R, t, converged, message = R0.copy(), t0.copy(), False, "refinement did not lower the objective; start kept"
@@ -674,8 +693,9 @@ def refine_track_result(
     returned unchanged. ``options`` go to :func:`refine_intensity` (e.g. ``scales``, ``roi``).
 
     The refined pose is taken only where the fit converged and stayed inside the feature
-    path's pose's own covariance (:data:`MOVE_CHI2`); otherwise the feature path's pose is
-    given out as it was, the diagnostic saying why (``taken`` false). The model is the log
+    path's pose's own covariance (:data:`MOVE_CHI2`), every step of the way: a fit is stopped
+    at the first step that leaves it. Otherwise the feature path's pose is given out as it
+    was, the diagnostic saying why (``taken`` false). The model is the log
     image's: a display frame's window and gamma, clipping and dense anatomy break it, and
     on display frames the fit can walk far from a right pose (see :data:`MOVE_CHI2`)."""
     pose = result.pose
@@ -691,7 +711,7 @@ def refine_track_result(
         pose.translation_mm,
         imaging,
         polarity=polarity,
-        **{"coarse_scales": (1.0,), **options},
+        **{"coarse_scales": (1.0,), "within": lambda R, t: _taken_from(pose, R, t), **options},
     )
     cov = res.covariance
     dof = max(res.roi[2] * res.roi[3] - 6 - res.n_nuisance, 1)
@@ -710,8 +730,16 @@ def refine_track_result(
     if not taken:
         why = "it did not converge" if not res.converged else f"it moved the pose χ²₆ = {move:.3g} > {MOVE_CHI2:g}"
         kept = f"the feature path's pose kept: {why} (beyond that pose's own covariance)"
+        if not res.converged and move > MOVE_CHI2:
+            kept = f"the feature path's pose kept: the fit left that pose's own covariance (χ²₆ > {MOVE_CHI2:g})"
         message = "; ".join(filter(None, (message, kept)))
     fit = IntensityFit(
         bool(res.converged), res.cost_start, res.cost_end, chi2, res.iterations, res.gain, list(res.roi), message, taken
     )
     return replace(result, pose=new_pose if taken else pose, diagnostics=replace(result.diagnostics, intensity=fit))
+
+
+def _taken_from(pose, R: np.ndarray, t: np.ndarray) -> bool:
+    """Whether :func:`refine_track_result` could take (R, t) in place of the feature path's
+    ``pose``: inside that pose's own covariance (:data:`MOVE_CHI2`)."""
+    return inside_covariance(pose, replace(pose, rotation=R, translation_mm=t)) <= MOVE_CHI2
