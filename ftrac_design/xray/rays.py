@@ -11,6 +11,7 @@ mm, image coordinates px (SPEC §3 pixel centres).
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 
@@ -100,6 +101,8 @@ def capsule_pixels(u0, v0, u1, v1, rad, clip: tuple[int, int, int, int] | None =
     return k, lo_v[k] + jv, lo_u[k] + ju
 
 
+# a search over n candidates asked for by every render of every refinement step: one answer per n
+@functools.lru_cache(maxsize=32)
 def lattice_generator(n: int) -> int:
     """Generator g of the rank-1 lattice ``{(k/n, k g/n mod 1)}`` of ``n`` points with the largest
     smallest spacing (periodic), ties to the smallest g; n = 25 gives g = 7, a square grid
