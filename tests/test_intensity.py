@@ -160,6 +160,10 @@ def test_refine_track_result_replaces_the_pose(features_2005, pose_2005):
     assert out.diagnostics.intensity.cost_end <= out.diagnostics.intensity.cost_start
     assert np.abs(out.pose.translation_mm - t).max() < 0.1 < np.abs(t0 - t).max()
     assert out.pose.covariance.shape == (6, 6) and out.pose.converged
+    # the cluster-robust covariance given out: on white Poisson noise, the pixel-level bound's
+    # (with the refinement's gain and spline background unknown) within the estimate's spread
+    bound = pixel_information(features_2005, R, t, imaging=ImagingModel(), nuisance=True, background_spline_px=12)
+    np.testing.assert_allclose(np.sqrt(np.diag(out.pose.covariance)) / bound.std, 1.0, atol=0.3)
     failed = Result(Pose(R0, t0, False, np.nan, None, {}, 0, "not found"), "dense-dark")
     assert refine_track_result(img.raw, features_2005, Camera(), failed) is failed
 
@@ -195,6 +199,7 @@ def test_refine_track_result_keeps_the_feature_pose_when_the_fit_leaves_its_cova
             return SimpleNamespace(
                 rotation=R, translation_mm=t + np.array([0.0, 0.0, dz_mm]), covariance=cov, converged=converged,
                 cost_start=10.0, cost_end=5.0, iterations=4, gain=1.0, roi=(0, 0, 10, 10), n_nuisance=7, message="",
+                robust_covariance=None,
             )  # fmt: skip
 
         return fake
@@ -447,3 +452,35 @@ def test_a_fit_is_stopped_at_the_first_step_that_leaves_where_its_answer_could_b
     out = refine_track_result(img.raw, features_2005, Camera(), tight)
     assert out.pose is tight.pose and not out.diagnostics.intensity.taken
     assert "left that pose's own covariance" in out.diagnostics.intensity.message
+
+
+def test_robust_covariance_is_the_sandwich_and_the_model_covariance_where_the_noise_is_white():
+    """One pixel a cluster: exactly H⁻¹ (Σ J_i J_iᵀ w_i² r_i²) H⁻¹ (the Huber–White form). Tiles
+    of 8 px over white noise: the model's σ² H⁻¹ within the estimate's own spread. Over a
+    residual correlated over a few pixels, as a model's missing blur or clutter leaves it, with
+    a Jacobian as smooth as a rendered fiducial's: several times the white-noise figure."""
+    from scipy.ndimage import gaussian_filter
+
+    from ftrac_design.intensity.refine import robust_covariance
+
+    rng = np.random.default_rng(5)
+    h, w = 160, 200
+    J = rng.normal(size=(6, h * w))
+    wt = rng.uniform(0.5, 2.0, h * w)
+    r = rng.normal(size=h * w) / np.sqrt(wt)
+    H = (J * wt) @ J.T
+    Hi = np.linalg.inv(H)
+    hc0 = Hi @ ((J * (wt * r) ** 2) @ J.T) @ Hi
+    assert np.allclose(robust_covariance(J, wt, r, (h, w), tile_px=1), hc0, rtol=1e-9, atol=0)
+    white = robust_covariance(J, wt, r, (h, w))
+    assert np.allclose(np.diag(white) / np.diag(Hi), 1.0, atol=0.2)
+
+    def smooth_field():
+        return gaussian_filter(rng.normal(size=(h, w)), 3.0).ravel()
+
+    Js = np.stack([smooth_field() for _ in range(6)])
+    rc = smooth_field()
+    Hs = np.linalg.inv(Js @ Js.T)
+    ones = np.ones(h * w)
+    model = Hs * float(rc @ rc) / (h * w)  # the white-noise model's σ² H⁻¹
+    assert np.all(np.diag(robust_covariance(Js, ones, rc, (h, w))) > 3 * np.diag(model))
