@@ -306,3 +306,44 @@ def test_the_rival_the_pixels_prefer_is_judged_first(monkeypatch):
     _pass_other_tests(monkeypatch, {40: -3.1})
     unconverged = _labelling(h[2], False, ALL_BALLS, ALL_ELLIPSES, 110.0)
     assert pipeline.acceptance.pixel_preferred(None, least, [unconverged], opts)[0] is least
+
+
+@pytest.mark.parametrize(
+    ("absent", "redo_curves", "revived"),
+    [
+        (["E1"], ALL_ELLIPSES[1:], False),
+        (["E1"], ALL_ELLIPSES, True),
+        (["L3"], ALL_ELLIPSES[:1], True),
+        (["L3", "E2"], ALL_ELLIPSES[:1] + ALL_LINES, False),
+    ],
+)
+def test_the_body_subtracted_redo_revives_a_labelling_only_with_the_ellipses_it_was_refused_for(
+    monkeypatch, absent, redo_curves, revived
+):
+    """A labelling refused for putting wire on bare background is refitted on the image with the
+    body subtracted, and that converges and passes every test: where the refusal named an
+    ellipse, the redo is the answer only if it found that ellipse's contour (the body's edge
+    had hidden it) — a wrong labelling puts the ellipses, the longest wires, on bare
+    background, and the subtraction adds no evidence of a wire the image never showed. A
+    straight wire alone, the faintest feature, need not show."""
+    _pass_other_tests(monkeypatch)
+    h = _hypotheses(1)[0]
+    first = _labelling(h, True, ALL_BALLS[:4], ALL_ELLIPSES[1:], 300.0)
+    first = replace(first, pose=replace(first.pose, converged=False, error=pipeline.acceptance.no_wire_there(absent)))
+    redone = _labelling(h, True, ALL_BALLS[:4], redo_curves, 290.0)
+    # the curves read as bare background at the refused pose only: the redo's pass (as E1
+    # did, at 1.2 noise units, on the image that led to this rule)
+    monkeypatch.setattr(
+        pipeline.acceptance,
+        "unshown_curves",
+        lambda scene, pose, opts, also=None: ([] if pose.converged else absent, {}),
+    )
+    monkeypatch.setattr(pipeline, "_with_body_subtracted", lambda g, scene, best, *a: (redone, scene))
+    scene = SimpleNamespace(features=SimpleNamespace(body=object(), ellipses=F.ellipses))
+    opts = TrackOptions()
+    diag = Diagnostics()
+    out, _ = pipeline._judged(None, scene, [first], [], diag, opts.finding, opts.labelling, opts.acceptance)
+    assert out.pose.converged is revived
+    assert bool(diag.body_subtracted) is revived
+    if not revived:
+        assert out.pose.error.startswith(pipeline.acceptance.NO_WIRE_THERE)

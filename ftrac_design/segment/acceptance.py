@@ -131,11 +131,15 @@ def faint_ridges(scene: Scene, pose: Pose, opts: AcceptanceOptions) -> tuple[set
     return set(sup), {fid for fid, c in sup.items() if c.ridge < _clearly_above_zero(scene, c, opts)}
 
 
+#: how the reason of a pose refused for wire on bare background (:func:`no_wire_there`) begins
+NO_WIRE_THERE = "identification not confirmed: the image shows no wire where the pose puts"
+
+
 def no_wire_there(absent: list[str]) -> str | None:
     """The reason a pose is refused for the curves ``absent`` it puts on bare background
     (:func:`wire_support`), or None when there are none."""
     if absent:
-        return f"identification not confirmed: the image shows no wire where the pose puts {', '.join(absent)}"
+        return f"{NO_WIRE_THERE} {', '.join(absent)}"
     return None
 
 

@@ -316,11 +316,33 @@ def _judged(
     if scene.features.body is not None and best.placed:
         redone = _with_body_subtracted(g, scene, best, labelling, find.ridge_min_snr)
         # kept whenever it converged: refitted with the predicted wires modelled under them,
-        # the balls there are the truer evidence (see :func:`_with_body_subtracted`)
-        if redone is not None:
+        # the balls there are the truer evidence (see :func:`_with_body_subtracted`) — but it
+        # does not lift a refusal for an ellipse on bare background (:func:`_revives_unshown`)
+        if redone is not None and not _revives_unshown(scene, best, redone[0], accept):
             unsubtracted, (best, scene) = scene, redone
             diag.body_subtracted = True
     return accept_best(scene, best, others + challengers, diag, accept, first, unsubtracted), scene
+
+
+def _revives_unshown(scene: Scene, best: Labelling, redone: Labelling, accept: AcceptanceOptions) -> bool:
+    """Whether ``redone``, ``best`` refitted on the image with the body subtracted, would revive
+    a labelling refused for putting an ellipse on bare background
+    (:func:`.acceptance.no_wire_there`) without a contour of that ellipse found there.
+
+    An ellipse is the design's longest wire: a wrong labelling puts the ellipses on bare
+    background (:func:`.acceptance.unshown_curves`), and a wire the image never showed is no
+    evidence the subtraction can add. A ftrac_2005 labelling of a round field (tuning seed
+    2142, image 195: four balls, one of them a burned-in crosshair's end, 136° off) was
+    refused for no wire where it put E1; refitted there it found no contour of E1, yet E1 read
+    1.2 noise units on the subtracted image and the pose passed every test, confidently wrong.
+    A straight wire is the faintest feature, and the body's limb and blur hide it: the same
+    seed's right labelling of a blurred image (9 balls and an ellipse) was refused for L3
+    alone and revived without L3's contour, and it is kept."""
+    if not str(best.pose.error or "").startswith(acceptance.NO_WIRE_THERE):
+        return False
+    absent, _ = acceptance.unshown_curves(scene, best.pose, accept)
+    ellipses = {c.id for c in scene.features.ellipses}
+    return not (set(absent) & ellipses) <= set(redone.obs.ellipses)
 
 
 def _challenged(
