@@ -39,6 +39,8 @@ import cv2
 import numpy as np
 from _common import view_prior
 from independent import render_independent
+from independent.fiducial import build_digest, cached_build
+from independent.render import renderer_digest
 from tqdm import tqdm
 
 from ftrac_design.design import load_design
@@ -80,14 +82,18 @@ def physics(seed: int) -> dict:
     }
 
 
-def _reusable(png: Path, js: Path, R: np.ndarray, t: np.ndarray, img_seed: int, dose: float) -> bool:
-    """Whether a saved image was rendered at this pose, seed and dose."""
+def reusable(png: Path, js: Path, R: np.ndarray, t: np.ndarray, img_seed: int, dose: float, build: str) -> bool:
+    """Whether a saved image was rendered at this pose, seed and dose, by this renderer, from
+    the build of digest ``build`` (:func:`independent.fiducial.build_digest`): an image of parts
+    the package no longer builds, or drawn by another version of the renderer, is drawn again."""
     if not (png.is_file() and js.is_file()):
         return False
     try:
         tr = json.loads(js.read_text(encoding="utf-8"))
         return (
-            tr["seed"] == img_seed
+            tr.get("build_sha256") == build
+            and tr.get("renderer_sha256") == renderer_digest()
+            and tr["seed"] == img_seed
             and tr["dose_behind_patient"] == dose
             and np.allclose(tr["rotation"], R)
             and np.allclose(tr["translation_mm"], t)
@@ -102,12 +108,13 @@ def image_set(preset: str, n: int, seed: int, patient: bool, dose: float, render
     feats = compute_features(design)
     R, t = Workspace().sample(n, feats.nominal_beam_direction, np.random.default_rng(seed))
     folder = OUT / preset / ("patient" if patient else "clean")
+    build = build_digest(cached_build(preset))
     folder.mkdir(parents=True, exist_ok=True)
     out, times = [], []
     for k in tqdm(range(n), desc=f"render {preset} {'patient' if patient else 'clean'}", leave=False):
         png, js = folder / f"img_{k:03d}.png", folder / f"img_{k:03d}.json"
         img_seed = seed * 100003 + k
-        if render or not _reusable(png, js, R[k], t[k], img_seed, dose):
+        if render or not reusable(png, js, R[k], t[k], img_seed, dose, build):
             t0 = time.perf_counter()
             counts, truth = render_independent(
                 preset,

@@ -30,6 +30,7 @@ rounds is what it costs when the other jobs leave the machine alone at least onc
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import sys
 import tempfile
@@ -139,11 +140,13 @@ def independent_sweep(name: str, R0: np.ndarray, t0: np.ndarray, n: int, cam: Ca
     scatter, compound-Poisson noise), the pelvis fixed to the fiducial for the whole run; kept in
     outputs/independent_run/ for the next run."""
     from independent import render_independent
-    from independent.fiducial import load_scene
-    from independent.render import patient_placement
+    from independent.fiducial import build_digest, cached_build, load_scene
+    from independent.render import patient_placement, renderer_digest
 
     R, t = carm_sweep(R0, t0, n)
-    cache = Path(__file__).resolve().parents[1] / "outputs" / "independent_run" / f"{name}_{n}_{seed}.npy"
+    # a run drawn from another build or by another version of the renderer is drawn again
+    drawn = hashlib.sha256((build_digest(cached_build(name)) + renderer_digest()).encode()).hexdigest()[:12]
+    cache = Path(__file__).resolve().parents[1] / "outputs" / "independent_run" / f"{name}_{n}_{seed}_{drawn}.npy"
     if cache.is_file():
         raw = np.load(cache)
     else:

@@ -9,6 +9,8 @@ energy is the Kramers closed form unfiltered and in the expected range filtered.
 
 from __future__ import annotations
 
+import hashlib
+import json
 import math
 import sys
 from dataclasses import replace
@@ -26,9 +28,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 from independent import RenderSettings, render_independent  # noqa: E402
 from independent.attenuation import linear_attenuation  # noqa: E402
 from independent.detector import DetectorModel  # noqa: E402
-from independent.fiducial import CACHE_ENV, assemble, ball_mesh, cylinder_mesh, load_scene  # noqa: E402
+from independent.fiducial import (  # noqa: E402
+    CACHE_ENV,
+    assemble,
+    ball_mesh,
+    build_digest,
+    cylinder_mesh,
+    load_scene,
+)
 from independent.raycast import material_chords  # noqa: E402
+from independent.render import renderer_digest  # noqa: E402
 from independent.spectrum import kramers_bins, kramers_mean_energy, tungsten_spectrum  # noqa: E402
+from independent_check import reusable  # noqa: E402
 
 from ftrac_design.features import Features  # noqa: E402
 from ftrac_design.pose import Camera  # noqa: E402
@@ -231,3 +242,36 @@ def test_same_seed_same_image(build_cache):
     assert a.dtype == np.uint16 and a.shape == (256, 256)
     assert np.array_equal(a, b)
     assert not np.array_equal(a, c)
+
+
+def test_a_saved_image_names_the_build_and_the_renderer_it_was_drawn_with(build_cache):
+    """The truth of an image holds the digest of the build it was drawn from and of the
+    renderer's source: a saved image of parts the package no longer builds is not reused."""
+    scene = load_scene(PRESET)
+    digest = build_digest(scene.build_dir)
+    h = hashlib.sha256()
+    for name in ("fiducial.stl", "features.json"):
+        h.update((scene.build_dir / name).read_bytes())
+    assert digest == h.hexdigest()
+    R, t = _ap_pose(scene.features)
+    img, truth = render_independent(PRESET, R, t, CAM, patient=False, seed=5, settings=SMALL, noise=False)
+    assert truth["build_sha256"] == digest and truth["renderer_sha256"] == renderer_digest()
+    folder = scene.build_dir.parent
+    png, js = folder / "img.png", folder / "img.json"
+    png.write_bytes(b"")
+    js.write_text(json.dumps(truth))
+    assert reusable(png, js, R, t, 5, truth["dose_behind_patient"], digest)
+    assert not reusable(png, js, R, t, 5, truth["dose_behind_patient"], "0" * 64)
+    js.write_text(json.dumps({**truth, "renderer_sha256": "0" * 64}))
+    assert not reusable(png, js, R, t, 5, truth["dose_behind_patient"], digest)
+
+
+def test_the_build_cache_is_keyed_on_the_package_code(build_cache, monkeypatch):
+    """A change to the package's code moves the build to another folder (built again), so a
+    CAD change is never hidden by an old build of the same design file."""
+    import independent.fiducial as fid
+
+    here = fid.build_path(PRESET)
+    assert here.parent.name == fid.design_path(PRESET).stem
+    monkeypatch.setattr(fid, "code_fingerprint", lambda: "another")
+    assert fid.build_path(PRESET) != here and fid.build_path(PRESET).parent == here.parent

@@ -15,7 +15,9 @@ Polygonal sections are scaled to the circle's area, so line integrals through th
 right on average; the facet count keeps the radial gap to the true surface below
 :data:`MAX_GAP_MM`. Every object is a
 separate mesh (see :class:`FiducialScene`). Builds are cached under ``outputs/independent_cache/<preset>/<sha>/``,
-keyed by the design file's sha256, because CadQuery takes seconds per build.
+because CadQuery takes seconds per build: keyed by the design file and the package's code, so a
+build of parts the package no longer makes is never rendered (the build is byte-for-byte the same
+for the same code, and :func:`build_digest` names what a render read).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 import trimesh
+from _common import code_fingerprint
 
 from ftrac_design.design.presets import resolve_design
 from ftrac_design.features import Features, load_features
@@ -84,6 +87,15 @@ def design_path(preset: str) -> Path:
     return resolve_design(preset)
 
 
+def build_path(preset: str) -> Path:
+    """Where :func:`cached_build` keeps the build of ``preset`` (a preset's name or a design
+    TOML path) as the package's code is now: ``<cache>/<design name>/<sha256[:16]>/``, the
+    sha256 of the design file and :func:`_common.code_fingerprint`."""
+    design = design_path(preset)
+    sha = hashlib.sha256(design.read_bytes() + code_fingerprint().encode()).hexdigest()
+    return Path(os.environ.get(CACHE_ENV) or CACHE) / design.stem / sha[:16]
+
+
 def cached_build(preset: str) -> Path:
     """The directory of a ``ftrac-design build`` of ``preset``, built on first use.
 
@@ -95,12 +107,11 @@ def cached_build(preset: str) -> Path:
     Returns
     -------
     pathlib.Path
-        ``outputs/independent_cache/<name>/<sha256[:16]>/`` (or under ``$FTRAC_INDEPENDENT_CACHE``)
+        :func:`build_path` (under ``outputs/independent_cache/`` or ``$FTRAC_INDEPENDENT_CACHE``),
         holding ``fiducial.stl`` and ``features.json``.
     """
+    out = build_path(preset)
     design = design_path(preset)
-    sha = hashlib.sha256(design.read_bytes()).hexdigest()
-    out = Path(os.environ.get(CACHE_ENV) or CACHE) / design.stem / sha[:16]
     if (out / "fiducial.stl").is_file() and (out / "features.json").is_file():
         return out
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -110,6 +121,16 @@ def cached_build(preset: str) -> Path:
     if res.returncode != 0:
         raise RuntimeError(f"ftrac-design build {design.name} failed:\n{res.stdout}\n{res.stderr}")
     return out
+
+
+def build_digest(build_dir: Path) -> str:
+    """The sha256 (hex) of what a render reads from the build in ``build_dir``: its
+    ``fiducial.stl`` and ``features.json``, in that order. An image rendered from a build
+    of another digest shows other parts."""
+    h = hashlib.sha256()
+    for name in ("fiducial.stl", "features.json"):
+        h.update((Path(build_dir) / name).read_bytes())
+    return h.hexdigest()
 
 
 def _sphere_subdivisions(radius: float) -> int:

@@ -27,6 +27,7 @@ import hashlib
 import math
 from dataclasses import asdict, dataclass, field
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -37,7 +38,7 @@ from ftrac_design.pose import Camera
 from .attenuation import linear_attenuation, mass_attenuation
 from .detector import DetectorModel, auto_gain, blur, draw_counts, otf, read_out, scatter_field
 from .drr import line_integrals, ray_directions
-from .fiducial import FiducialScene, design_path, load_scene
+from .fiducial import FiducialScene, build_digest, design_path, load_scene
 from .phantom import hu_to_basis, pelvis_phantom
 from .raycast import material_chords
 from .spectrum import Spectrum, tungsten_spectrum
@@ -364,6 +365,17 @@ def _add_fiducial(
     return cast
 
 
+@lru_cache(maxsize=1)
+def renderer_digest() -> str:
+    """The sha256 (hex) of this renderer's source (every ``.py`` file of its package, by
+    name): an image saved by another version of it is not this renderer's image."""
+    h = hashlib.sha256()
+    for f in sorted(Path(__file__).resolve().parent.glob("*.py")):
+        h.update(f.name.encode())
+        h.update(f.read_bytes())
+    return h.hexdigest()
+
+
 def _truth(
     preset,
     scene,
@@ -395,6 +407,8 @@ def _truth(
         "renderer": "benchmarks/independent",
         "preset": f.name,
         "design_sha256": hashlib.sha256(design.read_bytes()).hexdigest(),
+        "build_sha256": None if scene.build_dir is None else build_digest(scene.build_dir),
+        "renderer_sha256": renderer_digest(),
         "rotation": R.tolist(),
         "translation_mm": t.tolist(),
         "camera": camera.to_dict(),
