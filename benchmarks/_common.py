@@ -28,19 +28,24 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
-@functools.cache
-def code_fingerprint() -> str:
-    """12 hex digits of the sha256 of the package's code and shipped data (every file under
-    ``ftrac_design/`` but compiled bytecode): results cached under it are remade when any of
-    it changes, rather than reused from a tracker that no longer exists."""
+def folder_digest(folder: Path) -> str:
+    """The sha256 (hex) of every file under ``folder`` but compiled bytecode, each by its
+    path relative to ``folder`` and its bytes, in sorted order."""
     import hashlib
 
     h = hashlib.sha256()
-    pkg = ROOT / "ftrac_design"
-    for f in sorted(p for p in pkg.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
-        h.update(str(f.relative_to(pkg)).encode())
+    for f in sorted(p for p in folder.rglob("*") if p.is_file() and "__pycache__" not in p.parts):
+        h.update(str(f.relative_to(folder)).encode())
         h.update(f.read_bytes())
-    return h.hexdigest()[:12]
+    return h.hexdigest()
+
+
+@functools.cache
+def code_fingerprint() -> str:
+    """12 hex digits of the sha256 of the package's code and shipped data (every file under
+    ``ftrac_design/`` but compiled bytecode, :func:`folder_digest`): results cached under it
+    are remade when any of it changes, rather than reused from a tracker that no longer exists."""
+    return folder_digest(ROOT / "ftrac_design")[:12]
 
 
 def add_view_prior_argument(ap, also: bool = False) -> None:

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from _common import folder_digest
 from scipy.ndimage import map_coordinates
 
 from ftrac_design.pose import Camera
@@ -367,13 +368,9 @@ def _add_fiducial(
 
 @lru_cache(maxsize=1)
 def renderer_digest() -> str:
-    """The sha256 (hex) of this renderer's source (every ``.py`` file of its package, by
-    name): an image saved by another version of it is not this renderer's image."""
-    h = hashlib.sha256()
-    for f in sorted(Path(__file__).resolve().parent.glob("*.py")):
-        h.update(f.name.encode())
-        h.update(f.read_bytes())
-    return h.hexdigest()
+    """The sha256 (hex) of this renderer's source (:func:`_common.folder_digest` of its
+    package): an image saved by another version of it is not this renderer's image."""
+    return folder_digest(Path(__file__).resolve().parent)
 
 
 def _truth(
