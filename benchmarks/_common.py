@@ -155,3 +155,21 @@ def save_plot(fig, name: str) -> str:
     fig.savefig(path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return str(path.relative_to(ROOT))
+
+
+def finish_condition_bars(fig, axes, conds: list[str], title: str, path: Path, ncol: int) -> Path:
+    """Finish a figure of per-preset panels of horizontal bars, one bar per condition (bar ``y``
+    of each panel is ``conds[y]``): the conditions top to bottom on the shared y axis (turned
+    once: panels that share it turn together), the legend of the first panel above it in
+    ``ncol`` columns, the ``title``; written to ``path`` (PNG) and returned."""
+    import matplotlib.pyplot as plt
+
+    axes[0].invert_yaxis()
+    axes[0].set_yticks(range(len(conds)), conds, fontsize=8)
+    axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncol=ncol, fontsize=7, frameon=False)
+    fig.suptitle(title, y=1.0, fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100, bbox_inches="tight")
+    plt.close(fig)
+    return path

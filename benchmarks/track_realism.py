@@ -41,7 +41,7 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-import _common  # noqa: F401  (puts the checkout first on sys.path)
+import _common
 import numpy as np
 from scipy.stats import binomtest
 from tqdm import tqdm
@@ -252,15 +252,8 @@ def plot(rows: list[dict], path: Path) -> Path:
         ax.set_title(f"{preset} ({len(rows) // max(len(presets) * len(conds), 1)} images each)", fontsize=9)
         ax.set_xlim(0, 135)
         ax.set_xlabel("share of images (%)")
-        ax.invert_yaxis()
-    axes[0].set_yticks(range(len(conds)), conds, fontsize=8)
-    axes[0].legend(loc="lower left", bbox_to_anchor=(0.0, 1.06), ncol=4, fontsize=7, frameon=False)
-    fig.suptitle("track with default options on images as C-arms hand them over (held-out seed)", y=1.0, fontsize=10)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    title = "track with default options on images as C-arms hand them over (held-out seed)"
+    return _common.finish_condition_bars(fig, axes, conds, title, path, ncol=4)
 
 
 def main() -> None:
