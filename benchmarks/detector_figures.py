@@ -34,6 +34,7 @@ import _common
 import numpy as np
 import track_realism as tr
 
+from ftrac_design.pose import Camera
 from ftrac_design.segment import learned
 from ftrac_design.segment.conditioning import condition
 from ftrac_design.segment.detection import detect, scales
@@ -41,7 +42,6 @@ from ftrac_design.segment.identify import curve_samples, project
 from ftrac_design.segment.image import NoiseField
 from ftrac_design.segment.options import TrackOptions
 from ftrac_design.xray.localization import bead_sigma_mm
-from ftrac_design.xray.scenario import realistic_image
 
 ROOT = Path(__file__).resolve().parents[1]
 TOL_PX = 1.5
@@ -72,11 +72,13 @@ def _ball_figures(found: np.ndarray, truth: np.ndarray) -> tuple[int, int, int, 
 def one(task) -> dict:
     preset, cond, k, seed, n = task
     features = tr.preset_features(preset)
-    img, R, t, cam, _ = tr.make_image(preset, cond, k, seed, n)
-    pol, form = "dense-dark", "linear"
-    if cond != "clean":
-        # the same image again, for the polarity and formation its chain drew
-        img, info = realistic_image(features, R, t, cam, cond, seed * 100_000 + k)
+    if cond == "clean":
+        img, R, t, cam, _ = tr.make_image(preset, cond, k, seed, n)
+        pol, form = "dense-dark", "linear"
+    else:
+        # drawn with what its chain chose: the polarity and formation
+        img, info, R, t = tr.realism_image(preset, cond, k, seed, n)
+        cam = Camera()
         pol, form = info["polarity"], info["formation"]
     truth, wire_pts, _ = _truth(features, R, t, cam, img.shape)
     opts = TrackOptions().finding

@@ -47,11 +47,11 @@ from pathlib import Path
 import _common
 import cv2
 import numpy as np
+import track_realism as tr
 from tqdm import tqdm
 
 from ftrac_design.pose import Camera
-from ftrac_design.pose.simulate import Workspace
-from ftrac_design.xray.scenario import CONDITIONS, realistic_image
+from ftrac_design.xray.scenario import CONDITIONS
 
 #: the images' bins by balls readable: too few for a P3P start and one check, too few for the
 #: tracker's acceptance with wires (5), enough
@@ -132,26 +132,14 @@ def clutter_z(
     return out
 
 
-_FEATURES: dict = {}
-
-
-def _features(preset: str):
-    if preset not in _FEATURES:
-        from ftrac_design.design import load_design
-        from ftrac_design.features import compute_features
-
-        _FEATURES[preset] = compute_features(load_design(preset))
-    return _FEATURES[preset]
-
-
 def one(task: tuple) -> dict:
-    """Image ``k`` of a preset and condition as `track_realism.py` draws it: each ball's z."""
+    """Image ``k`` of a preset and condition as `track_realism.py` draws it: each ball's z,
+    read with the formation and polarity its chain drew (not as the tracker reads them, so the
+    count does not depend on the tracker)."""
     preset, condition, k, seed, n = task
-    f = _features(preset)
-    R, t = Workspace().sample(n, f.nominal_beam_direction, np.random.default_rng(seed))
-    R, t = R[k], t[k]
+    f = tr.preset_features(preset)
+    img, info, R, t = tr.realism_image(preset, condition, k, seed, n)
     cam = Camera()
-    img, info = realistic_image(f, R, t, cam, condition, seed * 100_000 + k)
     X = f.point_centers() @ R.T + t
     uv = cam.project(X)
     pix = float(np.mean(cam.pixel_size_mm))

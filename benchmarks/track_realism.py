@@ -82,34 +82,46 @@ def distortion_model(shape: tuple[int, int], rng: np.random.Generator):
     return combine(pin, s)
 
 
+def pose(preset: str, k: int, seed: int, n: int) -> tuple[np.ndarray, np.ndarray, int]:
+    """Workspace pose ``k`` of the ``n`` drawn from ``seed`` (R, t: F → X, mm) and the seed its
+    image is drawn with: every condition's image ``k`` shows the fiducial at the same pose."""
+    features = preset_features(preset)
+    R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
+    return R[k], t[k], seed * 100_000 + k
+
+
+def realism_image(preset: str, condition: str, k: int, seed: int, n: int):
+    """(image, info, R, t) of image ``k`` of a condition :func:`~ftrac_design.xray.scenario.realistic_image`
+    draws (one of its ``CONDITIONS``): the stored image and what the chain drew for it
+    (formation, polarity, blur, field mask, ...)."""
+    R, t, img_seed = pose(preset, k, seed, n)
+    img, info = realistic_image(preset_features(preset), R, t, Camera(), condition, img_seed)
+    return img, info, R, t
+
+
 def make_image(preset: str, condition: str, k: int, seed: int, n: int, cache: Path | None = None):
     """(image, R, t, camera, distortion model or None) of image ``k`` of a condition; kept in
     ``cache`` (a folder) when given, so a second run tracks the same images without making them."""
     if cache is not None:
         f = cache / f"{preset}_{condition}_{seed}_{n}_{k}.npy"
         if f.is_file() and not condition.startswith("distortion"):
-            features = preset_features(preset)
-            R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
-            return np.load(f), R[k], t[k], Camera(), None
+            R, t, _ = pose(preset, k, seed, n)
+            return np.load(f), R, t, Camera(), None
         out = make_image(preset, condition, k, seed, n)
         if not condition.startswith("distortion"):
             cache.mkdir(parents=True, exist_ok=True)
             np.save(f, out[0])
         return out
-    features = preset_features(preset)
-    R, t = Workspace().sample(n, features.nominal_beam_direction, np.random.default_rng(seed))
-    R, t = R[k], t[k]
     cam = Camera()
-    img_seed = seed * 100_000 + k
     if condition == "clean":
-        rad = render(features, R, t, cam, rng=np.random.default_rng(img_seed))
+        R, t, img_seed = pose(preset, k, seed, n)
+        rad = render(preset_features(preset), R, t, cam, rng=np.random.default_rng(img_seed))
         return rad.raw, R, t, cam, None
-    if condition.startswith("distortion"):
-        img, _ = realistic_image(features, R, t, cam, "raw", img_seed)
-        model = distortion_model(img.shape, np.random.default_rng(img_seed + 7))
-        warped = distort_image(img.astype(np.float32), model)
-        return warped, R, t, cam, model
-    img, _ = realistic_image(features, R, t, cam, condition, img_seed)
+    raw = condition.startswith("distortion")
+    img, _, R, t = realism_image(preset, "raw" if raw else condition, k, seed, n)
+    if raw:
+        model = distortion_model(img.shape, np.random.default_rng(pose(preset, k, seed, n)[2] + 7))
+        return distort_image(img.astype(np.float32), model), R, t, cam, model
     return img, R, t, cam, None
 
 
