@@ -141,34 +141,46 @@ def _strays_off_the_crossings(seed: int = 5):
 
 
 @pytest.mark.parametrize(
-    ("faint", "all_balls", "refused"),
+    ("faint", "unused", "refused"),
     [
-        (set(), True, False),
-        ({"L2"}, True, False),
-        ({"L1", "L2"}, True, True),
-        ({"E1"}, True, True),
-        ({"E1", "E2"}, True, True),
-        (set(), False, True),
+        (set(), 0, False),
+        ({"L2"}, 0, False),
+        ({"L1", "L2"}, 0, True),
+        ({"E1"}, 0, True),
+        ({"E1", "E2"}, 0, True),
+        (set(), 3, False),
+        (set(), 4, True),
+        ({"L2"}, 1, True),
+        ({"E1"}, 3, True),
     ],
 )
-def test_a_pose_on_all_its_balls_whose_wires_show_plainly_is_not_refused_for_strays(
-    monkeypatch, faint, all_balls, refused
-):
-    """Strong blobs among the balls that the pose does not explain refuse a pose unless it
-    uses all its balls and the image's ridges alone show its wires plainly — every ellipse
-    and every straight wire but one: then its fiducial is all there (over strong anatomy,
-    among seeds) and the blobs are another object's. Two faint wires, a faint ellipse, or a
-    ball left unused (a near-mirror puts its wires on the true ones and leaves true balls
-    among its own) refuse it."""
+def test_a_pose_that_shows_its_fiducial_whole_is_not_refused_for_strays(monkeypatch, faint, unused, refused):
+    """Strong blobs among the balls that the pose does not explain refuse a pose unless the
+    image's ridges alone show its wires plainly and it uses enough of its balls: all of them
+    with every ellipse and every straight wire but one plain, or at least two thirds of them
+    (6 of ftrac_2005's 9) with every wire plain. Then its fiducial is there (over strong
+    anatomy, among seeds) and the blobs are another object's. Two faint wires, a faint
+    ellipse, a faint wire with a ball unused, or fewer balls (a near-mirror puts its wires on
+    the true ones and leaves true balls among its own: four, seed 2131) refuse it."""
     _ridges(monkeypatch, faint)
     off, _ = _strays_off_the_crossings()
     assert len(off) > OPTS.max_stray_balls
     scene, lab, _ = _scene_and_labelling(off, 15.0, F2005, seed=5)
-    if not all_balls:
-        left = F2005.points[0].id
-        lab.match.pop(left)
-        lab.obs.points.pop(left)
+    for q in F2005.points[:unused]:
+        lab.match.pop(q.id)
+        lab.obs.points.pop(q.id)
     assert (acceptance.stray_balls(scene, lab, OPTS) is not None) == refused
+
+
+def test_the_share_of_balls_a_whole_fiducial_needs_is_a_setting(monkeypatch):
+    _ridges(monkeypatch, set())
+    off, _ = _strays_off_the_crossings()
+    scene, lab, _ = _scene_and_labelling(off, 15.0, F2005, seed=5)
+    for q in F2005.points[:3]:
+        lab.match.pop(q.id)
+        lab.obs.points.pop(q.id)
+    assert acceptance.stray_balls(scene, lab, OPTS) is None
+    assert acceptance.stray_balls(scene, lab, TrackOptions(plain_wires_ball_share=1.0).acceptance) is not None
 
 
 def test_blobs_where_two_of_the_poses_wires_cross_are_explained_by_it(monkeypatch):

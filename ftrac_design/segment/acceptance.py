@@ -619,16 +619,19 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     lattice, and over anatomy a right ftrac_mini pose (balls of 9 σ) had five such blobs in
     its small hull (seed 21); right nine_bead poses there had at most one.
 
-    A wire design's pose that uses every one of its balls and whose wires the image's ridges
-    show plainly (:func:`faint_beside_plain`: every ellipse, and every straight wire but one) is
-    not refused so: its fiducial is all there, so the blobs among its balls are another
-    object's — another phantom's balls have no wires between them, and the rows of a lattice
-    taken for straight wires leave the ellipses on bare plate and the lattice's balls unused.
-    All its balls, for a near-mirror of the fiducial puts its wires on the true wires and
-    leaves the true balls it does not use among its own: ftrac_2005 152.7° off on four balls,
-    every wire plain (seed 2131, strong anatomy 6). Two right ftrac_2005 poses on all nine
-    balls had been refused for such blobs, every wire plain: over strong anatomy (seed 2126)
-    and among brachytherapy seeds, eight seeds counted as stray (seed 2131)."""
+    A wire design's pose that shows its fiducial whole (:func:`_all_there`: the image's ridges
+    alone show every ellipse and every straight wire but one, :func:`faint_beside_plain`, and
+    it uses all its balls; or they show every wire and it uses ``opts.plain_wires_ball_share``
+    of its balls) is not refused so: its fiducial is there, so the blobs among its balls are
+    another object's — another phantom's balls have no wires between them, and the rows of a
+    lattice taken for straight wires leave the ellipses on bare plate and the lattice's balls
+    unused. Most of its balls, for a near-mirror of the fiducial puts its wires on the true
+    wires and leaves the true balls it does not use among its own: ftrac_2005 152.7° off on
+    four balls, every wire plain (seed 2131, strong anatomy 6). Two right ftrac_2005 poses on
+    all nine balls had been refused for such blobs, every wire plain: over strong anatomy
+    (seed 2126) and among brachytherapy seeds, eight seeds counted as stray (seed 2131); and
+    eleven on six to eight balls, every wire plain, over the display chain, a round field,
+    blades, fluoroscopy dose and strong anatomy (seeds 2142 and 2144)."""
     beads = scene.beads
     used = _used_beads(lab)
     if beads is None or len(used) < 3 or not scene.features.points:
@@ -657,12 +660,23 @@ def stray_balls(scene: Scene, lab: Labelling, opts: AcceptanceOptions) -> str | 
     if stray.sum() > opts.max_stray_balls and (f.lines or f.ellipses):
         stray[stray] = ~at_wire_crossings(scene, p, cand[stray])
     n = int(stray.sum())
-    if n <= opts.max_stray_balls or (len(used) == len(f.points) and faint_beside_plain(scene, p, opts) is not None):
+    if n <= opts.max_stray_balls or _all_there(scene, p, len(used), opts):
         return None
     return (
         f"identification not confirmed: {n} blobs as strong as the fiducial's balls lie among them and the pose "
         f"explains none of them (at most {opts.max_stray_balls}): another phantom, or a lattice of balls"
     )
+
+
+def _all_there(scene: Scene, pose: Pose, n_used: int, opts: AcceptanceOptions) -> bool:
+    """Whether a wire design's pose shows its fiducial whole: its wires plain on the image's
+    ridges alone (:func:`faint_beside_plain`) and on all its balls (one straight wire may read
+    faint), or every wire plain and at least ``opts.plain_wires_ball_share`` of its balls."""
+    plain = faint_beside_plain(scene, pose, opts)
+    if plain is None:
+        return False
+    n = len(scene.features.points)
+    return n_used == n or (not plain and n_used >= opts.plain_wires_ball_share * n)
 
 
 def at_wire_crossings(scene: Scene, pose: Pose, uv: np.ndarray) -> np.ndarray:

@@ -304,6 +304,10 @@ class TrackOptions:
     #: (:func:`~.acceptance.stray_balls`)
     stray_ball_fraction: float = 0.7
     max_stray_balls: int = 3
+    #: a pose whose every wire the image's ridges alone show plainly and that uses at least
+    #: this share of the design's balls is not refused for such blobs (all its balls with one
+    #: straight wire faint): its fiducial is there, the blobs another object's
+    plain_wires_ball_share: float = 2 / 3
     #: a ball the pose does not use, clear of the others, whose blob (a response at least
     #: ``stray_ball_fraction`` of the used balls' median) the image shows more than
     #: ``displaced_ball_px`` and less than two radii + 1 px from where the pose puts it, and
@@ -501,6 +505,7 @@ class AcceptanceOptions:
     ball_size_fraction: float
     stray_ball_fraction: float
     max_stray_balls: int
+    plain_wires_ball_share: float
     displaced_ball_px: float
     max_displaced_balls: int
     min_redundancy: int
